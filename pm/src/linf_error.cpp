@@ -1,0 +1,161 @@
+// Exact L-infinity error of grid-aligned triangles: rasterised samples plus grid-edge crossings.
+#include "terralod/pm/linf_error.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <utility>
+
+namespace terralod::pm {
+namespace {
+
+inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
+  assert(b > 0);
+  std::int64_t q = a / b;
+  return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+
+}  // namespace
+
+double LInfError::surface_height(double col, double row) const {
+  const int W = hf_->width(), H = hf_->height();
+  int i = std::clamp(int(std::floor(col)), 0, W - 2);
+  int j = std::clamp(int(std::floor(row)), 0, H - 2);
+  double fx = col - i, fy = row - j;
+  double z00 = hf_->at(i, j), z10 = hf_->at(i + 1, j), z01 = hf_->at(i, j + 1), z11 = hf_->at(i + 1, j + 1);
+  // Cell split along (i,j)-(i+1,j+1): lower-right triangle where fx >= fy.
+  if (fx >= fy) return z00 + fx * (z10 - z00) + fy * (z11 - z10);
+  return z00 + fy * (z01 - z00) + fx * (z11 - z01);
+}
+
+double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
+  const Heightfield& hf = *hf_;
+  const double zp = hf.at(p.x, p.y), zq = hf.at(q.x, q.y);
+  double worst = 0.0;
+  // Crossings with the vertical grid lines x = i (and samples on the segment).
+  // With the segment oriented so that D = qx - px > 0, the crossing at x = i has
+  // y = (py*D + (i-px)*(qy-py)) / D; heights are compared multiplied by D (exact for integers).
+  auto vertical = [&](GridPoint a, GridPoint b, double za, double zb) {
+    const std::int64_t D = b.x - a.x;
+    if (D <= 0) return;
+    const std::int64_t dy = b.y - a.y, qs = floor_div(dy, D), rs = dy - qs * D;
+    std::int64_t j = a.y, r = 0;  // Y = a.y * D + t * dy = j * D + r with 0 <= r < D
+    for (std::int64_t t = 1; t < D; ++t) {
+      j += qs, r += rs;
+      if (r >= D) r -= D, ++j;
+      const int i = int(a.x + t);
+      double orig = hf.at(i, int(j)) * double(D - r);
+      if (r) orig += hf.at(i, int(j) + 1) * double(r);
+      const double lin = za * double(D - t) + zb * double(t);
+      worst = std::max(worst, std::abs(lin - orig) / double(D));
+    }
+  };
+  auto horizontal = [&](GridPoint a, GridPoint b, double za, double zb) {
+    const std::int64_t D = b.y - a.y;
+    if (D <= 0) return;
+    const std::int64_t dx = b.x - a.x, qs = floor_div(dx, D), rs = dx - qs * D;
+    std::int64_t i = a.x, r = 0;
+    for (std::int64_t t = 1; t < D; ++t) {
+      i += qs, r += rs;
+      if (r >= D) r -= D, ++i;
+      const int j = int(a.y + t);
+      double orig = hf.at(int(i), j) * double(D - r);
+      if (r) orig += hf.at(int(i) + 1, j) * double(r);
+      const double lin = za * double(D - t) + zb * double(t);
+      worst = std::max(worst, std::abs(lin - orig) / double(D));
+    }
+  };
+  // Diagonal lines x - y = k, the cells' diagonals from (i,j) to (i+1,j+1).
+  auto diagonal = [&](GridPoint a, GridPoint b, double za, double zb) {
+    const std::int64_t u0 = a.x - a.y, D = std::int64_t(b.x - b.y) - u0;
+    if (D <= 0) return;
+    const std::int64_t dx = b.x - a.x, qs = floor_div(dx, D), rs = dx - qs * D;
+    std::int64_t i = a.x, r = 0;
+    for (std::int64_t t = 1; t < D; ++t) {
+      i += qs, r += rs;
+      if (r >= D) r -= D, ++i;
+      const std::int64_t k = u0 + t;
+      double orig = hf.at(int(i), int(i - k)) * double(D - r);
+      if (r) orig += hf.at(int(i) + 1, int(i + 1 - k)) * double(r);
+      const double lin = za * double(D - t) + zb * double(t);
+      worst = std::max(worst, std::abs(lin - orig) / double(D));
+    }
+  };
+  if (q.x >= p.x) vertical(p, q, zp, zq); else vertical(q, p, zq, zp);
+  if (worst > cutoff) return worst;
+  if (q.y >= p.y) horizontal(p, q, zp, zq); else horizontal(q, p, zq, zp);
+  if (worst > cutoff) return worst;
+  if ((q.x - q.y) >= (p.x - p.y)) diagonal(p, q, zp, zq); else diagonal(q, p, zq, zp);
+  return worst;
+}
+
+double LInfError::samples_in_triangle(GridPoint a, GridPoint b, GridPoint c, double cutoff) const {
+  const Heightfield& hf = *hf_;
+  std::int64_t area2 = orient2d(a, b, c);
+  if (area2 < 0) std::swap(b, c), area2 = -area2;
+  const double za = hf.at(a.x, a.y), zb = hf.at(b.x, b.y), zc = hf.at(c.x, c.y);
+  // Edge functions E_k(x,y) = A_k x + B_k y + C_k, each >= 0 inside; E_a is opposite corner a.
+  // Barycentric weight of corner k is E_k / area2.
+  const GridPoint P[3] = {a, b, c};
+  std::int64_t A[3], B[3], C[3];
+  for (int k = 0; k < 3; ++k) {
+    GridPoint s = P[(k + 1) % 3], e = P[(k + 2) % 3];
+    A[k] = -(std::int64_t(e.y) - s.y);
+    B[k] = std::int64_t(e.x) - s.x;
+    C[k] = -(A[k] * s.x + B[k] * s.y);
+  }
+  const double Z[3] = {za, zb, zc};
+  const double sx = double(A[0]) * Z[0] + double(A[1]) * Z[1] + double(A[2]) * Z[2];
+  const double W = double(area2);
+  const double limit = cutoff >= kNoCutoff ? kNoCutoff : cutoff * W;
+  const int y0 = std::min({a.y, b.y, c.y}), y1 = std::max({a.y, b.y, c.y});
+  const int width = hf.width();
+  const double* zrow0 = hf.samples().data();
+  double hi = 0.0, lo = 0.0;  // max and min of numerator(x) - W z, numerator space
+  // Row spans from the edge functions. The bound -Cy/A is a quotient of integers below 2^31,
+  // so its double is correctly rounded and, being at least 1/|A| away from any integer it is
+  // not equal to, floor/ceil of the double equal floor/ceil of the exact quotient.
+  const int xmin = std::min({a.x, b.x, c.x}), xmax = std::max({a.x, b.x, c.x});
+  for (int y = y0; y <= y1; ++y) {
+    std::int64_t xl = xmin, xr = xmax;
+    for (int k = 0; k < 3; ++k) {
+      const std::int64_t Cy = B[k] * y + C[k];  // A x + Cy >= 0
+      if (A[k] > 0) xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
+      else if (A[k] < 0) xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
+      else if (Cy < 0) xr = xl - 1;
+    }
+    if (xl > xr) continue;
+    const double sy = double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
+    const double* zr = zrow0 + std::size_t(y) * width;
+    double rhi = hi, rlo = lo;
+    for (std::int64_t x = xl; x <= xr; ++x) {
+      const double d = (sx * double(x) + sy) - W * zr[x];
+      rhi = std::max(rhi, d);
+      rlo = std::min(rlo, d);
+    }
+    hi = rhi, lo = rlo;
+    if (std::max(hi, -lo) > limit) break;
+  }
+  return std::max(hi, -lo) / W;
+}
+
+double LInfError::triangle(GridPoint a, GridPoint b, GridPoint c, double cutoff) const {
+  if (orient2d(a, b, c) == 0) {
+    double e = segment(a, b, cutoff);
+    if (e <= cutoff) e = std::max(e, segment(b, c, cutoff));
+    if (e <= cutoff) e = std::max(e, segment(a, c, cutoff));
+    return e;
+  }
+  double e = 0.0;
+  if (metric_ == ErrorMetric::Continuous) {
+    e = segment(a, b, cutoff);
+    if (e > cutoff) return e;
+    e = std::max(e, segment(b, c, cutoff));
+    if (e > cutoff) return e;
+    e = std::max(e, segment(c, a, cutoff));
+    if (e > cutoff) return e;
+  }
+  return std::max(e, samples_in_triangle(a, b, c, cutoff));
+}
+
+}  // namespace terralod::pm

@@ -1,0 +1,477 @@
+// The PM construction loop: greedy L-infinity half-edge collapses on an OpenMesh triangle mesh.
+//
+// Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 2, Eq. 1. Each live vertex u
+// keeps its best legal collapse u -> w (smallest error, then shortest edge) in an indexed
+// binary heap. After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
+// neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
+// move. A popped candidate is re-validated (the link condition may have changed through a
+// neighbour) and re-evaluated when it became illegal.
+//
+// Cost: one evaluation of u -> w rasterises the new 1-ring of w (about 3 N / m samples when
+// the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
+// candidate so far, and the error of each triangle is cached in a direct-mapped table keyed
+// by its corners, since re-evaluating a vertex after one neighbour changed meets mostly the
+// same triangles again. Memory: OpenMesh connectivity (~180 bytes per vertex), heap and
+// per-vertex state (~24 bytes per vertex), the triangle cache (24 bytes x 2^22).
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "terralod/pm/progressive_mesh.hpp"
+
+namespace terralod::pm {
+namespace {
+
+struct MeshTraits : OpenMesh::DefaultTraits {
+  VertexAttributes(OpenMesh::Attributes::Status);
+  EdgeAttributes(OpenMesh::Attributes::Status);
+  FaceAttributes(OpenMesh::Attributes::Status);
+  HalfedgeAttributes(OpenMesh::Attributes::PrevHalfedge);
+};
+using Mesh = OpenMesh::TriMesh_ArrayKernelT<MeshTraits>;
+
+// Direct-mapped cache of triangle errors: exact values, or lower bounds from evaluations that
+// stopped early. A colliding insert simply overwrites the slot.
+class TriangleCache {
+ public:
+  explicit TriangleCache(int log2_slots) : mask_((std::size_t(1) << log2_slots) - 1), slots_(mask_ + 1) {}
+  struct Slot {
+    std::uint32_t a = UINT32_MAX, b = 0, c = 0;
+    float unused = 0;
+    double value = 0;  // > 0 lower bound when negative-coded? kept simple: see `exact`
+  };
+  // Returns true and sets value/exact when the triangle {a,b,c} (sorted) is cached.
+  bool find(std::uint32_t a, std::uint32_t b, std::uint32_t c, double& value, bool& exact) const {
+    const Slot& s = slots_[hash(a, b, c)];
+    if (s.a != a || s.b != b || s.c != c) return false;
+    exact = s.value >= 0;
+    value = exact ? s.value : -s.value - 1.0;
+    return true;
+  }
+  void store(std::uint32_t a, std::uint32_t b, std::uint32_t c, double value, bool exact) {
+    Slot& s = slots_[hash(a, b, c)];
+    s.a = a, s.b = b, s.c = c;
+    s.value = exact ? value : -(value + 1.0);  // lower bounds stored as -(v+1) < 0
+  }
+
+ private:
+  std::size_t hash(std::uint64_t a, std::uint64_t b, std::uint64_t c) const {
+    std::uint64_t h = a * 0x9E3779B97F4A7C15ull ^ (b + 0x632BE59BD9B4E019ull) * 0xC2B2AE3D27D4EB4Full ^
+                      (c + 0x165667B19E3779F9ull) * 0x94D049BB133111EBull;
+    h ^= h >> 29;
+    return std::size_t(h) & mask_;
+  }
+  std::size_t mask_;
+  std::vector<Slot> slots_;
+};
+
+// Indexed binary min-heap over vertices, keyed by (error, tie).
+class VertexHeap {
+ public:
+  explicit VertexHeap(std::size_t n) : pos_(n, kAbsent), err_(n, 0), tie_(n, 0) {}
+  bool empty() const { return heap_.empty(); }
+  std::uint32_t top() const { return heap_.front(); }
+  double top_error() const { return err_[heap_.front()]; }
+  bool contains(std::uint32_t v) const { return pos_[v] != kAbsent; }
+  void set(std::uint32_t v, double err, double tie) {
+    err_[v] = err, tie_[v] = tie;
+    if (pos_[v] == kAbsent) {
+      pos_[v] = std::uint32_t(heap_.size());
+      heap_.push_back(v);
+      up(pos_[v]);
+    } else {
+      up(pos_[v]);
+      down(pos_[v]);
+    }
+  }
+  void remove(std::uint32_t v) {
+    const std::uint32_t p = pos_[v];
+    if (p == kAbsent) return;
+    const std::uint32_t last = heap_.back();
+    heap_.pop_back();
+    pos_[v] = kAbsent;
+    if (last != v) {
+      heap_[p] = last, pos_[last] = p;
+      up(p);
+      down(pos_[last]);
+    }
+  }
+
+ private:
+  static constexpr std::uint32_t kAbsent = UINT32_MAX;
+  bool less(std::uint32_t a, std::uint32_t b) const {
+    if (err_[a] != err_[b]) return err_[a] < err_[b];
+    if (tie_[a] != tie_[b]) return tie_[a] < tie_[b];
+    return a < b;
+  }
+  void up(std::uint32_t i) {
+    const std::uint32_t v = heap_[i];
+    while (i > 0) {
+      const std::uint32_t p = (i - 1) / 2;
+      if (!less(v, heap_[p])) break;
+      heap_[i] = heap_[p], pos_[heap_[i]] = i, i = p;
+    }
+    heap_[i] = v, pos_[v] = i;
+  }
+  void down(std::uint32_t i) {
+    const std::uint32_t v = heap_[i], n = std::uint32_t(heap_.size());
+    for (;;) {
+      std::uint32_t c = 2 * i + 1;
+      if (c >= n) break;
+      if (c + 1 < n && less(heap_[c + 1], heap_[c])) ++c;
+      if (!less(heap_[c], v)) break;
+      heap_[i] = heap_[c], pos_[heap_[i]] = i, i = c;
+    }
+    heap_[i] = v, pos_[v] = i;
+  }
+  std::vector<std::uint32_t> heap_, pos_;
+  std::vector<double> err_, tie_;
+};
+
+class Builder {
+ public:
+  Builder(const Heightfield& hf, const BuildOptions& opt)
+      : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()), heap_(hf.size()),
+        target_(hf.size(), UINT32_MAX), cache_(22) {}
+
+  void run(std::vector<Collapse>& collapses, std::vector<std::uint32_t>& dropped, double quantum) {
+    pts_.resize(hf_.size());
+    for (std::size_t i = 0; i < hf_.size(); ++i) pts_[i] = GridPoint{int(i % std::size_t(W_)), int(i / std::size_t(W_))};
+    build_mesh(dropped);
+    edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
+    std::size_t live = 0;
+    for (auto v : mesh_.vertices())
+      if (!mesh_.is_isolated(v)) ++live;
+    for (auto v : mesh_.vertices())
+      if (!mesh_.is_isolated(v)) evaluate(std::uint32_t(v.idx()), /*exact=*/false);
+    const std::size_t total = live > 4 ? live - 4 : 1;
+    std::size_t next_report = 0;
+    collapses.reserve(live);
+    while (!heap_.empty()) {
+      const std::uint32_t u = heap_.top();
+      const double e = heap_.top_error();
+      if (e > opt_.max_error) break;
+      if (dirty_[u]) {
+        evaluate(u, /*exact=*/true);  // its key was a lower bound: measure it exactly
+        continue;
+      }
+      const std::uint32_t w = target_[u];
+      const auto vu = Mesh::VertexHandle(int(u));
+      const auto h = find_halfedge(vu, Mesh::VertexHandle(int(w)));
+      if (!h.is_valid() || !link_ok(h) || !geometry_ok(vu, w)) {
+        evaluate(u, /*exact=*/true);  // a neighbour's change made the candidate illegal
+        continue;
+      }
+      neighbours_.clear();
+      for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx())); });
+      mesh_.collapse(h);
+      heap_.remove(u);
+      if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(Mesh::VertexHandle(int(w)));
+      collapses.push_back(Collapse{u, w, std::ceil(e / quantum) * quantum});
+      for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/false);
+      if (opt_.progress && collapses.size() >= next_report) {
+        if (!opt_.progress(double(collapses.size()) / double(total)))
+          throw std::runtime_error("progressive mesh build cancelled");
+        next_report = collapses.size() + total / 200 + 1;
+      }
+    }
+    if (opt_.progress) opt_.progress(1.0);
+  }
+
+ private:
+  // Integer division by the grid width is slow in the inner loops, so points are tabulated.
+  GridPoint point(std::uint32_t v) const { return pts_[v]; }
+
+  void build_mesh(std::vector<std::uint32_t>& dropped) {
+    mesh_.reserve(hf_.size(), 3 * hf_.size(), 2 * hf_.size());
+    for (std::size_t i = 0; i < hf_.size(); ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    std::vector<Mesh::VertexHandle> tri(3);
+    for (int j = 0; j + 1 < H_; ++j)
+      for (int i = 0; i + 1 < W_; ++i) {
+        const int v00 = j * W_ + i, v10 = v00 + 1, v01 = v00 + W_, v11 = v01 + 1;
+        const int faces[2][3] = {{v00, v10, v11}, {v00, v11, v01}};
+        for (int k = 0; k < 2; ++k) {
+          if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
+            continue;
+          for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(faces[k][c]);
+          if (!mesh_.add_face(tri).is_valid()) dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
+        }
+      }
+  }
+
+  // Outgoing halfedges of v, calling f(h) for each. Hand-written with the kernel's inline
+  // accessors: OpenMesh's circulators validate every handle through a library call.
+  template <class F>
+  void for_each_outgoing(Mesh::VertexHandle v, F&& f) const {
+    const auto start = mesh_.halfedge_handle(v);
+    if (!start.is_valid()) return;
+    auto h = start;
+    do {
+      f(h);
+      h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
+    } while (h != start);
+  }
+
+  // Crossing error of every edge around w (edges that were u's now end at w).
+  void update_edge_errors(Mesh::VertexHandle vw) {
+    const GridPoint pw = point(std::uint32_t(vw.idx()));
+    for_each_outgoing(vw, [&](Mesh::HalfedgeHandle h) {
+      edge_err_[mesh_.edge_handle(h).idx()] = err_.segment(pw, point(std::uint32_t(mesh_.to_vertex_handle(h).idx())));
+    });
+  }
+
+  Mesh::HalfedgeHandle find_halfedge(Mesh::VertexHandle from, Mesh::VertexHandle to) const {
+    Mesh::HalfedgeHandle found;
+    for_each_outgoing(from, [&](Mesh::HalfedgeHandle h) {
+      if (mesh_.to_vertex_handle(h) == to) found = h;
+    });
+    return found;
+  }
+
+  // Topological legality of collapsing halfedge h (u -> w), the link condition of Dey et al.
+  // as OpenMesh's is_collapse_ok checks it, without its per-call allocations: the common
+  // neighbours of u and w are exactly the opposite vertices of the faces beside the edge, and
+  // an interior edge may not join two boundary vertices.
+  bool link_ok(Mesh::HalfedgeHandle h) {
+    const auto vu = mesh_.from_vertex_handle(h), vw = mesh_.to_vertex_handle(h);
+    const auto o = mesh_.opposite_halfedge_handle(h);
+    const bool edge_boundary = mesh_.is_boundary(h) || mesh_.is_boundary(o);
+    if (!edge_boundary && mesh_.is_boundary(vu) && mesh_.is_boundary(vw)) return false;
+    int wings[2] = {-1, -1};
+    if (!mesh_.is_boundary(h)) wings[0] = mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx();
+    if (!mesh_.is_boundary(o)) wings[1] = mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx();
+    if (wings[0] == wings[1]) return false;
+    ++stamp_;
+    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { mark_[mesh_.to_vertex_handle(g).idx()] = stamp_; });
+    int common = 0;
+    bool ok = true;
+    for_each_outgoing(vw, [&](Mesh::HalfedgeHandle g) {
+      const int x = mesh_.to_vertex_handle(g).idx();
+      if (mark_[x] != stamp_) return;
+      if (x != wings[0] && x != wings[1]) ok = false;
+      ++common;
+    });
+    return ok && common == (wings[0] >= 0) + (wings[1] >= 0);
+  }
+
+  bool is_corner(GridPoint p) const { return (p.x == 0 || p.x == W_ - 1) && (p.y == 0 || p.y == H_ - 1); }
+  // 0 none, 1 x = 0, 2 x = W-1, 3 y = 0, 4 y = H-1
+  int border_line(GridPoint p) const {
+    if (p.x == 0) return 1;
+    if (p.x == W_ - 1) return 2;
+    if (p.y == 0) return 3;
+    if (p.y == H_ - 1) return 4;
+    return 0;
+  }
+
+  // Plan-view legality of u -> w: every face around u that does not contain w stays CCW.
+  bool geometry_ok(Mesh::VertexHandle vu, std::uint32_t w) const {
+    const GridPoint pw = point(w);
+    bool ok = true;
+    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) {
+      if (mesh_.is_boundary(h)) return;
+      const auto hn = mesh_.next_halfedge_handle(h);
+      const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
+      const std::uint32_t b = std::uint32_t(mesh_.to_vertex_handle(hn).idx());
+      if (a != w && b != w && orient2d(pw, point(a), point(b)) <= 0) ok = false;
+    });
+    return ok;
+  }
+
+  double cached_triangle(std::uint32_t a, std::uint32_t b, std::uint32_t c, double cutoff) {
+    const GridPoint pa = point(a), pb = point(b), pc = point(c);
+    const std::int64_t area2 = orient2d(pa, pb, pc);
+    if (area2 < 512) return err_.samples_in_triangle(pa, pb, pc, cutoff);
+    std::uint32_t s[3] = {a, b, c};
+    std::sort(s, s + 3);
+    double value;
+    bool exact;
+    if (cache_.find(s[0], s[1], s[2], value, exact) && (exact || value > cutoff)) return value;
+    value = err_.samples_in_triangle(pa, pb, pc, cutoff);
+    cache_.store(s[0], s[1], s[2], value, value <= cutoff);
+    return value;
+  }
+
+  // Files u in the heap with its best legal collapse. With exact = false the key is only a
+  // lower bound of that collapse's error (u is marked dirty and measured exactly when the
+  // bound reaches the top of the heap); since a lower bound never delays a vertex, the order
+  // of collapses is the same as with exact keys, at a fraction of the cost.
+  void evaluate(std::uint32_t u, bool exact) {
+    const auto vu = Mesh::VertexHandle(int(u));
+    const GridPoint pu = point(u);
+    dirty_[u] = 0;
+    if (is_corner(pu) || mesh_.is_isolated(vu)) {
+      heap_.remove(u);
+      return;
+    }
+    // Candidate targets.
+    cand_.clear();
+    if (mesh_.is_boundary(vu)) {
+      // Only along its own grid border line, and only when both boundary neighbours are on it
+      // (otherwise u is on the boundary of a hole, which must keep its shape).
+      const int line = border_line(pu);
+      const auto hout = mesh_.halfedge_handle(vu);  // outgoing boundary halfedge
+      const auto hin = mesh_.prev_halfedge_handle(hout);
+      const std::uint32_t next = std::uint32_t(mesh_.to_vertex_handle(hout).idx());
+      const std::uint32_t prev = std::uint32_t(mesh_.from_vertex_handle(hin).idx());
+      if (line != 0 && border_line_contains(line, point(next)) && border_line_contains(line, point(prev))) {
+        cand_.push_back({next, 0, 0});
+        cand_.push_back({prev, 0, 0});
+      }
+    } else {
+      for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { cand_.push_back({std::uint32_t(mesh_.to_vertex_handle(g).idx()), 0, 0}); });
+    }
+    // The ring: faces (u, a, b) around u, with the crossing error of the edge (a, b).
+    const bool continuous = err_.metric() == ErrorMetric::Continuous;
+    ring_.clear();
+    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) {
+      if (mesh_.is_boundary(h)) return;
+      const auto hn = mesh_.next_halfedge_handle(h);
+      ring_.push_back(RingFace{std::uint32_t(mesh_.to_vertex_handle(h).idx()),
+                               std::uint32_t(mesh_.to_vertex_handle(hn).idx()),
+                               continuous ? edge_err_[mesh_.edge_handle(hn).idx()] : 0.0});
+    });
+    ringv_.clear();
+    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) { ringv_.push_back(std::uint32_t(mesh_.to_vertex_handle(h).idx())); });
+    // Lower bound of each legal candidate: the error at u itself, at the new spokes and at the
+    // ring edges, all of which are points of the new 1-ring.
+    std::size_t legal = 0;
+    const double zu = hf_[u];
+    for (Candidate& c : cand_) {
+      const GridPoint pw = point(c.w);
+      bool ok = true;
+      double lb = 0.0;
+      for (const RingFace& f : ring_) {
+        if (f.a == c.w || f.b == c.w) continue;
+        const GridPoint pa = point(f.a), pb = point(f.b);
+        const std::int64_t area2 = orient2d(pw, pa, pb);
+        if (area2 <= 0) { ok = false; break; }
+        lb = std::max(lb, f.edge_error);
+        const std::int64_t e0 = orient2d(pa, pb, pu), e1 = orient2d(pb, pw, pu), e2 = orient2d(pw, pa, pu);
+        if (e0 >= 0 && e1 >= 0 && e2 >= 0) {  // u lies in (w, a, b): exact interpolation there
+          const double num = double(e0) * hf_[c.w] + double(e1) * hf_[f.a] + double(e2) * hf_[f.b];
+          lb = std::max(lb, std::abs(num - double(area2) * zu) / double(area2));
+        }
+      }
+      if (!ok) continue;
+      c.lower = lb;
+      c.tie = double(pw.x - pu.x) * (pw.x - pu.x) + double(pw.y - pu.y) * (pw.y - pu.y);
+      cand_[legal++] = c;
+    }
+    cand_.resize(legal);
+    if (cand_.empty()) {
+      heap_.remove(u);
+      return;
+    }
+    std::sort(cand_.begin(), cand_.end(),
+              [](const Candidate& a, const Candidate& b) { return a.lower < b.lower || (a.lower == b.lower && a.tie < b.tie); });
+    if (!exact) {
+      dirty_[u] = 1;
+      target_[u] = cand_.front().w;
+      heap_.set(u, cand_.front().lower, cand_.front().tie);
+      return;
+    }
+    // Exact errors in order of their lower bounds, skipping candidates that cannot win.
+    double best = 1e300, best_tie = 1e300;
+    std::uint32_t best_w = UINT32_MAX;
+    for (const Candidate& c : cand_) {
+      if (c.lower > best || (c.lower == best && c.tie >= best_tie)) break;
+      double e = c.lower;
+      const GridPoint pw = point(c.w);
+      if (continuous)  // the new spokes (w, x) to ring vertices x not already joined to w
+        for (std::uint32_t x : ringv_) {
+          if (x == c.w || spoke_known(x, c.w)) continue;
+          e = std::max(e, err_.segment(pw, point(x), best));
+          if (e > best) break;
+        }
+      if (e <= best)
+        for (const RingFace& f : ring_) {
+          if (f.a == c.w || f.b == c.w) continue;
+          e = std::max(e, cached_triangle(c.w, f.a, f.b, best));
+          if (e > best) break;
+        }
+      if (!(e < best || (e == best && c.tie < best_tie))) continue;
+      // The topological test is the dearest, so it runs only for a candidate that would win.
+      if (!link_ok(find_halfedge(vu, Mesh::VertexHandle(int(c.w))))) continue;
+      best = e, best_tie = c.tie, best_w = c.w;
+    }
+    if (best_w == UINT32_MAX) {
+      heap_.remove(u);
+      return;
+    }
+    target_[u] = best_w;
+    heap_.set(u, best, best_tie);
+  }
+
+  // True when (x, w) is an edge of u's ring (so its error is a ring edge's, already counted).
+  bool spoke_known(std::uint32_t x, std::uint32_t w) const {
+    for (const RingFace& f : ring_)
+      if ((f.a == x && f.b == w) || (f.a == w && f.b == x)) return true;
+    return false;
+  }
+
+  bool border_line_contains(int line, GridPoint p) const {
+    switch (line) {
+      case 1: return p.x == 0;
+      case 2: return p.x == W_ - 1;
+      case 3: return p.y == 0;
+      case 4: return p.y == H_ - 1;
+    }
+    return false;
+  }
+
+  const Heightfield& hf_;
+  const BuildOptions& opt_;
+  LInfError err_;
+  int W_, H_;
+  Mesh mesh_;
+  VertexHeap heap_;
+  std::vector<std::uint32_t> target_;
+  TriangleCache cache_;
+  struct Candidate {
+    std::uint32_t w;
+    double lower, tie;
+  };
+  std::vector<std::uint32_t> neighbours_, ringv_;
+  std::vector<GridPoint> pts_;
+  std::vector<Candidate> cand_;
+  std::vector<std::uint32_t> mark_ = std::vector<std::uint32_t>(hf_.size(), 0);
+  std::uint32_t stamp_ = 0;
+  std::vector<std::uint8_t> dirty_ = std::vector<std::uint8_t>(hf_.size(), 0);
+  struct RingFace {
+    std::uint32_t a, b;
+    double edge_error;
+  };
+  std::vector<RingFace> ring_;
+  std::vector<double> edge_err_;
+};
+
+}  // namespace
+
+ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions& options) {
+  if (hf.width() < 2 || hf.height() < 2)
+    throw std::invalid_argument("progressive mesh: grid is " + std::to_string(hf.width()) + " x " +
+                                std::to_string(hf.height()) + "; at least 2 x 2 samples are needed");
+  if (hf.size() >= (std::size_t(1) << 31))
+    throw std::invalid_argument("progressive mesh: grid of " + std::to_string(hf.size()) +
+                                " samples is too large for one PM; cut it into blocks");
+  for (std::size_t i = 0; i < hf.size(); ++i)
+    if (hf.valid(i) && !std::isfinite(hf[i]))
+      throw std::invalid_argument("progressive mesh: sample " + std::to_string(i) + " of " + hf.source +
+                                  " is not finite; fill or mask voids first");
+  const double quantum = error_quantum_for(hf);
+  std::vector<Collapse> collapses;
+  std::vector<std::uint32_t> dropped;
+  {
+    Builder b(hf, options);
+    b.run(collapses, dropped, quantum);
+  }
+  return from_parts(hf, options.metric, quantum, std::move(collapses), std::move(dropped));
+}
+
+}  // namespace terralod::pm
