@@ -1,0 +1,126 @@
+// DEM reader: turns an elevation file (SRTM .hgt, any GDAL raster, a PNG/TIFF heightmap, an Esri
+// ASCII grid) into a metric pm::Heightfield, with voids filled or kept as holes.
+//
+// Usage:
+//   #include <terralod/blocks/dem_reader.hpp>
+//   namespace tb = terralod::blocks;
+//   terralod::pm::Heightfield hf = tb::read_dem("N44W072.hgt");       // 1201 x 1201, metres
+//   auto [x, y] = hf.transform.to_world(/*col=*/0, /*row=*/1200);      // (0, 0): south-west sample
+//
+//   tb::DemOptions png;
+//   png.vertical_scale = 0.1;        // one raw unit = 10 cm
+//   png.heightmap_spacing = 2.0;     // 2 m between samples
+//   auto island = tb::read_dem("island.png", png);
+//
+//   try { tb::read_dem("broken.tif"); }
+//   catch (const tb::DemError& e) { /* e.what(): "broken.tif: <what is wrong>" */ }
+//
+// Contract:
+//   path    UTF-8 file name. Any GDAL path works for GDAL rasters (including /vsi... paths).
+//           The format comes from options.format; Format::Auto picks by extension
+//           (case-insensitive): .hgt -> Hgt, .asc -> AsciiGrid, .png -> Heightmap,
+//           .tif/.tiff -> Gdal, or Heightmap when GDAL finds neither a geotransform nor a CRS;
+//           anything else -> Gdal.
+//   options see DemOptions below.
+//   result  A Heightfield of width x height >= 2 x 2 samples. Row 0 is the file's first
+//           (northern) row, column 0 its western column. Heights in metres (heightmaps: raw
+//           value * vertical_scale + vertical_offset), all finite. hf.source = path,
+//           hf.crs_wkt = the source CRS as WKT (empty when the file has none), hf.frame = one
+//           line saying how the world frame was made, hf.voids = how many samples were void
+//           and how many were filled.
+//   errors  Every failure (missing or unreadable file, wrong size, more than one band or
+//           channel, a grid smaller than 2 x 2, no valid sample at all, a malformed ASCII
+//           grid) throws DemError; its what() is "<path>: <problem>". Nothing else is thrown
+//           for bad data, except std::bad_alloc when memory runs out.
+//
+// Formats:
+//   Hgt        SRTM tile, read without GDAL: big-endian int16, row-major, row 0 = north edge,
+//              n x n samples with n*n*2 == file size, -32768 = void. The file name gives the
+//              south-west corner (N44W072.hgt: latitude 44, longitude -72); spacing 1/(n-1)
+//              degrees. CRS: WGS 84 geographic.
+//   Gdal       Any single-band raster GDAL opens. Band 1 is read as double; band scale/offset
+//              are applied; a band in feet is converted to metres. The band's nodata value,
+//              its mask band (when it has a real one), NaN and +-inf are voids. The geotransform
+//              is taken in GDAL's corner convention and converted to sample centres.
+//   Heightmap  Single-channel image read with OpenImageIO: 8/16/32-bit integers are read as
+//              raw integers (never normalised), floats as is (NaN/inf = void).
+//   AsciiGrid  Esri ASCII grid: header keys ncols, nrows, xllcorner|xllcenter,
+//              yllcorner|yllcenter, cellsize (or dx and dy), optional NODATA_value, any
+//              order, case-insensitive; then nrows x ncols numbers, north row first. A
+//              sidecar <name>.prj, when present, gives the CRS.
+//
+// World frame (every Heightfield is metric; x east, y north, metres; always affine):
+//   - Geographic CRS (.hgt, EPSG:4326 GeoTIFFs, .asc with a geographic .prj): a local
+//     equirectangular frame
+//         x = R * cos(phi_c) * (lon - lon0) * pi / 180,    y = R * (lat - lat0) * pi / 180,
+//     R = 6371008.8 m (mean Earth radius), (lon0, lat0) = the smallest longitude and latitude
+//     over the four corner sample centres (for a north-up raster: the centre of the
+//     south-west sample, which lands at (0, 0)), phi_c = latitude of the centre of the grid.
+//     For N44W072.hgt: dy = R*pi/180/1200 = 92.66 m, dx = dy * cos(44.5 deg) = 66.09 m.
+//     Distortion: distances are exact along the parallel phi_c and north-south; east-west
+//     they are off by cos(phi)/cos(phi_c) - 1 (about 0.9 % at the north and south edges of a
+//     1-degree tile at 45 deg). hf.frame records lon0, lat0 and phi_c so the map can be inverted.
+//   - Projected CRS: the CRS coordinates, with its linear unit converted to metres
+//     (UTM-sized values stay as they are; they are doubles).
+//   - Geotransform but no CRS: the geotransform's units are taken as metres.
+//   - No georeferencing (plain images, rasters without geotransform): north-up, spacing
+//     options.heightmap_spacing, the south-west sample at (0, 0), so x0 = 0 and
+//     y0 = (height - 1) * spacing.
+//
+// Voids (fill_voids = true, the default): filled by harmonic (Laplace) inpainting: each void
+//   sample becomes the mean of its 4-neighbours inside the grid, valid samples held fixed
+//   (solved by multigrid-preconditioned conjugate gradients to a residual of 1e-10 of the
+//   height scale). Every filled value lies within [min, max] of the valid samples 4-adjacent to
+//   its 4-connected void region, exactly (the discrete maximum principle, enforced by a final
+//   clip and bound-preserving Gauss-Seidel sweeps): no spikes, no NaN. Cost: about 170 bytes
+//   and 0.8 us per void sample for large voids. Measured (Release): N44W072.hgt reads in 3 ms,
+//   N22W160.hgt (4279 voids) reads and fills in 8 ms; the first call in a process adds about
+//   25 ms of GDAL driver registration. With fill_voids = false the Heightfield gets a mask
+//   (1 valid, 0 void) and void samples hold 0. Voids are: SRTM -32768, the band's nodata value, samples
+//   outside a GDAL mask band, NaN and +-inf, ASCII grid NODATA_value.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+#include "terralod/pm/heightfield.hpp"
+
+namespace terralod::blocks {
+
+/// How read_dem interprets a file. Every field has a usable default.
+struct DemOptions {
+  /// true: fill voids from their neighbours (hf.voids.filled == hf.voids.voids, no mask).
+  /// false: keep voids as holes (hf.has_holes(), void samples hold 0, hf.voids.filled == 0).
+  bool fill_voids = true;
+  /// Metres per raw unit, heightmaps (Format::Heightmap) only. Finite, non-zero.
+  double vertical_scale = 1.0;
+  /// Metres added after scaling, heightmaps only. Finite.
+  double vertical_offset = 0.0;
+  /// Metres between samples of rasters without georeferencing (plain images, GDAL rasters
+  /// with no geotransform). Finite, > 0.
+  double heightmap_spacing = 1.0;
+  /// File format; Auto chooses by extension (see the header comment).
+  enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
+};
+
+/// Bad data: the message is always "<path>: <problem>".
+class DemError : public std::runtime_error {
+ public:
+  DemError(const std::string& path, const std::string& problem)
+      : std::runtime_error(path + ": " + problem), path_(path), problem_(problem) {}
+  /// The file that could not be read.
+  const std::string& path() const noexcept { return path_; }
+  /// What is wrong with it, without the path.
+  const std::string& problem() const noexcept { return problem_; }
+
+ private:
+  std::string path_;
+  std::string problem_;
+};
+
+/// Reads an elevation model into a metric Heightfield (see the header comment for formats,
+/// the world frame and void handling). Throws DemError on bad data; std::invalid_argument
+/// when options hold an invalid value (non-finite or zero scale, spacing <= 0).
+pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {});
+
+}  // namespace terralod::blocks

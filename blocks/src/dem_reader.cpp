@@ -1,0 +1,698 @@
+// Reads SRTM .hgt tiles, GDAL rasters, OpenImageIO heightmaps and Esri ASCII grids into metric
+// Heightfields, mapping geographic grids to a local equirectangular frame and filling voids.
+#include "terralod/blocks/dem_reader.hpp"
+
+#include <OpenImageIO/imageio.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <numbers>
+#include <optional>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+
+#include "void_fill.hpp"
+
+namespace terralod::blocks {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Format = DemOptions::Format;
+
+/// Mean Earth radius (IUGG), metres: the sphere of the local equirectangular frame.
+constexpr double kEarthRadius = 6371008.8;
+/// Largest grid read (8 GiB of doubles); guards against absurd sizes in corrupt headers.
+constexpr std::size_t kMaxSamples = std::size_t(1) << 30;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// ---------------------------------------------------------------------------------------------
+// What every reader produces before the common finishing steps.
+
+struct Georef {
+  enum class Kind { None, Geographic, Metric } kind = Kind::None;
+  /// Sample-centre affine map: X = a[0] + col a[1] + row a[2], Y = a[3] + col a[4] + row a[5];
+  /// degrees (lon, lat) for Geographic, metres for Metric, unused for None.
+  std::array<double, 6> a{};
+  std::string crs_wkt;
+  std::string description;  ///< Metric: what the coordinates are; Geographic: the CRS name
+};
+
+struct Raster {
+  int width = 0, height = 0;
+  std::vector<double> z;  ///< row-major; non-finite = void
+  Georef geo;
+  std::string height_note;  ///< appended to the frame description when not empty
+};
+
+std::string format_number(double v) {
+  std::ostringstream s;
+  s.precision(12);
+  s << v;
+  return s.str();
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+/// Fails unless `path` is an existing regular file.
+void require_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (!fs::exists(st)) throw DemError(path, "no such file");
+  if (!fs::is_regular_file(st)) throw DemError(path, "not a regular file");
+}
+
+void check_dimensions(const std::string& path, long long w, long long h) {
+  if (w < 2 || h < 2) {
+    throw DemError(path, "grid is " + std::to_string(w) + " x " + std::to_string(h) +
+                             "; at least 2 x 2 samples are needed");
+  }
+  if (double(w) * double(h) > double(kMaxSamples)) {
+    throw DemError(path, "grid is " + std::to_string(w) + " x " + std::to_string(h) +
+                             "; more than 2^30 samples are not supported");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// GDAL plumbing: registration once, errors captured instead of printed.
+
+void register_gdal() {
+  static std::once_flag once;
+  std::call_once(once, [] { GDALAllRegister(); });
+}
+
+/// Silences GDAL's error printing for the current thread while alive.
+class QuietGdal {
+ public:
+  QuietGdal() {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+  }
+  ~QuietGdal() { CPLPopErrorHandler(); }
+  QuietGdal(const QuietGdal&) = delete;
+  QuietGdal& operator=(const QuietGdal&) = delete;
+};
+
+std::string gdal_message(const std::string& fallback) {
+  const char* msg = CPLGetLastErrorMsg();
+  return (msg != nullptr && *msg != '\0') ? std::string(msg) : fallback;
+}
+
+std::string wkt_of(const OGRSpatialReference& srs) {
+  char* text = nullptr;
+  std::string out;
+  if (srs.exportToWkt(&text) == OGRERR_NONE && text != nullptr) out = text;
+  CPLFree(text);
+  return out;
+}
+
+/// Fills geo.kind/a/description from a corner-convention geotransform and an optional CRS.
+void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* srs) {
+  // GDAL's geotransform maps pixel corners; sample centres sit half a pixel in.
+  std::array<double, 6> a = {gt[0] + 0.5 * gt[1] + 0.5 * gt[2], gt[1], gt[2],
+                             gt[3] + 0.5 * gt[4] + 0.5 * gt[5], gt[4], gt[5]};
+  if (srs != nullptr && !srs->IsEmpty() && srs->IsGeographic()) {
+    const double to_degrees = srs->GetAngularUnits(nullptr) / kDeg;  // radians per unit -> degrees
+    for (double& v : a) v *= to_degrees;
+    geo.kind = Georef::Kind::Geographic;
+    const char* name = srs->GetName();
+    geo.description = name != nullptr ? name : "geographic CRS";
+  } else if (srs != nullptr && !srs->IsEmpty()) {
+    const double to_metres = srs->GetLinearUnits(nullptr);
+    for (double& v : a) v *= to_metres;
+    geo.kind = Georef::Kind::Metric;
+    const char* name = srs->GetName();
+    geo.description = std::string("coordinates of CRS '") + (name != nullptr ? name : "?") +
+                      "' in metres (unit factor " + format_number(to_metres) + ")";
+  } else {
+    geo.kind = Georef::Kind::Metric;
+    geo.description = "geotransform coordinates without a CRS, taken as metres";
+  }
+  geo.a = a;
+}
+
+// ---------------------------------------------------------------------------------------------
+// SRTM .hgt
+
+Raster read_hgt(const std::string& path) {
+  // South-west corner from the name: [NS]dd[EW]ddd, e.g. N44W072 (case-insensitive).
+  const std::string name = fs::path(path).filename().string();
+  auto digits = [&](std::size_t from, std::size_t count, int& value) {
+    if (name.size() < from + count) return false;
+    value = 0;
+    for (std::size_t k = from; k < from + count; ++k) {
+      if (name[k] < '0' || name[k] > '9') return false;
+      value = value * 10 + (name[k] - '0');
+    }
+    return true;
+  };
+  int lat = 0, lon = 0;
+  const char ns = name.empty() ? '\0' : char(std::toupper((unsigned char)name[0]));
+  const char ew = name.size() > 3 ? char(std::toupper((unsigned char)name[3])) : '\0';
+  if ((ns != 'N' && ns != 'S') || !digits(1, 2, lat) || (ew != 'E' && ew != 'W') || !digits(4, 3, lon) ||
+      (name.size() > 7 && name[7] >= '0' && name[7] <= '9')) {
+    throw DemError(path, "file name does not give the tile's south-west corner (expected e.g. N44W072.hgt)");
+  }
+  if (ns == 'S') lat = -lat;
+  if (ew == 'W') lon = -lon;
+  if (lat < -90 || lat > 89 || lon < -180 || lon > 179) {
+    throw DemError(path, "file name gives an impossible south-west corner (lat " + std::to_string(lat) +
+                             ", lon " + std::to_string(lon) + ")");
+  }
+
+  require_file(path);
+  std::error_code ec;
+  const std::uintmax_t bytes = fs::file_size(path, ec);
+  if (ec) throw DemError(path, "cannot get the file size: " + ec.message());
+  if (bytes == 0) throw DemError(path, "file is empty");
+  const auto n = static_cast<std::uintmax_t>(std::llround(std::sqrt(double(bytes) / 2.0)));
+  if (bytes % 2 != 0 || n * n * 2 != bytes) {
+    throw DemError(path, "file size " + std::to_string(bytes) +
+                             " bytes is not that of a square grid of 16-bit samples (n * n * 2 bytes, "
+                             "e.g. 2884802 for a 1201 x 1201 SRTM3 tile)");
+  }
+  check_dimensions(path, (long long)n, (long long)n);
+
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw DemError(path, "cannot open the file for reading");
+  std::vector<unsigned char> raw(bytes);
+  in.read(reinterpret_cast<char*>(raw.data()), std::streamsize(bytes));
+  if (in.gcount() != std::streamsize(bytes)) {
+    throw DemError(path, "read only " + std::to_string(in.gcount()) + " of " + std::to_string(bytes) +
+                             " bytes (file truncated or unreadable)");
+  }
+
+  Raster r;
+  r.width = r.height = int(n);
+  r.z.resize(n * n);
+  for (std::size_t i = 0; i < r.z.size(); ++i) {
+    const auto v = std::int16_t(std::uint16_t((raw[2 * i] << 8) | raw[2 * i + 1]));
+    r.z[i] = v == -32768 ? std::numeric_limits<double>::quiet_NaN() : double(v);
+  }
+
+  const double d = 1.0 / double(n - 1);  // degrees between samples; samples sit on the tile edges
+  r.geo.kind = Georef::Kind::Geographic;
+  r.geo.a = {double(lon), d, 0.0, double(lat) + 1.0, 0.0, -d};
+  register_gdal();
+  QuietGdal quiet;
+  OGRSpatialReference wgs84;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  r.geo.crs_wkt = wkt_of(wgs84);
+  r.geo.description = "WGS 84";
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// GDAL rasters
+
+/// Metres per unit of a band's vertical unit string; nullopt when the unit is unknown.
+std::optional<double> vertical_unit_to_metres(const std::string& unit) {
+  const std::string u = lower(unit);
+  if (u.empty() || u == "m" || u == "metre" || u == "metres" || u == "meter" || u == "meters") return 1.0;
+  if (u == "ft" || u == "foot" || u == "feet" || u == "international foot") return 0.3048;
+  if (u == "us-ft" || u == "ftus" || u == "us survey foot") return 1200.0 / 3937.0;
+  return std::nullopt;
+}
+
+GDALDatasetUniquePtr open_gdal(const std::string& path) {
+  if (!path.starts_with("/vsi")) require_file(path);
+  register_gdal();
+  QuietGdal quiet;
+  GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw DemError(path, "GDAL cannot read it as a raster: " + gdal_message("unknown format"));
+  return ds;
+}
+
+bool has_georeference(GDALDataset& ds) {
+  QuietGdal quiet;
+  double gt[6];
+  const OGRSpatialReference* srs = ds.GetSpatialRef();
+  return ds.GetGeoTransform(gt) == CE_None || (srs != nullptr && !srs->IsEmpty());
+}
+
+Raster read_gdal(const std::string& path, GDALDataset& ds) {
+  QuietGdal quiet;
+  const int bands = ds.GetRasterCount();
+  if (bands != 1) {
+    throw DemError(
+        path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") + "; a DEM must have one");
+  }
+  GDALRasterBand* band = ds.GetRasterBand(1);
+  const GDALDataType type = band->GetRasterDataType();
+  if (GDALDataTypeIsComplex(type)) {
+    throw DemError(path, std::string("band type ") + GDALGetDataTypeName(type) +
+                             " is complex; a DEM needs real heights");
+  }
+  const int w = ds.GetRasterXSize(), h = ds.GetRasterYSize();
+  check_dimensions(path, w, h);
+
+  Raster r;
+  r.width = w;
+  r.height = h;
+  r.z.resize(std::size_t(w) * h);
+  if (band->RasterIO(GF_Read, 0, 0, w, h, r.z.data(), w, h, GDT_Float64, 0, 0) != CE_None) {
+    throw DemError(path, "cannot read the samples: " + gdal_message("GDAL read error"));
+  }
+
+  // Voids: the nodata value (compared in the band's own type), a real mask band, NaN/inf.
+  int has_nodata = 0;
+  const double nodata = band->GetNoDataValue(&has_nodata);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (has_nodata && !std::isnan(nodata)) {
+    const bool as_float = type == GDT_Float32;
+    const float nodata_f = float(nodata);
+    for (double& v : r.z) {
+      if (as_float ? float(v) == nodata_f : v == nodata) v = nan;
+    }
+  }
+  const int mask_flags = band->GetMaskFlags();
+  if (!(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA)) {
+    std::vector<std::uint8_t> mask(r.z.size());
+    if (band->GetMaskBand()->RasterIO(GF_Read, 0, 0, w, h, mask.data(), w, h, GDT_Byte, 0, 0) != CE_None) {
+      throw DemError(path, "cannot read the mask band: " + gdal_message("GDAL read error"));
+    }
+    for (std::size_t i = 0; i < mask.size(); ++i) {
+      if (mask[i] == 0) r.z[i] = nan;
+    }
+  }
+
+  // Heights: band scale and offset, then the vertical unit.
+  int has_scale = 0, has_offset = 0;
+  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  double factor = has_scale ? scale : 1.0, shift = has_offset ? offset : 0.0;
+  const char* unit_c = band->GetUnitType();
+  const std::string unit = unit_c != nullptr ? unit_c : "";
+  if (const auto metres = vertical_unit_to_metres(unit)) {
+    factor *= *metres;
+    shift *= *metres;
+    if (*metres != 1.0) r.height_note = "; heights converted from '" + unit + "' to metres";
+  } else {
+    r.height_note = "; heights in unknown unit '" + unit + "' taken as metres";
+  }
+  if (factor != 1.0 || shift != 0.0) {
+    for (double& v : r.z) v = v * factor + shift;
+  }
+
+  // Georeferencing.
+  const OGRSpatialReference* srs = ds.GetSpatialRef();
+  const char* wkt = ds.GetProjectionRef();
+  r.geo.crs_wkt = wkt != nullptr ? wkt : "";
+  double gt[6];
+  if (ds.GetGeoTransform(gt) == CE_None) {
+    georeference(r.geo, gt, srs);
+  } else {
+    r.geo.kind = Georef::Kind::None;
+  }
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Heightmap images (OpenImageIO)
+
+template <typename T>
+void read_integers(const std::string& path, OIIO::ImageInput& in, OIIO::TypeDesc type, Raster& r) {
+  std::vector<T> raw(r.z.size());
+  if (!in.read_image(0, 0, 0, 1, type, raw.data())) {
+    throw DemError(path, "cannot read the pixels: " + in.geterror());
+  }
+  std::transform(raw.begin(), raw.end(), r.z.begin(), [](T v) { return double(v); });
+}
+
+Raster read_heightmap(const std::string& path, const DemOptions& options) {
+  require_file(path);
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) {
+    std::string msg = OIIO::geterror();
+    throw DemError(path, "OpenImageIO cannot read it as an image: " + (msg.empty() ? "unknown format" : msg));
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.deep) throw DemError(path, "is a deep image; a heightmap must be a plain single-channel image");
+  if (spec.nchannels != 1) {
+    throw DemError(path, "has " + std::to_string(spec.nchannels) + " channels; a heightmap must have one");
+  }
+  if (spec.depth > 1) throw DemError(path, "is a volume image; a heightmap must be 2-D");
+  check_dimensions(path, spec.width, spec.height);
+
+  Raster r;
+  r.width = spec.width;
+  r.height = spec.height;
+  r.z.resize(std::size_t(r.width) * r.height);
+  using B = OIIO::TypeDesc::BASETYPE;
+  // Integers are read in their own type: OpenImageIO would normalise them to [0,1] as floats.
+  switch (B(spec.format.basetype)) {
+    case B::UINT8:
+      read_integers<std::uint8_t>(path, *in, OIIO::TypeDesc::UINT8, r);
+      break;
+    case B::INT8:
+      read_integers<std::int8_t>(path, *in, OIIO::TypeDesc::INT8, r);
+      break;
+    case B::UINT16:
+      read_integers<std::uint16_t>(path, *in, OIIO::TypeDesc::UINT16, r);
+      break;
+    case B::INT16:
+      read_integers<std::int16_t>(path, *in, OIIO::TypeDesc::INT16, r);
+      break;
+    case B::UINT32:
+      read_integers<std::uint32_t>(path, *in, OIIO::TypeDesc::UINT32, r);
+      break;
+    case B::INT32:
+      read_integers<std::int32_t>(path, *in, OIIO::TypeDesc::INT32, r);
+      break;
+    case B::HALF:
+    case B::FLOAT:
+    case B::DOUBLE:
+      if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::DOUBLE, r.z.data())) {
+        throw DemError(path, "cannot read the pixels: " + in->geterror());
+      }
+      break;
+    default:
+      throw DemError(path,
+                     "pixel type " + std::string(spec.format.c_str()) + " is not supported for heightmaps");
+  }
+  in->close();
+  for (double& v : r.z) v = v * options.vertical_scale + options.vertical_offset;
+  r.geo.kind = Georef::Kind::None;
+  if (options.vertical_scale != 1.0 || options.vertical_offset != 0.0) {
+    r.height_note = "; heights = raw * " + format_number(options.vertical_scale) + " + " +
+                    format_number(options.vertical_offset) + " m";
+  }
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Esri ASCII grid
+
+/// Whitespace-separated tokens of a text, each with its 1-based line number.
+class Tokens {
+ public:
+  explicit Tokens(std::string_view text) : text_(text) {}
+  /// The next token, or an empty view at the end; line() is then its line (or the last line).
+  std::string_view next() {
+    while (pos_ < text_.size() && std::isspace((unsigned char)text_[pos_])) {
+      if (text_[pos_] == '\n') ++line_;
+      ++pos_;
+    }
+    const std::size_t start = pos_;
+    while (pos_ < text_.size() && !std::isspace((unsigned char)text_[pos_])) ++pos_;
+    return text_.substr(start, pos_ - start);
+  }
+  /// The next token, without consuming it.
+  std::string_view peek() {
+    const std::size_t pos = pos_, line = line_;
+    const std::string_view t = next();
+    pos_ = pos;
+    line_ = line;
+    return t;
+  }
+  std::size_t line() const { return line_; }
+
+ private:
+  std::string_view text_;
+  std::size_t pos_ = 0, line_ = 1;
+};
+
+std::optional<double> parse_double(std::string_view t) {
+  if (!t.empty() && t.front() == '+') t.remove_prefix(1);
+  double v = 0.0;
+  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  if (ec != std::errc() || end != t.data() + t.size() || t.empty()) return std::nullopt;
+  return v;
+}
+
+std::string line_prefix(std::size_t line) { return "line " + std::to_string(line) + ": "; }
+
+Raster read_ascii_grid(const std::string& path) {
+  require_file(path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw DemError(path, "cannot open the file for reading");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw DemError(path, "cannot read the file");
+  if (text.find('\0') != std::string::npos) throw DemError(path, "is a binary file, not an Esri ASCII grid");
+
+  // Header: "key value" pairs, keys case-insensitive, until the first token that is a number.
+  static constexpr std::array<std::string_view, 10> kKeys = {
+      "ncols",     "nrows",    "xllcorner", "xllcenter", "yllcorner",
+      "yllcenter", "cellsize", "dx",        "dy",        "nodata_value"};
+  std::array<std::optional<double>, kKeys.size()> value;
+  Tokens tokens(text);
+  while (true) {
+    const std::string_view t = tokens.peek();
+    if (t.empty() || parse_double(t)) break;
+    tokens.next();
+    const std::size_t line = tokens.line();
+    const std::string key = lower(std::string(t));
+    const auto it = std::find(kKeys.begin(), kKeys.end(), key);
+    if (it == kKeys.end()) {
+      throw DemError(path, line_prefix(line) + "'" + std::string(t) +
+                               "' is not an Esri ASCII grid header key (ncols, nrows, xllcorner, ...)");
+    }
+    auto& slot = value[std::size_t(it - kKeys.begin())];
+    if (slot) throw DemError(path, line_prefix(line) + "header key '" + key + "' appears twice");
+    const std::string_view v = tokens.next();
+    if (v.empty() || tokens.line() != line) {
+      throw DemError(path, line_prefix(line) + "header key '" + key + "' has no value");
+    }
+    slot = parse_double(v);
+    if (!slot || !std::isfinite(*slot)) {
+      throw DemError(
+          path, line_prefix(line) + "value '" + std::string(v) + "' of '" + key + "' is not a finite number");
+    }
+  }
+  auto get = [&](std::string_view key) -> std::optional<double>& {
+    return value[std::size_t(std::find(kKeys.begin(), kKeys.end(), key) - kKeys.begin())];
+  };
+  auto count = [&](std::string_view key) {
+    const auto& v = get(key);
+    if (!v) throw DemError(path, "header lacks '" + std::string(key) + "' (not an Esri ASCII grid?)");
+    if (*v != std::floor(*v) || *v < 1 || *v > double(kMaxSamples)) {
+      throw DemError(path, "header value " + std::string(key) + " = " + format_number(*v) +
+                               " is not a positive whole number");
+    }
+    return (long long)*v;
+  };
+  const long long ncols = count("ncols"), nrows = count("nrows");
+  auto one_of = [&](std::string_view corner, std::string_view centre) {
+    const auto &a = get(corner), &b = get(centre);
+    if (a && b) {
+      throw DemError(path, "header has both '" + std::string(corner) + "' and '" + std::string(centre) + "'");
+    }
+    if (!a && !b) {
+      throw DemError(path, "header lacks '" + std::string(corner) + "' or '" + std::string(centre) + "'");
+    }
+    return std::pair{a ? *a : *b, a.has_value()};
+  };
+  const auto [xll, x_is_corner] = one_of("xllcorner", "xllcenter");
+  const auto [yll, y_is_corner] = one_of("yllcorner", "yllcenter");
+  double dx = 0, dy = 0;
+  if (get("cellsize")) {
+    if (get("dx") || get("dy")) throw DemError(path, "header has both 'cellsize' and 'dx'/'dy'");
+    dx = dy = *get("cellsize");
+  } else if (get("dx") && get("dy")) {
+    dx = *get("dx");
+    dy = *get("dy");
+  } else {
+    throw DemError(path, "header lacks 'cellsize' (or 'dx' and 'dy')");
+  }
+  if (!(dx > 0) || !(dy > 0)) throw DemError(path, "cell size must be positive");
+  check_dimensions(path, ncols, nrows);
+
+  Raster r;
+  r.width = int(ncols);
+  r.height = int(nrows);
+  const std::size_t total = std::size_t(ncols) * std::size_t(nrows);
+  r.z.resize(total);
+  const std::optional<double> nodata = get("nodata_value");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t i = 0; i < total; ++i) {
+    const std::string_view t = tokens.next();
+    if (t.empty()) {
+      throw DemError(path, line_prefix(tokens.line()) + "data ends after " + std::to_string(i) + " of " +
+                               std::to_string(ncols) + " x " + std::to_string(nrows) + " = " +
+                               std::to_string(total) + " values");
+    }
+    const std::optional<double> v = parse_double(t);
+    if (!v) throw DemError(path, line_prefix(tokens.line()) + "'" + std::string(t) + "' is not a number");
+    r.z[i] = (nodata && *v == *nodata) ? nan : *v;
+  }
+  if (const std::string_view extra = tokens.next(); !extra.empty()) {
+    throw DemError(path, line_prefix(tokens.line()) + "more values than ncols x nrows = " +
+                             std::to_string(total) + " (first extra: '" + std::string(extra) + "')");
+  }
+
+  // Corner (lower-left of the lower-left cell) or centre of the lower-left cell; row 0 is north.
+  const double x0 = x_is_corner ? xll + 0.5 * dx : xll;
+  const double y_south = y_is_corner ? yll + 0.5 * dy : yll;
+  const double gt[6] = {x0 - 0.5 * dx, dx, 0.0, y_south + (double(nrows) - 0.5) * dy, 0.0, -dy};
+
+  // Optional sidecar .prj with the CRS.
+  std::optional<OGRSpatialReference> srs;
+  for (const char* ext : {".prj", ".PRJ"}) {
+    const fs::path prj = fs::path(path).replace_extension(ext);
+    std::error_code ec;
+    if (!fs::is_regular_file(prj, ec)) continue;
+    std::ifstream pin(prj, std::ios::binary);
+    const std::string wkt((std::istreambuf_iterator<char>(pin)), std::istreambuf_iterator<char>());
+    register_gdal();
+    QuietGdal quiet;
+    srs.emplace();
+    srs->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    if (srs->SetFromUserInput(wkt.c_str()) != OGRERR_NONE) {
+      throw DemError(path, "sidecar " + prj.string() +
+                               " holds no CRS GDAL understands: " + gdal_message("unparsable WKT"));
+    }
+    r.geo.crs_wkt = wkt_of(*srs);
+    break;
+  }
+  georeference(r.geo, gt, srs ? &*srs : nullptr);
+  if (!srs) r.geo.description = "Esri ASCII grid coordinates without a .prj, taken as metres";
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Common finishing: frame, voids.
+
+pm::GridTransform world_transform(const std::string& path, const Raster& r, const DemOptions& options,
+                                  std::string& frame) {
+  const int w = r.width, h = r.height;
+  const auto& a = r.geo.a;
+  pm::GridTransform t;
+  switch (r.geo.kind) {
+    case Georef::Kind::None: {
+      const double s = options.heightmap_spacing;
+      t = pm::GridTransform::north_up(0.0, double(h - 1) * s, s, s);
+      frame = "image grid without georeferencing: north-up, spacing " + format_number(s) +
+              " m, south-west sample at (0, 0)";
+      break;
+    }
+    case Georef::Kind::Metric:
+      t = pm::GridTransform{a[0], a[1], a[2], a[3], a[4], a[5]};
+      frame = r.geo.description;
+      break;
+    case Georef::Kind::Geographic: {
+      double lon0 = std::numeric_limits<double>::infinity(), lat0 = lon0;
+      const std::array<std::pair<int, int>, 4> corners = {{{0, 0}, {w - 1, 0}, {0, h - 1}, {w - 1, h - 1}}};
+      for (const auto& [c, rw] : corners) {
+        const double lon = a[0] + c * a[1] + rw * a[2], lat = a[3] + c * a[4] + rw * a[5];
+        if (!(std::abs(lat) <= 90.0 + 1e-9)) {
+          throw DemError(path, "corner latitude " + format_number(lat) +
+                                   " is outside [-90, 90]; the georeferencing is not geographic degrees");
+        }
+        lon0 = std::min(lon0, lon);
+        lat0 = std::min(lat0, lat);
+      }
+      const double lat_c = a[3] + 0.5 * (w - 1) * a[4] + 0.5 * (h - 1) * a[5];
+      const double kx = kEarthRadius * std::cos(lat_c * kDeg) * kDeg, ky = kEarthRadius * kDeg;
+      t = pm::GridTransform{kx * (a[0] - lon0), kx * a[1], kx * a[2],
+                            ky * (a[3] - lat0), ky * a[4], ky * a[5]};
+      frame =
+          "local equirectangular from " + r.geo.description +
+          " lon/lat: x = R*cos(phi_c)*(lon-lon0)*pi/180, y = R*(lat-lat0)*pi/180, R = 6371008.8 m, lon0 = " +
+          format_number(lon0) + ", lat0 = " + format_number(lat0) + ", phi_c = " + format_number(lat_c);
+      break;
+    }
+  }
+  const double det = t.determinant();
+  if (!std::isfinite(t.x0) || !std::isfinite(t.y0) || !std::isfinite(det) || det == 0.0) {
+    throw DemError(path, "the georeferencing is degenerate (zero or non-finite sample spacing)");
+  }
+  return t;
+}
+
+pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& options) {
+  check_dimensions(path, r.width, r.height);
+  std::string frame;
+  const pm::GridTransform transform = world_transform(path, r, options, frame);
+
+  const std::size_t voids =
+      std::size_t(std::count_if(r.z.begin(), r.z.end(), [](double v) { return !std::isfinite(v); }));
+  if (voids == r.z.size()) {
+    throw DemError(path, "has no valid sample (all " + std::to_string(voids) + " are void)");
+  }
+
+  pm::Heightfield hf(r.width, r.height);
+  hf.transform = transform;
+  hf.voids.voids = voids;
+  if (voids > 0 && options.fill_voids) {
+    detail::fill_voids_harmonic(r.z, r.width, r.height);
+    hf.voids.filled = voids;
+  } else if (voids > 0) {
+    std::vector<std::uint8_t> mask(r.z.size(), 1);
+    for (std::size_t i = 0; i < r.z.size(); ++i) {
+      if (!std::isfinite(r.z[i])) {
+        mask[i] = 0;
+        r.z[i] = 0.0;
+      }
+    }
+    hf.set_mask(std::move(mask));
+  }
+  hf.samples() = std::move(r.z);
+  hf.crs_wkt = std::move(r.geo.crs_wkt);
+  hf.source = path;
+  hf.frame = frame + r.height_note;
+  return hf;
+}
+
+Format format_from_extension(const std::string& path) {
+  const std::string ext = lower(fs::path(path).extension().string());
+  if (ext == ".hgt") return Format::Hgt;
+  if (ext == ".asc") return Format::AsciiGrid;
+  if (ext == ".png") return Format::Heightmap;
+  return Format::Gdal;
+}
+
+void check_options(const DemOptions& o) {
+  if (!std::isfinite(o.vertical_scale) || o.vertical_scale == 0.0) {
+    throw std::invalid_argument("DemOptions::vertical_scale must be finite and non-zero");
+  }
+  if (!std::isfinite(o.vertical_offset))
+    throw std::invalid_argument("DemOptions::vertical_offset must be finite");
+  if (!std::isfinite(o.heightmap_spacing) || !(o.heightmap_spacing > 0.0)) {
+    throw std::invalid_argument("DemOptions::heightmap_spacing must be finite and positive");
+  }
+}
+
+}  // namespace
+
+pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
+  check_options(options);
+  try {
+    const bool automatic = options.format == Format::Auto;
+    const Format format = automatic ? format_from_extension(path) : options.format;
+    switch (format) {
+      case Format::Hgt:
+        return finish(path, read_hgt(path), options);
+      case Format::AsciiGrid:
+        return finish(path, read_ascii_grid(path), options);
+      case Format::Heightmap:
+        return finish(path, read_heightmap(path, options), options);
+      case Format::Auto:
+      case Format::Gdal: {
+        GDALDatasetUniquePtr ds = open_gdal(path);
+        const std::string ext = lower(fs::path(path).extension().string());
+        if (automatic && (ext == ".tif" || ext == ".tiff") && !has_georeference(*ds)) {
+          ds.reset();
+          return finish(path, read_heightmap(path, options), options);
+        }
+        return finish(path, read_gdal(path, *ds), options);
+      }
+    }
+    throw DemError(path, "unknown format");
+  } catch (const fs::filesystem_error& e) {
+    throw DemError(path, e.what());
+  }
+}
+
+}  // namespace terralod::blocks
