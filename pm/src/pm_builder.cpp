@@ -16,6 +16,8 @@
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
+#include <atomic>
+#include <thread>
 #include <cassert>
 #include <cmath>
 #include <stdexcept>
@@ -70,67 +72,81 @@ class TriangleCache {
   std::vector<Slot> slots_;
 };
 
-// Indexed binary min-heap over vertices, keyed by (error, tie).
+// Indexed binary min-heap over vertices, keyed by (error, tie, vertex). Keys live inside the
+// heap entries, so sifting touches only the heap array (the dominant cost when they were in
+// separate per-vertex arrays).
 class VertexHeap {
  public:
-  explicit VertexHeap(std::size_t n) : pos_(n, kAbsent), err_(n, 0), tie_(n, 0) {}
+  explicit VertexHeap(std::size_t n) : pos_(n, kAbsent) {}
   bool empty() const { return heap_.empty(); }
-  std::uint32_t top() const { return heap_.front(); }
-  double top_error() const { return err_[heap_.front()]; }
+  std::uint32_t top() const { return heap_.front().v; }
+  double top_error() const { return heap_.front().err; }
+  /// Key of the entry that would be on top without the current top (+inf when none).
+  double second_error() const {
+    double e = 1e300;
+    if (heap_.size() > 1) e = heap_[1].err;
+    if (heap_.size() > 2) e = std::min(e, heap_[2].err);
+    return e;
+  }
   bool contains(std::uint32_t v) const { return pos_[v] != kAbsent; }
   void set(std::uint32_t v, double err, double tie) {
-    err_[v] = err, tie_[v] = tie;
-    if (pos_[v] == kAbsent) {
-      pos_[v] = std::uint32_t(heap_.size());
-      heap_.push_back(v);
-      up(pos_[v]);
+    const Entry e{err, tie, v};
+    std::uint32_t p = pos_[v];
+    if (p == kAbsent) {
+      p = std::uint32_t(heap_.size());
+      heap_.push_back(e);
+      up(p, e);
     } else {
-      up(pos_[v]);
-      down(pos_[v]);
+      const bool decreased = less(e, heap_[p]);
+      if (decreased) up(p, e);
+      else down(p, e);
     }
   }
   void remove(std::uint32_t v) {
     const std::uint32_t p = pos_[v];
     if (p == kAbsent) return;
-    const std::uint32_t last = heap_.back();
+    const Entry last = heap_.back();
     heap_.pop_back();
     pos_[v] = kAbsent;
-    if (last != v) {
-      heap_[p] = last, pos_[last] = p;
-      up(p);
-      down(pos_[last]);
+    if (last.v != v) {
+      if (p > 0 && less(last, heap_[(p - 1) / 2])) up(p, last);
+      else down(p, last);
     }
   }
 
  private:
   static constexpr std::uint32_t kAbsent = UINT32_MAX;
-  bool less(std::uint32_t a, std::uint32_t b) const {
-    if (err_[a] != err_[b]) return err_[a] < err_[b];
-    if (tie_[a] != tie_[b]) return tie_[a] < tie_[b];
-    return a < b;
+  struct Entry {
+    double err, tie;
+    std::uint32_t v;
+  };
+  static bool less(const Entry& a, const Entry& b) {
+    if (a.err != b.err) return a.err < b.err;
+    if (a.tie != b.tie) return a.tie < b.tie;
+    return a.v < b.v;
   }
-  void up(std::uint32_t i) {
-    const std::uint32_t v = heap_[i];
+  // Moves e (destined for slot i) up/down to its place.
+  void up(std::uint32_t i, const Entry& e) {
     while (i > 0) {
       const std::uint32_t p = (i - 1) / 2;
-      if (!less(v, heap_[p])) break;
-      heap_[i] = heap_[p], pos_[heap_[i]] = i, i = p;
+      if (!less(e, heap_[p])) break;
+      heap_[i] = heap_[p], pos_[heap_[i].v] = i, i = p;
     }
-    heap_[i] = v, pos_[v] = i;
+    heap_[i] = e, pos_[e.v] = i;
   }
-  void down(std::uint32_t i) {
-    const std::uint32_t v = heap_[i], n = std::uint32_t(heap_.size());
+  void down(std::uint32_t i, const Entry& e) {
+    const std::uint32_t n = std::uint32_t(heap_.size());
     for (;;) {
       std::uint32_t c = 2 * i + 1;
       if (c >= n) break;
       if (c + 1 < n && less(heap_[c + 1], heap_[c])) ++c;
-      if (!less(heap_[c], v)) break;
-      heap_[i] = heap_[c], pos_[heap_[i]] = i, i = c;
+      if (!less(heap_[c], e)) break;
+      heap_[i] = heap_[c], pos_[heap_[i].v] = i, i = c;
     }
-    heap_[i] = v, pos_[v] = i;
+    heap_[i] = e, pos_[e.v] = i;
   }
-  std::vector<std::uint32_t> heap_, pos_;
-  std::vector<double> err_, tie_;
+  std::vector<Entry> heap_;
+  std::vector<std::uint32_t> pos_;
 };
 
 class Builder {
@@ -139,25 +155,82 @@ class Builder {
       : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()), heap_(hf.size()),
         target_(hf.size(), UINT32_MAX), cache_(22) {}
 
-  void run(std::vector<Collapse>& collapses, std::vector<std::uint32_t>& dropped, double quantum) {
-    pts_.resize(hf_.size());
-    for (std::size_t i = 0; i < hf_.size(); ++i) pts_[i] = GridPoint{int(i % std::size_t(W_)), int(i / std::size_t(W_))};
-    build_mesh(dropped);
+  // Shared progress of all builders of one build; only the reporting builder calls back.
+  struct Progress {
+    std::atomic<std::size_t> done{0};
+    std::atomic<bool> cancelled{false};
+    std::size_t total = 1;
+  };
+
+  // Full-resolution mesh of the cells whose column lies in [x0, x1). Vertices on a cut column
+  // (x0 > 0 or x1 < W-1) are locked: the strip beside it shares them.
+  void init_grid(int x0, int x1, std::vector<std::uint32_t>& dropped) {
+    init_points();
+    mesh_.reserve(hf_.size(), 3 * std::size_t(x1 - x0 + 1) * H_, 2 * std::size_t(x1 - x0) * H_);
+    for (std::size_t i = 0; i < hf_.size(); ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    std::vector<Mesh::VertexHandle> tri(3);
+    for (int j = 0; j + 1 < H_; ++j)
+      for (int i = x0; i < x1; ++i) {
+        const int v00 = j * W_ + i, v10 = v00 + 1, v01 = v00 + W_, v11 = v01 + 1;
+        const int faces[2][3] = {{v00, v10, v11}, {v00, v11, v01}};
+        for (int k = 0; k < 2; ++k) {
+          if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
+            continue;
+          for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(faces[k][c]);
+          if (!mesh_.add_face(tri).is_valid()) dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
+        }
+      }
+    locked_.assign(hf_.size(), 0);
+    for (int j = 0; j < H_; ++j) {
+      if (x0 > 0) locked_[std::size_t(j) * W_ + x0] = 1;
+      if (x1 < W_ - 1) locked_[std::size_t(j) * W_ + x1] = 1;
+    }
     edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
+  }
+
+  // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips.
+  void init_faces(const std::vector<std::array<std::uint32_t, 3>>& faces) {
+    init_points();
+    mesh_.reserve(hf_.size(), 3 * faces.size() / 2 + 16, faces.size());
+    for (std::size_t i = 0; i < hf_.size(); ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    std::vector<Mesh::VertexHandle> tri(3);
+    for (const auto& f : faces) {
+      for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(f[c]));
+      if (!mesh_.add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
+    }
+    locked_.assign(hf_.size(), 0);
+    edge_err_.assign(mesh_.n_edges(), 0.0);
+    if (err_.metric() == ErrorMetric::Continuous)
+      for (auto e : mesh_.edges()) {
+        const auto h = mesh_.halfedge_handle(e, 0);
+        edge_err_[e.idx()] = err_.segment(point(std::uint32_t(mesh_.from_vertex_handle(h).idx())),
+                                          point(std::uint32_t(mesh_.to_vertex_handle(h).idx())));
+      }
+  }
+
+  std::size_t live_vertices() const {
     std::size_t live = 0;
     for (auto v : mesh_.vertices())
-      if (!mesh_.is_isolated(v)) ++live;
+      if (!mesh_.status(v).deleted() && !mesh_.is_isolated(v)) ++live;
+    return live;
+  }
+
+  // Greedy collapses until nothing can collapse, the next error exceeds max_error, or only
+  // stop_live vertices are left.
+  void run(std::vector<Collapse>& collapses, double quantum, std::size_t stop_live, Progress& progress,
+           bool report) {
+    std::size_t live = live_vertices();
     for (auto v : mesh_.vertices())
       if (!mesh_.is_isolated(v)) evaluate(std::uint32_t(v.idx()), /*exact=*/false);
-    const std::size_t total = live > 4 ? live - 4 : 1;
-    std::size_t next_report = 0;
-    collapses.reserve(live);
-    while (!heap_.empty()) {
+    std::size_t since_report = 0;
+    while (!heap_.empty() && live > stop_live) {
       const std::uint32_t u = heap_.top();
       const double e = heap_.top_error();
       if (e > opt_.max_error) break;
       if (dirty_[u]) {
-        evaluate(u, /*exact=*/true);  // its key was a lower bound: measure it exactly
+        // Its key was a lower bound: measure it, but only as far as needed to know whether
+        // it is still the smallest key.
+        evaluate(u, /*exact=*/true, heap_.second_error());
         continue;
       }
       const std::uint32_t w = target_[u];
@@ -171,37 +244,30 @@ class Builder {
       for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx())); });
       mesh_.collapse(h);
       heap_.remove(u);
+      --live;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(Mesh::VertexHandle(int(w)));
       collapses.push_back(Collapse{u, w, std::ceil(e / quantum) * quantum});
       for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/false);
-      if (opt_.progress && collapses.size() >= next_report) {
-        if (!opt_.progress(double(collapses.size()) / double(total)))
+      if (++since_report == 4096) {
+        const std::size_t done = progress.done.fetch_add(since_report) + since_report;
+        since_report = 0;
+        if (progress.cancelled) throw std::runtime_error("progressive mesh build cancelled");
+        if (report && opt_.progress && !opt_.progress(std::min(1.0, double(done) / double(progress.total)))) {
+          progress.cancelled = true;
           throw std::runtime_error("progressive mesh build cancelled");
-        next_report = collapses.size() + total / 200 + 1;
+        }
       }
     }
-    if (opt_.progress) opt_.progress(1.0);
+    progress.done += since_report;
   }
 
  private:
   // Integer division by the grid width is slow in the inner loops, so points are tabulated.
   GridPoint point(std::uint32_t v) const { return pts_[v]; }
 
-  void build_mesh(std::vector<std::uint32_t>& dropped) {
-    mesh_.reserve(hf_.size(), 3 * hf_.size(), 2 * hf_.size());
-    for (std::size_t i = 0; i < hf_.size(); ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
-    std::vector<Mesh::VertexHandle> tri(3);
-    for (int j = 0; j + 1 < H_; ++j)
-      for (int i = 0; i + 1 < W_; ++i) {
-        const int v00 = j * W_ + i, v10 = v00 + 1, v01 = v00 + W_, v11 = v01 + 1;
-        const int faces[2][3] = {{v00, v10, v11}, {v00, v11, v01}};
-        for (int k = 0; k < 2; ++k) {
-          if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
-            continue;
-          for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(faces[k][c]);
-          if (!mesh_.add_face(tri).is_valid()) dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
-        }
-      }
+  void init_points() {
+    pts_.resize(hf_.size());
+    for (std::size_t i = 0; i < hf_.size(); ++i) pts_[i] = GridPoint{int(i % std::size_t(W_)), int(i / std::size_t(W_))};
   }
 
   // Outgoing halfedges of v, calling f(h) for each. Hand-written with the kernel's inline
@@ -301,11 +367,11 @@ class Builder {
   // lower bound of that collapse's error (u is marked dirty and measured exactly when the
   // bound reaches the top of the heap); since a lower bound never delays a vertex, the order
   // of collapses is the same as with exact keys, at a fraction of the cost.
-  void evaluate(std::uint32_t u, bool exact) {
+  void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
     const auto vu = Mesh::VertexHandle(int(u));
     const GridPoint pu = point(u);
     dirty_[u] = 0;
-    if (is_corner(pu) || mesh_.is_isolated(vu)) {
+    if (is_corner(pu) || locked_[u] || mesh_.is_isolated(vu)) {
       heap_.remove(u);
       return;
     }
@@ -346,14 +412,17 @@ class Builder {
       const GridPoint pw = point(c.w);
       bool ok = true;
       double lb = 0.0;
+      // u lies in the new triangle (w, a, b) whose wedge at w contains the direction w -> u:
+      // orient(w, a, u) >= 0 and orient(w, u, b) >= 0.
       for (const RingFace& f : ring_) {
         if (f.a == c.w || f.b == c.w) continue;
         const GridPoint pa = point(f.a), pb = point(f.b);
         const std::int64_t area2 = orient2d(pw, pa, pb);
         if (area2 <= 0) { ok = false; break; }
         lb = std::max(lb, f.edge_error);
-        const std::int64_t e0 = orient2d(pa, pb, pu), e1 = orient2d(pb, pw, pu), e2 = orient2d(pw, pa, pu);
-        if (e0 >= 0 && e1 >= 0 && e2 >= 0) {  // u lies in (w, a, b): exact interpolation there
+        const std::int64_t e2 = orient2d(pw, pa, pu), e1 = orient2d(pb, pw, pu);
+        if (e2 >= 0 && e1 >= 0) {
+          const std::int64_t e0 = area2 - e1 - e2;  // barycentric weights sum to area2
           const double num = double(e0) * hf_[c.w] + double(e1) * hf_[f.a] + double(e2) * hf_[f.b];
           lb = std::max(lb, std::abs(num - double(area2) * zu) / double(area2));
         }
@@ -377,28 +446,44 @@ class Builder {
       return;
     }
     // Exact errors in order of their lower bounds, skipping candidates that cannot win.
+    // Measurements stop at `cutoff` (the next key in the heap): when every candidate exceeds
+    // it, the values reached are a better lower bound and u goes back, still dirty.
     double best = 1e300, best_tie = 1e300;
     std::uint32_t best_w = UINT32_MAX;
+    double partial = 1e300, partial_tie = 0;
+    std::uint32_t partial_w = UINT32_MAX;
     for (const Candidate& c : cand_) {
       if (c.lower > best || (c.lower == best && c.tie >= best_tie)) break;
+      if (best_w == UINT32_MAX && c.lower > partial) break;
+      const double limit = std::min(best, cutoff);
       double e = c.lower;
       const GridPoint pw = point(c.w);
       if (continuous)  // the new spokes (w, x) to ring vertices x not already joined to w
         for (std::uint32_t x : ringv_) {
           if (x == c.w || spoke_known(x, c.w)) continue;
-          e = std::max(e, err_.segment(pw, point(x), best));
-          if (e > best) break;
+          e = std::max(e, err_.segment(pw, point(x), limit));
+          if (e > limit) break;
         }
-      if (e <= best)
+      if (e <= limit)
         for (const RingFace& f : ring_) {
           if (f.a == c.w || f.b == c.w) continue;
-          e = std::max(e, cached_triangle(c.w, f.a, f.b, best));
-          if (e > best) break;
+          e = std::max(e, cached_triangle(c.w, f.a, f.b, limit));
+          if (e > limit) break;
         }
+      if (e > cutoff) {  // a lower bound only
+        if (e < partial) partial = e, partial_tie = c.tie, partial_w = c.w;
+        continue;
+      }
       if (!(e < best || (e == best && c.tie < best_tie))) continue;
       // The topological test is the dearest, so it runs only for a candidate that would win.
       if (!link_ok(find_halfedge(vu, Mesh::VertexHandle(int(c.w))))) continue;
       best = e, best_tie = c.tie, best_w = c.w;
+    }
+    if (best_w == UINT32_MAX && partial_w != UINT32_MAX) {
+      dirty_[u] = 1;
+      target_[u] = partial_w;
+      heap_.set(u, partial, partial_tie);
+      return;
     }
     if (best_w == UINT32_MAX) {
       heap_.remove(u);
@@ -439,6 +524,7 @@ class Builder {
   };
   std::vector<std::uint32_t> neighbours_, ringv_;
   std::vector<GridPoint> pts_;
+  std::vector<std::uint8_t> locked_;
   std::vector<Candidate> cand_;
   std::vector<std::uint32_t> mark_ = std::vector<std::uint32_t>(hf_.size(), 0);
   std::uint32_t stamp_ = 0;
@@ -467,10 +553,84 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
   const double quantum = error_quantum_for(hf);
   std::vector<Collapse> collapses;
   std::vector<std::uint32_t> dropped;
-  {
+  Builder::Progress progress;
+  std::size_t valid = 0;
+  for (std::size_t i = 0; i < hf.size(); ++i) valid += hf.valid(i);
+  progress.total = valid > 4 ? valid - 4 : 1;
+
+  int threads = options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  // Strips narrower than this are not worth a thread; the join is sequential.
+  threads = std::min(threads, std::max(1, (hf.width() - 1) / 128));
+  // With holes the union of two manifold strips can pinch at a cut vertex; build those whole.
+  if (threads <= 1 || hf.size() < (1u << 16) || hf.has_holes()) {
     Builder b(hf, options);
-    b.run(collapses, dropped, quantum);
+    b.init_grid(0, hf.width() - 1, dropped);
+    b.run(collapses, quantum, 0, progress, /*report=*/true);
+  } else {
+    // Phase 1: vertical strips sharing their cut columns (locked), decimated in parallel
+    // until each keeps about 3% of its vertices. Collapses of different strips are
+    // independent (their 1-rings never cross a cut column), so any interleaving of the
+    // strips' sequences is a valid sequence; they are merged in error order below.
+    std::vector<int> cuts(threads + 1);
+    for (int t = 0; t <= threads; ++t) cuts[t] = int(std::int64_t(hf.width() - 1) * t / threads);
+    std::vector<std::vector<Collapse>> seq(threads);
+    std::vector<std::vector<std::uint32_t>> drop(threads);
+    std::vector<std::exception_ptr> failure(threads);
+    auto strip = [&](int t) {
+      try {
+        Builder b(hf, options);
+        b.init_grid(cuts[t], cuts[t + 1], drop[t]);
+        const std::size_t live = b.live_vertices();
+        b.run(seq[t], quantum, live / 32, progress, /*report=*/t == 0);
+      } catch (...) {
+        failure[t] = std::current_exception();
+        progress.cancelled = true;
+      }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(strip, t);
+    strip(0);
+    for (auto& th : pool) th.join();
+    for (auto& f : failure)
+      if (f) std::rethrow_exception(f);
+    // A strip that went further than the others would put its higher-error collapses before
+    // the others' lower-error ones: keep every strip's sequence only up to the smallest of
+    // their final prefix maxima, and leave the rest to the joined mesh.
+    double common = 1e300;
+    for (auto& q : seq) {
+      double m = 0;
+      for (auto& c : q) m = std::max(m, c.error);
+      common = std::min(common, m);
+    }
+    std::vector<std::size_t> keep(threads), at(threads, 0);
+    for (int t = 0; t < threads; ++t) {
+      std::size_t k = 0;
+      while (k < seq[t].size() && seq[t][k].error <= common) ++k;
+      keep[t] = k;
+    }
+    for (;;) {  // k-way merge by error (stable within a strip)
+      int pick = -1;
+      for (int t = 0; t < threads; ++t)
+        if (at[t] < keep[t] && (pick < 0 || seq[t][at[t]].error < seq[pick][at[pick]].error)) pick = t;
+      if (pick < 0) break;
+      collapses.push_back(seq[pick][at[pick]++]);
+    }
+    seq.clear();
+    for (auto& d : drop) dropped.insert(dropped.end(), d.begin(), d.end());
+    std::sort(dropped.begin(), dropped.end());
+    // Phase 2: the joined mesh (the image of the full-resolution faces under the collapses
+    // so far) continues on one thread.
+    ProgressiveMesh partial = from_parts(hf, options.metric, quantum, collapses, dropped);
+    TriangleMesh joined = partial.extract_after(collapses.size());
+    std::vector<std::array<std::uint32_t, 3>> faces(joined.triangles.size());
+    for (std::size_t f = 0; f < faces.size(); ++f)
+      for (int c = 0; c < 3; ++c) faces[f][c] = joined.vertices[joined.triangles[f][c]];
+    progress.done = collapses.size();
+    Builder b(hf, options);
+    b.init_faces(faces);
+    b.run(collapses, quantum, 0, progress, /*report=*/true);
   }
+  if (options.progress) options.progress(1.0);
   return from_parts(hf, options.metric, quantum, std::move(collapses), std::move(dropped));
 }
 
