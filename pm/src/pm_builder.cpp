@@ -410,7 +410,7 @@ class Builder {
     const double zu = hf_[u];
     for (Candidate& c : cand_) {
       const GridPoint pw = point(c.w);
-      bool ok = true;
+      bool ok = true, located = false;
       double lb = 0.0;
       // u lies in the new triangle (w, a, b) whose wedge at w contains the direction w -> u:
       // orient(w, a, u) >= 0 and orient(w, u, b) >= 0.
@@ -420,8 +420,10 @@ class Builder {
         const std::int64_t area2 = orient2d(pw, pa, pb);
         if (area2 <= 0) { ok = false; break; }
         lb = std::max(lb, f.edge_error);
+        if (located) continue;
         const std::int64_t e2 = orient2d(pw, pa, pu), e1 = orient2d(pb, pw, pu);
         if (e2 >= 0 && e1 >= 0) {
+          located = true;
           const std::int64_t e0 = area2 - e1 - e2;  // barycentric weights sum to area2
           const double num = double(e0) * hf_[c.w] + double(e1) * hf_[f.a] + double(e2) * hf_[f.b];
           lb = std::max(lb, std::abs(num - double(area2) * zu) / double(area2));
