@@ -230,7 +230,9 @@ class Builder {
       if (dirty_[u]) {
         // Its key was a lower bound: measure it, but only as far as needed to know whether
         // it is still the smallest key.
-        evaluate(u, /*exact=*/true, heap_.second_error());
+        // The first time after its ring changed, u is measured only up to the next key; when
+        // it comes back, in full (stopping at every next key makes it bounce many times).
+        evaluate(u, /*exact=*/true, pops_[u]++ == 0 ? heap_.second_error() : 1e300);
         continue;
       }
       const std::uint32_t w = target_[u];
@@ -369,6 +371,7 @@ class Builder {
   // of collapses is the same as with exact keys, at a fraction of the cost.
   void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
     const auto vu = Mesh::VertexHandle(int(u));
+    if (!exact) pops_[u] = 0;
     const GridPoint pu = point(u);
     dirty_[u] = 0;
     if (is_corner(pu) || locked_[u] || mesh_.is_isolated(vu)) {
@@ -531,6 +534,7 @@ class Builder {
   std::vector<std::uint32_t> mark_ = std::vector<std::uint32_t>(hf_.size(), 0);
   std::uint32_t stamp_ = 0;
   std::vector<std::uint8_t> dirty_ = std::vector<std::uint8_t>(hf_.size(), 0);
+  std::vector<std::uint8_t> pops_ = std::vector<std::uint8_t>(hf_.size(), 0);
   struct RingFace {
     std::uint32_t a, b;
     double edge_error;
@@ -560,11 +564,15 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
   for (std::size_t i = 0; i < hf.size(); ++i) valid += hf.valid(i);
   progress.total = valid > 4 ? valid - 4 : 1;
 
-  int threads = options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()));
-  // Strips narrower than this are not worth a thread; the join is sequential.
-  threads = std::min(threads, std::max(1, (hf.width() - 1) / 128));
-  // With holes the union of two manifold strips can pinch at a cut vertex; build those whole.
-  if (threads <= 1 || hf.size() < (1u << 16) || hf.has_holes()) {
+  // The number of strips depends on the grid only, never on the machine, so that the same
+  // heightfield always gives the same PM; threads only decide how many strips run at once.
+  // Two strips: this machine kind has two cores, and every cut column stays at full
+  // resolution below the join error, so more cuts cost triangles at fine levels.
+  const int strips = (hf.width() - 1 >= 256 && hf.size() >= (1u << 16) && !hf.has_holes()) ? 2 : 1;
+  const int threads = std::max(
+      1, std::min(strips, options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()))));
+  // With holes the union of two manifold strips can pinch at a cut vertex; those build whole.
+  if (strips == 1) {
     Builder b(hf, options);
     b.init_grid(0, hf.width() - 1, dropped);
     b.run(collapses, quantum, 0, progress, /*report=*/true);
@@ -573,11 +581,11 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
     // until each keeps about 3% of its vertices. Collapses of different strips are
     // independent (their 1-rings never cross a cut column), so any interleaving of the
     // strips' sequences is a valid sequence; they are merged in error order below.
-    std::vector<int> cuts(threads + 1);
-    for (int t = 0; t <= threads; ++t) cuts[t] = int(std::int64_t(hf.width() - 1) * t / threads);
-    std::vector<std::vector<Collapse>> seq(threads);
-    std::vector<std::vector<std::uint32_t>> drop(threads);
-    std::vector<std::exception_ptr> failure(threads);
+    std::vector<int> cuts(strips + 1);
+    for (int t = 0; t <= strips; ++t) cuts[t] = int(std::int64_t(hf.width() - 1) * t / strips);
+    std::vector<std::vector<Collapse>> seq(strips);
+    std::vector<std::vector<std::uint32_t>> drop(strips);
+    std::vector<std::exception_ptr> failure(strips);
     auto strip = [&](int t) {
       try {
         Builder b(hf, options);
@@ -590,9 +598,12 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
       }
     };
     std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(strip, t);
+    if (threads > 1)
+      for (int t = 1; t < strips; ++t) pool.emplace_back(strip, t);
     strip(0);
     for (auto& th : pool) th.join();
+    if (threads == 1)
+      for (int t = 1; t < strips; ++t) strip(t);
     for (auto& f : failure)
       if (f) std::rethrow_exception(f);
     // A strip that went further than the others would put its higher-error collapses before
@@ -604,15 +615,15 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
       for (auto& c : q) m = std::max(m, c.error);
       common = std::min(common, m);
     }
-    std::vector<std::size_t> keep(threads), at(threads, 0);
-    for (int t = 0; t < threads; ++t) {
+    std::vector<std::size_t> keep(strips), at(strips, 0);
+    for (int t = 0; t < strips; ++t) {
       std::size_t k = 0;
       while (k < seq[t].size() && seq[t][k].error <= common) ++k;
       keep[t] = k;
     }
     for (;;) {  // k-way merge by error (stable within a strip)
       int pick = -1;
-      for (int t = 0; t < threads; ++t)
+      for (int t = 0; t < strips; ++t)
         if (at[t] < keep[t] && (pick < 0 || seq[t][at[t]].error < seq[pick][at[pick]].error)) pick = t;
       if (pick < 0) break;
       collapses.push_back(seq[pick][at[pick]++]);

@@ -1,0 +1,424 @@
+// End-to-end tests of the terralod command-line tool: runs the built binary on a small Esri
+// ASCII grid it writes itself and checks exit codes, messages, JSON fields and output meshes.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "mesh_checker.hpp"
+#include "terralod/pm/heightfield.hpp"
+#include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/progressive_mesh.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace pm = terralod::pm;
+
+// ---------------------------------------------------------------------------------------------
+// Running the tool
+
+struct CliResult {
+  int status = -1;  // exit code, or -1 when it did not exit normally
+  std::string out, err;
+};
+
+/// A folder of this process's own (ctest may run the tests of this file in parallel
+/// processes), removed when the process's tests end.
+fs::path tmp_dir() {
+  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("cli-" + std::to_string(getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+class RemoveTmpDir : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(tmp_dir(), ec);
+  }
+};
+[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir = ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+/// Runs `terralod <args>` (args already shell-quoted where needed), capturing both streams.
+CliResult terralod(const std::string& args) {
+  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
+  const std::string cmd =
+      quote(TERRALOD_CLI) + " " + args + " >" + quote(out.string()) + " 2>" + quote(err.string()) + " </dev/null";
+  const int raw = std::system(cmd.c_str());
+  CliResult r;
+  r.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+std::vector<std::string> lines_of(const std::string& s) {
+  std::vector<std::string> v;
+  std::istringstream in(s);
+  for (std::string l; std::getline(in, l);) v.push_back(l);
+  return v;
+}
+
+/// The number after `"key": ` (first occurrence) in a JSON text; NaN when absent.
+double json_number(const std::string& json, const std::string& key) {
+  const std::string k = "\"" + key + "\": ";
+  const std::size_t at = json.find(k);
+  if (at == std::string::npos) return NAN;
+  char* end = nullptr;
+  const double v = std::strtod(json.c_str() + at + k.size(), &end);
+  return end == json.c_str() + at + k.size() ? NAN : v;
+}
+
+/// The number after `word ` in a line such as "extract E=2 m: 10 triangles, bound 1.5 m".
+double number_after(const std::string& line, const std::string& word) {
+  const std::size_t at = line.find(word);
+  if (at == std::string::npos) return NAN;
+  return std::strtod(line.c_str() + at + word.size(), nullptr);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The test DEM
+//
+// A 33 x 25 Esri ASCII grid, cellsize 10, lower-left corner (1000, 2000), no CRS: the reader
+// takes the units as metres and maps sample centres, so (by hand)
+//   x = 1005 + 10 * col                 x0 = 1005, xc = 10, range [1005, 1325]
+//   y = 2000 + 5 + 10 * (24 - row)      y0 = 2245, yr = -10, range [2005, 2245]
+// Heights are multiples of 0.25 m, written exactly, so read-back heights compare with ==.
+
+constexpr int kW = 33, kH = 25;
+
+double height_at(int col, int row) {
+  const double smooth = 80.0 * std::sin(col * 0.21) * std::cos(row * 0.17) + 3.0 * col - 2.0 * row;
+  const int rough = int((unsigned(col) * 7919u + unsigned(row) * 104729u) % 13u);
+  return std::round(smooth * 4.0) / 4.0 + 0.25 * rough + 500.0;
+}
+
+pm::Heightfield test_heightfield() {
+  pm::Heightfield hf(kW, kH);
+  for (int r = 0; r < kH; ++r)
+    for (int c = 0; c < kW; ++c) hf.at(c, r) = height_at(c, r);
+  hf.transform = pm::GridTransform::north_up(1005.0, 2245.0, 10.0, 10.0);
+  return hf;
+}
+
+/// Writes the test grid; `void_at` >= 0 turns that sample index into NODATA.
+void write_asc(const fs::path& path, int void_at = -1) {
+  std::ofstream f(path);
+  f << "ncols " << kW << "\nnrows " << kH << "\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
+  char buf[64];
+  for (int r = 0; r < kH; ++r) {
+    for (int c = 0; c < kW; ++c) {
+      const bool is_void = r * kW + c == void_at;
+      std::snprintf(buf, sizeof buf, "%s%.2f", c ? " " : "", is_void ? -9999.0 : height_at(c, r));
+      f << buf;
+    }
+    f << "\n";
+  }
+  ASSERT_TRUE(f.good()) << path;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Help and command-line errors
+
+TEST(cli_help, EveryCommandHasHelp) {
+  const CliResult top = terralod("--help");
+  EXPECT_EQ(top.status, 0) << top.err;
+  EXPECT_NE(top.out.find("usage: terralod"), std::string::npos) << top.out;
+  for (const std::string cmd : {"pm", "extract", "info", "demo"}) {
+    SCOPED_TRACE(cmd);
+    EXPECT_NE(top.out.find("  " + cmd + " "), std::string::npos) << "not listed by --help:\n" << top.out;
+    const CliResult r = terralod(cmd + " --help");
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(r.out.rfind("usage: terralod " + cmd, 0), 0u) << r.out;
+    EXPECT_NE(r.out.find("--help"), std::string::npos) << r.out;
+    EXPECT_TRUE(r.err.empty()) << r.err;
+  }
+  EXPECT_EQ(terralod("").status, 2);  // no command: usage on stderr, exit 2
+}
+
+TEST(cli_errors, BadOptionsExitTwoNamingTheOption) {
+  const std::string dem = quote((tmp_dir() / "unused.asc").string());
+  struct Case {
+    std::string args, must_name;
+  };
+  const std::vector<Case> cases = {
+      {"pm --input " + dem + " --out x.pm --frobnicate", "--frobnicate"},
+      {"pm --input " + dem + " --out x.pm --metric exact", "--metric"},
+      {"pm --input " + dem + " --out x.pm --threads two", "--threads"},
+      {"pm --out x.pm", "--input"},
+      {"extract --input " + dem + " --out x.ply --max-error", "--max-error"},
+      {"extract --input " + dem + " --out x.ply --max-error -1", "--max-error"},
+      {"extract --input " + dem + " --out x.ply --max-error nan", "--max-error"},
+      {"extract --input " + dem + " --out x.ply --max-error inf", "--max-error"},
+      {"extract --input " + dem + " --out x.ply --max-error 2m", "--max-error"},
+      {"extract --input " + dem + " --out x.ply --max-error 1 --units feet", "--units"},
+      {"extract --input " + dem + " --out x.stl --max-error 1", "--out"},
+      {"info " + dem + " --bogus=1", "--bogus"},
+      {"demo --size 1", "--size"},
+      {"demo --sizes 65", "--sizes"},
+      {"--frobnicate", "--frobnicate"},
+      {"frobnicate", "frobnicate"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.args);
+    const CliResult r = terralod(c.args);
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find(c.must_name), std::string::npos) << r.err;
+    EXPECT_EQ(lines_of(r.err).size(), 1u) << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+  }
+}
+
+TEST(cli_errors, MissingInputExitsOneNamingTheFile) {
+  const fs::path missing = tmp_dir() / "does_not_exist.asc";
+  const fs::path out = tmp_dir() / "never_written.pm";
+  fs::remove(out);
+  for (const std::string& args :
+       {"pm --input " + quote(missing.string()) + " --out " + quote(out.string()), "info " + quote(missing.string()),
+        "extract --input " + quote(missing.string()) + " --max-error 1 --out " + quote((tmp_dir() / "n.ply").string()),
+        "info " + quote((tmp_dir() / "does_not_exist.pm").string())}) {
+    SCOPED_TRACE(args);
+    const CliResult r = terralod(args);
+    EXPECT_EQ(r.status, 1) << r.err;
+    EXPECT_EQ(r.err.rfind("terralod: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find("does_not_exist."), std::string::npos) << r.err;
+    EXPECT_EQ(lines_of(r.err).size(), 1u) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(cli_errors, MissingOutputFolderExitsOneNamingThePath) {
+  const fs::path dem = tmp_dir() / "folder_test.asc";
+  write_asc(dem);
+  const fs::path out = tmp_dir() / "no_such_folder" / "t.pm";
+  const CliResult r = terralod("pm --input " + quote(dem.string()) + " --out " + quote(out.string()));
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find(out.string()), std::string::npos) << r.err;
+}
+
+// ---------------------------------------------------------------------------------------------
+// pm -> info -> extract on the test grid
+
+class cli_pipeline : public ::testing::Test {
+ protected:
+  static fs::path dem() { return tmp_dir() / "grid.asc"; }
+  static fs::path pm_file() { return tmp_dir() / "grid.pm"; }
+
+  static void SetUpTestSuite() {
+    write_asc(dem());
+    fs::remove(pm_file());
+    pm_run_ = new CliResult(terralod("pm --threads 1 --input " + quote(dem().string()) + " --out " + quote(pm_file().string())));
+  }
+  static void TearDownTestSuite() {
+    delete pm_run_;
+    pm_run_ = nullptr;
+  }
+
+  /// Runs extract and returns its stdout lines (asserting success).
+  static CliResult extract(const std::string& input, double e, const fs::path& out, const std::string& units) {
+    std::ostringstream a;
+    a << "extract --threads 1 --input " << quote(input) << " --max-error " << e << " --out " << quote(out.string())
+      << " --units " << units;
+    return terralod(a.str());
+  }
+
+  static CliResult* pm_run_;
+};
+CliResult* cli_pipeline::pm_run_ = nullptr;
+
+TEST_F(cli_pipeline, PmPrintsOneLinePerStageAndWritesTheFile) {
+  ASSERT_EQ(pm_run_->status, 0) << pm_run_->err;
+  const std::vector<std::string> l = lines_of(pm_run_->out);
+  ASSERT_EQ(l.size(), 3u) << pm_run_->out;
+  EXPECT_EQ(l[0].rfind("read  ", 0), 0u) << l[0];
+  EXPECT_NE(l[0].find("33 x 25 samples"), std::string::npos) << l[0];
+  EXPECT_EQ(l[1].rfind("build 825 vertices -> ", 0), 0u) << l[1];
+  EXPECT_EQ(l[2].rfind("write ", 0), 0u) << l[2];
+  EXPECT_NE(l[2].find("bytes/vertex"), std::string::npos) << l[2];
+  EXPECT_TRUE(fs::is_regular_file(pm_file()));
+  // stderr is not a TTY here: the progress goes out as "build: N%" lines, ending at 100 %.
+  EXPECT_NE(pm_run_->err.find("build: 100%"), std::string::npos) << pm_run_->err;
+}
+
+TEST_F(cli_pipeline, InfoReportsGridTransformAndHierarchy) {
+  ASSERT_EQ(pm_run_->status, 0) << pm_run_->err;
+  const CliResult r = terralod("info " + quote(pm_file().string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string& j = r.out;
+  EXPECT_NE(j.find("\"kind\": \"pm\""), std::string::npos) << j;
+  EXPECT_EQ(json_number(j, "width"), kW) << j;
+  EXPECT_EQ(json_number(j, "height"), kH) << j;  // the first "height" is the grid's
+  EXPECT_EQ(json_number(j, "x0"), 1005.0) << j;
+  EXPECT_EQ(json_number(j, "xc"), 10.0) << j;
+  EXPECT_EQ(json_number(j, "xr"), 0.0) << j;
+  EXPECT_EQ(json_number(j, "y0"), 2245.0) << j;
+  EXPECT_EQ(json_number(j, "yc"), 0.0) << j;
+  EXPECT_EQ(json_number(j, "yr"), -10.0) << j;
+  // A full grid without holes: every sample is a vertex; vsplits + base vertices = vertices.
+  const double vertices = json_number(j, "vertices"), vsplits = json_number(j, "vsplits");
+  const double base = json_number(j, "base_vertices");
+  EXPECT_EQ(vertices, kW * kH) << j;
+  EXPECT_GT(vsplits, 0.0) << j;
+  EXPECT_EQ(vsplits + base, vertices) << j;
+  EXPECT_GE(base, 4.0) << j;  // the four grid corners never collapse
+  EXPECT_EQ(json_number(j, "bytes"), double(fs::file_size(pm_file()))) << j;
+  EXPECT_GE(json_number(j, "max_error"), 0.0) << j;
+  EXPECT_NE(j.find("\"metric\": \"continuous\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"formula\": \"x = x0 + col*xc + row*xr; y = y0 + col*yc + row*yr\""), std::string::npos) << j;
+
+  // The same DEM read directly gives the same grid and transform, and no PM fields.
+  const CliResult d = terralod("info " + quote(dem().string()));
+  ASSERT_EQ(d.status, 0) << d.err;
+  EXPECT_NE(d.out.find("\"kind\": \"dem\""), std::string::npos) << d.out;
+  EXPECT_EQ(json_number(d.out, "width"), kW);
+  EXPECT_EQ(json_number(d.out, "x0"), 1005.0);
+  EXPECT_EQ(json_number(d.out, "found"), 0.0);
+  EXPECT_EQ(d.out.find("\"vsplits\""), std::string::npos) << d.out;
+}
+
+TEST_F(cli_pipeline, ExtractSamplesAndWorldMeshesHoldTheirBound) {
+  ASSERT_EQ(pm_run_->status, 0) << pm_run_->err;
+  const pm::Heightfield hf = test_heightfield();
+  for (const double e : {0.0, 2.0, 10.0}) {
+    SCOPED_TRACE("E = " + std::to_string(e));
+    const fs::path samples_ply = tmp_dir() / "grid_samples.ply", world_ply = tmp_dir() / "grid_world.ply";
+    const CliResult s = extract(pm_file().string(), e, samples_ply, "samples");
+    ASSERT_EQ(s.status, 0) << s.err;
+    const CliResult w = extract(pm_file().string(), e, world_ply, "world");
+    ASSERT_EQ(w.status, 0) << w.err;
+
+    // "extract E=2 m: T triangles, V vertices, bound B m, ..." on the second line.
+    const std::vector<std::string> l = lines_of(s.out);
+    ASSERT_EQ(l.size(), 3u) << s.out;
+    ASSERT_EQ(l[1].rfind("extract E=", 0), 0u) << l[1];
+    const double triangles = number_after(l[1], " m: "), vertices = number_after(l[1], "triangles, ");
+    const double bound = number_after(l[1], "bound ");
+    EXPECT_LE(bound, e) << l[1];
+
+    const pm::TriangleMeshData ms = pm::read_ply(samples_ply.string());
+    const pm::TriangleMeshData mw = pm::read_ply(world_ply.string());
+    ASSERT_GT(ms.positions.size(), 0u);
+    EXPECT_EQ(double(ms.positions.size()), vertices);
+    EXPECT_EQ(double(ms.triangles.size()), triangles);
+    ASSERT_EQ(mw.positions.size(), ms.positions.size());
+    ASSERT_EQ(mw.triangles.size(), ms.triangles.size());
+    // Zero-error collapses (coplanar neighbourhoods) may already apply at E = 0.
+    EXPECT_LE(ms.triangles.size(), std::size_t(2 * (kW - 1) * (kH - 1)));
+
+    // Samples units: integer (col,row) with z the sample's height; world units: the same
+    // vertices mapped by the transform worked out above.
+    pm::TriangleMesh mesh;
+    double xmin = 1e300, xmax = -1e300, ymin = 1e300, ymax = -1e300;
+    for (std::size_t i = 0; i < ms.positions.size(); ++i) {
+      const auto [x, y, z] = ms.positions[i];
+      ASSERT_TRUE(x == std::floor(x) && y == std::floor(y) && x >= 0 && x < kW && y >= 0 && y < kH) << x << " " << y;
+      const int col = int(x), row = int(y);
+      ASSERT_EQ(z, height_at(col, row)) << col << " " << row;
+      mesh.vertices.push_back(std::uint32_t(row * kW + col));
+      const auto [wx, wy, wz] = mw.positions[i];
+      EXPECT_EQ(wx, 1005.0 + 10.0 * col);
+      EXPECT_EQ(wy, 2245.0 - 10.0 * row);
+      EXPECT_EQ(wz, z);
+      xmin = std::min(xmin, wx), xmax = std::max(xmax, wx), ymin = std::min(ymin, wy), ymax = std::max(ymax, wy);
+    }
+    EXPECT_EQ(xmin, 1005.0);
+    EXPECT_EQ(xmax, 1325.0);
+    EXPECT_EQ(ymin, 2005.0);
+    EXPECT_EQ(ymax, 2245.0);
+    mesh.triangles = ms.triangles;
+    mesh.error_bound = bound;
+
+    // Independent check of the samples mesh: exact cover, watertight, error <= reported bound.
+    const terralod::test::MeshCheck c = terralod::test::check_mesh(hf, mesh);
+    EXPECT_TRUE(c.ok(bound)) << c.describe();
+  }
+}
+
+TEST_F(cli_pipeline, ExtractFromTheDemEqualsExtractFromThePm) {
+  ASSERT_EQ(pm_run_->status, 0) << pm_run_->err;
+  const fs::path a = tmp_dir() / "from_pm.obj", b = tmp_dir() / "from_dem.obj";
+  const CliResult ra = extract(pm_file().string(), 3.0, a, "world");
+  ASSERT_EQ(ra.status, 0) << ra.err;
+  const CliResult rb = extract(dem().string(), 3.0, b, "world");
+  ASSERT_EQ(rb.status, 0) << rb.err;
+  // A DEM input prints read, build, extract, write; a .pm input read, extract, write.
+  EXPECT_EQ(lines_of(ra.out).size(), 3u) << ra.out;
+  EXPECT_EQ(lines_of(rb.out).size(), 4u) << rb.out;
+  const std::string oa = slurp(a), ob = slurp(b);
+  EXPECT_FALSE(oa.empty());
+  EXPECT_EQ(oa, ob) << "the .pm round trip changed the extracted mesh";
+  EXPECT_NE(oa.find("\nf "), std::string::npos) << "no faces in the OBJ";
+}
+
+TEST(cli_voids, VoidsAreReportedFilledOrKept) {
+  const fs::path dem = tmp_dir() / "void.asc";
+  write_asc(dem, /*void_at=*/10 * kW + 12);
+  const CliResult filled = terralod("info " + quote(dem.string()));
+  ASSERT_EQ(filled.status, 0) << filled.err;
+  EXPECT_EQ(json_number(filled.out, "found"), 1.0) << filled.out;
+  EXPECT_EQ(json_number(filled.out, "filled"), 1.0) << filled.out;
+  const CliResult kept = terralod("info --keep-voids " + quote(dem.string()));
+  ASSERT_EQ(kept.status, 0) << kept.err;
+  EXPECT_EQ(json_number(kept.out, "found"), 1.0) << kept.out;
+  EXPECT_EQ(json_number(kept.out, "filled"), 0.0) << kept.out;
+
+  // A PM with a hole: the hole's sample is no vertex.
+  const fs::path out = tmp_dir() / "void.pm";
+  const CliResult p = terralod("pm --keep-voids --input " + quote(dem.string()) + " --out " + quote(out.string()));
+  ASSERT_EQ(p.status, 0) << p.err;
+  EXPECT_NE(p.out.find("1 voids (0 filled, 1 kept as holes)"), std::string::npos) << p.out;
+  const CliResult i = terralod("info " + quote(out.string()));
+  ASSERT_EQ(i.status, 0) << i.err;
+  EXPECT_EQ(json_number(i.out, "vertices"), double(kW * kH - 1)) << i.out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// demo
+
+TEST(cli_demo, PrintsEightLevelsWithinTheirBounds) {
+  const CliResult r = terralod("demo --size 65 --seed 7");
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::vector<std::string> levels;
+  for (const std::string& l : lines_of(r.out))
+    if (l.rfind("E=", 0) == 0) levels.push_back(l);
+  ASSERT_EQ(levels.size(), 8u) << r.out;
+  const double expected_e[] = {0, 0.5, 1, 2, 5, 10, 20, 50};
+  double previous = 1e300;
+  for (std::size_t k = 0; k < levels.size(); ++k) {
+    SCOPED_TRACE(levels[k]);
+    EXPECT_EQ(number_after(levels[k], "E="), expected_e[k]);
+    const double triangles = number_after(levels[k], " m: ");
+    EXPECT_LE(number_after(levels[k], "bound "), expected_e[k]);
+    EXPECT_LE(triangles, previous);  // a larger error never needs more triangles
+    EXPECT_GT(triangles, 0.0);
+    previous = triangles;
+  }
+  EXPECT_LE(number_after(levels[0], " m: "), 2.0 * 64 * 64);  // at most the full grid
+  EXPECT_EQ(number_after(levels[0], "bound "), 0.0);
+  EXPECT_NE(r.out.find("\nbuild 4225 vertices"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bytes/vertex"), std::string::npos) << r.out;
+}
+
+}  // namespace
