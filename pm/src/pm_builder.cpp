@@ -244,6 +244,8 @@ class Builder {
       }
       neighbours_.clear();
       for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx())); });
+      ++stamp_;  // w's old neighbours: their edges to w are not new
+      for_each_outgoing(Mesh::VertexHandle(int(w)), [&](Mesh::HalfedgeHandle g) { mark_[mesh_.to_vertex_handle(g).idx()] = stamp_; });
       mesh_.collapse(h);
       heap_.remove(u);
       --live;
@@ -285,12 +287,25 @@ class Builder {
     } while (h != start);
   }
 
-  // Crossing error of every edge around w (edges that were u's now end at w).
+  // Crossing error of the edges around w that are new (they were u's): those to vertices that
+  // were not w's neighbours before the collapse (marked with the current stamp).
   void update_edge_errors(Mesh::VertexHandle vw) {
-    const GridPoint pw = point(std::uint32_t(vw.idx()));
+    const std::uint32_t w = std::uint32_t(vw.idx());
     for_each_outgoing(vw, [&](Mesh::HalfedgeHandle h) {
-      edge_err_[mesh_.edge_handle(h).idx()] = err_.segment(pw, point(std::uint32_t(mesh_.to_vertex_handle(h).idx())));
+      const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(h).idx());
+      if (mark_[x] != stamp_) edge_err_[mesh_.edge_handle(h).idx()] = spoke_error(w, x, 1e300);
     });
+  }
+
+  // Crossing error of the segment (w, x), through a small direct-mapped cache: the same spokes
+  // are measured again whenever a vertex is re-evaluated. The table (1 MiB) stays in cache.
+  double spoke_error(std::uint32_t w, std::uint32_t x, double cutoff) {
+    const std::uint32_t a = std::min(w, x), b = std::max(w, x);
+    SpokeSlot& s = spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 48];
+    if (s.a == a && s.b == b && (s.exact || s.value > cutoff)) return s.value;
+    const double e = err_.segment(point(a), point(b), cutoff);
+    s = SpokeSlot{a, b, e <= cutoff, e};
+    return e;
   }
 
   Mesh::HalfedgeHandle find_halfedge(Mesh::VertexHandle from, Mesh::VertexHandle to) const {
@@ -462,11 +477,10 @@ class Builder {
       if (best_w == UINT32_MAX && c.lower > partial) break;
       const double limit = std::min(best, cutoff);
       double e = c.lower;
-      const GridPoint pw = point(c.w);
       if (continuous)  // the new spokes (w, x) to ring vertices x not already joined to w
         for (std::uint32_t x : ringv_) {
           if (x == c.w || spoke_known(x, c.w)) continue;
-          e = std::max(e, err_.segment(pw, point(x), limit));
+          e = std::max(e, spoke_error(c.w, x, limit));
           if (e > limit) break;
         }
       if (e <= limit)
@@ -529,6 +543,12 @@ class Builder {
   };
   std::vector<std::uint32_t> neighbours_, ringv_;
   std::vector<GridPoint> pts_;
+  struct SpokeSlot {
+    std::uint32_t a = UINT32_MAX, b = 0;
+    bool exact = false;
+    double value = 0;
+  };
+  std::vector<SpokeSlot> spokes_ = std::vector<SpokeSlot>(1 << 16);
   std::vector<std::uint8_t> locked_;
   std::vector<Candidate> cand_;
   std::vector<std::uint32_t> mark_ = std::vector<std::uint32_t>(hf_.size(), 0);
