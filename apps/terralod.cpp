@@ -347,7 +347,10 @@ int cmd_demo(const Args& a) {
   pm::TerrainOptions topt;
   topt.width = topt.height = int(a.get_int("--size", 513, 2, 8193));
   topt.seed = std::uint64_t(a.get_int("--seed", 1, 0, std::numeric_limits<long long>::max()));
-  topt.quantize_to_metres = false;
+  // A DEM-like terrain: 30 m spacing, 1/16 m vertical resolution, relief that fades with
+  // scale as real landscapes do (the library's default generator is rougher, for tests).
+  topt.roughness = 0.42;
+  topt.height_quantum = 1.0 / 16.0;
   pm::BuildOptions bopt;
   bopt.threads = int(a.get_int("--threads", 0, 0, 1024));
 

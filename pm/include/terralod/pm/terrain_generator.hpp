@@ -25,6 +25,9 @@ struct TerrainOptions {
   double relief = 1200.0;    ///< approximate peak-to-valley height, metres
   double roughness = 0.55;   ///< amplitude ratio between octaves, 0 < roughness < 1
   bool quantize_to_metres = false;  ///< round heights to whole metres, like SRTM
+  /// Round heights to multiples of this (metres, > 0), like a DEM's vertical resolution;
+  /// 0 keeps full double precision. quantize_to_metres takes precedence.
+  double height_quantum = 0.0;
 };
 
 /// Fractal (diamond-square on the enclosing 2^k+1 grid, cropped) terrain; x0 = y0 = 0, north-up.
