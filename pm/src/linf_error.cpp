@@ -107,7 +107,6 @@ double LInfError::samples_in_triangle(GridPoint a, GridPoint b, GridPoint c, dou
   const double Z[3] = {za, zb, zc};
   const double sx = double(A[0]) * Z[0] + double(A[1]) * Z[1] + double(A[2]) * Z[2];
   const double W = double(area2);
-  const double limit = cutoff >= kNoCutoff ? kNoCutoff : cutoff * W;
   const int y0 = std::min({a.y, b.y, c.y}), y1 = std::max({a.y, b.y, c.y});
   const int width = hf.width();
   const double* zrow0 = hf.samples().data();
@@ -134,7 +133,10 @@ double LInfError::samples_in_triangle(GridPoint a, GridPoint b, GridPoint c, dou
       rlo = std::min(rlo, d);
     }
     hi = rhi, lo = rlo;
-    if (std::max(hi, -lo) > limit) break;
+    // Compare the value that is returned, not its numerator against cutoff * W: the product
+    // can round below the numerator while the quotient rounds back to exactly the cutoff, and
+    // a caller would then take a partial scan for an exact error.
+    if (std::max(hi, -lo) / W > cutoff) break;
   }
   return std::max(hi, -lo) / W;
 }
