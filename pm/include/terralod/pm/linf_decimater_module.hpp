@@ -1,0 +1,157 @@
+// OpenMesh decimater module that ranks half-edge collapses of a grid mesh by their exact
+// L-infinity error (Eq. 1 of the view-dependent PM paper), for use with OpenMesh's DecimaterT.
+//
+// Usage:
+//   using Mesh = OpenMesh::TriMesh_ArrayKernelT<>;
+//   Mesh mesh = ...;  // one vertex per sample, point = (col, row, height); faces CCW in (col,row)
+//   OpenMesh::Decimater::DecimaterT<Mesh> decimater(mesh);
+//   terralod::pm::ModLInfT<Mesh>::Handle h;
+//   decimater.add(h);
+//   decimater.module(h).set_heightfield(hf);        // required before initialize()
+//   decimater.module(h).set_max_error(2.0, /*binary=*/false);   // metres; optional
+//   decimater.initialize();
+//   decimater.decimate();
+//   mesh.garbage_collection();
+//
+// This is the standard, slow route (OpenMesh re-measures every candidate of every vertex
+// whose ring changed, with no caching). ProgressiveMesh::build runs the same kernel and the
+// same legality rules in its own loop and records the collapse sequence; use it unless you
+// need OpenMesh's decimater framework (other modules, observers, your own mesh type).
+//
+// Contract:
+//   - Every vertex with a face has x = column and y = row as exact integers, at a valid sample
+//     of the heightfield (initialize() throws std::invalid_argument otherwise); z is not read:
+//     heights come from the heightfield, which must outlive the module.
+//   - For the collapse v0 -> v1 (ci.v0 removed, ci.v1 kept) the priority is
+//     E = max over the new triangles (v0's faces other than ci.fl and ci.fr, with v0 replaced
+//     by v1) of LInfError::triangle, i.e. Eq. 1 over the part of v1's new 1-ring that changed
+//     (the rest of the mesh, and so of the ring, is untouched by the collapse).
+//   - ILLEGAL_COLLAPSE when a grid corner would move; when a vertex on the grid border would
+//     leave its border line (or is not joined to v1 by a boundary edge along it); when v0 lies
+//     on the boundary of a hole (away from the grid border); when a new triangle would flip
+//     or degenerate in plan view; and when E > max_error (see set_max_error).
+//   - Binary mode (set_max_error(e) with binary = true, like ModQuadricT::set_max_err):
+//     LEGAL_COLLAPSE (0) when E <= e. Non-binary (the default): E itself, as a float rounded
+//     up so that the priority never understates the error.
+//   - OpenMesh's own checks (link condition, boundary rules) run in DecimaterT before the
+//     module is asked.
+// Memory: none per vertex; O(valence) scratch per call.
+#pragma once
+
+#include <OpenMesh/Tools/Decimater/ModBaseT.hh>
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "terralod/pm/heightfield.hpp"
+#include "terralod/pm/linf_error.hpp"
+
+namespace terralod::pm {
+
+template <class MeshT>
+class ModLInfT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+ public:
+  DECIMATING_MODULE(ModLInfT, MeshT, LInf);
+
+  /// Constructed by DecimaterT::add(); non-binary, no error limit, no heightfield yet.
+  explicit ModLInfT(MeshT& mesh) : Base(mesh, false) {}
+
+  /// The heightfield the mesh samples (must outlive the module) and the error measure.
+  void set_heightfield(const Heightfield& hf, ErrorMetric metric = ErrorMetric::Continuous) {
+    hf_ = &hf;
+    metric_ = metric;
+  }
+
+  /// Collapses whose error exceeds `max_error` (metres, >= 0) are illegal. With binary = true
+  /// the module only accepts or rejects, and another module must rank the collapses.
+  void set_max_error(double max_error, bool binary = true) {
+    if (!(max_error >= 0.0)) throw std::invalid_argument("ModLInfT: max_error must be >= 0");
+    max_error_ = max_error;
+    Base::set_binary(binary);
+  }
+  void unset_max_error() {
+    max_error_ = kNoLimit;
+    Base::set_binary(false);
+  }
+  double max_error() const { return max_error_; }
+
+  void initialize() override {
+    if (!hf_) throw std::logic_error("ModLInfT: set_heightfield() must be called before initialize()");
+    MeshT& m = Base::mesh();
+    for (auto v : m.vertices()) {
+      if (m.status(v).deleted() || m.is_isolated(v)) continue;  // e.g. samples on holes, unused
+      const auto p = m.point(v);
+      const double x = double(p[0]), y = double(p[1]);
+      if (x != std::floor(x) || y != std::floor(y) || x < 0 || y < 0 || x >= hf_->width() ||
+          y >= hf_->height())
+        throw std::invalid_argument("ModLInfT: vertex " + std::to_string(v.idx()) + " at (" +
+                                    std::to_string(x) + ", " + std::to_string(y) +
+                                    ") is not a sample of the " + std::to_string(hf_->width()) + " x " +
+                                    std::to_string(hf_->height()) + " heightfield");
+      if (!hf_->valid(int(x), int(y)))
+        throw std::invalid_argument("ModLInfT: vertex " + std::to_string(v.idx()) +
+                                    " sits on a hole of the heightfield");
+    }
+  }
+
+  float collapse_priority(const CollapseInfo& ci) override {
+    MeshT& m = Base::mesh();
+    const GridPoint p0 = grid_point(ci.p0), p1 = grid_point(ci.p1);
+    const int W = hf_->width(), H = hf_->height();
+    // Grid corners never move; a border vertex stays on its border line.
+    const bool on_x0 = p0.x == 0, on_x1 = p0.x == W - 1, on_y0 = p0.y == 0, on_y1 = p0.y == H - 1;
+    if ((on_x0 || on_x1) && (on_y0 || on_y1)) return float(Base::ILLEGAL_COLLAPSE);
+    const bool on_border = on_x0 || on_x1 || on_y0 || on_y1;
+    if (on_border) {
+      if ((on_x0 && p1.x != 0) || (on_x1 && p1.x != W - 1) || (on_y0 && p1.y != 0) ||
+          (on_y1 && p1.y != H - 1))
+        return float(Base::ILLEGAL_COLLAPSE);
+      // Along the border, v0 -> v1 must be a boundary edge and v0's other boundary neighbour
+      // must be on the same line too (otherwise a hole touches the border here).
+      if (!m.is_boundary(m.edge_handle(ci.v0v1))) return float(Base::ILLEGAL_COLLAPSE);
+      for (auto h : m.voh_range(ci.v0)) {
+        const auto o = m.opposite_halfedge_handle(h);
+        if (!m.is_boundary(h) && !m.is_boundary(o)) continue;
+        const GridPoint q = grid_point(m.point(m.to_vertex_handle(h)));
+        if ((on_x0 && q.x != 0) || (on_x1 && q.x != W - 1) || (on_y0 && q.y != 0) || (on_y1 && q.y != H - 1))
+          return float(Base::ILLEGAL_COLLAPSE);
+      }
+    } else if (m.is_boundary(ci.v0)) {
+      return float(Base::ILLEGAL_COLLAPSE);  // the boundary of a hole keeps its shape
+    }
+    // The new triangles: v0's faces except fl and fr, with v0 replaced by v1. Each is measured
+    // in full (no cutoff): a rejection only needs one triangle above max_error, and a full
+    // measurement cannot be mistaken for a partial one.
+    const LInfError err(*hf_, metric_);
+    double e = 0.0;
+    for (auto h : m.voh_range(ci.v0)) {
+      const auto f = m.face_handle(h);
+      if (!f.is_valid() || f == ci.fl || f == ci.fr) continue;
+      const auto hn = m.next_halfedge_handle(h);
+      const GridPoint a = grid_point(m.point(m.to_vertex_handle(h))),
+                      b = grid_point(m.point(m.to_vertex_handle(hn)));
+      if (orient2d(p1, a, b) <= 0) return float(Base::ILLEGAL_COLLAPSE);  // flip or degenerate
+      e = std::max(e, err.triangle(p1, a, b));
+      if (e > max_error_) return float(Base::ILLEGAL_COLLAPSE);
+    }
+    if (Base::is_binary()) return float(Base::LEGAL_COLLAPSE);
+    float prio = float(e);
+    if (double(prio) < e) prio = std::nextafter(prio, FLT_MAX);
+    return prio;
+  }
+
+ private:
+  static constexpr double kNoLimit = 1e300;
+  template <class Point>
+  static GridPoint grid_point(const Point& p) {
+    return GridPoint{int(std::lround(double(p[0]))), int(std::lround(double(p[1])))};
+  }
+
+  const Heightfield* hf_ = nullptr;
+  ErrorMetric metric_ = ErrorMetric::Continuous;
+  double max_error_ = kNoLimit;
+};
+
+}  // namespace terralod::pm
