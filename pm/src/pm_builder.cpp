@@ -244,8 +244,6 @@ class Builder {
       }
       neighbours_.clear();
       for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx())); });
-      ++stamp_;  // w's old neighbours: their edges to w are not new
-      for_each_outgoing(Mesh::VertexHandle(int(w)), [&](Mesh::HalfedgeHandle g) { mark_[mesh_.to_vertex_handle(g).idx()] = stamp_; });
       mesh_.collapse(h);
       heap_.remove(u);
       --live;
@@ -287,13 +285,13 @@ class Builder {
     } while (h != start);
   }
 
-  // Crossing error of the edges around w that are new (they were u's): those to vertices that
-  // were not w's neighbours before the collapse (marked with the current stamp).
+  // Crossing error of every edge around w. All of them, not only those to u's old neighbours:
+  // when OpenMesh merges the edges (u, wing) and (w, wing) it may keep the handle of the first,
+  // whose stored value would then describe the segment (u, wing).
   void update_edge_errors(Mesh::VertexHandle vw) {
     const std::uint32_t w = std::uint32_t(vw.idx());
     for_each_outgoing(vw, [&](Mesh::HalfedgeHandle h) {
-      const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(h).idx());
-      if (mark_[x] != stamp_) edge_err_[mesh_.edge_handle(h).idx()] = spoke_error(w, x, 1e300);
+      edge_err_[mesh_.edge_handle(h).idx()] = spoke_error(w, std::uint32_t(mesh_.to_vertex_handle(h).idx()), 1e300);
     });
   }
 
@@ -433,11 +431,13 @@ class Builder {
       // u lies in the new triangle (w, a, b) whose wedge at w contains the direction w -> u:
       // orient(w, a, u) >= 0 and orient(w, u, b) >= 0.
       for (const RingFace& f : ring_) {
+        // Every edge of u's ring survives as an edge of the new 1-ring of w, including the two
+        // that end at w, so all of them count.
+        lb = std::max(lb, f.edge_error);
         if (f.a == c.w || f.b == c.w) continue;
         const GridPoint pa = point(f.a), pb = point(f.b);
         const std::int64_t area2 = orient2d(pw, pa, pb);
         if (area2 <= 0) { ok = false; break; }
-        lb = std::max(lb, f.edge_error);
         if (located) continue;
         const std::int64_t e2 = orient2d(pw, pa, pu), e1 = orient2d(pb, pw, pu);
         if (e2 >= 0 && e1 >= 0) {
