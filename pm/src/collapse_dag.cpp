@@ -1,0 +1,200 @@
+// CollapseDag: one replay of a PM's collapses on per-vertex face lists, recording every face
+// each collapse removes and creates, the predecessor DAG, saturated errors and nested volumes.
+//
+// Paper: seeds/view-dependent-pm-dynamic-loading.txt, sections 2-3 (vertex hierarchy, Fig. 4
+// bounding spheres); the face-based dependencies are those of a multi-triangulation (see the
+// header for why they make every closed set of collapses a valid, error-bounded mesh).
+// Memory: see the header. The replay keeps one std::vector of face ids per sample (~60-80
+// bytes per vertex) until it ends.
+#include "terralod/pm/collapse_dag.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "terralod/pm/linf_error.hpp"
+
+namespace terralod::pm {
+namespace {
+
+void erase_one(std::vector<std::uint32_t>& v, std::uint32_t x) {
+  auto it = std::find(v.begin(), v.end(), x);
+  if (it == v.end()) throw std::logic_error("collapse dag: face list out of sync");
+  *it = v.back();
+  v.pop_back();
+}
+
+std::invalid_argument bad(std::size_t c, const std::string& what) {
+  return std::invalid_argument("collapse dag: collapse " + std::to_string(c) + " " + what);
+}
+
+}  // namespace
+
+Vec3 CollapseDag::position(std::uint32_t s) const {
+  const std::uint32_t W = std::uint32_t(hf_.width());
+  return position(double(s % W), double(s / W), hf_[s]);
+}
+
+Vec3 CollapseDag::position(double col, double row, double z) const {
+  const auto [x, y] = hf_.transform.to_world(col, row);
+  return {x, y, z};
+}
+
+CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
+    : hf_(pm.heightfield()), kind_(options.volume), collapses_(pm.collapses()) {
+  const std::size_t n = collapses_.size();
+  const std::uint32_t slots = std::uint32_t(pm.full_face_slots());
+  const std::uint32_t W = std::uint32_t(hf_.width());
+  created_base_ = slots;
+
+  // Full-resolution faces and per-sample face lists.
+  faces_.assign(slots, {kNone, kNone, kNone});
+  std::vector<std::vector<std::uint32_t>> star(hf_.size());
+  std::array<std::uint32_t, 3> t;
+  for (std::uint32_t f = 0; f < slots; ++f) {
+    if (!pm.full_face(f, t)) continue;
+    faces_[f] = t;
+    full_faces_.push_back(f);
+    for (std::uint32_t v : t) star[v].push_back(f);
+  }
+  for (const auto& s : star) full_vertex_count_ += s.empty() ? 0 : 1;
+  faces_.reserve(std::size_t(slots) + 4 * n);
+  creator_.assign(slots, kNone);
+  removed_by_.assign(hf_.size(), kNone);
+
+  auto point = [W](std::uint32_t s) { return GridPoint{int(s % W), int(s / W)}; };
+
+  // Replay.
+  removed_off_.assign(1, 0);
+  created_off_.assign(1, 0);
+  removed_.reserve(6 * n);
+  std::vector<std::uint32_t> pred_list;  // flat (c, p) pairs, deduplicated per c
+  std::vector<std::uint32_t> pred_first;
+  pred_first.reserve(n + 1);
+  for (std::size_t c = 0; c < n; ++c) {
+    const std::uint32_t u = collapses_[c].u, w = collapses_[c].w;
+    std::vector<std::uint32_t> ring = std::move(star[u]);
+    star[u] = {};
+    int shared = 0;
+    for (std::uint32_t f : ring) shared += (faces_[f][0] == w || faces_[f][1] == w || faces_[f][2] == w);
+    if (shared < 1 || shared > 2) throw bad(c, "does not collapse an edge of the mesh");
+    pred_first.push_back(std::uint32_t(pred_list.size()));
+    for (std::uint32_t f : ring) {
+      removed_.push_back(f);
+      const std::array<std::uint32_t, 3> v = faces_[f];
+      for (std::uint32_t x : v)
+        if (x != u) erase_one(star[x], f);
+      const std::uint32_t p = creator_[f];
+      if (p != kNone &&
+          std::find(pred_list.begin() + pred_first.back(), pred_list.end(), p) == pred_list.end())
+        pred_list.push_back(p);
+      if (v[0] == w || v[1] == w || v[2] == w) continue;
+      std::array<std::uint32_t, 3> nv = v;
+      for (std::uint32_t& x : nv)
+        if (x == u) x = w;
+      if (orient2d(point(nv[0]), point(nv[1]), point(nv[2])) <= 0) throw bad(c, "flips a face");
+      const std::uint32_t g = std::uint32_t(faces_.size());
+      faces_.push_back(nv);
+      creator_.push_back(std::uint32_t(c));
+      for (std::uint32_t x : nv) star[x].push_back(g);
+    }
+    removed_off_.push_back(std::uint32_t(removed_.size()));
+    created_off_.push_back(std::uint32_t(faces_.size() - slots));
+    removed_by_[u] = std::uint32_t(c);
+  }
+  pred_first.push_back(std::uint32_t(pred_list.size()));
+  star = {};
+  remover_.assign(faces_.size(), kNone);
+  for (std::size_t c = 0; c < n; ++c)
+    for (std::uint32_t k = removed_off_[c]; k < removed_off_[c + 1]; ++k)
+      remover_[removed_[k]] = std::uint32_t(c);
+
+  // DAG in both directions.
+  pred_off_ = std::move(pred_first);
+  preds_ = std::move(pred_list);
+  succ_off_.assign(n + 1, 0);
+  for (std::uint32_t p : preds_) ++succ_off_[p + 1];
+  for (std::size_t c = 0; c < n; ++c) succ_off_[c + 1] += succ_off_[c];
+  succs_.resize(preds_.size());
+  {
+    std::vector<std::uint32_t> at(succ_off_.begin(), succ_off_.end() - 1);
+    for (std::size_t c = 0; c < n; ++c)
+      for (std::uint32_t p : preds(std::uint32_t(c))) succs_[at[p]++] = std::uint32_t(c);
+  }
+
+  // Saturated errors and nested volumes, in build order (predecessors come first).
+  saturated_.resize(n);
+  if (kind_ == VolumeKind::Box)
+    boxes_.resize(n);
+  else
+    spheres_.resize(n);
+  std::vector<Vec3> pts;
+  double zlo = 1e300, zhi = -1e300;  // height range of the valid samples
+  for (std::size_t i = 0; i < hf_.size(); ++i)
+    if (hf_.valid(i)) zlo = std::min(zlo, hf_[i]), zhi = std::max(zhi, hf_[i]);
+  for (std::uint32_t c = 0; c < n; ++c) {
+    const double e = collapses_[c].error;
+    double sat = e;
+    for (std::uint32_t p : preds(c)) sat = std::max(sat, saturated_[p]);
+    saturated_[c] = sat;
+    // Corners of the created faces; each face extruded by +-e lies in the box of its corners
+    // grown by e vertically (the box of the prism's six corners).
+    pts.clear();
+    const auto [f0, f1] = created_faces(c);
+    for (std::uint32_t f = f0; f < f1; ++f)
+      for (std::uint32_t s : faces_[f]) pts.push_back(position(s));
+    if (pts.empty()) pts.push_back(position(collapses_[c].w));  // a border collapse creates nothing
+    Box b{pts[0], pts[0]};
+    for (const Vec3& q : pts) {
+      b.lo = {std::min(b.lo.x, q.x), std::min(b.lo.y, q.y), std::min(b.lo.z, q.z - e)};
+      b.hi = {std::max(b.hi.x, q.x), std::max(b.hi.y, q.y), std::max(b.hi.z, q.z + e)};
+    }
+    if (kind_ == VolumeKind::Box) {
+      for (std::uint32_t p : preds(c)) {
+        const Box& q = boxes_[p];
+        b.lo = {std::min(b.lo.x, q.lo.x), std::min(b.lo.y, q.lo.y), std::min(b.lo.z, q.lo.z)};
+        b.hi = {std::max(b.hi.x, q.hi.x), std::max(b.hi.y, q.hi.y), std::max(b.hi.z, q.hi.z)};
+      }
+      b.lo.z = std::max(b.lo.z, zlo);
+      b.hi.z = std::min(b.hi.z, zhi);
+      boxes_[c] = b;
+    } else {
+      // Centre: the middle of the box of everything to enclose; radius: the farthest of the
+      // extruded corners and of the predecessors' spheres (Fig. 4's rule, r >= |C - C_p| + r_p).
+      for (std::uint32_t p : preds(c)) {
+        const Sphere& q = spheres_[p];
+        b.lo = {std::min(b.lo.x, q.center.x - q.radius), std::min(b.lo.y, q.center.y - q.radius),
+                std::min(b.lo.z, q.center.z - q.radius)};
+        b.hi = {std::max(b.hi.x, q.center.x + q.radius), std::max(b.hi.y, q.center.y + q.radius),
+                std::max(b.hi.z, q.center.z + q.radius)};
+      }
+      Sphere s;
+      s.center = {0.5 * (b.lo.x + b.hi.x), 0.5 * (b.lo.y + b.hi.y), 0.5 * (b.lo.z + b.hi.z)};
+      double r = 0.0;
+      for (const Vec3& q : pts) {
+        const double dx = q.x - s.center.x, dy = q.y - s.center.y, dz = std::abs(q.z - s.center.z) + e;
+        r = std::max(r, std::sqrt(dx * dx + dy * dy + dz * dz));
+      }
+      for (std::uint32_t p : preds(c)) {
+        const Sphere& q = spheres_[p];
+        const double dx = q.center.x - s.center.x, dy = q.center.y - s.center.y, dz = q.center.z - s.center.z;
+        r = std::max(r, std::sqrt(dx * dx + dy * dy + dz * dz) + q.radius);
+      }
+      // Rounding of the distances above is far below a nanometre; one part in 1e12 covers it.
+      s.radius = r * (1.0 + 1e-12) + 1e-9;
+      spheres_[c] = s;
+    }
+  }
+}
+
+std::size_t CollapseDag::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return sizeof(*this) + hf_.size() * sizeof(double) + hf_.mask().size() + bytes(collapses_) +
+         bytes(saturated_) + bytes(pred_off_) + bytes(preds_) + bytes(succ_off_) + bytes(succs_) +
+         bytes(boxes_) + bytes(spheres_) + bytes(faces_) + bytes(creator_) + bytes(remover_) +
+         bytes(removed_off_) + bytes(removed_) + bytes(created_off_) + bytes(full_faces_) +
+         bytes(removed_by_);
+}
+
+}  // namespace terralod::pm

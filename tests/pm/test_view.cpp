@@ -1,0 +1,256 @@
+// Tests of the view parameters: camera conventions, projection, frustum planes, and the bound on
+// projected vertical segments, against hand-derived fixtures and the independent GLM projector.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "screen_error_checker.hpp"
+#include "terralod/pm/view.hpp"
+
+namespace pm = terralod::pm;
+namespace tt = terralod::test;
+
+namespace {
+
+void expect_vec(const pm::Vec3& v, double x, double y, double z) {
+  EXPECT_NEAR(v.x, x, 1e-12);
+  EXPECT_NEAR(v.y, y, 1e-12);
+  EXPECT_NEAR(v.z, z, 1e-12);
+}
+
+pm::Camera random_camera(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  pm::Camera c;
+  c.x = (U(rng) - 0.5) * 2e4, c.y = (U(rng) - 0.5) * 2e4, c.z = U(rng) * 3000;
+  c.yaw_deg = U(rng) * 720 - 360;
+  c.pitch_deg = U(rng) * 180 - 90;
+  c.fovy_deg = 10 + U(rng) * 150;
+  c.width_px = 100 + int(U(rng) * 2000);
+  c.height_px = 100 + int(U(rng) * 1200);
+  c.near_m = 0.5 + U(rng) * 5;
+  c.far_m = c.near_m + 1e3 + U(rng) * 1e5;
+  return c;
+}
+
+}  // namespace
+
+// World frame x east, y north, z up; yaw clockwise from north; pitch above the horizon.
+TEST(View, CameraConventions) {
+  pm::Camera c;
+  c.yaw_deg = 0, c.pitch_deg = 0;
+  pm::View north(c);
+  expect_vec(north.forward(), 0, 1, 0);
+  expect_vec(north.right(), 1, 0, 0);
+  expect_vec(north.up(), 0, 0, 1);
+  c.yaw_deg = 90;
+  pm::View east(c);
+  expect_vec(east.forward(), 1, 0, 0);
+  expect_vec(east.right(), 0, -1, 0);
+  c.yaw_deg = 180, c.pitch_deg = -90;
+  pm::View down(c);
+  expect_vec(down.forward(), 0, 0, -1);
+  expect_vec(down.right(), -1, 0, 0);
+  expect_vec(down.up(), 0, -1, 0);  // looking down while facing south: the image's up is south
+  c.yaw_deg = 0, c.pitch_deg = 30;
+  pm::View upward(c);
+  expect_vec(upward.forward(), 0, std::cos(M_PI / 6), 0.5);
+}
+
+// Fixture: eye at the origin looking north, fovy 90 (tan = 1), 1280 x 720, so K = 360 px.
+//   (0, 100, 10): 10 m up at 100 m depth -> 360 * 10 / 100 = 36 px above the centre: (640, 324).
+//   (50, 100, 0): 50 m east -> 360 * 0.5 = 180 px right: (820, 360).
+TEST(View, ProjectionFixture) {
+  pm::Camera c;
+  c.x = c.y = c.z = 0;
+  c.fovy_deg = 90;
+  pm::View v(c);
+  EXPECT_NEAR(v.focal_px(), 360.0, 1e-9);
+  EXPECT_NEAR(v.tan_half_fovx(), 1280.0 / 720.0, 1e-12);
+  double px, py;
+  ASSERT_TRUE(v.project({0, 100, 10}, px, py));
+  EXPECT_NEAR(px, 640, 1e-9);
+  EXPECT_NEAR(py, 324, 1e-9);
+  ASSERT_TRUE(v.project({50, 100, 0}, px, py));
+  EXPECT_NEAR(px, 820, 1e-9);
+  EXPECT_NEAR(py, 360, 1e-9);
+  EXPECT_FALSE(v.project({0, -5, 0}, px, py));  // behind the eye
+  EXPECT_NEAR(v.depth({3, 100, -7}), 100.0, 1e-12);
+  // A vertical segment of 1 m at depth 100 on the axis: exactly K / 100 = 3.6 px, the bound.
+  EXPECT_NEAR(v.vertical_factor(), 1.0, 1e-15);
+  tt::ScreenProjector glm_cam(c);
+  EXPECT_NEAR(glm_cam.vertical_segment_px(0, 100, -0.5, 0.5), 3.6, 1e-9);
+  EXPECT_NEAR(v.vertical_error_px_at_depth(100, 1.0), 3.6, 1e-12);
+}
+
+// vertical_factor: 1 for a level camera; looking straight down, the radial streak of a vertical
+// segment at the image corner: sqrt(tan^2(fovx/2) + tan^2(fovy/2)).
+TEST(View, VerticalFactorFixture) {
+  pm::Camera c;
+  c.fovy_deg = 90, c.width_px = 1280, c.height_px = 720;
+  c.pitch_deg = -90;
+  const double tx = 1280.0 / 720.0;
+  EXPECT_NEAR(pm::View(c).vertical_factor(), std::sqrt(tx * tx + 1.0), 1e-12);
+  c.pitch_deg = -30;  // sqrt((0.5 tx)^2 + (cos 30 + 0.5 * 1)^2)
+  EXPECT_NEAR(pm::View(c).vertical_factor(), std::hypot(0.5 * tx, std::cos(M_PI / 6) + 0.5), 1e-12);
+}
+
+TEST(View, MatricesMatchProjectAndGlm) {
+  std::mt19937_64 rng(11);
+  std::printf("seed 11\n");
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::size_t compared = 0;
+  for (int k = 0; k < 200; ++k) {
+    const pm::Camera c = random_camera(rng);
+    const pm::View v(c);
+    const tt::ScreenProjector g(c);
+    const auto V = v.view_matrix(), P = v.projection_matrix();
+    for (int i = 0; i < 20; ++i) {
+      const pm::Vec3 p{c.x + U(rng) * 5000, c.y + U(rng) * 5000, c.z + U(rng) * 2000};
+      double px, py, gx, gy;
+      const bool ok = v.project(p, px, py);
+      ASSERT_EQ(ok, g.project(p.x, p.y, p.z, gx, gy));
+      if (!ok) continue;
+      ++compared;
+      double e[4] = {0, 0, 0, 0}, clip[4] = {0, 0, 0, 0};
+      const double in[4] = {p.x, p.y, p.z, 1};
+      for (int col = 0; col < 4; ++col)
+        for (int row = 0; row < 4; ++row) e[row] += V[col * 4 + row] * in[col];
+      for (int col = 0; col < 4; ++col)
+        for (int row = 0; row < 4; ++row) clip[row] += P[col * 4 + row] * e[col];
+      const double mx = (clip[0] / clip[3] + 1) * 0.5 * c.width_px,
+                   my = (1 - clip[1] / clip[3]) * 0.5 * c.height_px;
+      const double tol = 1e-7 * (1 + std::abs(px) + std::abs(py));
+      EXPECT_NEAR(px, mx, tol);
+      EXPECT_NEAR(py, my, tol);
+      EXPECT_NEAR(px, gx, tol);
+      EXPECT_NEAR(py, gy, tol);
+    }
+  }
+  EXPECT_GT(compared, 1000u);
+}
+
+// contains() agrees with GLM's clip-space test; outside() never discards a point in the frustum.
+TEST(View, FrustumPlanesAgreeWithClipSpace) {
+  std::mt19937_64 rng(12);
+  std::printf("seed 12\n");
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  std::size_t inside = 0, boxes_out = 0, spheres_out = 0;
+  for (int k = 0; k < 200; ++k) {
+    pm::Camera c = random_camera(rng);
+    c.far_m = c.near_m + 3000;
+    const pm::View v(c);
+    const tt::ScreenProjector g(c);
+    for (int i = 0; i < 200; ++i) {
+      const pm::Vec3 p{c.x + (U(rng) - 0.5) * 8000, c.y + (U(rng) - 0.5) * 8000, c.z + (U(rng) - 0.5) * 8000};
+      bool near_boundary = false;
+      for (const pm::Plane& pl : v.planes()) near_boundary |= std::abs(pl.distance(p)) < 1e-6;
+      if (near_boundary) continue;
+      ASSERT_EQ(v.contains(p), g.inside(p.x, p.y, p.z));
+      inside += v.contains(p);
+    }
+    for (int i = 0; i < 50; ++i) {
+      const pm::Vec3 lo{c.x + (U(rng) - 0.5) * 8000, c.y + (U(rng) - 0.5) * 8000,
+                        c.z + (U(rng) - 0.5) * 4000};
+      const pm::Box b{lo, {lo.x + U(rng) * 800, lo.y + U(rng) * 800, lo.z + U(rng) * 300}};
+      const pm::Sphere s{lo, U(rng) * 500};
+      const bool bo = v.outside(b), so = v.outside(s);
+      boxes_out += bo, spheres_out += so;
+      for (int j = 0; j < 30; ++j) {
+        const pm::Vec3 q{b.lo.x + U(rng) * (b.hi.x - b.lo.x), b.lo.y + U(rng) * (b.hi.y - b.lo.y),
+                         b.lo.z + U(rng) * (b.hi.z - b.lo.z)};
+        if (bo) {
+          ASSERT_FALSE(g.inside(q.x, q.y, q.z));
+        }
+        const double r = s.radius * std::cbrt(U(rng));
+        const double th = U(rng) * 2 * M_PI, ph = std::acos(2 * U(rng) - 1);
+        const pm::Vec3 w{s.center.x + r * std::sin(ph) * std::cos(th),
+                         s.center.y + r * std::sin(ph) * std::sin(th), s.center.z + r * std::cos(ph)};
+        if (so) {
+          ASSERT_FALSE(g.inside(w.x, w.y, w.z));
+        }
+      }
+    }
+  }
+  EXPECT_GT(inside, 100u);
+  EXPECT_GT(boxes_out, 100u);
+  EXPECT_GT(spheres_out, 100u);
+}
+
+// The bound of view.cpp holds for every vertical segment in a box, measured by GLM with
+// clipping; and it is tight for a level camera (segment at the box's nearest depth, on axis).
+TEST(View, VerticalErrorBoundHolds) {
+  std::mt19937_64 rng(13);
+  std::printf("seed 13\n");
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  double worst_ratio = 0;
+  std::size_t measured = 0;
+  for (int k = 0; k < 300; ++k) {
+    const pm::Camera c = random_camera(rng);
+    const pm::View v(c);
+    const tt::ScreenProjector g(c);
+    for (int i = 0; i < 30; ++i) {
+      // A box around a point in front of the camera (sometimes reaching behind the eye).
+      const double d = std::exp(U(rng) * std::log(5000.0));
+      const pm::Vec3 m{c.x + v.forward().x * d + (U(rng) - 0.5) * d,
+                       c.y + v.forward().y * d + (U(rng) - 0.5) * d,
+                       c.z + v.forward().z * d + (U(rng) - 0.5) * d};
+      const double h = U(rng) * d * 0.5, e = U(rng) * 50;
+      const pm::Box b{{m.x - h, m.y - h, m.z - h - e}, {m.x + h, m.y + h, m.z + h + e}};
+      const pm::Sphere s{m, std::sqrt(3.0) * h + e};
+      const double bound_b = v.vertical_error_px(b, e), bound_s = v.vertical_error_px(s, e);
+      for (int j = 0; j < 20; ++j) {
+        const double x = m.x + (U(rng) - 0.5) * 2 * h, y = m.y + (U(rng) - 0.5) * 2 * h;
+        const double z0 = m.z - h + U(rng) * 2 * h, len = U(rng) * e;
+        const double px = g.vertical_segment_px(x, y, z0, z0 + (U(rng) < 0.5 ? len : -len));
+        if (px == 0) continue;
+        ++measured;
+        ASSERT_LE(px, bound_b * (1 + 1e-9) + 1e-12) << "box bound";
+        ASSERT_LE(px, bound_s * (1 + 1e-9) + 1e-12) << "sphere bound";
+        worst_ratio = std::max(worst_ratio, px / bound_b);
+      }
+    }
+  }
+  std::printf("vertical segments measured %zu, worst measured / bound %.4f\n", measured, worst_ratio);
+  EXPECT_GT(measured, 10000u);
+  // Tightness: level camera, a segment centred on the axis at the box's nearest depth.
+  pm::Camera c;
+  c.x = c.y = c.z = 0, c.fovy_deg = 50;
+  const pm::View v(c);
+  const pm::Box b{{-10, 300, -2}, {10, 320, 2}};
+  EXPECT_NEAR(tt::ScreenProjector(c).vertical_segment_px(0, 300, -2, 2), v.vertical_error_px(b, 4.0), 1e-9);
+}
+
+TEST(View, ToleranceAsFractionOfScreenHeight) {
+  EXPECT_DOUBLE_EQ(pm::tolerance_px_from_fraction(0.002, 720), 1.44);
+  EXPECT_DOUBLE_EQ(pm::tolerance_px_from_fraction(1.0 / 1080, 1080), 1.0);
+  EXPECT_THROW(pm::tolerance_px_from_fraction(0.0, 720), std::invalid_argument);
+  EXPECT_THROW(pm::tolerance_px_from_fraction(0.01, 0), std::invalid_argument);
+}
+
+TEST(View, BadCameraIsRejectedWithTheFieldName) {
+  auto msg = [](pm::Camera c) -> std::string {
+    try {
+      pm::View v(c);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  pm::Camera c;
+  c.pitch_deg = 91;
+  EXPECT_NE(msg(c).find("pitch_deg"), std::string::npos);
+  c = {}, c.fovy_deg = 180;
+  EXPECT_NE(msg(c).find("fovy_deg"), std::string::npos);
+  c = {}, c.width_px = 0;
+  EXPECT_NE(msg(c).find("width_px"), std::string::npos);
+  c = {}, c.near_m = 0;
+  EXPECT_NE(msg(c).find("near_m"), std::string::npos);
+  c = {}, c.far_m = c.near_m;
+  EXPECT_NE(msg(c).find("far_m"), std::string::npos);
+  c = {}, c.x = NAN;
+  EXPECT_NE(msg(c).find("position"), std::string::npos);
+  c = {}, c.yaw_deg = INFINITY;
+  EXPECT_NE(msg(c).find("yaw_deg"), std::string::npos);
+}
