@@ -1,7 +1,9 @@
-// The terralod command-line tool: builds, inspects and extracts progressive meshes of DEMs
-// (subcommands pm, extract, info, demo); parsing and printing only, the work is the library's.
+// The terralod command-line tool: builds, inspects, extracts and renders progressive meshes of
+// DEMs (subcommands pm, extract, info, demo, view); parsing and printing only, the work is the
+// library's.
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -20,6 +22,11 @@
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "terralod/render/camera.hpp"
+#include "terralod/render/draw_mesh.hpp"
+#include "terralod/render/gl_context.hpp"
+#include "terralod/render/image.hpp"
+#include "terralod/render/terrain_renderer.hpp"
 
 #ifndef TERRALOD_VERSION
 #define TERRALOD_VERSION "unknown"
@@ -30,6 +37,7 @@ namespace {
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 namespace blocks = terralod::blocks;
+namespace render = terralod::render;
 using terralod::cli::Args;
 using terralod::cli::CommandSpec;
 using terralod::cli::format_bytes;
@@ -388,6 +396,215 @@ int cmd_demo(const Args& a) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// terralod view
+
+CommandSpec view_spec() {
+  CommandSpec s;
+  s.name = "view";
+  s.summary = "Render a .pm file or a DEM offscreen from a camera and write a PNG.";
+  s.description = std::string(
+                      "Draws the terrain seen from --camera into an offscreen OpenGL frame (OSMesa, no display\n"
+                      "needed), lit by a directional light, and writes it as an 8-bit RGB PNG.\n\n"
+                      "Camera: X,Y,Z in world metres (x east, y north, z up; the DEM's frame, see 'terralod info'),\n"
+                      "YAW degrees clockwise from north (0 looks north, 90 east), PITCH degrees above the horizon\n"
+                      "(negative looks down, -90..90), FOVY the vertical field of view in degrees (0..180).\n\n"
+                      "Mesh: FOR NOW the UNIFORM extraction at the largest error E that no part of the terrain can\n"
+                      "show larger than --tau pixels: E = TAU * d_min / K_max, where d_min is the distance from the\n"
+                      "camera to the nearest point of the terrain's bounding box and K_max = K (1 + r^2/K^2) bounds\n"
+                      "the pixels per radian anywhere in the image (K = H / (2 tan(FOVY/2)), r = half the image\n"
+                      "diagonal in pixels). This is conservative: distant terrain keeps more triangles than it\n"
+                      "needs. The view-dependent selection of the pm/ runtime replaces it once that lands.\n\n"
+                      "--stats writes JSON: the triangle count, E, the guaranteed error bound (metres and pixels)\n"
+                      "and the time of every stage.\n\n") +
+                  kDemFormats;
+  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM", true},
+                             {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
+                             {"--out", "IMAGE.png", "PNG file to write", true},
+                             {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
+                             {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
+                             {"--wireframe", "", "draw the triangle edges over the surface"},
+                             {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
+                             {"--stats", "FILE.json", "write statistics and timings as JSON"}},
+                            build_options()),
+                     dem_options());
+  return s;
+}
+
+std::vector<double> parse_numbers(const std::string& option, const std::string& text, std::size_t count) {
+  std::vector<double> v;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    char* end = nullptr;
+    errno = 0;
+    const double x = item.empty() ? NAN : std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(x))
+      throw UsageError("option '" + option + "' needs " + std::to_string(count) +
+                       " comma-separated finite numbers, not '" + text + "'");
+    v.push_back(x);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  if (v.size() != count)
+    throw UsageError("option '" + option + "' needs " + std::to_string(count) + " comma-separated numbers, not " +
+                     std::to_string(v.size()) + " ('" + text + "')");
+  return v;
+}
+
+int cmd_view(const Args& a) {
+  const std::string input = a.get("--input"), out = a.get("--out");
+  if (lower_extension(out) != ".png") throw UsageError("option '--out' must name a .png file, not '" + out + "'");
+  const std::vector<double> c = parse_numbers("--camera", a.get("--camera"), 6);
+  if (c[4] < -90.0 || c[4] > 90.0) throw UsageError("--camera: PITCH must be in [-90, 90] degrees");
+  if (c[5] <= 0.0 || c[5] >= 180.0) throw UsageError("--camera: FOVY must be in (0, 180) degrees");
+  const double tau = a.get_double("--tau", 1.0);
+  if (tau <= 0.0) throw UsageError("option '--tau' must be > 0 pixels, not '" + a.get("--tau") + "'");
+  int width = 1024, height = 768;
+  if (a.has("--size")) {
+    const std::string sz = a.get("--size");
+    int consumed = 0;
+    if (std::sscanf(sz.c_str(), "%dx%d%n", &width, &height, &consumed) != 2 || consumed != int(sz.size()) ||
+        width < 1 || height < 1 || width > 16384 || height > 16384)
+      throw UsageError("option '--size' needs WxH with each in 1..16384, not '" + sz + "'");
+  }
+  const std::string dump = a.get("--dump-mesh"), stats_path = a.get("--stats");
+  if (a.has("--dump-mesh") && lower_extension(dump) != ".ply" && lower_extension(dump) != ".obj")
+    throw UsageError("option '--dump-mesh' must name a .ply or .obj file, not '" + dump + "'");
+  const blocks::DemOptions dem = dem_options_from(a);
+  const pm::BuildOptions build = build_options_from(a);
+  check_output_folder(out);
+  if (!dump.empty()) check_output_folder(dump);
+  if (!stats_path.empty()) check_output_folder(stats_path);
+
+  auto t = Clock::now();
+  const pm::ProgressiveMesh mesh = is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
+  const double load_ms = ms_since(t);
+  const pm::Heightfield& hf = mesh.heightfield();
+
+  render::Camera cam;
+  cam.position = {c[0], c[1], c[2]};
+  cam.yaw_deg = c[3];
+  cam.pitch_deg = c[4];
+  cam.fovy_deg = c[5];
+  cam.width = width;
+  cam.height = height;
+
+  // Conservative uniform error for tau (replaced by the pm/ view-dependent selection later):
+  // every point of a vertical error segment lies in the terrain's bounding box, hence at least
+  // d_min from the camera, so it covers at most E * K_max / d_min pixels anywhere in the image.
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (const auto& [col, row] : {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
+    const auto [x, y] = hf.transform.to_world(col, row);
+    lo = glm::min(lo, glm::dvec3(x, y, lo.z));
+    hi = glm::max(hi, glm::dvec3(x, y, hi.z));
+  }
+  const auto [hmin, hmax] = height_range(hf);
+  lo.z = std::isfinite(hmin) ? hmin : 0.0;
+  hi.z = std::isfinite(hmax) ? hmax : 0.0;
+  const double d_min = render::distance_to_box(cam.position, lo, hi);
+  const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
+  const double max_error = tau * d_min / k_max;
+  line(strf("select tau=%g px: nearest terrain %.1f m, K %.1f px, K_max %.1f px/rad -> E=%.4g m "
+            "(uniform extraction; view-dependent selection comes with the pm/ runtime)",
+            tau, d_min, k, k_max, max_error));
+
+  t = Clock::now();
+  const pm::TriangleMesh m = mesh.extract(max_error);
+  const double extract_ms = ms_since(t);
+  const double screen_bound = d_min > 0.0 ? m.error_bound * k_max / d_min : (m.error_bound > 0.0 ? INFINITY : 0.0);
+  line(strf("extract E=%.4g m: %zu triangles, %zu vertices, bound %g m (<= %.3g px), %s", max_error,
+            m.triangles.size(), m.vertices.size(), m.error_bound, screen_bound, format_duration(extract_ms).c_str()));
+
+  // Clip planes: reverse-Z keeps depth precise even with a near plane close to the eye.
+  cam.z_near = std::clamp(0.5 * d_min, 0.05, 1000.0);
+  cam.z_far = std::max(cam.z_near * 2.0, 1.01 * render::max_distance_to_box(cam.position, lo, hi) + 1.0);
+
+  t = Clock::now();
+  auto ctx = render::create_offscreen_context({width, height});
+  render::RendererOptions ropt;
+  ropt.wireframe = a.has("--wireframe");
+  render::TerrainRenderer renderer(*ctx, ropt);
+  const double context_ms = ms_since(t);
+  t = Clock::now();
+  const render::MeshId id = renderer.upload(render::make_draw_mesh(m, hf));
+  const double upload_ms = ms_since(t);
+  const render::FrameStats frame = renderer.draw(cam, {{id, 0.0f}});
+  t = Clock::now();
+  const render::Image img = renderer.read_color();
+  const double readback_ms = ms_since(t);
+  line(strf("render %d x %d on %s: context %s, upload %s, draw %s, read back %s", width, height,
+            ctx->info().renderer.c_str(), format_duration(context_ms).c_str(), format_duration(upload_ms).c_str(),
+            format_duration(frame.draw_ms).c_str(), format_duration(readback_ms).c_str()));
+
+  t = Clock::now();
+  render::write_png(img, out);
+  const double write_ms = ms_since(t);
+  line(strf("write %s: %s, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(), format_duration(write_ms).c_str()));
+
+  double dump_ms = 0.0;
+  if (!dump.empty()) {
+    t = Clock::now();
+    pm::write_mesh(m, hf, dump, pm::Units::World);
+    dump_ms = ms_since(t);
+    line(strf("write %s: %s, world units, %s", dump.c_str(), format_bytes(fs::file_size(dump)).c_str(),
+              format_duration(dump_ms).c_str()));
+  }
+
+  if (!stats_path.empty()) {
+    terralod::cli::JsonWriter j;
+    j.begin_object();
+    j.field("input", input);
+    j.field("output", out);
+    j.field("selection", "uniform");
+    j.begin_object("camera");
+    j.field("x", c[0]);
+    j.field("y", c[1]);
+    j.field("z", c[2]);
+    j.field("yaw", c[3]);
+    j.field("pitch", c[4]);
+    j.field("fovy", c[5]);
+    j.field("near", cam.z_near);
+    j.field("far", cam.z_far);
+    j.end_object();
+    j.field("width", width);
+    j.field("height", height);
+    j.field("tau", tau);
+    j.field("nearest_distance", d_min);
+    j.field("k", k);
+    j.field("k_max", k_max);
+    j.field("max_error", max_error);
+    j.field("error_bound", m.error_bound);
+    j.field("screen_error_bound", screen_bound);
+    j.field("triangles", std::uint64_t(m.triangles.size()));
+    j.field("vertices", std::uint64_t(m.vertices.size()));
+    j.field("renderer", ctx->info().renderer);
+    j.begin_object("timings_ms");
+    j.field("load", load_ms);
+    j.field("extract", extract_ms);
+    j.field("context", context_ms);
+    j.field("upload", upload_ms);
+    j.field("draw", frame.draw_ms);
+    j.field("read_back", readback_ms);
+    j.field("write_png", write_ms);
+    if (!dump.empty()) j.field("dump_mesh", dump_ms);
+    j.end_object();
+    j.end_object();
+    const std::string tmp = stats_path + ".tmp";
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    const bool ok = f && std::fwrite(j.str().data(), 1, j.str().size(), f) == j.str().size();
+    if (f && std::fclose(f) != 0) throw std::runtime_error(stats_path + ": cannot write statistics");
+    std::error_code ec;
+    if (!ok || (fs::rename(tmp, stats_path, ec), ec)) {
+      fs::remove(tmp, ec);
+      throw std::runtime_error(stats_path + ": cannot write statistics");
+    }
+    line(strf("write %s: statistics", stats_path.c_str()));
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Dispatch
 
 struct Command {
@@ -397,7 +614,8 @@ struct Command {
 
 const std::vector<Command>& commands() {
   static const std::vector<Command> c = {
-      {pm_spec, cmd_pm}, {extract_spec, cmd_extract}, {info_spec, cmd_info}, {demo_spec, cmd_demo}};
+      {pm_spec, cmd_pm},     {extract_spec, cmd_extract}, {info_spec, cmd_info},
+      {demo_spec, cmd_demo}, {view_spec, cmd_view}};
   return c;
 }
 

@@ -1,0 +1,59 @@
+// PNG writing and image reading for screenshots, through OpenImageIO (see image.hpp).
+#include "terralod/render/image.hpp"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cassert>
+#include <filesystem>
+#include <stdexcept>
+#include <system_error>
+
+namespace terralod::render {
+
+void write_png(const Image& img, const std::string& path) {
+  assert(img.width >= 1 && img.height >= 1 && img.rgb.size() == std::size_t(img.width) * img.height * 3);
+  const std::string tmp = path + ".tmp";
+  auto fail = [&](const std::string& why) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(path + ": cannot write PNG: " + why);
+  };
+  // The format is named explicitly: the temporary file's extension is ".tmp".
+  auto out = OIIO::ImageOutput::create("png");
+  if (!out) fail("OpenImageIO has no PNG writer (" + OIIO::geterror() + ")");
+  const OIIO::ImageSpec spec(img.width, img.height, 3, OIIO::TypeDesc::UINT8);
+  if (!out->open(tmp, spec)) fail(out->geterror());
+  if (!out->write_image(OIIO::TypeDesc::UINT8, img.rgb.data())) {
+    out->close();
+    fail(out->geterror());
+  }
+  if (!out->close()) fail(out->geterror());
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) fail(ec.message());
+}
+
+Image read_image(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) {
+    const std::string msg = OIIO::geterror();
+    throw std::runtime_error(path + ": cannot read image: " + (msg.empty() ? "unknown format" : msg));
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
+    throw std::runtime_error(path + ": cannot read image: it has no pixels");
+  const int channels = spec.nchannels;
+  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * channels);
+  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, all.data()))
+    throw std::runtime_error(path + ": cannot read image: " + in->geterror());
+  in->close();
+  Image img;
+  img.width = spec.width;
+  img.height = spec.height;
+  img.rgb.resize(std::size_t(img.width) * img.height * 3);
+  for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
+    for (int c = 0; c < 3; ++c) img.rgb[3 * p + c] = all[p * channels + (channels >= 3 ? c : 0)];
+  return img;
+}
+
+}  // namespace terralod::render

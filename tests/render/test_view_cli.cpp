@@ -1,0 +1,240 @@
+// End-to-end tests of `terralod view`: runs the built binary on a .pm and a DEM it writes
+// itself and checks the PNG (size, not blank), the statistics JSON against an independent
+// recomputation of the conservative uniform error, the dumped mesh, and bad command lines.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+#include <string>
+
+#include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/pm_io.hpp"
+#include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/terrain_generator.hpp"
+#include "terralod/render/image.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace pm = terralod::pm;
+namespace render = terralod::render;
+
+fs::path tmp_dir() {
+  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("view-cli-" + std::to_string(getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+class RemoveTmpDir : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(tmp_dir(), ec);
+  }
+};
+[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir =
+    ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+struct CliResult {
+  int status = -1;
+  std::string out, err;
+};
+
+/// Runs `terralod <args>` (already quoted) with no X display, capturing both streams.
+CliResult terralod(const std::string& args) {
+  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
+  const std::string cmd = "env -u DISPLAY -u WAYLAND_DISPLAY " + quote(TERRALOD_CLI) + " " + args + " >" +
+                          quote(out.string()) + " 2>" + quote(err.string()) + " </dev/null";
+  const int raw = std::system(cmd.c_str());
+  CliResult r;
+  r.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+/// The number after "key": in a JSON text (NaN when absent).
+double json_number(const std::string& json, const std::string& key) {
+  const std::string tag = "\"" + key + "\": ";
+  const std::size_t at = json.find(tag);
+  if (at == std::string::npos) return std::nan("");
+  const char* start = json.c_str() + at + tag.size();
+  char* end = nullptr;
+  const double v = std::strtod(start, &end);
+  return end == start ? std::nan("") : v;
+}
+
+/// Fraction of pixels differing from the top-left one (the sky in these views).
+double non_sky_fraction(const render::Image& img) {
+  std::size_t n = 0;
+  const std::uint8_t* sky = img.pixel(0, 0);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const std::uint8_t* p = img.pixel(x, y);
+      n += p[0] != sky[0] || p[1] != sky[1] || p[2] != sky[2];
+    }
+  return double(n) / (double(img.width) * img.height);
+}
+
+/// A 129 x 129 generated terrain, 30 m spacing, x in [0, 3840], y in [0, 3840], as a .pm file.
+struct PmFixture {
+  pm::ProgressiveMesh mesh;
+  fs::path path;
+};
+
+const PmFixture& pm_fixture() {
+  static const PmFixture f = [] {
+    pm::TerrainOptions o;
+    o.width = o.height = 129;
+    o.seed = 5;
+    o.relief = 600.0;
+    pm::Heightfield hf = pm::generate_terrain(o);
+    hf.transform = pm::GridTransform::north_up(0.0, 128 * 30.0, 30.0, 30.0);
+    PmFixture p{pm::ProgressiveMesh::build(hf), tmp_dir() / "terrain.pm"};
+    pm::write_pm(p.mesh, p.path.string());
+    return p;
+  }();
+  return f;
+}
+
+TEST(ViewCli, RendersAPmFileWithStatsAndTheDumpedMesh) {
+  const PmFixture& f = pm_fixture();
+  const fs::path png = tmp_dir() / "view.png", json = tmp_dir() / "view.json", ply = tmp_dir() / "view.ply";
+  // South-west of the square, 1 km up, looking north-east (yaw 45) and 22 degrees down.
+  const double cx = -300.0, cy = -300.0, cz = 1000.0, fovy = 60.0, tau = 1.5;
+  const int w = 240, h = 160;
+  const CliResult r =
+      terralod("view --input " + quote(f.path.string()) + " --camera -300,-300,1000,45,-22,60 --tau 1.5" +
+               " --size 240x160 --out " + quote(png.string()) + " --stats " + quote(json.string()) +
+               " --dump-mesh " + quote(ply.string()));
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  EXPECT_NE(r.out.find("select tau=1.5 px"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("view-dependent selection comes with the pm/ runtime"), std::string::npos) << r.out;
+
+  // The picture: right size, sky at the top, terrain below.
+  ASSERT_TRUE(fs::exists(png));
+  EXPECT_FALSE(fs::exists(png.string() + ".tmp"));
+  const render::Image img = render::read_image(png.string());
+  EXPECT_EQ(img.width, w);
+  EXPECT_EQ(img.height, h);
+  const double terrain = non_sky_fraction(img);
+  EXPECT_GT(terrain, 0.3);
+  EXPECT_LT(terrain, 0.95);
+
+  // The statistics, against an independent recomputation of the conservative uniform error.
+  const std::string s = slurp(json);
+  const double kDeg = std::numbers::pi / 180.0;
+  const double k = 0.5 * h / std::tan(0.5 * fovy * kDeg);
+  const double r2 = 0.25 * (w * w + h * h);
+  const double k_max = k * (1.0 + r2 / (k * k));
+  double hmin = 1e300, hmax = -1e300;
+  for (const double z : f.mesh.heightfield().samples()) hmin = std::min(hmin, z), hmax = std::max(hmax, z);
+  const double dx = 0.0 - cx, dy = 0.0 - cy,
+               dz = cz > hmax ? cz - hmax : 0.0;  // nearest box point: corner (0,0,hmax)
+  const double d_min = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double max_error = tau * d_min / k_max;
+  EXPECT_NEAR(json_number(s, "k"), k, 1e-9 * k);
+  EXPECT_NEAR(json_number(s, "k_max"), k_max, 1e-9 * k_max);
+  EXPECT_NEAR(json_number(s, "nearest_distance"), d_min, 1e-9 * d_min);
+  EXPECT_NEAR(json_number(s, "max_error"), max_error, 1e-9 * max_error);
+  const pm::TriangleMesh expected = f.mesh.extract(max_error);
+  EXPECT_EQ(json_number(s, "triangles"), double(expected.triangles.size()));
+  EXPECT_EQ(json_number(s, "error_bound"), expected.error_bound);
+  EXPECT_LE(json_number(s, "error_bound"), max_error);
+  EXPECT_LE(json_number(s, "screen_error_bound"), tau) << "the guarantee in pixels";
+  EXPECT_GT(expected.triangles.size(), 100u);
+  EXPECT_LT(expected.triangles.size(), 2u * 128u * 128u) << "tau 1.5 at 0.5 km should simplify";
+  for (const char* key : {"load", "extract", "upload", "draw", "write_png"})
+    EXPECT_GE(json_number(s, key), 0.0) << key;
+
+  // The dumped mesh is the rendered one, in world units.
+  const pm::TriangleMeshData dumped = pm::read_ply(ply.string());
+  EXPECT_EQ(dumped.triangles.size(), expected.triangles.size());
+  EXPECT_EQ(dumped.positions.size(), expected.vertices.size());
+
+  // Wireframe draws something else on the same terrain.
+  const fs::path wire = tmp_dir() / "wire.png";
+  const CliResult rw =
+      terralod("view --input " + quote(f.path.string()) +
+               " --camera=-300,-300,1000,45,-22,60 --tau 1.5 --size 240x160 --wireframe --out " +
+               quote(wire.string()));
+  ASSERT_EQ(rw.status, 0) << rw.err;
+  const render::Image wimg = render::read_image(wire.string());
+  EXPECT_EQ(wimg.width, w);
+  EXPECT_FALSE(wimg == img);
+}
+
+TEST(ViewCli, RendersADemFile) {
+  // A 33 x 33 Esri ASCII grid of a tilted ridge, 10 m cells, lower-left corner at (1000, 2000).
+  const fs::path asc = tmp_dir() / "ridge.asc", png = tmp_dir() / "ridge.png";
+  {
+    std::ofstream f(asc);
+    f << "ncols 33\nnrows 33\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
+    for (int r = 0; r < 33; ++r) {
+      for (int c = 0; c < 33; ++c) f << (c ? " " : "") << 100.0 + 40.0 * std::sin(0.2 * c) + 2.0 * r;
+      f << "\n";
+    }
+  }
+  const CliResult r = terralod("view --input " + quote(asc.string()) +
+                               " --camera 1165,1960,320,0,-40,60 --size 128x96 --out " + quote(png.string()));
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const render::Image img = render::read_image(png.string());
+  EXPECT_EQ(img.width, 128);
+  EXPECT_EQ(img.height, 96);
+  EXPECT_GT(non_sky_fraction(img), 0.2);
+}
+
+TEST(ViewCli, BadCommandLinesAreRefusedWithExitCode2) {
+  const std::string in = quote(pm_fixture().path.string()), out = quote((tmp_dir() / "bad.png").string());
+  struct Case {
+    std::string args, message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"--camera 1,2,3,4,5 --out " + out, "--camera"},
+           {"--camera 1,2,3,4,x,6 --out " + out, "--camera"},
+           {"--camera 1,2,3,0,-95,60 --out " + out, "PITCH"},
+           {"--camera 1,2,3,0,-10,180 --out " + out, "FOVY"},
+           {"--camera 1,2,3,0,-10,60 --tau 0 --out " + out, "--tau"},
+           {"--camera 1,2,3,0,-10,60 --size 0x10 --out " + out, "--size"},
+           {"--camera 1,2,3,0,-10,60 --size 10x10x --out " + out, "--size"},
+           {"--camera 1,2,3,0,-10,60 --out " + quote((tmp_dir() / "bad.jpg").string()), ".png"},
+           {"--camera 1,2,3,0,-10,60 --out " + out + " --dump-mesh x.stl", "--dump-mesh"},
+       }) {
+    const CliResult r = terralod("view --input " + in + " " + c.args);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+  }
+  EXPECT_FALSE(fs::exists(tmp_dir() / "bad.png"));
+  // A missing input is bad data: exit 1, the file named.
+  const std::string missing = (tmp_dir() / "missing.pm").string();
+  const CliResult r = terralod("view --input " + quote(missing) + " --camera 1,2,3,0,-10,60 --out " + out);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find(missing), std::string::npos) << r.err;
+  // --help documents the interim selection.
+  const CliResult h = terralod("view --help");
+  EXPECT_EQ(h.status, 0);
+  EXPECT_NE(h.out.find("UNIFORM extraction"), std::string::npos);
+  EXPECT_NE(h.out.find("YAW degrees clockwise from north"), std::string::npos);
+}
+
+}  // namespace
