@@ -17,11 +17,14 @@
 
 #include "cli_common.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/selective_refinement.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "terralod/pm/view.hpp"
 #include "terralod/render/camera.hpp"
 #include "terralod/render/draw_mesh.hpp"
 #include "terralod/render/gl_context.hpp"
@@ -408,14 +411,20 @@ CommandSpec view_spec() {
                       "Camera: X,Y,Z in world metres (x east, y north, z up; the DEM's frame, see 'terralod info'),\n"
                       "YAW degrees clockwise from north (0 looks north, 90 east), PITCH degrees above the horizon\n"
                       "(negative looks down, -90..90), FOVY the vertical field of view in degrees (0..180).\n\n"
-                      "Mesh: FOR NOW the UNIFORM extraction at the largest error E that no part of the terrain can\n"
-                      "show larger than --tau pixels: E = TAU * d_min / K_max, where d_min is the distance from the\n"
-                      "camera to the nearest point of the terrain's bounding box and K_max = K (1 + r^2/K^2) bounds\n"
-                      "the pixels per radian anywhere in the image (K = H / (2 tan(FOVY/2)), r = half the image\n"
-                      "diagonal in pixels). This is conservative: distant terrain keeps more triangles than it\n"
-                      "needs. The view-dependent selection of the pm/ runtime replaces it once that lands.\n\n"
-                      "--stats writes JSON: the triangle count, E, the guaranteed error bound (metres and pixels)\n"
-                      "and the time of every stage.\n\n") +
+                      "Mesh: the VIEW-DEPENDENT selection of the pm/ runtime (CollapseDag + SelectiveRefinement,\n"
+                      "one update from the camera): every collapse is kept only where its error, projected from the\n"
+                      "nearest point of its bounding box, is at most --tau pixels, so near terrain is fine and far\n"
+                      "terrain coarse. The guarantee: no vertical error segment inside the view frustum projects\n"
+                      "to more than bound_px <= --tau pixels (the near and far planes are those of the render).\n"
+                      "--uniform restores the earlier UNIFORM extraction at the largest error E that no part of\n"
+                      "the terrain can show larger than --tau pixels: E = TAU * d_min / K_max, where d_min is the\n"
+                      "distance from the camera to the nearest point of the terrain's bounding box and\n"
+                      "K_max = K (1 + r^2/K^2) bounds the pixels per radian anywhere in the image\n"
+                      "(K = H / (2 tan(FOVY/2)), r = half the image diagonal in pixels): conservative, distant\n"
+                      "terrain keeps more triangles than it needs.\n\n"
+                      "--stats writes JSON: the selection, the triangle and active vertex counts, the guaranteed\n"
+                      "error bound (pixels: bound_px; metres), tau and the time of every stage; for the\n"
+                      "view-dependent selection also the vsplits and ecols of the update and its time.\n\n") +
                   kDemFormats;
   s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM", true},
                              {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
@@ -423,6 +432,7 @@ CommandSpec view_spec() {
                              {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
                              {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
                              {"--wireframe", "", "draw the triangle edges over the surface"},
+                             {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
                              {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
                              {"--stats", "FILE.json", "write statistics and timings as JSON"}},
                             build_options()),
@@ -490,9 +500,10 @@ int cmd_view(const Args& a) {
   cam.width = width;
   cam.height = height;
 
-  // Conservative uniform error for tau (replaced by the pm/ view-dependent selection later):
-  // every point of a vertical error segment lies in the terrain's bounding box, hence at least
-  // d_min from the camera, so it covers at most E * K_max / d_min pixels anywhere in the image.
+  // The terrain's bounding box: the clip planes of the render (and of the selection's view),
+  // and, for --uniform, the conservative uniform error for tau: every point of a vertical error
+  // segment lies in the box, hence at least d_min from the camera, so it covers at most
+  // E * K_max / d_min pixels anywhere in the image.
   glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
   for (const auto& [col, row] : {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
     const auto [x, y] = hf.transform.to_world(col, row);
@@ -504,21 +515,57 @@ int cmd_view(const Args& a) {
   hi.z = std::isfinite(hmax) ? hmax : 0.0;
   const double d_min = render::distance_to_box(cam.position, lo, hi);
   const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
-  const double max_error = tau * d_min / k_max;
-  line(strf("select tau=%g px: nearest terrain %.1f m, K %.1f px, K_max %.1f px/rad -> E=%.4g m "
-            "(uniform extraction; view-dependent selection comes with the pm/ runtime)",
-            tau, d_min, k, k_max, max_error));
-
-  t = Clock::now();
-  const pm::TriangleMesh m = mesh.extract(max_error);
-  const double extract_ms = ms_since(t);
-  const double screen_bound = d_min > 0.0 ? m.error_bound * k_max / d_min : (m.error_bound > 0.0 ? INFINITY : 0.0);
-  line(strf("extract E=%.4g m: %zu triangles, %zu vertices, bound %g m (<= %.3g px), %s", max_error,
-            m.triangles.size(), m.vertices.size(), m.error_bound, screen_bound, format_duration(extract_ms).c_str()));
-
   // Clip planes: reverse-Z keeps depth precise even with a near plane close to the eye.
   cam.z_near = std::clamp(0.5 * d_min, 0.05, 1000.0);
   cam.z_far = std::max(cam.z_near * 2.0, 1.01 * render::max_distance_to_box(cam.position, lo, hi) + 1.0);
+
+  const bool uniform = a.has("--uniform");
+  pm::TriangleMesh m;
+  double max_error = 0.0, screen_bound = 0.0, extract_ms = 0.0, dag_ms = 0.0;
+  pm::FrameStats sel_stats;
+  if (uniform) {
+    max_error = tau * d_min / k_max;
+    line(strf("select tau=%g px: nearest terrain %.1f m, K %.1f px, K_max %.1f px/rad -> E=%.4g m "
+              "(uniform extraction, --uniform)",
+              tau, d_min, k, k_max, max_error));
+    t = Clock::now();
+    m = mesh.extract(max_error);
+    extract_ms = ms_since(t);
+    screen_bound = d_min > 0.0 ? m.error_bound * k_max / d_min : (m.error_bound > 0.0 ? INFINITY : 0.0);
+    line(strf("extract E=%.4g m: %zu triangles, %zu vertices, bound %g m (<= %.3g px), %s", max_error,
+              m.triangles.size(), m.vertices.size(), m.error_bound, screen_bound, format_duration(extract_ms).c_str()));
+  } else {
+    // View-dependent selection: the pm::Camera conventions are the CLI's; same clip planes as
+    // the render, so the guarantee covers exactly what is drawn.
+    pm::Camera pc;
+    pc.x = c[0];
+    pc.y = c[1];
+    pc.z = c[2];
+    pc.yaw_deg = c[3];
+    pc.pitch_deg = c[4];
+    pc.fovy_deg = c[5];
+    pc.width_px = width;
+    pc.height_px = height;
+    pc.near_m = cam.z_near;
+    pc.far_m = cam.z_far;
+    t = Clock::now();
+    const pm::CollapseDag dag(mesh);
+    dag_ms = ms_since(t);
+    pm::RefinementOptions ropt;
+    ropt.tolerance_px = tau;
+    pm::SelectiveRefinement sel(dag, ropt);
+    sel_stats = sel.update(pm::View(pc), 0.0);
+    t = Clock::now();
+    m = sel.mesh();
+    extract_ms = ms_since(t);
+    screen_bound = sel_stats.bound_px;
+    line(strf("select tau=%g px (view-dependent): dag %zu collapses in %s; update %zu vsplits, %zu ecols, "
+              "%zu evaluated in %s",
+              tau, dag.collapse_count(), format_duration(dag_ms).c_str(), sel_stats.vsplits, sel_stats.ecols,
+              sel_stats.evaluated, format_duration(sel_stats.update_ms).c_str()));
+    line(strf("selection: %zu triangles, %zu active vertices, bound %.4g px (<= tau %g), %g m at the samples",
+              m.triangles.size(), sel_stats.active_vertices, sel_stats.bound_px, tau, sel_stats.bound_m));
+  }
 
   t = Clock::now();
   auto ctx = render::create_offscreen_context({width, height});
@@ -556,7 +603,7 @@ int cmd_view(const Args& a) {
     j.begin_object();
     j.field("input", input);
     j.field("output", out);
-    j.field("selection", "uniform");
+    j.field("selection", uniform ? "uniform" : "view-dependent");
     j.begin_object("camera");
     j.field("x", c[0]);
     j.field("y", c[1]);
@@ -573,15 +620,29 @@ int cmd_view(const Args& a) {
     j.field("nearest_distance", d_min);
     j.field("k", k);
     j.field("k_max", k_max);
-    j.field("max_error", max_error);
+    if (uniform) j.field("max_error", max_error);
     j.field("error_bound", m.error_bound);
     j.field("screen_error_bound", screen_bound);
+    j.field("bound_px", screen_bound);
     j.field("triangles", std::uint64_t(m.triangles.size()));
     j.field("vertices", std::uint64_t(m.vertices.size()));
+    if (!uniform) {
+      j.field("active_vertices", std::uint64_t(sel_stats.active_vertices));
+      j.field("vsplits", std::uint64_t(sel_stats.vsplits));
+      j.field("ecols", std::uint64_t(sel_stats.ecols));
+      j.field("evaluated", std::uint64_t(sel_stats.evaluated));
+      j.field("tolerance_px", sel_stats.tolerance_px);
+      j.field("bound_m", sel_stats.bound_m);
+      j.field("update_ms", sel_stats.update_ms);
+    }
     j.field("renderer", ctx->info().renderer);
     j.begin_object("timings_ms");
     j.field("load", load_ms);
-    j.field("extract", extract_ms);
+    if (!uniform) {
+      j.field("dag", dag_ms);
+      j.field("update", sel_stats.update_ms);
+    }
+    j.field(uniform ? "extract" : "mesh", extract_ms);
     j.field("context", context_ms);
     j.field("upload", upload_ms);
     j.field("draw", frame.draw_ms);

@@ -1,6 +1,9 @@
 // End-to-end tests of `terralod view`: runs the built binary on a .pm and a DEM it writes
-// itself and checks the PNG (size, not blank), the statistics JSON against an independent
-// recomputation of the conservative uniform error, the dumped mesh, and bad command lines.
+// itself and checks the PNG (size, not blank); for the view-dependent selection (the default)
+// the statistics JSON (bound_px <= tau, counts equal to the dumped mesh's) and the dumped mesh
+// with the independent checkers (a valid plan-view triangulation of the domain; measured
+// screen-space error <= bound_px); for --uniform the statistics against an independent
+// recomputation of the conservative uniform error; and bad command lines.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,6 +22,8 @@
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/image.hpp"
+#include "mesh_checker.hpp"
+#include "screen_error_checker.hpp"
 
 namespace {
 
@@ -84,6 +89,29 @@ double json_number(const std::string& json, const std::string& key) {
   return end == start ? std::nan("") : v;
 }
 
+/// The dumped mesh (world units) as a mesh of samples of hf: each position rounded to its grid
+/// index, which must be within 1e-6 of a sample whose height matches.
+pm::TriangleMesh as_sample_mesh(const pm::TriangleMeshData& d, const pm::Heightfield& hf) {
+  pm::TriangleMesh m;
+  for (const auto& p : d.positions) {
+    const auto [col, row] = terralod::test::world_to_index(hf, p[0], p[1]);
+    const long c = std::lround(col), r = std::lround(row);
+    EXPECT_NEAR(col, double(c), 1e-6);
+    EXPECT_NEAR(row, double(r), 1e-6);
+    if (c < 0 || r < 0 || c >= hf.width() || r >= hf.height()) {
+      ADD_FAILURE() << "vertex outside the grid: " << col << ", " << row;
+      continue;
+    }
+    const std::uint32_t s = std::uint32_t(r * hf.width() + c);
+    EXPECT_NEAR(p[2], hf.samples()[s], 1e-6 * (1.0 + std::abs(p[2])));
+    m.vertices.push_back(s);
+  }
+  m.triangles = d.triangles;
+  if (hf.transform.determinant() < 0)  // World units flip the winding of north-up rasters
+    for (auto& t : m.triangles) std::swap(t[1], t[2]);
+  return m;
+}
+
 /// Fraction of pixels differing from the top-left one (the sky in these views).
 double non_sky_fraction(const render::Image& img) {
   std::size_t n = 0;
@@ -117,19 +145,19 @@ const PmFixture& pm_fixture() {
   return f;
 }
 
-TEST(ViewCli, RendersAPmFileWithStatsAndTheDumpedMesh) {
+TEST(ViewCli, RendersAPmFileWithTheViewDependentSelection) {
   const PmFixture& f = pm_fixture();
+  const pm::Heightfield& hf = f.mesh.heightfield();
   const fs::path png = tmp_dir() / "view.png", json = tmp_dir() / "view.json", ply = tmp_dir() / "view.ply";
   // South-west of the square, 1 km up, looking north-east (yaw 45) and 22 degrees down.
-  const double cx = -300.0, cy = -300.0, cz = 1000.0, fovy = 60.0, tau = 1.5;
+  const double tau = 1.5;
   const int w = 240, h = 160;
   const CliResult r =
       terralod("view --input " + quote(f.path.string()) + " --camera -300,-300,1000,45,-22,60 --tau 1.5" +
                " --size 240x160 --out " + quote(png.string()) + " --stats " + quote(json.string()) +
                " --dump-mesh " + quote(ply.string()));
   ASSERT_EQ(r.status, 0) << r.err << r.out;
-  EXPECT_NE(r.out.find("select tau=1.5 px"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("view-dependent selection comes with the pm/ runtime"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("select tau=1.5 px (view-dependent)"), std::string::npos) << r.out;
 
   // The picture: right size, sky at the top, terrain below.
   ASSERT_TRUE(fs::exists(png));
@@ -141,8 +169,89 @@ TEST(ViewCli, RendersAPmFileWithStatsAndTheDumpedMesh) {
   EXPECT_GT(terrain, 0.3);
   EXPECT_LT(terrain, 0.95);
 
+  // The statistics.
+  const std::string s = slurp(json);
+  EXPECT_NE(s.find("\"selection\": \"view-dependent\""), std::string::npos) << s;
+  EXPECT_EQ(json_number(s, "tau"), tau);
+  const double bound_px = json_number(s, "bound_px");
+  EXPECT_GT(bound_px, 0.0);
+  EXPECT_LE(bound_px, tau) << "the guarantee in pixels";
+  EXPECT_GT(json_number(s, "vsplits"), 0.0) << "one update from the base mesh refines";
+  EXPECT_EQ(json_number(s, "ecols"), 0.0);
+  EXPECT_GE(json_number(s, "update_ms"), 0.0);
+  for (const char* key : {"load", "dag", "update", "mesh", "upload", "draw", "write_png"})
+    EXPECT_GE(json_number(s, key), 0.0) << key;
+  const double triangles = json_number(s, "triangles");
+  EXPECT_GT(triangles, 100.0);
+  EXPECT_LT(triangles, 2.0 * 128 * 128) << "tau 1.5 at 0.5 km should simplify";
+
+  // The dumped mesh is the rendered one, in world units, with the counts of the statistics.
+  const pm::TriangleMeshData dumped = pm::read_ply(ply.string());
+  EXPECT_EQ(double(dumped.triangles.size()), triangles);
+  EXPECT_EQ(double(dumped.positions.size()), json_number(s, "active_vertices"));
+  EXPECT_EQ(double(dumped.positions.size()), json_number(s, "vertices"));
+  const pm::TriangleMesh sel = as_sample_mesh(dumped, hf);
+
+  // A valid plan-view triangulation of the domain (independent checker).
+  const terralod::test::MeshCheck check = terralod::test::check_mesh(hf, sel, {f.mesh.dropped_faces()});
+  EXPECT_TRUE(check.topology_ok()) << check.describe();
+  EXPECT_LE(check.max_continuous_error(), json_number(s, "error_bound") + check.tolerance) << check.describe();
+
+  // Measured screen-space error of every in-frustum error segment <= bound_px (independent
+  // projection, with the clip planes the command used).
+  pm::Camera cam;
+  cam.x = -300.0, cam.y = -300.0, cam.z = 1000.0;
+  cam.yaw_deg = 45.0, cam.pitch_deg = -22.0, cam.fovy_deg = 60.0;
+  cam.width_px = w, cam.height_px = h;
+  cam.near_m = json_number(s, "near");
+  cam.far_m = json_number(s, "far");
+  const terralod::test::ScreenCheck screen =
+      terralod::test::check_screen_error(hf, sel, terralod::test::ScreenProjector(cam));
+  EXPECT_GT(screen.triangles_visible, 0u);
+  EXPECT_LE(screen.max_error_px, bound_px + 1e-9) << screen.describe();
+
+  // Coarser than the conservative uniform mesh for the same tau, which is still available.
+  const fs::path ujson = tmp_dir() / "uniform.json";
+  const CliResult ru =
+      terralod("view --input " + quote(f.path.string()) + " --camera -300,-300,1000,45,-22,60 --tau 1.5" +
+               " --size 240x160 --uniform --out " + quote((tmp_dir() / "uniform.png").string()) + " --stats " +
+               quote(ujson.string()));
+  ASSERT_EQ(ru.status, 0) << ru.err << ru.out;
+  EXPECT_LT(triangles, json_number(slurp(ujson), "triangles"));
+
+  // Wireframe draws something else on the same terrain.
+  const fs::path wire = tmp_dir() / "wire.png";
+  const CliResult rw =
+      terralod("view --input " + quote(f.path.string()) +
+               " --camera=-300,-300,1000,45,-22,60 --tau 1.5 --size 240x160 --wireframe --out " +
+               quote(wire.string()));
+  ASSERT_EQ(rw.status, 0) << rw.err;
+  const render::Image wimg = render::read_image(wire.string());
+  EXPECT_EQ(wimg.width, w);
+  EXPECT_FALSE(wimg == img);
+}
+
+TEST(ViewCli, UniformRendersTheConservativeUniformExtraction) {
+  const PmFixture& f = pm_fixture();
+  const fs::path png = tmp_dir() / "uview.png", json = tmp_dir() / "uview.json", ply = tmp_dir() / "uview.ply";
+  // South-west of the square, 1 km up, looking north-east (yaw 45) and 22 degrees down.
+  const double cx = -300.0, cy = -300.0, cz = 1000.0, fovy = 60.0, tau = 1.5;
+  const int w = 240, h = 160;
+  const CliResult r =
+      terralod("view --input " + quote(f.path.string()) + " --camera -300,-300,1000,45,-22,60 --tau 1.5" +
+               " --size 240x160 --uniform --out " + quote(png.string()) + " --stats " + quote(json.string()) +
+               " --dump-mesh " + quote(ply.string()));
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  EXPECT_NE(r.out.find("select tau=1.5 px"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("uniform extraction, --uniform"), std::string::npos) << r.out;
+  const render::Image img = render::read_image(png.string());
+  EXPECT_EQ(img.width, w);
+  EXPECT_EQ(img.height, h);
+  EXPECT_GT(non_sky_fraction(img), 0.3);
+
   // The statistics, against an independent recomputation of the conservative uniform error.
   const std::string s = slurp(json);
+  EXPECT_NE(s.find("\"selection\": \"uniform\""), std::string::npos) << s;
   const double kDeg = std::numbers::pi / 180.0;
   const double k = 0.5 * h / std::tan(0.5 * fovy * kDeg);
   const double r2 = 0.25 * (w * w + h * h);
@@ -162,6 +271,7 @@ TEST(ViewCli, RendersAPmFileWithStatsAndTheDumpedMesh) {
   EXPECT_EQ(json_number(s, "error_bound"), expected.error_bound);
   EXPECT_LE(json_number(s, "error_bound"), max_error);
   EXPECT_LE(json_number(s, "screen_error_bound"), tau) << "the guarantee in pixels";
+  EXPECT_LE(json_number(s, "bound_px"), tau);
   EXPECT_GT(expected.triangles.size(), 100u);
   EXPECT_LT(expected.triangles.size(), 2u * 128u * 128u) << "tau 1.5 at 0.5 km should simplify";
   for (const char* key : {"load", "extract", "upload", "draw", "write_png"})
@@ -171,17 +281,6 @@ TEST(ViewCli, RendersAPmFileWithStatsAndTheDumpedMesh) {
   const pm::TriangleMeshData dumped = pm::read_ply(ply.string());
   EXPECT_EQ(dumped.triangles.size(), expected.triangles.size());
   EXPECT_EQ(dumped.positions.size(), expected.vertices.size());
-
-  // Wireframe draws something else on the same terrain.
-  const fs::path wire = tmp_dir() / "wire.png";
-  const CliResult rw =
-      terralod("view --input " + quote(f.path.string()) +
-               " --camera=-300,-300,1000,45,-22,60 --tau 1.5 --size 240x160 --wireframe --out " +
-               quote(wire.string()));
-  ASSERT_EQ(rw.status, 0) << rw.err;
-  const render::Image wimg = render::read_image(wire.string());
-  EXPECT_EQ(wimg.width, w);
-  EXPECT_FALSE(wimg == img);
 }
 
 TEST(ViewCli, RendersADemFile) {
@@ -230,9 +329,11 @@ TEST(ViewCli, BadCommandLinesAreRefusedWithExitCode2) {
   const CliResult r = terralod("view --input " + quote(missing) + " --camera 1,2,3,0,-10,60 --out " + out);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find(missing), std::string::npos) << r.err;
-  // --help documents the interim selection.
+  // --help documents both selections.
   const CliResult h = terralod("view --help");
   EXPECT_EQ(h.status, 0);
+  EXPECT_NE(h.out.find("VIEW-DEPENDENT selection"), std::string::npos);
+  EXPECT_NE(h.out.find("--uniform"), std::string::npos);
   EXPECT_NE(h.out.find("UNIFORM extraction"), std::string::npos);
   EXPECT_NE(h.out.find("YAW degrees clockwise from north"), std::string::npos);
 }
