@@ -509,10 +509,17 @@ Raster read_ascii_grid(const std::string& path) {
   if (!(dx > 0) || !(dy > 0)) throw DemError(path, "cell size must be positive");
   check_dimensions(path, ncols, nrows);
 
+  const std::size_t total = std::size_t(ncols) * std::size_t(nrows);
+  // Every value takes at least one byte: refuse a header that promises more than the file can
+  // hold before allocating for the promise (a 60-byte file could otherwise claim 8 GiB).
+  if (total > text.size()) {
+    throw DemError(path, "header declares " + std::to_string(ncols) + " x " + std::to_string(nrows) + " = " +
+                             std::to_string(total) + " values, but the file has only " +
+                             std::to_string(text.size()) + " bytes (truncated?)");
+  }
   Raster r;
   r.width = int(ncols);
   r.height = int(nrows);
-  const std::size_t total = std::size_t(ncols) * std::size_t(nrows);
   r.z.resize(total);
   const std::optional<double> nodata = get("nodata_value");
   const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -12,7 +12,8 @@
 //  12     8     u64 file size in bytes, including the trailing checksum
 //  20     4     u32 grid width  W >= 2
 //  24     4     u32 grid height H >= 2;  W * H <= 2^28
-//  28     48    6 x f64 GridTransform: x0, xc, xr, y0, yc, yr
+//  28     48    6 x f64 GridTransform: x0, xc, xr, y0, yc, yr; all finite, and so that
+//               2 (|x0| + (W-1)|xc| + (H-1)|xr|) and the same for y are finite
 //  76     1     u8  metric: 0 = ErrorMetric::Samples, 1 = ErrorMetric::Continuous
 //  77     1     u8  flags: bit 0 = a void mask is present (Heightfield::has_holes());
 //                          bit 1 = heights are quantized (see section H); other bits 0
@@ -71,6 +72,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <optional>
@@ -176,6 +178,16 @@ inline std::int64_t predict(const std::int64_t* up, const std::int64_t* cur, std
   return cur[col - 1] + up[col] - up[col - 1];
 }
 
+/// True when every sample's world position, and every difference of two of them, is finite:
+/// the largest |x| and |y| any to_world(col, row) can reach, doubled, stay finite. (The vertex
+/// hierarchy subtracts positions; an infinite one would make its radii NaN.)
+bool finite_over_grid(const GridTransform& t, std::uint64_t W, std::uint64_t H) {
+  const double c = double(W - 1), r = double(H - 1);
+  const double mx = std::fabs(t.x0) + c * std::fabs(t.xc) + r * std::fabs(t.xr);
+  const double my = std::fabs(t.y0) + c * std::fabs(t.yc) + r * std::fabs(t.yr);
+  return std::isfinite(2.0 * mx) && std::isfinite(2.0 * my);
+}
+
 // ---------------------------------------------------------------------------------- reading
 
 [[noreturn]] void fail(const std::string& name, const std::string& what) {
@@ -279,6 +291,11 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
   for (std::size_t i = 0; i < n; ++i)
     if (hf.valid(i) && !std::isfinite(hf[i]))
       throw std::invalid_argument("encode_pm: height " + std::to_string(i) + " is not finite");
+  for (double v : {hf.transform.x0, hf.transform.xc, hf.transform.xr, hf.transform.y0, hf.transform.yc,
+                   hf.transform.yr})
+    if (!std::isfinite(v)) throw std::invalid_argument("encode_pm: the grid transform is not finite");
+  if (!finite_over_grid(hf.transform, W, H))
+    throw std::invalid_argument("encode_pm: the grid transform maps samples to non-finite world coordinates");
   if (hf.has_holes()) {
     if (hf.mask().size() != n)
       throw std::invalid_argument("encode_pm: void mask size differs from the grid size");
@@ -396,14 +413,19 @@ void write_pm(const ProgressiveMesh& pm, const std::string& path) {
   const std::string tmp = path + ".tmp";
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(errno));
-  bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  ok = std::fflush(f) == 0 && ok;
-  ok = ::fsync(::fileno(f)) == 0 && ok;
-  const int err = errno;
-  ok = std::fclose(f) == 0 && ok;
-  if (!ok) {
+  // Report the first failure's errno (a full disk fails the write or flush with ENOSPC; the
+  // fsync after it would overwrite that with something less telling).
+  int err = 0;
+  auto step = [&err](bool done) {
+    if (!done && err == 0) err = errno ? errno : EIO;
+  };
+  step(std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size());
+  step(std::fflush(f) == 0);
+  step(::fsync(::fileno(f)) == 0);
+  step(std::fclose(f) == 0);
+  if (err != 0) {
     std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err ? err : errno));
+    throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err));
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     const int e = errno;
@@ -459,7 +481,12 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
   const std::uint64_t n = std::uint64_t(W) * H;
   const std::uint64_t face_slots = 2 * std::uint64_t(W - 1) * (H - 1);
   GridTransform t;
-  for (double* v : {&t.x0, &t.xc, &t.xr, &t.y0, &t.yc, &t.yr}) *v = c.f64("header");
+  for (double* v : {&t.x0, &t.xc, &t.xr, &t.y0, &t.yc, &t.yr}) {
+    *v = c.f64("header");
+    if (!std::isfinite(*v)) fail(name, "corrupt header: the grid transform is not finite");
+  }
+  if (!finite_over_grid(t, W, H))
+    fail(name, "corrupt header: the grid transform maps samples to non-finite world coordinates");
   const std::uint8_t metric = c.u8("header"), flags = c.u8("header");
   if (metric > 1) fail(name, "unknown error metric " + std::to_string(metric));
   if (flags & ~(kFlagMask | kFlagQuantized)) fail(name, "unknown flags " + std::to_string(flags));
@@ -602,6 +629,11 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
 }
 
 ProgressiveMesh read_pm(const std::string& path) {
+  // Only regular files: opening a FIFO would block, and a device may never end.
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+    fail(path, "cannot read: not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
   in.seekg(0, std::ios::end);

@@ -1,0 +1,168 @@
+// Writes the seed corpora of the fuzz targets: small valid inputs of every format they read.
+//
+// Usage: terralod_fuzz_seeds CORPUS_DIR   (writes CORPUS_DIR/fuzz_pm_decoder/seed_* and
+// CORPUS_DIR/fuzz_dem_reader/seed_*; existing seeds are overwritten, other files are kept).
+// DEM seeds start with the selector byte of fuzz_dem_reader.cpp (0 .hgt, 1 .asc, 2 .png, 3 .tif,
+// +4 = keep voids as holes).
+#include <OpenImageIO/imageio.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "terralod/pm/pm_io.hpp"
+#include "terralod/pm/terrain_generator.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace pm = terralod::pm;
+using Bytes = std::vector<std::uint8_t>;
+
+void write(const fs::path& path, const Bytes& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+Bytes slurp(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return Bytes(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+Bytes with_selector(std::uint8_t selector, const Bytes& file) {
+  Bytes b{selector};
+  b.insert(b.end(), file.begin(), file.end());
+  return b;
+}
+
+pm::Heightfield terrain(int w, int h, bool metres) {
+  pm::TerrainOptions opt;
+  opt.width = w;
+  opt.height = h;
+  opt.seed = 9;
+  opt.relief = 50.0;
+  opt.quantize_to_metres = metres;
+  pm::Heightfield hf = pm::generate_terrain(opt);
+  hf.source = "seed";
+  hf.frame = "seed frame";
+  return hf;
+}
+
+void pm_seeds(const fs::path& dir) {
+  pm::BuildOptions one_thread;
+  one_thread.threads = 1;
+  // 9 x 9, whole metres (quantized heights), full hierarchy.
+  write(dir / "seed_9x9_metres.pm", pm::encode_pm(pm::ProgressiveMesh::build(terrain(9, 9, true), one_thread)));
+  // 9 x 9, arbitrary doubles (raw height planes).
+  write(dir / "seed_9x9_doubles.pm", pm::encode_pm(pm::ProgressiveMesh::build(terrain(9, 9, false), one_thread)));
+  // 8 x 7 with a 2 x 2 hole (void mask, dropped faces) and the samples-only metric.
+  pm::Heightfield holes = terrain(8, 7, true);
+  std::vector<std::uint8_t> mask(holes.size(), 1);
+  for (int r = 3; r < 5; ++r)
+    for (int c = 3; c < 5; ++c) {
+      mask[std::size_t(r) * 8 + c] = 0;
+      holes.at(c, r) = 0.0;
+    }
+  holes.set_mask(mask);
+  holes.voids = {4, 0};
+  pm::BuildOptions samples = one_thread;
+  samples.metric = pm::ErrorMetric::Samples;
+  write(dir / "seed_8x7_holes.pm", pm::encode_pm(pm::ProgressiveMesh::build(holes, samples)));
+  // 2 x 2, the smallest grid.
+  write(dir / "seed_2x2.pm", pm::encode_pm(pm::ProgressiveMesh::build(terrain(2, 2, true), one_thread)));
+}
+
+void dem_seeds(const fs::path& dir, const fs::path& tmp) {
+  // .hgt: 5 x 5 big-endian int16, one void (-32768) in the middle.
+  Bytes hgt;
+  for (int i = 0; i < 25; ++i) {
+    const auto v = std::uint16_t(i == 12 ? -32768 : 100 + 7 * i - (i % 5) * 3);
+    hgt.push_back(std::uint8_t(v >> 8));
+    hgt.push_back(std::uint8_t(v & 0xff));
+  }
+  write(dir / "seed_hgt", with_selector(0, hgt));
+  write(dir / "seed_hgt_holes", with_selector(4, hgt));
+
+  // .asc: 4 x 3 with NODATA, corner and centre variants.
+  const std::string asc =
+      "ncols 4\nnrows 3\nxllcorner 500000\nyllcorner 5000000\ncellsize 0.5\nNODATA_value -9999\n"
+      "1 2 3 4\n5 -9999 7 8\n9.5 10 11 1e2\n";
+  write(dir / "seed_asc", with_selector(1, Bytes(asc.begin(), asc.end())));
+  const std::string asc2 = "NCOLS 3\nNROWS 2\nXLLCENTER -71.5\nYLLCENTER 44\nDX 0.1\nDY 0.2\n-1 0 1\n2 3 4\n";
+  write(dir / "seed_asc_dxdy_holes", with_selector(5, Bytes(asc2.begin(), asc2.end())));
+
+  // .png: 5 x 4 grey, 8 and 16 bits.
+  auto png = [&](const char* name, OIIO::TypeDesc type, std::uint8_t selector) {
+    const fs::path path = tmp / (std::string(name) + ".png");
+    auto out = OIIO::ImageOutput::create(path.string());
+    if (!out) throw std::runtime_error("OpenImageIO cannot write PNG: " + OIIO::geterror());
+    std::vector<std::uint16_t> px(20);
+    for (int i = 0; i < 20; ++i) px[std::size_t(i)] = std::uint16_t(i * 11 % 200);
+    OIIO::ImageSpec spec(5, 4, 1, type);
+    if (!out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT16, px.data()) || !out->close())
+      throw std::runtime_error("OpenImageIO cannot write " + path.string() + ": " + out->geterror());
+    write(dir / (std::string("seed_") + name), with_selector(selector, slurp(path)));
+  };
+  png("png8", OIIO::TypeDesc::UINT8, 2);
+  png("png16", OIIO::TypeDesc::UINT16, 2);
+
+  // .tif: GeoTIFFs through GDAL: int16 UTM with nodata, float32 geographic, and a plain one.
+  GDALAllRegister();
+  auto tif = [&](const char* name, GDALDataType type, int epsg, bool nodata, bool georef, std::uint8_t selector) {
+    const fs::path path = tmp / (std::string(name) + ".tif");
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+    if (!drv) throw std::runtime_error("GDAL has no GTiff driver");
+    GDALDatasetUniquePtr ds(drv->Create(path.c_str(), 5, 4, 1, type, nullptr));
+    if (!ds) throw std::runtime_error("GDAL cannot create " + path.string());
+    if (georef) {
+      double gt[6] = {500000.0, 30.0, 0.0, 5000120.0, 0.0, -30.0};
+      if (epsg == 4326) {
+        gt[0] = -72.0, gt[1] = 0.01, gt[3] = 45.0, gt[5] = -0.01;
+      }
+      ds->SetGeoTransform(gt);
+      OGRSpatialReference srs;
+      srs.importFromEPSG(epsg);
+      srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+      ds->SetSpatialRef(&srs);
+    }
+    GDALRasterBand* band = ds->GetRasterBand(1);
+    if (nodata) band->SetNoDataValue(-500.0);
+    std::vector<double> z(20);
+    for (int i = 0; i < 20; ++i) z[std::size_t(i)] = (i == 7 && nodata) ? -500.0 : 10.0 * i - 3.0;
+    if (band->RasterIO(GF_Write, 0, 0, 5, 4, z.data(), 5, 4, GDT_Float64, 0, 0) != CE_None)
+      throw std::runtime_error("GDAL cannot write " + path.string());
+    ds.reset();
+    write(dir / (std::string("seed_") + name), with_selector(selector, slurp(path)));
+  };
+  tif("tif_utm_int16", GDT_Int16, 32633, true, true, 3);
+  tif("tif_geo_float32_holes", GDT_Float32, 4326, true, true, 7);
+  tif("tif_plain_uint16", GDT_UInt16, 0, false, false, 3);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s CORPUS_DIR\n", argv[0]);
+    return 2;
+  }
+  try {
+    const fs::path root = argv[1];
+    const fs::path pm_dir = root / "fuzz_pm_decoder", dem_dir = root / "fuzz_dem_reader", tmp = root / ".seed_tmp";
+    for (const fs::path& d : {pm_dir, dem_dir, tmp}) fs::create_directories(d);
+    pm_seeds(pm_dir);
+    dem_seeds(dem_dir, tmp);
+    fs::remove_all(tmp);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "terralod_fuzz_seeds: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

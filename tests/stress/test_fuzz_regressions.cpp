@@ -1,0 +1,153 @@
+// Replays every input the fuzz targets ever failed on (fuzz/regressions/<target>/) through the
+// targets' own checks, and pins each fix with a hand-made case.
+//
+// A file in fuzz/regressions/fuzz_pm_decoder/ is fed to fuzz/fuzz_pm_decoder.cpp, one in
+// fuzz/regressions/fuzz_dem_reader/ to fuzz/fuzz_dem_reader.cpp (first byte = the case
+// selector described there). The targets are compiled into this test with TERRALOD_FUZZ_REPLAY,
+// so a broken invariant throws terralod::fuzz::Finding and is reported here as a failure; a
+// memory error shows in the sanitizer runs of scripts/test.sh.
+//
+// Findings so far (scripts/fuzz.sh):
+//   fuzz_pm_decoder/nonfinite-transform: a PM whose grid transform holds NaN/inf decoded fine,
+//     giving NaN world positions. Fix: decode_pm rejects it ("the grid transform is not
+//     finite"), encode_pm refuses to write it.
+//   fuzz_pm_decoder/transform-overflows-world-coordinates: a finite transform (xc ~ 1e308)
+//     whose world coordinates overflow on the grid made the hierarchy's radii NaN and lose
+//     roots. Fix: decode_pm/encode_pm require 2 (|x0| + (W-1)|xc| + (H-1)|xr|) (and y) finite.
+//   fuzz_dem_reader/asc-header-declares-huge-grid (found by review while writing the target,
+//     kept as a seed of the failure class): a 67-byte Esri ASCII grid declaring 30000 x 30000
+//     values made the reader allocate and zero 7.2 GB before finding the data short. Fix: the
+//     reader refuses more values than the file has bytes (tests/stress/test_bad_input.cpp).
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <bit>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "fuzz_support.hpp"
+#include "terralod/pm/pm_io.hpp"
+#include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/terrain_generator.hpp"
+
+extern "C" int terralod_fuzz_pm_decoder(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_dem_reader(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace pm = terralod::pm;
+
+/// Build options with a fixed thread count (the PM never depends on it; the time does).
+pm::BuildOptions threads(int n) {
+  pm::BuildOptions o;
+  o.threads = n;
+  return o;
+}
+
+std::vector<std::uint8_t> read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+/// Replays every file of fuzz/regressions/<target>/; returns how many there were.
+std::size_t replay(const std::string& target, int (*one)(const std::uint8_t*, std::size_t)) {
+  const fs::path dir = fs::path(TERRALOD_FUZZ_REGRESSIONS) / target;
+  std::vector<fs::path> files;
+  if (fs::is_directory(dir))
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.is_regular_file() && e.path().filename().string()[0] != '.') files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (const fs::path& f : files) {
+    SCOPED_TRACE(f.string());
+    const std::vector<std::uint8_t> bytes = read_all(f);
+    try {
+      (void)one(bytes.data(), bytes.size());
+    } catch (const terralod::fuzz::Finding& e) {
+      ADD_FAILURE() << f.filename() << ": " << e.what;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << f.filename() << ": unexpected exception: " << e.what();
+    }
+  }
+  std::printf("  %s: replayed %zu inputs from %s\n", target.c_str(), files.size(), dir.c_str());
+  return files.size();
+}
+
+TEST(FuzzRegressions, PmDecoder) {
+  EXPECT_GE(replay("fuzz_pm_decoder", terralod_fuzz_pm_decoder), 2u);
+}
+
+TEST(FuzzRegressions, DemReader) {
+  int argc = 0;
+  char** argv = nullptr;
+  terralod_fuzz_dem_reader_init(&argc, &argv);
+  replay("fuzz_dem_reader", terralod_fuzz_dem_reader);
+}
+
+// ------------------------------------------------------------------------------------------
+// Hand-made cases for the fixes.
+
+pm::ProgressiveMesh small_pm() {
+  pm::TerrainOptions o;
+  o.width = 9, o.height = 9, o.seed = 5, o.quantize_to_metres = true;
+  return pm::ProgressiveMesh::build(pm::generate_terrain(o), threads(1));
+}
+
+/// Encoded PM with the grid transform's six doubles (offset 28, see pm_io.cpp) replaced and
+/// the checksum recomputed, as a hostile writer would.
+std::vector<std::uint8_t> with_transform(const pm::GridTransform& t) {
+  std::vector<std::uint8_t> b = pm::encode_pm(small_pm());
+  const double v[6] = {t.x0, t.xc, t.xr, t.y0, t.yc, t.yr};
+  for (int k = 0; k < 6; ++k) {
+    const auto bits = std::bit_cast<std::uint64_t>(v[k]);
+    for (int i = 0; i < 8; ++i) b[28 + 8 * std::size_t(k) + std::size_t(i)] = std::uint8_t(bits >> (8 * i));
+  }
+  const auto crc = std::uint32_t(crc32(0L, b.data(), uInt(b.size() - 4)));
+  for (int i = 0; i < 4; ++i) b[b.size() - 4 + std::size_t(i)] = std::uint8_t(crc >> (8 * i));
+  return b;
+}
+
+std::string decode_error(const std::vector<std::uint8_t>& b) {
+  try {
+    (void)pm::decode_pm(b, "forged.pm");
+  } catch (const pm::PmFormatError& e) {
+    return e.what();
+  }
+  return "(decoded)";
+}
+
+TEST(FuzzRegressions, NonFiniteGridTransformIsRejected) {
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  for (const pm::GridTransform& t : {pm::GridTransform{nan, 1, 0, 0, 0, -1}, pm::GridTransform{0, inf, 0, 0, 0, -1},
+                                     pm::GridTransform{0, 1, 0, 0, 0, -inf}}) {
+    EXPECT_EQ(decode_error(with_transform(t)), "forged.pm: corrupt header: the grid transform is not finite");
+    pm::ProgressiveMesh p = small_pm();
+    pm::Heightfield hf = p.heightfield();
+    hf.transform = t;
+    const pm::ProgressiveMesh q =
+        pm::ProgressiveMesh::from_parts(hf, p.metric(), p.error_quantum(), p.collapses(), p.dropped_faces());
+    EXPECT_THROW((void)pm::encode_pm(q), std::invalid_argument);
+  }
+  // Control: the same forgery with an ordinary transform decodes.
+  EXPECT_EQ(decode_error(with_transform(pm::GridTransform::north_up(500000, 5000000, 0.01, 0.01))), "(decoded)");
+}
+
+TEST(FuzzRegressions, TransformWhoseWorldCoordinatesOverflowIsRejected) {
+  // 1e308 per column: column 8 would be at 8e308 = inf.
+  const std::string msg = decode_error(with_transform(pm::GridTransform{0, 1e308, 0, 0, 0, -1}));
+  EXPECT_EQ(msg, "forged.pm: corrupt header: the grid transform maps samples to non-finite world coordinates");
+  // Differences must stay finite too: |x| up to 1.2e308 at both ends of the grid.
+  EXPECT_NE(decode_error(with_transform(pm::GridTransform{-1.2e308, 3e307, 0, 0, 0, -1})), "(decoded)");
+  // The largest sane planetary coordinates are far inside the limit.
+  EXPECT_EQ(decode_error(with_transform(pm::GridTransform{-4e7, 1e6, 0, 4e7, 0, -1e6})), "(decoded)");
+}
+
+}  // namespace
