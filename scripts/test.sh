@@ -42,12 +42,13 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # AddressSanitizer + UndefinedBehaviorSanitizer: the whole suite except the full 1201 x 1201
 # tile (RealTileFull) and the two Kauai crops (3 minutes under ASan for code paths the
 # generated terrains with holes already take); the White Mountains crop keeps real data in.
-# LeakSanitizer: OpenImageIO leaks a string in ImageInput::geterror on every corrupt PNG
-# (suppressed in tests/sanitizers/lsan.supp). OpenImageIO is built without frame pointers,
-# so the suppression only matches with the slow unwinder, which doubles the cost of every
-# allocation: it is used for the tests that decode images only.
+# LeakSanitizer: third-party leaks are suppressed, each with its reason, in
+# tests/sanitizers/lsan.supp. OpenImageIO's (a string in ImageInput::geterror on every corrupt
+# PNG) is only matched with the slow unwinder, as libOpenImageIO has no frame pointers; that
+# unwinder doubles the cost of every allocation (and makes llvmpipe's shader compiler
+# minutes slower), so it is used for the tests that decode corrupt images only.
 asan_exclude='RealTileFull|KauaiVoids'
-asan_images='dem_reader|test_bad_input|test_fuzz_regressions|render'
+asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
 asan() {
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRALOD_BUILD_BENCH=OFF \
     -DCMAKE_CXX_FLAGS="-fsanitize=address,undefined -fno-sanitize-recover=undefined $san_flags" >/dev/null
