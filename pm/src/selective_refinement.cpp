@@ -288,6 +288,15 @@ std::array<double, 3> SelectiveRefinement::rest(std::uint32_t s) const {
   return {double(s % W), double(s / W), dag_->heightfield()[s]};
 }
 
+std::vector<SelectiveRefinement::MorphState> SelectiveRefinement::morph_states() const {
+  std::vector<MorphState> out;
+  out.reserve(morphs_.size());
+  for (const Morph& m : morphs_)
+    out.push_back(MorphState{m.sample, m.from, m.to, m.t0, m.anchor == kNone ? m.t1 : INFINITY, m.anchor,
+                             m.collapse != kNone});
+  return out;
+}
+
 std::array<double, 3> SelectiveRefinement::displayed(std::uint32_t s) const {
   const std::uint32_t i = morph_of_[s];
   if (i == kNone) return rest(s);

@@ -179,7 +179,29 @@ struct FlightChange {
   double worst_all = 0, worst_vertices = 0;  // largest per-frame change, pixels
   double p99_all = 0, median_all = 0;
   std::size_t flips = 0, max_morphing = 0, pending = 0;
+  // Per-vertex check of the morph time: a vertex present in two consecutive frames moves
+  // vertically by at most |jump| * dt / T of the geomorph it is in (or its anchor's), and not
+  // at all when no geomorph moves it. speed_ratio = the largest measured / allowed.
+  double speed_ratio = 0, max_duration = 0;
+  std::size_t moved_at_rest = 0, vertex_frames = 0;
 };
+
+// Vertical change allowed per frame of length dt for the vertex at `sample`: from the
+// geomorph it (or the vertex it rides on) is in, |to.z - from.z| * dt / (t1 - t0).
+double allowed_change(const std::map<std::uint32_t, pm::SelectiveRefinement::MorphState>& morphs,
+                      std::uint32_t sample, double dt) {
+  for (int hops = 0; hops < 64; ++hops) {
+    const auto it = morphs.find(sample);
+    if (it == morphs.end()) return 0.0;
+    const auto& m = it->second;
+    if (m.anchor != pm::CollapseDag::kNone) {
+      sample = m.anchor;
+      continue;
+    }
+    return std::abs(m.to[2] - m.from[2]) * dt / (m.t1 - m.t0);
+  }
+  return 0.0;
+}
 
 // Flies `frames` frames at 60 fps with the given options; for every frame the change of the
 // displayed surface at every sample since the previous frame, as a vertical segment projected
@@ -192,11 +214,37 @@ FlightChange fly(const Terrain& t, const pm::RefinementOptions& o, const std::ve
   FlightChange r;
   std::vector<double> prev, per_frame;
   std::vector<std::uint8_t> was_vertex(t.hf.size(), 0), is_vertex(t.hf.size(), 0);
+  std::map<std::uint32_t, double> prev_z;  // displayed height of each vertex, last frame
+  std::map<std::uint32_t, pm::SelectiveRefinement::MorphState> prev_morphs;
+  const double dt = 1.0 / 60.0;
   for (std::size_t k = 0; k < flight.size(); ++k) {
     const pm::FrameStats& st = sel.update(pm::View(flight[k]), double(k) / 60.0);
+    std::map<std::uint32_t, pm::SelectiveRefinement::MorphState> morphs;
+    for (const auto& m : sel.morph_states()) {
+      morphs[m.sample] = m;
+      if (m.anchor == pm::CollapseDag::kNone) r.max_duration = std::max(r.max_duration, m.t1 - m.t0);
+    }
     r.max_morphing = std::max(r.max_morphing, st.morphing);
     r.pending = std::max(r.pending, st.pending_ecols);
     const pm::RenderMesh m = sel.render_mesh();
+    std::map<std::uint32_t, double> z_now;
+    for (std::size_t v = 0; v < m.samples.size(); ++v) {
+      z_now[m.samples[v]] = m.positions[v].z;
+      const auto before = prev_z.find(m.samples[v]);
+      if (k == 0 || before == prev_z.end()) continue;
+      // The geomorph it was in at the last frame, or one that started at this update (which
+      // starts from where the vertex was displayed, so the earlier one bounds the change).
+      const double allowed = std::max(allowed_change(prev_morphs, m.samples[v], dt),
+                                      allowed_change(morphs, m.samples[v], dt));
+      const double change = std::abs(m.positions[v].z - before->second);
+      ++r.vertex_frames;
+      if (allowed == 0.0)
+        r.moved_at_rest += change > 0.0;
+      else
+        r.speed_ratio = std::max(r.speed_ratio, change / allowed);
+    }
+    prev_z = std::move(z_now);
+    prev_morphs = std::move(morphs);
     const tt::SurfaceSamples s = tt::surface_at_samples(t.hf, to_index(t.hf, m), m.triangles);
     r.flips += s.flipped;
     std::fill(is_vertex.begin(), is_vertex.end(), 0);
@@ -261,6 +309,16 @@ TEST(RuntimeGeomorph, PerFrameChangeWithAndWithoutGeomorphs) {
   EXPECT_LT(full.worst_all, 0.25 * none.worst_all);
   EXPECT_LT(full.p99_all, 0.25 * none.p99_all);
   EXPECT_LT(vertical.worst_vertices, 0.25 * none.worst_vertices);
+  // Bounded by the morph time: every vertex moves at most its jump * dt / T per frame, no
+  // geomorph lasts longer than T, and vertices outside geomorphs do not move.
+  for (const FlightChange* c : {&full, &vertical}) {
+    std::printf("per-vertex change / (jump * dt / T): worst %.6f over %zu vertex-frames; longest morph %.3f s\n",
+                c->speed_ratio, c->vertex_frames, c->max_duration);
+    EXPECT_LE(c->speed_ratio, 1.0 + 1e-6);
+    EXPECT_GT(c->speed_ratio, 0.5);  // the check saw real motion
+    EXPECT_LE(c->max_duration, o.morph_seconds + 1e-9);
+    EXPECT_EQ(c->moved_at_rest, 0u);
+  }
 }
 
 // The same on real terrain, with a short and a long morph time: far smaller than the pops,

@@ -194,6 +194,21 @@ class SelectiveRefinement {
   /// True while some vertex is moving.
   bool morphing() const { return !morphs_.empty(); }
 
+  /// One running geomorph, as planned at the last update: the vertex at `sample` moves on a
+  /// straight line from `from` (at time t0) to `to` (at t1), positions (col, row, z); a vertex
+  /// riding on `anchor` (a new vertex waiting to slide off its parent) is displayed wherever
+  /// the anchor is and has t1 = infinity. t1 - t0 never exceeds morph_seconds, so no vertex
+  /// moves faster than its jump divided by the morph time.
+  struct MorphState {
+    std::uint32_t sample = 0;
+    std::array<double, 3> from{}, to{};
+    double t0 = 0, t1 = 0;
+    std::uint32_t anchor = CollapseDag::kNone;  ///< kNone when not riding
+    bool pending_ecol = false;           ///< moving towards a collapse
+  };
+  /// The running geomorphs (for tests, statistics and debugging views).
+  std::vector<MorphState> morph_states() const;
+
   /// Screen-space bound of the current faces for a view, as in FrameStats::bound_px.
   double bound_px(const View& view) const;
 
