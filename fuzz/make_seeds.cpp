@@ -159,6 +159,11 @@ int main(int argc, char** argv) {
     for (const fs::path& d : {pm_dir, dem_dir, tmp}) fs::create_directories(d);
     pm_seeds(pm_dir);
     dem_seeds(dem_dir, tmp);
+    // Camera paths: a valid flight with a comment, CRLF line ends and a blank line.
+    fs::create_directories(root / "fuzz_camera_path");
+    const std::string path_csv =
+        "# seed\r\nx,y,z,yaw,pitch,fovy\r\n1,2,3,45,-15,60\r\n\r\n-1.5e3,+2,3.25,-370,90,179.5\n";
+    write(root / "fuzz_camera_path" / "seed_flight.csv", Bytes(path_csv.begin(), path_csv.end()));
     fs::remove_all(tmp);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod_fuzz_seeds: %s\n", e.what());

@@ -39,6 +39,7 @@
 
 extern "C" int terralod_fuzz_pm_decoder(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_camera_path(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
 
 namespace {
@@ -83,6 +84,10 @@ std::size_t replay(const std::string& target, int (*one)(const std::uint8_t*, st
 
 TEST(FuzzRegressions, PmDecoder) {
   EXPECT_GE(replay("fuzz_pm_decoder", terralod_fuzz_pm_decoder), 2u);
+}
+
+TEST(FuzzRegressions, CameraPath) {
+  EXPECT_GE(replay("fuzz_camera_path", terralod_fuzz_camera_path), 3u);
 }
 
 TEST(FuzzRegressions, DemReader) {
