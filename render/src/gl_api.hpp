@@ -77,6 +77,23 @@ namespace terralod::render::detail {
   X(PFNGLBINDRENDERBUFFERPROC, BindRenderbuffer, true)                   \
   X(PFNGLRENDERBUFFERSTORAGEPROC, RenderbufferStorage, true)             \
   X(PFNGLBLITFRAMEBUFFERPROC, BlitFramebuffer, true)                     \
+  X(PFNGLDRAWARRAYSPROC, DrawArrays, true)                               \
+  X(PFNGLGENTEXTURESPROC, GenTextures, true)                             \
+  X(PFNGLDELETETEXTURESPROC, DeleteTextures, true)                       \
+  X(PFNGLBINDTEXTUREPROC, BindTexture, true)                             \
+  X(PFNGLACTIVETEXTUREPROC, ActiveTexture, true)                         \
+  X(PFNGLTEXIMAGE2DPROC, TexImage2D, true)                               \
+  X(PFNGLTEXSUBIMAGE2DPROC, TexSubImage2D, true)                         \
+  X(PFNGLTEXPARAMETERIPROC, TexParameteri, true)                         \
+  X(PFNGLGENERATEMIPMAPPROC, GenerateMipmap, true)                       \
+  X(PFNGLGETTEXIMAGEPROC, GetTexImage, true)                             \
+  X(PFNGLFRAMEBUFFERTEXTURE2DPROC, FramebufferTexture2D, true)           \
+  X(PFNGLUNIFORM1IPROC, Uniform1i, true)                                 \
+  X(PFNGLUNIFORM1FVPROC, Uniform1fv, true)                               \
+  X(PFNGLUNIFORM1IVPROC, Uniform1iv, true)                               \
+  X(PFNGLUNIFORM4FPROC, Uniform4f, true)                                 \
+  X(PFNGLBLENDFUNCPROC, BlendFunc, true)                                 \
+  X(PFNGLBLENDEQUATIONPROC, BlendEquation, true)                         \
   X(PFNGLCLIPCONTROLPROC, ClipControl, false)
 // clang-format on
 
