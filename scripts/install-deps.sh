@@ -6,6 +6,7 @@ packages=(
   libopenmesh-dev libgdal-dev libopenimageio-dev libsqlite3-dev
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  xvfb fonts-dejavu-core
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -516,16 +516,18 @@ Image TerrainRenderer::read_color() const {
   return img;
 }
 
-Image TerrainRenderer::read_window_color() {
+Image TerrainRenderer::read_window_color(bool blit) {
   assert(impl_->drawn && "TerrainRenderer::read_window_color before the first draw()");
   ctx_.make_current();
   const detail::GlApi& gl = impl_->gl;
   const int w = ctx_.framebuffer_width(), h = ctx_.framebuffer_height();
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
-  gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
-  const bool same = w == impl_->fb_width && h == impl_->fb_height;
-  gl.BlitFramebuffer(0, 0, impl_->fb_width, impl_->fb_height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
-                     same ? GL_NEAREST : GL_LINEAR);
+  if (blit) {
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
+    gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    const bool same = w == impl_->fb_width && h == impl_->fb_height;
+    gl.BlitFramebuffer(0, 0, impl_->fb_width, impl_->fb_height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
+                       same ? GL_NEAREST : GL_LINEAR);
+  }
   // The default framebuffer keeps its own read buffer (GL_BACK, or GL_FRONT when single-buffered).
   gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
   std::vector<std::uint8_t> rgba(std::size_t(w) * h * 4);
@@ -594,7 +596,7 @@ std::vector<DepthSample> TerrainRenderer::read_depth(std::span<const glm::ivec2>
   return out;
 }
 
-void TerrainRenderer::present() {
+void TerrainRenderer::present(bool swap) {
   assert(impl_->drawn && "TerrainRenderer::present before the first draw()");
   ctx_.make_current();
   const detail::GlApi& gl = impl_->gl;
@@ -605,7 +607,7 @@ void TerrainRenderer::present() {
   gl.BlitFramebuffer(0, 0, impl_->fb_width, impl_->fb_height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
                      same ? GL_NEAREST : GL_LINEAR);
   detail::check_gl(gl, "renderer: presenting the frame");
-  ctx_.swap_buffers();
+  if (swap) ctx_.swap_buffers();
 }
 
 }  // namespace terralod::render

@@ -163,16 +163,19 @@ class TerrainRenderer {
   /// The last frame's colour, top row first.
   Image read_color() const;
   /// The last frame as it lands in the context's default framebuffer (blitted there first):
-  /// for a window, what present() would show. Same size as the context's framebuffer.
-  Image read_window_color();
+  /// for a window, what present() would show. Same size as the context's framebuffer. With
+  /// blit = false the default framebuffer is read as it is (after present(false) and an
+  /// overlay: the picture with its heads-up display).
+  Image read_window_color(bool blit = true);
   /// Depth at the given pixels of the last frame (image coordinates, inside the frame),
   /// unprojected with the last frame's camera. Reads the pixels' bounding rectangle once.
   std::vector<DepthSample> read_depth(std::span<const glm::ivec2> pixels) const;
   std::vector<DepthSample> read_depth(std::initializer_list<glm::ivec2> pixels) const {
     return read_depth(std::span<const glm::ivec2>(pixels.begin(), pixels.size()));
   }
-  /// Copies the last frame to the default framebuffer (scaled to its size) and swaps.
-  void present();
+  /// Copies the last frame to the default framebuffer (scaled to its size) and swaps; with
+  /// swap = false it only copies, so that an overlay (hud.hpp) can be drawn before the swap.
+  void present(bool swap = true);
 
  private:
   struct Impl;

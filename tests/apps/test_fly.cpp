@@ -1,0 +1,169 @@
+// End-to-end tests of the flight demo terralod-fly: its window mode under a private Xvfb (a
+// few hundred frames of a replayed path, no GL error, a screenshot that is not blank), and its
+// headless mode (deterministic: the same path gives the same statistics apart from times,
+// identical images and identical meshes).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "terralod/pm/camera_path.hpp"
+#include "terralod/render/image.hpp"
+#include "xvfb.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace pm = terralod::pm;
+namespace rd = terralod::render;
+
+const fs::path kTmp = fs::path(TERRALOD_TEST_TMP) / "fly";
+
+// Runs a shell command line; returns its exit status (-1 if it did not exit normally).
+int run(const std::string& cmd) {
+  const int s = std::system(cmd.c_str());
+  return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A 4-second low flight over the 129 x 129 built-in terrain (30 m spacing, 3.84 km square),
+// turning gently, with a dive so that geomorphs run.
+fs::path write_path(int frames) {
+  fs::create_directories(kTmp);
+  std::vector<pm::Camera> path;
+  for (int k = 0; k < frames; ++k) {
+    pm::Camera c;
+    c.x = 600.0 + 8.0 * k;
+    c.y = 600.0 + 6.0 * k;
+    c.z = 1500.0 - 2.0 * k;
+    c.yaw_deg = 50.0 + 0.1 * k, c.pitch_deg = -20.0, c.fovy_deg = 60.0;
+    path.push_back(c);
+  }
+  const fs::path p = kTmp / ("path_" + std::to_string(frames) + ".csv");
+  pm::write_camera_path(path, p.string());
+  return p;
+}
+
+// frames.csv without the columns that hold wall times.
+std::vector<std::string> stats_without_times(const fs::path& csv) {
+  std::ifstream in(csv);
+  std::string line;
+  std::vector<std::string> rows;
+  std::vector<int> keep;
+  bool header = true;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string x;
+    while (std::getline(ss, x, ',')) f.push_back(x);
+    if (header) {
+      for (int i = 0; i < int(f.size()); ++i)
+        if (f[std::size_t(i)].find("_ms") == std::string::npos) keep.push_back(i);
+      header = false;
+    }
+    std::string r;
+    for (int i : keep) r += (i < int(f.size()) ? f[std::size_t(i)] : "<missing>") + ",";
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
+  const fs::path path = write_path(40);
+  std::vector<fs::path> outs = {kTmp / "headless_a", kTmp / "headless_b"};
+  for (const fs::path& o : outs) {
+    fs::remove_all(o);
+    const std::string cmd = std::string(TERRALOD_FLY) + " --headless --terrain-size 129 --path " + path.string() +
+                            " --size 320x200 --tau 1 --out " + o.string() + " --dump-meshes > " +
+                            (o.string() + ".log") + " 2>&1";
+    ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(o.string() + ".log");
+  }
+  const auto a = stats_without_times(outs[0] / "frames.csv");
+  const auto b = stats_without_times(outs[1] / "frames.csv");
+  ASSERT_EQ(a.size(), 41u) << "header + 40 frames";
+  EXPECT_EQ(a, b) << "the statistics of two runs differ";
+  EXPECT_NE(a[0].find("bound_px"), std::string::npos);
+  EXPECT_NE(a[0].find("triangles"), std::string::npos);
+  for (int k = 0; k < 40; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d", k);
+    const rd::Image ia = rd::read_image((outs[0] / (std::string(name) + ".png")).string());
+    const rd::Image ib = rd::read_image((outs[1] / (std::string(name) + ".png")).string());
+    EXPECT_EQ(ia.width, 320);
+    EXPECT_EQ(ia.height, 200);
+    EXPECT_TRUE(ia == ib) << name << ".png differs between runs";
+    EXPECT_EQ(slurp(outs[0] / (std::string(name) + ".ply")), slurp(outs[1] / (std::string(name) + ".ply")))
+        << name << ".ply differs between runs";
+  }
+  // Every frame kept its guarantee: bound_px <= tau_px.
+  std::ifstream in(outs[0] / "frames.csv");
+  std::string line;
+  std::getline(in, line);
+  int rows = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string x;
+    while (std::getline(ss, x, ',')) f.push_back(x);
+    ASSERT_GE(f.size(), 13u);
+    EXPECT_LE(std::stod(f[12]), std::stod(f[7])) << "frame " << f[0] << ": bound above tau";
+    EXPECT_GT(std::stoul(f[8]), 0u) << "frame " << f[0] << ": no triangles";
+    ++rows;
+  }
+  EXPECT_EQ(rows, 40);
+}
+
+TEST(FlyHeadless, BadPathIsAClearError) {
+  fs::create_directories(kTmp);
+  const fs::path bad = kTmp / "bad_path.csv";
+  std::ofstream(bad) << "x,y,z,yaw,pitch,fovy\n1,2,3,4,5,60\nnot,a,row\n";
+  const fs::path log = kTmp / "bad_path.log";
+  const std::string cmd = std::string(TERRALOD_FLY) + " --headless --terrain-size 17 --path " + bad.string() +
+                          " --out " + (kTmp / "bad_out").string() + " > " + log.string() + " 2>&1";
+  EXPECT_EQ(run(cmd), 1);
+  EXPECT_NE(slurp(log).find(bad.string() + ": line 3: expected 6 comma-separated numbers"), std::string::npos)
+      << slurp(log);
+  EXPECT_EQ(run(std::string(TERRALOD_FLY) + " --headless --size 0x0 > /dev/null 2>&1"), 2);
+  EXPECT_EQ(run(std::string(TERRALOD_FLY) + " --help > /dev/null 2>&1"), 0);
+}
+
+TEST(FlyWindow, ReplaysAPathUnderXvfbAndWritesAScreenshot) {
+  terralod::test::Xvfb xvfb;
+  if (xvfb.display().empty()) GTEST_SKIP() << "Xvfb could not be started (is the xvfb package installed?)";
+  const fs::path path = write_path(300);
+  const fs::path shot = kTmp / "window_shot.png", log = kTmp / "window.log";
+  fs::remove(shot);
+  const std::string cmd = "DISPLAY=" + xvfb.display() + " " + TERRALOD_FLY + " --terrain-size 129 --replay " +
+                          path.string() + " --frames 300 --size 320x240 --screenshot " + shot.string() + " > " +
+                          log.string() + " 2>&1";
+  ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(log);
+  EXPECT_NE(slurp(log).find("flew 300 frames"), std::string::npos) << slurp(log);
+  const rd::Image img = rd::read_image(shot.string());
+  ASSERT_EQ(img.width, 320);
+  ASSERT_EQ(img.height, 240);
+  // Not blank: many colours, and both sky (top right) and shaded terrain (bottom).
+  std::set<std::uint32_t> colours;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const std::uint8_t* p = img.pixel(x, y);
+      colours.insert(std::uint32_t(p[0]) << 16 | std::uint32_t(p[1]) << 8 | p[2]);
+    }
+  EXPECT_GT(colours.size(), 100u) << "the screenshot looks blank";
+  const std::uint8_t* top = img.pixel(img.width - 2, 1);
+  const std::uint8_t* bottom = img.pixel(img.width / 2, img.height - 2);
+  EXPECT_NE(std::vector<int>(top, top + 3), std::vector<int>(bottom, bottom + 3));
+}
