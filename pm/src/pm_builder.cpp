@@ -2,7 +2,7 @@
 //
 // Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 2, Eq. 1. Each live vertex u
 // keeps its best legal collapse u -> w (smallest error, then shortest edge) in an indexed
-// binary heap. After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
+// 4-ary heap. After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
 // neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
 // move. A popped candidate is re-validated (the link condition may have changed through a
 // neighbour) and re-evaluated when it became illegal.
@@ -11,8 +11,10 @@
 // the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
 // candidate so far, and the error of each triangle is cached in a direct-mapped table keyed
 // by its corners, since re-evaluating a vertex after one neighbour changed meets mostly the
-// same triangles again. Memory: OpenMesh connectivity (~180 bytes per vertex), heap and
-// per-vertex state (~24 bytes per vertex), the triangle cache (24 bytes x 2^22).
+// same triangles again; long spokes likewise in a 512 KiB table. Memory: OpenMesh
+// connectivity (~180 bytes per vertex), heap and per-vertex state (~40 bytes per vertex), the
+// triangle cache (24 bytes x 2^22), the large arrays on transparent huge pages where the OS
+// allows it.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
@@ -23,11 +25,47 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+#include <cstdlib>
+#include <new>
+#include <memory>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "terralod/pm/progressive_mesh.hpp"
 
 namespace terralod::pm {
 namespace {
+
+// Allocator for the builder's large, randomly accessed arrays (error cache, heap, per-vertex
+// state): blocks of 2 MiB and more are 2 MiB-aligned and advised to use transparent huge
+// pages, so that random accesses do not also miss the TLB. Elsewhere it is std::allocator.
+template <class T>
+struct HugeAllocator {
+  using value_type = T;
+  HugeAllocator() = default;
+  template <class U>
+  HugeAllocator(const HugeAllocator<U>&) {}
+  static constexpr std::size_t kHuge = std::size_t(2) << 20;
+  T* allocate(std::size_t n) {
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < kHuge) return std::allocator<T>().allocate(n);
+    void* p = std::aligned_alloc(kHuge, (bytes + kHuge - 1) / kHuge * kHuge);
+    if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+    madvise(p, (bytes + kHuge - 1) / kHuge * kHuge, MADV_HUGEPAGE);  // advice only: failure is harmless
+#endif
+    return static_cast<T*>(p);
+  }
+  void deallocate(T* p, std::size_t n) {
+    if (n * sizeof(T) < kHuge) std::allocator<T>().deallocate(p, n);
+    else std::free(p);
+  }
+  template <class U>
+  bool operator==(const HugeAllocator<U>&) const { return true; }
+};
+template <class T>
+using HugeVector = std::vector<T, HugeAllocator<T>>;
 
 struct MeshTraits : OpenMesh::DefaultTraits {
   VertexAttributes(OpenMesh::Attributes::Status);
@@ -38,27 +76,28 @@ struct MeshTraits : OpenMesh::DefaultTraits {
 using Mesh = OpenMesh::TriMesh_ArrayKernelT<MeshTraits>;
 
 // Direct-mapped cache of triangle errors: exact values, or lower bounds from evaluations that
-// stopped early. A colliding insert simply overwrites the slot.
+// stopped early (those exceed a cutoff >= 0, so they are > 0 and stored negated). A colliding
+// insert simply overwrites the slot.
 class TriangleCache {
  public:
   explicit TriangleCache(int log2_slots) : mask_((std::size_t(1) << log2_slots) - 1), slots_(mask_ + 1) {}
   struct Slot {
     std::uint32_t a = UINT32_MAX, b = 0, c = 0;
-    float unused = 0;
-    double value = 0;  // > 0 lower bound when negative-coded? kept simple: see `exact`
+    double value = 0;  // the exact error when >= 0, else minus a lower bound (always > 0)
   };
   // Returns true and sets value/exact when the triangle {a,b,c} (sorted) is cached.
   bool find(std::uint32_t a, std::uint32_t b, std::uint32_t c, double& value, bool& exact) const {
     const Slot& s = slots_[hash(a, b, c)];
     if (s.a != a || s.b != b || s.c != c) return false;
     exact = s.value >= 0;
-    value = exact ? s.value : -s.value - 1.0;
+    value = exact ? s.value : -s.value;
     return true;
   }
   void store(std::uint32_t a, std::uint32_t b, std::uint32_t c, double value, bool exact) {
     Slot& s = slots_[hash(a, b, c)];
     s.a = a, s.b = b, s.c = c;
-    s.value = exact ? value : -(value + 1.0);  // lower bounds stored as -(v+1) < 0
+    assert(exact || value > 0);  // a lower bound exceeds a cutoff >= 0
+    s.value = exact ? value : -value;
   }
 
  private:
@@ -69,27 +108,27 @@ class TriangleCache {
     return std::size_t(h) & mask_;
   }
   std::size_t mask_;
-  std::vector<Slot> slots_;
+  HugeVector<Slot> slots_;
 };
 
-// Indexed binary min-heap over vertices, keyed by (error, tie, vertex). Keys live inside the
-// heap entries, so sifting touches only the heap array (the dominant cost when they were in
-// separate per-vertex arrays).
+// Indexed 4-ary min-heap over vertices, keyed by (error, tie, vertex). Keys live inside the
+// 16-byte heap entries, so sifting touches only the heap array, and the four children of a
+// node span at most two cache lines: half the levels of a binary heap, each about as dear
+// (the heap is tens of MB on a full tile, so sifts are cache misses).
 class VertexHeap {
  public:
-  explicit VertexHeap(std::size_t n) : pos_(n, kAbsent) {}
+  explicit VertexHeap(std::size_t n) : pos_(n, kAbsent) { heap_.reserve(n); }
   bool empty() const { return heap_.empty(); }
   std::uint32_t top() const { return heap_.front().v; }
   double top_error() const { return heap_.front().err; }
   /// Key of the entry that would be on top without the current top (+inf when none).
   double second_error() const {
     double e = 1e300;
-    if (heap_.size() > 1) e = heap_[1].err;
-    if (heap_.size() > 2) e = std::min(e, heap_[2].err);
+    for (std::size_t c = 1; c <= 4 && c < heap_.size(); ++c) e = std::min(e, heap_[c].err);
     return e;
   }
   bool contains(std::uint32_t v) const { return pos_[v] != kAbsent; }
-  void set(std::uint32_t v, double err, double tie) {
+  void set(std::uint32_t v, double err, std::uint32_t tie) {
     const Entry e{err, tie, v};
     std::uint32_t p = pos_[v];
     if (p == kAbsent) {
@@ -109,7 +148,7 @@ class VertexHeap {
     heap_.pop_back();
     pos_[v] = kAbsent;
     if (last.v != v) {
-      if (p > 0 && less(last, heap_[(p - 1) / 2])) up(p, last);
+      if (p > 0 && less(last, heap_[(p - 1) / 4])) up(p, last);
       else down(p, last);
     }
   }
@@ -117,8 +156,8 @@ class VertexHeap {
  private:
   static constexpr std::uint32_t kAbsent = UINT32_MAX;
   struct Entry {
-    double err, tie;
-    std::uint32_t v;
+    double err;
+    std::uint32_t tie, v;
   };
   static bool less(const Entry& a, const Entry& b) {
     if (a.err != b.err) return a.err < b.err;
@@ -128,7 +167,7 @@ class VertexHeap {
   // Moves e (destined for slot i) up/down to its place.
   void up(std::uint32_t i, const Entry& e) {
     while (i > 0) {
-      const std::uint32_t p = (i - 1) / 2;
+      const std::uint32_t p = (i - 1) / 4;
       if (!less(e, heap_[p])) break;
       heap_[i] = heap_[p], pos_[heap_[i].v] = i, i = p;
     }
@@ -137,16 +176,19 @@ class VertexHeap {
   void down(std::uint32_t i, const Entry& e) {
     const std::uint32_t n = std::uint32_t(heap_.size());
     for (;;) {
-      std::uint32_t c = 2 * i + 1;
-      if (c >= n) break;
-      if (c + 1 < n && less(heap_[c + 1], heap_[c])) ++c;
+      const std::uint32_t c0 = 4 * i + 1;
+      if (c0 >= n) break;
+      std::uint32_t c = c0;
+      const std::uint32_t end = std::min(c0 + 4, n);
+      for (std::uint32_t k = c0 + 1; k < end; ++k)
+        if (less(heap_[k], heap_[c])) c = k;
       if (!less(heap_[c], e)) break;
       heap_[i] = heap_[c], pos_[heap_[i].v] = i, i = c;
     }
     heap_[i] = e, pos_[e.v] = i;
   }
-  std::vector<Entry> heap_;
-  std::vector<std::uint32_t> pos_;
+  HugeVector<Entry> heap_;
+  HugeVector<std::uint32_t> pos_;
 };
 
 class Builder {
@@ -299,10 +341,16 @@ class Builder {
   // are measured again whenever a vertex is re-evaluated. The table (1 MiB) stays in cache.
   double spoke_error(std::uint32_t w, std::uint32_t x, double cutoff) {
     const std::uint32_t a = std::min(w, x), b = std::max(w, x);
-    SpokeSlot& s = spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 48];
-    if (s.a == a && s.b == b && (s.exact || s.value > cutoff)) return s.value;
-    const double e = err_.segment(point(a), point(b), cutoff);
-    s = SpokeSlot{a, b, e <= cutoff, e};
+    const GridPoint pa = point(a), pb = point(b);
+    // A short segment crosses few grid lines: measuring it costs less than a cache miss.
+    if (std::abs(pa.x - pb.x) + std::abs(pa.y - pb.y) <= kShortSpoke) return err_.segment(pa, pb, cutoff);
+    SpokeSlot& s = spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 49];
+    if (s.a == a && s.b == b) {
+      if (s.value >= 0) return s.value;            // exact
+      if (-s.value > cutoff) return -s.value;      // a lower bound above the cutoff
+    }
+    const double e = err_.segment(pa, pb, cutoff);
+    s = SpokeSlot{a, b, e <= cutoff ? e : -e};  // lower bounds (> cutoff >= 0) stored negated
     return e;
   }
 
@@ -327,13 +375,14 @@ class Builder {
     if (!mesh_.is_boundary(h)) wings[0] = mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx();
     if (!mesh_.is_boundary(o)) wings[1] = mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx();
     if (wings[0] == wings[1]) return false;
-    ++stamp_;
-    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { mark_[mesh_.to_vertex_handle(g).idx()] = stamp_; });
+    // Common neighbours by comparing the two (short) rings: no per-vertex marks to miss in cache.
+    link_ring_.clear();
+    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { link_ring_.push_back(mesh_.to_vertex_handle(g).idx()); });
     int common = 0;
     bool ok = true;
     for_each_outgoing(vw, [&](Mesh::HalfedgeHandle g) {
       const int x = mesh_.to_vertex_handle(g).idx();
-      if (mark_[x] != stamp_) return;
+      if (std::find(link_ring_.begin(), link_ring_.end(), x) == link_ring_.end()) return;
       if (x != wings[0] && x != wings[1]) ok = false;
       ++common;
     });
@@ -391,65 +440,97 @@ class Builder {
       heap_.remove(u);
       return;
     }
-    // Candidate targets.
+    // One walk around u: its ring vertices in order (ringv_[k] = head of the k-th outgoing
+    // halfedge), their positions relative to u and heights, and the faces (u, ringv_[k],
+    // ringv_[k-1]) that exist, with the crossing error of their edge opposite u.
+    const bool continuous = err_.metric() == ErrorMetric::Continuous;
+    ringv_.clear();
+    ring_.clear();
+    ringk_.clear();
+    rloc_.clear();
+    bool boundary = false;
+    {
+      const auto start = mesh_.halfedge_handle(vu);
+      auto h = start;
+      std::uint32_t k = 0;
+      do {
+        const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
+        ringv_.push_back(a);
+        const GridPoint pa = point(a);
+        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, hf_[a]});
+        if (mesh_.is_boundary(h)) {
+          boundary = true;
+        } else {
+          const auto hn = mesh_.next_halfedge_handle(h);
+          ring_.push_back(RingFace{a, std::uint32_t(mesh_.to_vertex_handle(hn).idx()),
+                                   continuous ? edge_err_[mesh_.edge_handle(hn).idx()] : 0.0});
+          ringk_.push_back(k);
+        }
+        ++k;
+        h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
+      } while (h != start);
+    }
+    const std::uint32_t n = std::uint32_t(ringv_.size());
+    // Face j joins ring indices ringk_[j] and ringk_[j] - 1 (mod n).
+    face_at_.assign(n, 0);
+    for (std::uint32_t k : ringk_) face_at_[k] = 1;
+    // Candidate targets, as ring indices.
     cand_.clear();
-    if (mesh_.is_boundary(vu)) {
+    if (boundary) {
       // Only along its own grid border line, and only when both boundary neighbours are on it
-      // (otherwise u is on the boundary of a hole, which must keep its shape).
+      // (otherwise u is on the boundary of a hole, which must keep its shape). The vertex's
+      // outgoing halfedge is its boundary one: ringv_[0] is the next boundary vertex and
+      // ringv_[n-1] the previous one.
       const int line = border_line(pu);
-      const auto hout = mesh_.halfedge_handle(vu);  // outgoing boundary halfedge
-      const auto hin = mesh_.prev_halfedge_handle(hout);
-      const std::uint32_t next = std::uint32_t(mesh_.to_vertex_handle(hout).idx());
-      const std::uint32_t prev = std::uint32_t(mesh_.from_vertex_handle(hin).idx());
+      const std::uint32_t next = ringv_[0], prev = ringv_[n - 1];
       if (line != 0 && border_line_contains(line, point(next)) && border_line_contains(line, point(prev))) {
-        cand_.push_back({next, 0, 0});
-        cand_.push_back({prev, 0, 0});
+        cand_.push_back({next, 0, 0, 0});
+        cand_.push_back({prev, 0, 0, n - 1});
       }
     } else {
-      for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { cand_.push_back({std::uint32_t(mesh_.to_vertex_handle(g).idx()), 0, 0}); });
+      for (std::uint32_t k = 0; k < n; ++k) cand_.push_back({ringv_[k], 0, 0, k});
     }
-    // The ring: faces (u, a, b) around u, with the crossing error of the edge (a, b).
-    const bool continuous = err_.metric() == ErrorMetric::Continuous;
-    ring_.clear();
-    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) {
-      if (mesh_.is_boundary(h)) return;
-      const auto hn = mesh_.next_halfedge_handle(h);
-      ring_.push_back(RingFace{std::uint32_t(mesh_.to_vertex_handle(h).idx()),
-                               std::uint32_t(mesh_.to_vertex_handle(hn).idx()),
-                               continuous ? edge_err_[mesh_.edge_handle(hn).idx()] : 0.0});
-    });
-    ringv_.clear();
-    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) { ringv_.push_back(std::uint32_t(mesh_.to_vertex_handle(h).idx())); });
     // Lower bound of each legal candidate: the error at u itself, at the new spokes and at the
-    // ring edges, all of which are points of the new 1-ring.
+    // ring edges, all of which are points of the new 1-ring. Every edge of u's ring survives
+    // as an edge of the new 1-ring of w, including the two that end at w, so all count.
+    double ring_edges = 0.0;
+    const std::size_t nf = ring_.size();
+    cross_.resize(nf);
+    for (std::size_t j = 0; j < nf; ++j) {
+      ring_edges = std::max(ring_edges, ring_[j].edge_error);
+      const Local& la = rloc_[ringk_[j]];
+      const Local& lb = rloc_[ringk_[j] == 0 ? n - 1 : ringk_[j] - 1];
+      cross_[j] = la.x * lb.y - la.y * lb.x;
+    }
     std::size_t legal = 0;
     const double zu = hf_[u];
     for (Candidate& c : cand_) {
-      const GridPoint pw = point(c.w);
+      const Local& lw = rloc_[c.k];
+      // With positions relative to u: orient(w, a, b) = cross(a, b) + X(a) - X(b), where
+      // X(x) = cross(w, x); orient(w, a, u) = X(a) and orient(b, w, u) = -X(b).
       bool ok = true, located = false;
-      double lb = 0.0;
+      double lb = ring_edges;
       // u lies in the new triangle (w, a, b) whose wedge at w contains the direction w -> u:
       // orient(w, a, u) >= 0 and orient(w, u, b) >= 0.
-      for (const RingFace& f : ring_) {
-        // Every edge of u's ring survives as an edge of the new 1-ring of w, including the two
-        // that end at w, so all of them count.
-        lb = std::max(lb, f.edge_error);
-        if (f.a == c.w || f.b == c.w) continue;
-        const GridPoint pa = point(f.a), pb = point(f.b);
-        const std::int64_t area2 = orient2d(pw, pa, pb);
+      for (std::size_t j = 0; j < nf; ++j) {
+        const std::uint32_t ka = ringk_[j], kb = ka == 0 ? n - 1 : ka - 1;
+        if (ka == c.k || kb == c.k) continue;
+        const Local &la = rloc_[ka], &lb2 = rloc_[kb];
+        const std::int64_t xa = lw.x * la.y - lw.y * la.x, xb = lw.x * lb2.y - lw.y * lb2.x;
+        const std::int64_t area2 = cross_[j] + xa - xb;
         if (area2 <= 0) { ok = false; break; }
         if (located) continue;
-        const std::int64_t e2 = orient2d(pw, pa, pu), e1 = orient2d(pb, pw, pu);
+        const std::int64_t e2 = xa, e1 = -xb;
         if (e2 >= 0 && e1 >= 0) {
           located = true;
           const std::int64_t e0 = area2 - e1 - e2;  // barycentric weights sum to area2
-          const double num = double(e0) * hf_[c.w] + double(e1) * hf_[f.a] + double(e2) * hf_[f.b];
+          const double num = double(e0) * lw.z + double(e1) * rloc_[ka].z + double(e2) * rloc_[kb].z;
           lb = std::max(lb, std::abs(num - double(area2) * zu) / double(area2));
         }
       }
       if (!ok) continue;
       c.lower = lb;
-      c.tie = double(pw.x - pu.x) * (pw.x - pu.x) + double(pw.y - pu.y) * (pw.y - pu.y);
+      c.tie = tie_of(pu, point(c.w));
       cand_[legal++] = c;
     }
     cand_.resize(legal);
@@ -468,9 +549,11 @@ class Builder {
     // Exact errors in order of their lower bounds, skipping candidates that cannot win.
     // Measurements stop at `cutoff` (the next key in the heap): when every candidate exceeds
     // it, the values reached are a better lower bound and u goes back, still dirty.
-    double best = 1e300, best_tie = 1e300;
+    double best = 1e300;
+    std::uint32_t best_tie = UINT32_MAX;
     std::uint32_t best_w = UINT32_MAX;
-    double partial = 1e300, partial_tie = 0;
+    double partial = 1e300;
+    std::uint32_t partial_tie = 0;
     std::uint32_t partial_w = UINT32_MAX;
     for (const Candidate& c : cand_) {
       if (c.lower > best || (c.lower == best && c.tie >= best_tie)) break;
@@ -478,9 +561,11 @@ class Builder {
       const double limit = std::min(best, cutoff);
       double e = c.lower;
       if (continuous)  // the new spokes (w, x) to ring vertices x not already joined to w
-        for (std::uint32_t x : ringv_) {
-          if (x == c.w || spoke_known(x, c.w)) continue;
-          e = std::max(e, spoke_error(c.w, x, limit));
+        for (std::uint32_t k = 0; k < n; ++k) {
+          // (w, x) is an edge of u's ring when x is w's ring neighbour across an existing face.
+          const std::uint32_t kn = c.k + 1 == n ? 0 : c.k + 1, kp = c.k == 0 ? n - 1 : c.k - 1;
+          if (k == c.k || (k == kn && face_at_[kn]) || (k == kp && face_at_[c.k])) continue;
+          e = std::max(e, spoke_error(c.w, ringv_[k], limit));
           if (e > limit) break;
         }
       if (e <= limit)
@@ -512,11 +597,11 @@ class Builder {
     heap_.set(u, best, best_tie);
   }
 
-  // True when (x, w) is an edge of u's ring (so its error is a ring edge's, already counted).
-  bool spoke_known(std::uint32_t x, std::uint32_t w) const {
-    for (const RingFace& f : ring_)
-      if ((f.a == x && f.b == w) || (f.a == w && f.b == x)) return true;
-    return false;
+  // Tie-break of equal errors: the squared length of the collapsed edge, saturated (exact
+  // below 46341 samples per side, where every order below is the one of the exact length).
+  static std::uint32_t tie_of(GridPoint a, GridPoint b) {
+    const std::uint64_t dx = std::uint64_t(std::abs(std::int64_t(a.x) - b.x)), dy = std::uint64_t(std::abs(std::int64_t(a.y) - b.y));
+    return std::uint32_t(std::min<std::uint64_t>(dx * dx + dy * dy, UINT32_MAX));
   }
 
   bool border_line_contains(int line, GridPoint p) const {
@@ -535,24 +620,33 @@ class Builder {
   int W_, H_;
   Mesh mesh_;
   VertexHeap heap_;
-  std::vector<std::uint32_t> target_;
+  HugeVector<std::uint32_t> target_;
   TriangleCache cache_;
   struct Candidate {
     std::uint32_t w;
-    double lower, tie;
+    double lower;
+    std::uint32_t tie;
+    std::uint32_t k;  // index of w in ringv_
   };
+  struct Local {
+    std::int64_t x, y;  // position relative to the evaluated vertex
+    double z;
+  };
+  std::vector<Local> rloc_;
+  std::vector<std::uint32_t> ringk_;
+  std::vector<std::uint8_t> face_at_;
+  std::vector<std::int64_t> cross_;
   std::vector<std::uint32_t> neighbours_, ringv_;
-  std::vector<GridPoint> pts_;
+  HugeVector<GridPoint> pts_;
   struct SpokeSlot {
     std::uint32_t a = UINT32_MAX, b = 0;
-    bool exact = false;
-    double value = 0;
+    double value = 0;  // exact error when >= 0, else minus a lower bound
   };
-  std::vector<SpokeSlot> spokes_ = std::vector<SpokeSlot>(1 << 16);
+  std::vector<SpokeSlot> spokes_ = std::vector<SpokeSlot>(1 << 15);  // 512 KiB: stays in L2
+  static constexpr int kShortSpoke = 6;
   std::vector<std::uint8_t> locked_;
   std::vector<Candidate> cand_;
-  std::vector<std::uint32_t> mark_ = std::vector<std::uint32_t>(hf_.size(), 0);
-  std::uint32_t stamp_ = 0;
+  std::vector<int> link_ring_;
   std::vector<std::uint8_t> dirty_ = std::vector<std::uint8_t>(hf_.size(), 0);
   std::vector<std::uint8_t> pops_ = std::vector<std::uint8_t>(hf_.size(), 0);
   struct RingFace {
@@ -560,7 +654,7 @@ class Builder {
     double edge_error;
   };
   std::vector<RingFace> ring_;
-  std::vector<double> edge_err_;
+  HugeVector<double> edge_err_;
 };
 
 }  // namespace
@@ -598,9 +692,12 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
     b.run(collapses, quantum, 0, progress, /*report=*/true);
   } else {
     // Phase 1: vertical strips sharing their cut columns (locked), decimated in parallel
-    // until each keeps about 3% of its vertices. Collapses of different strips are
+    // until each keeps 1/kStripKeep of its vertices. The join below runs on one thread, so
+    // the strips go far: a smaller join costs only a higher common error, below which the cut
+    // column stays at full resolution (about 2 triangles per row, at coarse levels only). Collapses of different strips are
     // independent (their 1-rings never cross a cut column), so any interleaving of the
     // strips' sequences is a valid sequence; they are merged in error order below.
+    constexpr std::size_t kStripKeep = 128;
     std::vector<int> cuts(strips + 1);
     for (int t = 0; t <= strips; ++t) cuts[t] = int(std::int64_t(hf.width() - 1) * t / strips);
     std::vector<std::vector<Collapse>> seq(strips);
@@ -611,7 +708,7 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
         Builder b(hf, options);
         b.init_grid(cuts[t], cuts[t + 1], drop[t]);
         const std::size_t live = b.live_vertices();
-        b.run(seq[t], quantum, live / 32, progress, /*report=*/t == 0);
+        b.run(seq[t], quantum, live / kStripKeep, progress, /*report=*/t == 0);
       } catch (...) {
         failure[t] = std::current_exception();
         progress.cancelled = true;
