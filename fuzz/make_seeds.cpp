@@ -1,12 +1,14 @@
 // Writes the seed corpora of the fuzz targets: small valid inputs of every format they read.
 //
-// Usage: terralod_fuzz_seeds CORPUS_DIR   (writes CORPUS_DIR/fuzz_pm_decoder/seed_* and
-// CORPUS_DIR/fuzz_dem_reader/seed_*; existing seeds are overwritten, other files are kept).
+// Usage: terralod_fuzz_seeds CORPUS_DIR   (writes CORPUS_DIR/fuzz_pm_decoder/seed_*,
+// CORPUS_DIR/fuzz_dem_reader/seed_* and CORPUS_DIR/fuzz_block_database/seed_*; existing seeds
+// are overwritten, other files are kept).
 // DEM seeds start with the selector byte of fuzz_dem_reader.cpp (0 .hgt, 1 .asc, 2 .png, 3 .tif,
 // +4 = keep voids as holes).
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <sqlite3.h>
 
 #include <cstdint>
 #include <cstdio>
@@ -16,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "terralod/blocks/block_database.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -146,6 +149,57 @@ void dem_seeds(const fs::path& dir, const fs::path& tmp) {
   tif("tif_plain_uint16", GDT_UInt16, 0, false, false, 3);
 }
 
+/// Small valid block databases: two block PMs, a named blob, two texture tiles and meta, as
+/// written by BlockDatabase (WAL mode, 4096-byte pages), and the same content repacked by SQLite
+/// into 512-byte pages, in WAL and in rollback-journal mode (ten times smaller: mutations reach
+/// every table's pages more often).
+void db_seeds(const fs::path& dir, const fs::path& tmp) {
+  namespace tb = terralod::blocks;
+  const fs::path path = tmp / "seed.db";
+  for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(path.string() + suffix);
+  pm::BuildOptions one_thread;
+  one_thread.threads = 1;
+  {
+    tb::DatabaseInfo info;
+    info.grid_width = 9;
+    info.grid_height = 5;
+    info.transform = pm::GridTransform::north_up(500000.0, 5000000.0, 30.0, 30.0);
+    info.crs_wkt = "LOCAL_CS[\"seed\"]";
+    info.block_size = 5;
+    info.build_parameters = R"({"block_size":5})";
+    info.source = "seed.hgt";
+    auto db = tb::BlockDatabase::create(path.string(), info);
+    db.put_block({0, 0}, pm::encode_pm(pm::ProgressiveMesh::build(terrain(5, 5, true), one_thread)));
+    db.put_block({1, 0}, pm::encode_pm(pm::ProgressiveMesh::build(terrain(2, 2, true), one_thread)));
+    db.put_blob("tree", Bytes{1, 2, 3, 4, 5, 6, 7, 8});
+    db.put_texture_tile("ortho", 0, 0, Bytes(40, 0x7f));
+    db.put_texture_tile("ortho", 1, 1, Bytes{});
+    db.set_meta("build_complete", "1");
+  }  // closed: checkpointed into the main file, WAL removed
+  write(dir / "seed_wal_4k.db", slurp(path));
+  for (const char* mode : {"WAL", "DELETE"}) {
+    sqlite3* db = nullptr;
+    const std::string sql = std::string("PRAGMA journal_mode = DELETE; PRAGMA page_size = 512; VACUUM; ") +
+                            "PRAGMA journal_mode = " + mode;
+    char* err = nullptr;
+    const bool ok = sqlite3_open(path.c_str(), &db) == SQLITE_OK &&
+                    sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err) == SQLITE_OK;
+    const std::string msg = err ? err : sqlite3_errmsg(db);
+    sqlite3_free(err);
+    sqlite3_close(db);
+    if (!ok) throw std::runtime_error("cannot repack " + path.string() + ": " + msg);
+    write(dir / (std::string("seed_") + (mode[0] == 'W' ? "wal" : "rollback") + "_512.db"), slurp(path));
+  }
+  // Check that the repacked seeds still open and read.
+  for (const char* name : {"seed_wal_512.db", "seed_rollback_512.db"}) {
+    const fs::path copy = tmp / name;
+    fs::copy_file(dir / name, copy, fs::copy_options::overwrite_existing);
+    const auto db = tb::BlockDatabase::open(copy.string());
+    if (db.blocks().size() != 2 || !db.check_integrity().ok)
+      throw std::runtime_error("bad seed " + copy.string());
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -156,9 +210,11 @@ int main(int argc, char** argv) {
   try {
     const fs::path root = argv[1];
     const fs::path pm_dir = root / "fuzz_pm_decoder", dem_dir = root / "fuzz_dem_reader", tmp = root / ".seed_tmp";
-    for (const fs::path& d : {pm_dir, dem_dir, tmp}) fs::create_directories(d);
+    const fs::path db_dir = root / "fuzz_block_database";
+    for (const fs::path& d : {pm_dir, dem_dir, db_dir, tmp}) fs::create_directories(d);
     pm_seeds(pm_dir);
     dem_seeds(dem_dir, tmp);
+    db_seeds(db_dir, tmp);
     // Camera paths: a valid flight with a comment, CRLF line ends and a blank line.
     fs::create_directories(root / "fuzz_camera_path");
     const std::string path_csv =

@@ -14,7 +14,7 @@ cd "$(dirname "$0")/.."
 secs="${1:-60}"
 shift || true
 targets=("$@")
-((${#targets[@]})) || targets=(fuzz_pm_decoder fuzz_dem_reader fuzz_camera_path)
+((${#targets[@]})) || targets=(fuzz_pm_decoder fuzz_dem_reader fuzz_camera_path fuzz_block_database)
 [[ "$secs" =~ ^[0-9]+$ ]] || { echo "fuzz.sh: SECONDS_PER_TARGET must be a whole number, not '$secs'" >&2; exit 2; }
 
 # Debian 12: clang 14 is the default clang; libFuzzer's runtime is in libclang-rt-14-dev.
@@ -31,7 +31,7 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-build=build-fuzz
+build="${TERRALOD_FUZZ_BUILD:-build-fuzz}"  # several runs at once need separate folders
 jobs="$(nproc)"
 flags="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer"
 cmake -S . -B "$build" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \

@@ -18,6 +18,11 @@
 //     kept as a seed of the failure class): a 67-byte Esri ASCII grid declaring 30000 x 30000
 //     values made the reader allocate and zero 7.2 GB before finding the data short. Fix: the
 //     reader refuses more values than the file has bytes (tests/stress/test_bad_input.cpp).
+//   fuzz_block_database/blocks-is-an-endless-recursive-view (found by review while writing the
+//     target, kept as a seed of the failure class): a valid database whose 'blocks' table is
+//     replaced by a view over an endless recursive CTE would make blocks() run forever. Fix:
+//     BlockDatabase::open requires its five tables to be real tables ("schema mismatch:
+//     'blocks' is not a table"), tests/blocks/test_block_database.cpp.
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -40,6 +45,7 @@
 extern "C" int terralod_fuzz_pm_decoder(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_camera_path(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_block_database(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
 
 namespace {
@@ -88,6 +94,10 @@ TEST(FuzzRegressions, PmDecoder) {
 
 TEST(FuzzRegressions, CameraPath) {
   EXPECT_GE(replay("fuzz_camera_path", terralod_fuzz_camera_path), 3u);
+}
+
+TEST(FuzzRegressions, BlockDatabase) {
+  EXPECT_GE(replay("fuzz_block_database", terralod_fuzz_block_database), 1u);
 }
 
 TEST(FuzzRegressions, DemReader) {
