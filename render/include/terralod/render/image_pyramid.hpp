@@ -1,0 +1,104 @@
+// ImagePyramid: an image of any size, larger than memory included, as a list of levels that
+// halve down to the renderer's maximum texture size, read sub-image by sub-image.
+//
+// Usage:
+//   terralod::render::PyramidOptions po;  po.max_texture_size = 1024;
+//   terralod::render::ImagePyramid::convert("ortho.tif", "ortho.tx", po);  // maketx via OIIO
+//   terralod::render::ImagePyramid pyr("ortho.tx", po);
+//   pyr.levels();                          // e.g. 5: 16000^2, 8000^2, ..., 1000^2
+//   terralod::render::PixelRect r{/*level=*/2, /*x0=*/0, /*y0=*/0, /*width=*/512, /*height=*/256};
+//   terralod::render::RgbaImage px = pyr.read(r);   // 512 x 256 RGBA8, top row first
+//
+// Implementation: OpenImageIO's make_texture (the library behind `maketx`) writes a tiled
+// (64 x 64), MIP-mapped TIFF, reading the source through an ImageCache so the whole image is
+// never in memory at once; reads go through an ImageCache too (tiles loaded on demand, a
+// bounded cache of PyramidOptions::cache_mb). This is the "image pyramid" of
+// approximation-tree.txt section 3.3 and dynamic-3d-maps-texture-layers.txt section 3.1: all
+// levels cover the same geo-referenced domain; level k+1 is level k scaled by 1/2 (OIIO:
+// max(1, floor(w/2)) per axis, box filter).
+//
+// Contract:
+//   - Pixel coordinates: (x, y), x to the right, y DOWN from the top row of the image, at the
+//     given level. A PixelRect may reach outside the level's image (power-of-two padding);
+//     those pixels read as transparent black (0,0,0,0).
+//   - Channels: 1 (grey), 2 (grey + alpha), 3 (RGB) or 4 (RGBA) in the file; read() always
+//     returns RGBA8 (grey repeated into R, G, B; alpha 255 where the file has none).
+//   - Alpha stays straight (not premultiplied) from the source file to read(), at every level;
+//     coarser levels average colour and alpha independently (box filter).
+//   - levels(): the finest level 0, down to and including the first level whose width and
+//     height are both <= max_texture_size (the file may hold coarser ones; they are not used).
+//   - Errors (unreadable file, not an image, write failure) throw std::runtime_error naming
+//     the file and the reason. read() is thread-safe (the ImageCache is).
+//   - Memory: the cache (cache_mb, default 64 MiB) + the returned pixels (4 bytes each).
+//     On disk: about 4/3 of the source's uncompressed size (zip-compressed tiles).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "terralod/render/rgba_image.hpp"
+
+namespace terralod::render {
+
+struct PyramidOptions {
+  int max_texture_size = 2048;  ///< renderer limit, pixels per side, >= 1
+  int tile_size = 64;           ///< tile side of the converted file, pixels (power of two)
+  std::size_t cache_mb = 64;    ///< ImageCache budget for reading, MiB, >= 1
+};
+
+/// A rectangle of pixels of one pyramid level; may extend beyond the level's image.
+struct PixelRect {
+  int level = 0;
+  int x0 = 0, y0 = 0;         ///< top-left pixel
+  int width = 0, height = 0;  ///< >= 1
+  bool operator==(const PixelRect&) const = default;
+};
+
+/// Size of one level.
+struct LevelSize {
+  int width = 0, height = 0;
+  bool operator==(const LevelSize&) const = default;
+};
+
+/// Level sizes of a pyramid over a width x height image (both >= 1): level 0 is the image,
+/// each next one max(1, floor(w/2)) x max(1, floor(h/2)), the last the first that fits
+/// max_texture_size on both sides.
+std::vector<LevelSize> pyramid_levels(int width, int height, int max_texture_size);
+
+class ImagePyramid {
+ public:
+  /// Converts any image OpenImageIO reads into a tiled, MIP-mapped TIFF at `out_path`
+  /// (written to out_path + ".tmp" and renamed). Streams: the source is read through an
+  /// ImageCache. Throws std::runtime_error naming the file on failure.
+  static void convert(const std::string& image_path, const std::string& out_path,
+                      const PyramidOptions& options = {});
+  /// Same from pixels in memory (generated textures, tests).
+  static void convert(const RgbaImage& image, const std::string& out_path,
+                      const PyramidOptions& options = {});
+
+  /// Opens a converted file (or any image; a flat one is a one-level pyramid if it fits).
+  explicit ImagePyramid(const std::string& path, const PyramidOptions& options = {});
+  ~ImagePyramid();
+  ImagePyramid(ImagePyramid&&) noexcept;
+  ImagePyramid& operator=(ImagePyramid&&) noexcept;
+
+  const std::string& path() const;
+  int levels() const { return int(sizes_.size()); }
+  const std::vector<LevelSize>& level_sizes() const { return sizes_; }
+  LevelSize level(int k) const { return sizes_.at(std::size_t(k)); }
+  int channels() const { return channels_; }
+
+  /// The pixels of `r` as RGBA8 (outside the image: 0,0,0,0). 0 <= r.level < levels().
+  RgbaImage read(const PixelRect& r) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<LevelSize> sizes_;
+  int channels_ = 0;
+};
+
+}  // namespace terralod::render

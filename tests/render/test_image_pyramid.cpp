@@ -1,0 +1,157 @@
+// Tests of ImagePyramid: level sizes by hand, exact round trips of level 0 through the tiled
+// MIP-mapped file, box-filtered coarser levels, reads beyond the image, bad files.
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <filesystem>
+#include <string>
+
+#include "terralod/render/image_pyramid.hpp"
+#include "terralod/render/texture_store.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace terralod::render;
+
+std::string tmp_path(const std::string& name) { return std::string(TERRALOD_TEST_TMP) + "/pyramid_" + name; }
+
+// A w x h image whose 2x2 blocks are uniform: pixel (x, y) = (x/2 * 10, y/2 * 20, 7, 200).
+RgbaImage blocky(int w, int h) {
+  RgbaImage img(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.set(x, y, {std::uint8_t(x / 2 * 10), std::uint8_t(y / 2 * 20), 7, 200});
+  return img;
+}
+
+TEST(ImagePyramid, LevelSizesHalveDownToTheMaximumTextureSize) {
+  // 1000 x 600, max 256: 1000x600 -> 500x300 -> 250x150 (fits): 3 levels.
+  const std::vector<LevelSize> a = pyramid_levels(1000, 600, 256);
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_EQ(a[1], (LevelSize{500, 300}));
+  EXPECT_EQ(a[2], (LevelSize{250, 150}));
+  // Odd sizes floor, never below 1: 5x3 with max 1 -> 5x3, 2x1, 1x1.
+  const std::vector<LevelSize> b = pyramid_levels(5, 3, 1);
+  ASSERT_EQ(b.size(), 3u);
+  EXPECT_EQ(b[1], (LevelSize{2, 1}));
+  EXPECT_EQ(b[2], (LevelSize{1, 1}));
+  // Already small enough: one level.
+  EXPECT_EQ(pyramid_levels(64, 64, 64).size(), 1u);
+}
+
+TEST(ImagePyramid, ConvertedFileRoundTripsLevelZeroAndBoxFiltersTheNext) {
+  // 100 x 60 with max 32: levels 100x60, 50x30, 25x15.
+  const RgbaImage src = blocky(100, 60);
+  const std::string path = tmp_path("blocky.tx");
+  PyramidOptions po;
+  po.max_texture_size = 32;
+  ImagePyramid::convert(src, path, po);
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  const ImagePyramid pyr(path, po);
+  ASSERT_EQ(pyr.levels(), 3);
+  EXPECT_EQ(pyr.level(0), (LevelSize{100, 60}));
+  EXPECT_EQ(pyr.level(1), (LevelSize{50, 30}));
+  EXPECT_EQ(pyr.level(2), (LevelSize{25, 15}));
+  EXPECT_EQ(pyr.channels(), 4);
+  EXPECT_EQ(pyr.read({0, 0, 0, 100, 60}), src);  // lossless, every tile
+  // Level 1 pixel (x, y) is the 2x2 block (2x..2x+1, 2y..2y+1) of level 0, all equal.
+  const RgbaImage l1 = pyr.read({1, 10, 5, 20, 10});
+  for (int y = 0; y < 10; ++y)
+    for (int x = 0; x < 20; ++x) {
+      const auto want = src.get(2 * (x + 10), 2 * (y + 5));
+      EXPECT_EQ(l1.get(x, y), want) << "level 1 pixel " << x + 10 << "," << y + 5;
+    }
+}
+
+TEST(ImagePyramid, PixelsOutsideTheImageReadAsTransparentBlack) {
+  const RgbaImage src = blocky(40, 20);
+  const std::string path = tmp_path("outside.tx");
+  ImagePyramid::convert(src, path);
+  const ImagePyramid pyr(path);
+  ASSERT_EQ(pyr.levels(), 1);
+  // 16 x 8 window at (32, 16): 8 x 4 inside, the rest outside.
+  const RgbaImage r = pyr.read({0, 32, 16, 16, 8});
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 16; ++x) {
+      const bool inside = x < 8 && y < 4;
+      const std::array<std::uint8_t, 4> zero{0, 0, 0, 0};
+      EXPECT_EQ(r.get(x, y), inside ? src.get(32 + x, 16 + y) : zero) << x << "," << y;
+    }
+}
+
+TEST(ImagePyramid, GreyFileFromDiskBecomesOpaqueRgba) {
+  // A 300 x 200 grey PNG (value = (x + y) % 256), converted through the file path version.
+  const std::string png = tmp_path("grey.png"), tx = tmp_path("grey.tx");
+  std::vector<std::uint8_t> px(300 * 200);
+  for (int y = 0; y < 200; ++y)
+    for (int x = 0; x < 300; ++x) px[std::size_t(y) * 300 + x] = std::uint8_t((x + y) % 256);
+  {
+    auto out = OIIO::ImageOutput::create(png);
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open(png, OIIO::ImageSpec(300, 200, 1, OIIO::TypeDesc::UINT8)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+  }
+  PyramidOptions po;
+  po.max_texture_size = 128;
+  ImagePyramid::convert(png, tx, po);
+  const ImagePyramid pyr(tx, po);
+  ASSERT_EQ(pyr.levels(), 3);  // 300x200, 150x100, 75x50
+  EXPECT_EQ(pyr.channels(), 1);
+  const RgbaImage r = pyr.read({0, 290, 190, 10, 10});
+  for (int y = 0; y < 10; ++y)
+    for (int x = 0; x < 10; ++x) {
+      const std::uint8_t g = std::uint8_t((290 + x + 190 + y) % 256);
+      EXPECT_EQ(r.get(x, y), (std::array<std::uint8_t, 4>{g, g, g, 255}));
+    }
+}
+
+TEST(ImagePyramid, StraightAlphaSurvivesAPngSource) {
+  // PNG stores straight alpha; a reader that premultiplied would turn (200,100,50,128) into
+  // (100,50,25,128) and (255,255,255,0) into black.
+  RgbaImage img(4, 1);
+  img.set(0, 0, {200, 100, 50, 128});
+  img.set(1, 0, {10, 20, 30, 255});
+  img.set(2, 0, {255, 255, 255, 0});
+  img.set(3, 0, {80, 80, 80, 64});
+  const std::string png = tmp_path("alpha.png"), tx = tmp_path("alpha.tx");
+  write_layer_image(img, png);
+  ImagePyramid::convert(png, tx);
+  EXPECT_EQ(ImagePyramid(tx).read({0, 0, 0, 4, 1}), img);
+  EXPECT_EQ(ImagePyramid(png).read({0, 0, 0, 4, 1}), img);
+}
+
+TEST(ImagePyramid, BadFilesThrowNamingTheFile) {
+  const std::string missing = tmp_path("does_not_exist.png");
+  try {
+    ImagePyramid::convert(missing, tmp_path("x.tx"));
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(missing), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ImagePyramid pyr(missing), std::runtime_error);
+  // A flat (single-level) image bigger than the limit is not a pyramid.
+  const std::string flat = tmp_path("flat.png");
+  {
+    auto out = OIIO::ImageOutput::create(flat);
+    ASSERT_TRUE(out->open(flat, OIIO::ImageSpec(64, 64, 3, OIIO::TypeDesc::UINT8)));
+    std::vector<std::uint8_t> px(64 * 64 * 3, 9);
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+  }
+  PyramidOptions po;
+  po.max_texture_size = 16;
+  try {
+    ImagePyramid pyr(flat, po);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("MIP level"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(flat), std::string::npos) << e.what();
+  }
+  po.max_texture_size = 64;  // fits: a one-level pyramid
+  EXPECT_EQ(ImagePyramid(flat, po).levels(), 1);
+}
+
+}  // namespace

@@ -1,0 +1,220 @@
+// Tests of texture layers in the block database: the tile format (round trip, corrupt bytes),
+// storing a layer (exact level 0, patch tiles equal to the pyramid's sub-images, metadata),
+// on-demand loading from the database, and `terralod texture add|shade|export` end to end.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/pm/terrain_generator.hpp"
+#include "terralod/render/image.hpp"
+#include "terralod/render/texture_store.hpp"
+#include "terralod/render/topographic_texture.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace tb = terralod::blocks;
+namespace pm = terralod::pm;
+using namespace terralod::render;
+
+fs::path tmp_dir() {
+  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("texture-store-" + std::to_string(getpid()));
+  fs::create_directories(d);
+  return d;
+}
+class RemoveTmpDir : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(tmp_dir(), ec);
+  }
+};
+[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir = ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
+
+RgbaImage pattern(int w, int h) {
+  RgbaImage img(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.set(x, y, {std::uint8_t(x * 7 + y), std::uint8_t(y * 3), std::uint8_t((x ^ y) & 255), std::uint8_t(255 - x)});
+  return img;
+}
+
+TEST(TextureStore, TilesRoundTripAndCorruptTilesAreNamed) {
+  const RgbaImage img = pattern(37, 11);
+  std::vector<std::uint8_t> b = encode_texture_tile(img);
+  ASSERT_GE(b.size(), 16u);
+  EXPECT_EQ(std::string(b.begin(), b.begin() + 4), "TLTX");
+  EXPECT_EQ(b[8], 37);  // u32 width, little-endian
+  EXPECT_EQ(b[12], 11);
+  EXPECT_EQ(decode_texture_tile(b, "t"), img);
+  auto fails = [](std::vector<std::uint8_t> bytes, const std::string& what) {
+    try {
+      decode_texture_tile(bytes, "tile 7");
+      ADD_FAILURE() << "no exception for " << what;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("tile 7: "), std::string::npos) << e.what();
+    }
+  };
+  fails({b.begin(), b.begin() + 10}, "truncated header");
+  fails({b.begin(), b.end() - 5}, "truncated pixels");
+  std::vector<std::uint8_t> bad = b;
+  bad[0] = 'X';
+  fails(bad, "magic");
+  bad = b;
+  bad[10] = 0xff;  // claims 37 + 0xff0000 columns: refused before allocating
+  fails(bad, "size");
+}
+
+TEST(TextureStore, GridGeorefPadsTheSampleExtentByHalfACell) {
+  // North-up, first sample centre (100, 900), 10 m spacing, 5 x 3 samples: x from 95 to
+  // 100 + 40 + 5 = 145, y from 900 - 20 - 5 = 875 to 905.
+  EXPECT_EQ(grid_georef(pm::GridTransform::north_up(100, 900, 10, 10), 5, 3), (GeoRect{95, 875, 145, 905}));
+}
+
+TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
+  // A 64 x 64 terrain grid, image 100 x 100 over it, max texture size 32: levels 100, 50, 25.
+  const fs::path dbp = tmp_dir() / "store.db";
+  tb::DatabaseInfo info;
+  info.grid_width = info.grid_height = 64;
+  info.transform = pm::GridTransform::identity();
+  auto db = tb::BlockDatabase::create(dbp.string(), info);
+  const RgbaImage src = pattern(100, 100);
+  const fs::path tx = tmp_dir() / "store.tx";
+  PyramidOptions po;
+  po.max_texture_size = 32;
+  ImagePyramid::convert(src, tx.string(), po);
+  const ImagePyramid pyr(tx.string(), po);
+  // Domains: root [0,100]^2 with four quadrant children (world = texel units here).
+  std::vector<PatchDomain> doms(5);
+  for (int i = 0; i < 5; ++i) doms[i].id = i, doms[i].parent = i ? 0 : -1;
+  doms[0].children = {1, 2, 3, 4};
+  doms[0].bbox = pm::Box{{0, 0, 0}, {100, 100, 0}};
+  for (int q = 0; q < 4; ++q) {
+    const double x = 50.0 * (q % 2), y = 50.0 * (q / 2);
+    doms[q + 1].bbox = pm::Box{{x, y, 0}, {x + 50, y + 50, 0}};
+  }
+  LayerRecord rec;
+  rec.name = "pattern";
+  rec.georef = GeoRect{0, 0, 100, 100};
+  rec.tile_size = 16;
+  rec.constraints.max_texture_size = 32;
+  rec.parameters = "{\"note\": \"a, b\"}";
+  int calls = 0;
+  store_texture_layer(db, rec, pyr, doms, [&](double) { ++calls; });
+  EXPECT_GT(calls, 0);
+  ASSERT_EQ(rec.levels.size(), 3u);
+  // Root: 100 and 50 texels too many: level 2 (25 x 25). Quadrants: 50 at level 0 > 32, so
+  // level 1, 25 x 25.
+  EXPECT_EQ(rec.patches, 5u);
+  EXPECT_EQ(stored_layers(db), std::vector<std::string>{"pattern"});
+  const LayerRecord back = read_layer_record(db, "pattern");
+  EXPECT_EQ(back.levels, rec.levels);
+  EXPECT_EQ(back.georef, rec.georef);
+  EXPECT_EQ(back.tile_size, 16);
+  EXPECT_EQ(back.patches, 5u);
+  EXPECT_EQ(back.parameters, rec.parameters);
+  EXPECT_EQ(read_layer_level(db, back, 0), src);  // exact, across 7 x 7 tiles of 16
+  EXPECT_EQ(read_layer_level(db, back, 1), pyr.read({1, 0, 0, 50, 50}));
+  const auto tree = std::make_shared<TextureTree>(doms, back.levels, back.georef, back.constraints);
+  EXPECT_EQ(tree->patch(0).rect, (PixelRect{2, 0, 0, 25, 25}));
+  EXPECT_EQ(tree->patch(4).rect, (PixelRect{1, 25, 0, 25, 25}));  // north-east quadrant: top rows
+  for (std::int64_t n = 0; n < 5; ++n)
+    EXPECT_EQ(read_layer_patch(db, "pattern", n, tree->patch(n).rect.level), pyr.read(tree->patch(n).rect)) << n;
+  EXPECT_TRUE(db.check_integrity().ok);
+  // On demand through the cache, from another thread with its own connection.
+  TextureCache cache(database_tile_loader(dbp.string(), "pattern", tree));
+  cache.request({0, 3});
+  ASSERT_TRUE(cache.wait_idle(10000));
+  const auto px = cache.request({0, 3});
+  ASSERT_NE(px, nullptr);
+  EXPECT_EQ(*px, pyr.read(tree->patch(3).rect));
+  // Missing layer: the error names the database and the layers there are.
+  try {
+    read_layer_record(db, "nope");
+    FAIL();
+  } catch (const tb::DatabaseError& e) {
+    EXPECT_NE(std::string(e.what()).find("no texture layer 'nope' (layers: pattern)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(dbp.string()), std::string::npos);
+  }
+  // Exported files are exact (PNG and TIFF).
+  for (const char* ext : {".png", ".tif"}) {
+    const fs::path out = tmp_dir() / (std::string("level0") + ext);
+    write_layer_image(src, out.string());
+    const ImagePyramid again(out.string(), PyramidOptions{128, 64, 8});
+    EXPECT_EQ(again.read({0, 0, 0, 100, 100}), src) << ext;
+  }
+  EXPECT_THROW(write_layer_image(src, (tmp_dir() / "x.jpg").string()), std::runtime_error);
+}
+
+#ifdef TERRALOD_CLI
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+int run(const std::string& args, std::string* out = nullptr) {
+  const fs::path o = tmp_dir() / "cli.txt";
+  const int raw = std::system(("env -u DISPLAY " + quote(TERRALOD_CLI) + " " + args + " >" + quote(o.string()) + " 2>&1").c_str());
+  std::ifstream f(o);
+  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (out) *out = text;
+  const int status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
+  if (status != 0) std::fprintf(stderr, "terralod %s:\n%s\n", args.c_str(), text.c_str());
+  return status;
+}
+
+TEST(TextureCli, ShadeAddAndExportEndToEnd) {
+  // A generated 65 x 65 terrain as an ESRI ASCII grid, built with 33-sample blocks.
+  pm::TerrainOptions to;
+  to.width = to.height = 65;
+  to.seed = 11;
+  to.relief = 600;
+  to.quantize_to_metres = true;
+  const pm::Heightfield gen = pm::generate_terrain(to);
+  const fs::path asc = tmp_dir() / "dem.asc", dbp = tmp_dir() / "cli.db";
+  {
+    std::ofstream f(asc);
+    f << "ncols 65\nnrows 65\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+    for (int r = 0; r < 65; ++r) {
+      for (int c = 0; c < 65; ++c) f << gen.at(c, r) << (c + 1 < 65 ? " " : "\n");
+    }
+  }
+  ASSERT_EQ(run("build --input " + quote(asc.string()) + " --out " + quote(dbp.string()) + " --block-size 33"), 0);
+  std::string text;
+  ASSERT_EQ(run("texture shade " + quote(dbp.string()) + " --layer hill --light 315,45 --max-texture-size 32", &text), 0);
+  EXPECT_NE(text.find("store layer 'hill'"), std::string::npos) << text;
+  const fs::path png = tmp_dir() / "hill.png";
+  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --out " + quote(png.string())), 0);
+  // One texel per DEM sample, equal to the CPU hillshade of the DEM itself.
+  const pm::Heightfield hf = tb::read_dem(asc.string());
+  ShadingOptions so;
+  const RgbaImage want = shading_texture(hf, so);
+  const ImagePyramid got(png.string(), PyramidOptions{256, 64, 8});
+  ASSERT_EQ(got.level(0), (LevelSize{65, 65}));
+  EXPECT_EQ(got.read({0, 0, 0, 65, 65}), want);
+  // Coarser level: 65 -> 32 (fits 32).
+  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --level 1 --out " + quote((tmp_dir() / "l1.tif").string())), 0);
+  EXPECT_EQ(ImagePyramid((tmp_dir() / "l1.tif").string(), PyramidOptions{256, 64, 8}).level(0), (LevelSize{32, 32}));
+  // add: an image over the terrain, exported back unchanged.
+  const fs::path img = tmp_dir() / "overlay.png";
+  write_layer_image(pattern(90, 70), img.string());
+  ASSERT_EQ(run("texture add " + quote(dbp.string()) + " --layer overlay --image " + quote(img.string()) +
+                " --georef 0,0,1950,1950 --max-texture-size 32"), 0);
+  const fs::path back = tmp_dir() / "overlay_back.png";
+  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer overlay --out " + quote(back.string())), 0);
+  EXPECT_EQ(ImagePyramid(back.string(), PyramidOptions{256, 64, 8}).read({0, 0, 0, 90, 70}), pattern(90, 70));
+  // Errors: unknown layer, bad level, bad georef.
+  EXPECT_NE(run("texture export " + quote(dbp.string()) + " --layer nope --out x.png", &text), 0);
+  EXPECT_NE(text.find("no texture layer 'nope'"), std::string::npos) << text;
+  EXPECT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --level 9 --out x.png", &text), 2);
+  EXPECT_EQ(run("texture add " + quote(dbp.string()) + " --layer o2 --image " + quote(img.string()) + " --georef 1,2,3"), 2);
+}
+#endif
+
+}  // namespace
