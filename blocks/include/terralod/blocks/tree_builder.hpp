@@ -1,0 +1,160 @@
+// Builds approximation trees (node strategies behind one interface) and whole block databases:
+// partition, per-block PMs in parallel, the tree above them, all written crash-consistently and
+// resumable.
+//
+// Usage:
+//   namespace tb = terralod::blocks;
+//   terralod::pm::Heightfield hf = tb::read_dem("N44W072.hgt");
+//   tb::DatabaseBuildOptions opt;                  // 257-sample blocks, grid levels above PM blocks
+//   opt.threads = 2;
+//   tb::DatabaseSummary s = tb::build_database(hf, "terrain.db", opt);   // resumes if interrupted
+//   std::puts(s.to_json().c_str());
+//
+//   // A tree on its own (no database): TIN nodes of at most 25 points down to 1 m.
+//   tb::TreeBuildOptions t;
+//   t.levels = {tb::StrategyChoice::Tin};
+//   t.pm_leaves = false; t.leaf_error = 1.0;
+//   tb::ApproximationTree tree = tb::build_tree(hf, tb::partition(hf.width(), hf.height(), 257), t);
+//
+// Node strategies (seeds/approximation-tree.txt, section 3.2), each a NodeStrategy:
+//   Grid            (P+1) x (P+1) evenly spaced columns and rows of the source grid (fewer when
+//                   the domain has fewer samples), quadtree children: d = 4, s = (P+1)^2.
+//   Tin             greedy insertion of the sample of largest error (build_greedy_tin) until
+//                   error 0 or s points; binary k-d children splitting the longer side at a
+//                   sample: d = 2.
+//   NonRegularGrid  row and column through the point of largest error (build_nonregular_grid),
+//                   at most s points; binary k-d children: d = 2.
+//   PmBlock         a leaf whose surface is a block's PM in the database (refined at run time).
+// Splits: while a domain spans several blocks, children are aligned to block borders (the
+// first part gets the largest power of two of blocks smaller than the count, so a 2^m-block
+// tree is a classic quadtree/k-d tree); inside one block (pm_leaves = false) the domain is cut
+// at its middle sample. With pm_leaves a domain of exactly one block is a PmBlock leaf; without,
+// splitting stops when error <= leaf_error or the domain is a single cell.
+// StrategyChoice::Auto builds the grid, TIN and non-regular candidates for the node and keeps
+// the one with the smallest error x bytes (bytes = encoded_node_bytes: "error per byte").
+//
+// Errors: every node's error is measured exactly with pm::LInfError over its own triangles
+// (max over triangles), never estimated; bad data (a 1 x 1 grid, an all-void terrain, a file
+// that exists with other parameters) throws std::invalid_argument / BuildError naming the file.
+// Memory: the tree (see approximation_tree.hpp) plus, while building a database, one block
+// heightfield and PM per worker thread (~250 bytes per block sample) and the encoded blocks
+// waiting to be written.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "terralod/blocks/approximation_tree.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/partition.hpp"
+#include "terralod/pm/heightfield.hpp"
+
+namespace terralod::blocks {
+
+/// One approximation strategy: how a node's surface is chosen over a domain.
+class NodeStrategy {
+ public:
+  virtual ~NodeStrategy() = default;
+  virtual Strategy kind() const = 0;
+  /// Largest number of children a node of this strategy gets (d).
+  virtual int max_children() const = 0;
+  /// Largest number of surface points (s).
+  virtual std::size_t max_points() const = 0;
+  /// The surface over `domain` (at least 2 x 2 samples): points are samples of hf.
+  virtual NodeSurface approximate(const pm::Heightfield& hf, SampleRect domain) const = 0;
+};
+
+/// The strategies of the paper; patch = P (>= 1), max_points = s (>= 4).
+std::unique_ptr<NodeStrategy> make_grid_strategy(int patch);
+std::unique_ptr<NodeStrategy> make_tin_strategy(std::size_t max_points, pm::ErrorMetric metric);
+std::unique_ptr<NodeStrategy> make_nonregular_strategy(std::size_t max_points, pm::ErrorMetric metric);
+
+/// Exact error of a surface against hf: max over its triangles of pm::LInfError::triangle.
+double surface_error(const pm::Heightfield& hf, const NodeSurface& surface, pm::ErrorMetric metric);
+
+enum class StrategyChoice : std::uint8_t { Grid, Tin, NonRegularGrid, Auto };
+/// "grid", "tin", "nonregular", "auto"; parse throws std::invalid_argument for anything else.
+const char* strategy_choice_name(StrategyChoice c);
+StrategyChoice parse_strategy_choice(const std::string& name);
+
+struct TreeBuildOptions {
+  /// Strategy per level from the root; the last entry repeats for deeper levels. Not empty.
+  std::vector<StrategyChoice> levels = {StrategyChoice::Grid};
+  int patch = 4;                 ///< P of grid nodes ((P+1)^2 points), >= 1
+  std::size_t max_points = 25;   ///< s of TIN and non-regular nodes, >= 4
+  bool pm_leaves = true;         ///< one PmBlock leaf per block (else strategy nodes inside blocks)
+  double leaf_error = 0.0;       ///< pm_leaves = false: stop splitting at this error, metres >= 0
+  pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
+  int threads = 1;               ///< nodes of one level built in parallel; 0 = hardware
+};
+
+/// Builds the tree over `layout` (which must match hf's size). With pm_leaves, block_errors[i]
+/// is the PmBlock leaf error of layout.keys()[i] (base_mesh_error of its PM); otherwise it is
+/// ignored. `progress` (optional) gets the fraction of the terrain's area finished per level.
+ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout, const TreeBuildOptions& options,
+                             std::span<const double> block_errors = {},
+                             const std::function<void(double)>& progress = {});
+
+/// The build parameters as the JSON text stored in DatabaseInfo::build_parameters.
+struct DatabaseBuildOptions {
+  int block_size = 257;          ///< 2^k + 1
+  int threads = 0;               ///< block builders in parallel; 0 = hardware concurrency
+  pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
+  TreeBuildOptions tree;         ///< levels above the blocks (pm_leaves is forced on)
+  /// Optional: fraction of the blocks done in [0,1] and an estimate of the seconds left
+  /// (negative while unknown). Called from the writing thread.
+  std::function<void(double fraction, double seconds_left)> progress;
+  /// Testing aid: stop (throw BuildError) after writing this many blocks in this run; 0 = never.
+  std::size_t stop_after_blocks = 0;
+};
+
+/// A build that cannot proceed: what() = "<file>: <problem>".
+class BuildError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// What a database holds (build_database returns it; summarize_database reads it back).
+/// Per block, meta "block/<col>,<row>" = "<base mesh error> <pm vertices> <bytes>" is written in
+/// the block's own transaction; meta "build_seconds" and "build_complete" = "1" with the tree.
+struct DatabaseSummary {
+  std::string path, source;
+  int grid_width = 0, grid_height = 0, block_size = 0, blocks_x = 0, blocks_y = 0;
+  std::size_t blocks = 0;            ///< blocks in the database
+  std::size_t blocks_built = 0;      ///< built by this run (the others were resumed)
+  std::size_t nodes = 0;             ///< tree nodes
+  std::array<std::size_t, kStrategyCount> nodes_per_strategy{};
+  int tree_depth = 0;
+  std::uint64_t samples = 0;         ///< grid samples (unique vertices of the full terrain)
+  std::uint64_t pm_vertices = 0;     ///< sum over blocks of their PM vertices (borders counted twice)
+  std::uint64_t block_bytes = 0, tree_bytes = 0;
+  double bytes_per_vertex = 0;       ///< (block_bytes + tree_bytes) / samples
+  double max_block_error = 0;        ///< largest PmBlock leaf error (base meshes), metres
+  double root_error = 0;             ///< exact error of the root surface, metres
+  double seconds = 0;                ///< wall time of this run
+  std::string build_parameters;      ///< JSON
+  bool complete = false;
+  /// One JSON object (the fields above).
+  std::string to_json() const;
+};
+
+/// Builds (or resumes) the database at `path` for hf: creates it if absent; if it exists with
+/// the same build parameters (and the same input samples, compared by CRC-32), keeps its
+/// blocks and builds only the missing ones; a database with other parameters -> BuildError
+/// naming the file and the differing parameters. Blocks are built on `threads` threads and
+/// each is written in its own transaction; the tree, the summary and "build_complete" = "1"
+/// are written together last. hf must have >= 2 x 2 samples and at least one valid sample.
+DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path, const DatabaseBuildOptions& options);
+
+/// The summary of what a database holds (from its metadata, per-block records and tree); for
+/// an unfinished build, what is there so far with complete = false. DatabaseError / TreeFormatError
+/// for corrupt content.
+DatabaseSummary summarize_database(const BlockDatabase& db);
+
+}  // namespace terralod::blocks

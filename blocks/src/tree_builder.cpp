@@ -1,0 +1,688 @@
+// Approximation-tree builder (seeds/approximation-tree.txt, sections 3.1-3.2 and 6: one strategy
+// interface, recursive subdivision) and the block-database build (partition, parallel block PMs,
+// crash-consistent resumable writes). Memory: see tree_builder.hpp.
+#include "terralod/blocks/tree_builder.hpp"
+
+#include <sqlite3.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cassert>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <exception>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "terralod/blocks/greedy_tin.hpp"
+#include "terralod/pm/linf_error.hpp"
+#include "terralod/pm/pm_io.hpp"
+
+namespace terralod::blocks {
+namespace {
+
+pm::GridPoint gp(const std::array<double, 3>& p) { return {int(p[0]), int(p[1])}; }
+
+NodeSurface surface_from_grid(const pm::Heightfield& hf, std::vector<int> cols, std::vector<int> rows) {
+  NodeSurface s;
+  s.cols = std::move(cols);
+  s.rows = std::move(rows);
+  s.points.reserve(s.cols.size() * s.rows.size());
+  for (int r : s.rows)
+    for (int c : s.cols) s.points.push_back({double(c), double(r), hf.at(c, r)});
+  triangulate_grid(s);
+  return s;
+}
+
+NodeSurface surface_from_tin(const pm::Heightfield& hf, const TinSurface& t) {
+  NodeSurface s;
+  s.points.reserve(t.points.size());
+  for (const auto& p : t.points) s.points.push_back({double(p[0]), double(p[1]), hf.at(p[0], p[1])});
+  s.triangles = t.triangles;
+  return s;
+}
+
+/// Evenly spaced sample indices from a to b (inclusive), at most steps + 1 of them.
+std::vector<int> even_samples(int a, int b, int steps) {
+  std::vector<int> v;
+  const int cells = b - a;
+  const int n = std::min(steps, cells);
+  for (int k = 0; k <= n; ++k) {
+    const int x = a + int((std::int64_t(k) * cells + n / 2) / n);
+    if (v.empty() || v.back() != x) v.push_back(x);
+  }
+  return v;
+}
+
+class GridStrategy final : public NodeStrategy {
+ public:
+  explicit GridStrategy(int patch) : p_(patch) { assert(patch >= 1); }
+  Strategy kind() const override { return Strategy::Grid; }
+  int max_children() const override { return 4; }
+  std::size_t max_points() const override { return std::size_t(p_ + 1) * std::size_t(p_ + 1); }
+  NodeSurface approximate(const pm::Heightfield& hf, SampleRect d) const override {
+    return surface_from_grid(hf, even_samples(d.col0, d.col1, p_), even_samples(d.row0, d.row1, p_));
+  }
+
+ private:
+  int p_;
+};
+
+class TinStrategy final : public NodeStrategy {
+ public:
+  TinStrategy(std::size_t s, pm::ErrorMetric m) : s_(s), metric_(m) { assert(s >= 4); }
+  Strategy kind() const override { return Strategy::Tin; }
+  int max_children() const override { return 2; }
+  std::size_t max_points() const override { return s_; }
+  NodeSurface approximate(const pm::Heightfield& hf, SampleRect d) const override {
+    TinOptions o;
+    o.max_error = 0.0;
+    o.max_points = s_;
+    o.metric = metric_;
+    return surface_from_tin(hf, build_greedy_tin(hf, d, o));
+  }
+
+ private:
+  std::size_t s_;
+  pm::ErrorMetric metric_;
+};
+
+class NonRegularStrategy final : public NodeStrategy {
+ public:
+  NonRegularStrategy(std::size_t s, pm::ErrorMetric m) : s_(s), metric_(m) { assert(s >= 4); }
+  Strategy kind() const override { return Strategy::NonRegularGrid; }
+  int max_children() const override { return 2; }
+  std::size_t max_points() const override { return s_; }
+  NodeSurface approximate(const pm::Heightfield& hf, SampleRect d) const override {
+    NonRegularGridOptions o;
+    o.max_error = 0.0;
+    o.max_points = s_;
+    o.metric = metric_;
+    const NonRegularGrid g = build_nonregular_grid(hf, d, o);
+    return surface_from_grid(hf, g.cols, g.rows);
+  }
+
+ private:
+  std::size_t s_;
+  pm::ErrorMetric metric_;
+};
+
+/// Largest power of two strictly below n (n >= 2).
+int pow2_below(int n) {
+  int p = 1;
+  while (p * 2 < n) p *= 2;
+  return p;
+}
+
+struct Pending {
+  std::int64_t parent = -1;
+  int level = 0;
+  SampleRect domain;
+  int bc0 = 0, br0 = 0, bc1 = 0, br1 = 0;  // block range (inclusive)
+};
+
+struct Built {
+  TreeNode node;
+  bool split = false;
+};
+
+pm::Box domain_box(const pm::Heightfield& hf, SampleRect d) {
+  double zlo = std::numeric_limits<double>::infinity(), zhi = -zlo;
+  for (int r = d.row0; r <= d.row1; ++r)
+    for (int c = d.col0; c <= d.col1; ++c)
+      if (hf.valid(c, r)) {
+        const double z = hf.at(c, r);
+        zlo = std::min(zlo, z);
+        zhi = std::max(zhi, z);
+      }
+  if (zlo > zhi) zlo = zhi = 0.0;
+  pm::Box b;
+  b.lo = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(), zlo};
+  b.hi = {-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(), zhi};
+  for (int c : {d.col0, d.col1})
+    for (int r : {d.row0, d.row1}) {
+      const auto [x, y] = hf.transform.to_world(c, r);
+      b.lo.x = std::min(b.lo.x, x), b.hi.x = std::max(b.hi.x, x);
+      b.lo.y = std::min(b.lo.y, y), b.hi.y = std::max(b.hi.y, y);
+    }
+  return b;
+}
+
+/// Children domains of `p` for a node with `children_max` (4 = quadtree, 2 = k-d) children.
+std::vector<Pending> split(const Pending& p, int children_max, const BlockLayout& layout) {
+  std::vector<Pending> out;
+  const bool multi = p.bc1 > p.bc0 || p.br1 > p.br0;
+  auto child = [&](int bc0, int br0, int bc1, int br1, SampleRect d) {
+    Pending c;
+    c.level = p.level + 1;
+    c.bc0 = bc0, c.br0 = br0, c.bc1 = bc1, c.br1 = br1;
+    c.domain = d;
+    out.push_back(c);
+  };
+  if (multi) {
+    const int nbx = p.bc1 - p.bc0 + 1, nby = p.br1 - p.br0 + 1;
+    bool cut_x = nbx > 1, cut_y = nby > 1;
+    if (children_max == 2 && cut_x && cut_y) (p.domain.width() >= p.domain.height() ? cut_y : cut_x) = false;
+    std::vector<std::array<int, 2>> xs{{p.bc0, p.bc1}}, ys{{p.br0, p.br1}};
+    if (cut_x) xs = {{p.bc0, p.bc0 + pow2_below(nbx) - 1}, {p.bc0 + pow2_below(nbx), p.bc1}};
+    if (cut_y) ys = {{p.br0, p.br0 + pow2_below(nby) - 1}, {p.br0 + pow2_below(nby), p.br1}};
+    for (const auto& y : ys)
+      for (const auto& x : xs) child(x[0], y[0], x[1], y[1], layout.rect(x[0], y[0], x[1], y[1]));
+    return out;
+  }
+  const int cw = p.domain.width() - 1, ch = p.domain.height() - 1;
+  bool cut_x = cw >= 2, cut_y = ch >= 2;
+  if (children_max == 2 && cut_x && cut_y) (cw >= ch ? cut_y : cut_x) = false;
+  if (!cut_x && !cut_y) return out;
+  const SampleRect& d = p.domain;
+  std::vector<std::array<int, 2>> xs{{d.col0, d.col1}}, ys{{d.row0, d.row1}};
+  if (cut_x) xs = {{d.col0, d.col0 + cw / 2}, {d.col0 + cw / 2, d.col1}};
+  if (cut_y) ys = {{d.row0, d.row0 + ch / 2}, {d.row0 + ch / 2, d.row1}};
+  for (const auto& y : ys)
+    for (const auto& x : xs) child(p.bc0, p.br0, p.bc1, p.br1, SampleRect{x[0], y[0], x[1], y[1]});
+  return out;
+}
+
+template <class F>
+void parallel_for(std::size_t n, int threads, F&& f) {
+  if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  threads = int(std::min<std::size_t>(std::size_t(threads), n));
+  if (threads <= 1) {
+    for (std::size_t i = 0; i < n; ++i) f(i);
+    return;
+  }
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr error;
+  std::mutex m;
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t)
+    pool.emplace_back([&] {
+      for (std::size_t i; (i = next.fetch_add(1)) < n;) {
+        try {
+          f(i);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(m);
+          if (!error) error = std::current_exception();
+          next = n;
+        }
+      }
+    });
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace
+
+std::unique_ptr<NodeStrategy> make_grid_strategy(int patch) { return std::make_unique<GridStrategy>(patch); }
+std::unique_ptr<NodeStrategy> make_tin_strategy(std::size_t s, pm::ErrorMetric m) {
+  return std::make_unique<TinStrategy>(s, m);
+}
+std::unique_ptr<NodeStrategy> make_nonregular_strategy(std::size_t s, pm::ErrorMetric m) {
+  return std::make_unique<NonRegularStrategy>(s, m);
+}
+
+double surface_error(const pm::Heightfield& hf, const NodeSurface& s, pm::ErrorMetric metric) {
+  const pm::LInfError err(hf, metric);
+  double worst = 0.0;
+  for (const auto& t : s.triangles)
+    worst = std::max(worst, err.triangle(gp(s.points[t[0]]), gp(s.points[t[1]]), gp(s.points[t[2]])));
+  return worst;
+}
+
+const char* strategy_choice_name(StrategyChoice c) {
+  switch (c) {
+    case StrategyChoice::Grid: return "grid";
+    case StrategyChoice::Tin: return "tin";
+    case StrategyChoice::NonRegularGrid: return "nonregular";
+    case StrategyChoice::Auto: return "auto";
+  }
+  return "unknown";
+}
+
+StrategyChoice parse_strategy_choice(const std::string& name) {
+  for (StrategyChoice c : {StrategyChoice::Grid, StrategyChoice::Tin, StrategyChoice::NonRegularGrid, StrategyChoice::Auto})
+    if (name == strategy_choice_name(c)) return c;
+  throw std::invalid_argument("unknown strategy '" + name + "' (grid, tin, nonregular or auto)");
+}
+
+ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout, const TreeBuildOptions& opt,
+                             std::span<const double> block_errors, const std::function<void(double)>& progress) {
+  assert(!opt.levels.empty() && opt.patch >= 1 && opt.max_points >= 4 && opt.leaf_error >= 0.0);
+  assert(layout.grid_width == hf.width() && layout.grid_height == hf.height());
+  assert(!opt.pm_leaves || block_errors.size() == layout.count());
+  const auto grid = make_grid_strategy(opt.patch);
+  const auto tin = make_tin_strategy(opt.max_points, opt.metric);
+  const auto nonreg = make_nonregular_strategy(opt.max_points, opt.metric);
+  auto strategy_of = [&](StrategyChoice c) -> const NodeStrategy* {
+    switch (c) {
+      case StrategyChoice::Grid: return grid.get();
+      case StrategyChoice::Tin: return tin.get();
+      case StrategyChoice::NonRegularGrid: return nonreg.get();
+      case StrategyChoice::Auto: return nullptr;
+    }
+    return nullptr;
+  };
+
+  ApproximationTree::Parameters params;
+  params.patch = opt.patch;
+  params.metric = opt.metric;
+  params.transform = hf.transform;
+  params.grid_width = hf.width();
+  params.grid_height = hf.height();
+  params.max_points = 0;
+  params.max_children = 0;
+  for (StrategyChoice c : opt.levels) {
+    const std::vector<const NodeStrategy*> used =
+        c == StrategyChoice::Auto ? std::vector<const NodeStrategy*>{grid.get(), tin.get(), nonreg.get()}
+                                  : std::vector<const NodeStrategy*>{strategy_of(c)};
+    for (const NodeStrategy* s : used) {
+      params.max_points = std::max(params.max_points, s->max_points());
+      params.max_children = std::max(params.max_children, s->max_children());
+    }
+  }
+
+  std::vector<TreeNode> nodes;
+  std::vector<Pending> level{Pending{-1, 0, layout.rect(0, 0, layout.blocks_x - 1, layout.blocks_y - 1), 0, 0,
+                                     layout.blocks_x - 1, layout.blocks_y - 1}};
+  const double total_area = double(hf.width() - 1) * double(hf.height() - 1);
+  double done_area = 0.0;
+  while (!level.empty()) {
+    std::vector<Built> built(level.size());
+    parallel_for(level.size(), opt.threads, [&](std::size_t i) {
+      const Pending& p = level[i];
+      Built& b = built[i];
+      TreeNode& n = b.node;
+      n.parent = p.parent;
+      n.level = p.level;
+      n.domain = p.domain;
+      n.bbox = domain_box(hf, p.domain);
+      const bool single_block = p.bc0 == p.bc1 && p.br0 == p.br1;
+      if (opt.pm_leaves && single_block) {
+        n.strategy = Strategy::PmBlock;
+        n.block = BlockKey{p.bc0, p.br0};
+        n.error = block_errors[std::size_t(p.bc0) * std::size_t(layout.blocks_y) + std::size_t(p.br0)];
+        return;
+      }
+      const StrategyChoice choice = opt.levels[std::min<std::size_t>(std::size_t(p.level), opt.levels.size() - 1)];
+      if (choice == StrategyChoice::Auto) {
+        // Error per byte: keep the candidate with the smallest error x bytes (ties: fewer bytes).
+        double best_score = std::numeric_limits<double>::infinity();
+        std::size_t best_bytes = 0;
+        for (const NodeStrategy* s : {grid.get(), nonreg.get(), tin.get()}) {
+          TreeNode cand = n;
+          cand.strategy = s->kind();
+          cand.surface = s->approximate(hf, p.domain);
+          cand.error = surface_error(hf, cand.surface, opt.metric);
+          const std::size_t bytes = encoded_node_bytes(cand);
+          const double score = cand.error * double(bytes);
+          if (score < best_score || (score == best_score && bytes < best_bytes)) {
+            best_score = score;
+            best_bytes = bytes;
+            n = std::move(cand);
+          }
+        }
+      } else {
+        const NodeStrategy* s = strategy_of(choice);
+        n.strategy = s->kind();
+        n.surface = s->approximate(hf, p.domain);
+        n.error = surface_error(hf, n.surface, opt.metric);
+      }
+      b.split = opt.pm_leaves || n.error > opt.leaf_error;
+    });
+    std::vector<Pending> next;
+    for (std::size_t i = 0; i < level.size(); ++i) {
+      TreeNode& n = built[i].node;
+      n.id = std::int64_t(nodes.size());
+      if (n.parent >= 0) nodes[std::size_t(n.parent)].children.push_back(n.id);
+      std::vector<Pending> kids;
+      if (built[i].split) {
+        const int d = n.strategy == Strategy::Grid ? 4 : 2;
+        kids = split(level[i], d, layout);
+      }
+      if (kids.empty()) done_area += double(n.domain.width() - 1) * double(n.domain.height() - 1);
+      for (Pending& k : kids) {
+        k.parent = n.id;
+        next.push_back(k);
+      }
+      nodes.push_back(std::move(n));
+    }
+    if (progress) progress(std::min(1.0, done_area / total_area));
+    level = std::move(next);
+  }
+  return ApproximationTree(std::move(params), std::move(nodes));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Database build
+
+namespace {
+
+const char* metric_name(pm::ErrorMetric m) { return m == pm::ErrorMetric::Samples ? "samples" : "continuous"; }
+
+std::uint32_t samples_crc(const pm::Heightfield& hf) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  const auto& z = hf.samples();
+  crc = crc32_z(crc, reinterpret_cast<const Bytef*>(z.data()), z.size() * sizeof(double));
+  const auto& m = hf.mask();
+  if (!m.empty()) crc = crc32_z(crc, m.data(), m.size());
+  return std::uint32_t(crc);
+}
+
+std::string build_parameters_json(const pm::Heightfield& hf, const DatabaseBuildOptions& o) {
+  std::string levels;
+  for (StrategyChoice c : o.tree.levels) levels += std::string(levels.empty() ? "" : ",") + strategy_choice_name(c);
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "{\"block_size\": %d, \"metric\": \"%s\", \"strategy\": \"%s\", \"patch\": %d, \"max_points\": %zu, "
+                "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 "}",
+                o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, hf.width(),
+                hf.height(), samples_crc(hf));
+  return buf;
+}
+
+/// True when `path` is an SQLite file with no application id and no schema object: what a
+/// create() killed before its first commit leaves (block_database.hpp). Such a file holds
+/// nothing, so the build may replace it.
+bool is_interrupted_create(const std::string& path) {
+  sqlite3* db = nullptr;
+  bool empty = false;
+  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_stmt* st = nullptr;
+    std::int64_t app_id = -1, objects = -1;
+    if (sqlite3_prepare_v2(db, "PRAGMA application_id", -1, &st, nullptr) == SQLITE_OK && sqlite3_step(st) == SQLITE_ROW)
+      app_id = sqlite3_column_int64(st, 0);
+    sqlite3_finalize(st);
+    st = nullptr;
+    if (sqlite3_prepare_v2(db, "SELECT count(*) FROM sqlite_schema", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW)
+      objects = sqlite3_column_int64(st, 0);
+    sqlite3_finalize(st);
+    empty = app_id == 0 && objects == 0;
+  }
+  sqlite3_close(db);
+  return empty;
+}
+
+std::string block_meta_key(BlockKey k) { return "block/" + std::to_string(k.col) + "," + std::to_string(k.row); }
+
+struct BlockRecord {
+  double error = 0;
+  std::uint64_t vertices = 0, bytes = 0;
+};
+
+std::optional<BlockRecord> read_block_record(const BlockDatabase& db, BlockKey k) {
+  const auto v = db.get_meta(block_meta_key(k));
+  if (!v) return std::nullopt;
+  BlockRecord r;
+  std::istringstream in(*v);
+  in.imbue(std::locale::classic());
+  if (!(in >> r.error >> r.vertices >> r.bytes))
+    throw DatabaseError(db.path(), "block (" + std::to_string(k.col) + "," + std::to_string(k.row) +
+                                       "): malformed build record '" + *v + "'");
+  return r;
+}
+
+std::string format_record(const BlockRecord& r) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.17g %" PRIu64 " %" PRIu64, r.error, r.vertices, r.bytes);
+  return buf;
+}
+
+}  // namespace
+
+std::string DatabaseSummary::to_json() const {
+  std::string j = "{\n";
+  auto quote = [](const std::string& s) {
+    std::string q = "\"";
+    for (char c : s) {
+      if (c == '"' || c == '\\') q += '\\', q += c;
+      else if (static_cast<unsigned char>(c) < 0x20) {
+        char b[8];
+        std::snprintf(b, sizeof b, "\\u%04x", c);
+        q += b;
+      } else q += c;
+    }
+    return q + "\"";
+  };
+  auto num = [](double v) {
+    if (!std::isfinite(v)) return std::string("null");
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(b);
+  };
+  auto field = [&](const std::string& k, const std::string& v, bool last = false) {
+    j += "  " + quote(k) + ": " + v + (last ? "\n" : ",\n");
+  };
+  field("file", quote(path));
+  field("kind", quote("blocks"));
+  field("source", quote(source));
+  field("complete", complete ? "true" : "false");
+  field("grid", "{\"width\": " + std::to_string(grid_width) + ", \"height\": " + std::to_string(grid_height) + "}");
+  field("block_size", std::to_string(block_size));
+  field("blocks_grid", "{\"x\": " + std::to_string(blocks_x) + ", \"y\": " + std::to_string(blocks_y) + "}");
+  field("blocks", std::to_string(blocks));
+  field("blocks_built", std::to_string(blocks_built));
+  std::string per = "{";
+  for (int s = 0; s < kStrategyCount; ++s)
+    per += std::string(s ? ", " : "") + quote(strategy_name(Strategy(s))) + ": " + std::to_string(nodes_per_strategy[std::size_t(s)]);
+  field("nodes", std::to_string(nodes));
+  field("nodes_per_strategy", per + "}");
+  field("tree_depth", std::to_string(tree_depth));
+  field("samples", std::to_string(samples));
+  field("pm_vertices", std::to_string(pm_vertices));
+  field("block_bytes", std::to_string(block_bytes));
+  field("tree_bytes", std::to_string(tree_bytes));
+  field("bytes_per_vertex", num(bytes_per_vertex));
+  field("max_block_error", num(max_block_error));
+  field("root_error", num(root_error));
+  field("seconds", num(seconds));
+  field("build_parameters", build_parameters.empty() ? "null" : build_parameters, true);
+  return j + "}\n";
+}
+
+DatabaseSummary summarize_database(const BlockDatabase& db) {
+  DatabaseSummary s;
+  const DatabaseInfo& info = db.info();
+  s.path = db.path();
+  s.source = info.source;
+  s.grid_width = info.grid_width;
+  s.grid_height = info.grid_height;
+  s.block_size = info.block_size;
+  s.build_parameters = info.build_parameters;
+  s.samples = std::uint64_t(info.grid_width) * std::uint64_t(info.grid_height);
+  if (info.grid_width >= 2 && info.grid_height >= 2 && is_valid_block_size(info.block_size)) {
+    const BlockLayout l = partition(info.grid_width, info.grid_height, info.block_size);
+    s.blocks_x = l.blocks_x;
+    s.blocks_y = l.blocks_y;
+  }
+  for (BlockKey k : db.blocks()) {
+    ++s.blocks;
+    if (const auto r = read_block_record(db, k)) {
+      s.pm_vertices += r->vertices;
+      s.block_bytes += r->bytes;
+      s.max_block_error = std::max(s.max_block_error, r->error);
+    }
+  }
+  if (const auto t = db.read_blob("tree")) {
+    const ApproximationTree tree = decode_tree(*t, db.path() + ": tree");
+    s.tree_bytes = t->size();
+    s.nodes = tree.size();
+    s.nodes_per_strategy = tree.count_by_strategy();
+    s.tree_depth = tree.depth();
+    if (tree.size()) s.root_error = tree.root().error;
+  }
+  s.bytes_per_vertex = s.samples ? double(s.block_bytes + s.tree_bytes) / double(s.samples) : 0.0;
+  if (const auto sec = db.get_meta("build_seconds")) s.seconds = std::atof(sec->c_str());
+  s.complete = db.get_meta("build_complete").value_or("") == "1";
+  return s;
+}
+
+DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path, const DatabaseBuildOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string source = hf.source.empty() ? std::string("(in memory)") : hf.source;
+  if (hf.width() < 2 || hf.height() < 2)
+    throw BuildError(source + ": a " + std::to_string(hf.width()) + " x " + std::to_string(hf.height()) +
+                     " grid is too small to build a terrain (at least 2 x 2 samples)");
+  bool any_valid = !hf.has_holes();
+  for (std::size_t i = 0; !any_valid && i < hf.size(); ++i) any_valid = hf.valid(i);
+  if (!any_valid) throw BuildError(source + ": every sample is void; there is no terrain to build");
+  if (!is_valid_block_size(opt.block_size))
+    throw BuildError(path + ": block size must be 2^k + 1 (3, 5, 9, ..., 257, ...), not " + std::to_string(opt.block_size));
+  const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
+
+  DatabaseInfo info;
+  info.grid_width = hf.width();
+  info.grid_height = hf.height();
+  info.transform = hf.transform;
+  info.crs_wkt = hf.crs_wkt;
+  info.block_size = opt.block_size;
+  info.build_parameters = build_parameters_json(hf, opt);
+  info.source = hf.source;
+
+  std::optional<BlockDatabase> dbo;
+  if (std::filesystem::exists(path) && is_interrupted_create(path)) {
+    // A create() that was killed: nothing to resume, start again.
+    for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
+  }
+  if (std::filesystem::exists(path)) {
+    dbo.emplace(BlockDatabase::open(path, BlockDatabase::Mode::ReadWrite));
+    const DatabaseInfo& have = dbo->info();
+    if (have.build_parameters != info.build_parameters || have.grid_width != info.grid_width ||
+        have.grid_height != info.grid_height || have.kind != info.kind)
+      throw BuildError(path + ": exists and was built with other parameters or input (stored " + have.build_parameters +
+                       ", requested " + info.build_parameters + "); use the same options and input to resume, or remove it");
+  } else {
+    dbo.emplace(BlockDatabase::create(path, info));
+  }
+  BlockDatabase& db = *dbo;
+
+  // Blocks still to build.
+  const std::vector<BlockKey> keys = layout.keys();
+  std::vector<BlockKey> todo;
+  for (BlockKey k : keys)
+    if (!db.has_block(k) || !read_block_record(db, k)) todo.push_back(k);
+  const std::size_t already = keys.size() - todo.size();
+
+  struct Done {
+    BlockKey key;
+    std::vector<std::uint8_t> blob;
+    BlockRecord record;
+  };
+  std::mutex m;
+  std::condition_variable cv;
+  std::deque<Done> queue;
+  std::atomic<bool> cancel{false};
+  std::exception_ptr worker_error;
+  std::atomic<std::size_t> next{0};
+  int threads = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  threads = int(std::min<std::size_t>(std::size_t(threads), std::max<std::size_t>(1, todo.size())));
+  std::size_t finished_workers = 0;
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads && !todo.empty(); ++t)
+    pool.emplace_back([&] {
+      try {
+        for (std::size_t i; !cancel && (i = next.fetch_add(1)) < todo.size();) {
+          const pm::ProgressiveMesh pm = build_block_pm(hf, layout.rect(todo[i]), opt.metric);
+          Done d;
+          d.key = todo[i];
+          d.blob = pm::encode_pm(pm);
+          d.record.error = base_mesh_error(pm);
+          d.record.vertices = pm.full_vertex_count();
+          d.record.bytes = d.blob.size();
+          std::lock_guard<std::mutex> lock(m);
+          queue.push_back(std::move(d));
+          cv.notify_all();
+        }
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(m);
+        if (!worker_error) worker_error = std::current_exception();
+        cancel = true;
+      }
+      std::lock_guard<std::mutex> lock(m);
+      ++finished_workers;
+      cv.notify_all();
+    });
+  auto stop_workers = [&] {
+    cancel = true;
+    for (auto& t : pool)
+      if (t.joinable()) t.join();
+  };
+
+  std::size_t written = 0;
+  const auto tb = std::chrono::steady_clock::now();
+  try {
+    if (opt.progress && !keys.empty()) opt.progress(double(already) / double(keys.size()), -1.0);
+    while (written < todo.size()) {
+      Done d;
+      {
+        std::unique_lock<std::mutex> lock(m);
+        cv.wait(lock, [&] { return !queue.empty() || finished_workers == pool.size() || worker_error; });
+        if (worker_error) break;
+        if (queue.empty()) break;
+        d = std::move(queue.front());
+        queue.pop_front();
+      }
+      {
+        BlockDatabase::Transaction tx(db);
+        db.put_block(d.key, d.blob);
+        db.set_meta(block_meta_key(d.key), format_record(d.record));
+        tx.commit();
+      }
+      ++written;
+      if (opt.progress) {
+        const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
+        opt.progress(double(already + written) / double(keys.size()),
+                     el / double(written) * double(todo.size() - written));
+      }
+      if (opt.stop_after_blocks && written >= opt.stop_after_blocks && written < todo.size()) {
+        stop_workers();
+        throw BuildError(path + ": build stopped after " + std::to_string(written) + " blocks (stop_after_blocks)");
+      }
+    }
+  } catch (...) {
+    stop_workers();
+    throw;
+  }
+  stop_workers();
+  if (worker_error) std::rethrow_exception(worker_error);
+  if (written != todo.size()) throw BuildError(path + ": internal error: not every block was built");
+
+  // The tree above the blocks, written with the completion mark in one transaction.
+  std::vector<double> errors(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto r = read_block_record(db, keys[i]);
+    if (!r) throw DatabaseError(path, "block (" + std::to_string(keys[i].col) + "," + std::to_string(keys[i].row) + "): no build record");
+    errors[i] = r->error;
+  }
+  TreeBuildOptions topt = opt.tree;
+  topt.pm_leaves = true;
+  topt.metric = opt.metric;
+  topt.threads = threads;
+  const ApproximationTree tree = build_tree(hf, layout, topt, errors);
+  const std::vector<std::uint8_t> tree_bytes = encode_tree(tree);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  {
+    BlockDatabase::Transaction tx(db);
+    db.put_blob("tree", tree_bytes);
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.6f", seconds);
+    db.set_meta("build_seconds", buf);
+    db.set_meta("build_complete", "1");
+    tx.commit();
+  }
+  DatabaseSummary s = summarize_database(db);
+  s.blocks_built = written;
+  s.seconds = seconds;
+  return s;
+}
+
+}  // namespace terralod::blocks

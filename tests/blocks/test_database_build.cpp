@@ -1,0 +1,322 @@
+// Tests for building and using a block database (tree_builder.hpp build_database,
+// database_extract.hpp): summary, exact leaf errors, extraction within E and watertight on a
+// generated terrain and on N44W072, resume after an interruption, SIGKILL of the real
+// `terralod build` at random moments, and bad input through the command line.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fcntl.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <thread>
+
+#include "mesh_checker.hpp"
+#include "terralod/blocks/database_extract.hpp"
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/pm_io.hpp"
+#include "terralod/pm/terrain_generator.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace tb = terralod::blocks;
+namespace pm = terralod::pm;
+
+std::string tmp(const std::string& name) {
+  const std::string p = std::string(TERRALOD_TEST_TMP) + "/database_build_" + name;
+  for (const std::string& f : {p, p + "-wal", p + "-shm"}) fs::remove(f);
+  return p;
+}
+
+pm::Heightfield terrain(int w, int h, std::uint64_t seed) {
+  pm::TerrainOptions o;
+  o.width = w;
+  o.height = h;
+  o.seed = seed;
+  o.quantize_to_metres = true;
+  pm::Heightfield hf = pm::generate_terrain(o);
+  hf.source = "generated";
+  return hf;
+}
+
+/// Extraction at E is within E (independent exact check) and one watertight cover.
+void check_extraction(const pm::Heightfield& hf, const std::string& db, double E) {
+  SCOPED_TRACE("E = " + std::to_string(E));
+  const tb::ExtractedMesh m = tb::extract_mesh(db, E);
+  EXPECT_EQ(m.heightfield.samples(), hf.samples());
+  EXPECT_EQ(m.heightfield.transform, hf.transform);
+  EXPECT_LE(m.measured_error, E);
+  EXPECT_EQ(m.mesh.error_bound, m.measured_error);
+  const terralod::test::MeshCheck c = terralod::test::check_mesh(hf, m.mesh);
+  EXPECT_TRUE(c.ok(E)) << c.describe();
+  EXPECT_NEAR(c.max_continuous_error(), m.measured_error, 1e-9 + c.tolerance);
+}
+
+TEST(DatabaseBuild, GeneratedTerrainSummaryTreeAndExtraction) {
+  const pm::Heightfield hf = terrain(129, 113, 4);
+  const std::string path = tmp("generated.db");
+  tb::DatabaseBuildOptions opt;
+  opt.block_size = 33;
+  opt.threads = 2;
+  const tb::DatabaseSummary s = tb::build_database(hf, path, opt);
+  EXPECT_TRUE(s.complete);
+  EXPECT_EQ(s.blocks, 4u * 4u);  // 128 / 32 = 4 columns, 112 / 32 = 3.5 -> 4 rows
+  EXPECT_EQ(s.blocks_built, s.blocks);
+  EXPECT_EQ(s.nodes_per_strategy[std::size_t(tb::Strategy::PmBlock)], s.blocks);
+  EXPECT_EQ(s.samples, 129u * 113u);
+  EXPECT_GT(s.bytes_per_vertex, 0.0);
+
+  const tb::BlockDatabase db = tb::BlockDatabase::open(path);
+  EXPECT_TRUE(db.check_integrity().ok);
+  const tb::DatabaseSummary again = tb::summarize_database(db);
+  EXPECT_EQ(again.to_json().size() > 0, true);
+  EXPECT_EQ(again.nodes, s.nodes);
+  EXPECT_EQ(again.block_bytes, s.block_bytes);
+  // The tree: leaves are the blocks, their error the exact error of the decoded block's base mesh.
+  const tb::ApproximationTree tree = tb::decode_tree(*db.read_blob("tree"), "tree");
+  EXPECT_EQ(tree.size(), s.nodes);
+  const tb::BlockLayout l = tb::partition(129, 113, 33);
+  for (const tb::TreeNode& n : tree.nodes()) {
+    if (n.strategy != tb::Strategy::PmBlock) continue;
+    const pm::ProgressiveMesh p = pm::decode_pm(db.read_block(*n.block), "block");
+    EXPECT_EQ(n.domain, l.rect(*n.block));
+    const pm::TriangleMesh base = p.extract_after(p.vsplit_count());
+    double brute = 0.0;
+    for (const auto& t : base.triangles)
+      brute = std::max(brute, terralod::test::triangle_error(p.heightfield(), base.vertices[t[0]], base.vertices[t[1]],
+                                                             base.vertices[t[2]]).max());
+    EXPECT_EQ(n.error, brute);
+  }
+  for (double E : {0.0, 1.0, 4.0, 25.0, 400.0}) check_extraction(hf, path, E);
+  // A second build with the same options finds everything done; other options are refused.
+  EXPECT_EQ(tb::build_database(hf, path, opt).blocks_built, 0u);
+  tb::DatabaseBuildOptions other = opt;
+  other.block_size = 17;
+  try {
+    tb::build_database(hf, path, other);
+    ADD_FAILURE() << "different parameters accepted";
+  } catch (const tb::BuildError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("other parameters"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DatabaseBuild, ResumeAfterAnInterruption) {
+  const pm::Heightfield hf = terrain(97, 97, 8);
+  tb::DatabaseBuildOptions opt;
+  opt.block_size = 33;
+  opt.threads = 2;
+  opt.tree.levels = {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin};
+  const std::string fresh = tmp("fresh.db"), resumed = tmp("resumed.db");
+  tb::build_database(hf, fresh, opt);
+  tb::DatabaseBuildOptions stop = opt;
+  stop.stop_after_blocks = 4;
+  EXPECT_THROW(tb::build_database(hf, resumed, stop), tb::BuildError);
+  {
+    const tb::BlockDatabase db = tb::BlockDatabase::open(resumed);
+    EXPECT_TRUE(db.check_integrity().ok);
+    const tb::DatabaseSummary part = tb::summarize_database(db);
+    EXPECT_FALSE(part.complete);
+    EXPECT_GE(part.blocks, 4u);
+    EXPECT_THROW(tb::extract_mesh(db, 1.0), tb::BuildError);
+  }
+  const tb::DatabaseSummary s = tb::build_database(hf, resumed, opt);
+  EXPECT_TRUE(s.complete);
+  EXPECT_EQ(s.blocks, 9u);
+  EXPECT_LT(s.blocks_built, 9u);
+  // Same content as an uninterrupted build.
+  const tb::BlockDatabase a = tb::BlockDatabase::open(fresh), b = tb::BlockDatabase::open(resumed);
+  EXPECT_EQ(a.blocks(), b.blocks());
+  for (tb::BlockKey k : a.blocks()) EXPECT_EQ(a.read_block(k), b.read_block(k));
+  EXPECT_EQ(a.read_blob("tree"), b.read_blob("tree"));
+  const tb::ExtractedMesh ma = tb::extract_mesh(a, 3.0), mb = tb::extract_mesh(b, 3.0);
+  EXPECT_EQ(ma.mesh.vertices, mb.mesh.vertices);
+  EXPECT_EQ(ma.mesh.triangles, mb.mesh.triangles);
+}
+
+TEST(DatabaseBuild, N44W072Crop) {
+  const std::string hgt = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
+  if (!fs::exists(hgt)) GTEST_SKIP() << hgt << " is absent";
+  const pm::Heightfield full = tb::read_dem(hgt);
+  // A 257 x 225 crop around the steepest part of the tile (2 x 2 blocks of 129, the last row
+  // partial): the whole tile takes ~15 s to build on 2 cores; the crop keeps the test fast.
+  pm::Heightfield hf(257, 225);
+  for (int r = 0; r < hf.height(); ++r)
+    for (int c = 0; c < hf.width(); ++c) hf.at(c, r) = full.at(c + 400, r + 300);
+  hf.transform = full.transform;
+  hf.source = hgt + " (crop)";
+  const std::string path = tmp("n44w072.db");
+  tb::DatabaseBuildOptions opt;
+  opt.block_size = 129;
+  opt.threads = 2;
+  const tb::DatabaseSummary s = tb::build_database(hf, path, opt);
+  EXPECT_EQ(s.blocks, 4u);
+  for (double E : {2.0, 10.0}) check_extraction(hf, path, E);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The real binary
+
+void write_asc(const std::string& path, const pm::Heightfield& hf, bool all_void = false) {
+  std::ofstream f(path);
+  f << "ncols " << hf.width() << "\nnrows " << hf.height() << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+  for (int r = 0; r < hf.height(); ++r) {
+    for (int c = 0; c < hf.width(); ++c) f << (all_void ? -9999.0 : hf.at(c, r)) << ' ';
+    f << '\n';
+  }
+}
+
+struct ChildRun {
+  int status = -1;  ///< exit code, or -signal
+  std::string err;
+};
+
+/// Runs `terralod args...`; kills it with SIGKILL after kill_after_ms when >= 0.
+ChildRun run_terralod(const std::vector<std::string>& args, double kill_after_ms = -1.0) {
+  const std::string err_path = std::string(TERRALOD_TEST_TMP) + "/database_build_stderr.txt";
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 2);
+    const int null = ::open("/dev/null", O_WRONLY);
+    dup2(null, 1);
+    std::vector<char*> argv{const_cast<char*>(TERRALOD_BINARY)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(TERRALOD_BINARY, argv.data());
+    _exit(127);
+  }
+  ChildRun r;
+  if (kill_after_ms >= 0) {
+    std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(kill_after_ms));
+    kill(pid, SIGKILL);
+  }
+  int st = 0;
+  waitpid(pid, &st, 0);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -WTERMSIG(st);
+  std::ifstream f(err_path);
+  r.err.assign(std::istreambuf_iterator<char>(f), {});
+  return r;
+}
+
+TEST(DatabaseBuild, SigkillAtRandomMomentsThenResume) {
+  const pm::Heightfield hf = terrain(97, 97, 5);
+  const std::string asc = std::string(TERRALOD_TEST_TMP) + "/database_build_kill.asc";
+  write_asc(asc, hf);
+  const std::vector<std::string> base{"build", "--input", asc, "--block-size", "33", "--threads", "2",
+                                      "--strategy", "grid,tin"};
+  // Time of a complete build, to spread the kills over it.
+  const std::string ref = tmp("kill_ref.db");
+  auto args = base;
+  args.insert(args.end(), {"--out", ref});
+  const auto t0 = std::chrono::steady_clock::now();
+  const ChildRun full = run_terralod(args);
+  const double full_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_EQ(full.status, 0) << full.err;
+  const std::uint32_t seed = 4242;
+  std::printf("seed %u, full build %.0f ms\n", seed, full_ms);
+  std::mt19937 rng(seed);
+  int killed = 0, interrupted_creates = 0;
+  // The resume runs in this process (same options as the command line), which saves a process
+  // start per trial; the command line's own resume is exercised by CliInfoAndExtract's rebuild.
+  const pm::Heightfield input = tb::read_dem(asc);
+  tb::DatabaseBuildOptions same;
+  same.block_size = 33;
+  same.threads = 2;
+  same.tree.levels = {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin};
+  for (int trial = 0; trial < 10; ++trial) {
+    const std::string path = tmp("kill.db");
+    auto a = base;
+    a.insert(a.end(), {"--out", path});
+    const double at = std::uniform_real_distribution<double>(0.0, 0.9 * full_ms)(rng);
+    const ChildRun r = run_terralod(a, at);
+    SCOPED_TRACE("trial " + std::to_string(trial) + ", kill at " + std::to_string(at) + " ms");
+    if (r.status == -SIGKILL) ++killed;
+    if (fs::exists(path)) {
+      try {
+        const tb::BlockDatabase db = tb::BlockDatabase::open(path);
+        const auto report = db.check_integrity();
+        EXPECT_TRUE(report.ok) << (report.problems.empty() ? "" : report.problems[0]);
+      } catch (const tb::DatabaseError& e) {
+        // Only a create() killed before its commit may leave a file that does not open.
+        EXPECT_NE(std::string(e.what()).find("interrupted create"), std::string::npos) << e.what();
+        ++interrupted_creates;
+      }
+    }
+    const tb::DatabaseSummary resumed = tb::build_database(input, path, same);
+    EXPECT_TRUE(resumed.complete);
+    const tb::BlockDatabase db = tb::BlockDatabase::open(path);
+    EXPECT_TRUE(db.check_integrity().ok);
+    const tb::BlockDatabase want = tb::BlockDatabase::open(ref);
+    EXPECT_EQ(db.blocks(), want.blocks());
+    EXPECT_EQ(db.read_blob("tree"), want.read_blob("tree"));
+  }
+  std::printf("%d of 10 builds killed before finishing, %d inside create()\n", killed, interrupted_creates);
+}
+
+// terralod info DB prints the summary; terralod extract --db writes the stitched mesh.
+TEST(DatabaseBuild, CliInfoAndExtract) {
+  const pm::Heightfield hf = terrain(65, 65, 6);
+  const std::string asc = std::string(TERRALOD_TEST_TMP) + "/database_build_cli.asc";
+  write_asc(asc, hf);
+  const std::string db = tmp("cli.db"), ply = std::string(TERRALOD_TEST_TMP) + "/database_build_cli.ply";
+  ASSERT_EQ(run_terralod({"build", "--input", asc, "--out", db, "--block-size", "33", "--strategy", "auto"}).status, 0);
+  // Running the same command again resumes (here: finds everything built) and succeeds.
+  ASSERT_EQ(run_terralod({"build", "--input", asc, "--out", db, "--block-size", "33", "--strategy", "auto"}).status, 0);
+  EXPECT_EQ(run_terralod({"info", db}).status, 0);
+  const ChildRun r = run_terralod({"extract", "--db", db, "--max-error", "3", "--out", ply, "--units", "samples"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const pm::TriangleMeshData mesh = pm::read_ply(ply);
+  const tb::ExtractedMesh want = tb::extract_mesh(db, 3.0);
+  ASSERT_EQ(mesh.positions.size(), want.mesh.vertices.size());
+  EXPECT_EQ(mesh.triangles, want.mesh.triangles);
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    const std::uint32_t s = want.mesh.vertices[v];
+    EXPECT_EQ(mesh.positions[v][0], double(s % 65));
+    EXPECT_EQ(mesh.positions[v][1], double(s / 65));
+    EXPECT_EQ(mesh.positions[v][2], hf.at(int(s % 65), int(s / 65)));
+  }
+  // Both of --input and --db, or neither: a usage error.
+  EXPECT_EQ(run_terralod({"extract", "--max-error", "3", "--out", ply}).status, 2);
+}
+
+TEST(DatabaseBuild, BadInputNamesTheFile) {
+  const std::string dir = std::string(TERRALOD_TEST_TMP);
+  const std::string out = tmp("bad.db");
+  auto expect_error = [&](const std::string& input, const std::string& what) {
+    const ChildRun r = run_terralod({"build", "--input", input, "--out", out});
+    EXPECT_EQ(r.status, 1) << what << ": " << r.err;
+    EXPECT_NE(r.err.find(input), std::string::npos) << what << ": " << r.err;
+    EXPECT_FALSE(fs::exists(out)) << what << ": a database was left behind";
+  };
+  expect_error(dir + "/database_build_missing.hgt", "missing file");
+  {
+    std::ofstream(dir + "/database_build_garbage.hgt") << "this is not an elevation model";
+    expect_error(dir + "/database_build_garbage.hgt", "unreadable format");
+  }
+  write_asc(dir + "/database_build_1x1.asc", pm::Heightfield(1, 1));
+  expect_error(dir + "/database_build_1x1.asc", "1 x 1 grid");
+  write_asc(dir + "/database_build_void.asc", terrain(9, 9, 1), /*all_void=*/true);
+  expect_error(dir + "/database_build_void.asc", "all voids");
+  // The library refuses them too, naming the source.
+  pm::Heightfield one(1, 1);
+  one.source = "one.asc";
+  try {
+    tb::build_database(one, out, {});
+    ADD_FAILURE() << "1 x 1 accepted";
+  } catch (const tb::BuildError& e) {
+    EXPECT_NE(std::string(e.what()).find("one.asc"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
+}  // namespace
