@@ -1,0 +1,146 @@
+// Active region of dynamic block loading: the block grid of a blocked terrain, the small
+// per-block summaries that stand in for blocks that are not loaded, and the
+// (2(n+p)+1) x (2(n+p)+1) set of active blocks around the block under the viewpoint.
+//
+// Usage:
+//   terralod::blocks::BlockGrid grid(db.info().grid_width, db.info().grid_height,
+//                                    db.info().block_size, db.info().transform);
+//   terralod::blocks::ActiveRegionOptions opt;                 // theta 20 deg, p = 1
+//   terralod::blocks::ActiveRegion r = terralod::blocks::active_region(grid, summaries, eye, opt);
+//   for (BlockKey k : r.inner) { /* view-dependent PM */ }
+//   for (BlockKey k : r.outer) { /* two-triangle mesh */ }
+//
+// Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 4.1 (centre block, the inner
+// (2n+1)^2 blocks as view-dependent PMs, the outer p rings as two-triangle meshes) and 4.2,
+// Eq. 2: b = a cot(theta). Here a is the height of the eye above the centre block's
+// two-triangle surface under it (>= 0), b the farthest visible ground distance, and
+//     n = clamp(ceil(b / L), n_min, n_max),   L = (block_size - 1) * min(dx, dy)
+// (L: the ground extent of a block side): the eye lies in the centre block, so every ground
+// point within b of it lies in the inner (2n+1)^2 blocks.
+//
+// Block layout: the terrain has grid_width x grid_height samples; block (col,row) covers the
+// samples col0 = col (B-1) .. min(col0 + B - 1, grid_width - 1) and likewise for rows
+// (B = block_size = 2^k + 1); neighbouring blocks share their border samples; the last
+// column/row of blocks may be narrower. BlockGrid::cols() = ceil((grid_width - 1) / (B - 1)).
+//
+// Block summaries ("block_summaries" blob of the block database, format below): for each
+// block its four corner heights (fixed samples of every PM of the block), the exact L-infinity
+// error of its two-triangle mesh (split along (col0,row0)-(col1,row1), the grid's diagonal
+// direction), its height range and whether the PM's base mesh is exactly those two triangles.
+// They let a block that is not resident be drawn as its two-triangle stand-in with an honest
+// error bound, without reading it. summarize_block() computes one from a block's PM.
+//
+// Contract: grid sizes >= 2, block_size >= 3 (else std::invalid_argument); a transform with a
+// non-zero determinant. Memory: 72 bytes per block summary; active_region allocates the key
+// lists only.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/sample_rect.hpp"
+#include "terralod/pm/heightfield.hpp"
+#include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/view.hpp"
+
+namespace terralod::blocks {
+
+/// Geometry of the block partition of a terrain grid (see the header comment).
+class BlockGrid {
+ public:
+  BlockGrid() = default;
+  BlockGrid(int grid_width, int grid_height, int block_size, const pm::GridTransform& transform);
+  /// From a block database's metadata (std::invalid_argument when it is not blocked).
+  static BlockGrid from_info(const DatabaseInfo& info);
+
+  int grid_width() const { return w_; }
+  int grid_height() const { return h_; }
+  int block_size() const { return b_; }
+  const pm::GridTransform& transform() const { return t_; }
+  int cols() const { return cols_; }  ///< blocks per row
+  int rows() const { return rows_; }  ///< block rows
+  std::size_t block_count() const { return std::size_t(cols_) * rows_; }
+  bool contains(BlockKey k) const { return k.col >= 0 && k.row >= 0 && k.col < cols_ && k.row < rows_; }
+  /// Dense index row * cols + col of a block inside the grid.
+  std::size_t index(BlockKey k) const { return std::size_t(k.row) * cols_ + k.col; }
+  BlockKey key(std::size_t index) const { return {int(index % cols_), int(index / cols_)}; }
+  /// Samples of block k (inclusive, terrain grid indices).
+  SampleRect domain(BlockKey k) const;
+  /// Ground extent of a block side, metres: (block_size - 1) * min(dx, dy).
+  double block_extent_m() const;
+  /// Grid (col,row) of a world point (x,y) (the inverse of the transform; may be outside).
+  std::pair<double, double> to_grid(double x, double y) const;
+  /// Block containing the grid point of world (x,y), clamped to the grid (the nearest block
+  /// when the point is outside the terrain).
+  BlockKey block_at(double x, double y) const;
+  /// World position of terrain sample (col,row) at height z: the one expression every block
+  /// uses, so a sample shared by blocks gets bit-identical coordinates.
+  pm::Vec3 world(int col, int row, double z) const;
+
+ private:
+  int w_ = 0, h_ = 0, b_ = 0, cols_ = 0, rows_ = 0;
+  pm::GridTransform t_;
+};
+
+/// What a non-resident block needs: its two-triangle stand-in and its error (see above).
+struct BlockSummary {
+  /// Heights of the corners (col0,row0), (col1,row0), (col0,row1), (col1,row1), metres.
+  double z00 = 0, z10 = 0, z01 = 0, z11 = 0;
+  double zmin = 0, zmax = 0;   ///< height range of the block's samples
+  double tm_error = 0;         ///< exact L-infinity error of the two-triangle mesh, metres
+  bool base_is_tm = false;     ///< the PM's base mesh is exactly the two-triangle mesh
+  bool operator==(const BlockSummary&) const = default;
+};
+
+/// Summary of block `k` from its PM (whose heightfield is the block's samples). Throws
+/// std::invalid_argument naming the block when the PM has holes (no rectangular stand-in).
+BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k);
+
+/// The "block_summaries" blob, format version 1, little-endian:
+///   u32 magic 'TLBS' (0x53424C54), u32 version 1, u32 cols, u32 rows,
+///   then cols * rows records in BlockGrid::index order: 7 x f64 (z00 z10 z01 z11 zmin zmax
+///   tm_error), u8 base_is_tm, 7 zero bytes of padding; then u32 CRC-32 of everything before.
+std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s);
+/// Throws DatabaseError("<name>: block_summaries: <problem>") on any mismatch or corruption.
+std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
+                                                 const std::string& name_for_errors);
+/// Name of the blob in the block database.
+inline constexpr const char* kBlockSummariesBlob = "block_summaries";
+
+/// The two-triangle surface of a block at grid point (col,row) inside its domain.
+double tm_height(const BlockGrid& grid, BlockKey k, const BlockSummary& s, double col, double row);
+/// World box of block k: its plan rectangle x [zmin, zmax].
+pm::Box block_box(const BlockGrid& grid, BlockKey k, const BlockSummary& s);
+
+struct ActiveRegionOptions {
+  double theta_deg = 20.0;  ///< minimum visible angle of Eq. 2, degrees, in (0, 90)
+  int p = 1;                ///< rings of two-triangle blocks around the inner blocks, >= 0
+  int n_min = 1;            ///< inner radius range, 0 <= n_min <= n_max
+  int n_max = 8;
+};
+
+struct ActiveRegion {
+  BlockKey centre;
+  int n = 0, p = 0;
+  double height_m = 0;     ///< a: eye height above the centre block's two-triangle surface
+  double visible_m = 0;    ///< b = a cot(theta)
+  std::vector<BlockKey> inner;  ///< the (2n+1)^2 blocks (clipped to the grid), sorted
+  std::vector<BlockKey> outer;  ///< the p rings around them (clipped to the grid), sorted
+  /// Inclusive block range of the whole region (clipped to the grid).
+  int col0 = 0, row0 = 0, col1 = 0, row1 = 0;
+  bool is_inner(BlockKey k) const;
+  bool is_active(BlockKey k) const;
+};
+
+/// n from the eye height a (metres, >= 0) by Eq. 2 (see the header comment).
+int inner_radius(double height_m, double block_extent_m, const ActiveRegionOptions& opt);
+
+/// The active region for an eye position (world metres). `summaries` has grid.block_count()
+/// entries (BlockGrid::index order).
+ActiveRegion active_region(const BlockGrid& grid, std::span<const BlockSummary> summaries, const pm::Vec3& eye,
+                           const ActiveRegionOptions& opt = {});
+
+}  // namespace terralod::blocks

@@ -1,0 +1,119 @@
+// Background block loader: one thread that reads block blobs from a source (the block database
+// on its own connection), decodes each block's progressive mesh and builds its collapse DAG, so
+// that the frame loop only ever picks up finished blocks and never waits on I/O.
+//
+// Usage:
+//   terralod::blocks::BlockLoader loader(terralod::blocks::database_source("terrain.db"), grid);
+//   loader.set_queue({{/*key=*/{3, 4}, /*priority=*/0.0}, {{4, 4}, 1.5}});   // lower first
+//   for (;;) {                                                              // each frame
+//     for (terralod::blocks::LoadResult& r : loader.take_results()) { /* r.block or r.error */ }
+//   }
+//
+// Contract:
+//   - The factory is called once, on the loader thread, to open the thread's own source (one
+//     SQLite connection per thread, as block_database.hpp requires). A factory or read that
+//     throws becomes a LoadResult with `error` set (the exception's message, which names the
+//     file and the block); the loader goes on with the next request.
+//   - set_queue() replaces every queued (not yet started) request; keys are blocks of the grid
+//     (assert); duplicates, the block being read and finished blocks not yet taken are dropped
+//     (so no block is read twice for one request); the read in progress is never interrupted.
+//   - Every public member is thread-safe and returns without waiting for a read: the lock
+//     guards only the queue and the result list, never the source, the decoder or the DAG.
+//   - The destructor stops the thread after the read in progress (if a source stalls forever,
+//     the destructor waits for it).
+//   - A block is checked against the grid: its PM's heightfield must have the block's
+//     domain's size (DatabaseError-style message "<source>: block (c,r): ..." otherwise).
+// Memory: one decoded block per finished result until taken (LoadedBlock::memory_bytes each).
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "terralod/blocks/active_region.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/pm/collapse_dag.hpp"
+#include "terralod/pm/progressive_mesh.hpp"
+
+namespace terralod::blocks {
+
+/// Where block blobs come from (used by one thread at a time).
+class BlockSource {
+ public:
+  virtual ~BlockSource() = default;
+  /// The pm::encode_pm bytes of block k; throws (naming the source and block) when unavailable.
+  virtual std::vector<std::uint8_t> read(BlockKey k) = 0;
+  /// Name for error messages (the database path).
+  virtual std::string name() const = 0;
+};
+using BlockSourceFactory = std::function<std::unique_ptr<BlockSource>()>;
+
+/// A factory that opens `path` read-only with BlockDatabase::open on the calling thread.
+BlockSourceFactory database_source(const std::string& path);
+
+/// A block in memory: its decoded PM and the DAG that selective refinement runs on.
+struct LoadedBlock {
+  BlockKey key;
+  pm::ProgressiveMesh pm;            ///< heightfield in the block's own grid and transform
+  std::unique_ptr<pm::CollapseDag> dag;
+  std::size_t blob_bytes = 0;        ///< bytes read from the source
+  /// Estimated bytes while resident: PM + DAG + one SelectiveRefinement over it.
+  std::size_t memory_bytes = 0;
+  double read_ms = 0, decode_ms = 0;
+};
+
+/// Decodes a block blob (pm::decode_pm) and builds its DAG; checks its size against the grid.
+/// Throws pm::PmFormatError / DatabaseError naming `source_name` and the block.
+std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k, std::span<const std::uint8_t> blob,
+                                                const std::string& source_name);
+
+struct LoadResult {
+  BlockKey key;
+  std::shared_ptr<const LoadedBlock> block;  ///< null on error
+  std::string error;                         ///< empty on success
+};
+
+class BlockLoader {
+ public:
+  struct Request {
+    BlockKey key;
+    double priority = 0;  ///< lower is read first; ties in queue order
+  };
+
+  BlockLoader(BlockSourceFactory factory, const BlockGrid& grid);
+  ~BlockLoader();
+  BlockLoader(const BlockLoader&) = delete;
+  BlockLoader& operator=(const BlockLoader&) = delete;
+
+  /// Replaces the queued requests (see the contract).
+  void set_queue(std::vector<Request> requests);
+  /// Finished blocks and errors since the last call, in completion order. Never waits on I/O.
+  std::vector<LoadResult> take_results();
+  /// True when k is queued or being read.
+  bool busy(BlockKey k) const;
+  /// Requests queued plus the one being read.
+  std::size_t pending() const;
+  /// Total blob bytes read so far.
+  std::uint64_t bytes_read() const;
+
+ private:
+  void run();
+  BlockSourceFactory factory_;
+  BlockGrid grid_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::vector<Request> queue_;  // sorted by priority, best first
+  std::optional<BlockKey> in_flight_;
+  std::vector<LoadResult> results_;
+  std::uint64_t bytes_read_ = 0;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
+}  // namespace terralod::blocks

@@ -1,0 +1,202 @@
+// The per-frame pipeline of dynamic block loading: active region -> background loads and
+// prefetch -> per-block view-dependent selective refinement -> watertight seams -> geomorphs
+// -> the drawn mesh of the whole active region and its statistics.
+//
+// Usage:
+//   auto db = terralod::blocks::BlockDatabase::open("terrain.db");
+//   terralod::blocks::BlockGrid grid = terralod::blocks::BlockGrid::from_info(db.info());
+//   std::vector<terralod::blocks::BlockSummary> sums = terralod::blocks::read_block_summaries(db, grid);
+//   terralod::blocks::SessionOptions opt;
+//   opt.refinement.tolerance_px = 1.0;  opt.refinement.morph_seconds = 0.5;
+//   terralod::blocks::TerrainSession session(terralod::blocks::database_source("terrain.db"), grid, sums, opt);
+//   for (int f = 0;; ++f) {
+//     const terralod::blocks::SessionFrameStats& s = session.update(terralod::pm::View(cam), f / 60.0);
+//     const terralod::blocks::DrawnMesh& m = session.drawn_mesh();   // s.bound_px guaranteed
+//   }
+//
+// Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 4 (active blocks, Eq. 2,
+// re-triangulation of unmatched boundary triangles, Fig. 6) and section 1 (iii)-(iv) (flight
+// path prediction, runtime geomorphs when swapping blocks).
+//
+// Per frame, update(view, t):
+//   1. Region: active_region() around the eye; the inner blocks are drawn as view-dependent
+//      PMs when resident, every other active block (the outer p rings, and inner blocks not yet
+//      resident) as its two-triangle stand-in (BlockSummary).
+//   2. Loads: finished blocks are taken from the loader (never waiting); the loader's queue is
+//      replaced by: inner blocks in view, other inner blocks, then (prefetch on) the inner
+//      blocks of the regions around the predicted eye positions up to prefetch_horizon_s
+//      ahead, nearest in time first, capped so that they fit in the memory budget.
+//   3. Refinement: each resident inner block runs pm::SelectiveRefinement. A block that was
+//      just swapped in starts at its PM's base mesh (the two-triangle stand-in when
+//      BlockSummary::base_is_tm) and geomorphs to its selection over morph_seconds.
+//   4. Eviction: blocks not inner are evicted least-recently-used first beyond the budget.
+//   5. Seams (SeamMode::Stitch, the default; stitch_seams() of seam_stitch.hpp, driven by
+//      blocks/src/block_seams.cpp): on every border shared by two active blocks, each side
+//      gets the other side's border vertices inserted into its boundary triangles (a fan
+//      from the opposite corner; a triangle with unmatched vertices on two borders, at a
+//      block corner, is split along the first border, then the piece holding the second
+//      border is split again from the first split's last vertex: the order of Fig. 6). Both
+//      sides then have the same border vertices, so every border edge is shared by exactly
+//      two triangles and the union is watertight with no T-junction. SeamMode::Skirts
+//      instead hangs a vertical wall below every shared border edge (for comparison).
+//   6. Geomorphs: refinement uses pm::MorphMode::Vertical, so every drawn vertex stays at its
+//      sample's plan position (no fold is possible) and only heights move. A border sample
+//      present on both sides is drawn at one height: the height of a side where it is
+//      morphing (the first such side in block order), else its rest height; an inserted
+//      vertex takes its owner's height. So seam vertices are bit-identical and move in step.
+//
+// The bound (SessionFrameStats::bound_px), a guarantee for the logical mesh (the geomorphing
+// display lags it, as in selective_refinement.hpp): the max of
+//   - each refined block's FrameStats::bound_px (its selection's guarantee);
+//   - each two-triangle block's View::vertical_error_px(block box, tm_error), 0 if culled;
+//   - for each triangle changed by the stitch: its block's bound plus
+//     View::vertical_error_px(box of the new pieces, delta), delta = max over the inserted
+//     vertices p of |z(p) - S(p)|, S the old triangle's surface at p. The new surface differs
+//     from the old by a piecewise-linear function that is 0 at the old corners and z(p) - S(p)
+//     at each inserted p, so an error segment from the new surface to a sample splits into
+//     the old one (within the block's bound) and one of length <= delta inside that box.
+//
+// Contract: the grid and summaries describe the source's blocks (summaries.size() ==
+// grid.block_count()); options are checked on construction (std::invalid_argument: morph
+// mode Full, theta outside (0, 90), negative p, bad n range, a non-positive horizon step);
+// update() times must not decrease (std::invalid_argument). A loader error (missing or
+// corrupt block) is rethrown by update() as std::runtime_error with the loader's message
+// (it names the file and the block). Not thread-safe: one frame thread; the loader thread is
+// internal.
+// Memory: the resident blocks (LoadedBlock::memory_bytes, bounded by the budget except for
+// the inner blocks in use), the summaries (72 bytes per block) and the drawn mesh (~40
+// bytes per vertex, 12 per triangle).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "terralod/blocks/active_region.hpp"
+#include "terralod/blocks/block_cache.hpp"
+#include "terralod/blocks/block_loader.hpp"
+#include "terralod/blocks/flight_predictor.hpp"
+#include "terralod/pm/selective_refinement.hpp"
+
+namespace terralod::blocks {
+
+enum class SeamMode : std::uint8_t {
+  Stitch = 0,  ///< watertight re-triangulation of the block borders (default)
+  Skirts = 1,  ///< vertical walls below shared borders, no re-triangulation
+};
+
+struct SessionOptions {
+  ActiveRegionOptions region;
+  /// tolerance_px, budget mode and morph_seconds apply to every inner block; morph_mode must
+  /// be Vertical (see step 6).
+  pm::RefinementOptions refinement = [] {
+    pm::RefinementOptions r;
+    r.morph_mode = pm::MorphMode::Vertical;
+    return r;
+  }();
+  CacheOptions cache;
+  bool prefetch = true;            ///< queue the blocks on the predicted path
+  PredictorOptions predictor;
+  double prefetch_horizon_s = 3.0; ///< how far ahead to predict, seconds, >= 0
+  double prefetch_step_s = 0.25;   ///< spacing of the predicted points, seconds, > 0
+  SeamMode seams = SeamMode::Stitch;
+  double skirt_depth_m = 0.0;      ///< Skirts: wall depth, metres; 0 = the block's tm_error + 1
+};
+
+/// What one frame did and guarantees. Counters named *_total are cumulative.
+struct SessionFrameStats {
+  std::uint64_t frame = 0;
+  double time_s = 0;
+  BlockKey centre;
+  int n = 0, p = 0;
+  std::size_t active = 0, inner = 0;   ///< blocks in the region, of which inner
+  std::size_t refined = 0;             ///< inner blocks drawn as view-dependent PMs
+  std::size_t stand_ins = 0;           ///< inner blocks drawn as two triangles (not resident)
+  std::size_t swapped_in = 0;          ///< blocks that started their swap-in geomorph this frame
+  std::size_t morphing_blocks = 0;     ///< refined blocks with vertices still moving
+  std::size_t resident = 0, loading = 0, evicted = 0;  ///< loading: queued + being read
+  std::size_t evicted_total = 0;
+  std::size_t needed_in_view = 0;      ///< inner blocks whose box is not outside the view
+  std::size_t missing_in_view = 0;     ///< of those, not resident (drawn as stand-ins)
+  std::size_t prefetch_hits_total = 0;   ///< blocks resident when they became needed in view
+  std::size_t prefetch_misses_total = 0; ///< blocks needed in view before they were resident
+  std::uint64_t bytes_read_total = 0, bytes_read = 0;  ///< blob bytes, total and this frame
+  std::size_t resident_bytes = 0, peak_resident_bytes = 0;
+  std::size_t triangles = 0, vertices = 0;
+  std::size_t seam_triangles = 0;      ///< triangles replaced by the stitch
+  double tolerance_px = 0;             ///< tau used
+  double bound_px = 0;                 ///< guaranteed screen-space error (see above)
+  double max_stitch_delta_m = 0;       ///< largest |z(p) - S(p)| of an inserted vertex
+  double update_ms = 0;                ///< wall time of update()
+};
+
+/// The drawn mesh of the whole active region.
+struct DrawnMesh {
+  static constexpr std::uint64_t kNoSample = ~std::uint64_t(0);
+  /// World positions (x, y from BlockGrid::world, z the displayed height), metres.
+  std::vector<pm::Vec3> positions;
+  /// Terrain sample (row * grid_width + col) of each vertex; kNoSample for skirt bottoms.
+  std::vector<std::uint64_t> samples;
+  /// CCW in (col,row) plan view, like every pm/ mesh (clockwise seen from +z in the world for
+  /// north-up transforms); skirts are vertical.
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  /// Block of each triangle.
+  std::vector<BlockKey> triangle_block;
+};
+
+class TerrainSession {
+ public:
+  TerrainSession(BlockSourceFactory source, const BlockGrid& grid, std::vector<BlockSummary> summaries,
+                 const SessionOptions& options = {});
+  ~TerrainSession();
+
+  const SessionFrameStats& update(const pm::View& view, double time_s);
+  const SessionFrameStats& stats() const { return stats_; }
+  const DrawnMesh& drawn_mesh() const { return mesh_; }
+  const ActiveRegion& region() const { return region_; }
+  const BlockGrid& grid() const { return grid_; }
+  const SessionOptions& options() const { return opt_; }
+  const std::vector<BlockSummary>& summaries() const { return sums_; }
+
+  /// Resident block k (null when not resident), for tests and tools.
+  std::shared_ptr<const LoadedBlock> resident(BlockKey k) const { return cache_.find(k); }
+  std::vector<BlockKey> resident_keys() const { return cache_.keys(); }
+  /// The selection of an inner block drawn as a PM this frame (null otherwise).
+  const pm::SelectiveRefinement* selection(BlockKey k) const;
+
+ private:
+  struct Refined {
+    std::shared_ptr<const LoadedBlock> block;
+    std::unique_ptr<pm::SelectiveRefinement> sel;
+  };
+  void queue_loads(const pm::View& view);
+  void build_mesh(const pm::View& view);
+
+  BlockGrid grid_;
+  std::vector<BlockSummary> sums_;
+  SessionOptions opt_;
+  BlockCache cache_;
+  FlightPredictor predictor_;
+  ActiveRegion region_;
+  std::map<BlockKey, Refined> refined_;
+  std::set<BlockKey> needed_prev_, missing_;
+  std::vector<BlockKey> needed_;
+  SessionFrameStats stats_;
+  DrawnMesh mesh_;
+  double time_ = 0;
+  bool started_ = false;
+  std::uint64_t frame_ = 0;
+  std::unique_ptr<BlockLoader> loader_;  // last: stopped first
+};
+
+/// The block summaries of a database: its "block_summaries" blob when present (and matching
+/// the grid), otherwise computed by reading every block once (progress in [0, 1] if given).
+/// Throws DatabaseError / pm::PmFormatError naming the file and the problem.
+std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const BlockGrid& grid,
+                                               const std::function<void(double)>& progress = {});
+
+}  // namespace terralod::blocks

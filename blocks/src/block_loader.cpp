@@ -1,0 +1,142 @@
+// Background block loader thread: read, decode, build the collapse DAG; see block_loader.hpp.
+#include "terralod/blocks/block_loader.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <chrono>
+
+#include "terralod/pm/pm_io.hpp"
+
+namespace terralod::blocks {
+
+namespace {
+double ms_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+std::string block_name(BlockKey k) { return "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")"; }
+}  // namespace
+
+std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k, std::span<const std::uint8_t> blob,
+                                                const std::string& source_name) {
+  assert(grid.contains(k));
+  const std::string name = source_name + ": " + block_name(k);
+  const auto t = std::chrono::steady_clock::now();
+  auto b = std::make_shared<LoadedBlock>();
+  b->key = k;
+  b->pm = pm::decode_pm(blob, name);
+  const SampleRect d = grid.domain(k);
+  const pm::Heightfield& hf = b->pm.heightfield();
+  if (hf.width() != d.width() || hf.height() != d.height())
+    throw DatabaseError(source_name, block_name(k) + ": " + std::to_string(hf.width()) + " x " + std::to_string(hf.height()) +
+                        " samples, the block grid expects " + std::to_string(d.width()) + " x " +
+                        std::to_string(d.height()));
+  b->dag = std::make_unique<pm::CollapseDag>(b->pm);
+  b->blob_bytes = blob.size();
+  const std::size_t collapses = b->pm.collapses().size(), samples = hf.size();
+  // PM (heights + collapses) + DAG + a SelectiveRefinement (selective_refinement.hpp: ~50 bytes
+  // per collapse, 8 per sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
+  b->memory_bytes = sizeof(LoadedBlock) + samples * 8 + collapses * sizeof(pm::Collapse) + b->dag->memory_bytes() +
+                    collapses * 50 + samples * 8 + b->dag->face_id_count() * 4 + b->pm.full_vertex_count() * 96;
+  b->decode_ms = ms_since(t);
+  return b;
+}
+
+BlockLoader::BlockLoader(BlockSourceFactory factory, const BlockGrid& grid)
+    : factory_(std::move(factory)), grid_(grid), thread_([this] { run(); }) {}
+
+BlockLoader::~BlockLoader() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+}
+
+void BlockLoader::set_queue(std::vector<Request> requests) {
+  std::stable_sort(requests.begin(), requests.end(),
+                   [](const Request& a, const Request& b) { return a.priority < b.priority; });
+  std::vector<Request> unique;
+  unique.reserve(requests.size());
+  for (const Request& r : requests) {
+    assert(grid_.contains(r.key));
+    if (std::none_of(unique.begin(), unique.end(), [&](const Request& u) { return u.key == r.key; })) unique.push_back(r);
+  }
+  {
+    std::lock_guard lock(mutex_);
+    // Not again what is being read or finished and not yet taken.
+    std::erase_if(unique, [&](const Request& r) {
+      return (in_flight_ && *in_flight_ == r.key) ||
+             std::any_of(results_.begin(), results_.end(), [&](const LoadResult& x) { return x.key == r.key; });
+    });
+    queue_ = std::move(unique);
+  }
+  cv_.notify_all();
+}
+
+std::vector<LoadResult> BlockLoader::take_results() {
+  std::lock_guard lock(mutex_);
+  std::vector<LoadResult> out;
+  out.swap(results_);
+  return out;
+}
+
+bool BlockLoader::busy(BlockKey k) const {
+  std::lock_guard lock(mutex_);
+  if (in_flight_ && *in_flight_ == k) return true;
+  return std::any_of(queue_.begin(), queue_.end(), [&](const Request& r) { return r.key == k; });
+}
+
+std::size_t BlockLoader::pending() const {
+  std::lock_guard lock(mutex_);
+  return queue_.size() + (in_flight_ ? 1 : 0);
+}
+
+std::uint64_t BlockLoader::bytes_read() const {
+  std::lock_guard lock(mutex_);
+  return bytes_read_;
+}
+
+void BlockLoader::run() {
+  std::unique_ptr<BlockSource> source;
+  std::string open_error;
+  try {
+    source = factory_();
+  } catch (const std::exception& e) {
+    open_error = e.what();
+  }
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+    if (stop_) return;
+    const BlockKey k = queue_.front().key;
+    queue_.erase(queue_.begin());
+    in_flight_ = k;
+    lock.unlock();
+    LoadResult r;
+    r.key = k;
+    std::size_t bytes = 0;
+    if (!source) {
+      r.error = open_error;
+    } else {
+      try {
+        const auto t = std::chrono::steady_clock::now();
+        const std::vector<std::uint8_t> blob = source->read(k);
+        const double read_ms = ms_since(t);
+        bytes = blob.size();
+        auto b = std::const_pointer_cast<LoadedBlock>(decode_block(grid_, k, blob, source->name()));
+        b->read_ms = read_ms;
+        r.block = std::move(b);
+      } catch (const std::exception& e) {
+        r.error = e.what();
+        if (r.error.empty()) r.error = source->name() + ": " + block_name(k) + ": unknown error";
+      }
+    }
+    lock.lock();
+    in_flight_.reset();
+    bytes_read_ += bytes;
+    results_.push_back(std::move(r));
+  }
+}
+
+}  // namespace terralod::blocks
