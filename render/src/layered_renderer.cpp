@@ -239,11 +239,23 @@ struct LayeredRenderer::Impl {
     const bool lit = stack.lighting && !decal_mode(st);
     // Signature: everything that changes the generated code.
     std::string sig = std::to_string(int(pass.kind)) + (lit ? "L" : "U") + (uses_lens ? "Z" : "-");
-    for (int i : sampled) sig += "s" + std::to_string(i) + (seq[std::size_t(i)] ? "q" : "");
+    // (appends, not "s" + std::to_string(i): GCC 12 warns wrongly with -Wrestrict on that form)
+    for (int i : sampled) {
+      sig += 's';
+      sig += std::to_string(i);
+      if (seq[std::size_t(i)]) sig += 'q';
+    }
     for (int i : colour) {
       const LayerStyle& s = st[std::size_t(i)];
-      sig += "c" + std::to_string(i) + "o" + std::to_string(int(s.op)) + "m" + std::to_string(int(s.mask)) + "," +
-             std::to_string(s.mask_layer) + (s.invert_mask ? "i" : "");
+      sig += 'c';
+      sig += std::to_string(i);
+      sig += 'o';
+      sig += std::to_string(int(s.op));
+      sig += 'm';
+      sig += std::to_string(int(s.mask));
+      sig += ',';
+      sig += std::to_string(s.mask_layer);
+      if (s.invert_mask) sig += 'i';
     }
     auto found = programs.find(sig);
     if (found != programs.end()) return found->second;
