@@ -65,9 +65,14 @@ asan() {
 # ThreadSanitizer: the tests that run the PM builder's parallel strips (any hole-free grid of
 # >= 257 columns and >= 65536 samples, built with 2 threads: the parallel-strip tests and the
 # White Mountains and filled Kauai crops; the Kauai crop with holes builds on one thread) and
-# the DEM reader (GDAL registered once per process). Only their executables are built.
-tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm)
-tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader'
+# the DEM reader (GDAL registered once per process), and the texture cache's worker threads
+# (TextureCache: loads racing frames and eviction), and the CPU shading generator's row threads
+# (test_topographic_texture ParallelRowsRegionsAndHoles), and the block database's reader threads
+# beside a writer (test_block_database ConcurrentReadersWhileWriting), and the block loader
+# thread beside the frame loop (test_block_loader: loads, a stalled reader, eviction, errors).
+# Only their executables are built.
+tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader)
+tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader'
 tsan() {
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRALOD_BUILD_BENCH=OFF \
     -DTERRALOD_BUILD_APPS=OFF -DCMAKE_CXX_FLAGS="-fsanitize=thread $san_flags" >/dev/null

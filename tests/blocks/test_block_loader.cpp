@@ -148,7 +148,10 @@ TEST(TerrainSessionLoading, StalledReaderNeverBlocksAFrame) {
     const auto c = terralod::test::check_watertight(s.drawn_mesh(), s.grid(), terralod::test::region_rect(s));
     EXPECT_TRUE(c.ok()) << c.describe();
   }
-  EXPECT_TRUE(store.reading.load());  // the reader really was stuck inside a read
+  // The reader really is stuck inside a read (on a loaded machine the loader thread may only
+  // now reach it: wait for it, bounded, rather than race the 30 frames).
+  for (int i = 0; i < 1000 && !store.reading.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(store.reading.load());
   store.set_stalled(false);
   std::size_t swapped = 0;
   for (; frame < 3000; ++frame) {

@@ -46,6 +46,7 @@ extern "C" int terralod_fuzz_pm_decoder(const std::uint8_t* data, std::size_t si
 extern "C" int terralod_fuzz_dem_reader(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_camera_path(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_block_database(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_tree_decoder(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
 
 namespace {
@@ -98,6 +99,10 @@ TEST(FuzzRegressions, CameraPath) {
 
 TEST(FuzzRegressions, BlockDatabase) {
   EXPECT_GE(replay("fuzz_block_database", terralod_fuzz_block_database), 1u);
+}
+
+TEST(FuzzRegressions, TreeDecoder) {
+  EXPECT_GE(replay("fuzz_tree_decoder", terralod_fuzz_tree_decoder), 2u);
 }
 
 TEST(FuzzRegressions, DemReader) {
