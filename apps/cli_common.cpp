@@ -72,7 +72,7 @@ Args::Args(const CommandSpec& spec, const std::vector<std::string>& argv) : spec
     const std::string name = a.substr(0, eq);
     const OptionSpec* o = a.rfind("--", 0) == 0 ? find_option(spec, name) : nullptr;
     if (!o) throw UsageError("unknown option '" + name + "'");
-    if (values_.count(name)) throw UsageError("option '" + name + "' given twice");
+    if (values_.count(name) && !o->repeatable) throw UsageError("option '" + name + "' given twice");
     if (o->metavar.empty()) {
       if (eq != std::string::npos) throw UsageError("option '" + name + "' takes no value");
       values_[name] = "";
@@ -82,6 +82,7 @@ Args::Args(const CommandSpec& spec, const std::vector<std::string>& argv) : spec
       if (i + 1 >= argv.size()) throw UsageError("option '" + name + "' needs a value (" + o->metavar + ")");
       values_[name] = argv[++i];
     }
+    all_values_[name].push_back(values_[name]);
   }
   if (help_) return;  // --help wins over everything else
   for (const OptionSpec& o : spec.options)
@@ -91,6 +92,11 @@ Args::Args(const CommandSpec& spec, const std::vector<std::string>& argv) : spec
     throw UsageError("missing argument " + spec.positionals);
   if (int(positionals_.size()) > spec.max_positionals)
     throw UsageError("unexpected argument '" + positionals_[spec.max_positionals] + "'");
+}
+
+std::vector<std::string> Args::get_all(const std::string& name) const {
+  auto it = all_values_.find(name);
+  return it == all_values_.end() ? std::vector<std::string>{} : it->second;
 }
 
 std::string Args::get(const std::string& name, const std::string& fallback) const {

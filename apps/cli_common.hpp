@@ -26,6 +26,7 @@ struct OptionSpec {
   std::string metavar;  ///< e.g. "FILE"; empty for flags
   std::string help;     ///< one line
   bool required = false;
+  bool repeatable = false;  ///< may be given several times (Args::get_all); get() returns the last
 };
 
 /// A subcommand's interface: what `--help` prints and what the parser accepts.
@@ -58,12 +59,15 @@ class Args {
   /// One of `choices` (UsageError listing them otherwise), or `fallback`.
   std::string get_choice(const std::string& name, const std::vector<std::string>& choices,
                          const std::string& fallback) const;
+  /// Every value of a repeatable option, in command-line order (empty when not given).
+  std::vector<std::string> get_all(const std::string& name) const;
   const std::vector<std::string>& positionals() const { return positionals_; }
 
  private:
   const CommandSpec* spec_;
   bool help_ = false;
   std::map<std::string, std::string> values_;
+  std::map<std::string, std::vector<std::string>> all_values_;  ///< every value, repeatable or not
   std::vector<std::string> positionals_;
 };
 

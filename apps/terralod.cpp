@@ -16,7 +16,12 @@
 #include <vector>
 
 #include "cli_common.hpp"
+#include "commands.hpp"
+#include "layer_options.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/mesh_io.hpp"
@@ -209,7 +214,7 @@ int cmd_pm(const Args& a) {
 CommandSpec extract_spec() {
   CommandSpec s;
   s.name = "extract";
-  s.summary = "Extract the mesh within a given L-infinity error from a .pm file or a DEM and write it.";
+  s.summary = "Extract the mesh within a given L-infinity error from a .pm file, a DEM or a block database.";
   s.description = std::string(
                       "The mesh's error against the full-resolution surface is at most --max-error (the 'bound'\n"
                       "printed is the guaranteed error actually reached). A DEM input is built into a progressive\n"
@@ -219,8 +224,14 @@ CommandSpec extract_spec() {
                       "       world   = x east, y north in metres from the DEM's transform (see 'terralod info'),\n"
                       "                 z metres; faces counter-clockwise seen from above.\n\n") +
                   kDemFormats;
-  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM", true},
-                             {"--max-error", "E", "largest L-infinity error allowed, metres (finite, >= 0)", true},
+  s.description += "\n\nWith --db DB (a block database from 'terralod build') instead of --input, the blocks are\n"
+                   "extracted, their seams stitched (neighbours' border vertices inserted) and blocks whose\n"
+                   "stitched triangles exceed E re-extracted at E/2; the printed bound is measured exactly.";
+  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or use --db)"},
+                             {"--db", "DB", "a block database (from 'terralod build') instead of --input"},
+                             {"--max-error", "E", "largest L-infinity error allowed, metres (finite, >= 0); required except with --grid-level"},
+                             {"--grid-level", "L", "with --db of a hybrid database ('terralod hybrid'): its grid level L (0 = finest)"},
+                             {"--scheme", "S", "with --grid-level: triangles (default) or subcells (the paper's section 5)"},
                              {"--out", "MESH", "mesh file to write: .ply or .obj", true},
                              {"--units", "UNITS", "vertex coordinates: world (default) or samples"}},
                             build_options()),
@@ -229,6 +240,8 @@ CommandSpec extract_spec() {
 }
 
 int cmd_extract(const Args& a) {
+  if (a.has("--grid-level")) return terralod::cli::cmd_extract_hybrid(a);  // hybrid database (cmd_hybrid.cpp)
+  if (!a.has("--max-error")) throw UsageError("missing option '--max-error'");
   const std::string input = a.get("--input"), out = a.get("--out");
   const double max_error = a.get_double("--max-error", 0.0);
   if (max_error < 0.0) throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
@@ -236,6 +249,21 @@ int cmd_extract(const Args& a) {
   if (ext != ".ply" && ext != ".obj") throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
   const pm::Units units = a.get_choice("--units", {"world", "samples"}, "world") == "samples" ? pm::Units::Samples
                                                                                              : pm::Units::World;
+  if (a.has("--db") == a.has("--input")) throw UsageError("give exactly one of '--input' and '--db'");
+  if (a.has("--db")) {
+    check_output_folder(out);
+    auto t = Clock::now();
+    const blocks::ExtractedMesh m = blocks::extract_mesh(a.get("--db"), max_error);
+    line(strf("extract %s E=%g m: %zu blocks (%zu re-extracted for seams, %zu rounds), %zu triangles, %zu vertices, "
+              "%zu seam vertices inserted, measured error %g m, %s",
+              a.get("--db").c_str(), max_error, m.blocks, m.blocks_refined, m.iterations, m.mesh.triangles.size(),
+              m.mesh.vertices.size(), m.inserted_vertices, m.measured_error, format_duration(ms_since(t)).c_str()));
+    t = Clock::now();
+    pm::write_mesh(m.mesh, m.heightfield, out, units);
+    line(strf("write %s: %s, %s units, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(),
+              units == pm::Units::Samples ? "samples" : "world", format_duration(ms_since(t)).c_str()));
+    return 0;
+  }
   const blocks::DemOptions dem = dem_options_from(a);
   const pm::BuildOptions build = build_options_from(a);
   check_output_folder(out);
@@ -264,7 +292,7 @@ CommandSpec info_spec() {
   s.name = "info";
   s.positionals = "FILE";
   s.min_positionals = s.max_positionals = 1;
-  s.summary = "Describe a .pm file or a DEM as JSON on stdout.";
+  s.summary = "Describe a .pm file, a block database (.db) or a DEM as JSON on stdout.";
   s.description = std::string(
                       "Fields: file, kind (pm|dem), grid {width, height}, transform {x0, xc, xr, y0, yc, yr, formula}\n"
                       "(sample (col,row) -> world (x,y) metres), spacing {x, y} metres, frame, crs_wkt,\n"
@@ -277,6 +305,12 @@ CommandSpec info_spec() {
 
 int cmd_info(const Args& a) {
   const std::string file = a.positionals().at(0);
+  if (lower_extension(file) == ".db") {
+    const blocks::BlockDatabase db = blocks::BlockDatabase::open(file);
+    if (db.info().kind == "hybrid") return terralod::cli::info_hybrid(file);  // cmd_hybrid.cpp
+    std::fputs(blocks::summarize_database(db).to_json().c_str(), stdout);
+    return 0;
+  }
   const blocks::DemOptions dem = dem_options_from(a);
   const bool is_pm = is_pm_file(file);
   std::optional<pm::ProgressiveMesh> mesh;
@@ -426,7 +460,8 @@ CommandSpec view_spec() {
                       "error bound (pixels: bound_px; metres), tau and the time of every stage; for the\n"
                       "view-dependent selection also the vsplits and ecols of the update and its time.\n\n") +
                   kDemFormats;
-  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM", true},
+  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or --db)"},
+                             {"--db", "HYBRID.db", "instead of --input: a 'terralod hybrid' database (its tree at --tau: TIN near, grid far)"},
                              {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
                              {"--out", "IMAGE.png", "PNG file to write", true},
                              {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
@@ -434,7 +469,12 @@ CommandSpec view_spec() {
                              {"--wireframe", "", "draw the triangle edges over the surface"},
                              {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
                              {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
-                             {"--stats", "FILE.json", "write statistics and timings as JSON"}},
+                             {"--stats", "FILE.json", "write statistics and timings as JSON"},
+                             {"--texture-db", "FILE.db", "block database holding the texture layers of --layer"},
+                             {"--layer", "NAME[:OP[:W[:lens]]]",
+                              "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]",
+                              false, /*repeatable=*/true},
+                             {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"}},
                             build_options()),
                      dem_options());
   return s;
@@ -483,9 +523,16 @@ int cmd_view(const Args& a) {
     throw UsageError("option '--dump-mesh' must name a .ply or .obj file, not '" + dump + "'");
   const blocks::DemOptions dem = dem_options_from(a);
   const pm::BuildOptions build = build_options_from(a);
+  const std::vector<std::string> layer_specs = a.get_all("--layer");
+  if (layer_specs.empty() != !a.has("--texture-db")) throw UsageError("--layer and --texture-db go together");
+  if (!layer_specs.empty() && a.has("--wireframe")) throw UsageError("--wireframe cannot be combined with --layer");
+  if (a.has("--lens") && layer_specs.empty()) throw UsageError("--lens needs --layer");
+  for (const std::string& spec : layer_specs) terralod::cli::parse_layer_spec(spec);  // usage errors first
   check_output_folder(out);
   if (!dump.empty()) check_output_folder(dump);
   if (!stats_path.empty()) check_output_folder(stats_path);
+  if (a.has("--db") == a.has("--input")) throw UsageError("view needs exactly one of '--input' and '--db'");
+  if (a.has("--db")) return terralod::cli::view_hybrid(a.get("--db"), c, tau, width, height, out, dump, a.has("--wireframe"));
 
   auto t = Clock::now();
   const pm::ProgressiveMesh mesh = is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
@@ -572,13 +619,31 @@ int cmd_view(const Args& a) {
   render::RendererOptions ropt;
   ropt.wireframe = a.has("--wireframe");
   render::TerrainRenderer renderer(*ctx, ropt);
+  // Texture layers (layer_options.hpp): all loaded before the frame, drawn by LayeredRenderer.
+  std::optional<terralod::cli::LayerSetup> layers;
+  std::optional<render::LayeredRenderer> layered;
+  if (!layer_specs.empty()) {
+    layers.emplace(terralod::cli::LayerSetup::open(
+        a.get("--texture-db"), layer_specs,
+        a.has("--lens") ? std::optional(terralod::cli::parse_lens("--lens", a.get("--lens"))) : std::nullopt));
+    layers->wait_loaded(/*timeout_ms=*/600000);
+    layered.emplace(*ctx);
+    layers->attach(*layered);
+  }
   const double context_ms = ms_since(t);
   t = Clock::now();
-  const render::MeshId id = renderer.upload(render::make_draw_mesh(m, hf));
+  const render::DrawMesh draw_mesh = render::make_draw_mesh(m, hf);
+  const render::MeshId id = layered ? layered->upload(draw_mesh) : renderer.upload(draw_mesh);
   const double upload_ms = ms_since(t);
-  const render::FrameStats frame = renderer.draw(cam, {{id, 0.0f}});
+  render::FrameStats frame;
+  if (layered) {
+    const render::LayeredItem item{id, layers->bindings(*layered)};
+    frame.draw_ms = layered->draw(cam, layers->styles(), layers->lens(), {item}).draw_ms;
+  } else {
+    frame = renderer.draw(cam, {{id, 0.0f}});
+  }
   t = Clock::now();
-  const render::Image img = renderer.read_color();
+  const render::Image img = layered ? layered->read_color() : renderer.read_color();
   const double readback_ms = ms_since(t);
   line(strf("render %d x %d on %s: context %s, upload %s, draw %s, read back %s", width, height,
             ctx->info().renderer.c_str(), format_duration(context_ms).c_str(), format_duration(upload_ms).c_str(),
@@ -676,7 +741,16 @@ struct Command {
 const std::vector<Command>& commands() {
   static const std::vector<Command> c = {
       {pm_spec, cmd_pm},     {extract_spec, cmd_extract}, {info_spec, cmd_info},
-      {demo_spec, cmd_demo}, {view_spec, cmd_view}};
+      {demo_spec, cmd_demo}, {view_spec, cmd_view},
+      {terralod::cli::build_spec, terralod::cli::cmd_build},
+      {terralod::cli::tin_spec, terralod::cli::cmd_tin},
+      {terralod::cli::hybrid_spec, terralod::cli::cmd_hybrid},
+      {terralod::cli::texture_spec, terralod::cli::cmd_texture},
+      {terralod::cli::fly_spec, terralod::cli::cmd_fly},
+#ifdef TERRALOD_HAVE_BENCH  // terralod bench: only when bench/ is built (it adds cmd_bench.cpp)
+      {terralod::cli::bench_spec, terralod::cli::cmd_bench},
+#endif
+  };
   return c;
 }
 

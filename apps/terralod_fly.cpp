@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "cli_common.hpp"
+#include "layer_options.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/collapse_dag.hpp"
@@ -63,6 +64,9 @@ CommandSpec fly_spec() {
       "on/off; X wireframe; L freeze the level of detail (fly around it to inspect it from\n"
       "outside); B triangle-budget mode (holds --budget triangles by regulating tau); [ and ]\n"
       "tau down/up; C start/stop recording the flight to --record; P screenshot; Esc quit.\n"
+      "Texture layers (--texture-db with --layer, as in 'terralod view'): keys 1..9 switch layer\n"
+      "1..9 on/off; H switches the highlight lens, which follows the ground point at the screen's\n"
+      "centre, or under the mouse while the right button is held (X shows the untextured wireframe).\n"
       "The heads-up display shows frames per second, tau, triangles, nodes selected, blocks\n"
       "resident/loading, texture memory and the guaranteed bound.\n\n"
       "--headless renders --frames frames of --path through OSMesa (no display needed) and\n"
@@ -86,7 +90,12 @@ CommandSpec fly_spec() {
                {"--headless", "", "render through OSMesa along --path, no window"},
                {"--path", "PATH.csv", "headless: the scripted camera path (default: a built-in circular flight)"},
                {"--out", "DIR", "headless: output folder (created; default fly_out)"},
-               {"--dump-meshes", "", "headless: also write each frame's drawn mesh as PLY"}};
+               {"--dump-meshes", "", "headless: also write each frame's drawn mesh as PLY"},
+               {"--texture-db", "FILE.db", "block database holding the texture layers of --layer"},
+               {"--layer", "NAME[:OP[:W[:lens]]]",
+                "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
+                /*repeatable=*/true},
+               {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"}};
   return s;
 }
 
@@ -170,12 +179,23 @@ struct FrameRecord {
   pm::Camera camera;
   double tau = 0, bound_px = 0, update_ms = 0, draw_ms = 0;
   std::size_t triangles = 0, vertices = 0, vsplits = 0, ecols = 0, morphing = 0;
+  std::size_t texture_bytes = 0;  // resident in the texture cache
 };
 
 class Pipeline {
  public:
   Pipeline(const Terrain& t, rd::GlContext& ctx, const pm::RefinementOptions& o)
       : t_(t), sel_(*t.dag, o), renderer_(ctx) {}
+
+  // Texture layers: drawn through a LayeredRenderer on the same context (not in wireframe).
+  void set_layers(rd::GlContext& ctx, LayerSetup* layers) {
+    layers_ = layers;
+    layered_ = std::make_unique<rd::LayeredRenderer>(ctx);
+    layers_->attach(*layered_);
+  }
+  LayerSetup* layers() { return layers_; }
+  bool drew_layered() const { return drew_layered_; }
+  rd::Image read_color() const { return drew_layered_ ? layered_->read_color() : renderer_.read_color(); }
 
   rd::TerrainRenderer& renderer() { return renderer_; }
   pm::SelectiveRefinement& selection() { return sel_; }
@@ -199,8 +219,21 @@ class Pipeline {
     rc.yaw_deg = c.yaw_deg, rc.pitch_deg = c.pitch_deg, rc.fovy_deg = c.fovy_deg;
     rc.width = c.width_px, rc.height = c.height_px;
     rc.z_near = c.near_m, rc.z_far = c.far_m;
+    drew_layered_ = layers_ && !wireframe;
+    if (drew_layered_) {
+      if (!layered_id_ || layered_version_ != version_) {
+        if (layered_id_) layered_->remove(*layered_id_);
+        layered_id_ = layered_->upload(dm_);
+        layered_version_ = version_;
+      }
+      const rd::LayeredItem item{*layered_id_, layers_->bindings(*layered_)};
+      r.draw_ms = layered_->draw(rc, layers_->styles(), layers_->lens(), {item}).draw_ms;
+      r.texture_bytes = layers_->resident_bytes();
+      return r;
+    }
     renderer_.options().wireframe = wireframe;
     r.draw_ms = renderer_.draw(rc, {{*id_, 0.0f}}).draw_ms;
+    if (layers_) r.texture_bytes = layers_->resident_bytes();
     return r;
   }
 
@@ -231,6 +264,7 @@ class Pipeline {
       id_ = renderer_.upload(dm_);
     else
       renderer_.replace(*id_, dm_);
+    ++version_;
   }
 
   const Terrain& t_;
@@ -239,7 +273,25 @@ class Pipeline {
   rd::DrawMesh dm_;
   std::optional<rd::MeshId> id_;
   double bound_ = 0, tau_ = 0;
+  LayerSetup* layers_ = nullptr;
+  std::unique_ptr<rd::LayeredRenderer> layered_;
+  std::optional<rd::MeshId> layered_id_;
+  std::uint64_t version_ = 0, layered_version_ = 0;
+  bool drew_layered_ = false;
 };
+
+// --texture-db / --layer / --lens (layer_options.hpp); nullopt without layers.
+std::optional<LayerSetup> layer_setup(const Args& a) {
+  const std::vector<std::string> specs = a.get_all("--layer");
+  if (specs.empty() != !a.has("--texture-db")) throw UsageError("--layer and --texture-db go together");
+  if (a.has("--lens") && specs.empty()) throw UsageError("--lens needs --layer");
+  if (specs.size() > 9) throw UsageError("at most 9 --layer (keys 1..9 switch them)");
+  for (const std::string& s : specs) parse_layer_spec(s);
+  if (specs.empty()) return std::nullopt;
+  std::optional<LensSpec> lens;
+  if (a.has("--lens")) lens = parse_lens("--lens", a.get("--lens"));
+  return LayerSetup::open(a.get("--texture-db"), specs, lens);
+}
 
 // World-frame PLY of the drawn mesh (double x y z, int faces).
 void dump_mesh(const Terrain& t, const rd::DrawMesh& dm, const std::string& path) {
@@ -289,9 +341,9 @@ const char* kCsvHeader =
 
 void csv_row(std::FILE* f, std::size_t k, const FrameRecord& r) {
   const pm::Camera& c = r.camera;
-  std::fprintf(f, "%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%zu,%.4f,%.4f,%.17g,%zu,%zu,%zu,1,1,0,0\n", k,
+  std::fprintf(f, "%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%zu,%.4f,%.4f,%.17g,%zu,%zu,%zu,1,1,0,%zu\n", k,
                c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg, r.tau, r.triangles, r.vertices, r.update_ms,
-               r.draw_ms, r.bound_px, r.vsplits, r.ecols, r.morphing);
+               r.draw_ms, r.bound_px, r.vsplits, r.ecols, r.morphing, r.texture_bytes);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -326,6 +378,7 @@ int run_headless(const Args& a) {
   std::vector<pm::Camera> path;
   if (a.has("--path")) path = pm::read_camera_path(a.get("--path"), po);
   const bool dump = a.has("--dump-meshes");
+  std::optional<LayerSetup> layers = layer_setup(a);
   const Terrain t = load_terrain(a.get("--input"), int(a.get_int("--terrain-size", 513, 2, 8193)));
   if (path.empty()) {
     path = default_flight(t, int(a.get_int("--frames", 240, 1, 1000000)), w, h);
@@ -338,6 +391,10 @@ int run_headless(const Args& a) {
   if (ec || !fs::is_directory(out)) throw std::runtime_error(out + ": cannot create the output folder");
   auto ctx = rd::create_offscreen_context({w, h});
   Pipeline p(t, *ctx, refinement_options(a));
+  if (layers) {
+    layers->wait_loaded(/*timeout_ms=*/600000);  // every frame sees every layer: deterministic
+    p.set_layers(*ctx, &*layers);
+  }
   const std::string csv = (fs::path(out) / "frames.csv").string();
   std::FILE* f = std::fopen((csv + ".tmp").c_str(), "wb");
   if (!f) throw std::runtime_error(csv + ": cannot write");
@@ -354,7 +411,7 @@ int run_headless(const Args& a) {
     csv_row(f, std::size_t(k), r);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%05lld", k);
-    rd::write_png(p.renderer().read_color(), (fs::path(out) / (std::string(name) + ".png")).string());
+    rd::write_png(p.read_color(), (fs::path(out) / (std::string(name) + ".png")).string());
     if (dump) dump_mesh(t, p.draw_mesh(), (fs::path(out) / (std::string(name) + ".ply")).string());
     bar.update(double(k + 1) / double(frames));
   }
@@ -372,6 +429,56 @@ int run_headless(const Args& a) {
 
 // ---------------------------------------------------------------------------------------------
 // Window
+
+// The ground point seen through normalised screen position (sx, sy) in [-1,1]^2 (y up): march
+// along the ray in steps of one grid spacing, then bisect; nullopt when it leaves the terrain's
+// range or misses it within the far plane.
+std::optional<std::array<double, 2>> ground_point(const Terrain& t, const pm::Camera& c, double sx, double sy) {
+  const double yr = c.yaw_deg * std::numbers::pi / 180, pr = c.pitch_deg * std::numbers::pi / 180;
+  const glm::dvec3 f(std::sin(yr) * std::cos(pr), std::cos(yr) * std::cos(pr), std::sin(pr));
+  const glm::dvec3 right(std::cos(yr), -std::sin(yr), 0.0);
+  const glm::dvec3 up = glm::cross(right, f);
+  const double th = std::tan(0.5 * c.fovy_deg * std::numbers::pi / 180);
+  const glm::dvec3 d = glm::normalize(f + sx * th * double(c.width_px) / double(c.height_px) * right + sy * th * up);
+  const glm::dvec3 o(c.x, c.y, c.z);
+  const pm::Heightfield& hf = t.pm.heightfield();
+  const double step = std::max(1e-3, std::min(hf.transform.spacing_x(), hf.transform.spacing_y()));
+  double a = 0;
+  for (double s = step; s <= c.far_m; s += step) {
+    const glm::dvec3 p = o + s * d;
+    if (p.z <= ground(t, p.x, p.y)) {
+      double lo = a, hi = s;
+      for (int i = 0; i < 40; ++i) {
+        const double m = 0.5 * (lo + hi);
+        const glm::dvec3 q = o + m * d;
+        (q.z <= ground(t, q.x, q.y) ? hi : lo) = m;
+      }
+      const glm::dvec3 q = o + hi * d;
+      return std::array<double, 2>{q.x, q.y};
+    }
+    if (p.z < t.zmin - 1.0 || (d.z >= 0 && p.z > t.zmax + 1.0)) return std::nullopt;
+    a = s;
+  }
+  return std::nullopt;
+}
+
+// Shows a LayeredRenderer frame in the window: its framebuffer is still bound after draw();
+// blit it to the default framebuffer (GL 3.0 entry points through GLFW).
+void present_layered(int w, int h) {
+  using GetIntegerv = void (*)(GLenum, GLint*);
+  using BindFramebuffer = void (*)(GLenum, GLuint);
+  using BlitFramebuffer = void (*)(GLint, GLint, GLint, GLint, GLint, GLint, GLint, GLint, GLbitfield, GLenum);
+  static const auto get = reinterpret_cast<GetIntegerv>(glfwGetProcAddress("glGetIntegerv"));
+  static const auto bind = reinterpret_cast<BindFramebuffer>(glfwGetProcAddress("glBindFramebuffer"));
+  static const auto blit = reinterpret_cast<BlitFramebuffer>(glfwGetProcAddress("glBlitFramebuffer"));
+  if (!get || !bind || !blit) throw std::runtime_error("no glBlitFramebuffer in this OpenGL context");
+  constexpr GLenum kFramebufferBinding = 0x8CA6, kRead = 0x8CA8, kDraw = 0x8CA9;
+  GLint fbo = 0;
+  get(kFramebufferBinding, &fbo);
+  bind(kRead, GLuint(fbo));
+  bind(kDraw, 0);
+  blit(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+}
 
 struct Controls {
   double speed = 80.0;  // m/s along the view direction
@@ -392,11 +499,19 @@ int run_window(const Args& a) {
   const std::string record_path = a.get("--record", "flight.csv");
   const double clearance = a.get_double("--clearance", 30.0);
   const std::size_t budget = std::size_t(a.get_int("--budget", 50000, 100, 100000000));
+  std::optional<LayerSetup> layers = layer_setup(a);
 
   rd::WindowOptions wo;
   wo.width = w, wo.height = h, wo.title = "terralod-fly";
   auto win = rd::WindowContext::create(wo);
   Pipeline p(t, *win, refinement_options(a));
+  if (layers) {
+    p.set_layers(*win, &*layers);
+    if (layers->lens_radius() <= 0) {  // no --lens: H shows one of 4% of the terrain's width
+      const pm::Heightfield& g = t.pm.heightfield();
+      layers->set_lens_radius(0.04 * g.transform.spacing_x() * (g.width() - 1));
+    }
+  }
   rd::Hud hud(*win);
   if (!hud.has_font()) std::fprintf(stderr, "terralod-fly: no heads-up display: %s\n", hud.font_error().c_str());
   GLFWwindow* gw = win->glfw_window();
@@ -440,6 +555,11 @@ int run_window(const Args& a) {
     if (pressed(GLFW_KEY_G)) o.morph_seconds = o.morph_seconds > 0 ? 0.0 : 0.3, options_changed = true;
     if (pressed(GLFW_KEY_X)) p.wireframe = !p.wireframe;
     if (pressed(GLFW_KEY_L)) p.frozen = !p.frozen;
+    if (layers) {
+      for (int k = 0; k < int(layers->styles().size()); ++k)
+        if (pressed(GLFW_KEY_1 + k)) layers->styles()[std::size_t(k)].enabled = !layers->styles()[std::size_t(k)].enabled;
+      if (pressed(GLFW_KEY_H)) layers->lens().enabled = !layers->lens().enabled;
+    }
     if (pressed(GLFW_KEY_B)) o.target_triangles = o.target_triangles ? 0 : budget, options_changed = true;
     if (pressed(GLFW_KEY_LEFT_BRACKET)) o.tolerance_px = std::max(0.05, o.tolerance_px / 1.25), options_changed = true;
     if (pressed(GLFW_KEY_RIGHT_BRACKET)) o.tolerance_px = std::min(64.0, o.tolerance_px * 1.25), options_changed = true;
@@ -489,20 +609,42 @@ int run_window(const Args& a) {
     cam.width_px = std::max(1, fw), cam.height_px = std::max(1, fh);
     set_clip(t, cam);
     if (ctl.recording) recorded.push_back(cam);
+    if (layers && layers->lens().enabled) {  // the lens follows the centre, or the mouse (right button)
+      double sx = 0, sy = 0;
+      if (glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS) {
+        double mx = 0, my = 0;
+        int ww = 1, wh = 1;
+        glfwGetCursorPos(gw, &mx, &my);
+        glfwGetWindowSize(gw, &ww, &wh);
+        sx = 2.0 * mx / ww - 1.0, sy = 1.0 - 2.0 * my / wh;
+      }
+      if (const auto g = ground_point(t, cam, sx, sy)) layers->move_lens((*g)[0], (*g)[1]);
+    }
 
     r = p.frame(cam, time_s);
     const pm::RefinementOptions& now_o = p.selection().options();
-    hud.set_lines({strf("%5.1f fps   tau %.2f px%s   bound %.3f px", fps, r.tau,
+    std::vector<std::string> lines = {strf("%5.1f fps   tau %.2f px%s   bound %.3f px", fps, r.tau,
                         now_o.target_triangles ? strf(" (budget %zu)", now_o.target_triangles).c_str() : "",
                         r.bound_px),
                    strf("%zu triangles   update %.2f ms   draw %.2f ms", r.triangles, r.update_ms, r.draw_ms),
-                   strf("nodes selected 1   blocks resident 1, loading 0   texture memory 0 B"),
+                   strf("nodes selected 1   blocks resident 1, loading 0   texture memory %s",
+                        format_bytes(r.texture_bytes).c_str()),
                    strf("speed %.0f m/s   height %.0f m above ground%s", ctl.speed, cam.z - ground(t, cam.x, cam.y),
                         ctl.follow ? " (following)" : ""),
                    strf("%s%s%s%s", now_o.morph_seconds > 0 ? "geomorphs" : "no geomorphs",
                         p.wireframe ? "  wireframe" : "", p.frozen ? "  LOD FROZEN" : "",
-                        ctl.recording ? "  REC" : "")});
-    p.renderer().present(/*swap=*/false);
+                        ctl.recording ? "  REC" : "")};
+    if (layers) {
+      std::string on = "layers";
+      for (std::size_t k = 0; k < layers->styles().size(); ++k)
+        on += strf("  %zu:%s%s", k + 1, layers->styles()[k].name.c_str(), layers->styles()[k].enabled ? "" : "(off)");
+      lines.push_back(on + (layers->lens().enabled ? "  lens" : ""));
+    }
+    hud.set_lines(lines);
+    if (p.drew_layered())
+      present_layered(cam.width_px, cam.height_px);
+    else
+      p.renderer().present(/*swap=*/false);
     hud.draw();
     const bool last_frame = max_frames >= 0 && frame + 1 == max_frames;
     if (shot || (last_frame && a.has("--screenshot"))) {
@@ -520,7 +662,7 @@ int run_window(const Args& a) {
     std::printf("recorded %zu frames to %s\n", recorded.size(), record_path.c_str());
   }
   if (a.has("--screenshot") && !screenshot_written) {
-    rd::write_png(p.renderer().read_color(), a.get("--screenshot"));
+    rd::write_png(p.read_color(), a.get("--screenshot"));
     std::printf("wrote %s\n", a.get("--screenshot").c_str());
   }
   std::printf("flew %lld frames, last: %zu triangles, bound %.3f px\n", frame, r.triangles, r.bound_px);

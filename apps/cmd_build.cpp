@@ -1,0 +1,119 @@
+// terralod build: a DEM -> a block database (per-block PMs built in parallel, the approximation
+// tree above them), resumable, with progress and a one-line-per-stage summary.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <unistd.h>
+
+#include "commands.hpp"
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/tree_builder.hpp"
+
+namespace terralod::cli {
+
+CommandSpec build_spec() {
+  CommandSpec s;
+  s.name = "build";
+  s.summary = "Build a block database (block PMs + approximation tree) from a DEM; resumes if interrupted.";
+  s.description =
+      "The terrain is cut into square blocks of --block-size samples (2^k + 1) that share their\n"
+      "border samples; every block becomes a progressive mesh (corners fixed, borders kept on the\n"
+      "border), built in parallel and written in its own transaction. Then the approximation tree\n"
+      "is built above the blocks: --strategy gives the node strategy per level from the root\n"
+      "(comma-separated, the last one repeats): grid ((P+1)^2 points, quadtree), tin (greedy TIN of\n"
+      "at most --max-points points, k-d tree), nonregular (non-regular grid, k-d tree) or auto (per\n"
+      "node, the one with the smallest error x bytes). The leaves are the blocks' PMs.\n"
+      "Running the same command again after an interruption resumes it; an existing database\n"
+      "built with other options is an error. 'terralod info DB' prints the summary as JSON.";
+  s.options = {
+      {"--input", "DEM", "elevation file (SRTM .hgt, .asc, GeoTIFF, PNG heightmap, ...)", true},
+      {"--out", "DB", "database file to create or resume (.db)", true},
+      {"--block-size", "N", "samples per block side, 2^k + 1 (default 257)"},
+      {"--threads", "N", "blocks built in parallel, 0 = all cores (default 0)"},
+      {"--strategy", "LIST", "per level from the root: grid|tin|nonregular|auto[,...] (default grid)"},
+      {"--patch", "P", "grid nodes have (P+1)^2 points (default 4)"},
+      {"--max-points", "S", "TIN and non-regular nodes have at most S points (default 25)"},
+      {"--metric", "NAME", "error metric: continuous (default) or samples"},
+      {"--keep-voids", "", "keep DEM voids as holes instead of filling them"},
+  };
+  return s;
+}
+
+int cmd_build(const Args& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string input = a.get("--input"), out = a.get("--out");
+  blocks::DatabaseBuildOptions opt;
+  opt.block_size = int(a.get_int("--block-size", 257, 3, 1 << 20));
+  if (!blocks::is_valid_block_size(opt.block_size))
+    throw UsageError("option '--block-size' must be 2^k + 1 (3, 5, 9, ..., 257, ...), not '" + a.get("--block-size") + "'");
+  opt.threads = int(a.get_int("--threads", 0, 0, 1024));
+  opt.tree.patch = int(a.get_int("--patch", 4, 1, 255));
+  opt.tree.max_points = std::size_t(a.get_int("--max-points", 25, 4, 1 << 20));
+  opt.metric = a.get_choice("--metric", {"continuous", "samples"}, "continuous") == "samples"
+                   ? pm::ErrorMetric::Samples
+                   : pm::ErrorMetric::Continuous;
+  opt.tree.levels.clear();
+  {
+    std::stringstream ss(a.get("--strategy", "grid"));
+    for (std::string item; std::getline(ss, item, ',');) {
+      try {
+        opt.tree.levels.push_back(blocks::parse_strategy_choice(item));
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(std::string("option '--strategy': ") + e.what());
+      }
+    }
+    if (opt.tree.levels.empty()) throw UsageError("option '--strategy' needs at least one strategy");
+  }
+  blocks::DemOptions dem;
+  dem.fill_voids = !a.has("--keep-voids");
+
+  auto t = std::chrono::steady_clock::now();
+  const pm::Heightfield hf = blocks::read_dem(input, dem);
+  std::printf("read  %s: %d x %d samples, %s\n", input.c_str(), hf.width(), hf.height(),
+              format_duration(ms_since(t)).c_str());
+  std::fflush(stdout);
+
+  // Progress with an estimate of the time left: a redrawn line on a terminal, else every 10 %.
+  const bool tty = isatty(fileno(stderr)) != 0;
+  int last_decile = -1;
+  auto last_draw = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+  opt.progress = [&](double f, double left) {
+    const std::string eta = left < 0 ? std::string("estimating") : format_duration(left * 1000.0) + " left";
+    if (tty) {
+      const auto now = std::chrono::steady_clock::now();
+      if (f < 1.0 && now - last_draw < std::chrono::milliseconds(100)) return;
+      last_draw = now;
+      const int filled = int(f * 40);
+      std::fprintf(stderr, "\rblocks [%s%s] %5.1f%%, %s   ", std::string(std::size_t(filled), '#').c_str(),
+                   std::string(std::size_t(40 - filled), '.').c_str(), f * 100.0, eta.c_str());
+    } else {
+      const int decile = int(f * 10.0 + 1e-9);
+      if (decile <= last_decile) return;
+      last_decile = decile;
+      std::fprintf(stderr, "blocks: %d%%, %s\n", decile * 10, eta.c_str());
+    }
+    std::fflush(stderr);
+  };
+  t = std::chrono::steady_clock::now();
+  const blocks::DatabaseSummary s = blocks::build_database(hf, out, opt);
+  if (tty) std::fputs("\r\033[K", stderr);
+  const auto& n = s.nodes_per_strategy;
+  std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s\n", out.c_str(), s.blocks,
+              s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
+              format_duration(ms_since(t)).c_str());
+  std::printf("tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, pm_block %zu; root error %.2f m, "
+              "largest block base error %.2f m\n",
+              s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
+              n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::PmBlock)], s.root_error,
+              s.max_block_error);
+  std::printf("size  %llu samples, %llu block PM vertices, %s of blocks + %s of tree = %.2f bytes/vertex, total %s\n",
+              static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
+              format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
+              format_duration(ms_since(t0)).c_str());
+  return 0;
+}
+
+}  // namespace terralod::cli

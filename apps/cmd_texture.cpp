@@ -1,0 +1,242 @@
+// terralod texture add|shade|export: texture layers of a block database (an image, or a shading
+// texture computed from the full-resolution terrain), stored as pyramid and texture-tree tiles.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "terralod/blocks/approximation_tree.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/partition.hpp"
+#include "terralod/pm/pm_io.hpp"
+#include "terralod/render/gpu_shading.hpp"
+#include "terralod/render/image_pyramid.hpp"
+#include "terralod/render/texture_store.hpp"
+#include "terralod/render/topographic_texture.hpp"
+
+namespace terralod::cli {
+namespace {
+
+namespace tb = terralod::blocks;
+namespace tr = terralod::render;
+using Clock = std::chrono::steady_clock;
+
+std::vector<double> parse_list(const Args& a, const std::string& opt, std::size_t n) {
+  std::vector<double> v;
+  std::stringstream ss(a.get(opt));
+  for (std::string item; std::getline(ss, item, ',');) {
+    char* end = nullptr;
+    const double d = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(d))
+      throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" + a.get(opt) + "'");
+    v.push_back(d);
+  }
+  if (v.size() != n)
+    throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" + a.get(opt) + "'");
+  return v;
+}
+
+// The texture-tree domains of the database's approximation tree (empty when it has none).
+std::vector<tr::PatchDomain> tree_domains(const tb::BlockDatabase& db) {
+  const auto blob = db.read_blob("tree");
+  if (!blob) return {};
+  return tr::patch_domains(tb::decode_tree(*blob, db.path() + ": tree").nodes());
+}
+
+// The full-resolution terrain, assembled from the block PMs (each holds its samples exactly).
+pm::Heightfield read_terrain(const tb::BlockDatabase& db) {
+  const tb::DatabaseInfo& info = db.info();
+  if (info.block_size <= 0) throw tb::DatabaseError(db.path(), "not a blocked database (kind '" + info.kind + "'): no terrain samples to shade");
+  const tb::BlockLayout layout = tb::partition(info.grid_width, info.grid_height, info.block_size);
+  pm::Heightfield hf(info.grid_width, info.grid_height);
+  hf.transform = info.transform;
+  hf.crs_wkt = info.crs_wkt;
+  hf.source = info.source;
+  std::vector<std::uint8_t> mask;
+  for (tb::BlockKey k : layout.keys()) {
+    const std::string item = "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
+    const pm::ProgressiveMesh p = pm::decode_pm(db.read_block(k), db.path() + ": " + item);
+    const tb::SampleRect r = layout.rect(k);
+    const pm::Heightfield& b = p.heightfield();
+    if (b.width() != r.width() || b.height() != r.height())
+      throw tb::DatabaseError(db.path(), item + ": its grid does not match the block layout");
+    for (int j = 0; j < b.height(); ++j)
+      for (int i = 0; i < b.width(); ++i) {
+        hf.at(r.col0 + i, r.row0 + j) = b.at(i, j);
+        if (b.has_holes() && !b.valid(i, j)) {
+          if (mask.empty()) mask.assign(hf.size(), 1);
+          mask[std::size_t(r.row0 + j) * hf.width() + (r.col0 + i)] = 0;
+        }
+      }
+  }
+  if (!mask.empty()) hf.set_mask(std::move(mask));
+  return hf;
+}
+
+tr::TextureConstraints constraints(const Args& a) {
+  tr::TextureConstraints c;
+  c.max_texture_size = int(a.get_int("--max-texture-size", 1024, 1, 1 << 15));
+  c.power_of_two = a.has("--power-of-two");
+  return c;
+}
+
+// Builds the pyramid file beside the database, stores the layer, removes the file.
+void store(tb::BlockDatabase& db, tr::LayerRecord& rec, const std::string& pyramid_path) {
+  auto t = Clock::now();
+  tr::PyramidOptions po;
+  po.max_texture_size = rec.constraints.max_texture_size;
+  const tr::ImagePyramid pyr(pyramid_path, po);
+  const std::vector<tr::PatchDomain> doms = tree_domains(db);
+  {
+    ProgressBar bar("texture tiles");
+    tr::store_texture_layer(db, rec, pyr, doms, [&](double f) { bar.update(f); });
+  }
+  std::error_code ec;
+  std::filesystem::remove(pyramid_path, ec);
+  const tr::LevelSize l0 = rec.levels.front(), last = rec.levels.back();
+  std::printf("store layer '%s': %zu levels (%d x %d -> %d x %d), %zu texture-tree patches of %zu nodes%s, %s\n",
+              rec.name.c_str(), rec.levels.size(), l0.width, l0.height, last.width, last.height, rec.patches, doms.size(),
+              doms.empty() ? " (no approximation tree in the database)" : "", format_duration(ms_since(t)).c_str());
+}
+
+std::string pyramid_file(const std::string& db, const std::string& layer) {
+  std::string safe;
+  for (char c : layer) safe += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return db + ".texture-" + safe + ".tx";
+}
+
+int texture_add(const Args& a, const std::string& path) {
+  if (!a.has("--image")) throw UsageError("'texture add' needs --image FILE");
+  auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
+  tr::LayerRecord rec;
+  rec.name = a.get("--layer");
+  rec.kind = "image";
+  rec.source = a.get("--image");
+  rec.constraints = constraints(a);
+  if (a.has("--georef")) {
+    const std::vector<double> g = parse_list(a, "--georef", 4);
+    rec.georef = tr::GeoRect{g[0], g[1], g[2], g[3]};
+    if (!(rec.georef.width() > 0 && rec.georef.height() > 0))
+      throw UsageError("option '--georef' must be minx,miny,maxx,maxy with minx < maxx and miny < maxy");
+  } else {
+    rec.georef = tr::grid_georef(db.info().transform, db.info().grid_width, db.info().grid_height);
+  }
+  auto t = Clock::now();
+  const std::string pyr = pyramid_file(path, rec.name);
+  tr::PyramidOptions po;
+  po.max_texture_size = rec.constraints.max_texture_size;
+  tr::ImagePyramid::convert(rec.source, pyr, po);
+  std::printf("pyramid %s -> tiled MIP-mapped TIFF, %s\n", rec.source.c_str(), format_duration(ms_since(t)).c_str());
+  store(db, rec, pyr);
+  return 0;
+}
+
+int texture_shade(const Args& a, const std::string& path) {
+  auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
+  tr::ShadingOptions so;
+  const std::string method = a.get_choice("--method", {"lambert", "phong", "multidirectional", "relative"}, "lambert");
+  so.method = tr::parse_shading_method(method);
+  if (a.has("--light")) {
+    const std::vector<double> l = parse_list(a, "--light", 2);
+    if (!(l[1] > 0 && l[1] <= 90)) throw UsageError("option '--light': the altitude must be in (0, 90] degrees");
+    so.azimuth_deg = l[0];
+    so.altitude_deg = l[1];
+  }
+  so.shadows = a.has("--shadows");
+  const bool gpu = a.has("--gpu");
+  auto t = Clock::now();
+  const pm::Heightfield hf = read_terrain(db);
+  std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(), format_duration(ms_since(t)).c_str());
+  t = Clock::now();
+  tr::RgbaImage img;
+  std::string where = "cpu";
+  if (gpu) {
+    tr::GpuShadingReport rep;
+    img = tr::grey_to_rgba(tr::shade_terrain_gpu(hf, so, {}, {}, nullptr, &rep));
+    where = "gpu (" + rep.renderer + ", " + std::to_string(rep.tiles) + " tiles)";
+  } else {
+    img = tr::shading_texture(hf, so);
+  }
+  std::printf("shade %s, light %.1f/%.1f deg, shadows %s: %d x %d texels on the %s, %s\n", method.c_str(), so.azimuth_deg,
+              so.altitude_deg, so.shadows ? "on" : "off", img.width, img.height, where.c_str(),
+              format_duration(ms_since(t)).c_str());
+  tr::LayerRecord rec;
+  rec.name = a.get("--layer");
+  rec.kind = "shading";
+  rec.source = "terralod texture shade";
+  rec.constraints = constraints(a);
+  rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
+  rec.parameters = strf("{\"method\": \"%s\", \"azimuth_deg\": %.17g, \"altitude_deg\": %.17g, \"shadows\": %s, \"gpu\": %s}",
+                        method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "true" : "false", gpu ? "true" : "false");
+  const std::string pyr = pyramid_file(path, rec.name);
+  tr::PyramidOptions po;
+  po.max_texture_size = rec.constraints.max_texture_size;
+  tr::ImagePyramid::convert(img, pyr, po);
+  store(db, rec, pyr);
+  return 0;
+}
+
+int texture_export(const Args& a, const std::string& path) {
+  if (!a.has("--out")) throw UsageError("'texture export' needs --out FILE.tif|FILE.png");
+  const auto db = tb::BlockDatabase::open(path);
+  const tr::LayerRecord rec = tr::read_layer_record(db, a.get("--layer"));
+  const int level = int(a.get_int("--level", 0, 0, 1000));
+  if (level >= int(rec.levels.size()))
+    throw UsageError(strf("option '--level': layer '%s' has levels 0..%zu", rec.name.c_str(), rec.levels.size() - 1));
+  auto t = Clock::now();
+  const tr::RgbaImage img = tr::read_layer_level(db, rec, level);
+  tr::write_layer_image(img, a.get("--out"));
+  std::printf("export layer '%s' level %d: %d x %d pixels -> %s, %s\n", rec.name.c_str(), level, img.width, img.height,
+              a.get("--out").c_str(), format_duration(ms_since(t)).c_str());
+  return 0;
+}
+
+}  // namespace
+
+CommandSpec texture_spec() {
+  CommandSpec s;
+  s.name = "texture";
+  s.positionals = "add|shade|export DB";
+  s.min_positionals = s.max_positionals = 2;
+  s.summary = "Add, compute (topographic shading) or export texture layers of a block database.";
+  s.description =
+      "A texture layer is an image pyramid (levels halving down to --max-texture-size) plus a\n"
+      "texture tree mirroring the database's approximation tree: each node gets the sub-image of\n"
+      "the finest level that covers its domain within the maximum texture size. Both are stored\n"
+      "as tiles in the database; the layer's description is JSON metadata.\n"
+      "  add     --layer NAME --image FILE [--georef minx,miny,maxx,maxy]: any image OpenImageIO\n"
+      "          reads, any size (converted through a tiled MIP-mapped file, never all in memory);\n"
+      "          without --georef it covers the terrain, one texel per sample at its full size.\n"
+      "  shade   --layer NAME [--light AZ,ALT] [--shadows] [--method M] [--gpu]: a shading texture\n"
+      "          of the full-resolution terrain, one texel per DEM sample (azimuth clockwise from\n"
+      "          north, altitude above the horizon, default 315,45; lambert without shadows is the\n"
+      "          conventional GIS hillshade); --gpu renders it offscreen through OSMesa.\n"
+      "  export  --layer NAME [--level K] --out FILE.tif|FILE.png: pyramid level K (0 = full size).";
+  s.options = {
+      {"--layer", "NAME", "texture layer name", true},
+      {"--image", "FILE", "add: the image"},
+      {"--georef", "BOX", "add: minx,miny,maxx,maxy world extent of the image (metres)"},
+      {"--light", "AZ,ALT", "shade: light azimuth and altitude, degrees (default 315,45)"},
+      {"--shadows", "", "shade: cast shadows against the full-resolution terrain"},
+      {"--method", "M", "shade: lambert (default), phong, multidirectional or relative"},
+      {"--gpu", "", "shade: compute on the GPU (OSMesa offscreen)"},
+      {"--max-texture-size", "N", "add/shade: renderer texture limit, pixels (default 1024)"},
+      {"--power-of-two", "", "add/shade: texture-tree patches of power-of-two sizes"},
+      {"--level", "K", "export: pyramid level (default 0)"},
+      {"--out", "FILE", "export: output .tif or .png"},
+  };
+  return s;
+}
+
+int cmd_texture(const Args& a) {
+  const std::string verb = a.positionals()[0], path = a.positionals()[1];
+  if (verb == "add") return texture_add(a, path);
+  if (verb == "shade") return texture_shade(a, path);
+  if (verb == "export") return texture_export(a, path);
+  throw UsageError("unknown action '" + verb + "' (add, shade or export)");
+}
+
+}  // namespace terralod::cli

@@ -1,0 +1,108 @@
+// The --texture-db / --layer / --lens options shared by `terralod view` and `terralod-fly`:
+// parses the layer specs and sets up what LayeredRenderer needs to draw a terrain with the
+// texture layers stored in a block database (texture_store.hpp).
+//
+// Usage:
+//   auto setup = terralod::cli::LayerSetup::open("terrain.db", {"shade", "bands:multiply:0.8"},
+//                                                terralod::cli::parse_lens("--lens", "7000,9000,800"));
+//   setup.wait_loaded(60000);                        // tools and headless runs; a frame never waits
+//   terralod::render::LayeredRenderer r(ctx);
+//   setup.attach(r);                                 // the lens texture
+//   terralod::render::LayeredItem item{r.upload(draw_mesh), setup.bindings(r)};
+//   r.draw(camera, setup.styles(), setup.lens(), {item});
+//
+// Contract:
+//   - A spec is NAME[:OP[:WEIGHT[:lens]]]: NAME a layer stored in the database; OP one of
+//     blend (default), add, subtract, multiply; WEIGHT in [0,1] (default 1); the literal "lens"
+//     masks the layer by the highlight lens (drawn only inside it). A layer whose kind is
+//     "shading" is topographic: when it is on, the terrain is drawn in decal mode (no
+//     per-vertex lighting). Bad specs throw UsageError naming the spec.
+//   - Each distinct layer is drawn from one texture: the finest pyramid level whose sides are
+//     at most max_texture_size, covering the layer's georef. It is read from the database on a
+//     worker thread of a TextureCache (key: layer index, node = the level); until it is
+//     resident the layer has no data (drawn transparent). The same name given twice shares it.
+//   - --lens X,Y,RADIUS: world metres, RADIUS > 0; the lens covers the square of side 2 RADIUS
+//     centred on (X, Y) with the round texture of render::make_lens_texture.
+//   - Not thread-safe (one render thread); the cache's workers are internal.
+//   - Memory: each layer's chosen level, 4 bytes per texel, once in the cache and once on the GPU.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "terralod/render/layered_renderer.hpp"
+#include "terralod/render/texture_cache.hpp"
+#include "terralod/render/texture_layers.hpp"
+#include "terralod/render/texture_store.hpp"
+
+namespace terralod::cli {
+
+struct LayerSpec {
+  std::string name;
+  render::LayerOp op = render::LayerOp::Blend;
+  float weight = 1.0f;
+  bool lens = false;  ///< masked by the highlight lens
+};
+
+/// Parses NAME[:OP[:WEIGHT[:lens]]] (see the contract); UsageError on a bad spec.
+LayerSpec parse_layer_spec(const std::string& text);
+
+struct LensSpec {
+  double x = 0, y = 0, radius = 0;  ///< world metres; radius > 0
+};
+/// Parses X,Y,RADIUS given to `option`; UsageError on bad text.
+LensSpec parse_lens(const std::string& option, const std::string& text);
+
+struct LayerSetupOptions {
+  int max_texture_size = 4096;  ///< pixels per side of a layer's texture, >= 1
+  std::size_t budget_bytes = std::size_t(512) << 20;  ///< texture cache budget
+  int lens_texture_size = 128;  ///< pixels per side of the lens texture
+};
+
+class LayerSetup {
+ public:
+  /// Opens the database read-only, reads the records of the named layers (DatabaseError when
+  /// one is missing) and queues the loads of their textures.
+  static LayerSetup open(const std::string& db_path, const std::vector<std::string>& specs,
+                         std::optional<LensSpec> lens, const LayerSetupOptions& options = {});
+
+  /// The styles, one per spec (in order); toggle `enabled` freely between frames.
+  std::vector<render::LayerStyle>& styles() { return styles_; }
+  const std::vector<render::LayerStyle>& styles() const { return styles_; }
+  const std::vector<LayerSpec>& specs() const { return specs_; }
+  /// The lens (disabled when no --lens was given until enabled); move it with move_lens.
+  render::Lens& lens() { return lens_; }
+  double lens_radius() const { return lens_radius_; }
+  /// Radius (world metres, > 0) of the lens square's half side; keeps its centre.
+  void set_lens_radius(double radius);
+  void move_lens(double x, double y);
+
+  /// Sets the renderer's lens texture (once per renderer).
+  void attach(render::LayeredRenderer& renderer) const;
+  /// The bindings of this frame, one per style: the layer's texture once resident (uploaded on
+  /// first use through renderer.texture_for), texture 0 until then. Never waits.
+  std::vector<render::LayerBinding> bindings(render::LayeredRenderer& renderer);
+  /// Blocks until every enabled layer's texture is resident or failed, or timeout_ms passed;
+  /// throws std::runtime_error with the loader's message when a load failed.
+  void wait_loaded(int timeout_ms);
+  /// Texture bytes resident in the cache.
+  std::size_t resident_bytes() const { return cache_->stats().resident_bytes; }
+
+ private:
+  LayerSetup() = default;
+  std::string db_path_;
+  std::vector<LayerSpec> specs_;
+  std::vector<render::LayerStyle> styles_;
+  std::vector<int> layer_of_;                 ///< spec -> distinct layer index
+  std::vector<render::LayerRecord> records_;  ///< per distinct layer
+  std::vector<int> levels_;                   ///< chosen pyramid level per distinct layer
+  std::unique_ptr<render::TextureCache> cache_;
+  render::Lens lens_;
+  double lens_radius_ = 0;
+  int lens_texture_size_ = 128;
+};
+
+}  // namespace terralod::cli
