@@ -123,6 +123,7 @@ Terrain load_terrain(const std::string& input, int generated_size) {
       const pm::Heightfield hf = pm::generate_terrain(o);
       ProgressBar bar("build PM of the built-in terrain");
       pm::BuildOptions b;
+      b.parallel_strips = false;  // no full-resolution cut column in the view-dependent mesh
       b.progress = [&](double f) { return bar.update(f); };
       return pm::ProgressiveMesh::build(hf, b);
     }
@@ -132,6 +133,7 @@ Terrain load_terrain(const std::string& input, int generated_size) {
     const pm::Heightfield hf = terralod::blocks::read_dem(input);
     ProgressBar bar("build PM of " + input);
     pm::BuildOptions b;
+    b.parallel_strips = false;
     b.progress = [&](double f) { return bar.update(f); };
     return pm::ProgressiveMesh::build(hf, b);
   }();

@@ -76,6 +76,7 @@ pm::ProgressiveMesh build_block_pm(const pm::Heightfield& hf, SampleRect rect, p
   pm::BuildOptions opt;
   opt.metric = metric;
   opt.threads = 1;
+  opt.parallel_strips = false;  // no full-resolution cut column: blocks run in parallel instead
   return pm::ProgressiveMesh::build(block_heightfield(hf, rect), opt);
 }
 

@@ -682,7 +682,8 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
   // heightfield always gives the same PM; threads only decide how many strips run at once.
   // Two strips: this machine kind has two cores, and every cut column stays at full
   // resolution below the join error, so more cuts cost triangles at fine levels.
-  const int strips = (hf.width() - 1 >= 256 && hf.size() >= (1u << 16) && !hf.has_holes()) ? 2 : 1;
+  const int strips =
+      (options.parallel_strips && hf.width() - 1 >= 256 && hf.size() >= (1u << 16) && !hf.has_holes()) ? 2 : 1;
   const int threads = std::max(
       1, std::min(strips, options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()))));
   // With holes the union of two manifold strips can pinch at a cut vertex; those build whole.

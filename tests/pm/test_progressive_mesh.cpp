@@ -821,6 +821,39 @@ TEST(ProgressiveMesh, ParallelStripsGiveAValidDeterministicPm) {
   EXPECT_EQ(a.vsplit_count(), c.vsplit_count());
 }
 
+// Without parallel strips the whole grid is one greedy sequence: no column stays at full
+// resolution. With strips, every sample of the cut column is still a vertex at an error below
+// the strips' common error; without them only a few are (300 x 260, seed 21: the column is
+// the one between the two strips, 149 or 150; we count the densest interior column).
+TEST(ProgressiveMesh, WithoutParallelStripsNoColumnStaysAtFullResolution) {
+  pm::TerrainOptions to;
+  to.width = 300, to.height = 260, to.seed = 21, to.quantize_to_metres = true, to.relief = 600.0;
+  const pm::Heightfield hf = pm::generate_terrain(to);
+  pm::BuildOptions strips, whole;
+  whole.parallel_strips = false;
+  const pm::ProgressiveMesh a = pm::ProgressiveMesh::build(hf, strips);
+  const pm::ProgressiveMesh b = pm::ProgressiveMesh::build(hf, whole);
+  verify_pm(hf, b, "g300x260_s21 one sequence");
+  whole.threads = 1;
+  EXPECT_TRUE(pm::ProgressiveMesh::build(hf, whole) == b) << "the PM depends on the thread count";
+  // Vertices per column of the extractions at E = 2 m: the strips' cut column keeps every
+  // sample; the one-sequence PM keeps about as many there as in any other column.
+  auto per_column = [&](const pm::ProgressiveMesh& p) {
+    std::vector<int> n(std::size_t(hf.width()), 0);
+    for (std::uint32_t v : p.extract(2.0).vertices) ++n[v % std::uint32_t(hf.width())];
+    return n;
+  };
+  const std::vector<int> sa = per_column(a), sb = per_column(b);
+  const std::size_t cut = std::size_t(std::max_element(sa.begin() + 1, sa.end() - 1) - sa.begin());
+  std::vector<int> others(sb.begin() + 1, sb.end() - 1);
+  std::sort(others.begin(), others.end());
+  const int median = others[others.size() / 2];
+  std::printf("  column %zu at E = 2 m: %d of %d samples with strips, %d without (median column %d)\n", cut,
+              sa[cut], hf.height(), sb[cut], median);
+  EXPECT_EQ(sa[cut], hf.height()) << "the cut column should be at full resolution (strips in use?)";
+  EXPECT_LE(sb[cut], 2 * median);
+}
+
 // ------------------------------------------------------------------------------------------
 // Real SRTM tiles.
 
