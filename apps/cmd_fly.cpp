@@ -17,6 +17,7 @@
 #include "commands.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/terrain_session.hpp"
+#include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/mesh_io.hpp"
 
 namespace terralod::cli {
@@ -35,40 +36,10 @@ struct PathRow {
   double x, y, z, yaw, pitch, fovy;
 };
 
+// The shared PATH.csv reader (pm/camera_path.hpp): same format and errors as every tool.
 std::vector<PathRow> read_path(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open");
-  std::string line;
-  auto strip = [](std::string s) {
-    s.erase(std::remove_if(s.begin(), s.end(), [](unsigned char c) { return std::isspace(c); }), s.end());
-    return s;
-  };
-  if (!std::getline(in, line) || strip(line) != "x,y,z,yaw,pitch,fovy")
-    throw std::runtime_error(path + ": line 1: the header must be 'x,y,z,yaw,pitch,fovy'");
   std::vector<PathRow> rows;
-  for (int n = 2; std::getline(in, line); ++n) {
-    if (strip(line).empty()) continue;
-    double v[6];
-    std::size_t start = 0;
-    for (int i = 0; i < 6; ++i) {
-      const std::size_t comma = line.find(',', start);
-      if ((comma == std::string::npos) != (i == 5))
-        throw std::runtime_error(path + ": line " + std::to_string(n) + ": needs 6 comma-separated numbers");
-      const std::string item = strip(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-      char* end = nullptr;
-      errno = 0;
-      v[i] = item.empty() ? NAN : std::strtod(item.c_str(), &end);
-      if (item.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v[i]))
-        throw std::runtime_error(path + ": line " + std::to_string(n) + ": '" + item + "' is not a finite number");
-      start = comma + 1;
-    }
-    if (v[4] < -90 || v[4] > 90)
-      throw std::runtime_error(path + ": line " + std::to_string(n) + ": pitch must be in [-90, 90] degrees");
-    if (v[5] <= 0 || v[5] >= 180)
-      throw std::runtime_error(path + ": line " + std::to_string(n) + ": fovy must be in (0, 180) degrees");
-    rows.push_back({v[0], v[1], v[2], v[3], v[4], v[5]});
-  }
-  if (rows.empty()) throw std::runtime_error(path + ": no frames after the header");
+  for (const pm::Camera& c : pm::read_camera_path(path)) rows.push_back({c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg});
   return rows;
 }
 
