@@ -224,6 +224,7 @@ std::size_t encoded_node_bytes(const TreeNode& node) {
 
 std::vector<std::uint8_t> encode_tree(const ApproximationTree& tree) {
   Writer w;
+  w.out.reserve(4096);  // (also keeps GCC 12's -Wstringop-overflow false positive away in sanitizer builds)
   w.out.insert(w.out.end(), kMagic, kMagic + 8);
   w.u32(kTreeFormatVersion);
   const auto& p = tree.parameters();
