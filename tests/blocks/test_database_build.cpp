@@ -182,7 +182,9 @@ struct ChildRun {
 
 /// Runs `terralod args...`; kills it with SIGKILL after kill_after_ms when >= 0.
 ChildRun run_terralod(const std::vector<std::string>& args, double kill_after_ms = -1.0) {
-  const std::string err_path = std::string(TERRALOD_TEST_TMP) + "/database_build_stderr.txt";
+  // One file per test process: ctest runs the cases of this file in parallel processes.
+  const std::string err_path =
+      std::string(TERRALOD_TEST_TMP) + "/database_build_stderr_" + std::to_string(::getpid()) + ".txt";
   const pid_t pid = fork();
   if (pid == 0) {
     const int fd = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
