@@ -335,6 +335,9 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
           s.points.push_back({double(c), double(rr), r.f64()});
         }
         const std::uint64_t nt = r.var(r.left() / 3, "triangle count");
+        if (nt > 0 && m < 3)  // (found by fuzz_tree_decoder: indices of an empty point list)
+          r.fail("node " + std::to_string(id) + ": " + std::to_string(nt) + " triangles over " + std::to_string(m) +
+                 " points");
         s.triangles.reserve(std::size_t(nt));
         for (std::uint64_t i = 0; i < nt; ++i) {
           std::array<std::uint32_t, 3> tri{};
