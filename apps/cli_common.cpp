@@ -15,7 +15,8 @@ namespace terralod::cli {
 // Usage text
 
 std::string CommandSpec::usage() const {
-  std::string u = "usage: terralod " + name;
+  // Subcommands print "terralod NAME"; a program of its own (terralod-fly) its own name.
+  std::string u = "usage: " + (name.starts_with("terralod") ? name : "terralod " + name);
   bool optional = false;
   for (const OptionSpec& o : options) {
     if (o.required)
