@@ -49,7 +49,13 @@
 // FrameStats::bound_px reports the max over the active faces whose prism (the face extruded
 // by +-error(creator) vertically, clipped to the samples' height range) is not outside the
 // view frustum of error(creator) * K * vf / max(zmin(prism), near): a tighter number, <= tau
-// by the same argument (the prism lies in volume(creator)). Volumes are boxes by default; VolumeKind::Sphere
+// by the same argument (the prism lies in volume(creator)). update() finds that maximum without
+// evaluating every face: a float box of each prism gives an upper bound of the face's number
+// in three multiply-adds, and only faces whose upper bound exceeds the running maximum (and
+// whose box is not outside the view) are evaluated exactly; the result is bit for bit the one
+// of the full pass, bound_px(view) (tests/pm/test_selective_refinement_bound.cpp). Likewise
+// the tops and the frontier keep their collapses' packed boxes beside them, so the per-frame
+// tests stream through memory. Volumes are boxes by default; VolumeKind::Sphere
 // gives the PM paper's spheres (measured: 7.7% more triangles for the same tau,
 // tests/pm/test_selective_refinement.cpp).
 //
@@ -93,12 +99,18 @@
 // decrease (std::invalid_argument otherwise); options are checked on construction and in
 // set_options() (std::invalid_argument); changing the morph settings ends running morphs.
 // Memory: about 50 bytes per collapse (state, list positions, a packed 32-byte box and error),
-// 4 per face id, 8 per sample, 48 per active triangle, 80 per morphing vertex, and with Full
-// geomorphs two lists per sample (48 bytes) plus 4 bytes per active triangle corner.
+// 32 more per top and per frontier collapse (its box beside the list), 4 per face id, 8 per
+// sample, 76 per active triangle (48 for the exact bound, 28 for its float box and error), 80
+// per morphing vertex, and with Full geomorphs two lists per sample (48 bytes) plus 4 bytes
+// per active triangle corner.
 // Time: per update O(tops + frontier + changes) for the selection plus one streaming pass
-// over the active triangles for the reported bound; measured at 1280 x 720, tau = 1 px on a
-// 100 m/s flight: 1.9 ms median (0.7 ms of it the bound) for 44k triangles of a 513 x 513
-// terrain, 0.3 ms for 21k triangles of a 1025 x 1025 SRTM crop (one core, Release).
+// over the active triangles (16 bytes each) for the reported bound; measured at 1280 x 720,
+// tau = 1 px on a 100 m/s flight: 0.23 ms median (0.10 ms of it the bound; 1.28 and 0.56
+// before the streaming passes) for 44k triangles of a 513 x 513 terrain (one core, Release,
+// loaded machine; DISABLED_Flight513Generated in tests/pm/test_selective_refinement.cpp).
+// Each vsplit/ecol costs about 1.5x what it did before those passes (a face also moves its
+// float box, a list item its record): a cold start of the 25 N44W072 blocks at tau 0.5 px
+// (14k vsplits) takes about 14 ms instead of 9.
 #pragma once
 
 #include <array>
@@ -143,7 +155,10 @@ struct FrameStats {
   std::size_t pending_ecols = 0;       ///< of those, moving towards a collapse
   double tolerance_px = 0.0;           ///< tau used (regulated in budget mode)
   double bound_px = 0.0;   ///< guaranteed screen-space error of every in-frustum triangle, <= tolerance_px
-  double bound_m = 0.0;    ///< largest error at the samples (metres) of a triangle that bound_px counts
+  /// Largest error at the samples (metres) of an active triangle that may be in view (the box
+  /// of its prism, the triangle extruded by +-its error, is not outside the view frustum); 0
+  /// when none is. The metric bound of what is seen.
+  double bound_m = 0.0;
   double update_ms = 0.0;  ///< wall time of update(), including the bound
   double bound_ms = 0.0;   ///< of which computing bound_px and bound_m (a pass over the faces)
 };
@@ -209,24 +224,38 @@ class SelectiveRefinement {
   /// The running geomorphs (for tests, statistics and debugging views).
   std::vector<MorphState> morph_states() const;
 
-  /// Screen-space bound of the current faces for a view, as in FrameStats::bound_px.
+  /// Screen-space bound of the current faces for a view, as in FrameStats::bound_px, by the
+  /// plain pass over every face (update() gets the same number faster; this is its reference).
   double bound_px(const View& view) const;
 
  private:
+  struct Packed {  // box relative to (x0, y0, 0) rounded outwards; saturated error rounded up
+    float lo[3], hi[3];
+    float error, unused;
+  };
+  // A set of collapses with O(1) insert/erase; with boxes, each item's packed test record is
+  // kept beside it (recs, parallel to items), so a pass over the set streams through memory.
   struct IndexSet {
     std::vector<std::uint32_t> items, pos;
+    std::vector<Packed> recs;  // empty without boxes (spheres)
     bool has(std::uint32_t c) const { return pos[c] != CollapseDag::kNone; }
-    void insert(std::uint32_t c) {
+    /// packed: the records of all collapses (packed_), or empty.
+    void insert(std::uint32_t c, const std::vector<Packed>& packed) {
       if (has(c)) return;
       pos[c] = std::uint32_t(items.size());
       items.push_back(c);
+      if (!packed.empty()) recs.push_back(packed[c]);
     }
     void erase(std::uint32_t c) {
       if (!has(c)) return;
-      const std::uint32_t last = items.back();
-      items[pos[c]] = last;
-      pos[last] = pos[c];
+      const std::uint32_t last = items.back(), p = pos[c];
+      items[p] = last;
+      pos[last] = p;
       items.pop_back();
+      if (!recs.empty()) {
+        recs[p] = recs.back();
+        recs.pop_back();
+      }
       pos[c] = CollapseDag::kNone;
     }
   };
@@ -242,6 +271,7 @@ class SelectiveRefinement {
   struct Frame;  // per-update view constants
 
   int classify(Frame& fr, std::uint32_t c) const;  // 0 refine, 1 ok by error, 2 ok: outside
+  static int classify_box(const Frame& fr, const Packed& t);  // the same for a packed box
   void perform(std::uint32_t c);
   void undo(std::uint32_t c, bool morph);
   void add_face(std::uint32_t f);
@@ -273,15 +303,13 @@ class SelectiveRefinement {
     double error;  // its creator's error, metres (0: full resolution)
   };
   double face_bound_px(const Frame& fr, const FaceRec& r) const;
+  double filtered_bound_px(Frame& fr, double& bound_m);  // the bound pass of update()
 
   const CollapseDag* dag_;
   RefinementOptions opt_;
-  struct Packed {  // box relative to (x0, y0, 0) rounded outwards; saturated error rounded up
-    float lo[3], hi[3];
-    float error, unused;
-  };
   std::vector<Packed> packed_;    // boxes only
   double zlo_ = 0.0, zhi_ = 0.0;  // height range of the samples
+  double coord_scale_ = 0.0;      // bound on |x| + |y| + |z| of the fbox_ coordinates, metres
   std::vector<std::uint8_t> in_s_;
   std::vector<std::uint32_t> preds_out_;  // predecessors not in S
   std::vector<std::uint32_t> succs_in_;   // successors in S
@@ -289,12 +317,24 @@ class SelectiveRefinement {
   std::size_t performed_ = 0;
   std::vector<std::uint32_t> active_, face_pos_;
   std::vector<FaceRec> face_rec_;
+  // Also parallel to active_ (structure of arrays): the box of each face's clipped prism
+  // relative to (x0, y0, 0), rounded outwards to floats, and its error rounded up. They give an
+  // upper bound of face_bound_px in a few operations, so the bound pass evaluates exactly only
+  // the faces that could raise the maximum.
+  std::vector<float> fbox_[6];  // x lo, x hi, y lo, y hi, z lo, z hi
+  std::vector<float> ferr_;
+  std::uint32_t bound_face_ = CollapseDag::kNone;  // the face that attained the last bound
+  bool defer_boxes_ = false;  // true while the constructor descends to the base mesh
+  void push_face_box(const FaceRec& r);
+  const std::vector<Packed>& list_records() const;
   std::vector<Morph> morphs_;
   std::vector<std::uint32_t> morph_of_;             // per sample: index into morphs_, or kNone
   std::vector<std::vector<std::uint32_t>> vfaces_;  // per sample: active faces (Full mode only)
   std::vector<std::vector<std::uint32_t>> riders_;  // per sample: vertices riding on it (Full)
   mutable std::vector<std::uint32_t> cluster_;      // scratch of can_slide
+  void prefilter(Frame& fr, const IndexSet& set, bool want_ok);  // loads work_ (see update)
   std::vector<std::uint32_t> work_;
+  std::vector<std::int8_t> work_verdict_;  // parallel to work_: the item's verdict, -1 untested
   std::vector<std::uint32_t> appeared_;               // vsplits of this update waiting for their morph
   std::vector<std::uint8_t> undone_now_;              // per collapse: undone in this update's refine pass
   mutable std::vector<std::uint32_t> scratch_index_;  // per sample, for mesh output
