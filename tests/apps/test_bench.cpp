@@ -2,8 +2,6 @@
 // and checks the CSV (every column of every strategy x tau filled, the guarantee measured by the
 // independent checker held, hand-derived counts), the two PNG plots and the summary.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <OpenImageIO/imageio.h>
 
@@ -18,47 +16,20 @@
 #include <string>
 #include <vector>
 
+#include "run_command.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path tmp_dir() {
-  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("bench-" + std::to_string(getpid()));
-  fs::create_directories(d);
-  return d;
-}
+using CliResult = terralod::test::CommandResult;
+using terralod::test::slurp;
 
-class RemoveTmpDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(tmp_dir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir = ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-struct CliResult {
-  int status = -1;
-  std::string out, err;
-};
+/// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("bench"); }
 
 CliResult terralod(const std::string& args) {
-  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
-  const std::string cmd = std::string("'") + TERRALOD_CLI + "' " + args + " >'" + out.string() + "' 2>'" +
-                          err.string() + "' </dev/null";
-  const int raw = std::system(cmd.c_str());
-  CliResult r;
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
+  return terralod::test::run_command(terralod::test::quote(TERRALOD_CLI) + " " + args);
 }
 
 std::vector<std::string> split(const std::string& s, char sep) {

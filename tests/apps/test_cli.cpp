@@ -1,8 +1,6 @@
 // End-to-end tests of the terralod command-line tool: runs the built binary on a small Esri
 // ASCII grid it writes itself and checks exit codes, messages, JSON fields and output meshes.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -14,6 +12,7 @@
 #include <vector>
 
 #include "mesh_checker.hpp"
+#include "run_command.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
@@ -24,62 +23,19 @@ namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 
 // ---------------------------------------------------------------------------------------------
-// Running the tool
+// Running the tool (tests/support/run_command.hpp)
 
-struct CliResult {
-  int status = -1;  // exit code, or -1 when it did not exit normally
-  std::string out, err;
-};
+using CliResult = terralod::test::CommandResult;
+using terralod::test::lines_of;
+using terralod::test::quote;
+using terralod::test::slurp;
 
 /// A folder of this process's own (ctest may run the tests of this file in parallel
-/// processes), removed when the process's tests end.
-fs::path tmp_dir() {
-  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("cli-" + std::to_string(getpid()));
-  fs::create_directories(d);
-  return d;
-}
-
-class RemoveTmpDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(tmp_dir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir = ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
-
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+/// processes), removed when the process ends.
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cli"); }
 
 /// Runs `terralod <args>` (args already shell-quoted where needed), capturing both streams.
-CliResult terralod(const std::string& args) {
-  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
-  const std::string cmd =
-      quote(TERRALOD_CLI) + " " + args + " >" + quote(out.string()) + " 2>" + quote(err.string()) + " </dev/null";
-  const int raw = std::system(cmd.c_str());
-  CliResult r;
-  r.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
-}
-
-std::vector<std::string> lines_of(const std::string& s) {
-  std::vector<std::string> v;
-  std::istringstream in(s);
-  for (std::string l; std::getline(in, l);) v.push_back(l);
-  return v;
-}
+CliResult terralod(const std::string& args) { return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args); }
 
 /// The number after `"key": ` (first occurrence) in a JSON text; NaN when absent.
 double json_number(const std::string& json, const std::string& key) {

@@ -3,8 +3,6 @@
 // finest hybrid level and the TIN are drawn, far away only grid nodes; the dumped mesh is
 // consistently oriented with every directed edge used once.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <array>
 #include <cmath>
@@ -16,6 +14,7 @@
 #include <sstream>
 #include <string>
 
+#include "run_command.hpp"
 #include "terralod/pm/mesh_io.hpp"
 
 namespace {
@@ -23,41 +22,13 @@ namespace {
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 
-fs::path tmp_dir() {
-  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("cmd-hybrid-view-" + std::to_string(getpid()));
-  fs::create_directories(d);
-  return d;
-}
+/// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cmd-hybrid-view"); }
 
-class RemoveTmpDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(tmp_dir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir =
-    ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
-
-struct CliResult {
-  int status = -1;
-  std::string out, err;
-};
+using CliResult = terralod::test::CommandResult;
 
 CliResult run_cli(const std::string& args) {
-  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
-  const std::string cmd =
-      std::string(TERRALOD_CLI) + " " + args + " >" + out.string() + " 2>" + err.string() + " </dev/null";
-  const int raw = std::system(cmd.c_str());
-  CliResult r;
-  r.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  for (auto [path, text] : {std::pair{out, &r.out}, {err, &r.err}}) {
-    std::ifstream f(path);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    *text = ss.str();
-  }
-  return r;
+  return terralod::test::run_command(terralod::test::quote(TERRALOD_CLI) + " " + args);
 }
 
 // 65 x 65 samples, cellsize 10, lower-left corner (1000, 2000): x = 1005 + 10 col,

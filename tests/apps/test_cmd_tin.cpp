@@ -1,8 +1,6 @@
 // End-to-end tests of `terralod tin`: runs the built binary on a small Esri ASCII grid and a
 // polygon CSV it writes itself, and checks exit codes, messages and the written TIN.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <array>
 #include <cmath>
@@ -14,6 +12,7 @@
 #include <sstream>
 #include <string>
 
+#include "run_command.hpp"
 #include "terralod/pm/mesh_io.hpp"
 
 namespace {
@@ -21,50 +20,14 @@ namespace {
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 
-fs::path tmp_dir() {
-  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("cmd-tin-" + std::to_string(getpid()));
-  fs::create_directories(d);
-  return d;
-}
+using CliResult = terralod::test::CommandResult;
+using terralod::test::quote;
+using terralod::test::slurp;
 
-class RemoveTmpDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(tmp_dir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir = ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
+/// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cmd-tin"); }
 
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-struct CliResult {
-  int status = -1;
-  std::string out, err;
-};
-
-CliResult terralod(const std::string& args) {
-  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
-  const std::string cmd =
-      quote(TERRALOD_CLI) + " " + args + " >" + quote(out.string()) + " 2>" + quote(err.string()) + " </dev/null";
-  const int raw = std::system(cmd.c_str());
-  CliResult r;
-  r.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
-}
+CliResult terralod(const std::string& args) { return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args); }
 
 // A 21 x 17 Esri ASCII grid, cellsize 10, lower-left corner (1000, 2000): sample centres are
 //   x = 1005 + 10 col,   y = 2005 + 10 (16 - row) = 2165 - 10 row.

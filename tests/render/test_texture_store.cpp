@@ -2,14 +2,14 @@
 // storing a layer (exact level 0, patch tiles equal to the pyramid's sub-images, metadata),
 // on-demand loading from the database, and `terralod texture add|shade|export` end to end.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
+#include "run_command.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/image.hpp"
@@ -23,19 +23,8 @@ namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
 using namespace terralod::render;
 
-fs::path tmp_dir() {
-  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("texture-store-" + std::to_string(getpid()));
-  fs::create_directories(d);
-  return d;
-}
-class RemoveTmpDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(tmp_dir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir = ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
+/// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("texture-store"); }
 
 RgbaImage pattern(int w, int h) {
   RgbaImage img(w, h);
@@ -153,20 +142,15 @@ TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
 }
 
 #ifdef TERRALOD_CLI
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
+using terralod::test::quote;
+
+/// Runs `terralod <args>` headless; `out` gets stdout and stderr interleaved.
 int run(const std::string& args, std::string* out = nullptr) {
-  const fs::path o = tmp_dir() / "cli.txt";
-  const int raw = std::system(("env -u DISPLAY " + quote(TERRALOD_CLI) + " " + args + " >" + quote(o.string()) + " 2>&1").c_str());
-  std::ifstream f(o);
-  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (out) *out = text;
-  const int status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  if (status != 0) std::fprintf(stderr, "terralod %s:\n%s\n", args.c_str(), text.c_str());
-  return status;
+  const terralod::test::CommandResult r =
+      terralod::test::run_command(quote(TERRALOD_CLI) + " " + args, {.merge_stderr = true, .no_display = true});
+  if (out) *out = r.err;
+  if (r.status != 0) std::fprintf(stderr, "terralod %s:\n%s\n", args.c_str(), r.err.c_str());
+  return r.status;
 }
 
 TEST(TextureCli, ShadeAddAndExportEndToEnd) {

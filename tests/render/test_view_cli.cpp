@@ -5,8 +5,6 @@
 // screen-space error <= bound_px); for --uniform the statistics against an independent
 // recomputation of the conservative uniform error; and bad command lines.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -23,6 +21,7 @@
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/image.hpp"
 #include "mesh_checker.hpp"
+#include "run_command.hpp"
 #include "screen_error_checker.hpp"
 
 namespace {
@@ -31,51 +30,16 @@ namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 namespace render = terralod::render;
 
-fs::path tmp_dir() {
-  static const fs::path d = fs::path(TERRALOD_TEST_TMP) / ("view-cli-" + std::to_string(getpid()));
-  fs::create_directories(d);
-  return d;
-}
+using CliResult = terralod::test::CommandResult;
+using terralod::test::quote;
+using terralod::test::slurp;
 
-class RemoveTmpDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(tmp_dir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveTmpDir =
-    ::testing::AddGlobalTestEnvironment(new RemoveTmpDir);
-
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-struct CliResult {
-  int status = -1;
-  std::string out, err;
-};
+/// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("view-cli"); }
 
 /// Runs `terralod <args>` (already quoted) with no X display, capturing both streams.
 CliResult terralod(const std::string& args) {
-  const fs::path out = tmp_dir() / "stdout.txt", err = tmp_dir() / "stderr.txt";
-  const std::string cmd = "env -u DISPLAY -u WAYLAND_DISPLAY " + quote(TERRALOD_CLI) + " " + args + " >" +
-                          quote(out.string()) + " 2>" + quote(err.string()) + " </dev/null";
-  const int raw = std::system(cmd.c_str());
-  CliResult r;
-  r.status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
+  return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args, {.no_display = true});
 }
 
 /// The number after "key": in a JSON text (NaN when absent).
