@@ -18,6 +18,7 @@
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "layer_options.hpp"
+#include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_reader.hpp"
@@ -54,6 +55,12 @@ using terralod::cli::ms_since;
 using terralod::cli::OptionSpec;
 using terralod::cli::strf;
 using terralod::cli::UsageError;
+using terralod::cli::build_stage;
+using terralod::cli::is_pm_file;
+using terralod::cli::lower_extension;
+using terralod::cli::metric_name;
+using terralod::cli::read_pm_stage;
+using terralod::cli::read_stage;
 using Clock = std::chrono::steady_clock;
 
 // ---------------------------------------------------------------------------------------------
@@ -101,16 +108,6 @@ pm::BuildOptions build_options_from(const Args& a) {
   return o;
 }
 
-const char* metric_name(pm::ErrorMetric m) { return m == pm::ErrorMetric::Samples ? "samples" : "continuous"; }
-
-std::string lower_extension(const std::string& path) {
-  std::string e = fs::path(path).extension().string();
-  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return e;
-}
-
-bool is_pm_file(const std::string& path) { return lower_extension(path) == ".pm"; }
-
 /// Fails early (before a long build) when the output's folder does not exist.
 void check_output_folder(const std::string& path) {
   const fs::path parent = fs::path(path).parent_path();
@@ -124,45 +121,8 @@ void line(const std::string& s) {
   std::fflush(stdout);
 }
 
-// ---------------------------------------------------------------------------------------------
-// Stages shared by the subcommands (each prints its one line)
-
-pm::Heightfield read_stage(const std::string& path, const blocks::DemOptions& options) {
-  const auto t = Clock::now();
-  pm::Heightfield hf = blocks::read_dem(path, options);
-  const double ms = ms_since(t);
-  std::string voids;
-  if (hf.voids.voids == hf.voids.filled)
-    voids = strf("%zu voids filled", hf.voids.filled);
-  else
-    voids = strf("%zu voids (%zu filled, %zu kept as holes)", hf.voids.voids, hf.voids.filled,
-                 hf.voids.voids - hf.voids.filled);
-  line(strf("read  %s: %d x %d samples, %s, %s", path.c_str(), hf.width(), hf.height(), voids.c_str(),
-            format_duration(ms).c_str()));
-  return hf;
-}
-
-pm::ProgressiveMesh build_stage(const pm::Heightfield& hf, pm::BuildOptions options) {
-  terralod::cli::ProgressBar bar("build");
-  options.progress = [&bar](double f) { return bar.update(f); };
-  const auto t = Clock::now();
-  pm::ProgressiveMesh mesh = pm::ProgressiveMesh::build(hf, options);
-  const double ms = ms_since(t);
-  bar.finish();
-  line(strf("build %zu vertices -> %zu base vertices, %zu vsplits, max error %.1f m, %s", mesh.full_vertex_count(),
-            mesh.base_vertex_count(), mesh.vsplit_count(), mesh.max_error(), format_duration(ms).c_str()));
-  return mesh;
-}
-
-pm::ProgressiveMesh read_pm_stage(const std::string& path) {
-  const auto t = Clock::now();
-  pm::ProgressiveMesh mesh = pm::read_pm(path);
-  const double ms = ms_since(t);
-  line(strf("read  %s: %d x %d samples, %zu vertices, %zu vsplits, metric %s, %s", path.c_str(),
-            mesh.heightfield().width(), mesh.heightfield().height(), mesh.full_vertex_count(), mesh.vsplit_count(),
-            metric_name(mesh.metric()), format_duration(ms).c_str()));
-  return mesh;
-}
+// The stages shared by the subcommands (read_stage, build_stage, read_pm_stage: one line each)
+// are in terrain_input.hpp, shared with terralod-fly.
 
 std::pair<double, double> height_range(const pm::Heightfield& hf) {
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
@@ -389,13 +349,11 @@ CommandSpec demo_spec() {
 }
 
 int cmd_demo(const Args& a) {
-  pm::TerrainOptions topt;
-  topt.width = topt.height = int(a.get_int("--size", 513, 2, 8193));
-  topt.seed = std::uint64_t(a.get_int("--seed", 1, 0, std::numeric_limits<long long>::max()));
   // A DEM-like terrain: 30 m spacing, 1/16 m vertical resolution, relief that fades with
   // scale as real landscapes do (the library's default generator is rougher, for tests).
-  topt.roughness = 0.42;
-  topt.height_quantum = 1.0 / 16.0;
+  const pm::TerrainOptions topt = terralod::cli::demo_terrain_options(
+      int(a.get_int("--size", terralod::cli::kDemoTerrainSize, 2, 8193)),
+      std::uint64_t(a.get_int("--seed", 1, 0, std::numeric_limits<long long>::max())));
   pm::BuildOptions bopt;
   bopt.threads = int(a.get_int("--threads", 0, 0, 1024));
 

@@ -2,11 +2,12 @@
 // and a heads-up display, or, with --headless, the same frames rendered through OSMesa along a
 // scripted camera path, written as PNG frames plus a per-frame statistics CSV.
 //
-// The terrain: a DEM (built into a progressive mesh in memory, with a progress bar), a .pm
-// file, or, given nothing, the built-in generated terrain of `terralod demo`. Every frame runs
-// the view-dependent selection (pm::SelectiveRefinement) at the tolerance tau with geomorphs,
-// uploads the displayed mesh and draws it. No terrain algorithm lives here: the app only maps
-// input to a camera and library results to pixels and text.
+// The terrain: a block database streamed through blocks::TerrainSession (active region,
+// background loading with prefetch, per-block selective refinement, watertight seams,
+// geomorphs), or a single progressive mesh run through pm::SelectiveRefinement: a DEM (built
+// in memory, with a progress bar), a .pm file, or, given nothing, the built-in generated
+// terrain of `terralod demo`. No terrain algorithm lives here: the app only maps input to a
+// camera and library results to pixels and text.
 #include <GLFW/glfw3.h>
 
 #include <algorithm>
@@ -14,22 +15,27 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <memory>
 #include <numbers>
 #include <optional>
+#include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cli_common.hpp"
 #include "layer_options.hpp"
-#include "terralod/blocks/dem_reader.hpp"
+#include "terrain_input.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/terrain_session.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/collapse_dag.hpp"
+#include "terralod/pm/height_query.hpp"
 #include "terralod/pm/mesh_io.hpp"
-#include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -46,6 +52,7 @@ namespace {
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 namespace rd = terralod::render;
+namespace tb = terralod::blocks;
 using namespace terralod::cli;
 using Clock = std::chrono::steady_clock;
 
@@ -54,140 +61,442 @@ CommandSpec fly_spec() {
   s.name = "terralod-fly";
   s.summary = "fly over a terrain with view-dependent level of detail";
   s.description =
-      "Opens a window and flies over the terrain: a DEM (built into a progressive mesh in\n"
-      "memory), a .pm file, or, given no --input, the built-in generated terrain. Every frame\n"
-      "selects the mesh whose screen-space error is at most --tau pixels (guaranteed), with\n"
-      "geomorphs, and draws it.\n\n"
+      "Opens a window and flies over the terrain: a block database (--db, from 'terralod build',\n"
+      "streamed block by block: only the blocks around the camera are in memory, read by a\n"
+      "background thread, drawn as two-triangle stand-ins until they arrive), a DEM (built into a\n"
+      "progressive mesh in memory), a .pm file, or, given neither, the built-in generated terrain.\n"
+      "Every frame selects the mesh whose screen-space error is at most --tau pixels (guaranteed),\n"
+      "with geomorphs, and draws it.\n\n"
       "Controls: hold the left mouse button and move the mouse off the window's centre to steer\n"
       "(the farther, the faster the turn); W/S throttle up/down; R/F climb/descend; arrow keys\n"
       "turn and pitch; T terrain following (never below --clearance over the ground); G geomorphs\n"
       "on/off; X wireframe; L freeze the level of detail (fly around it to inspect it from\n"
-      "outside); B triangle-budget mode (holds --budget triangles by regulating tau); [ and ]\n"
-      "tau down/up; C start/stop recording the flight to --record; P screenshot; Esc quit.\n"
-      "Texture layers (--texture-db with --layer, as in 'terralod view'): keys 1..9 switch layer\n"
-      "1..9 on/off; H switches the highlight lens, which follows the ground point at the screen's\n"
-      "centre, or under the mouse while the right button is held (X shows the untextured wireframe).\n"
-      "The heads-up display shows frames per second, tau, triangles, nodes selected, blocks\n"
-      "resident/loading, texture memory and the guaranteed bound.\n\n"
+      "outside); B triangle-budget mode (holds --budget triangles by regulating tau; with --db\n"
+      "each inner block gets its share); [ and ] tau down/up; C start/stop recording the flight\n"
+      "to --record; P screenshot; Esc quit. With --db, G, B, [ and ] restart the streaming\n"
+      "session with the new settings (the blocks are read again).\n"
+      "Texture layers (--layer NAME, from --texture-db, which defaults to --db): keys 1..9 switch\n"
+      "layer 1..9 on/off; H switches the highlight lens, which follows the ground point at the\n"
+      "screen's centre, or under the mouse while the right button is held (X shows the untextured\n"
+      "wireframe).\n"
+      "The heads-up display shows frames per second, tau, triangles, nodes selected (blocks drawn:\n"
+      "refined, stand-ins, outer ring), blocks resident/loading, prefetch misses, bytes read,\n"
+      "texture memory and the guaranteed bound.\n\n"
       "--headless renders --frames frames of --path through OSMesa (no display needed) and\n"
       "writes DIR/frame_NNNNN.png, DIR/frames.csv (camera, tau, triangles, update time, bound,\n"
-      "draw time, nodes, blocks, loads) and, with --dump-meshes, DIR/frame_NNNNN.ply (the drawn\n"
-      "mesh, binary little-endian, double x y z in the world frame). Frame k is at time k/60 s,\n"
-      "so the same path gives the same statistics (apart from times) and identical images.\n"
+      "draw time, nodes, blocks, loads; see below) and, with --dump-meshes, DIR/frame_NNNNN.ply\n"
+      "(the drawn mesh, binary little-endian, double x y z in the world frame). Frame k is at time\n"
+      "k/60 s.\n"
+      "headless: every frame waits for its loads, so runs are reproducible; the window never waits.\n"
+      "The same path gives the same statistics (apart from times) and identical images.\n"
+      "frames.csv columns: frame, x, y, z, yaw, pitch, fovy, tau_px, triangles, vertices,\n"
+      "update_ms, draw_ms, bound_px, vsplits, ecols, morphing, nodes_selected, blocks_resident,\n"
+      "blocks_loading, texture_bytes, blocks_evicted, prefetch_misses (cumulative), bytes_read\n"
+      "(cumulative), upload_ms (the drawn mesh converted and sent to the GPU), wait_ms (headless:\n"
+      "the wait for loads), update_cpu_ms (the update's thread CPU time). With --db,\n"
+      "nodes_selected counts the blocks drawn and blocks_loading the blocks that arrived while\n"
+      "the frame waited (in the window: queued or being read); without --db the block columns are\n"
+      "1, 1, 0 and empty.\n"
       "PATH.csv: a header x,y,z,yaw,pitch,fovy and one row per frame (conventions of\n"
       "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).";
-  s.options = {{"--input", "FILE", "a DEM or a .pm file (default: the built-in generated terrain)"},
-               {"--terrain-size", "N", "samples per side of the built-in terrain (default 513, 2..8193)"},
-               {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
-               {"--morph", "SECONDS", "geomorph time (>= 0, default 0.3; 0 = off)"},
-               {"--budget", "TRIANGLES", "triangle target of the budget mode (default 50000)"},
-               {"--size", "WxH", "window or image size (default 1280x720)"},
-               {"--clearance", "METRES", "terrain-following height over the ground (default 30)"},
-               {"--record", "PATH.csv", "where C writes the recorded flight (default flight.csv)"},
-               {"--replay", "PATH.csv", "window mode: fly this path instead of the controls"},
-               {"--frames", "N", "frames to run (headless: default the whole path; window: until closed)"},
-               {"--screenshot", "FILE.png", "window mode: write the last frame here on exit"},
-               {"--headless", "", "render through OSMesa along --path, no window"},
-               {"--path", "PATH.csv", "headless: the scripted camera path (default: a built-in circular flight)"},
-               {"--out", "DIR", "headless: output folder (created; default fly_out)"},
-               {"--dump-meshes", "", "headless: also write each frame's drawn mesh as PLY"},
-               {"--texture-db", "FILE.db", "block database holding the texture layers of --layer"},
-               {"--layer", "NAME[:OP[:W[:lens]]]",
-                "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
-                /*repeatable=*/true},
-               {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"}};
+  s.options = {
+      {"--db", "FILE.db", "block database from 'terralod build' (streamed; excludes --input)"},
+      {"--rings", "P", "--db: rings of two-triangle blocks around the inner blocks (default 1, 0..64)"},
+      {"--theta", "DEGREES", "--db: minimum visible angle of b = a cot(theta), (0, 90) (default 20)"},
+      {"--input", "FILE", "a DEM or a .pm file (default: the built-in generated terrain)"},
+      {"--terrain-size", "N", "samples per side of the built-in terrain (default 513, 2..8193)"},
+      {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
+      {"--morph", "SECONDS", "geomorph time (>= 0, default 0.3; 0 = off)"},
+      {"--budget", "TRIANGLES", "triangle target of the budget mode (default 50000)"},
+      {"--size", "WxH", "window or image size (default 1280x720)"},
+      {"--clearance", "METRES", "terrain-following height over the ground (default 30)"},
+      {"--record", "PATH.csv", "where C writes the recorded flight (default flight.csv)"},
+      {"--replay", "PATH.csv", "window mode: fly this path instead of the controls"},
+      {"--frames", "N", "frames to run (headless: default the whole path; window: until closed)"},
+      {"--screenshot", "FILE.png", "window mode: write the last frame here on exit"},
+      {"--headless", "", "render through OSMesa along --path, no window"},
+      {"--path", "PATH.csv", "headless: the scripted camera path (default: a built-in circular flight)"},
+      {"--out", "DIR", "headless: output folder (created; default fly_out)"},
+      {"--dump-meshes", "", "headless: also write each frame's drawn mesh as PLY"},
+      {"--wireframe", "", "draw the triangle edges over the shading (the window's X toggles it)"},
+      {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
+      {"--layer", "NAME[:OP[:W[:lens]]]",
+       "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
+       /*repeatable=*/true},
+      {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"}};
   return s;
 }
 
 // ---------------------------------------------------------------------------------------------
-// Terrain
+// Terrains: what the frame loop needs from a single PM or a streamed block database.
 
-struct Terrain {
-  pm::ProgressiveMesh pm;
-  std::unique_ptr<pm::CollapseDag> dag;
-  std::vector<float> normals;  // per sample, world frame
+// The terrain's grid and height range; the drawn mesh's vertices are relative to `origin`.
+struct Extent {
+  pm::GridTransform transform;
+  int width = 0, height = 0;  // samples
   double zmin = 0, zmax = 0;
-  glm::dvec3 origin{0.0};
-  std::array<double, 4> inverse{};  // (x, y) -> (col, row) linear part
+  glm::dvec3 origin{0.0};  // grid centre at mid height
+  std::string name;
+
+  double side_x() const { return transform.spacing_x() * (width - 1); }
+  double side_y() const { return transform.spacing_y() * (height - 1); }
+  std::pair<double, double> centre() const {
+    return transform.to_world((width - 1) / 2.0, (height - 1) / 2.0);
+  }
 };
 
-Terrain load_terrain(const std::string& input, int generated_size) {
-  auto t0 = Clock::now();
-  pm::ProgressiveMesh mesh = [&] {
-    if (input.empty()) {
-      pm::TerrainOptions o;  // the built-in terrain of `terralod demo`
-      o.width = o.height = generated_size;
-      o.seed = 1;
-      o.roughness = 0.42;
-      o.height_quantum = 1.0 / 16.0;
-      const pm::Heightfield hf = pm::generate_terrain(o);
-      ProgressBar bar("build PM of the built-in terrain");
-      pm::BuildOptions b;
-      b.parallel_strips = false;  // no full-resolution cut column in the view-dependent mesh
-      b.progress = [&](double f) { return bar.update(f); };
-      return pm::ProgressiveMesh::build(hf, b);
-    }
-    std::string ext = fs::path(input).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    if (ext == ".pm") return pm::read_pm(input);
-    const pm::Heightfield hf = terralod::blocks::read_dem(input);
-    ProgressBar bar("build PM of " + input);
-    pm::BuildOptions b;
-    b.parallel_strips = false;
-    b.progress = [&](double f) { return bar.update(f); };
-    return pm::ProgressiveMesh::build(hf, b);
-  }();
-  Terrain t{std::move(mesh), nullptr, {}, 0, 0, {}, {}};
-  t.dag = std::make_unique<pm::CollapseDag>(t.pm);
-  const pm::Heightfield& hf = t.pm.heightfield();
-  t.zmin = std::numeric_limits<double>::infinity(), t.zmax = -t.zmin;
-  for (std::size_t i = 0; i < hf.size(); ++i)
-    if (hf.valid(i)) t.zmin = std::min(t.zmin, hf[i]), t.zmax = std::max(t.zmax, hf[i]);
-  t.normals.resize(hf.size() * 3);
-  for (int r = 0; r < hf.height(); ++r)
-    for (int c = 0; c < hf.width(); ++c) {
-      const glm::dvec3 n = rd::heightfield_normal(hf, c, r);
-      float* p = &t.normals[(std::size_t(r) * hf.width() + c) * 3];
-      p[0] = float(n.x), p[1] = float(n.y), p[2] = float(n.z);
-    }
-  const auto [cx, cy] = hf.transform.to_world((hf.width() - 1) / 2.0, (hf.height() - 1) / 2.0);
-  t.origin = {cx, cy, 0.5 * (t.zmin + t.zmax)};
-  const pm::GridTransform& g = hf.transform;
-  const double det = g.determinant();
-  t.inverse = {g.yr / det, -g.xr / det, -g.yc / det, g.xc / det};
-  std::printf("terrain: %s, %d x %d samples, %zu vsplits, heights %.1f..%.1f m, ready in %s\n",
-              hf.source.c_str(), hf.width(), hf.height(), t.pm.vsplit_count(), t.zmin, t.zmax,
-              format_duration(ms_since(t0)).c_str());
-  return t;
+Extent make_extent(const pm::GridTransform& t, int width, int height, double zmin, double zmax,
+                   std::string name) {
+  Extent e{t, width, height, zmin, zmax, {}, std::move(name)};
+  const auto [cx, cy] = e.centre();
+  e.origin = {cx, cy, 0.5 * (zmin + zmax)};
+  return e;
 }
 
-// Bilinear ground height under world (x, y), clamped to the grid.
-double ground(const Terrain& t, double x, double y) {
-  const pm::Heightfield& hf = t.pm.heightfield();
-  const double dx = x - hf.transform.x0, dy = y - hf.transform.y0;
-  const double c = std::clamp(t.inverse[0] * dx + t.inverse[1] * dy, 0.0, double(hf.width() - 1));
-  const double r = std::clamp(t.inverse[2] * dx + t.inverse[3] * dy, 0.0, double(hf.height() - 1));
-  const int c0 = std::min(int(c), hf.width() - 2 < 0 ? 0 : hf.width() - 2);
-  const int r0 = std::min(int(r), hf.height() - 2 < 0 ? 0 : hf.height() - 2);
-  const int c1 = std::min(c0 + 1, hf.width() - 1), r1 = std::min(r0 + 1, hf.height() - 1);
-  const double fc = c - c0, fr = r - r0;
-  return (1 - fr) * ((1 - fc) * hf.at(c0, r0) + fc * hf.at(c1, r0)) + fr * ((1 - fc) * hf.at(c0, r1) + fc * hf.at(c1, r1));
-}
-
-// ---------------------------------------------------------------------------------------------
-// One frame of the pipeline: selection, geomorphs, upload, draw.
+// Block streaming counters of a frame (--db only).
+struct BlockRecord {
+  std::size_t nodes = 0, refined = 0, stand_ins = 0, ring = 0;  // blocks drawn, by kind
+  std::size_t resident = 0, loading = 0, evicted = 0, prefetch_misses = 0;
+  std::uint64_t bytes_read = 0;
+  int n = 0;
+};
 
 struct FrameRecord {
   pm::Camera camera;
-  double tau = 0, bound_px = 0, update_ms = 0, draw_ms = 0;
+  double tau = 0, bound_px = 0, update_ms = 0, draw_ms = 0, upload_ms = 0, wait_ms = 0;
+  double update_cpu_ms = 0;  // the update's thread CPU time
   std::size_t triangles = 0, vertices = 0, vsplits = 0, ecols = 0, morphing = 0;
-  std::size_t texture_bytes = 0;  // resident in the texture cache
+  std::size_t texture_bytes = 0;      // resident in the texture cache
+  std::optional<BlockRecord> blocks;  // --db
 };
+
+// The level-of-detail side of a frame: one selection update and the mesh it draws.
+class LodSource {
+ public:
+  virtual ~LodSource() = default;
+  virtual const Extent& extent() const = 0;
+  // Height of the terrain under world (x, y), metres (clamped to the terrain).
+  virtual double ground(double x, double y) const = 0;
+  // A height at or above the terrain under world (x, y) known without loading anything (the
+  // built-in flight's reference: it never goes underground).
+  virtual double ceiling(double x, double y) const = 0;
+  // Runs this frame's selection at time_s; fills r's level-of-detail fields; rewrites `mesh`
+  // (origin = extent().origin, CCW from above) and returns true when the drawn mesh changed.
+  // wait: finish the loads this frame asks for before returning (headless determinism).
+  // r.upload_ms: the time spent making `mesh` (the caller adds the GPU upload).
+  virtual bool update(const pm::Camera& c, double time_s, bool wait, FrameRecord& r, rd::DrawMesh& mesh) = 0;
+  virtual pm::RefinementOptions options() const = 0;
+  virtual void set_options(const pm::RefinementOptions& o) = 0;
+  // Triangle target of the budget mode for a whole-frame budget (RefinementOptions::target_triangles).
+  virtual std::size_t budget_share(std::size_t budget) const = 0;
+};
+
+// CPU time of the calling thread, milliseconds (the update's own cost on a loaded machine).
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+// Bitwise equality of two arrays of plain values.
+template <class T>
+bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+// Bilinear ground of a heightfield, the terrain's low point where it has only holes.
+double ground_of(const pm::Heightfield& hf, double x, double y, double fallback) {
+  const double z = pm::bilinear_height(hf, x, y);
+  return std::isfinite(z) ? z : fallback;
+}
+
+// One progressive mesh of the whole terrain, refined by pm::SelectiveRefinement.
+class PmSource final : public LodSource {
+ public:
+  PmSource(pm::ProgressiveMesh mesh, const pm::RefinementOptions& o) : pm_(std::move(mesh)) {
+    dag_ = std::make_unique<pm::CollapseDag>(pm_);
+    sel_ = std::make_unique<pm::SelectiveRefinement>(*dag_, o);
+    const pm::Heightfield& hf = pm_.heightfield();
+    double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
+    for (std::size_t i = 0; i < hf.size(); ++i)
+      if (hf.valid(i)) zmin = std::min(zmin, hf[i]), zmax = std::max(zmax, hf[i]);
+    ext_ = make_extent(hf.transform, hf.width(), hf.height(), zmin, zmax, hf.source);
+    normals_.resize(hf.size() * 3);
+    for (int r = 0; r < hf.height(); ++r)
+      for (int c = 0; c < hf.width(); ++c) {
+        const glm::dvec3 n = rd::heightfield_normal(hf, c, r);
+        float* p = &normals_[(std::size_t(r) * hf.width() + c) * 3];
+        p[0] = float(n.x), p[1] = float(n.y), p[2] = float(n.z);
+      }
+  }
+  const Extent& extent() const override { return ext_; }
+  double ground(double x, double y) const override { return ground_of(pm_.heightfield(), x, y, ext_.zmin); }
+  double ceiling(double x, double y) const override { return ground(x, y); }
+  pm::RefinementOptions options() const override { return sel_->options(); }
+  void set_options(const pm::RefinementOptions& o) override { sel_->set_options(o); }
+  std::size_t budget_share(std::size_t budget) const override { return budget; }
+  const pm::ProgressiveMesh& pm() const { return pm_; }
+
+  bool update(const pm::Camera& c, double time_s, bool /*wait*/, FrameRecord& r, rd::DrawMesh& dm) override {
+    const double cpu0 = thread_cpu_ms();
+    const pm::FrameStats& s = sel_->update(pm::View(c), time_s);
+    r.update_cpu_ms = thread_cpu_ms() - cpu0;
+    r.update_ms = s.update_ms, r.vsplits = s.vsplits, r.ecols = s.ecols, r.morphing = s.morphing;
+    r.bound_px = s.bound_px, r.tau = s.tolerance_px;
+    // The displayed mesh (geomorph positions) relative to the origin, normals of the
+    // full-resolution samples, triangles CCW seen from above.
+    const auto t0 = Clock::now();
+    const pm::RenderMesh m = sel_->render_mesh();
+    const bool flip = ext_.transform.determinant() < 0;
+    const glm::dvec3 o = ext_.origin;
+    dm.origin = o;
+    dm.z_target.clear();
+    dm.xyz.resize(m.positions.size() * 3);
+    dm.normals.resize(m.positions.size() * 3);
+    for (std::size_t v = 0; v < m.positions.size(); ++v) {
+      dm.xyz[3 * v] = float(m.positions[v].x - o.x);
+      dm.xyz[3 * v + 1] = float(m.positions[v].y - o.y);
+      dm.xyz[3 * v + 2] = float(m.positions[v].z - o.z);
+      std::copy_n(&normals_[std::size_t(m.samples[v]) * 3], 3, &dm.normals[3 * v]);
+    }
+    dm.indices.resize(m.triangles.size() * 3);
+    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
+      dm.indices[3 * f] = m.triangles[f][0];
+      dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
+      dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
+    }
+    r.upload_ms = ms_since(t0);
+    return true;
+  }
+
+ private:
+  pm::ProgressiveMesh pm_;
+  std::unique_ptr<pm::CollapseDag> dag_;
+  std::unique_ptr<pm::SelectiveRefinement> sel_;
+  std::vector<float> normals_;  // per sample, world frame
+  Extent ext_;
+};
+
+// The single-PM terrains: a DEM built in memory, a .pm file, or the built-in terrain.
+std::unique_ptr<PmSource> open_pm_terrain(const std::string& input, int generated_size,
+                                          const pm::RefinementOptions& o) {
+  const auto t0 = Clock::now();
+  pm::BuildOptions b;
+  b.parallel_strips = false;  // no full-resolution cut column in the view-dependent mesh
+  pm::ProgressiveMesh mesh = [&] {
+    if (!input.empty()) return is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input), b);
+    const pm::Heightfield hf = pm::generate_terrain(demo_terrain_options(generated_size));
+    std::printf("terrain: the built-in generated terrain, %d x %d samples\n", hf.width(), hf.height());
+    return build_stage(hf, b);
+  }();
+  auto src = std::make_unique<PmSource>(std::move(mesh), o);
+  const Extent& e = src->extent();
+  std::printf("terrain: %s, %d x %d samples, %zu vsplits, heights %.1f..%.1f m, ready in %s\n",
+              e.name.c_str(), e.width, e.height, src->pm().vsplit_count(), e.zmin, e.zmax,
+              format_duration(ms_since(t0)).c_str());
+  return src;
+}
+
+// A block database streamed through blocks::TerrainSession.
+class DbSource final : public LodSource {
+ public:
+  DbSource(const std::string& path, const pm::RefinementOptions& o, const tb::ActiveRegionOptions& region)
+      : path_(path) {
+    opt_.region = region;
+    const auto t0 = Clock::now();
+    const tb::BlockDatabase db = tb::BlockDatabase::open(path);
+    if (db.info().kind != "blocks" || db.info().block_size == 0)
+      throw std::runtime_error(path + ": not a block database of 'terralod build' (kind '" + db.info().kind +
+                               "', block size " + std::to_string(db.info().block_size) + ")");
+    grid_ = tb::BlockGrid::from_info(db.info());
+    {
+      ProgressBar bar(db.read_blob(tb::kBlockSummariesBlob) ? "block summaries"
+                                                            : "block summaries (reading every block once)");
+      sums_ = tb::read_block_summaries(db, grid_, [&](double f) { bar.update(f); });
+    }
+    double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
+    for (const tb::BlockSummary& s : sums_) zmin = std::min(zmin, s.zmin), zmax = std::max(zmax, s.zmax);
+    ext_ = make_extent(grid_.transform(), grid_.grid_width(), grid_.grid_height(), zmin, zmax, path);
+    set_options(o);
+    std::printf("terrain: %s, %d x %d samples in %d x %d blocks of %d, heights %.1f..%.1f m, ready in %s\n",
+                path.c_str(), grid_.grid_width(), grid_.grid_height(), grid_.cols(), grid_.rows(),
+                grid_.block_size(), zmin, zmax, format_duration(ms_since(t0)).c_str());
+  }
+  const Extent& extent() const override { return ext_; }
+  pm::RefinementOptions options() const override { return opt_.refinement; }
+  // The session takes its options once: a change starts a new session (blocks are read again).
+  void set_options(const pm::RefinementOptions& o) override {
+    opt_.refinement = o;
+    opt_.refinement.morph_mode = pm::MorphMode::Vertical;  // the session's seams need it
+    session_.reset();
+    session_ = std::make_unique<tb::TerrainSession>(tb::database_source(path_), grid_, sums_, opt_);
+    start_time_ = last_time_;
+    built_ = false;
+  }
+  // Every inner block regulates its own tau: each gets an equal share of the frame's budget.
+  std::size_t budget_share(std::size_t budget) const override {
+    return std::max<std::size_t>(100, budget / std::max<std::size_t>(1, session_->stats().inner));
+  }
+
+  // The resident block's samples, else the block's two-triangle stand-in surface.
+  double ground(double x, double y) const override {
+    const tb::BlockKey k = grid_.block_at(x, y);
+    if (const auto b = session_->resident(k)) return ground_of(b->pm.heightfield(), x, y, ext_.zmin);
+    const tb::SampleRect d = grid_.domain(k);
+    const auto [c, r] = grid_.to_grid(x, y);
+    return tb::tm_height(grid_, k, sums_[grid_.index(k)], std::clamp(c, double(d.col0), double(d.col1)),
+                         std::clamp(r, double(d.row0), double(d.row1)));
+  }
+
+  // The highest sample of the block under (x, y) (its summary).
+  double ceiling(double x, double y) const override { return sums_[grid_.index(grid_.block_at(x, y))].zmax; }
+
+  bool update(const pm::Camera& c, double time_s, bool wait, FrameRecord& r, rd::DrawMesh& dm) override {
+    last_time_ = time_s;
+    const pm::View view(c);
+    // A restarted session counts time from its start (times never decrease).
+    const double t = std::max(0.0, time_s - start_time_);
+    r.vsplits = r.ecols = r.morphing = 0;
+    auto run = [&] {  // one update; vsplits and ecols add up over the frame's updates
+      const tb::SessionFrameStats& s = session_->update(view, t);
+      for (const tb::BlockKey k : session_->region().inner)
+        if (const pm::SelectiveRefinement* sel = session_->selection(k))
+          r.vsplits += sel->stats().vsplits, r.ecols += sel->stats().ecols;
+      return s;
+    };
+    const std::vector<tb::BlockKey> before = wait ? session_->resident_keys() : std::vector<tb::BlockKey>{};
+    const double cpu0 = thread_cpu_ms();
+    const tb::SessionFrameStats first = run();
+    r.update_cpu_ms = thread_cpu_ms() - cpu0;
+    r.update_ms = first.update_ms;
+    std::size_t loading = first.loading;
+    if (wait) {
+      // Headless: the same view and time again until every load this frame asked for has
+      // arrived (the loader is a thread; without this the frames would depend on its timing).
+      // Two updates in a row must see nothing loading: a read that finished just after the
+      // first one's take is picked up by the second.
+      const auto w0 = Clock::now();
+      for (int quiet = 0;;) {
+        quiet = session_->stats().loading == 0 ? quiet + 1 : 0;
+        if (quiet == 2) break;
+        if (ms_since(w0) > 600000.0)
+          throw std::runtime_error(path_ + ": block loads did not finish in 10 minutes");
+        std::this_thread::sleep_for(std::chrono::microseconds(500));
+        run();
+      }
+      r.wait_ms = ms_since(w0);
+      // The blocks this frame waited for (deterministic, unlike a count taken mid-load).
+      const std::vector<tb::BlockKey> after = session_->resident_keys();
+      const std::set<tb::BlockKey> old(before.begin(), before.end());
+      loading = std::size_t(
+          std::count_if(after.begin(), after.end(), [&](tb::BlockKey k) { return !old.count(k); }));
+    }
+    const tb::SessionFrameStats& s = session_->stats();
+    r.tau = s.tolerance_px, r.bound_px = s.bound_px;
+    BlockRecord b;
+    b.refined = s.refined, b.stand_ins = s.stand_ins, b.ring = s.active - s.inner, b.nodes = s.active;
+    b.resident = s.resident, b.loading = loading, b.evicted = s.evicted_total;
+    b.prefetch_misses = s.prefetch_misses_total, b.bytes_read = s.bytes_read_total, b.n = s.n;
+    r.blocks = b;
+    for (const tb::BlockKey k : session_->region().inner)
+      if (const pm::SelectiveRefinement* sel = session_->selection(k)) r.morphing += sel->stats().morphing;
+    const auto t0 = Clock::now();
+    const tb::DrawnMesh& m = session_->drawn_mesh();
+    if (built_ && same_bytes(m.positions, prev_positions_) && same_bytes(m.triangles, prev_triangles_))
+      return false;  // nothing moved: keep the uploaded mesh
+    built_ = true;
+    prev_positions_ = m.positions, prev_triangles_ = m.triangles;
+    make_draw_mesh(m, dm);
+    r.upload_ms = ms_since(t0);
+    return true;
+  }
+
+ private:
+  // The session's drawn mesh (geomorphs already in its heights) as a DrawMesh: positions
+  // relative to the origin, triangles CCW from above, normals of the full-resolution samples
+  // of a refined block holding the vertex (so shading does not pop with the level of detail),
+  // else area-weighted normals of its triangles (vertices of two-triangle blocks only).
+  void make_draw_mesh(const tb::DrawnMesh& m, rd::DrawMesh& dm) {
+    const bool flip = ext_.transform.determinant() < 0;
+    const glm::dvec3 o = ext_.origin;
+    const std::size_t nv = m.positions.size();
+    dm.origin = o;
+    dm.z_target.clear();
+    dm.xyz.resize(nv * 3);
+    for (std::size_t v = 0; v < nv; ++v) {
+      dm.xyz[3 * v] = float(m.positions[v].x - o.x);
+      dm.xyz[3 * v + 1] = float(m.positions[v].y - o.y);
+      dm.xyz[3 * v + 2] = float(m.positions[v].z - o.z);
+    }
+    dm.indices.resize(m.triangles.size() * 3);
+    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
+      dm.indices[3 * f] = m.triangles[f][0];
+      dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
+      dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
+    }
+    dm.normals.assign(nv * 3, 0.0f);
+    has_normal_.assign(nv, 0);
+    const std::uint64_t w = std::uint64_t(grid_.grid_width());
+    tb::BlockKey key{-1, -1};
+    std::shared_ptr<const tb::LoadedBlock> block;
+    tb::SampleRect dom;
+    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
+      if (!(m.triangle_block[f] == key)) {
+        key = m.triangle_block[f];
+        // Only blocks drawn refined this frame: which other blocks are resident depends on
+        // the loader's timing, and the picture must not.
+        block = session_->selection(key) ? session_->resident(key) : nullptr;
+        dom = grid_.domain(key);
+      }
+      if (!block) continue;
+      for (const std::uint32_t v : m.triangles[f]) {
+        const std::uint64_t s = m.samples[v];
+        if (has_normal_[v] || s == tb::DrawnMesh::kNoSample) continue;
+        const int col = int(s % w), row = int(s / w);
+        if (col < dom.col0 || col > dom.col1 || row < dom.row0 || row > dom.row1) continue;
+        const glm::dvec3 n = rd::heightfield_normal(block->pm.heightfield(), col - dom.col0, row - dom.row0);
+        dm.normals[3 * v] = float(n.x), dm.normals[3 * v + 1] = float(n.y),
+                       dm.normals[3 * v + 2] = float(n.z);
+        has_normal_[v] = 1;
+      }
+    }
+    if (std::find(has_normal_.begin(), has_normal_.end(), 0) == has_normal_.end()) return;
+    std::vector<glm::dvec3> acc(nv, glm::dvec3(0.0));
+    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
+      const std::uint32_t* i = &dm.indices[3 * f];
+      if (has_normal_[i[0]] && has_normal_[i[1]] && has_normal_[i[2]]) continue;
+      const pm::Vec3 &a = m.positions[i[0]], &b = m.positions[i[1]], &c = m.positions[i[2]];
+      const glm::dvec3 n = glm::cross(glm::dvec3(b.x - a.x, b.y - a.y, b.z - a.z),
+                                      glm::dvec3(c.x - a.x, c.y - a.y, c.z - a.z));  // |n| = 2 area
+      for (int j = 0; j < 3; ++j) acc[i[j]] += n;
+    }
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (has_normal_[v]) continue;
+      const double len = glm::length(acc[v]);
+      const glm::dvec3 n = len > 0 && acc[v].z > 0 ? acc[v] / len : glm::dvec3(0, 0, 1);
+      dm.normals[3 * v] = float(n.x), dm.normals[3 * v + 1] = float(n.y), dm.normals[3 * v + 2] = float(n.z);
+    }
+  }
+
+  std::string path_;
+  tb::BlockGrid grid_;
+  std::vector<tb::BlockSummary> sums_;
+  tb::SessionOptions opt_;
+  std::unique_ptr<tb::TerrainSession> session_;
+  Extent ext_;
+  double start_time_ = 0, last_time_ = 0;
+  std::vector<pm::Vec3> prev_positions_;
+  std::vector<std::array<std::uint32_t, 3>> prev_triangles_;
+  std::vector<std::uint8_t> has_normal_;
+  bool built_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------
+// One frame of the pipeline: selection (and loads), upload, draw.
 
 class Pipeline {
  public:
-  Pipeline(const Terrain& t, rd::GlContext& ctx, const pm::RefinementOptions& o)
-      : t_(t), sel_(*t.dag, o), renderer_(ctx) {}
+  Pipeline(LodSource& src, rd::GlContext& ctx) : src_(src), renderer_(ctx) {}
 
   // Texture layers: drawn through a LayeredRenderer on the same context (not in wireframe).
   void set_layers(rd::GlContext& ctx, LayerSetup* layers) {
@@ -200,33 +509,46 @@ class Pipeline {
   rd::Image read_color() const { return drew_layered_ ? layered_->read_color() : renderer_.read_color(); }
 
   rd::TerrainRenderer& renderer() { return renderer_; }
-  pm::SelectiveRefinement& selection() { return sel_; }
+  LodSource& source() { return src_; }
   bool frozen = false, wireframe = false;
 
-  FrameRecord frame(const pm::Camera& cam, double time_s) {
-    FrameRecord r;
-    r.camera = cam;
-    pm::Camera c = cam;
+  // wait: headless, the frame waits for its block loads (see LodSource::update).
+  FrameRecord frame(const pm::Camera& cam, double time_s, bool wait) {
     if (!frozen) {
-      const pm::FrameStats& s = sel_.update(pm::View(c), time_s);
-      r.update_ms = s.update_ms, r.vsplits = s.vsplits, r.ecols = s.ecols, r.morphing = s.morphing;
-      bound_ = s.bound_px;
-      tau_ = s.tolerance_px;
-      upload();
+      FrameRecord lod;
+      if (src_.update(cam, time_s, wait, lod, dm_)) {
+        // The whole mesh is replaced: with --db the session's heights already hold the
+        // geomorphs, so it is drawn at alpha 0 with no target heights (see the README numbers:
+        // replacing costs less than a tenth of the draw on llvmpipe).
+        const auto t = Clock::now();
+        if (!id_)
+          id_ = renderer_.upload(dm_);
+        else
+          renderer_.replace(*id_, dm_);
+        ++version_;
+        lod.upload_ms += ms_since(t);
+      }
+      last_ = lod;
+    } else {  // the frozen mesh: no selection work this frame
+      last_.update_ms = last_.update_cpu_ms = last_.upload_ms = last_.wait_ms = 0;
+      last_.vsplits = last_.ecols = last_.morphing = 0;
     }
-    r.tau = tau_, r.bound_px = bound_;
+    FrameRecord r = last_;
+    r.camera = cam;
     r.triangles = dm_.triangle_count(), r.vertices = dm_.vertex_count();
     rd::Camera rc;
-    rc.position = {c.x, c.y, c.z};
-    rc.yaw_deg = c.yaw_deg, rc.pitch_deg = c.pitch_deg, rc.fovy_deg = c.fovy_deg;
-    rc.width = c.width_px, rc.height = c.height_px;
-    rc.z_near = c.near_m, rc.z_far = c.far_m;
+    rc.position = {cam.x, cam.y, cam.z};
+    rc.yaw_deg = cam.yaw_deg, rc.pitch_deg = cam.pitch_deg, rc.fovy_deg = cam.fovy_deg;
+    rc.width = cam.width_px, rc.height = cam.height_px;
+    rc.z_near = cam.near_m, rc.z_far = cam.far_m;
     drew_layered_ = layers_ && !wireframe;
     if (drew_layered_) {
       if (!layered_id_ || layered_version_ != version_) {
+        const auto t = Clock::now();
         if (layered_id_) layered_->remove(*layered_id_);
         layered_id_ = layered_->upload(dm_);
         layered_version_ = version_;
+        r.upload_ms += ms_since(t);
       }
       const rd::LayeredItem item{*layered_id_, layers_->bindings(*layered_)};
       r.draw_ms = layered_->draw(rc, layers_->styles(), layers_->lens(), {item}).draw_ms;
@@ -242,39 +564,11 @@ class Pipeline {
   const rd::DrawMesh& draw_mesh() const { return dm_; }
 
  private:
-  // The displayed mesh (geomorph positions) as a DrawMesh relative to the terrain's origin,
-  // normals of the full-resolution samples, triangles CCW seen from above.
-  void upload() {
-    const pm::RenderMesh m = sel_.render_mesh();
-    const bool flip = t_.pm.heightfield().transform.determinant() < 0;
-    dm_.origin = t_.origin;
-    dm_.xyz.resize(m.positions.size() * 3);
-    dm_.normals.resize(m.positions.size() * 3);
-    for (std::size_t v = 0; v < m.positions.size(); ++v) {
-      dm_.xyz[3 * v] = float(m.positions[v].x - t_.origin.x);
-      dm_.xyz[3 * v + 1] = float(m.positions[v].y - t_.origin.y);
-      dm_.xyz[3 * v + 2] = float(m.positions[v].z - t_.origin.z);
-      std::copy_n(&t_.normals[std::size_t(m.samples[v]) * 3], 3, &dm_.normals[3 * v]);
-    }
-    dm_.indices.resize(m.triangles.size() * 3);
-    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
-      dm_.indices[3 * f] = m.triangles[f][0];
-      dm_.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
-      dm_.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
-    }
-    if (!id_)
-      id_ = renderer_.upload(dm_);
-    else
-      renderer_.replace(*id_, dm_);
-    ++version_;
-  }
-
-  const Terrain& t_;
-  pm::SelectiveRefinement sel_;
+  LodSource& src_;
   rd::TerrainRenderer renderer_;
   rd::DrawMesh dm_;
   std::optional<rd::MeshId> id_;
-  double bound_ = 0, tau_ = 0;
+  FrameRecord last_;
   LayerSetup* layers_ = nullptr;
   std::unique_ptr<rd::LayeredRenderer> layered_;
   std::optional<rd::MeshId> layered_id_;
@@ -282,26 +576,28 @@ class Pipeline {
   bool drew_layered_ = false;
 };
 
-// --texture-db / --layer / --lens (layer_options.hpp); nullopt without layers.
+// --texture-db (default --db) / --layer / --lens (layer_options.hpp); nullopt without layers.
 std::optional<LayerSetup> layer_setup(const Args& a) {
   const std::vector<std::string> specs = a.get_all("--layer");
-  if (specs.empty() != !a.has("--texture-db")) throw UsageError("--layer and --texture-db go together");
+  if (a.has("--texture-db") && specs.empty()) throw UsageError("--texture-db needs --layer");
+  if (!specs.empty() && !a.has("--texture-db") && !a.has("--db"))
+    throw UsageError("--layer needs --texture-db (or --db holding the layers)");
   if (a.has("--lens") && specs.empty()) throw UsageError("--lens needs --layer");
   if (specs.size() > 9) throw UsageError("at most 9 --layer (keys 1..9 switch them)");
   for (const std::string& s : specs) parse_layer_spec(s);
   if (specs.empty()) return std::nullopt;
   std::optional<LensSpec> lens;
   if (a.has("--lens")) lens = parse_lens("--lens", a.get("--lens"));
-  return LayerSetup::open(a.get("--texture-db"), specs, lens);
+  return LayerSetup::open(a.get("--texture-db", a.get("--db")), specs, lens);
 }
 
 // World-frame PLY of the drawn mesh (double x y z, int faces).
-void dump_mesh(const Terrain& t, const rd::DrawMesh& dm, const std::string& path) {
+void dump_mesh(const rd::DrawMesh& dm, const std::string& path) {
   pm::TriangleMeshData d;
   d.positions.resize(dm.vertex_count());
   for (std::size_t v = 0; v < dm.vertex_count(); ++v)
-    d.positions[v] = {t.origin.x + double(dm.xyz[3 * v]), t.origin.y + double(dm.xyz[3 * v + 1]),
-                      t.origin.z + double(dm.xyz[3 * v + 2])};
+    d.positions[v] = {dm.origin.x + double(dm.xyz[3 * v]), dm.origin.y + double(dm.xyz[3 * v + 1]),
+                      dm.origin.z + double(dm.xyz[3 * v + 2])};
   d.triangles.resize(dm.triangle_count());
   for (std::size_t f = 0; f < dm.triangle_count(); ++f)
     d.triangles[f] = {dm.indices[3 * f], dm.indices[3 * f + 1], dm.indices[3 * f + 2]};
@@ -312,8 +608,8 @@ std::pair<int, int> parse_size(const Args& a) {
   const std::string s = a.get("--size", "1280x720");
   int w = 0, h = 0;
   char x = 0, extra = 0;
-  if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 1 || h < 1 ||
-      w > 16384 || h > 16384)
+  if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 1 ||
+      h < 1 || w > 16384 || h > 16384)
     throw UsageError("--size must be WxH with each in 1..16384, not '" + s + "'");
   return {w, h};
 }
@@ -328,48 +624,84 @@ pm::RefinementOptions refinement_options(const Args& a) {
   return o;
 }
 
+// The terrain of the command line: --db, else --input or the built-in terrain.
+std::unique_ptr<LodSource> open_terrain(const Args& a) {
+  if (a.has("--db") && a.has("--input")) throw UsageError("--db and --input exclude each other");
+  if (a.has("--db") && a.has("--terrain-size"))
+    throw UsageError("--terrain-size is for the built-in terrain, not --db");
+  const pm::RefinementOptions o = refinement_options(a);
+  const int size = int(a.get_int("--terrain-size", kDemoTerrainSize, 2, 8193));
+  if (!a.has("--db") && (a.has("--rings") || a.has("--theta")))
+    throw UsageError("--rings and --theta need --db");
+  if (a.has("--db")) {
+    tb::ActiveRegionOptions region;
+    region.p = int(a.get_int("--rings", region.p, 0, 64));
+    region.theta_deg = a.get_double("--theta", region.theta_deg);
+    if (!(region.theta_deg > 0 && region.theta_deg < 90))
+      throw UsageError("--theta must be in (0, 90) degrees");
+    return std::make_unique<DbSource>(a.get("--db"), o, region);
+  }
+  return open_pm_terrain(a.get("--input"), size, o);
+}
+
 // Clip planes for a camera: reverse-Z depth keeps precision with a near plane close to the eye.
-void set_clip(const Terrain& t, pm::Camera& c) {
-  const double above = c.z - ground(t, c.x, c.y);
+void set_clip(const LodSource& t, pm::Camera& c) {
+  const double above = c.z - t.ground(c.x, c.y);
   c.near_m = std::clamp(0.25 * std::max(above, 0.0), 0.1, 100.0);
-  const pm::Heightfield& hf = t.pm.heightfield();
-  const double extent = hf.transform.spacing_x() * hf.width() + hf.transform.spacing_y() * hf.height();
-  c.far_m = std::max(c.near_m * 2.0, 2.0 * extent + std::fabs(c.z - t.zmin) * 2.0);
+  const Extent& e = t.extent();
+  const double extent = e.transform.spacing_x() * e.width + e.transform.spacing_y() * e.height;
+  c.far_m = std::max(c.near_m * 2.0, 2.0 * extent + std::fabs(c.z - e.zmin) * 2.0);
 }
 
 const char* kCsvHeader =
     "frame,x,y,z,yaw,pitch,fovy,tau_px,triangles,vertices,update_ms,draw_ms,bound_px,vsplits,ecols,morphing,"
-    "nodes_selected,blocks_resident,blocks_loading,texture_bytes\n";
+    "nodes_selected,blocks_resident,blocks_loading,texture_bytes,blocks_evicted,prefetch_misses,bytes_read,"
+    "upload_ms,wait_ms,update_cpu_ms\n";
 
 void csv_row(std::FILE* f, std::size_t k, const FrameRecord& r) {
   const pm::Camera& c = r.camera;
-  std::fprintf(f, "%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%zu,%.4f,%.4f,%.17g,%zu,%zu,%zu,1,1,0,%zu\n", k,
+  std::fprintf(f, "%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%zu,%.4f,%.4f,%.17g,%zu,%zu,%zu,", k,
                c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg, r.tau, r.triangles, r.vertices, r.update_ms,
-               r.draw_ms, r.bound_px, r.vsplits, r.ecols, r.morphing, r.texture_bytes);
+               r.draw_ms, r.bound_px, r.vsplits, r.ecols, r.morphing);
+  if (const auto& b = r.blocks)
+    std::fprintf(f, "%zu,%zu,%zu,%zu,%zu,%zu,%llu,", b->nodes, b->resident, b->loading, r.texture_bytes,
+                 b->evicted, b->prefetch_misses, static_cast<unsigned long long>(b->bytes_read));
+  else
+    std::fprintf(f, "1,1,0,%zu,,,,", r.texture_bytes);
+  std::fprintf(f, "%.4f,%.4f,%.4f\n", r.upload_ms, r.wait_ms, r.update_cpu_ms);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Headless
 
 // The flight used when no --path is given: a circle of radius 30% of the extent around the
-// terrain's centre, 200 m above the ground under the camera, looking along the path and 15
-// degrees down, one lap in 20 s (1200 frames at 60 fps).
-std::vector<pm::Camera> default_flight(const Terrain& t, int frames, int w, int h) {
-  const pm::Heightfield& hf = t.pm.heightfield();
-  const auto [cx, cy] = hf.transform.to_world((hf.width() - 1) / 2.0, (hf.height() - 1) / 2.0);
-  const double radius = 0.3 * std::min(hf.transform.spacing_x() * (hf.width() - 1), hf.transform.spacing_y() * (hf.height() - 1));
+// terrain's centre, 200 m above the ground under the camera (with --db: above the highest
+// sample of the block under it, as no block is loaded yet), looking along the path and 15
+// degrees down, one lap in 20 s (1200 frames at 60 fps) or slower, so that the speed is at most
+// 500 m/s (large terrains).
+std::vector<pm::Camera> default_flight(const LodSource& t, int frames, int w, int h) {
+  const Extent& e = t.extent();
+  const auto [cx, cy] = e.centre();
+  const double radius = 0.3 * std::min(e.side_x(), e.side_y());
+  const double lap_frames = std::max(1200.0, 60.0 * 2.0 * std::numbers::pi * radius / 500.0);
   std::vector<pm::Camera> path;
   for (int k = 0; k < frames; ++k) {
-    const double a = 2.0 * std::numbers::pi * k / 1200.0;
+    const double a = 2.0 * std::numbers::pi * k / lap_frames;
     pm::Camera c;
     c.x = cx + radius * std::cos(a), c.y = cy + radius * std::sin(a);
-    c.z = ground(t, c.x, c.y) + 200.0;
+    c.z = t.ceiling(c.x, c.y) + 200.0;
     // Moving counter-clockwise: the direction of motion is (-sin a, cos a); yaw from north.
     c.yaw_deg = std::atan2(-std::sin(a), std::cos(a)) * 180.0 / std::numbers::pi;
     c.pitch_deg = -15.0, c.fovy_deg = 60.0, c.width_px = w, c.height_px = h;
     path.push_back(c);
   }
   return path;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, std::size_t(q * double(v.size())))];
 }
 
 int run_headless(const Args& a) {
@@ -381,18 +713,21 @@ int run_headless(const Args& a) {
   if (a.has("--path")) path = pm::read_camera_path(a.get("--path"), po);
   const bool dump = a.has("--dump-meshes");
   std::optional<LayerSetup> layers = layer_setup(a);
-  const Terrain t = load_terrain(a.get("--input"), int(a.get_int("--terrain-size", 513, 2, 8193)));
+  const std::unique_ptr<LodSource> t = open_terrain(a);
   if (path.empty()) {
-    path = default_flight(t, int(a.get_int("--frames", 240, 1, 1000000)), w, h);
-    std::printf("path: built-in flight, %zu frames (a circle 200 m above the ground, looking 15 degrees down)\n",
-                path.size());
+    path = default_flight(*t, int(a.get_int("--frames", 240, 1, 1000000)), w, h);
+    std::printf(
+        "path: built-in flight, %zu frames (a circle 200 m above the ground, with --db above its block's "
+        "highest sample, looking 15 degrees down)\n",
+        path.size());
   }
   const long long frames = a.get_int("--frames", (long long)path.size(), 1, (long long)path.size());
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec || !fs::is_directory(out)) throw std::runtime_error(out + ": cannot create the output folder");
   auto ctx = rd::create_offscreen_context({w, h});
-  Pipeline p(t, *ctx, refinement_options(a));
+  Pipeline p(*t, *ctx);
+  p.wireframe = a.has("--wireframe");
   if (layers) {
     layers->wait_loaded(/*timeout_ms=*/600000);  // every frame sees every layer: deterministic
     p.set_layers(*ctx, &*layers);
@@ -402,30 +737,40 @@ int run_headless(const Args& a) {
   if (!f) throw std::runtime_error(csv + ": cannot write");
   std::fputs(kCsvHeader, f);
   ProgressBar bar("render " + std::to_string(frames) + " frames");
-  std::vector<double> update_ms;
-  double worst_bound = 0;
+  std::vector<double> update_ms, update_cpu_ms, frame_ms, triangles, resident;
+  double worst_bound = 0, wait_ms = 0;
   for (long long k = 0; k < frames; ++k) {
     pm::Camera c = path[std::size_t(k)];
-    set_clip(t, c);
-    const FrameRecord r = p.frame(c, double(k) / 60.0);
+    set_clip(*t, c);
+    const FrameRecord r = p.frame(c, double(k) / 60.0, /*wait=*/true);
     update_ms.push_back(r.update_ms);
+    update_cpu_ms.push_back(r.update_cpu_ms);
+    frame_ms.push_back(r.update_ms + r.upload_ms + r.draw_ms);
+    triangles.push_back(double(r.triangles));
+    if (r.blocks) resident.push_back(double(r.blocks->resident));
     worst_bound = std::max(worst_bound, r.bound_px);
+    wait_ms += r.wait_ms;
     csv_row(f, std::size_t(k), r);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%05lld", k);
     rd::write_png(p.read_color(), (fs::path(out) / (std::string(name) + ".png")).string());
-    if (dump) dump_mesh(t, p.draw_mesh(), (fs::path(out) / (std::string(name) + ".ply")).string());
+    if (dump) dump_mesh(p.draw_mesh(), (fs::path(out) / (std::string(name) + ".ply")).string());
     bar.update(double(k + 1) / double(frames));
   }
   bar.finish();
   const bool ok = std::fclose(f) == 0;
   if (!ok || (fs::rename(csv + ".tmp", csv, ec), ec)) throw std::runtime_error(csv + ": cannot write");
-  std::sort(update_ms.begin(), update_ms.end());
-  std::printf("headless: %lld frames %dx%d -> %s (PNG%s, frames.csv); update median %.3f ms, p99 %.3f ms; "
-              "largest bound %.3f px (tau %g)\n",
-              frames, w, h, out.c_str(), dump ? ", PLY" : "", update_ms[update_ms.size() / 2],
-              update_ms[std::min(update_ms.size() - 1, update_ms.size() * 99 / 100)], worst_bound,
-              p.selection().options().tolerance_px);
+  std::printf("headless: %lld frames %dx%d -> %s (PNG%s, frames.csv); tau %g px, largest bound %.3f px\n",
+              frames, w, h, out.c_str(), dump ? ", PLY" : "", t->options().tolerance_px, worst_bound);
+  std::printf(
+      "headless: frame (update + upload + draw) median %.2f ms, p99 %.2f ms; update median %.3f ms, p99 %.3f "
+      "ms (thread CPU: median %.3f ms, p99 %.3f ms); triangles median %.0f, max %.0f\n",
+      percentile(frame_ms, 0.5), percentile(frame_ms, 0.99), percentile(update_ms, 0.5),
+      percentile(update_ms, 0.99), percentile(update_cpu_ms, 0.5), percentile(update_cpu_ms, 0.99),
+      percentile(triangles, 0.5), percentile(triangles, 1.0));
+  if (!resident.empty())
+    std::printf("headless: blocks resident median %.0f, max %.0f; waited %s for block loads in all\n",
+                percentile(resident, 0.5), percentile(resident, 1.0), format_duration(wait_ms).c_str());
   return 0;
 }
 
@@ -435,30 +780,32 @@ int run_headless(const Args& a) {
 // The ground point seen through normalised screen position (sx, sy) in [-1,1]^2 (y up): march
 // along the ray in steps of one grid spacing, then bisect; nullopt when it leaves the terrain's
 // range or misses it within the far plane.
-std::optional<std::array<double, 2>> ground_point(const Terrain& t, const pm::Camera& c, double sx, double sy) {
+std::optional<std::array<double, 2>> ground_point(const LodSource& t, const pm::Camera& c, double sx,
+                                                  double sy) {
   const double yr = c.yaw_deg * std::numbers::pi / 180, pr = c.pitch_deg * std::numbers::pi / 180;
   const glm::dvec3 f(std::sin(yr) * std::cos(pr), std::cos(yr) * std::cos(pr), std::sin(pr));
   const glm::dvec3 right(std::cos(yr), -std::sin(yr), 0.0);
   const glm::dvec3 up = glm::cross(right, f);
   const double th = std::tan(0.5 * c.fovy_deg * std::numbers::pi / 180);
-  const glm::dvec3 d = glm::normalize(f + sx * th * double(c.width_px) / double(c.height_px) * right + sy * th * up);
+  const glm::dvec3 d =
+      glm::normalize(f + sx * th * double(c.width_px) / double(c.height_px) * right + sy * th * up);
   const glm::dvec3 o(c.x, c.y, c.z);
-  const pm::Heightfield& hf = t.pm.heightfield();
-  const double step = std::max(1e-3, std::min(hf.transform.spacing_x(), hf.transform.spacing_y()));
+  const Extent& e = t.extent();
+  const double step = std::max(1e-3, std::min(e.transform.spacing_x(), e.transform.spacing_y()));
   double a = 0;
   for (double s = step; s <= c.far_m; s += step) {
     const glm::dvec3 p = o + s * d;
-    if (p.z <= ground(t, p.x, p.y)) {
+    if (p.z <= t.ground(p.x, p.y)) {
       double lo = a, hi = s;
       for (int i = 0; i < 40; ++i) {
         const double m = 0.5 * (lo + hi);
         const glm::dvec3 q = o + m * d;
-        (q.z <= ground(t, q.x, q.y) ? hi : lo) = m;
+        (q.z <= t.ground(q.x, q.y) ? hi : lo) = m;
       }
       const glm::dvec3 q = o + hi * d;
       return std::array<double, 2>{q.x, q.y};
     }
-    if (p.z < t.zmin - 1.0 || (d.z >= 0 && p.z > t.zmax + 1.0)) return std::nullopt;
+    if (p.z < e.zmin - 1.0 || (d.z >= 0 && p.z > e.zmax + 1.0)) return std::nullopt;
     a = s;
   }
   return std::nullopt;
@@ -469,7 +816,8 @@ std::optional<std::array<double, 2>> ground_point(const Terrain& t, const pm::Ca
 void present_layered(int w, int h) {
   using GetIntegerv = void (*)(GLenum, GLint*);
   using BindFramebuffer = void (*)(GLenum, GLuint);
-  using BlitFramebuffer = void (*)(GLint, GLint, GLint, GLint, GLint, GLint, GLint, GLint, GLbitfield, GLenum);
+  using BlitFramebuffer =
+      void (*)(GLint, GLint, GLint, GLint, GLint, GLint, GLint, GLint, GLbitfield, GLenum);
   static const auto get = reinterpret_cast<GetIntegerv>(glfwGetProcAddress("glGetIntegerv"));
   static const auto bind = reinterpret_cast<BindFramebuffer>(glfwGetProcAddress("glBindFramebuffer"));
   static const auto blit = reinterpret_cast<BlitFramebuffer>(glfwGetProcAddress("glBlitFramebuffer"));
@@ -490,39 +838,41 @@ struct Controls {
 
 int run_window(const Args& a) {
   const auto [w, h] = parse_size(a);
-  const Terrain t = load_terrain(a.get("--input"), int(a.get_int("--terrain-size", 513, 2, 8193)));
+  std::optional<LayerSetup> layers = layer_setup(a);  // usage errors before the terrain loads
+  const std::unique_ptr<LodSource> t = open_terrain(a);
+  const Extent& ext = t->extent();
   std::vector<pm::Camera> replay;
   if (a.has("--replay")) {
     pm::CameraPathOptions po;
     po.width_px = w, po.height_px = h;
     replay = pm::read_camera_path(a.get("--replay"), po);
   }
-  const long long max_frames = a.get_int("--frames", replay.empty() ? -1 : (long long)replay.size(), -1, 1LL << 40);
+  const long long max_frames =
+      a.get_int("--frames", replay.empty() ? -1 : (long long)replay.size(), -1, 1LL << 40);
   const std::string record_path = a.get("--record", "flight.csv");
   const double clearance = a.get_double("--clearance", 30.0);
   const std::size_t budget = std::size_t(a.get_int("--budget", 50000, 100, 100000000));
-  std::optional<LayerSetup> layers = layer_setup(a);
 
   rd::WindowOptions wo;
   wo.width = w, wo.height = h, wo.title = "terralod-fly";
   auto win = rd::WindowContext::create(wo);
-  Pipeline p(t, *win, refinement_options(a));
+  Pipeline p(*t, *win);
+  p.wireframe = a.has("--wireframe");
   if (layers) {
     p.set_layers(*win, &*layers);
     if (layers->lens_radius() <= 0) {  // no --lens: H shows one of 4% of the terrain's width
-      const pm::Heightfield& g = t.pm.heightfield();
-      layers->set_lens_radius(0.04 * g.transform.spacing_x() * (g.width() - 1));
+      layers->set_lens_radius(0.04 * ext.side_x());
     }
   }
   rd::Hud hud(*win);
-  if (!hud.has_font()) std::fprintf(stderr, "terralod-fly: no heads-up display: %s\n", hud.font_error().c_str());
+  if (!hud.has_font())
+    std::fprintf(stderr, "terralod-fly: no heads-up display: %s\n", hud.font_error().c_str());
   GLFWwindow* gw = win->glfw_window();
 
   // Start above the south-west quarter, heading north-east, looking slightly down.
-  const pm::Heightfield& hf = t.pm.heightfield();
-  const auto [sx, sy] = hf.transform.to_world(hf.width() * 0.25, hf.height() * 0.75);
+  const auto [sx, sy] = ext.transform.to_world(ext.width * 0.25, ext.height * 0.75);
   pm::Camera cam;
-  cam.x = sx, cam.y = sy, cam.z = ground(t, sx, sy) + 4 * clearance;
+  cam.x = sx, cam.y = sy, cam.z = t->ground(sx, sy) + 4 * clearance;
   cam.yaw_deg = 45, cam.pitch_deg = -12, cam.fovy_deg = 60;
   cam.width_px = w, cam.height_px = h;
   Controls ctl;
@@ -551,7 +901,7 @@ int run_window(const Args& a) {
     const double time_s = replay.empty() ? std::chrono::duration<double>(now - start).count() : frame / 60.0;
 
     if (glfwGetKey(gw, GLFW_KEY_ESCAPE) == GLFW_PRESS) break;
-    pm::RefinementOptions o = p.selection().options();
+    pm::RefinementOptions o = t->options();
     bool options_changed = false;
     if (pressed(GLFW_KEY_T)) ctl.follow = !ctl.follow;
     if (pressed(GLFW_KEY_G)) o.morph_seconds = o.morph_seconds > 0 ? 0.0 : 0.3, options_changed = true;
@@ -559,13 +909,17 @@ int run_window(const Args& a) {
     if (pressed(GLFW_KEY_L)) p.frozen = !p.frozen;
     if (layers) {
       for (int k = 0; k < int(layers->styles().size()); ++k)
-        if (pressed(GLFW_KEY_1 + k)) layers->styles()[std::size_t(k)].enabled = !layers->styles()[std::size_t(k)].enabled;
+        if (pressed(GLFW_KEY_1 + k))
+          layers->styles()[std::size_t(k)].enabled = !layers->styles()[std::size_t(k)].enabled;
       if (pressed(GLFW_KEY_H)) layers->lens().enabled = !layers->lens().enabled;
     }
-    if (pressed(GLFW_KEY_B)) o.target_triangles = o.target_triangles ? 0 : budget, options_changed = true;
-    if (pressed(GLFW_KEY_LEFT_BRACKET)) o.tolerance_px = std::max(0.05, o.tolerance_px / 1.25), options_changed = true;
-    if (pressed(GLFW_KEY_RIGHT_BRACKET)) o.tolerance_px = std::min(64.0, o.tolerance_px * 1.25), options_changed = true;
-    if (options_changed) p.selection().set_options(o);
+    if (pressed(GLFW_KEY_B))
+      o.target_triangles = o.target_triangles ? 0 : t->budget_share(budget), options_changed = true;
+    if (pressed(GLFW_KEY_LEFT_BRACKET))
+      o.tolerance_px = std::max(0.05, o.tolerance_px / 1.25), options_changed = true;
+    if (pressed(GLFW_KEY_RIGHT_BRACKET))
+      o.tolerance_px = std::min(64.0, o.tolerance_px * 1.25), options_changed = true;
+    if (options_changed) t->set_options(o);
     if (pressed(GLFW_KEY_C)) {
       ctl.recording = !ctl.recording;
       if (!ctl.recording && !recorded.empty()) {
@@ -602,14 +956,14 @@ int run_window(const Args& a) {
       cam.x += ctl.speed * dt * std::sin(yr) * std::cos(pr);
       cam.y += ctl.speed * dt * std::cos(yr) * std::cos(pr);
       cam.z += ctl.speed * dt * std::sin(pr) + ctl.climb * dt;
-      if (ctl.follow) cam.z = std::max(cam.z, ground(t, cam.x, cam.y) + clearance);
+      if (ctl.follow) cam.z = std::max(cam.z, t->ground(cam.x, cam.y) + clearance);
     } else {
       cam = replay[std::size_t(std::min<long long>(frame, (long long)replay.size() - 1))];
     }
     int fw = 1, fh = 1;
     glfwGetFramebufferSize(gw, &fw, &fh);
     cam.width_px = std::max(1, fw), cam.height_px = std::max(1, fh);
-    set_clip(t, cam);
+    set_clip(*t, cam);
     if (ctl.recording) recorded.push_back(cam);
     if (layers && layers->lens().enabled) {  // the lens follows the centre, or the mouse (right button)
       double sx = 0, sy = 0;
@@ -620,26 +974,33 @@ int run_window(const Args& a) {
         glfwGetWindowSize(gw, &ww, &wh);
         sx = 2.0 * mx / ww - 1.0, sy = 1.0 - 2.0 * my / wh;
       }
-      if (const auto g = ground_point(t, cam, sx, sy)) layers->move_lens((*g)[0], (*g)[1]);
+      if (const auto g = ground_point(*t, cam, sx, sy)) layers->move_lens((*g)[0], (*g)[1]);
     }
 
-    r = p.frame(cam, time_s);
-    const pm::RefinementOptions& now_o = p.selection().options();
-    std::vector<std::string> lines = {strf("%5.1f fps   tau %.2f px%s   bound %.3f px", fps, r.tau,
-                        now_o.target_triangles ? strf(" (budget %zu)", now_o.target_triangles).c_str() : "",
-                        r.bound_px),
-                   strf("%zu triangles   update %.2f ms   draw %.2f ms", r.triangles, r.update_ms, r.draw_ms),
-                   strf("nodes selected 1   blocks resident 1, loading 0   texture memory %s",
-                        format_bytes(r.texture_bytes).c_str()),
-                   strf("speed %.0f m/s   height %.0f m above ground%s", ctl.speed, cam.z - ground(t, cam.x, cam.y),
-                        ctl.follow ? " (following)" : ""),
-                   strf("%s%s%s%s", now_o.morph_seconds > 0 ? "geomorphs" : "no geomorphs",
-                        p.wireframe ? "  wireframe" : "", p.frozen ? "  LOD FROZEN" : "",
-                        ctl.recording ? "  REC" : "")};
+    r = p.frame(cam, time_s, /*wait=*/false);
+    const pm::RefinementOptions now_o = t->options();
+    std::vector<std::string> lines = {
+        strf("%5.1f fps   tau %.2f px%s   bound %.3f px", fps, r.tau,
+             now_o.target_triangles ? strf(" (budget %zu)", now_o.target_triangles).c_str() : "", r.bound_px),
+        strf("%zu triangles   update %.2f ms   draw %.2f ms", r.triangles, r.update_ms, r.draw_ms),
+        r.blocks ? strf("nodes selected %zu (%zu refined, %zu stand-ins, %zu ring)   inner radius n %d",
+                        r.blocks->nodes, r.blocks->refined, r.blocks->stand_ins, r.blocks->ring, r.blocks->n)
+                 : std::string("nodes selected 1"),
+        r.blocks
+            ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   "
+                   "texture memory %s",
+                   r.blocks->resident, r.blocks->loading, r.blocks->evicted, r.blocks->prefetch_misses,
+                   format_bytes(r.blocks->bytes_read).c_str(), format_bytes(r.texture_bytes).c_str())
+            : strf("blocks resident 1, loading 0   texture memory %s", format_bytes(r.texture_bytes).c_str()),
+        strf("speed %.0f m/s   height %.0f m above ground%s", ctl.speed, cam.z - t->ground(cam.x, cam.y),
+             ctl.follow ? " (following)" : ""),
+        strf("%s%s%s%s", now_o.morph_seconds > 0 ? "geomorphs" : "no geomorphs",
+             p.wireframe ? "  wireframe" : "", p.frozen ? "  LOD FROZEN" : "", ctl.recording ? "  REC" : "")};
     if (layers) {
       std::string on = "layers";
       for (std::size_t k = 0; k < layers->styles().size(); ++k)
-        on += strf("  %zu:%s%s", k + 1, layers->styles()[k].name.c_str(), layers->styles()[k].enabled ? "" : "(off)");
+        on += strf("  %zu:%s%s", k + 1, layers->styles()[k].name.c_str(),
+                   layers->styles()[k].enabled ? "" : "(off)");
       lines.push_back(on + (layers->lens().enabled ? "  lens" : ""));
     }
     hud.set_lines(lines);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "run_command.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/render/image.hpp"
 #include "xvfb.hpp"
@@ -23,7 +24,8 @@ namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 namespace rd = terralod::render;
 
-const fs::path kTmp = fs::path(TERRALOD_TEST_TMP) / "fly";
+// This process's own folder (ctest runs the test cases as parallel processes), removed at exit.
+const fs::path kTmp = terralod::test::process_temp_dir("fly");
 
 // Runs a shell command line; returns its exit status (-1 if it did not exit normally).
 int run(const std::string& cmd) {
@@ -31,12 +33,7 @@ int run(const std::string& cmd) {
   return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using terralod::test::slurp;
 
 // A 4-second low flight over the 129 x 129 built-in terrain (30 m spacing, 3.84 km square),
 // turning gently, with a dive so that geomorphs run.
@@ -113,6 +110,11 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
   std::ifstream in(outs[0] / "frames.csv");
   std::string line;
   std::getline(in, line);
+  // The columns: the original ones in their order, then those of block streaming (--db).
+  EXPECT_EQ(line,
+            "frame,x,y,z,yaw,pitch,fovy,tau_px,triangles,vertices,update_ms,draw_ms,bound_px,vsplits,ecols,morphing,"
+            "nodes_selected,blocks_resident,blocks_loading,texture_bytes,blocks_evicted,prefetch_misses,bytes_read,"
+            "upload_ms,wait_ms,update_cpu_ms");
   int rows = 0;
   while (std::getline(in, line)) {
     std::vector<std::string> f;
@@ -122,6 +124,11 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     ASSERT_GE(f.size(), 13u);
     EXPECT_LE(std::stod(f[12]), std::stod(f[7])) << "frame " << f[0] << ": bound above tau";
     EXPECT_GT(std::stoul(f[8]), 0u) << "frame " << f[0] << ": no triangles";
+    // One PM: one node, one block resident, none loading; no evictions, misses or reads.
+    ASSERT_EQ(f.size(), 26u) << line;
+    EXPECT_EQ(f[16] + "," + f[17] + "," + f[18], "1,1,0") << line;
+    EXPECT_EQ(f[20] + f[21] + f[22], "") << line;
+    EXPECT_EQ(std::stod(f[24]), 0.0) << "frame " << f[0] << ": a single PM never waits";
     ++rows;
   }
   EXPECT_EQ(rows, 40);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "terralod/blocks/block_database.hpp"
+#include "run_command.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/image_pyramid.hpp"
@@ -24,19 +25,15 @@ namespace pm = terralod::pm;
 namespace rd = terralod::render;
 namespace tb = terralod::blocks;
 
-const fs::path kTmp = fs::path(TERRALOD_TEST_TMP) / "fly_layers";
+// This process's own folder (ctest runs the test cases as parallel processes), removed at exit.
+const fs::path kTmp = terralod::test::process_temp_dir("fly_layers");
 
 int run(const std::string& cmd) {
   const int s = std::system(cmd.c_str());
   return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using terralod::test::slurp;
 
 // Stores `img` as layer `name` of kind `kind` over `georef` (pyramid converted next to the db).
 void add_layer(tb::BlockDatabase& db, const std::string& name, const std::string& kind, const rd::RgbaImage& img,

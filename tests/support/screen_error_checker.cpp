@@ -11,6 +11,8 @@
 #include <numbers>
 #include <sstream>
 
+#include "terralod/pm/height_query.hpp"
+
 namespace terralod::test {
 namespace {
 
@@ -155,10 +157,8 @@ ScreenCheck check_screen_error(const pm::Heightfield& hf, const pm::TriangleMesh
 }
 
 std::array<double, 2> world_to_index(const pm::Heightfield& hf, double x, double y) {
-  const pm::GridTransform& t = hf.transform;
-  const double det = t.xc * t.yr - t.xr * t.yc;
-  const double dx = x - t.x0, dy = y - t.y0;
-  return {(dx * t.yr - dy * t.xr) / det, (t.xc * dy - t.yc * dx) / det};
+  const auto [col, row] = pm::world_to_grid(hf.transform, x, y);
+  return {col, row};
 }
 
 SurfaceSamples surface_at_samples(const pm::Heightfield& hf, const std::vector<std::array<double, 3>>& pos,
@@ -192,15 +192,7 @@ SurfaceSamples surface_at_samples(const pm::Heightfield& hf, const std::vector<s
   return r;
 }
 
-double ground_height(const pm::Heightfield& hf, double x, double y) {
-  const auto [c, r] = world_to_index(hf, x, y);
-  const double col = std::clamp(c, 0.0, double(hf.width() - 1)),
-               row = std::clamp(r, 0.0, double(hf.height() - 1));
-  const int i = std::min(int(col), hf.width() - 2), j = std::min(int(row), hf.height() - 2);
-  const double fx = col - i, fy = row - j;
-  return (1 - fy) * ((1 - fx) * hf.at(i, j) + fx * hf.at(i + 1, j)) +
-         fy * ((1 - fx) * hf.at(i, j + 1) + fx * hf.at(i + 1, j + 1));
-}
+double ground_height(const pm::Heightfield& hf, double x, double y) { return pm::bilinear_height(hf, x, y); }
 
 pm::Camera random_pose(const pm::Heightfield& hf, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> U(0.0, 1.0);
