@@ -66,12 +66,19 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
       if (vertical ? a.y > b.y : a.x > b.x) std::reverse(inside.begin(), inside.end());
     };
 
-    std::vector<std::array<std::uint32_t, 3>> work;
+    auto on_border = [&](pm::GridPoint a, pm::GridPoint b) {
+      return (a.x == b.x && (a.x == d.col0 || a.x == d.col1)) ||
+             (a.y == b.y && (a.y == d.row0 || a.y == d.row1));
+    };
+    std::vector<std::array<std::uint32_t, 3>> work, done;
     const std::size_t original = p.triangles.size();
     for (std::size_t ti = 0; ti < original; ++ti) {
-      work.assign(1, p.triangles[ti]);
+      const auto& t0 = p.triangles[ti];
+      const pm::GridPoint g0 = p.vertices[t0[0]], g1 = p.vertices[t0[1]], g2 = p.vertices[t0[2]];
+      if (!on_border(g0, g1) && !on_border(g1, g2) && !on_border(g2, g0)) continue;  // nothing to split
+      work.assign(1, t0);
+      done.clear();
       bool split_any = false;
-      std::vector<std::array<std::uint32_t, 3>> done;
       while (!work.empty()) {
         const auto t = work.back();
         work.pop_back();
