@@ -26,6 +26,10 @@ CommandSpec build_spec() {
       "(comma-separated, the last one repeats): grid ((P+1)^2 points, quadtree), tin (greedy TIN of\n"
       "at most --max-points points, k-d tree), nonregular (non-regular grid, k-d tree) or auto (per\n"
       "node, the one with the smallest error x bytes). The leaves are the blocks' PMs.\n"
+      "Every block also gets a stand-in, drawn by 'terralod fly' where the block is not refined\n"
+      "(outer rings, blocks still loading): --standin tin (greedy TIN, default), grid, nonregular\n"
+      "or two-triangle, of at most --standin-points samples (default 64) at their true heights,\n"
+      "with its exact error; they are stored as the 'block_summaries' blob (format version 2).\n"
       "Running the same command again after an interruption resumes it; an existing database\n"
       "built with other options is an error. 'terralod info DB' prints the summary as JSON.";
   s.options = {
@@ -37,6 +41,8 @@ CommandSpec build_spec() {
       {"--patch", "P", "grid nodes have (P+1)^2 points (default 4)"},
       {"--max-points", "S", "TIN and non-regular nodes have at most S points (default 25)"},
       {"--metric", "NAME", "error metric: continuous (default) or samples"},
+      {"--standin", "KIND", "block stand-in surface: tin (default), grid, nonregular or two-triangle"},
+      {"--standin-points", "N", "stand-ins have at most N points, 4..4096 (default 64)"},
       {"--keep-voids", "", "keep DEM voids as holes instead of filling them"},
   };
   return s;
@@ -67,6 +73,9 @@ int cmd_build(const Args& a) {
     }
     if (opt.tree.levels.empty()) throw UsageError("option '--strategy' needs at least one strategy");
   }
+  opt.standin.kind = blocks::parse_standin_kind(
+      a.get_choice("--standin", {"tin", "grid", "nonregular", "two-triangle"}, "tin"));
+  opt.standin.max_points = std::size_t(a.get_int("--standin-points", 64, 4, 4096));
   blocks::DemOptions dem;
   dem.fill_voids = !a.has("--keep-voids");
 
@@ -109,6 +118,11 @@ int cmd_build(const Args& a) {
               s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
               n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::PmBlock)], s.root_error,
               s.max_block_error);
+  const std::string standins = s.standin.empty()                ? std::string("none (the blocks have voids)")
+                               : s.standin == "two-triangle" ? s.standin
+                                                             : strf("%s of <= %zu points", s.standin.c_str(), opt.standin.max_points);
+  std::printf("stand-ins %s: mean error %.2f m (two triangles: %.2f m), %s of block summaries\n", standins.c_str(),
+              s.mean_standin_error, s.mean_tm_error, format_bytes(s.summaries_bytes).c_str());
   std::printf("size  %llu samples, %llu block PM vertices, %s of blocks + %s of tree = %.2f bytes/vertex, total %s\n",
               static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
               format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,

@@ -1,5 +1,6 @@
-// Block grid geometry, block summaries (two-triangle stand-ins) and the active region (paper
-// section 4.1-4.2, Eq. 2); see active_region.hpp.
+// Block grid geometry, block summaries (stand-in surfaces made by the approximation tree's node
+// strategies, their blob format) and the active region (paper section 4.1-4.2, Eq. 2); see
+// active_region.hpp.
 #include "terralod/blocks/active_region.hpp"
 
 #include <zlib.h>
@@ -8,8 +9,10 @@
 #include <cassert>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
+#include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/linf_error.hpp"
 
 namespace terralod::blocks {
@@ -22,8 +25,9 @@ BlockGrid::BlockGrid(int grid_width, int grid_height, int block_size, const pm::
   if (block_size < 3) throw std::invalid_argument("BlockGrid: block_size must be >= 3, not " + std::to_string(block_size));
   if (!(transform.determinant() != 0.0) || !std::isfinite(transform.determinant()))
     throw std::invalid_argument("BlockGrid: the grid transform is singular");
-  cols_ = (w_ - 1 + b_ - 2) / (b_ - 1);
-  rows_ = (h_ - 1 + b_ - 2) / (b_ - 1);
+  // ceil((w - 1) / (b - 1)) in 64 bits: w - 1 + b - 2 overflows an int near INT_MAX.
+  cols_ = int((std::int64_t(w_) - 1 + b_ - 2) / (b_ - 1));
+  rows_ = int((std::int64_t(h_) - 1 + b_ - 2) / (b_ - 1));
 }
 
 BlockGrid BlockGrid::from_info(const DatabaseInfo& info) {
@@ -64,7 +68,79 @@ pm::Vec3 BlockGrid::world(int col, int row, double z) const {
   return {x, y, z};
 }
 
-BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k) {
+const char* standin_kind_name(StandinKind k) {
+  switch (k) {
+    case StandinKind::TwoTriangles: return "two-triangle";
+    case StandinKind::Grid: return "grid";
+    case StandinKind::Tin: return "tin";
+    case StandinKind::NonRegularGrid: return "nonregular";
+  }
+  return "unknown";
+}
+
+StandinKind parse_standin_kind(const std::string& name) {
+  for (StandinKind k : {StandinKind::TwoTriangles, StandinKind::Grid, StandinKind::Tin, StandinKind::NonRegularGrid})
+    if (name == standin_kind_name(k)) return k;
+  throw std::invalid_argument("unknown stand-in '" + name + "' (tin, grid, nonregular or two-triangle)");
+}
+
+void set_two_triangle_standin(BlockSummary& s, int width, int height) {
+  assert(width >= 2 && height >= 2);
+  s.standin = StandinKind::TwoTriangles;
+  s.standin_error = s.tm_error;
+  s.points = {{0, 0, s.z00}, {width - 1, 0, s.z10}, {0, height - 1, s.z01}, {width - 1, height - 1, s.z11}};
+  s.triangles = {{0, 1, 3}, {0, 3, 2}};  // split along (0,0)-(w-1,h-1), CCW in (col,row)
+  s.triangle_errors = {s.tm_error, s.tm_error};
+}
+
+namespace {
+
+/// The smallest float >= e (as a double): per-triangle errors are stored as f32.
+double round_up_to_float(double e) {
+  float f = static_cast<float>(e);
+  if (double(f) < e) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return double(f);
+}
+
+/// The stand-in surface of a complete block heightfield (its own local grid) by `o`.
+void make_standin(const pm::Heightfield& hf, const StandinOptions& o, BlockSummary& s) {
+  assert(o.max_points >= 4);
+  const int w = hf.width(), h = hf.height();
+  std::unique_ptr<NodeStrategy> strategy;
+  switch (o.kind) {
+    case StandinKind::TwoTriangles: break;
+    case StandinKind::Grid: {
+      int p = 1;
+      while (std::size_t(p + 2) * std::size_t(p + 2) <= o.max_points) ++p;
+      strategy = make_grid_strategy(p);
+      break;
+    }
+    case StandinKind::Tin: strategy = make_tin_strategy(o.max_points, o.metric); break;
+    case StandinKind::NonRegularGrid: strategy = make_nonregular_strategy(o.max_points, o.metric); break;
+  }
+  if (strategy) {
+    const NodeSurface n = strategy->approximate(hf, SampleRect{0, 0, w - 1, h - 1});
+    s.standin = o.kind;
+    s.points.clear();
+    for (const auto& p : n.points) s.points.push_back({int(p[0]), int(p[1]), p[2]});
+    s.triangles = n.triangles;
+  } else {
+    set_two_triangle_standin(s, w, h);
+  }
+  const pm::LInfError err(hf, o.metric);
+  s.standin_error = 0;
+  s.triangle_errors.clear();
+  for (const auto& t : s.triangles) {
+    const StandinPoint &a = s.points[t[0]], &b = s.points[t[1]], &c = s.points[t[2]];
+    const double e = err.triangle({a.col, a.row}, {b.col, b.row}, {c.col, c.row});
+    s.standin_error = std::max(s.standin_error, e);
+    s.triangle_errors.push_back(round_up_to_float(e));
+  }
+}
+
+}  // namespace
+
+BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k, const StandinOptions& standin) {
   const pm::Heightfield& hf = pm.heightfield();
   const std::string name = "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
   if (hf.has_holes()) {
@@ -96,14 +172,19 @@ BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k) {
     const auto t0 = sorted(base.triangles[0]), t1 = sorted(base.triangles[1]);
     s.base_is_tm = (t0 == a && t1 == b) || (t0 == b && t1 == a);
   }
+  make_standin(hf, standin, s);
   return s;
 }
 
 namespace {
 
 constexpr std::uint32_t kMagic = 0x53424C54u;  // "TLBS"
-constexpr std::size_t kRecord = 7 * 8 + 8;
+constexpr std::size_t kRecordV1 = 7 * 8 + 8;
 
+void put_u16(std::vector<std::uint8_t>& o, std::uint32_t v) {
+  o.push_back(std::uint8_t(v));
+  o.push_back(std::uint8_t(v >> 8));
+}
 void put_u32(std::vector<std::uint8_t>& o, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) o.push_back(std::uint8_t(v >> (8 * i)));
 }
@@ -112,6 +193,7 @@ void put_f64(std::vector<std::uint8_t>& o, double d) {
   std::memcpy(&v, &d, 8);
   for (int i = 0; i < 8; ++i) o.push_back(std::uint8_t(v >> (8 * i)));
 }
+std::uint32_t get_u16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
 std::uint32_t get_u32(const std::uint8_t* p) {
   return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
 }
@@ -128,18 +210,73 @@ std::uint32_t crc(const std::uint8_t* p, std::size_t n) {
 
 }  // namespace
 
+// The "block_summaries" blob, format version 2. All numbers little-endian; f64 = IEEE-754
+// binary64, u16/u32 unsigned.
+//   header, 16 bytes:
+//     0  u32 magic 0x53424C54 ("TLBS" in memory)
+//     4  u32 version = 2
+//     8  u32 cols   (BlockGrid::cols())
+//    12  u32 rows   (BlockGrid::rows())
+//   then one record per block in BlockGrid::index order (row * cols + col), variable size:
+//     0  f64 zmin              height range of the block's samples, metres
+//     8  f64 zmax
+//    16  f64 tm_error          exact error of the two-triangle mesh (continuous metric), metres
+//    24  f64 standin_error     exact error of the stand-in surface, metres
+//    32  u8  kind              StandinKind: 0 two-triangle, 1 grid, 2 tin, 3 nonregular
+//    33  u8  flags             bit 0: base_is_tm; bits 1-7 zero
+//    34  u16 n                 stand-in points, 4..65535
+//    36  u16 m                 stand-in triangles, 1..65535
+//    38  u16 reserved = 0
+//    40  n x 12 bytes          points: u16 col, u16 row (block-local sample), f64 z (the sample's
+//                              height, bit for bit); the 4 block corners must be among them and
+//                              give z00, z10, z01, z11
+//    40 + 12 n                 m x 3 vertex indices, CCW in (col,row): u8 each when n <= 256,
+//                              else u16 each (so 3 or 6 bytes per triangle); their areas sum to
+//                              the block's
+//    40 + 12 n + 3m (or 6m)    m x f32 per-triangle error, metres, rounded up to a float (so
+//                              their max >= standin_error, which is exact)
+//   trailer: u32 CRC-32 (zlib) of every byte before it.
+// A two-triangle block at v2 takes 40 + 48 + 6 + 8 = 102 bytes; an n-point TIN 40 + 12 n + 7 m
+// (m ~ 2 n).
+// Version 1 (still decoded): the same header with version 1, then per block 64 bytes:
+// 7 x f64 (z00 z10 z01 z11 zmin zmax tm_error), u8 base_is_tm, 7 zero bytes; then the CRC.
 std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s) {
   assert(s.size() == grid.block_count());
+  if (grid.block_size() > 65537)
+    throw std::invalid_argument("block_summaries: stand-in coordinates need block_size <= 65537, not " +
+                                std::to_string(grid.block_size()));
   std::vector<std::uint8_t> o;
-  o.reserve(16 + s.size() * kRecord + 4);
+  o.reserve(16 + s.size() * 600 + 4);
   put_u32(o, kMagic);
-  put_u32(o, 1);
+  put_u32(o, kBlockSummariesVersion);
   put_u32(o, std::uint32_t(grid.cols()));
   put_u32(o, std::uint32_t(grid.rows()));
   for (const BlockSummary& b : s) {
-    for (double d : {b.z00, b.z10, b.z01, b.z11, b.zmin, b.zmax, b.tm_error}) put_f64(o, d);
+    assert(b.points.size() >= 4 && !b.triangles.empty());
+    if (b.points.size() > 65535 || b.triangles.size() > 65535)
+      throw std::invalid_argument("block_summaries: a stand-in has more than 65535 points or triangles");
+    for (double d : {b.zmin, b.zmax, b.tm_error, b.standin_error}) put_f64(o, d);
+    o.push_back(std::uint8_t(b.standin));
     o.push_back(b.base_is_tm ? 1 : 0);
-    o.insert(o.end(), 7, 0);
+    put_u16(o, std::uint32_t(b.points.size()));
+    put_u16(o, std::uint32_t(b.triangles.size()));
+    put_u16(o, 0);
+    for (const StandinPoint& p : b.points) {
+      put_u16(o, std::uint32_t(p.col));
+      put_u16(o, std::uint32_t(p.row));
+      put_f64(o, p.z);
+    }
+    const bool small = b.points.size() <= 256;
+    for (const auto& t : b.triangles)
+      for (std::uint32_t v : t) small ? o.push_back(std::uint8_t(v)) : put_u16(o, v);
+    assert(b.triangle_errors.size() == b.triangles.size());
+    for (double e : b.triangle_errors) {
+      const float f = static_cast<float>(e);
+      assert(double(f) == e);  // rounded up to a float when computed
+      std::uint32_t u;
+      std::memcpy(&u, &f, 4);
+      put_u32(o, u);
+    }
   }
   put_u32(o, crc(o.data(), o.size()));
   return o;
@@ -150,30 +287,106 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
   auto fail = [&](const std::string& what) {
     throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
   };
-  const std::size_t expect = 16 + grid.block_count() * kRecord + 4;
   if (bytes.size() < 20) fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
   if (get_u32(bytes.data()) != kMagic) fail("bad magic");
-  if (get_u32(bytes.data() + 4) != 1) fail("unsupported version " + std::to_string(get_u32(bytes.data() + 4)));
+  const std::uint32_t version = get_u32(bytes.data() + 4);
+  if (version != 1 && version != 2) fail("unsupported version " + std::to_string(version));
   if (get_u32(bytes.data() + 8) != std::uint32_t(grid.cols()) || get_u32(bytes.data() + 12) != std::uint32_t(grid.rows()))
     fail("block grid " + std::to_string(get_u32(bytes.data() + 8)) + " x " + std::to_string(get_u32(bytes.data() + 12)) +
          " does not match the database's " + std::to_string(grid.cols()) + " x " + std::to_string(grid.rows()));
-  if (bytes.size() != expect) fail("size " + std::to_string(bytes.size()) + " bytes, expected " + std::to_string(expect));
+  if (version == 1 && bytes.size() != 16 + grid.block_count() * kRecordV1 + 4)
+    fail("size " + std::to_string(bytes.size()) + " bytes, expected " +
+         std::to_string(16 + grid.block_count() * kRecordV1 + 4));
+  // A v2 record takes >= 40 + 4 x 12 + 3 + 4 bytes: check before allocating the summaries.
+  if (version == 2 && (bytes.size() - 20) / 95 < grid.block_count())
+    fail("size " + std::to_string(bytes.size()) + " bytes, too small for " + std::to_string(grid.block_count()) +
+         " block records");
   if (crc(bytes.data(), bytes.size() - 4) != get_u32(bytes.data() + bytes.size() - 4)) fail("checksum mismatch");
   std::vector<BlockSummary> out(grid.block_count());
   const std::uint8_t* p = bytes.data() + 16;
-  for (BlockSummary& b : out) {
-    b.z00 = get_f64(p);
-    b.z10 = get_f64(p + 8);
-    b.z01 = get_f64(p + 16);
-    b.z11 = get_f64(p + 24);
-    b.zmin = get_f64(p + 32);
-    b.zmax = get_f64(p + 40);
-    b.tm_error = get_f64(p + 48);
-    b.base_is_tm = p[56] != 0;
-    if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) || !std::isfinite(b.zmax - b.zmin + b.tm_error + b.z00 + b.z10 + b.z01 + b.z11))
-      fail("block record " + std::to_string((p - bytes.data() - 16) / kRecord) + " is inconsistent");
-    p += kRecord;
+  const std::uint8_t* const end = bytes.data() + bytes.size() - 4;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    BlockSummary& b = out[i];
+    const SampleRect d = grid.domain(grid.key(i));
+    const int w = d.width(), h = d.height();
+    auto bad = [&](const std::string& what) { fail("block record " + std::to_string(i) + ": " + what); };
+    if (version == 1) {
+      b.z00 = get_f64(p);
+      b.z10 = get_f64(p + 8);
+      b.z01 = get_f64(p + 16);
+      b.z11 = get_f64(p + 24);
+      b.zmin = get_f64(p + 32);
+      b.zmax = get_f64(p + 40);
+      b.tm_error = get_f64(p + 48);
+      b.base_is_tm = p[56] != 0;
+      if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) ||
+          !std::isfinite(b.zmax - b.zmin + b.tm_error + b.z00 + b.z10 + b.z01 + b.z11))
+        fail("block record " + std::to_string(i) + " is inconsistent");
+      for (double z : {b.z00, b.z10, b.z01, b.z11})  // corners are samples: inside the height range
+        if (!(z >= b.zmin && z <= b.zmax)) fail("block record " + std::to_string(i) + ": a corner outside zmin..zmax");
+      set_two_triangle_standin(b, w, h);
+      p += kRecordV1;
+      continue;
+    }
+    if (end - p < 40) bad("truncated");
+    b.zmin = get_f64(p);
+    b.zmax = get_f64(p + 8);
+    b.tm_error = get_f64(p + 16);
+    b.standin_error = get_f64(p + 24);
+    const std::uint8_t kind = p[32], flags = p[33];
+    const std::uint32_t n = get_u16(p + 34), m = get_u16(p + 36);
+    if (kind > 3 || flags > 1 || get_u16(p + 38) != 0) bad("bad kind or flags");
+    if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) || !(b.standin_error >= 0) ||
+        !std::isfinite(b.zmax - b.zmin + b.tm_error + b.standin_error))
+      bad("inconsistent heights or errors");
+    b.standin = StandinKind(kind);
+    b.base_is_tm = flags != 0;
+    const std::size_t isize = n <= 256 ? 1 : 2;
+    if (n < 4 || m < 1 || std::size_t(end - p) < 40 + 12 * std::size_t(n) + (3 * isize + 4) * m) bad("truncated stand-in");
+    p += 40;
+    unsigned corners = 0;
+    b.points.resize(n);
+    for (StandinPoint& q : b.points) {
+      q.col = int(get_u16(p));
+      q.row = int(get_u16(p + 2));
+      q.z = get_f64(p + 4);
+      if (q.col >= w || q.row >= h || !(q.z >= b.zmin && q.z <= b.zmax)) bad("stand-in point outside the block");
+      const bool c0 = q.col == 0, c1 = q.col == w - 1, r0 = q.row == 0, r1 = q.row == h - 1;
+      if ((c0 || c1) && (r0 || r1)) {
+        (c0 ? (r0 ? b.z00 : b.z01) : (r0 ? b.z10 : b.z11)) = q.z;
+        corners |= 1u << ((c0 ? 0 : 1) + (r0 ? 0 : 2));
+      }
+      p += 12;
+    }
+    if (corners != 15) bad("the stand-in lacks a block corner");
+    b.triangles.resize(m);
+    std::int64_t area2 = 0;
+    for (auto& t : b.triangles) {
+      for (std::uint32_t& v : t) {
+        v = isize == 1 ? p[0] : get_u16(p);
+        p += isize;
+        if (v >= n) bad("stand-in triangle index out of range");
+      }
+      const StandinPoint &a = b.points[t[0]], &e = b.points[t[1]], &c = b.points[t[2]];
+      const std::int64_t o = std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
+      if (o <= 0) bad("stand-in triangle not counter-clockwise");
+      area2 += o;
+    }
+    if (area2 != 2 * std::int64_t(w - 1) * (h - 1)) bad("stand-in triangles do not cover the block");
+    b.triangle_errors.resize(m);
+    double emax = 0;
+    for (double& e : b.triangle_errors) {
+      const std::uint32_t u = get_u32(p);
+      float f;
+      std::memcpy(&f, &u, 4);
+      e = double(f);
+      p += 4;
+      if (!(e >= 0) || !std::isfinite(e)) bad("bad stand-in triangle error");
+      emax = std::max(emax, e);
+    }
+    if (!(emax >= b.standin_error)) bad("stand-in triangle errors below the stand-in's error");
   }
+  if (p != end) fail("size " + std::to_string(bytes.size()) + " bytes, expected " + std::to_string(p - bytes.data() + 4));
   return out;
 }
 
@@ -183,6 +396,41 @@ double tm_height(const BlockGrid& grid, BlockKey k, const BlockSummary& s, doubl
   // Lower triangle (0,0),(1,0),(1,1) where u >= v; upper (0,0),(1,1),(0,1) otherwise.
   if (u >= v) return s.z00 + u * (s.z10 - s.z00) + v * (s.z11 - s.z10);
   return s.z00 + v * (s.z01 - s.z00) + u * (s.z11 - s.z01);
+}
+
+double standin_height(const BlockSummary& s, double col, double row) {
+  assert(!s.triangles.empty());
+  double best = 0, best_out = -1e300;
+  for (const auto& t : s.triangles) {
+    const StandinPoint &a = s.points[t[0]], &b = s.points[t[1]], &c = s.points[t[2]];
+    const double det = double(b.col - a.col) * (c.row - a.row) - double(b.row - a.row) * (c.col - a.col);
+    const double l1 = ((col - a.col) * (c.row - a.row) - (row - a.row) * (c.col - a.col)) / det;
+    const double l2 = ((b.col - a.col) * (row - a.row) - (b.row - a.row) * (col - a.col)) / det;
+    const double l0 = 1 - l1 - l2;
+    const double inside = std::min({l0, l1, l2});
+    const double z = l0 * a.z + l1 * b.z + l2 * c.z;
+    if (inside >= 0) return z;
+    if (inside > best_out) best_out = inside, best = z;  // rounding at an edge: the nearest triangle
+  }
+  return best;
+}
+
+double standin_bound_px(const BlockGrid& grid, BlockKey k, const BlockSummary& s, const pm::View& view) {
+  assert(s.triangle_errors.size() == s.triangles.size());
+  const SampleRect d = grid.domain(k);
+  double bound = 0;
+  for (std::size_t i = 0; i < s.triangles.size(); ++i) {
+    const double e = s.triangle_errors[i];
+    pm::Box b{{1e300, 1e300, 1e300}, {-1e300, -1e300, -1e300}};
+    for (std::uint32_t v : s.triangles[i]) {
+      const StandinPoint& q = s.points[v];
+      const pm::Vec3 w = grid.world(d.col0 + q.col, d.row0 + q.row, q.z);
+      b.lo = {std::min(b.lo.x, w.x), std::min(b.lo.y, w.y), std::min(b.lo.z, w.z - e)};
+      b.hi = {std::max(b.hi.x, w.x), std::max(b.hi.y, w.y), std::max(b.hi.z, w.z + e)};
+    }
+    if (!view.outside(b)) bound = std::max(bound, view.vertical_error_px(b, e));
+  }
+  return bound;
 }
 
 pm::Box block_box(const BlockGrid& grid, BlockKey k, const BlockSummary& s) {

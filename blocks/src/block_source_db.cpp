@@ -1,5 +1,5 @@
 // The block database as a BlockSource of the loader (one read-only connection per loader
-// thread), and the block summaries read from (or computed over) a database.
+// thread), and the block summaries (with their stand-ins) read from, or computed over, a database.
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/block_loader.hpp"
 #include "terralod/blocks/terrain_session.hpp"
@@ -24,8 +24,14 @@ BlockSourceFactory database_source(const std::string& path) {
 }
 
 std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const BlockGrid& grid,
-                                               const std::function<void(double)>& progress) {
+                                               const std::function<void(double)>& progress,
+                                               const StandinOptions& standin) {
   if (const auto blob = db.read_blob(kBlockSummariesBlob)) return decode_block_summaries(grid, *blob, db.path());
+  // The database's metric (build_database's parameters; continuous when not recorded).
+  StandinOptions o = standin;
+  o.metric = db.info().build_parameters.find("\"metric\": \"samples\"") != std::string::npos
+                 ? pm::ErrorMetric::Samples
+                 : pm::ErrorMetric::Continuous;
   std::vector<BlockSummary> out(grid.block_count());
   for (std::size_t i = 0; i < out.size(); ++i) {
     const BlockKey k = grid.key(i);
@@ -37,7 +43,7 @@ std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const Bl
       throw DatabaseError(db.path(), "block (" + std::to_string(k.col) + "," + std::to_string(k.row) +
                           "): size does not match the block grid");
     try {
-      out[i] = summarize_block(pm, k);
+      out[i] = summarize_block(pm, k, o);
     } catch (const std::invalid_argument& e) {
       throw DatabaseError(db.path(), e.what());
     }

@@ -1,6 +1,6 @@
 // The per-frame dynamic-loading pipeline (paper section 4): region, loads and prefetch,
-// per-block selective refinement with swap-in geomorphs, eviction, seams; see
-// terrain_session.hpp.
+// stand-ins, per-block selective refinement with swap-in blends from the old surface,
+// eviction, seams; see terrain_session.hpp.
 #include "terralod/blocks/terrain_session.hpp"
 
 #include <algorithm>
@@ -25,6 +25,8 @@ void check_options(const SessionOptions& o) {
   if (!(o.prefetch_horizon_s >= 0) || !(o.prefetch_step_s > 0))
     throw std::invalid_argument("SessionOptions: need prefetch_horizon_s >= 0 and prefetch_step_s > 0");
   if (!(o.skirt_depth_m >= 0)) throw std::invalid_argument("SessionOptions: skirt_depth_m must be >= 0");
+  if (!(o.merge_tolerance_samples >= 0))
+    throw std::invalid_argument("SessionOptions: merge_tolerance_samples must be >= 0");
 }
 }  // namespace
 
@@ -35,10 +37,77 @@ TerrainSession::TerrainSession(BlockSourceFactory source, const BlockGrid& grid,
   if (sums_.size() != grid_.block_count())
     throw std::invalid_argument("TerrainSession: " + std::to_string(sums_.size()) + " block summaries for " +
                                 std::to_string(grid_.block_count()) + " blocks");
+  for (std::size_t i = 0; i < sums_.size(); ++i) {
+    if (sums_[i].triangles.empty()) {
+      const SampleRect d = grid_.domain(grid_.key(i));
+      set_two_triangle_standin(sums_[i], d.width(), d.height());
+    }
+    if (sums_[i].triangle_errors.size() != sums_[i].triangles.size())
+      throw std::invalid_argument("TerrainSession: block summary " + std::to_string(i) + " has " +
+                                  std::to_string(sums_[i].triangles.size()) + " stand-in triangles but " +
+                                  std::to_string(sums_[i].triangle_errors.size()) + " triangle errors");
+  }
   loader_ = std::make_unique<BlockLoader>(std::move(source), grid_);
 }
 
 TerrainSession::~TerrainSession() = default;
+
+std::vector<TerrainSession::OldTriangle> TerrainSession::old_surface(BlockKey k) const {
+  // The triangles drawn for k last frame (stand-in plus stitched pieces; walls left out), or
+  // its bare stand-in when it was not drawn.
+  std::vector<OldTriangle> out;
+  const SampleRect d = grid_.domain(k);
+  const std::uint64_t W = std::uint64_t(grid_.grid_width());
+  for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
+    if (mesh_.triangle_block[t] != k) continue;
+    OldTriangle o;
+    bool wall = false;
+    for (int i = 0; i < 3; ++i) {
+      const std::uint32_t v = mesh_.triangles[t][std::size_t(i)];
+      const std::uint64_t s = mesh_.samples[v];
+      if (s == DrawnMesh::kNoSample) wall = true;
+      else o.p[std::size_t(i)] = {double(std::int64_t(s % W) - d.col0), double(std::int64_t(s / W) - d.row0), mesh_.positions[v].z};
+    }
+    if (!wall) out.push_back(o);
+  }
+  if (!out.empty()) return out;
+  const BlockSummary& b = sums_[grid_.index(k)];
+  for (const auto& t : b.triangles) {
+    OldTriangle o;
+    for (int i = 0; i < 3; ++i) {
+      const StandinPoint& q = b.points[t[std::size_t(i)]];
+      o.p[std::size_t(i)] = {double(q.col), double(q.row), q.z};
+    }
+    out.push_back(o);
+  }
+  return out;
+}
+
+double TerrainSession::old_height(Refined& r, BlockKey k, std::uint32_t local_sample, int width) const {
+  const auto [it, fresh] = r.old_z.try_emplace(local_sample, 0.0);
+  if (!fresh) return it->second;
+  const double c = double(local_sample % std::uint32_t(width)), w = double(local_sample / std::uint32_t(width));
+  // The containing old triangle (barycentric, inclusive); the least-outside one absorbs rounding.
+  double best = sums_[grid_.index(k)].z00, best_in = -1e300;
+  for (const OldTriangle& t : r.old) {
+    const auto &a = t.p[0], &b = t.p[1], &e = t.p[2];
+    if (c < std::min({a[0], b[0], e[0]}) || c > std::max({a[0], b[0], e[0]}) || w < std::min({a[1], b[1], e[1]}) ||
+        w > std::max({a[1], b[1], e[1]}))
+      continue;
+    const double det = (b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0]);
+    const double l1 = ((c - a[0]) * (e[1] - a[1]) - (w - a[1]) * (e[0] - a[0])) / det;
+    const double l2 = ((b[0] - a[0]) * (w - a[1]) - (b[1] - a[1]) * (c - a[0])) / det;
+    const double l0 = 1 - l1 - l2, in = std::min({l0, l1, l2});
+    if (in > best_in) {
+      best_in = in;
+      best = l0 * a[2] + l1 * b[2] + l2 * e[2];
+      if (in >= 0) break;
+    }
+  }
+  if (best_in == -1e300) best = standin_height(sums_[grid_.index(k)], c, w);  // not covered (cannot happen)
+  it->second = best;
+  return best;
+}
 
 const pm::SelectiveRefinement* TerrainSession::selection(BlockKey k) const {
   const auto it = refined_.find(k);
@@ -136,7 +205,7 @@ const SessionFrameStats& TerrainSession::update(const pm::View& view, double tim
   s.needed_in_view = needed_.size();
   queue_loads(view);
 
-  // 3. Refinement of the resident inner blocks; swap-ins start at the base mesh and morph.
+  // 3. Refinement of the resident inner blocks; swap-ins blend from the old surface.
   for (auto it = refined_.begin(); it != refined_.end();)
     it = region_.is_inner(it->first) ? std::next(it) : refined_.erase(it);
   pm::RefinementOptions ropt = opt_.refinement;
@@ -151,24 +220,20 @@ const SessionFrameStats& TerrainSession::update(const pm::View& view, double tim
       }
       Refined r;
       r.block = b;
+      // The first update of a selection never morphs: it is at tau at once; with geomorphs
+      // the display blends from the block's old surface instead (header, step 3).
+      r.sel = std::make_unique<pm::SelectiveRefinement>(*b->dag, ropt);
       if (ropt.morph_seconds > 0) {
-        // The first update of a selection never morphs: settle it at the base mesh (every
-        // collapse is acceptable at this tau), then refine with geomorphs from there.
-        pm::RefinementOptions base = ropt;
-        base.tolerance_px = 1e300;
-        base.target_triangles = 0;
-        r.sel = std::make_unique<pm::SelectiveRefinement>(*b->dag, base);
-        r.sel->update(view, time_s);
-        r.sel->set_options(ropt);
-      } else {
-        r.sel = std::make_unique<pm::SelectiveRefinement>(*b->dag, ropt);
+        r.blending = true;
+        r.blend_t0 = time_s;
+        r.old = old_surface(k);
       }
       it = refined_.emplace(k, std::move(r)).first;
       ++s.swapped_in;
     }
     const pm::FrameStats& fs = it->second.sel->update(view, time_s);
     s.tolerance_px = std::max(s.tolerance_px, fs.tolerance_px);
-    if (it->second.sel->morphing()) ++s.morphing_blocks;
+    if (it->second.sel->morphing() || it->second.blending) ++s.morphing_blocks;
   }
   if (s.tolerance_px == 0) s.tolerance_px = ropt.tolerance_px;
   s.refined = refined_.size();
@@ -191,7 +256,9 @@ const SessionFrameStats& TerrainSession::update(const pm::View& view, double tim
     const SampleRect d = grid_.domain(k);
     const auto it = refined_.find(k);
     if (it != refined_.end()) {
-      const pm::SelectiveRefinement& sel = *it->second.sel;
+      Refined& ref = it->second;
+      const pm::SelectiveRefinement& sel = *ref.sel;
+      const double w = ref.blending ? std::clamp((time_s - ref.blend_t0) / ropt.morph_seconds, 0.0, 1.0) : 1.0;
       const pm::Heightfield& hf = sel.dag().heightfield();
       const pm::RenderMesh rm = sel.render_mesh();
       p.samples.reserve(rm.samples.size());
@@ -200,24 +267,58 @@ const SessionFrameStats& TerrainSession::update(const pm::View& view, double tim
         const int c = int(ls % std::uint32_t(hf.width())), r = int(ls / std::uint32_t(hf.width()));
         p.samples.push_back(std::uint64_t(d.row0 + r) * W + std::uint64_t(d.col0 + c));
         p.rest_z.push_back(hf[ls]);
-        p.display_z.push_back(rm.positions[v].z);
+        const double z = rm.positions[v].z;
+        p.display_z.push_back(w < 1 ? old_height(ref, k, ls, hf.width()) * (1 - w) + z * w : z);
+      }
+      if (w >= 1 && ref.blending) {
+        ref.blending = false;
+        ref.old = {};
+        ref.old_z = {};
       }
       p.triangles = rm.triangles;
       p.bound_px = sel.stats().bound_px;
+      p.heights = &hf;  // lives in the resident block, which refined_ holds
     } else {
       const BlockSummary& b = sums_[grid_.index(k)];
-      auto g = [&](int c, int r) { return std::uint64_t(r) * W + std::uint64_t(c); };
-      p.samples = {g(d.col0, d.row0), g(d.col1, d.row0), g(d.col0, d.row1), g(d.col1, d.row1)};
-      p.rest_z = {b.z00, b.z10, b.z01, b.z11};
+      p.samples.reserve(b.points.size());
+      p.rest_z.reserve(b.points.size());
+      for (const StandinPoint& q : b.points) {
+        p.samples.push_back(std::uint64_t(d.row0 + q.row) * W + std::uint64_t(d.col0 + q.col));
+        p.rest_z.push_back(q.z);
+      }
       p.display_z = p.rest_z;
-      p.triangles = {{0, 1, 3}, {0, 3, 2}};
-      const pm::Box box = block_box(grid_, k, b);
-      p.bound_px = view.outside(box) ? 0.0 : view.vertical_error_px(box, b.tm_error);
+      p.triangles = b.triangles;
+      p.bound_px = standin_bound_px(grid_, k, b, view);
     }
     patches.push_back(std::move(p));
   }
+  // A border sample of a block blending in is drawn, on every side, at the height of the
+  // latest swap's blend: that blend started from what was drawn, so the shared height never
+  // switches between two blends (continuous display; one height per sample stays true).
+  {
+    std::unordered_map<std::uint64_t, std::pair<double, double>> lead;  // sample -> (t_swap, z)
+    auto on_border = [&](const detail::SeamPatch& p, std::uint64_t sample) {
+      const SampleRect d = grid_.domain(p.key);
+      const int c = int(sample % W), r = int(sample / W);
+      return c == d.col0 || c == d.col1 || r == d.row0 || r == d.row1;
+    };
+    for (const detail::SeamPatch& p : patches) {
+      const auto it = refined_.find(p.key);
+      if (it == refined_.end() || !it->second.blending) continue;
+      for (std::size_t v = 0; v < p.samples.size(); ++v) {
+        if (!on_border(p, p.samples[v])) continue;
+        auto [e, fresh] = lead.try_emplace(p.samples[v], it->second.blend_t0, p.display_z[v]);
+        if (!fresh && it->second.blend_t0 > e->second.first) e->second = {it->second.blend_t0, p.display_z[v]};
+      }
+    }
+    if (!lead.empty())
+      for (detail::SeamPatch& p : patches)
+        for (std::size_t v = 0; v < p.samples.size(); ++v)
+          if (const auto e = lead.find(p.samples[v]); e != lead.end()) p.display_z[v] = e->second.second;
+  }
   const detail::SeamResult sr =
-      detail::assemble(grid_, patches, view, opt_.seams, opt_.skirt_depth_m, sums_, mesh_);
+      detail::assemble(grid_, patches, view, opt_.seams, opt_.skirt_depth_m, sums_, mesh_,
+                       opt_.merge_tolerance_samples);
   s.bound_px = sr.bound_px;
   s.max_stitch_delta_m = sr.max_delta_m;
   s.seam_triangles = sr.seam_triangles;

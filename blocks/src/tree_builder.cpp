@@ -481,6 +481,10 @@ std::string DatabaseSummary::to_json() const {
   field("pm_vertices", std::to_string(pm_vertices));
   field("block_bytes", std::to_string(block_bytes));
   field("tree_bytes", std::to_string(tree_bytes));
+  field("summaries_bytes", std::to_string(summaries_bytes));
+  field("standin", quote(standin));
+  field("mean_standin_error", num(mean_standin_error));
+  field("mean_tm_error", num(mean_tm_error));
   field("bytes_per_vertex", num(bytes_per_vertex));
   field("max_block_error", num(max_block_error));
   field("root_error", num(root_error));
@@ -519,6 +523,16 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
     s.nodes_per_strategy = tree.count_by_strategy();
     s.tree_depth = tree.depth();
     if (tree.size()) s.root_error = tree.root().error;
+  }
+  if (const auto b = db.read_blob(kBlockSummariesBlob); b && s.blocks_x > 0) {
+    const BlockGrid grid = BlockGrid::from_info(info);
+    const std::vector<BlockSummary> sums = decode_block_summaries(grid, *b, db.path());
+    s.summaries_bytes = b->size();
+    s.standin = sums.empty() ? "" : standin_kind_name(sums[0].standin);
+    for (const BlockSummary& x : sums) {
+      s.mean_standin_error += x.standin_error / double(sums.size());
+      s.mean_tm_error += x.tm_error / double(sums.size());
+    }
   }
   s.bytes_per_vertex = s.samples ? double(s.block_bytes + s.tree_bytes) / double(s.samples) : 0.0;
   if (const auto sec = db.get_meta("build_seconds")) s.seconds = std::atof(sec->c_str());
@@ -576,7 +590,11 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     BlockKey key;
     std::vector<std::uint8_t> blob;
     BlockRecord record;
+    std::optional<BlockSummary> summary;  // none when the block has voids
   };
+  StandinOptions standin = opt.standin;
+  standin.metric = opt.metric;
+  std::map<BlockKey, std::optional<BlockSummary>> summaries;
   std::mutex m;
   std::condition_variable cv;
   std::deque<Done> queue;
@@ -598,6 +616,11 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
           d.record.error = base_mesh_error(pm);
           d.record.vertices = pm.full_vertex_count();
           d.record.bytes = d.blob.size();
+          try {
+            d.summary = summarize_block(pm, d.key, standin);
+          } catch (const std::invalid_argument&) {
+            // voids: no stand-in, and so no "block_summaries" blob
+          }
           std::lock_guard<std::mutex> lock(m);
           queue.push_back(std::move(d));
           cv.notify_all();
@@ -637,6 +660,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
         db.set_meta(block_meta_key(d.key), format_record(d.record));
         tx.commit();
       }
+      summaries.emplace(d.key, std::move(d.summary));
       ++written;
       if (opt.progress) {
         const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
@@ -669,10 +693,44 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   topt.threads = threads;
   const ApproximationTree tree = build_tree(hf, layout, topt, errors);
   const std::vector<std::uint8_t> tree_bytes = encode_tree(tree);
+
+  // Block summaries with their stand-ins: the blocks built now were summarized by the workers;
+  // resumed blocks are read back and summarized here.
+  std::vector<BlockKey> resumed;
+  for (BlockKey k : keys)
+    if (!summaries.count(k)) resumed.push_back(k);
+  std::vector<std::optional<BlockSummary>> resumed_sums(resumed.size());
+  std::mutex db_mutex;
+  parallel_for(resumed.size(), threads, [&](std::size_t i) {
+    const BlockKey k = resumed[i];
+    std::vector<std::uint8_t> blob;
+    {
+      std::lock_guard<std::mutex> lock(db_mutex);
+      blob = db.read_block(k);
+    }
+    const pm::ProgressiveMesh pm =
+        pm::decode_pm(blob, path + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")");
+    try {
+      resumed_sums[i] = summarize_block(pm, k, standin);
+    } catch (const std::invalid_argument&) {
+      // voids, as above: no blob
+    }
+  });
+  for (std::size_t i = 0; i < resumed.size(); ++i) summaries.emplace(resumed[i], std::move(resumed_sums[i]));
+  const BlockGrid bgrid(hf.width(), hf.height(), opt.block_size, hf.transform);
+  std::vector<BlockSummary> sums(bgrid.block_count());
+  bool complete_sums = true;
+  for (const auto& [k, sum] : summaries) {
+    if (!sum) complete_sums = false;
+    else sums[bgrid.index(k)] = *sum;
+  }
+  const std::vector<std::uint8_t> sum_bytes =
+      complete_sums ? encode_block_summaries(bgrid, sums) : std::vector<std::uint8_t>{};
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   {
     BlockDatabase::Transaction tx(db);
     db.put_blob("tree", tree_bytes);
+    if (complete_sums) db.put_blob(kBlockSummariesBlob, sum_bytes);
     char buf[40];
     std::snprintf(buf, sizeof buf, "%.6f", seconds);
     db.set_meta("build_seconds", buf);

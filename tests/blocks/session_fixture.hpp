@@ -1,6 +1,6 @@
-// Test support for dynamic loading: blocked generated terrains, an in-memory block source with
-// controllable latency (a stalled reader), and an independent watertightness checker of a
-// drawn mesh.
+// Test support for dynamic loading: blocked generated terrains (block PMs and summaries with
+// their stand-ins, one kind or a mix of kinds), an in-memory block source with controllable
+// latency (a stalled reader), and an independent watertightness checker of a drawn mesh.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -28,6 +28,8 @@
 namespace terralod::test {
 
 /// A terrain cut into blocks: the blobs (pm::encode_pm of each block PM) and summaries.
+/// Stand-ins: blocks::StandinOptions{} (the database default), or with a list of options, block
+/// (col,row) uses list[(col + 2 row) % size] so that neighbours differ.
 struct BlockedTerrain {
   pm::Heightfield hf;
   blocks::BlockGrid grid;
@@ -35,11 +37,13 @@ struct BlockedTerrain {
   std::vector<blocks::BlockSummary> summaries;
 };
 
-inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size);
+inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size,
+                                    const std::vector<blocks::StandinOptions>& standins = {});
 
 /// A generated terrain (heights in whole metres) cut into blocks.
 inline BlockedTerrain make_blocked_terrain(int width, int height, int block_size, std::uint64_t seed,
-                                           double spacing = 30.0, double relief = 1200.0) {
+                                           double spacing = 30.0, double relief = 1200.0,
+                                           const std::vector<blocks::StandinOptions>& standins = {}) {
   pm::TerrainOptions to;
   to.width = width;
   to.height = height;
@@ -47,11 +51,12 @@ inline BlockedTerrain make_blocked_terrain(int width, int height, int block_size
   to.spacing = spacing;
   to.relief = relief;
   to.quantize_to_metres = true;
-  return block_terrain(pm::generate_terrain(to), block_size);
+  return block_terrain(pm::generate_terrain(to), block_size, standins);
 }
 
 /// Cuts `hf` into blocks (partition.hpp) and builds every block's PM.
-inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size) {
+inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size,
+                                    const std::vector<blocks::StandinOptions>& standins) {
   const int width = hf.width(), height = hf.height();
   BlockedTerrain t;
   t.hf = std::move(hf);
@@ -61,9 +66,23 @@ inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size) {
   for (blocks::BlockKey k : layout.keys()) {
     const pm::ProgressiveMesh pm = blocks::build_block_pm(t.hf, layout.rect(k));
     t.blobs[k] = pm::encode_pm(pm);
-    t.summaries[t.grid.index(k)] = blocks::summarize_block(pm, k);
+    const blocks::StandinOptions o =
+        standins.empty() ? blocks::StandinOptions{} : standins[std::size_t(k.col + 2 * k.row) % standins.size()];
+    t.summaries[t.grid.index(k)] = blocks::summarize_block(pm, k, o);
   }
   return t;
+}
+
+/// A copy of `t` whose summaries get other stand-ins (block PMs decoded from the blobs, not
+/// rebuilt; `standins` as in block_terrain).
+inline BlockedTerrain with_standins(const BlockedTerrain& t, const std::vector<blocks::StandinOptions>& standins) {
+  BlockedTerrain c = t;
+  for (const auto& [k, blob] : c.blobs) {
+    const blocks::StandinOptions o =
+        standins.empty() ? blocks::StandinOptions{} : standins[std::size_t(k.col + 2 * k.row) % standins.size()];
+    c.summaries[c.grid.index(k)] = blocks::summarize_block(pm::decode_pm(blob, "blob"), k, o);
+  }
+  return c;
 }
 
 /// Shared state of MemorySource objects: the blobs, a gate that can stall every read until

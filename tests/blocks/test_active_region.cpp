@@ -80,11 +80,16 @@ TEST(BlockSummary, BlobRoundTripAndCorruption) {
   ASSERT_EQ(t.grid.cols(), 4);
   ASSERT_EQ(t.grid.rows(), 3);
   std::vector<std::uint8_t> blob = tb::encode_block_summaries(t.grid, t.summaries);
-  EXPECT_EQ(blob.size(), 16 + 12 * 64 + 4);
+  // Version 2: 16-byte header, per block 40 bytes + 12 per point + 7 per triangle (3 u8
+  // indices with <= 256 points, an f32 error), 4-byte CRC.
+  std::size_t expect = 16 + 4;
+  for (const tb::BlockSummary& s : t.summaries) expect += 40 + 12 * s.points.size() + 7 * s.triangles.size();
+  EXPECT_EQ(blob.size(), expect);
   EXPECT_EQ(tb::decode_block_summaries(t.grid, blob, "t.db"), t.summaries);
   for (const tb::BlockSummary& s : t.summaries) {
     EXPECT_LE(s.zmin, std::min({s.z00, s.z10, s.z01, s.z11}));
     EXPECT_GE(s.tm_error, 0);
+    EXPECT_LE(s.standin_error, s.tm_error);  // the default TIN starts from the two triangles
   }
   blob[40] ^= 1;
   try {

@@ -144,7 +144,7 @@ TEST(TerrainSessionLoading, StalledReaderNeverBlocksAFrame) {
     EXPECT_EQ(st.stand_ins, st.inner);
     EXPECT_GT(st.loading, 0u);
     EXPECT_EQ(st.refined, 0u);
-    EXPECT_EQ(st.triangles, 2 * st.active);  // every block as two triangles
+    EXPECT_GE(st.triangles, 2 * st.active);  // every block as its stand-in (>= two triangles)
     const auto c = terralod::test::check_watertight(s.drawn_mesh(), s.grid(), terralod::test::region_rect(s));
     EXPECT_TRUE(c.ok()) << c.describe();
   }

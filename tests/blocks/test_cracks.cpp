@@ -3,6 +3,8 @@
 // and of block swaps (blocks arriving while the camera moves), must be watertight: interior
 // edges used once in each direction, boundary edges only on the region's outer border, no
 // T-junction, plan area equal to the region's, one position per sample (bit-identical).
+// Every flight runs with the sliver merge of close unmatched border vertices on (the default
+// tolerance, and a wide one on the scripted flight so that many vertices move).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -29,13 +31,16 @@ struct FlightCounts {
 // Flies `path`, checking every frame. Reads take `latency` frames, so blocks arrive (and swap
 // in with a geomorph) while the camera moves.
 FlightCounts fly_and_check(const BlockedTerrain& t, const std::vector<pm::Camera>& path, double tau,
-                           std::uint64_t latency, const char* label) {
+                           std::uint64_t latency, const char* label,
+                           double merge_tolerance = tb::SessionOptions{}.merge_tolerance_samples) {
   MemoryStore store;
   store.terrain = &t;
   store.latency_frames = latency;
   tb::SessionOptions opt;
   opt.refinement.tolerance_px = tau;
   opt.refinement.morph_seconds = 0.3;
+  opt.merge_tolerance_samples = merge_tolerance;
+  EXPECT_GT(merge_tolerance, 0.0);  // the flights check the merge too
   tb::TerrainSession s(terralod::test::memory_source(store), t.grid, t.summaries, opt);
   const terralod::test::ReleaseAtExit release{store};
   FlightCounts n;
@@ -50,13 +55,13 @@ FlightCounts fly_and_check(const BlockedTerrain& t, const std::vector<pm::Camera
     const terralod::test::WatertightCheck c =
         terralod::test::check_watertight(s.drawn_mesh(), s.grid(), terralod::test::region_rect(s));
     if (!c.ok()) {
-      ADD_FAILURE() << label << " frame " << f << " (" << st.refined << " refined, " << st.stand_ins << " stand-ins, "
-                    << st.morphing_blocks << " morphing): " << c.describe();
+      ADD_FAILURE() << label << " frame " << f << " (" << st.refined << " refined, " << st.stand_ins
+                    << " stand-ins, " << st.morphing_blocks << " morphing): " << c.describe();
       break;
     }
   }
-  std::printf("%s: %zu frames checked, %zu mid-geomorph, %zu mid-swap, %zu with stitched seams\n", label, n.frames,
-              n.morphing, n.mid_swap, n.stitched);
+  std::printf("%s: %zu frames checked, %zu mid-geomorph, %zu mid-swap, %zu with stitched seams\n", label,
+              n.frames, n.morphing, n.mid_swap, n.stitched);
   return n;
 }
 
@@ -64,7 +69,8 @@ FlightCounts fly_and_check(const BlockedTerrain& t, const std::vector<pm::Camera
 // ground drifting between 150 and 700 m, looking ahead and down.
 std::vector<pm::Camera> random_flight(const pm::Heightfield& hf, std::mt19937_64& rng, int frames) {
   std::uniform_real_distribution<double> u(0, 1);
-  const double w = (hf.width() - 1) * hf.transform.spacing_x(), h = (hf.height() - 1) * hf.transform.spacing_y();
+  const double w = (hf.width() - 1) * hf.transform.spacing_x(),
+               h = (hf.height() - 1) * hf.transform.spacing_y();
   const auto [x0, y0] = hf.transform.to_world(0, hf.height() - 1);  // south-west corner
   double x = x0 + w * (0.2 + 0.6 * u(rng)), y = y0 + h * (0.2 + 0.6 * u(rng)), heading = 2 * M_PI * u(rng);
   double above = 150 + 550 * u(rng), turn = 0;
@@ -114,7 +120,8 @@ TEST(Cracks, ScriptedFlightOverGeneratedTerrain) {
   const BlockedTerrain t = terralod::test::make_blocked_terrain(257, 193, 17, /*seed=*/9, 30.0, 600.0);
   std::vector<pm::Camera> path = terralod::test::scripted_flight(t.hf, 150, /*height_m=*/200.0, -20.0);
   for (pm::Camera& c : path) c.far_m = 3e4;
-  const FlightCounts n = fly_and_check(t, path, /*tau=*/1.0, /*latency=*/3, "scripted flight");
+  const FlightCounts n =
+      fly_and_check(t, path, /*tau=*/1.0, /*latency=*/3, "scripted flight", /*merge_tolerance=*/9.0);
   EXPECT_GT(n.morphing, 0u);
   EXPECT_GT(n.mid_swap, 0u);
 }

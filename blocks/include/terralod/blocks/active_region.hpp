@@ -5,10 +5,11 @@
 // Usage:
 //   terralod::blocks::BlockGrid grid(db.info().grid_width, db.info().grid_height,
 //                                    db.info().block_size, db.info().transform);
+//   std::vector<terralod::blocks::BlockSummary> summaries = read_block_summaries(db, grid);  // terrain_session.hpp
 //   terralod::blocks::ActiveRegionOptions opt;                 // theta 20 deg, p = 1
 //   terralod::blocks::ActiveRegion r = terralod::blocks::active_region(grid, summaries, eye, opt);
 //   for (BlockKey k : r.inner) { /* view-dependent PM */ }
-//   for (BlockKey k : r.outer) { /* two-triangle mesh */ }
+//   for (BlockKey k : r.outer) { /* stand-in: summaries[grid.index(k)].points / triangles */ }
 //
 // Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 4.1 (centre block, the inner
 // (2n+1)^2 blocks as view-dependent PMs, the outer p rings as two-triangle meshes) and 4.2,
@@ -26,15 +27,21 @@
 // Block summaries ("block_summaries" blob of the block database, format below): for each
 // block its four corner heights (fixed samples of every PM of the block), the exact L-infinity
 // error of its two-triangle mesh (split along (col0,row0)-(col1,row1), the grid's diagonal
-// direction), its height range and whether the PM's base mesh is exactly those two triangles.
-// They let a block that is not resident be drawn as its two-triangle stand-in with an honest
-// error bound, without reading it. summarize_block() computes one from a block's PM.
+// direction), its height range, whether the PM's base mesh is exactly those two triangles, and
+// its stand-in surface: a small surface over the block's domain made by one node strategy of
+// tree_builder.hpp (greedy TIN, regular grid, non-regular grid) or the two triangles, whose
+// points are block samples at their true heights, with its exact L-infinity error
+// (pm::LInfError with the database's metric). They let a block that is not resident be drawn
+// as its stand-in with an honest error bound, without reading it. summarize_block() computes
+// one from a block's PM.
 //
 // Contract: grid sizes >= 2, block_size >= 3 (else std::invalid_argument); a transform with a
-// non-zero determinant. Memory: 72 bytes per block summary; active_region allocates the key
-// lists only.
+// non-zero determinant. Memory: 150 bytes per block summary plus 16 bytes per stand-in point
+// and 20 per stand-in triangle (about 3.6 KB per block at 64 TIN points); active_region
+// allocates the key lists only.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -43,6 +50,7 @@
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/sample_rect.hpp"
 #include "terralod/pm/heightfield.hpp"
+#include "terralod/pm/linf_error.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/view.hpp"
 
@@ -85,24 +93,69 @@ class BlockGrid {
   pm::GridTransform t_;
 };
 
-/// What a non-resident block needs: its two-triangle stand-in and its error (see above).
+/// Surface of a block's stand-in: the node strategies of tree_builder.hpp, or two triangles.
+enum class StandinKind : std::uint8_t { TwoTriangles = 0, Grid = 1, Tin = 2, NonRegularGrid = 3 };
+/// "two-triangle", "grid", "tin", "nonregular"; parse throws std::invalid_argument otherwise.
+const char* standin_kind_name(StandinKind k);
+StandinKind parse_standin_kind(const std::string& name);
+
+/// How stand-ins are made. The default kind has the smallest error x bytes (blob v2 bytes) on
+/// N44W072 in 257-sample blocks among TIN, grid and non-regular grid at 16, 32 and 64 points;
+/// the size trades the flight's bound against bytes (tables in tree_builder.hpp,
+/// DatabaseBuildOptions::standin).
+struct StandinOptions {
+  StandinKind kind = StandinKind::Tin;
+  /// At most this many points, >= 4. Tin: greedy insertion of the sample of largest error
+  /// (make_tin_strategy); NonRegularGrid: rows x cols <= max_points (make_nonregular_strategy);
+  /// Grid: the largest (P+1)^2 <= max_points evenly spaced samples (make_grid_strategy(P));
+  /// TwoTriangles: ignored (the 4 corners).
+  std::size_t max_points = 64;
+  pm::ErrorMetric metric = pm::ErrorMetric::Continuous;  ///< of standin_error
+};
+
+/// A stand-in point: block-local sample (col - col0, row - row0) and its true height, metres.
+struct StandinPoint {
+  int col = 0, row = 0;
+  double z = 0;
+  bool operator==(const StandinPoint&) const = default;
+};
+
+/// What a non-resident block needs: its stand-in surface and its error (see above).
 struct BlockSummary {
   /// Heights of the corners (col0,row0), (col1,row0), (col0,row1), (col1,row1), metres.
   double z00 = 0, z10 = 0, z01 = 0, z11 = 0;
   double zmin = 0, zmax = 0;   ///< height range of the block's samples
-  double tm_error = 0;         ///< exact L-infinity error of the two-triangle mesh, metres
+  double tm_error = 0;         ///< exact L-infinity error of the two-triangle mesh (continuous), metres
   bool base_is_tm = false;     ///< the PM's base mesh is exactly the two-triangle mesh
+  StandinKind standin = StandinKind::TwoTriangles;
+  double standin_error = 0;    ///< exact L-infinity error of the stand-in surface, metres
+  /// The stand-in surface: points include the 4 corners; triangles index points, are CCW in
+  /// (col,row) and cover the block's domain exactly once. Empty in a summary filled by hand
+  /// (TerrainSession then uses the two triangles of the corners with tm_error).
+  std::vector<StandinPoint> points;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  /// Per triangle: its exact error (same metric) rounded up to the next float, metres; the
+  /// session bounds each triangle in its own box with it. Two-triangle stand-ins decoded from
+  /// a version 1 blob have tm_error for both.
+  std::vector<double> triangle_errors;
   bool operator==(const BlockSummary&) const = default;
 };
 
-/// Summary of block `k` from its PM (whose heightfield is the block's samples). Throws
-/// std::invalid_argument naming the block when the PM has holes (no rectangular stand-in).
-BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k);
+/// Summary of block `k` from its PM (whose heightfield is the block's samples), with a stand-in
+/// made by `standin`. Throws std::invalid_argument naming the block when the PM has holes (no
+/// rectangular stand-in). Cost: the strategy's build (a greedy TIN of s points over a 257^2
+/// block: a few milliseconds) plus one exact error measure.
+BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k, const StandinOptions& standin = {});
 
-/// The "block_summaries" blob, format version 1, little-endian:
-///   u32 magic 'TLBS' (0x53424C54), u32 version 1, u32 cols, u32 rows,
-///   then cols * rows records in BlockGrid::index order: 7 x f64 (z00 z10 z01 z11 zmin zmax
-///   tm_error), u8 base_is_tm, 7 zero bytes of padding; then u32 CRC-32 of everything before.
+/// Replaces s's stand-in by the two triangles of its corners (error tm_error for both) over a
+/// block of width x height samples.
+void set_two_triangle_standin(BlockSummary& s, int width, int height);
+
+/// The "block_summaries" blob, format version 2 (documented byte by byte beside
+/// encode_block_summaries in active_region.cpp; version 1, two-triangle summaries only, is still
+/// decoded: its blocks get two-triangle stand-ins). Stand-in coordinates need block_size <=
+/// 65537 (std::invalid_argument otherwise).
+inline constexpr std::uint32_t kBlockSummariesVersion = 2;
 std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s);
 /// Throws DatabaseError("<name>: block_summaries: <problem>") on any mismatch or corruption.
 std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
@@ -112,6 +165,14 @@ inline constexpr const char* kBlockSummariesBlob = "block_summaries";
 
 /// The two-triangle surface of a block at grid point (col,row) inside its domain.
 double tm_height(const BlockGrid& grid, BlockKey k, const BlockSummary& s, double col, double row);
+/// The stand-in surface of s at block-local point (col,row) inside the block's domain (the
+/// first triangle containing it; s must have a surface).
+double standin_height(const BlockSummary& s, double col, double row);
+/// The guaranteed screen-space error of block k drawn as its stand-in, pixels: the max over
+/// its triangles T whose box is not outside the view of View::vertical_error_px(box_T, e_T),
+/// box_T = T's plan rectangle x [min corner z - e_T, max corner z + e_T] (it holds the
+/// stand-in and the terrain over T, which lies within e_T of it); 0 when all are culled.
+double standin_bound_px(const BlockGrid& grid, BlockKey k, const BlockSummary& s, const pm::View& view);
 /// World box of block k: its plan rectangle x [zmin, zmax].
 pm::Box block_box(const BlockGrid& grid, BlockKey k, const BlockSummary& s);
 

@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/partition.hpp"
@@ -107,6 +108,27 @@ struct DatabaseBuildOptions {
   int threads = 0;               ///< block builders in parallel; 0 = hardware concurrency
   pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
   TreeBuildOptions tree;         ///< levels above the blocks (pm_leaves is forced on)
+  /// Stand-in surface of every block (BlockSummary, written as the "block_summaries" blob with
+  /// the tree; metric is forced to `metric`). Not part of the build parameters: a resumed
+  /// build may change it. Default TIN of 64 points. Kind chosen on N44W072 (257-sample blocks,
+  /// 25 blocks, continuous metric) by error x bytes, bytes = the blob v2 record:
+  ///   kind        points  mean error m  max error m  bytes/block  error x bytes  ms/block
+  ///   two-tri          4        673.5       1465.2           94          63310       0.4
+  ///   grid            16        504.3        819.1          286         144239       0.2
+  ///   grid        25 (32)       476.6        966.3          436         207793       0.3
+  ///   grid            64        382.5        616.7         1102         421525       0.3
+  ///   tin             16        406.1        630.2          304         123510       1.5
+  ///   tin             32        322.4        534.3          586         188890       2.1
+  ///   tin             64        237.0        387.8         1150         272597       3.5
+  ///   nonregular  14.7 (16)     513.8        961.5          264         135733       0.9
+  ///   nonregular  27.5 (32)     440.0        683.8          478         210416       1.4
+  ///   nonregular  59.2 (64)     334.6        536.9         1019         340970       1.4
+  /// TIN has the best error x bytes at every size. Size: the median guaranteed bound of
+  /// 'terralod fly' at tau = 1 px, 1280x720, along a 60 s S-curve 700 m above the highest
+  /// sample of N44W072 (the bench_fly path), two triangles -> TIN 32 / 64 / 128 points: 95.3 ->
+  /// 46.2 / 27.6 / 19.9 px (grid 64: 40.2, non-regular 64: 38.0); 64 points, 1.2 KB a block,
+  /// takes most of the gain.
+  StandinOptions standin;
   /// Optional: fraction of the blocks done in [0,1] and an estimate of the seconds left
   /// (negative while unknown). Called from the writing thread.
   std::function<void(double fraction, double seconds_left)> progress;
@@ -134,6 +156,10 @@ struct DatabaseSummary {
   std::uint64_t samples = 0;         ///< grid samples (unique vertices of the full terrain)
   std::uint64_t pm_vertices = 0;     ///< sum over blocks of their PM vertices (borders counted twice)
   std::uint64_t block_bytes = 0, tree_bytes = 0;
+  std::uint64_t summaries_bytes = 0;  ///< the "block_summaries" blob (0 when absent)
+  std::string standin;                ///< stand-in kind of the blob's first block ("" when absent)
+  double mean_standin_error = 0;      ///< mean over blocks of the stand-in error, metres
+  double mean_tm_error = 0;           ///< mean over blocks of the two-triangle error, metres
   double bytes_per_vertex = 0;       ///< (block_bytes + tree_bytes) / samples
   double max_block_error = 0;        ///< largest PmBlock leaf error (base meshes), metres
   double root_error = 0;             ///< exact error of the root surface, metres
