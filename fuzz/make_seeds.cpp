@@ -1,23 +1,27 @@
 // Writes the seed corpora of the fuzz targets: small valid inputs of every format they read.
 //
 // Usage: terralod_fuzz_seeds CORPUS_DIR   (writes CORPUS_DIR/fuzz_pm_decoder/seed_*,
-// CORPUS_DIR/fuzz_dem_reader/seed_* and CORPUS_DIR/fuzz_block_database/seed_*; existing seeds
-// are overwritten, other files are kept).
+// CORPUS_DIR/fuzz_dem_reader/seed_*, CORPUS_DIR/fuzz_block_database/seed_* and
+// CORPUS_DIR/fuzz_block_summaries/seed_*; existing seeds are overwritten, other files are kept).
 // DEM seeds start with the selector byte of fuzz_dem_reader.cpp (0 .hgt, 1 .asc, 2 .png, 3 .tif,
-// +4 = keep voids as holes).
+// +4 = keep voids as holes). Block-summaries seeds start with the two grid selector bytes of
+// fuzz_block_summaries.cpp.
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 #include <sqlite3.h>
+#include <zlib.h>
 
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
 #include <vector>
 
+#include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -200,6 +204,83 @@ void db_seeds(const fs::path& dir, const fs::path& tmp) {
   }
 }
 
+/// Summaries of every block of hf in blocks of block_size samples, stand-ins made by `o`.
+std::vector<terralod::blocks::BlockSummary> summaries(const pm::Heightfield& hf, const terralod::blocks::BlockGrid& g,
+                                                      const terralod::blocks::StandinOptions& o) {
+  namespace tb = terralod::blocks;
+  pm::BuildOptions one_thread;
+  one_thread.threads = 1;
+  std::vector<tb::BlockSummary> out;
+  for (std::size_t i = 0; i < g.block_count(); ++i) {
+    const tb::SampleRect d = g.domain(g.key(i));
+    pm::Heightfield block(d.width(), d.height());
+    for (int r = 0; r < d.height(); ++r)
+      for (int c = 0; c < d.width(); ++c) block.at(c, r) = hf.at(d.col0 + c, d.row0 + r);
+    out.push_back(tb::summarize_block(pm::ProgressiveMesh::build(block, one_thread), g.key(i), o));
+  }
+  return out;
+}
+
+/// "block_summaries" blobs (active_region.cpp) behind fuzz_block_summaries.cpp's selector bytes:
+/// version 2 with TIN, grid and two-triangle stand-ins of a 17 x 13 terrain in 9-sample blocks
+/// (2 x 2 blocks, the last row 5 samples high), a 289-point grid stand-in (u16 indices) of a
+/// 17 x 17 block, and the 17 x 13 terrain's two-triangle summaries as a version 1 blob.
+void summaries_seeds(const fs::path& dir) {
+  namespace tb = terralod::blocks;
+  const pm::Heightfield hf = terrain(17, 13, false);
+  const tb::BlockGrid g(17, 13, 9, pm::GridTransform::identity());
+  // Selector: B = 9 (k = 2); last column 2 + 7 = 9 samples wide, last row 2 + 3 = 5 high.
+  const Bytes sel{2, 0x37};
+  auto opt = [](tb::StandinKind kind, std::size_t points) {
+    tb::StandinOptions o;
+    o.kind = kind;
+    o.max_points = points;
+    return o;
+  };
+  Bytes tin = sel, grid = sel, two = sel;
+  const Bytes tin_blob = tb::encode_block_summaries(g, summaries(hf, g, opt(tb::StandinKind::Tin, 12)));
+  tin.insert(tin.end(), tin_blob.begin(), tin_blob.end());
+  write(dir / "seed_v2_tin", tin);
+  const Bytes grid_blob = tb::encode_block_summaries(g, summaries(hf, g, opt(tb::StandinKind::Grid, 9)));
+  grid.insert(grid.end(), grid_blob.begin(), grid_blob.end());
+  write(dir / "seed_v2_grid", grid);
+  const auto two_sums = summaries(hf, g, opt(tb::StandinKind::TwoTriangles, 4));
+  const Bytes two_blob = tb::encode_block_summaries(g, two_sums);
+  two.insert(two.end(), two_blob.begin(), two_blob.end());
+  write(dir / "seed_v2_two_triangle", two);
+
+  // One 17 x 17 block (B = 17, k = 3, both nibbles 15 -> 17 samples) with a 289-point grid.
+  const tb::BlockGrid g17(17, 17, 17, pm::GridTransform::identity());
+  Bytes big{3, 0xff};
+  const Bytes big_blob = tb::encode_block_summaries(g17, summaries(terrain(17, 17, true), g17, opt(tb::StandinKind::Grid, 289)));
+  big.insert(big.end(), big_blob.begin(), big_blob.end());
+  write(dir / "seed_v2_grid_u16", big);
+
+  // Version 1: header, 64-byte records (7 f64 z00 z10 z01 z11 zmin zmax tm_error, u8 base_is_tm,
+  // 7 zero bytes), CRC-32.
+  Bytes v1;
+  auto u32 = [&](std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) v1.push_back(std::uint8_t(v >> (8 * i)));
+  };
+  u32(0x53424C54u);
+  u32(1);
+  u32(std::uint32_t(g.cols()));
+  u32(std::uint32_t(g.rows()));
+  for (const tb::BlockSummary& s : two_sums) {
+    for (double d : {s.z00, s.z10, s.z01, s.z11, s.zmin, s.zmax, s.tm_error}) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &d, 8);
+      for (int i = 0; i < 8; ++i) v1.push_back(std::uint8_t(bits >> (8 * i)));
+    }
+    v1.push_back(s.base_is_tm ? 1 : 0);
+    v1.insert(v1.end(), 7, 0);
+  }
+  u32(std::uint32_t(crc32(0L, v1.data(), uInt(v1.size()))));
+  if (tb::decode_block_summaries(g, v1, "seed").size() != g.block_count()) throw std::runtime_error("bad v1 seed");
+  v1.insert(v1.begin(), sel.begin(), sel.end());
+  write(dir / "seed_v1", v1);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -215,6 +296,8 @@ int main(int argc, char** argv) {
     pm_seeds(pm_dir);
     dem_seeds(dem_dir, tmp);
     db_seeds(db_dir, tmp);
+    fs::create_directories(root / "fuzz_block_summaries");
+    summaries_seeds(root / "fuzz_block_summaries");
     // Camera paths: a valid flight with a comment, CRLF line ends and a blank line.
     fs::create_directories(root / "fuzz_camera_path");
     const std::string path_csv =

@@ -23,6 +23,15 @@
 //     replaced by a view over an endless recursive CTE would make blocks() run forever. Fix:
 //     BlockDatabase::open requires its five tables to be real tables ("schema mismatch:
 //     'blocks' is not a table"), tests/blocks/test_block_database.cpp.
+//   fuzz_block_summaries/grid-width-near-int-max-overflows-cols: BlockGrid computed
+//     ceil((w-1)/(B-1)) as (w - 1 + B - 2) / (B - 1) in int, overflowing (UB) for a grid width
+//     near INT_MAX (a database's info may say so). Fix: 64-bit arithmetic.
+//   fuzz_block_summaries/v1-corner-height-outside-zmin-zmax: a version 1 blob whose corner
+//     heights lie outside [zmin, zmax] decoded, giving stand-in points outside the block's box.
+//     Fix: decode_block_summaries rejects it ("a corner outside zmin..zmax").
+//   fuzz_block_summaries/v2-huge-grid-allocates-before-size-check: a 20-byte version 2 blob for
+//     a grid of 2^32 blocks made the decoder allocate every summary (600 GB) before reading a
+//     record. Fix: it first checks the blob can hold the records (>= 95 bytes each).
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -38,6 +47,7 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
+#include "terralod/blocks/active_region.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -47,6 +57,7 @@ extern "C" int terralod_fuzz_dem_reader(const std::uint8_t* data, std::size_t si
 extern "C" int terralod_fuzz_camera_path(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_block_database(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_tree_decoder(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_block_summaries(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
 
 namespace {
@@ -103,6 +114,10 @@ TEST(FuzzRegressions, BlockDatabase) {
 
 TEST(FuzzRegressions, TreeDecoder) {
   EXPECT_GE(replay("fuzz_tree_decoder", terralod_fuzz_tree_decoder), 2u);
+}
+
+TEST(FuzzRegressions, BlockSummaries) {
+  EXPECT_GE(replay("fuzz_block_summaries", terralod_fuzz_block_summaries), 3u);
 }
 
 TEST(FuzzRegressions, DemReader) {
@@ -168,6 +183,74 @@ TEST(FuzzRegressions, TransformWhoseWorldCoordinatesOverflowIsRejected) {
   EXPECT_NE(decode_error(with_transform(pm::GridTransform{-1.2e308, 3e307, 0, 0, 0, -1})), "(decoded)");
   // The largest sane planetary coordinates are far inside the limit.
   EXPECT_EQ(decode_error(with_transform(pm::GridTransform{-4e7, 1e6, 0, 4e7, 0, -1e6})), "(decoded)");
+}
+
+// "block_summaries" blob: header (magic, version, cols, rows), `records`, CRC-32 trailer.
+std::vector<std::uint8_t> summaries_blob(std::uint32_t version, std::uint32_t cols, std::uint32_t rows,
+                                         const std::vector<double>& records) {
+  std::vector<std::uint8_t> b;
+  auto u32 = [&](std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) b.push_back(std::uint8_t(v >> (8 * i)));
+  };
+  for (std::uint32_t v : {0x53424C54u, version, cols, rows}) u32(v);
+  for (double d : records) {
+    const auto bits = std::bit_cast<std::uint64_t>(d);
+    for (int i = 0; i < 8; ++i) b.push_back(std::uint8_t(bits >> (8 * i)));
+  }
+  u32(std::uint32_t(crc32(0L, b.data(), uInt(b.size()))));
+  return b;
+}
+
+std::string summaries_error(const terralod::blocks::BlockGrid& g, const std::vector<std::uint8_t>& b) {
+  try {
+    (void)terralod::blocks::decode_block_summaries(g, b, "t.db");
+  } catch (const terralod::blocks::DatabaseError& e) {
+    return e.what();
+  }
+  return "(decoded)";
+}
+
+TEST(FuzzRegressions, BlockGridNearIntMax) {
+  // ceil((2^31 - 2) / 8) = 2^28 block columns; ceil(1 / 8) = 1 row.
+  const terralod::blocks::BlockGrid g(std::numeric_limits<int>::max(), 2, 9, pm::GridTransform::identity());
+  EXPECT_EQ(g.cols(), 1 << 28);
+  EXPECT_EQ(g.rows(), 1);
+  const terralod::blocks::BlockGrid h(2, std::numeric_limits<int>::max(), std::numeric_limits<int>::max(),
+                                      pm::GridTransform::identity());
+  EXPECT_EQ(h.cols(), 1);
+  EXPECT_EQ(h.rows(), 1);
+}
+
+TEST(FuzzRegressions, SummariesV1CornerOutsideHeightRangeIsRejected) {
+  // 5 x 3 samples in 3-sample blocks: 2 x 1 blocks. Record: z00 z10 z01 z11 zmin zmax tm_error,
+  // then base_is_tm and 7 zero bytes (one f64 0).
+  const terralod::blocks::BlockGrid g(5, 3, 3, pm::GridTransform::identity());
+  const std::vector<double> good{1, 2, 3, 4, 0, 9, 0.5, 0};
+  std::vector<double> recs = good;
+  recs.insert(recs.end(), good.begin(), good.end());
+  EXPECT_EQ(summaries_error(g, summaries_blob(1, 2, 1, recs)), "(decoded)");
+  recs[8 + 3] = 9.5;  // block 1's z11 above its zmax 9
+  EXPECT_EQ(summaries_error(g, summaries_blob(1, 2, 1, recs)),
+            "t.db: block_summaries: block record 1: a corner outside zmin..zmax");
+  recs[8 + 3] = 4, recs[0] = -0.25;  // block 0's z00 below its zmin 0
+  EXPECT_EQ(summaries_error(g, summaries_blob(1, 2, 1, recs)),
+            "t.db: block_summaries: block record 0: a corner outside zmin..zmax");
+}
+
+TEST(FuzzRegressions, SummariesV2TooShortForTheGridIsRejectedBeforeAllocating) {
+  // 2^20 + 1 by 2^10 + 1 samples in 3-sample blocks: 2^19 x 2^9 = 2^28 blocks (36 GB of
+  // summaries); a v2 record takes >= 95 bytes, a 20-byte blob holds none.
+  const terralod::blocks::BlockGrid g((1 << 20) + 1, (1 << 10) + 1, 3, pm::GridTransform::identity());
+  EXPECT_EQ(summaries_error(g, summaries_blob(2, 1u << 19, 1u << 9, {})),
+            "t.db: block_summaries: size 20 bytes, too small for 268435456 block records");
+  // 2 blocks need >= 20 + 2 x 95 = 210 bytes: 16 + 22 x 8 + 4 = 196 are too few, whatever
+  // they hold; 16 + 24 x 8 + 4 = 212 pass this check and fail on the first record (all zero:
+  // 0 stand-in points).
+  const terralod::blocks::BlockGrid two(5, 3, 3, pm::GridTransform::identity());
+  EXPECT_EQ(summaries_error(two, summaries_blob(2, 2, 1, std::vector<double>(22, 0.0))),
+            "t.db: block_summaries: size 196 bytes, too small for 2 block records");
+  EXPECT_EQ(summaries_error(two, summaries_blob(2, 2, 1, std::vector<double>(24, 0.0))),
+            "t.db: block_summaries: block record 0: truncated stand-in");
 }
 
 }  // namespace
