@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -66,8 +67,9 @@ CommandSpec fly_spec() {
       "PATH.csv: a header 'x,y,z,yaw,pitch,fovy', then one camera per frame in the conventions of\n"
       "'terralod view': world metres (x east, y north, z up), yaw degrees clockwise from north,\n"
       "pitch degrees above the horizon (-90..90), fovy the vertical field of view (0..180).\n\n"
-      "Writes DIR/frames.csv: frame, time_s, x, y, z, yaw, pitch, fovy, tau_px, triangles,\n"
-      "bound_px (the guaranteed screen-space error of everything drawn), update_ms, resident,\n"
+      "Writes DIR/frames.csv (only once the whole flight succeeded: a flight stopped by an error,\n"
+      "such as a corrupt block, leaves none): frame, time_s, x, y, z, yaw, pitch, fovy, tau_px,\n"
+      "triangles, bound_px (the guaranteed screen-space error of everything drawn), update_ms, resident,\n"
       "loading, evicted, prefetch_misses (cumulative: blocks needed in view before they were\n"
       "resident), bytes_read (cumulative), then centre_col, centre_row, n, missing_in_view,\n"
       "stand_ins, morphing_blocks, seam_triangles, resident_bytes. --dump-meshes also writes each\n"
@@ -90,6 +92,8 @@ CommandSpec fly_spec() {
       {"--rings", "P", "rings of two-triangle blocks around the inner blocks (default 1)"},
       {"--budget", "MB", "resident block memory budget, megabytes (default 512)"},
       {"--skirts", "", "vertical skirts under the block borders instead of re-triangulated seams"},
+      {"--merge-tolerance", "SAMPLES",
+       "merge unmatched seam vertices fewer than this many samples apart, >= 0 (default 3; 0 = off)"},
   };
   return s;
 }
@@ -117,6 +121,9 @@ int cmd_fly(const Args& a) {
   const double budget_mb = a.get_double("--budget", 512.0);
   if (!(budget_mb > 0)) throw UsageError("option '--budget' must be > 0 megabytes, not '" + a.get("--budget") + "'");
   const bool dump = a.has("--dump-meshes");
+  const double merge_tol = a.get_double("--merge-tolerance", blocks::SessionOptions{}.merge_tolerance_samples);
+  if (!(merge_tol >= 0))
+    throw UsageError("option '--merge-tolerance' must be >= 0 samples, not '" + a.get("--merge-tolerance") + "'");
 
   const std::vector<PathRow> path = read_path(path_csv);
   say(strf("read  %s: %zu frames (%.1f s at 60 fps)", path_csv.c_str(), path.size(), path.size() / 60.0));
@@ -126,6 +133,11 @@ int cmd_fly(const Args& a) {
 
   auto t = Clock::now();
   const blocks::BlockDatabase db = blocks::BlockDatabase::open(db_path);
+  if (db.info().block_size <= 0)
+    throw blocks::DatabaseError(db_path, "not a blocked database (kind '" + db.info().kind + "'): nothing to fly over");
+  if (db.get_meta("build_complete").value_or("") != "1")
+    throw blocks::DatabaseError(
+        db_path, "the build is not complete (run 'terralod build' again with the same options to finish it)");
   const blocks::BlockGrid grid = blocks::BlockGrid::from_info(db.info());
   std::vector<blocks::BlockSummary> sums;
   {
@@ -152,11 +164,23 @@ int cmd_fly(const Args& a) {
   opt.cache.budget_bytes = std::size_t(budget_mb * 1e6);
   opt.prefetch = !a.has("--no-prefetch");
   opt.seams = a.has("--skirts") ? blocks::SeamMode::Skirts : blocks::SeamMode::Stitch;
+  opt.merge_tolerance_samples = merge_tol;
   blocks::TerrainSession session(blocks::database_source(db_path), grid, std::move(sums), opt);
 
-  const std::string csv_path = (fs::path(out) / "frames.csv").string();
-  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
-  if (!csv) throw std::runtime_error(csv_path + ": cannot write");
+  // frames.csv is written to a temporary renamed onto it after the last frame: a flight that
+  // fails (a corrupt block read by the loader, a full disk) leaves no partial frames.csv.
+  const std::string csv_path = (fs::path(out) / "frames.csv").string(), csv_tmp = csv_path + ".tmp";
+  struct CsvFile {
+    std::FILE* f = nullptr;
+    std::string tmp;
+    ~CsvFile() {
+      if (f) std::fclose(f);
+      if (!tmp.empty()) std::remove(tmp.c_str());
+    }
+  } guard;
+  std::FILE* csv = guard.f = std::fopen(csv_tmp.c_str(), "w");
+  if (!csv) throw std::runtime_error(csv_path + ": cannot write (" + std::strerror(errno) + ")");
+  guard.tmp = csv_tmp;
   std::fprintf(csv,
                "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,update_ms,resident,loading,evicted,"
                "prefetch_misses,bytes_read,centre_col,centre_row,n,missing_in_view,stand_ins,morphing_blocks,"
@@ -213,7 +237,11 @@ int cmd_fly(const Args& a) {
     bar.update(double(f + 1) / double(path.size()));
   }
   bar.finish();
-  if (std::fclose(csv) != 0) throw std::runtime_error(csv_path + ": cannot write");
+  guard.f = nullptr;
+  if (std::fclose(csv) != 0) throw std::runtime_error(csv_path + ": cannot write (" + std::strerror(errno) + ")");
+  if (std::rename(csv_tmp.c_str(), csv_path.c_str()) != 0)
+    throw std::runtime_error(csv_path + ": cannot rename " + csv_tmp + " onto it (" + std::strerror(errno) + ")");
+  guard.tmp.clear();
   const blocks::SessionFrameStats& last = session.stats();
   say(strf("fly   %zu frames in %s (speed factor %g%s): update median %.2f ms, p99 %.2f ms, worst %.2f ms",
             path.size(), format_duration(ms_since(t_fly)).c_str(), speed, opt.prefetch ? ", prefetch" : ", no prefetch",

@@ -83,7 +83,24 @@ tr::TextureConstraints constraints(const Args& a) {
   return c;
 }
 
-// Builds the pyramid file beside the database, stores the layer, removes the file.
+// Removes the pyramid file beside the database when the command ends, also when it fails
+// half-way (a corrupt tree or block, a full disk): no partial file is left behind.
+struct RemoveFile {
+  std::string path;
+  ~RemoveFile() {
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+  }
+};
+
+// A database whose build was interrupted has no complete tree (nor every block): refuse it, as
+// 'terralod extract --db' does, rather than store a layer without its texture tree.
+void require_complete_build(const tb::BlockDatabase& db) {
+  if (db.info().block_size > 0 && db.get_meta("build_complete").value_or("") != "1")
+    throw tb::DatabaseError(db.path(), "the build is not complete (run 'terralod build' again with the same options to finish it)");
+}
+
+// Stores the layer from the pyramid file beside the database (the caller removes the file).
 void store(tb::BlockDatabase& db, tr::LayerRecord& rec, const std::string& pyramid_path) {
   auto t = Clock::now();
   tr::PyramidOptions po;
@@ -94,8 +111,6 @@ void store(tb::BlockDatabase& db, tr::LayerRecord& rec, const std::string& pyram
     ProgressBar bar("texture tiles");
     tr::store_texture_layer(db, rec, pyr, doms, [&](double f) { bar.update(f); });
   }
-  std::error_code ec;
-  std::filesystem::remove(pyramid_path, ec);
   const tr::LevelSize l0 = rec.levels.front(), last = rec.levels.back();
   std::printf("store layer '%s': %zu levels (%d x %d -> %d x %d), %zu texture-tree patches of %zu nodes%s, %s\n",
               rec.name.c_str(), rec.levels.size(), l0.width, l0.height, last.width, last.height, rec.patches, doms.size(),
@@ -111,6 +126,7 @@ std::string pyramid_file(const std::string& db, const std::string& layer) {
 int texture_add(const Args& a, const std::string& path) {
   if (!a.has("--image")) throw UsageError("'texture add' needs --image FILE");
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
+  require_complete_build(db);
   tr::LayerRecord rec;
   rec.name = a.get("--layer");
   rec.kind = "image";
@@ -126,6 +142,7 @@ int texture_add(const Args& a, const std::string& path) {
   }
   auto t = Clock::now();
   const std::string pyr = pyramid_file(path, rec.name);
+  const RemoveFile remove_pyramid{pyr};
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
   tr::ImagePyramid::convert(rec.source, pyr, po);
@@ -136,6 +153,7 @@ int texture_add(const Args& a, const std::string& path) {
 
 int texture_shade(const Args& a, const std::string& path) {
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
+  require_complete_build(db);
   tr::ShadingOptions so;
   const std::string method = a.get_choice("--method", {"lambert", "phong", "multidirectional", "relative"}, "lambert");
   so.method = tr::parse_shading_method(method);
@@ -172,6 +190,7 @@ int texture_shade(const Args& a, const std::string& path) {
   rec.parameters = strf("{\"method\": \"%s\", \"azimuth_deg\": %.17g, \"altitude_deg\": %.17g, \"shadows\": %s, \"gpu\": %s}",
                         method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "true" : "false", gpu ? "true" : "false");
   const std::string pyr = pyramid_file(path, rec.name);
+  const RemoveFile remove_pyramid{pyr};
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
   tr::ImagePyramid::convert(img, pyr, po);
