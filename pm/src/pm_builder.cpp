@@ -11,13 +11,15 @@
 // the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
 // candidate so far, and the error of each triangle is cached in a direct-mapped table keyed
 // by its corners, since re-evaluating a vertex after one neighbour changed meets mostly the
-// same triangles again; long spokes likewise in a 512 KiB table. Memory: OpenMesh
-// connectivity (~180 bytes per vertex), heap and per-vertex state (~40 bytes per vertex), the
-// triangle cache (24 bytes x 2^22), the large arrays on transparent huge pages where the OS
-// allows it.
+// same triangles again; long spokes likewise in a 512 KiB table. Vertices are numbered in
+// tiles with Z-order inside (number_vertices), so that the data a collapse touches lies close
+// together. Memory: OpenMesh connectivity (~180 bytes per vertex), heap and per-vertex state
+// (~60 bytes per vertex), the triangle cache (24 bytes x up to 2^22), the large arrays
+// (OpenMesh's included) on transparent huge pages where the OS allows it.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
+#include <bit>
 #include <atomic>
 #include <thread>
 #include <cassert>
@@ -80,7 +82,12 @@ using Mesh = OpenMesh::TriMesh_ArrayKernelT<MeshTraits>;
 // insert simply overwrites the slot.
 class TriangleCache {
  public:
-  explicit TriangleCache(int log2_slots) : mask_((std::size_t(1) << log2_slots) - 1), slots_(mask_ + 1) {}
+  TriangleCache() = default;
+  /// Empties the cache and gives it 2^log2_slots slots.
+  void reset(int log2_slots) {
+    mask_ = (std::size_t(1) << log2_slots) - 1;
+    slots_.assign(mask_ + 1, Slot{});
+  }
   struct Slot {
     std::uint32_t a = UINT32_MAX, b = 0, c = 0;
     double value = 0;  // the exact error when >= 0, else minus a lower bound (always > 0)
@@ -107,36 +114,54 @@ class TriangleCache {
     h ^= h >> 29;
     return std::size_t(h) & mask_;
   }
-  std::size_t mask_;
-  HugeVector<Slot> slots_;
+  std::size_t mask_ = 0;
+  HugeVector<Slot> slots_ = HugeVector<Slot>(1);
 };
 
 // Indexed 4-ary min-heap over vertices, keyed by (error, tie, vertex). Keys live inside the
-// 16-byte heap entries, so sifting touches only the heap array, and the four children of a
-// node span at most two cache lines: half the levels of a binary heap, each about as dear
-// (the heap is tens of MB on a full tile, so sifts are cache misses).
+// 16-byte heap entries, so sifting touches only the heap array: half the levels of a binary
+// heap, each about as dear (the heap is tens of MB on a full tile, so sifts are cache misses).
+// Node i is stored at slot i + 3, so the four children of node i (4i+1 .. 4i+4, slots
+// 4(i+1) .. 4(i+1)+3) fill exactly one cache line of a large (2 MiB aligned) heap. prefetch() and
+// prefetch_entry() let the caller start the misses of a coming set() early.
 class VertexHeap {
  public:
-  explicit VertexHeap(std::size_t n) : pos_(n, kAbsent) { heap_.reserve(n); }
-  bool empty() const { return heap_.empty(); }
-  std::uint32_t top() const { return heap_.front().v; }
-  double top_error() const { return heap_.front().err; }
+  explicit VertexHeap(std::size_t n) : slots_(n + kPad), pos_(n, kAbsent) {}
+  bool empty() const { return size_ == 0; }
+  std::uint32_t top() const { return at(0).v; }
+  double top_error() const { return at(0).err; }
   /// Key of the entry that would be on top without the current top (+inf when none).
   double second_error() const {
     double e = 1e300;
-    for (std::size_t c = 1; c <= 4 && c < heap_.size(); ++c) e = std::min(e, heap_[c].err);
+    for (std::uint32_t c = 1; c <= 4 && c < size_; ++c) e = std::min(e, at(c).err);
     return e;
   }
+  /// The vertex that would be on top without the current top (UINT32_MAX when none).
+  std::uint32_t second() const {
+    if (size_ < 2) return UINT32_MAX;
+    std::uint32_t best = 1;
+    for (std::uint32_t c = 2; c <= 4 && c < size_; ++c)
+      if (less(at(c), at(best))) best = c;
+    return at(best).v;
+  }
   bool contains(std::uint32_t v) const { return pos_[v] != kAbsent; }
+  /// Starts loading what set(v, ...) reads first: v's position.
+  void prefetch(std::uint32_t v) const { __builtin_prefetch(&pos_[v]); }
+  /// Starts loading v's entry and the line of its children (call some time after prefetch(v)).
+  void prefetch_entry(std::uint32_t v) const {
+    const std::uint32_t p = pos_[v];
+    if (p == kAbsent) return;
+    __builtin_prefetch(&at(p));
+    if (4 * std::size_t(p) + 1 < size_) __builtin_prefetch(&at(4 * p + 1));
+  }
   void set(std::uint32_t v, double err, std::uint32_t tie) {
     const Entry e{err, tie, v};
     std::uint32_t p = pos_[v];
     if (p == kAbsent) {
-      p = std::uint32_t(heap_.size());
-      heap_.push_back(e);
+      p = size_++;
       up(p, e);
     } else {
-      const bool decreased = less(e, heap_[p]);
+      const bool decreased = less(e, at(p));
       if (decreased) up(p, e);
       else down(p, e);
     }
@@ -144,21 +169,23 @@ class VertexHeap {
   void remove(std::uint32_t v) {
     const std::uint32_t p = pos_[v];
     if (p == kAbsent) return;
-    const Entry last = heap_.back();
-    heap_.pop_back();
+    const Entry last = at(--size_);
     pos_[v] = kAbsent;
     if (last.v != v) {
-      if (p > 0 && less(last, heap_[(p - 1) / 4])) up(p, last);
+      if (p > 0 && less(last, at((p - 1) / 4))) up(p, last);
       else down(p, last);
     }
   }
 
  private:
   static constexpr std::uint32_t kAbsent = UINT32_MAX;
+  static constexpr std::size_t kPad = 3;
   struct Entry {
     double err;
     std::uint32_t tie, v;
   };
+  Entry& at(std::uint32_t i) { return slots_[i + kPad]; }
+  const Entry& at(std::uint32_t i) const { return slots_[i + kPad]; }
   static bool less(const Entry& a, const Entry& b) {
     if (a.err != b.err) return a.err < b.err;
     if (a.tie != b.tie) return a.tie < b.tie;
@@ -168,34 +195,35 @@ class VertexHeap {
   void up(std::uint32_t i, const Entry& e) {
     while (i > 0) {
       const std::uint32_t p = (i - 1) / 4;
-      if (!less(e, heap_[p])) break;
-      heap_[i] = heap_[p], pos_[heap_[i].v] = i, i = p;
+      if (!less(e, at(p))) break;
+      at(i) = at(p), pos_[at(i).v] = i, i = p;
     }
-    heap_[i] = e, pos_[e.v] = i;
+    at(i) = e, pos_[e.v] = i;
   }
   void down(std::uint32_t i, const Entry& e) {
-    const std::uint32_t n = std::uint32_t(heap_.size());
+    const std::uint32_t n = size_;
     for (;;) {
       const std::uint32_t c0 = 4 * i + 1;
       if (c0 >= n) break;
       std::uint32_t c = c0;
       const std::uint32_t end = std::min(c0 + 4, n);
       for (std::uint32_t k = c0 + 1; k < end; ++k)
-        if (less(heap_[k], heap_[c])) c = k;
-      if (!less(heap_[c], e)) break;
-      heap_[i] = heap_[c], pos_[heap_[i].v] = i, i = c;
+        if (less(at(k), at(c))) c = k;
+      if (!less(at(c), e)) break;
+      at(i) = at(c), pos_[at(i).v] = i, i = c;
     }
-    heap_[i] = e, pos_[e.v] = i;
+    at(i) = e, pos_[e.v] = i;
   }
-  HugeVector<Entry> heap_;
+  HugeVector<Entry> slots_;  // 2 MiB aligned when large (HugeAllocator), else 16-byte aligned
   HugeVector<std::uint32_t> pos_;
+  std::uint32_t size_ = 0;
 };
 
 class Builder {
  public:
   Builder(const Heightfield& hf, const BuildOptions& opt)
       : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()), heap_(hf.size()),
-        target_(hf.size(), UINT32_MAX), cache_(22) {}
+        target_(hf.size(), UINT32_MAX) {}
 
   // Shared progress of all builders of one build; only the reporting builder calls back.
   struct Progress {
@@ -207,38 +235,49 @@ class Builder {
   // Full-resolution mesh of the cells whose column lies in [x0, x1). Vertices on a cut column
   // (x0 > 0 or x1 < W-1) are locked: the strip beside it shares them.
   void init_grid(int x0, int x1, std::vector<std::uint32_t>& dropped) {
-    init_points();
-    mesh_.reserve(hf_.size(), 3 * std::size_t(x1 - x0 + 1) * H_, 2 * std::size_t(x1 - x0) * H_);
-    for (std::size_t i = 0; i < hf_.size(); ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    number_vertices(x0, x1);
+    reserve_mesh(3 * std::size_t(x1 - x0 + 1) * H_, 2 * std::size_t(x1 - x0) * H_);
     std::vector<Mesh::VertexHandle> tri(3);
-    for (int j = 0; j + 1 < H_; ++j)
-      for (int i = x0; i < x1; ++i) {
-        const int v00 = j * W_ + i, v10 = v00 + 1, v01 = v00 + W_, v11 = v01 + 1;
-        const int faces[2][3] = {{v00, v10, v11}, {v00, v11, v01}};
-        for (int k = 0; k < 2; ++k) {
-          if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
-            continue;
-          for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(faces[k][c]);
-          if (!mesh_.add_face(tri).is_valid()) dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
+    auto add_cell = [&](int i, int j) {
+      const std::uint32_t s00 = std::uint32_t(j) * W_ + i, s10 = s00 + 1, s01 = s00 + W_, s11 = s01 + 1;
+      const std::uint32_t faces[2][3] = {{s00, s10, s11}, {s00, s11, s01}};
+      for (int k = 0; k < 2; ++k) {
+        if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
+          continue;
+        for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[faces[k][c]]));
+        if (!add_face(tri).is_valid()) {
+          // Cells in tile order always extend the connected fans of their corners (see
+          // number_vertices), so only a grid with holes can drop a face.
+          if (!hf_.has_holes()) throw std::logic_error("progressive mesh: the full-resolution grid is not manifold");
+          dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
         }
       }
+    };
+    if (hf_.has_holes()) {
+      // Around holes the faces OpenMesh accepts depend on the order they come in: row by row,
+      // as the PM's full-resolution face numbering (dropped faces) expects.
+      for (int j = 0; j + 1 < H_; ++j)
+        for (int i = x0; i < x1; ++i) add_cell(i, j);
+    } else {
+      for (std::uint32_t v = 0; v < strip_vertices_; ++v)  // cell (i,j) has its corner (i,j) first
+        if (pts_[v].x < x1 && pts_[v].y + 1 < H_) add_cell(pts_[v].x, pts_[v].y);
+    }
     locked_.assign(hf_.size(), 0);
     for (int j = 0; j < H_; ++j) {
-      if (x0 > 0) locked_[std::size_t(j) * W_ + x0] = 1;
-      if (x1 < W_ - 1) locked_[std::size_t(j) * W_ + x1] = 1;
+      if (x0 > 0) locked_[id_of_[std::size_t(j) * W_ + x0]] = 1;
+      if (x1 < W_ - 1) locked_[id_of_[std::size_t(j) * W_ + x1]] = 1;
     }
     edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
   }
 
   // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips.
   void init_faces(const std::vector<std::array<std::uint32_t, 3>>& faces) {
-    init_points();
-    mesh_.reserve(hf_.size(), 3 * faces.size() / 2 + 16, faces.size());
-    for (std::size_t i = 0; i < hf_.size(); ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    number_vertices(0, W_ - 1);
+    reserve_mesh(3 * faces.size() / 2 + 16, faces.size());
     std::vector<Mesh::VertexHandle> tri(3);
     for (const auto& f : faces) {
-      for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(f[c]));
-      if (!mesh_.add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
+      for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));
+      if (!add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
     locked_.assign(hf_.size(), 0);
     edge_err_.assign(mesh_.n_edges(), 0.0);
@@ -269,6 +308,9 @@ class Builder {
       const std::uint32_t u = heap_.top();
       const double e = heap_.top_error();
       if (e > opt_.max_error) break;
+      // The top is at a random place of the mesh, and so is the next one: start loading the
+      // first links of its chain of dependent loads while u is processed.
+      prefetch_vertex(heap_.second());
       if (dirty_[u]) {
         // Its key was a lower bound: measure it, but only as far as needed to know whether
         // it is still the smallest key.
@@ -290,7 +332,8 @@ class Builder {
       heap_.remove(u);
       --live;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(Mesh::VertexHandle(int(w)));
-      collapses.push_back(Collapse{u, w, std::ceil(e / quantum) * quantum});
+      collapses.push_back(Collapse{sample_of_[u], sample_of_[w], std::ceil(e / quantum) * quantum});
+      for (std::uint32_t n : neighbours_) prefetch_vertex(n);
       for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/false);
       if (++since_report == 4096) {
         const std::size_t done = progress.done.fetch_add(since_report) + since_report;
@@ -309,9 +352,101 @@ class Builder {
   // Integer division by the grid width is slow in the inner loops, so points are tabulated.
   GridPoint point(std::uint32_t v) const { return pts_[v]; }
 
-  void init_points() {
-    pts_.resize(hf_.size());
-    for (std::size_t i = 0; i < hf_.size(); ++i) pts_[i] = GridPoint{int(i % std::size_t(W_)), int(i / std::size_t(W_))};
+  // Vertex numbering for locality. The collapse order is global by error, so every collapse
+  // works at a random place of the mesh; what it touches there (the rings of u and its
+  // neighbours: halfedges, edge errors, positions, heights, heap positions) should lie in a few
+  // cache lines and one page. Vertex ids therefore follow tiles of kTile x kTile samples, the
+  // tiles row by row and Z-order (Morton) inside a tile, over the columns [x0, x1] first; the
+  // other samples (isolated in this mesh) follow in row-major order. Cells are created in the
+  // same order, so a ring's halfedges are close too. In this order a cell's left, upper and
+  // upper-left neighbours always come before it, so each new face extends connected fans at
+  // its corners and OpenMesh accepts every face of a hole-free grid. The numbering depends on
+  // the grid size only, so the PM stays a function of the heightfield.
+  static constexpr int kTile = 64;
+  void number_vertices(int x0, int x1) {
+    const std::size_t n = hf_.size();
+    sample_of_.clear();
+    sample_of_.reserve(n);
+    std::vector<std::uint32_t> z_order(std::size_t(kTile) * kTile);  // Morton code -> dx + kTile * dy
+    for (std::uint32_t m = 0; m < z_order.size(); ++m) {
+      std::uint32_t dx = 0, dy = 0;
+      for (int b = 0; 2 * b < 32 && (m >> (2 * b)) != 0; ++b)
+        dx |= ((m >> (2 * b)) & 1u) << b, dy |= ((m >> (2 * b + 1)) & 1u) << b;
+      z_order[m] = dx + kTile * dy;
+    }
+    for (int ty = 0; ty < H_; ty += kTile)
+      for (int tx = x0; tx <= x1; tx += kTile) {
+        const int tw = std::min(kTile, x1 + 1 - tx), th = std::min(kTile, H_ - ty);
+        for (std::uint32_t c : z_order) {  // a partial tile skips the codes outside it
+          const int dx = int(c % kTile), dy = int(c / kTile);
+          if (dx < tw && dy < th) sample_of_.push_back(std::uint32_t(std::size_t(ty + dy) * W_ + tx + dx));
+        }
+      }
+    strip_vertices_ = std::uint32_t(sample_of_.size());
+    for (int j = 0; j < H_; ++j)
+      for (int i = 0; i < W_; ++i)
+        if (i < x0 || i > x1) sample_of_.push_back(std::uint32_t(std::size_t(j) * W_ + i));
+    id_of_.assign(n, 0);
+    pts_.resize(n);
+    z_.resize(n);
+    for (std::uint32_t v = 0; v < n; ++v) {
+      const std::uint32_t s = sample_of_[v];
+      id_of_[s] = v;
+      pts_[v] = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
+      z_[v] = hf_[s];
+    }
+  }
+
+  // Reserves the mesh and adds all vertices. OpenMesh's element and property arrays are the
+  // largest, most randomly accessed memory of the build (the halfedges alone ~100 bytes per
+  // vertex): they are advised to use transparent huge pages before their pages are touched
+  // (reserve() only allocates), so that ring walks at random places do not also miss the TLB.
+  void reserve_mesh(std::size_t n_edges, std::size_t n_faces) {
+    const std::size_t nv = hf_.size();
+    mesh_.reserve(nv, n_edges, n_faces);
+    const auto v0 = mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    advise_huge(&mesh_.vertex(v0), nv * sizeof(Mesh::Vertex));
+    advise_huge(&mesh_.point(v0), nv * sizeof(Mesh::Point));
+    advise_huge(&mesh_.status(v0), nv * sizeof(OpenMesh::Attributes::StatusInfo));
+    for (std::size_t i = 1; i < nv; ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
+    reserved_edges_ = n_edges, reserved_faces_ = n_faces;
+    // About two slots per face, at most 2^22 (96 MiB): a small mesh (the join of the strips)
+    // does not clear a full-tile table.
+    cache_.reset(std::clamp(int(std::bit_width(2 * n_faces)), 12, 22));
+  }
+
+  // mesh_.add_face; the edge and face arrays are advised once the first face made them
+  // reachable (the pages of their first 2 MiB are not advised, the rest is still untouched).
+  Mesh::FaceHandle add_face(const std::vector<Mesh::VertexHandle>& tri) {
+    const auto f = mesh_.add_face(tri);
+    if (f.is_valid() && mesh_.n_faces() == 1) {
+      const auto e0 = Mesh::EdgeHandle(0);
+      advise_huge(&mesh_.edge(e0), reserved_edges_ * sizeof(Mesh::Edge));
+      advise_huge(&mesh_.status(e0), reserved_edges_ * sizeof(OpenMesh::Attributes::StatusInfo));
+      advise_huge(&mesh_.face(f), reserved_faces_ * sizeof(Mesh::Face));
+      advise_huge(&mesh_.status(f), reserved_faces_ * sizeof(OpenMesh::Attributes::StatusInfo));
+    }
+    return f;
+  }
+
+  static void advise_huge([[maybe_unused]] const void* p, [[maybe_unused]] std::size_t bytes) {
+#ifdef MADV_HUGEPAGE
+    constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
+    const std::uintptr_t begin = (std::uintptr_t(p) + kHuge - 1) & ~(kHuge - 1);
+    const std::uintptr_t end = (std::uintptr_t(p) + bytes) & ~(kHuge - 1);
+    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);  // advice only
+#endif
+  }
+
+  // Starts loading the per-vertex data that evaluate(v) and the heap read first.
+  void prefetch_vertex(std::uint32_t v) const {
+    if (v == UINT32_MAX) return;
+    __builtin_prefetch(&mesh_.vertex(Mesh::VertexHandle(int(v))));
+    __builtin_prefetch(&pts_[v]);
+    __builtin_prefetch(&z_[v]);
+    __builtin_prefetch(&dirty_[v]);
+    __builtin_prefetch(&locked_[v]);
+    heap_.prefetch(v);
   }
 
   // Outgoing halfedges of v, calling f(h) for each. Hand-written with the kernel's inline
@@ -433,6 +568,7 @@ class Builder {
   // of collapses is the same as with exact keys, at a fraction of the cost.
   void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
     const auto vu = Mesh::VertexHandle(int(u));
+    heap_.prefetch(u);
     if (!exact) pops_[u] = 0;
     const GridPoint pu = point(u);
     dirty_[u] = 0;
@@ -457,7 +593,7 @@ class Builder {
         const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
         ringv_.push_back(a);
         const GridPoint pa = point(a);
-        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, hf_[a]});
+        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, z_[a]});
         if (mesh_.is_boundary(h)) {
           boundary = true;
         } else {
@@ -470,6 +606,7 @@ class Builder {
         h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
       } while (h != start);
     }
+    heap_.prefetch_entry(u);  // read by the heap_.set() at the end
     const std::uint32_t n = std::uint32_t(ringv_.size());
     // Face j joins ring indices ringk_[j] and ringk_[j] - 1 (mod n).
     face_at_.assign(n, 0);
@@ -503,7 +640,7 @@ class Builder {
       cross_[j] = la.x * lb.y - la.y * lb.x;
     }
     std::size_t legal = 0;
-    const double zu = hf_[u];
+    const double zu = z_[u];
     for (Candidate& c : cand_) {
       const Local& lw = rloc_[c.k];
       // With positions relative to u: orient(w, a, b) = cross(a, b) + X(a) - X(b), where
@@ -538,14 +675,19 @@ class Builder {
       heap_.remove(u);
       return;
     }
-    std::sort(cand_.begin(), cand_.end(),
-              [](const Candidate& a, const Candidate& b) { return a.lower < b.lower || (a.lower == b.lower && a.tie < b.tie); });
-    if (!exact) {
+    const auto by_bound = [](const Candidate& a, const Candidate& b) {
+      return a.lower < b.lower || (a.lower == b.lower && a.tie < b.tie);
+    };
+    if (!exact) {  // only the smallest bound is needed: the first one, as a (stable) sort would put it
+      const Candidate& c = *std::min_element(cand_.begin(), cand_.end(), by_bound);
       dirty_[u] = 1;
-      target_[u] = cand_.front().w;
-      heap_.set(u, cand_.front().lower, cand_.front().tie);
+      target_[u] = c.w;
+      heap_.set(u, c.lower, c.tie);
       return;
     }
+    // Insertion sort (stable, no allocation; rings are short).
+    for (std::size_t i = 1; i < cand_.size(); ++i)
+      for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j) std::swap(cand_[j], cand_[j - 1]);
     // Exact errors in order of their lower bounds, skipping candidates that cannot win.
     // Measurements stop at `cutoff` (the next key in the heap): when every candidate exceeds
     // it, the values reached are a better lower bound and u goes back, still dirty.
@@ -637,7 +779,11 @@ class Builder {
   std::vector<std::uint8_t> face_at_;
   std::vector<std::int64_t> cross_;
   std::vector<std::uint32_t> neighbours_, ringv_;
-  HugeVector<GridPoint> pts_;
+  HugeVector<GridPoint> pts_;               // by vertex id (see number_vertices)
+  HugeVector<double> z_;                    // heights by vertex id
+  std::vector<std::uint32_t> sample_of_, id_of_;  // vertex id <-> sample index
+  std::uint32_t strip_vertices_ = 0;        // ids below it are the samples of the built columns
+  std::size_t reserved_edges_ = 0, reserved_faces_ = 0;
   struct SpokeSlot {
     std::uint32_t a = UINT32_MAX, b = 0;
     double value = 0;  // exact error when >= 0, else minus a lower bound
