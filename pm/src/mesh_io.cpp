@@ -10,6 +10,7 @@
 #include <charconv>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -233,6 +234,11 @@ TriangleMeshData read_ply(const std::string& path) {
   auto fail = [&](const std::string& what) -> std::runtime_error {
     return std::runtime_error(path + ": " + what);
   };
+  // Only regular files: opening a FIFO would block, a device may never end, and a folder makes
+  // the stream throw a message without the path.
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) throw fail("cannot read: not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw fail(std::string("cannot open: ") + std::strerror(errno));
   const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -142,12 +142,10 @@ TEST(BadInput, NonRegularFilesAreRejectedWithoutBlocking) {
   }
 }
 
-// Known problem, left to the owner of pm/src/mesh_io.cpp (outside this suite's fixes): read_ply
-// opens the path before looking at it, so a FIFO blocks it, a link to /dev/zero feeds it until
-// memory runs out, and a folder throws libstdc++'s "basic_filebuf::underflow error reading the
-// file: Is a directory" without the path. The fix is read_pm's: refuse anything that exists
-// and is not a regular file before opening it. Enable this test with that fix.
-TEST(BadInput, DISABLED_ReadPlyRejectsNonRegularFiles) {
+// read_ply refuses anything that exists and is not a regular file before opening it: a FIFO
+// would block it, a link to /dev/zero would feed it until memory runs out, and a folder made
+// the stream throw without the path.
+TEST(BadInput, ReadPlyRejectsNonRegularFiles) {
   const fs::path dir = scratch();
   const fs::path folder = dir / "folder.ply", fifo = dir / "fifo.ply", dev = dir / "zero.ply";
   fs::create_directories(folder);
