@@ -75,10 +75,12 @@ asan() {
 # (TextureCache: loads racing frames and eviction), and the CPU shading generator's row threads
 # (test_topographic_texture ParallelRowsRegionsAndHoles), and the block database's reader threads
 # beside a writer (test_block_database ConcurrentReadersWhileWriting), and the block loader
-# thread beside the frame loop (test_block_loader: loads, a stalled reader, eviction, errors).
+# thread beside the frame loop (test_block_loader: loads, a stalled reader, eviction, errors),
+# and the whole session with its loader (test_terrain_session: stand-ins, swap-in blends, seams;
+# about 18 s under TSan).
 # Only their executables are built.
-tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader)
-tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader'
+tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_session)
+tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|test_terrain_session'
 tsan() {
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRALOD_BUILD_BENCH=OFF \
     -DTERRALOD_BUILD_APPS=OFF -DCMAKE_CXX_FLAGS="-fsanitize=thread $san_flags" >/dev/null
