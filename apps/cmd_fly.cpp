@@ -18,6 +18,7 @@
 #include "commands.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/terrain_session.hpp"
+#include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/mesh_io.hpp"
 
@@ -135,9 +136,7 @@ int cmd_fly(const Args& a) {
   const blocks::BlockDatabase db = blocks::BlockDatabase::open(db_path);
   if (db.info().block_size <= 0)
     throw blocks::DatabaseError(db_path, "not a blocked database (kind '" + db.info().kind + "'): nothing to fly over");
-  if (db.get_meta("build_complete").value_or("") != "1")
-    throw blocks::DatabaseError(
-        db_path, "the build is not complete (run 'terralod build' again with the same options to finish it)");
+  blocks::require_complete_build(db);
   const blocks::BlockGrid grid = blocks::BlockGrid::from_info(db.info());
   std::vector<blocks::BlockSummary> sums;
   {

@@ -11,6 +11,7 @@
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/partition.hpp"
+#include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/render/gpu_shading.hpp"
 #include "terralod/render/image_pyramid.hpp"
@@ -93,11 +94,10 @@ struct RemoveFile {
   }
 };
 
-// A database whose build was interrupted has no complete tree (nor every block): refuse it, as
-// 'terralod extract --db' does, rather than store a layer without its texture tree.
-void require_complete_build(const tb::BlockDatabase& db) {
-  if (db.info().block_size > 0 && db.get_meta("build_complete").value_or("") != "1")
-    throw tb::DatabaseError(db.path(), "the build is not complete (run 'terralod build' again with the same options to finish it)");
+// A blocked database whose build was interrupted has no complete tree (nor every block): refuse
+// it, as 'terralod extract --db' does, rather than store a layer without its texture tree.
+void require_complete_blocks(const tb::BlockDatabase& db) {
+  if (db.info().block_size > 0) tb::require_complete_build(db);
 }
 
 // Stores the layer from the pyramid file beside the database (the caller removes the file).
@@ -126,7 +126,7 @@ std::string pyramid_file(const std::string& db, const std::string& layer) {
 int texture_add(const Args& a, const std::string& path) {
   if (!a.has("--image")) throw UsageError("'texture add' needs --image FILE");
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
-  require_complete_build(db);
+  require_complete_blocks(db);
   tr::LayerRecord rec;
   rec.name = a.get("--layer");
   rec.kind = "image";
@@ -153,7 +153,7 @@ int texture_add(const Args& a, const std::string& path) {
 
 int texture_shade(const Args& a, const std::string& path) {
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
-  require_complete_build(db);
+  require_complete_blocks(db);
   tr::ShadingOptions so;
   const std::string method = a.get_choice("--method", {"lambert", "phong", "multidirectional", "relative"}, "lambert");
   so.method = tr::parse_shading_method(method);

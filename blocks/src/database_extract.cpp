@@ -22,8 +22,7 @@ ExtractedMesh extract_mesh(const BlockDatabase& db, double max_error) {
     throw std::invalid_argument("extract: max_error must be finite and >= 0");
   const auto t0 = std::chrono::steady_clock::now();
   const DatabaseInfo& info = db.info();
-  if (db.get_meta("build_complete").value_or("") != "1")
-    throw BuildError(db.path() + ": the build is not complete (run 'terralod build' again with the same options to finish it)");
+  require_complete_build(db);
   const BlockLayout layout = partition(info.grid_width, info.grid_height, info.block_size);
   const std::vector<BlockKey> keys = layout.keys();
 

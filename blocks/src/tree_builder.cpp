@@ -493,6 +493,12 @@ std::string DatabaseSummary::to_json() const {
   return j + "}\n";
 }
 
+void require_complete_build(const BlockDatabase& db) {
+  if (db.get_meta("build_complete").value_or("") != "1")
+    throw BuildError(db.path() +
+                     ": the build is not complete (run 'terralod build' again with the same options to finish it)");
+}
+
 DatabaseSummary summarize_database(const BlockDatabase& db) {
   DatabaseSummary s;
   const DatabaseInfo& info = db.info();

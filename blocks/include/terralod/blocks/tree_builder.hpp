@@ -183,4 +183,9 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
 /// for corrupt content.
 DatabaseSummary summarize_database(const BlockDatabase& db);
 
+/// Throws BuildError("<file>: the build is not complete (...)") unless build_database (or the
+/// hybrid build) finished writing the database: every reader that needs all blocks and the tree
+/// calls it before using them.
+void require_complete_build(const BlockDatabase& db);
+
 }  // namespace terralod::blocks
