@@ -12,6 +12,7 @@
 #include <random>
 
 #include "mesh_checker.hpp"
+#include "refinable_terrain.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/pm/geomorph.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -21,12 +22,7 @@ namespace tt = terralod::test;
 
 namespace {
 
-struct Terrain {
-  pm::Heightfield hf;
-  pm::ProgressiveMesh pm;
-  pm::CollapseDag dag;
-  explicit Terrain(pm::Heightfield h) : hf(std::move(h)), pm(pm::ProgressiveMesh::build(hf)), dag(pm) {}
-};
+using Terrain = tt::RefinableTerrain;
 
 const Terrain& generated(int size, std::uint64_t seed) {
   static std::map<std::pair<int, std::uint64_t>, std::unique_ptr<Terrain>> cache;

@@ -14,6 +14,7 @@
 #include <set>
 
 #include "mesh_checker.hpp"
+#include "refinable_terrain.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -23,13 +24,7 @@ namespace tt = terralod::test;
 
 namespace {
 
-struct Terrain {
-  pm::Heightfield hf;
-  pm::ProgressiveMesh pm;
-  pm::CollapseDag dag;
-  explicit Terrain(pm::Heightfield h, pm::VolumeKind kind = pm::VolumeKind::Box)
-      : hf(std::move(h)), pm(pm::ProgressiveMesh::build(hf)), dag(pm, {kind}) {}
-};
+using Terrain = tt::RefinableTerrain;
 
 // Built once per process and shared by the tests.
 const Terrain& generated(int size, std::uint64_t seed) {

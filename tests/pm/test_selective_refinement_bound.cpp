@@ -13,6 +13,7 @@
 #include <numbers>
 #include <random>
 
+#include "refinable_terrain.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -22,13 +23,7 @@ namespace tt = terralod::test;
 
 namespace {
 
-struct Terrain {
-  pm::Heightfield hf;
-  pm::ProgressiveMesh pm;
-  pm::CollapseDag dag;
-  explicit Terrain(pm::Heightfield h, pm::VolumeKind kind = pm::VolumeKind::Box)
-      : hf(std::move(h)), pm(pm::ProgressiveMesh::build(hf)), dag(pm, {kind}) {}
-};
+using Terrain = tt::RefinableTerrain;
 
 pm::Heightfield generated(int size, std::uint64_t seed) {
   pm::TerrainOptions o;
