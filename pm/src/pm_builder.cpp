@@ -222,8 +222,7 @@ class VertexHeap {
 class Builder {
  public:
   Builder(const Heightfield& hf, const BuildOptions& opt)
-      : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()), heap_(hf.size()),
-        target_(hf.size(), UINT32_MAX) {}
+      : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()) {}
 
   // Shared progress of all builders of one build; only the reporting builder calls back.
   struct Progress {
@@ -259,10 +258,10 @@ class Builder {
       for (int j = 0; j + 1 < H_; ++j)
         for (int i = x0; i < x1; ++i) add_cell(i, j);
     } else {
-      for (std::uint32_t v = 0; v < strip_vertices_; ++v)  // cell (i,j) has its corner (i,j) first
+      for (std::uint32_t v = 0; v < n_ids_; ++v)  // cell (i,j) has its corner (i,j) first
         if (pts_[v].x < x1 && pts_[v].y + 1 < H_) add_cell(pts_[v].x, pts_[v].y);
     }
-    locked_.assign(hf_.size(), 0);
+    locked_.assign(n_ids_, 0);
     for (int j = 0; j < H_; ++j) {
       if (x0 > 0) locked_[id_of_[std::size_t(j) * W_ + x0]] = 1;
       if (x1 < W_ - 1) locked_[id_of_[std::size_t(j) * W_ + x1]] = 1;
@@ -272,14 +271,16 @@ class Builder {
 
   // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips.
   void init_faces(const std::vector<std::array<std::uint32_t, 3>>& faces) {
-    number_vertices(0, W_ - 1);
+    std::vector<std::uint8_t> used(hf_.size(), 0);
+    for (const auto& f : faces) used[f[0]] = used[f[1]] = used[f[2]] = 1;
+    number_vertices(0, W_ - 1, &used);
     reserve_mesh(3 * faces.size() / 2 + 16, faces.size());
     std::vector<Mesh::VertexHandle> tri(3);
     for (const auto& f : faces) {
       for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));
       if (!add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
-    locked_.assign(hf_.size(), 0);
+    locked_.assign(n_ids_, 0);
     edge_err_.assign(mesh_.n_edges(), 0.0);
     if (err_.metric() == ErrorMetric::Continuous)
       for (auto e : mesh_.edges()) {
@@ -327,11 +328,15 @@ class Builder {
         continue;
       }
       neighbours_.clear();
-      for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx())); });
-      mesh_.collapse(h);
+      moved_.clear();
+      for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) {
+        neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx()));
+        moved_.push_back(g);
+      });
+      collapse(h);
       heap_.remove(u);
       --live;
-      if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(Mesh::VertexHandle(int(w)));
+      if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
       collapses.push_back(Collapse{sample_of_[u], sample_of_[w], std::ceil(e / quantum) * quantum});
       for (std::uint32_t n : neighbours_) prefetch_vertex(n);
       for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/false);
@@ -356,17 +361,20 @@ class Builder {
   // works at a random place of the mesh; what it touches there (the rings of u and its
   // neighbours: halfedges, edge errors, positions, heights, heap positions) should lie in a few
   // cache lines and one page. Vertex ids therefore follow tiles of kTile x kTile samples, the
-  // tiles row by row and Z-order (Morton) inside a tile, over the columns [x0, x1] first; the
-  // other samples (isolated in this mesh) follow in row-major order. Cells are created in the
-  // same order, so a ring's halfedges are close too. In this order a cell's left, upper and
+  // tiles row by row and Z-order (Morton) inside a tile, over the columns [x0, x1]; samples
+  // outside them, or not in `used` when given, get no id, so that every per-vertex array
+  // (OpenMesh's included) holds only the vertices this builder works on. Cells are created in
+  // the same order, so a ring's halfedges are close too. In this order a cell's left, upper and
   // upper-left neighbours always come before it, so each new face extends connected fans at
   // its corners and OpenMesh accepts every face of a hole-free grid. The numbering depends on
-  // the grid size only, so the PM stays a function of the heightfield.
+  // the grid (and `used`) only, so the PM stays a function of the heightfield; leaving samples
+  // out keeps the order of the others, and with it every tie-break by vertex id.
   static constexpr int kTile = 64;
-  void number_vertices(int x0, int x1) {
+  void number_vertices(int x0, int x1, const std::vector<std::uint8_t>* used = nullptr) {
     const std::size_t n = hf_.size();
     sample_of_.clear();
-    sample_of_.reserve(n);
+    sample_of_.reserve(used ? std::size_t(std::count(used->begin(), used->end(), 1))
+                            : std::size_t(x1 + 1 - x0) * std::size_t(H_));
     std::vector<std::uint32_t> z_order(std::size_t(kTile) * kTile);  // Morton code -> dx + kTile * dy
     for (std::uint32_t m = 0; m < z_order.size(); ++m) {
       std::uint32_t dx = 0, dy = 0;
@@ -379,22 +387,25 @@ class Builder {
         const int tw = std::min(kTile, x1 + 1 - tx), th = std::min(kTile, H_ - ty);
         for (std::uint32_t c : z_order) {  // a partial tile skips the codes outside it
           const int dx = int(c % kTile), dy = int(c / kTile);
-          if (dx < tw && dy < th) sample_of_.push_back(std::uint32_t(std::size_t(ty + dy) * W_ + tx + dx));
+          if (dx >= tw || dy >= th) continue;
+          const std::uint32_t s = std::uint32_t(std::size_t(ty + dy) * W_ + tx + dx);
+          if (!used || (*used)[s]) sample_of_.push_back(s);
         }
       }
-    strip_vertices_ = std::uint32_t(sample_of_.size());
-    for (int j = 0; j < H_; ++j)
-      for (int i = 0; i < W_; ++i)
-        if (i < x0 || i > x1) sample_of_.push_back(std::uint32_t(std::size_t(j) * W_ + i));
-    id_of_.assign(n, 0);
-    pts_.resize(n);
-    z_.resize(n);
-    for (std::uint32_t v = 0; v < n; ++v) {
+    n_ids_ = std::uint32_t(sample_of_.size());
+    id_of_.assign(n, UINT32_MAX);
+    pts_.resize(n_ids_);
+    z_.resize(n_ids_);
+    for (std::uint32_t v = 0; v < n_ids_; ++v) {
       const std::uint32_t s = sample_of_[v];
       id_of_[s] = v;
       pts_[v] = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
       z_[v] = hf_[s];
     }
+    heap_ = VertexHeap(n_ids_);
+    target_.assign(n_ids_, UINT32_MAX);
+    dirty_.assign(n_ids_, 0);
+    pops_.assign(n_ids_, 0);
   }
 
   // Reserves the mesh and adds all vertices. OpenMesh's element and property arrays are the
@@ -402,7 +413,7 @@ class Builder {
   // vertex): they are advised to use transparent huge pages before their pages are touched
   // (reserve() only allocates), so that ring walks at random places do not also miss the TLB.
   void reserve_mesh(std::size_t n_edges, std::size_t n_faces) {
-    const std::size_t nv = hf_.size();
+    const std::size_t nv = n_ids_;
     mesh_.reserve(nv, n_edges, n_faces);
     const auto v0 = mesh_.add_vertex(Mesh::Point(0, 0, 0));
     advise_huge(&mesh_.vertex(v0), nv * sizeof(Mesh::Vertex));
@@ -462,14 +473,80 @@ class Builder {
     } while (h != start);
   }
 
-  // Crossing error of every edge around w. All of them, not only those to u's old neighbours:
-  // when OpenMesh merges the edges (u, wing) and (w, wing) it may keep the handle of the first,
-  // whose stored value would then describe the segment (u, wing).
-  void update_edge_errors(Mesh::VertexHandle vw) {
-    const std::uint32_t w = std::uint32_t(vw.idx());
-    for_each_outgoing(vw, [&](Mesh::HalfedgeHandle h) {
-      edge_err_[mesh_.edge_handle(h).idx()] = spoke_error(w, std::uint32_t(mesh_.to_vertex_handle(h).idx()), 1e300);
-    });
+  // The collapse of halfedge h (u -> w), written against OpenMesh's kernel so that it runs
+  // without the library's calls and handle checks (a tenth of the build went there). It leaves
+  // exactly the connectivity PolyConnectivity::collapse leaves: the same elements deleted, the
+  // same outgoing halfedge at every vertex (a vertex keeps a boundary one when it has one), so
+  // ring walks, and with them every tie-break, see the mesh they saw before. Two faces beside
+  // the edge fold into loops of two halfedges; each loop keeps the edge (w, wing) and deletes
+  // the edge (u, wing), so the stored crossing error of every edge that survives still
+  // describes its segment, except for u's other edges, which now start at w.
+  void collapse(Mesh::HalfedgeHandle h) {
+    const auto hn = mesh_.next_halfedge_handle(h), hp = mesh_.prev_halfedge_handle(h);
+    const auto o = mesh_.opposite_halfedge_handle(h);
+    const auto on = mesh_.next_halfedge_handle(o), op = mesh_.prev_halfedge_handle(o);
+    const auto fh = mesh_.face_handle(h), fo = mesh_.face_handle(o);
+    const auto vw = mesh_.to_vertex_handle(h), vu = mesh_.to_vertex_handle(o);
+    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw); });
+    mesh_.set_next_halfedge_handle(hp, hn);
+    mesh_.set_next_halfedge_handle(op, on);
+    if (fh.is_valid()) mesh_.set_halfedge_handle(fh, hn);
+    if (fo.is_valid()) mesh_.set_halfedge_handle(fo, on);
+    if (mesh_.halfedge_handle(vw) == o) mesh_.set_halfedge_handle(vw, hn);
+    adjust_outgoing(vw);
+    mesh_.set_isolated(vu);
+    mesh_.status(mesh_.edge_handle(h)).set_deleted(true);
+    mesh_.status(vu).set_deleted(true);
+    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(hn)) == hn) collapse_loop(mesh_.next_halfedge_handle(hn));
+    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(on)) == on) collapse_loop(on);
+  }
+
+  // Removes the loop of two halfedges h0, next(h0) that a collapse left: h0's edge goes, and
+  // next(h0) takes the place of h0's opposite in the face on the other side.
+  void collapse_loop(Mesh::HalfedgeHandle h0) {
+    const auto h1 = mesh_.next_halfedge_handle(h0);
+    const auto o0 = mesh_.opposite_halfedge_handle(h0), o1 = mesh_.opposite_halfedge_handle(h1);
+    const auto v0 = mesh_.to_vertex_handle(h0), v1 = mesh_.to_vertex_handle(h1);
+    const auto fh = mesh_.face_handle(h0), fo = mesh_.face_handle(o0);
+    assert(mesh_.next_halfedge_handle(h1) == h0 && h1 != o0);
+    mesh_.set_next_halfedge_handle(h1, mesh_.next_halfedge_handle(o0));
+    mesh_.set_next_halfedge_handle(mesh_.prev_halfedge_handle(o0), h1);
+    mesh_.set_face_handle(h1, fo);
+    mesh_.set_halfedge_handle(v0, h1);
+    adjust_outgoing(v0);
+    mesh_.set_halfedge_handle(v1, o1);
+    adjust_outgoing(v1);
+    if (fo.is_valid() && mesh_.halfedge_handle(fo) == o0) mesh_.set_halfedge_handle(fo, h1);
+    if (fh.is_valid()) {
+      mesh_.set_halfedge_handle(fh, Mesh::HalfedgeHandle());
+      mesh_.status(fh).set_deleted(true);
+    }
+    mesh_.status(mesh_.edge_handle(h0)).set_deleted(true);
+  }
+
+  // Makes v's outgoing halfedge its first boundary one in clockwise order from the current
+  // one, if it has any (OpenMesh's convention, which boundary tests rely on).
+  void adjust_outgoing(Mesh::VertexHandle v) {
+    const auto start = mesh_.halfedge_handle(v);
+    if (!start.is_valid()) return;
+    auto h = start;
+    do {
+      if (mesh_.is_boundary(h)) {
+        mesh_.set_halfedge_handle(v, h);
+        return;
+      }
+      h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
+    } while (h != start);
+  }
+
+  // Crossing errors of the edges u's collapse into w moved to w (moved_: u's outgoing
+  // halfedges before the collapse); the others around w kept their segments (see collapse).
+  void update_edge_errors(std::uint32_t w) {
+    for (const auto g : moved_) {
+      const auto e = mesh_.edge_handle(g);
+      if (mesh_.status(e).deleted()) continue;
+      edge_err_[e.idx()] = spoke_error(w, std::uint32_t(mesh_.to_vertex_handle(g).idx()), 1e300);
+    }
   }
 
   // Crossing error of the segment (w, x), through a small direct-mapped cache: the same spokes
@@ -761,7 +838,7 @@ class Builder {
   LInfError err_;
   int W_, H_;
   Mesh mesh_;
-  VertexHeap heap_;
+  VertexHeap heap_{0};
   HugeVector<std::uint32_t> target_;
   TriangleCache cache_;
   struct Candidate {
@@ -779,10 +856,11 @@ class Builder {
   std::vector<std::uint8_t> face_at_;
   std::vector<std::int64_t> cross_;
   std::vector<std::uint32_t> neighbours_, ringv_;
+  std::vector<Mesh::HalfedgeHandle> moved_;  // u's outgoing halfedges before its collapse
   HugeVector<GridPoint> pts_;               // by vertex id (see number_vertices)
   HugeVector<double> z_;                    // heights by vertex id
   std::vector<std::uint32_t> sample_of_, id_of_;  // vertex id <-> sample index
-  std::uint32_t strip_vertices_ = 0;        // ids below it are the samples of the built columns
+  std::uint32_t n_ids_ = 0;                 // vertex ids are 0 .. n_ids_ - 1 (see number_vertices)
   std::size_t reserved_edges_ = 0, reserved_faces_ = 0;
   struct SpokeSlot {
     std::uint32_t a = UINT32_MAX, b = 0;
@@ -793,8 +871,7 @@ class Builder {
   std::vector<std::uint8_t> locked_;
   std::vector<Candidate> cand_;
   std::vector<int> link_ring_;
-  std::vector<std::uint8_t> dirty_ = std::vector<std::uint8_t>(hf_.size(), 0);
-  std::vector<std::uint8_t> pops_ = std::vector<std::uint8_t>(hf_.size(), 0);
+  std::vector<std::uint8_t> dirty_, pops_;
   struct RingFace {
     std::uint32_t a, b;
     double edge_error;
