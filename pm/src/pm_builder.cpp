@@ -123,10 +123,17 @@ class TriangleCache {
 // heap, each about as dear (the heap is tens of MB on a full tile, so sifts are cache misses).
 // Node i is stored at slot i + 3, so the four children of node i (4i+1 .. 4i+4, slots
 // 4(i+1) .. 4(i+1)+3) fill exactly one cache line of a large (2 MiB aligned) heap. prefetch() and
-// prefetch_entry() let the caller start the misses of a coming set() early.
+// prefetch_entry() let the caller start the misses of a coming set() early. A vertex's position
+// in the heap lives in the caller's per-vertex record (reset()), beside what the caller reads
+// with it, so that a set() at a random vertex does not miss one more cache line.
 class VertexHeap {
  public:
-  explicit VertexHeap(std::size_t n) : slots_(n + kPad), pos_(n, kAbsent) {}
+  /// Empties the heap for vertices 0 .. n-1; vertex v's position is pos[v * stride].
+  void reset(std::size_t n, std::uint32_t* pos, std::size_t stride) {
+    slots_.assign(n + kPad, Entry{});
+    pos_ = pos, stride_ = stride, size_ = 0;
+    for (std::size_t v = 0; v < n; ++v) pos_[v * stride_] = kAbsent;
+  }
   bool empty() const { return size_ == 0; }
   std::uint32_t top() const { return at(0).v; }
   double top_error() const { return at(0).err; }
@@ -144,19 +151,17 @@ class VertexHeap {
       if (less(at(c), at(best))) best = c;
     return at(best).v;
   }
-  bool contains(std::uint32_t v) const { return pos_[v] != kAbsent; }
-  /// Starts loading what set(v, ...) reads first: v's position.
-  void prefetch(std::uint32_t v) const { __builtin_prefetch(&pos_[v]); }
-  /// Starts loading v's entry and the line of its children (call some time after prefetch(v)).
+  bool contains(std::uint32_t v) const { return pos(v) != kAbsent; }
+  /// Starts loading v's entry and the line of its children (once v's position is at hand).
   void prefetch_entry(std::uint32_t v) const {
-    const std::uint32_t p = pos_[v];
+    const std::uint32_t p = pos(v);
     if (p == kAbsent) return;
     __builtin_prefetch(&at(p));
     if (4 * std::size_t(p) + 1 < size_) __builtin_prefetch(&at(4 * p + 1));
   }
   void set(std::uint32_t v, double err, std::uint32_t tie) {
     const Entry e{err, tie, v};
-    std::uint32_t p = pos_[v];
+    std::uint32_t p = pos(v);
     if (p == kAbsent) {
       p = size_++;
       up(p, e);
@@ -167,10 +172,10 @@ class VertexHeap {
     }
   }
   void remove(std::uint32_t v) {
-    const std::uint32_t p = pos_[v];
+    const std::uint32_t p = pos(v);
     if (p == kAbsent) return;
     const Entry last = at(--size_);
-    pos_[v] = kAbsent;
+    pos(v) = kAbsent;
     if (last.v != v) {
       if (p > 0 && less(last, at((p - 1) / 4))) up(p, last);
       else down(p, last);
@@ -196,9 +201,9 @@ class VertexHeap {
     while (i > 0) {
       const std::uint32_t p = (i - 1) / 4;
       if (!less(e, at(p))) break;
-      at(i) = at(p), pos_[at(i).v] = i, i = p;
+      at(i) = at(p), pos(at(i).v) = i, i = p;
     }
-    at(i) = e, pos_[e.v] = i;
+    at(i) = e, pos(e.v) = i;
   }
   void down(std::uint32_t i, const Entry& e) {
     const std::uint32_t n = size_;
@@ -210,12 +215,15 @@ class VertexHeap {
       for (std::uint32_t k = c0 + 1; k < end; ++k)
         if (less(at(k), at(c))) c = k;
       if (!less(at(c), e)) break;
-      at(i) = at(c), pos_[at(i).v] = i, i = c;
+      at(i) = at(c), pos(at(i).v) = i, i = c;
     }
-    at(i) = e, pos_[e.v] = i;
+    at(i) = e, pos(e.v) = i;
   }
+  std::uint32_t& pos(std::uint32_t v) { return pos_[v * stride_]; }
+  std::uint32_t pos(std::uint32_t v) const { return pos_[v * stride_]; }
   HugeVector<Entry> slots_;  // 2 MiB aligned when large (HugeAllocator), else 16-byte aligned
-  HugeVector<std::uint32_t> pos_;
+  std::uint32_t* pos_ = nullptr;
+  std::size_t stride_ = 1;
   std::uint32_t size_ = 0;
 };
 
@@ -259,12 +267,11 @@ class Builder {
         for (int i = x0; i < x1; ++i) add_cell(i, j);
     } else {
       for (std::uint32_t v = 0; v < n_ids_; ++v)  // cell (i,j) has its corner (i,j) first
-        if (pts_[v].x < x1 && pts_[v].y + 1 < H_) add_cell(pts_[v].x, pts_[v].y);
+        if (vs_[v].p.x < x1 && vs_[v].p.y + 1 < H_) add_cell(vs_[v].p.x, vs_[v].p.y);
     }
-    locked_.assign(n_ids_, 0);
     for (int j = 0; j < H_; ++j) {
-      if (x0 > 0) locked_[id_of_[std::size_t(j) * W_ + x0]] = 1;
-      if (x1 < W_ - 1) locked_[id_of_[std::size_t(j) * W_ + x1]] = 1;
+      if (x0 > 0) vs_[id_of_[std::size_t(j) * W_ + x0]].locked = 1;
+      if (x1 < W_ - 1) vs_[id_of_[std::size_t(j) * W_ + x1]].locked = 1;
     }
     edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
   }
@@ -280,7 +287,6 @@ class Builder {
       for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));
       if (!add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
-    locked_.assign(n_ids_, 0);
     edge_err_.assign(mesh_.n_edges(), 0.0);
     if (err_.metric() == ErrorMetric::Continuous)
       for (auto e : mesh_.edges()) {
@@ -312,27 +318,34 @@ class Builder {
       // The top is at a random place of the mesh, and so is the next one: start loading the
       // first links of its chain of dependent loads while u is processed.
       prefetch_vertex(heap_.second());
-      if (dirty_[u]) {
+      if (vs_[u].dirty) {
         // Its key was a lower bound: measure it, but only as far as needed to know whether
         // it is still the smallest key.
         // The first time after its ring changed, u is measured only up to the next key; when
         // it comes back, in full (stopping at every next key makes it bounce many times).
-        evaluate(u, /*exact=*/true, pops_[u]++ == 0 ? heap_.second_error() : 1e300);
+        evaluate(u, /*exact=*/true, vs_[u].pops++ == 0 ? heap_.second_error() : 1e300);
         continue;
       }
-      const std::uint32_t w = target_[u];
+      const std::uint32_t w = vs_[u].target;
       const auto vu = Mesh::VertexHandle(int(u));
-      const auto h = find_halfedge(vu, Mesh::VertexHandle(int(w)));
-      if (!h.is_valid() || !link_ok(h) || !geometry_ok(vu, w)) {
-        evaluate(u, /*exact=*/true);  // a neighbour's change made the candidate illegal
-        continue;
-      }
+      // One walk around u gives the halfedge to w, the ring for the link test, and what the
+      // collapse moves. u's ring is the one it was measured with (any change to it makes u
+      // dirty), so w is still a neighbour and the plan-view test still holds; but w's ring
+      // may have changed since, so the link condition is tested again.
       neighbours_.clear();
       moved_.clear();
+      Mesh::HalfedgeHandle h;
       for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) {
-        neighbours_.push_back(std::uint32_t(mesh_.to_vertex_handle(g).idx()));
+        const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(g).idx());
+        if (x == w) h = g;
+        neighbours_.push_back(x);
         moved_.push_back(g);
       });
+      assert(h.is_valid() && geometry_ok(vu, w));
+      if (!link_ok(h, neighbours_)) {
+        evaluate(u, /*exact=*/true);  // a change around w made the candidate illegal
+        continue;
+      }
       collapse(h);
       heap_.remove(u);
       --live;
@@ -355,7 +368,7 @@ class Builder {
 
  private:
   // Integer division by the grid width is slow in the inner loops, so points are tabulated.
-  GridPoint point(std::uint32_t v) const { return pts_[v]; }
+  GridPoint point(std::uint32_t v) const { return vs_[v].p; }
 
   // Vertex numbering for locality. The collapse order is global by error, so every collapse
   // works at a random place of the mesh; what it touches there (the rings of u and its
@@ -394,18 +407,14 @@ class Builder {
       }
     n_ids_ = std::uint32_t(sample_of_.size());
     id_of_.assign(n, UINT32_MAX);
-    pts_.resize(n_ids_);
-    z_.resize(n_ids_);
+    vs_.assign(n_ids_, VertexState{});
     for (std::uint32_t v = 0; v < n_ids_; ++v) {
       const std::uint32_t s = sample_of_[v];
       id_of_[s] = v;
-      pts_[v] = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
-      z_[v] = hf_[s];
+      vs_[v].p = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
+      vs_[v].z = hf_[s];
     }
-    heap_ = VertexHeap(n_ids_);
-    target_.assign(n_ids_, UINT32_MAX);
-    dirty_.assign(n_ids_, 0);
-    pops_.assign(n_ids_, 0);
+    heap_.reset(n_ids_, &vs_.data()->heap_pos, sizeof(VertexState) / sizeof(std::uint32_t));
   }
 
   // Reserves the mesh and adds all vertices. OpenMesh's element and property arrays are the
@@ -453,11 +462,7 @@ class Builder {
   void prefetch_vertex(std::uint32_t v) const {
     if (v == UINT32_MAX) return;
     __builtin_prefetch(&mesh_.vertex(Mesh::VertexHandle(int(v))));
-    __builtin_prefetch(&pts_[v]);
-    __builtin_prefetch(&z_[v]);
-    __builtin_prefetch(&dirty_[v]);
-    __builtin_prefetch(&locked_[v]);
-    heap_.prefetch(v);
+    __builtin_prefetch(&vs_[v]);
   }
 
   // Outgoing halfedges of v, calling f(h) for each. Hand-written with the kernel's inline
@@ -578,27 +583,26 @@ class Builder {
   // as OpenMesh's is_collapse_ok checks it, without its per-call allocations: the common
   // neighbours of u and w are exactly the opposite vertices of the faces beside the edge, and
   // an interior edge may not join two boundary vertices.
-  bool link_ok(Mesh::HalfedgeHandle h) {
+  // ring_u: the heads of u's outgoing halfedges.
+  bool link_ok(Mesh::HalfedgeHandle h, const std::vector<std::uint32_t>& ring_u) const {
     const auto vu = mesh_.from_vertex_handle(h), vw = mesh_.to_vertex_handle(h);
     const auto o = mesh_.opposite_halfedge_handle(h);
     const bool edge_boundary = mesh_.is_boundary(h) || mesh_.is_boundary(o);
     if (!edge_boundary && mesh_.is_boundary(vu) && mesh_.is_boundary(vw)) return false;
-    int wings[2] = {-1, -1};
-    if (!mesh_.is_boundary(h)) wings[0] = mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx();
-    if (!mesh_.is_boundary(o)) wings[1] = mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx();
+    std::uint32_t wings[2] = {UINT32_MAX, UINT32_MAX};
+    if (!mesh_.is_boundary(h)) wings[0] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx());
+    if (!mesh_.is_boundary(o)) wings[1] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx());
     if (wings[0] == wings[1]) return false;
     // Common neighbours by comparing the two (short) rings: no per-vertex marks to miss in cache.
-    link_ring_.clear();
-    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { link_ring_.push_back(mesh_.to_vertex_handle(g).idx()); });
     int common = 0;
     bool ok = true;
     for_each_outgoing(vw, [&](Mesh::HalfedgeHandle g) {
-      const int x = mesh_.to_vertex_handle(g).idx();
-      if (std::find(link_ring_.begin(), link_ring_.end(), x) == link_ring_.end()) return;
+      const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(g).idx());
+      if (std::find(ring_u.begin(), ring_u.end(), x) == ring_u.end()) return;
       if (x != wings[0] && x != wings[1]) ok = false;
       ++common;
     });
-    return ok && common == (wings[0] >= 0) + (wings[1] >= 0);
+    return ok && common == (wings[0] != UINT32_MAX) + (wings[1] != UINT32_MAX);
   }
 
   bool is_corner(GridPoint p) const { return (p.x == 0 || p.x == W_ - 1) && (p.y == 0 || p.y == H_ - 1); }
@@ -645,11 +649,11 @@ class Builder {
   // of collapses is the same as with exact keys, at a fraction of the cost.
   void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
     const auto vu = Mesh::VertexHandle(int(u));
-    heap_.prefetch(u);
-    if (!exact) pops_[u] = 0;
-    const GridPoint pu = point(u);
-    dirty_[u] = 0;
-    if (is_corner(pu) || locked_[u] || mesh_.is_isolated(vu)) {
+    VertexState& su = vs_[u];
+    if (!exact) su.pops = 0;
+    const GridPoint pu = su.p;
+    su.dirty = 0;
+    if (is_corner(pu) || su.locked || mesh_.is_isolated(vu)) {
       heap_.remove(u);
       return;
     }
@@ -659,7 +663,6 @@ class Builder {
     const bool continuous = err_.metric() == ErrorMetric::Continuous;
     ringv_.clear();
     ring_.clear();
-    ringk_.clear();
     rloc_.clear();
     bool boundary = false;
     {
@@ -670,14 +673,16 @@ class Builder {
         const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
         ringv_.push_back(a);
         const GridPoint pa = point(a);
-        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, z_[a]});
+        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, vs_[a].z});
         if (mesh_.is_boundary(h)) {
           boundary = true;
         } else {
-          const auto hn = mesh_.next_halfedge_handle(h);
-          ring_.push_back(RingFace{a, std::uint32_t(mesh_.to_vertex_handle(hn).idx()),
-                                   continuous ? edge_err_[mesh_.edge_handle(hn).idx()] : 0.0});
-          ringk_.push_back(k);
+          // The face's third corner is the previous ring vertex (filled in below, so that
+          // the head of next(h) need not be loaded); its edge error is at next(h)'s edge.
+          RingFace f{};
+          f.a = a, f.ka = k;
+          f.edge_error = continuous ? edge_err_[mesh_.edge_handle(mesh_.next_halfedge_handle(h)).idx()] : 0.0;
+          ring_.push_back(f);
         }
         ++k;
         h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
@@ -685,9 +690,17 @@ class Builder {
     }
     heap_.prefetch_entry(u);  // read by the heap_.set() at the end
     const std::uint32_t n = std::uint32_t(ringv_.size());
-    // Face j joins ring indices ringk_[j] and ringk_[j] - 1 (mod n).
+    const Local* rl = rloc_.data();
+    // Face j joins ring indices ka and kb = ka - 1 (mod n); face_at_[k]: the face at k exists.
     face_at_.assign(n, 0);
-    for (std::uint32_t k : ringk_) face_at_[k] = 1;
+    double ring_edges = 0.0;
+    for (RingFace& f : ring_) {
+      f.kb = f.ka == 0 ? n - 1 : f.ka - 1;
+      f.b = ringv_[f.kb];
+      f.cross = rl[f.ka].x * rl[f.kb].y - rl[f.ka].y * rl[f.kb].x;
+      face_at_[f.ka] = 1;
+      ring_edges = std::max(ring_edges, f.edge_error);
+    }
     // Candidate targets, as ring indices.
     cand_.clear();
     if (boundary) {
@@ -704,67 +717,64 @@ class Builder {
     } else {
       for (std::uint32_t k = 0; k < n; ++k) cand_.push_back({ringv_[k], 0, 0, k});
     }
-    // Lower bound of each legal candidate: the error at u itself, at the new spokes and at the
-    // ring edges, all of which are points of the new 1-ring. Every edge of u's ring survives
-    // as an edge of the new 1-ring of w, including the two that end at w, so all count.
-    double ring_edges = 0.0;
+    // Lower bound of each candidate: the error at u itself, at the new spokes and at the ring
+    // edges, all of which are points of the new 1-ring. Every edge of u's ring survives as an
+    // edge of the new 1-ring of w, including the two that end at w, so all count. Whether a
+    // candidate is legal (no new face flips, fan_ok) is asked only of those that could win,
+    // in order of their bounds: testing every candidate against every face was the build's
+    // innermost loop.
     const std::size_t nf = ring_.size();
-    cross_.resize(nf);
-    for (std::size_t j = 0; j < nf; ++j) {
-      ring_edges = std::max(ring_edges, ring_[j].edge_error);
-      const Local& la = rloc_[ringk_[j]];
-      const Local& lb = rloc_[ringk_[j] == 0 ? n - 1 : ringk_[j] - 1];
-      cross_[j] = la.x * lb.y - la.y * lb.x;
-    }
-    std::size_t legal = 0;
-    const double zu = z_[u];
+    const RingFace* fs = ring_.data();
+    std::size_t kept = 0;
+    const double zu = su.z;
     for (Candidate& c : cand_) {
-      const Local& lw = rloc_[c.k];
+      const Local& lw = rl[c.k];
       // With positions relative to u: orient(w, a, b) = cross(a, b) + X(a) - X(b), where
-      // X(x) = cross(w, x); orient(w, a, u) = X(a) and orient(b, w, u) = -X(b).
-      bool ok = true, located = false;
-      double lb = ring_edges;
-      // u lies in the new triangle (w, a, b) whose wedge at w contains the direction w -> u:
+      // X(x) = cross(w, x); orient(w, a, u) = X(a) and orient(b, w, u) = -X(b). u lies in
+      // the first new triangle (w, a, b) whose wedge at w contains the direction w -> u:
       // orient(w, a, u) >= 0 and orient(w, u, b) >= 0.
+      double lb = ring_edges;
+      bool flat = false;
       for (std::size_t j = 0; j < nf; ++j) {
-        const std::uint32_t ka = ringk_[j], kb = ka == 0 ? n - 1 : ka - 1;
-        if (ka == c.k || kb == c.k) continue;
-        const Local &la = rloc_[ka], &lb2 = rloc_[kb];
-        const std::int64_t xa = lw.x * la.y - lw.y * la.x, xb = lw.x * lb2.y - lw.y * lb2.x;
-        const std::int64_t area2 = cross_[j] + xa - xb;
-        if (area2 <= 0) { ok = false; break; }
-        if (located) continue;
+        const RingFace& f = fs[j];
+        if (f.ka == c.k || f.kb == c.k) continue;
+        const std::int64_t xa = lw.x * rl[f.ka].y - lw.y * rl[f.ka].x, xb = lw.x * rl[f.kb].y - lw.y * rl[f.kb].x;
         const std::int64_t e2 = xa, e1 = -xb;
         if (e2 >= 0 && e1 >= 0) {
-          located = true;
+          const std::int64_t area2 = f.cross + xa - xb;
+          if (area2 <= 0) {  // the face would flip: illegal
+            flat = true;
+            break;
+          }
           const std::int64_t e0 = area2 - e1 - e2;  // barycentric weights sum to area2
-          const double num = double(e0) * lw.z + double(e1) * rloc_[ka].z + double(e2) * rloc_[kb].z;
+          const double num = double(e0) * lw.z + double(e1) * rl[f.ka].z + double(e2) * rl[f.kb].z;
           lb = std::max(lb, std::abs(num - double(area2) * zu) / double(area2));
+          break;
         }
       }
-      if (!ok) continue;
+      if (flat) continue;
       c.lower = lb;
       c.tie = tie_of(pu, point(c.w));
-      cand_[legal++] = c;
+      cand_[kept++] = c;
     }
-    cand_.resize(legal);
-    if (cand_.empty()) {
-      heap_.remove(u);
-      return;
-    }
+    cand_.resize(kept);
     const auto by_bound = [](const Candidate& a, const Candidate& b) {
       return a.lower < b.lower || (a.lower == b.lower && a.tie < b.tie);
     };
-    if (!exact) {  // only the smallest bound is needed: the first one, as a (stable) sort would put it
-      const Candidate& c = *std::min_element(cand_.begin(), cand_.end(), by_bound);
-      dirty_[u] = 1;
-      target_[u] = c.w;
-      heap_.set(u, c.lower, c.tie);
-      return;
-    }
     // Insertion sort (stable, no allocation; rings are short).
     for (std::size_t i = 1; i < cand_.size(); ++i)
       for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j) std::swap(cand_[j], cand_[j - 1]);
+    if (!exact) {  // only the smallest bound of a legal candidate is needed
+      for (const Candidate& c : cand_) {
+        if (!fan_ok(c.k)) continue;
+        su.dirty = 1;
+        su.target = c.w;
+        heap_.set(u, c.lower, c.tie);
+        return;
+      }
+      heap_.remove(u);
+      return;
+    }
     // Exact errors in order of their lower bounds, skipping candidates that cannot win.
     // Measurements stop at `cutoff` (the next key in the heap): when every candidate exceeds
     // it, the values reached are a better lower bound and u goes back, still dirty.
@@ -777,6 +787,7 @@ class Builder {
     for (const Candidate& c : cand_) {
       if (c.lower > best || (c.lower == best && c.tie >= best_tie)) break;
       if (best_w == UINT32_MAX && c.lower > partial) break;
+      if (!fan_ok(c.k)) continue;
       const double limit = std::min(best, cutoff);
       double e = c.lower;
       if (continuous)  // the new spokes (w, x) to ring vertices x not already joined to w
@@ -799,12 +810,12 @@ class Builder {
       }
       if (!(e < best || (e == best && c.tie < best_tie))) continue;
       // The topological test is the dearest, so it runs only for a candidate that would win.
-      if (!link_ok(find_halfedge(vu, Mesh::VertexHandle(int(c.w))))) continue;
+      if (!link_ok(find_halfedge(vu, Mesh::VertexHandle(int(c.w))), ringv_)) continue;
       best = e, best_tie = c.tie, best_w = c.w;
     }
     if (best_w == UINT32_MAX && partial_w != UINT32_MAX) {
-      dirty_[u] = 1;
-      target_[u] = partial_w;
+      su.dirty = 1;
+      su.target = partial_w;
       heap_.set(u, partial, partial_tie);
       return;
     }
@@ -812,8 +823,20 @@ class Builder {
       heap_.remove(u);
       return;
     }
-    target_[u] = best_w;
+    su.target = best_w;
     heap_.set(u, best, best_tie);
+  }
+
+  // Whether collapsing u into its ring vertex k leaves every new face (w, a, b)
+  // counter-clockwise (ring_ and rloc_ as evaluate() filled them).
+  bool fan_ok(std::uint32_t k) const {
+    const Local& lw = rloc_[k];
+    for (const RingFace& f : ring_) {
+      if (f.ka == k || f.kb == k) continue;
+      const Local &la = rloc_[f.ka], &lb = rloc_[f.kb];
+      if (f.cross + (lw.x * la.y - lw.y * la.x) - (lw.x * lb.y - lw.y * lb.x) <= 0) return false;
+    }
+    return true;
   }
 
   // Tie-break of equal errors: the squared length of the collapsed edge, saturated (exact
@@ -838,8 +861,19 @@ class Builder {
   LInfError err_;
   int W_, H_;
   Mesh mesh_;
-  VertexHeap heap_{0};
-  HugeVector<std::uint32_t> target_;
+  // Everything the loop reads of one vertex besides OpenMesh's record, in one 32-byte record.
+  struct VertexState {
+    GridPoint p;                      // grid position
+    double z;                         // height
+    std::uint32_t heap_pos;           // owned by heap_
+    std::uint32_t target = UINT32_MAX;  // best collapse target (a lower-bound one when dirty)
+    std::uint8_t dirty = 0;           // the heap key is a lower bound
+    std::uint8_t pops = 0;            // exact measurements since the ring last changed
+    std::uint8_t locked = 0;          // on a cut column shared with another strip
+  };
+  static_assert(sizeof(VertexState) == 32);
+  HugeVector<VertexState> vs_;  // by vertex id (see number_vertices)
+  VertexHeap heap_;
   TriangleCache cache_;
   struct Candidate {
     std::uint32_t w;
@@ -852,13 +886,9 @@ class Builder {
     double z;
   };
   std::vector<Local> rloc_;
-  std::vector<std::uint32_t> ringk_;
   std::vector<std::uint8_t> face_at_;
-  std::vector<std::int64_t> cross_;
   std::vector<std::uint32_t> neighbours_, ringv_;
   std::vector<Mesh::HalfedgeHandle> moved_;  // u's outgoing halfedges before its collapse
-  HugeVector<GridPoint> pts_;               // by vertex id (see number_vertices)
-  HugeVector<double> z_;                    // heights by vertex id
   std::vector<std::uint32_t> sample_of_, id_of_;  // vertex id <-> sample index
   std::uint32_t n_ids_ = 0;                 // vertex ids are 0 .. n_ids_ - 1 (see number_vertices)
   std::size_t reserved_edges_ = 0, reserved_faces_ = 0;
@@ -868,13 +898,13 @@ class Builder {
   };
   std::vector<SpokeSlot> spokes_ = std::vector<SpokeSlot>(1 << 15);  // 512 KiB: stays in L2
   static constexpr int kShortSpoke = 6;
-  std::vector<std::uint8_t> locked_;
   std::vector<Candidate> cand_;
-  std::vector<int> link_ring_;
-  std::vector<std::uint8_t> dirty_, pops_;
-  struct RingFace {
-    std::uint32_t a, b;
-    double edge_error;
+
+  struct RingFace {          // the face (u, a, b) of u's ring
+    std::uint32_t a, b;        // vertex ids
+    std::uint32_t ka, kb;      // their ring indices: kb = ka - 1 (mod n)
+    std::int64_t cross;        // cross(a - u, b - u), twice the face's area
+    double edge_error;         // crossing error of the edge (a, b)
   };
   std::vector<RingFace> ring_;
   HugeVector<double> edge_err_;
