@@ -9,13 +9,14 @@
 //
 // Cost: one evaluation of u -> w rasterises the new 1-ring of w (about 3 N / m samples when
 // the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
-// candidate so far, and the error of each triangle is cached in a direct-mapped table keyed
-// by its corners, since re-evaluating a vertex after one neighbour changed meets mostly the
-// same triangles again; long spokes likewise in a 512 KiB table. Vertices are numbered in
-// tiles with Z-order inside (number_vertices), so that the data a collapse touches lies close
-// together. Memory: OpenMesh connectivity (~180 bytes per vertex), heap and per-vertex state
-// (~60 bytes per vertex), the triangle cache (24 bytes x up to 2^22), the large arrays
-// (OpenMesh's included) on transparent huge pages where the OS allows it.
+// candidate so far, and the error of each large triangle (256 cells and more) is cached in a
+// small direct-mapped table keyed by its corners, since re-evaluating a vertex after one
+// neighbour changed meets mostly the same triangles again; long spokes likewise in a 512 KiB
+// table. Vertices are numbered in tiles with Z-order inside (number_vertices), so that the
+// data a collapse touches lies close together. Memory: OpenMesh connectivity (~180 bytes per
+// vertex), heap and per-vertex state (48 bytes per vertex), edge errors (8 bytes per edge);
+// the large arrays (OpenMesh's included) on transparent huge pages where the OS allows it.
+// Peak for the full N44W072 tile (two strips at once): 582 MB.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
@@ -135,12 +136,12 @@ class VertexHeap {
     for (std::size_t v = 0; v < n; ++v) pos_[v * stride_] = kAbsent;
   }
   bool empty() const { return size_ == 0; }
-  std::uint32_t top() const { return at(0).v; }
-  double top_error() const { return at(0).err; }
+  std::uint32_t top() const { return at(0).v(); }
+  double top_error() const { return at(0).err(); }
   /// Key of the entry that would be on top without the current top (+inf when none).
   double second_error() const {
     double e = 1e300;
-    for (std::uint32_t c = 1; c <= 4 && c < size_; ++c) e = std::min(e, at(c).err);
+    for (std::uint32_t c = 1; c <= 4 && c < size_; ++c) e = std::min(e, at(c).err());
     return e;
   }
   /// The vertex that would be on top without the current top (UINT32_MAX when none).
@@ -149,7 +150,7 @@ class VertexHeap {
     std::uint32_t best = 1;
     for (std::uint32_t c = 2; c <= 4 && c < size_; ++c)
       if (less(at(c), at(best))) best = c;
-    return at(best).v;
+    return at(best).v();
   }
   bool contains(std::uint32_t v) const { return pos(v) != kAbsent; }
   /// Starts loading v's entry and the line of its children (once v's position is at hand).
@@ -160,7 +161,8 @@ class VertexHeap {
     if (4 * std::size_t(p) + 1 < size_) __builtin_prefetch(&at(4 * p + 1));
   }
   void set(std::uint32_t v, double err, std::uint32_t tie) {
-    const Entry e{err, tie, v};
+    assert(err >= 0 && !std::signbit(err));  // the key order is the order of the bits
+    const Entry e = Entry::make(err, tie, v);
     std::uint32_t p = pos(v);
     if (p == kAbsent) {
       p = size_++;
@@ -176,7 +178,7 @@ class VertexHeap {
     if (p == kAbsent) return;
     const Entry last = at(--size_);
     pos(v) = kAbsent;
-    if (last.v != v) {
+    if (last.v() != v) {
       if (p > 0 && less(last, at((p - 1) / 4))) up(p, last);
       else down(p, last);
     }
@@ -185,25 +187,28 @@ class VertexHeap {
  private:
   static constexpr std::uint32_t kAbsent = UINT32_MAX;
   static constexpr std::size_t kPad = 3;
+  // Key (err, tie, v) as one unsigned 128-bit number: the bits of err (>= +0, so they order
+  // as the values do) above tie above v. One comparison, no unpredictable branches.
   struct Entry {
-    double err;
-    std::uint32_t tie, v;
+    unsigned __int128 key = 0;
+    static Entry make(double err, std::uint32_t tie, std::uint32_t v) {
+      return Entry{(static_cast<unsigned __int128>(std::bit_cast<std::uint64_t>(err)) << 64) |
+                   (static_cast<unsigned __int128>(tie) << 32) | v};
+    }
+    double err() const { return std::bit_cast<double>(std::uint64_t(key >> 64)); }
+    std::uint32_t v() const { return std::uint32_t(key); }
   };
   Entry& at(std::uint32_t i) { return slots_[i + kPad]; }
   const Entry& at(std::uint32_t i) const { return slots_[i + kPad]; }
-  static bool less(const Entry& a, const Entry& b) {
-    if (a.err != b.err) return a.err < b.err;
-    if (a.tie != b.tie) return a.tie < b.tie;
-    return a.v < b.v;
-  }
+  static bool less(const Entry& a, const Entry& b) { return a.key < b.key; }
   // Moves e (destined for slot i) up/down to its place.
   void up(std::uint32_t i, const Entry& e) {
     while (i > 0) {
       const std::uint32_t p = (i - 1) / 4;
       if (!less(e, at(p))) break;
-      at(i) = at(p), pos(at(i).v) = i, i = p;
+      at(i) = at(p), pos(at(i).v()) = i, i = p;
     }
-    at(i) = e, pos(e.v) = i;
+    at(i) = e, pos(e.v()) = i;
   }
   void down(std::uint32_t i, const Entry& e) {
     const std::uint32_t n = size_;
@@ -215,9 +220,9 @@ class VertexHeap {
       for (std::uint32_t k = c0 + 1; k < end; ++k)
         if (less(at(k), at(c))) c = k;
       if (!less(at(c), e)) break;
-      at(i) = at(c), pos(at(i).v) = i, i = c;
+      at(i) = at(c), pos(at(i).v()) = i, i = c;
     }
-    at(i) = e, pos(e.v) = i;
+    at(i) = e, pos(e.v()) = i;
   }
   std::uint32_t& pos(std::uint32_t v) { return pos_[v * stride_]; }
   std::uint32_t pos(std::uint32_t v) const { return pos_[v * stride_]; }
@@ -430,9 +435,11 @@ class Builder {
     advise_huge(&mesh_.status(v0), nv * sizeof(OpenMesh::Attributes::StatusInfo));
     for (std::size_t i = 1; i < nv; ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
     reserved_edges_ = n_edges, reserved_faces_ = n_faces;
-    // About two slots per face, at most 2^22 (96 MiB): a small mesh (the join of the strips)
-    // does not clear a full-tile table.
-    cache_.reset(std::clamp(int(std::bit_width(2 * n_faces)), 12, 22));
+    // Only triangles of 256 cells and more pass through the cache, and they are few: 66k
+    // lookups (22k hits) in a whole N44W072 build, against 15 M measurements of smaller
+    // ones. 2^16 slots (1.5 MiB, cache-resident) hold them; the 2^22 slots used before
+    // cost 96 MiB of page faults per builder for nothing.
+    cache_.reset(std::clamp(int(std::bit_width(n_faces / 16)), 10, 16));
   }
 
   // mesh_.add_face; the edge and face arrays are advised once the first face made them
@@ -761,6 +768,15 @@ class Builder {
     const auto by_bound = [](const Candidate& a, const Candidate& b) {
       return a.lower < b.lower || (a.lower == b.lower && a.tie < b.tie);
     };
+    if (!exact && !cand_.empty()) {  // usually the smallest bound is legal: no sort then
+      const Candidate& c = *std::min_element(cand_.begin(), cand_.end(), by_bound);
+      if (fan_ok(c.k)) {
+        su.dirty = 1;
+        su.target = c.w;
+        heap_.set(u, c.lower, c.tie);
+        return;
+      }
+    }
     // Insertion sort (stable, no allocation; rings are short).
     for (std::size_t i = 1; i < cand_.size(); ++i)
       for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j) std::swap(cand_[j], cand_[j - 1]);
