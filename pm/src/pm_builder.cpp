@@ -2,7 +2,8 @@
 //
 // Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 2, Eq. 1. Each live vertex u
 // keeps its best legal collapse u -> w (smallest error, then shortest edge) in an indexed
-// 4-ary heap. After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
+// 4-ary heap, or a lower bound of it (then u is dirty and measured when the bound reaches the
+// top). After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
 // neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
 // move. A popped candidate is re-validated (the link condition may have changed through a
 // neighbour) and re-evaluated when it became illegal.
@@ -359,8 +360,14 @@ class Builder {
       --live;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
       collapses.push_back(Collapse{sample_of_[u], sample_of_[w], std::ceil(e / quantum) * quantum});
+      // The neighbours are measured now, while their rings are in cache, and as far as the
+      // keys at the top of the heap (like a popped vertex, see above): most are found to lie
+      // above them, and wait with that tighter lower bound instead of being measured again,
+      // from cold memory, when a looser bound (ring edges and the error at u only) reaches
+      // the top. Instructions on the 241 x 241 crop: 3.82 G -> 3.52 G (cutoff 0: 3.88 G,
+      // twice the largest child key: 4.37 G).
       for (std::uint32_t n : neighbours_) prefetch_vertex(n);
-      for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/false);
+      for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/true, heap_.children_max_error());
       if (++since_report == 4096) {
         const std::size_t done = progress.done.fetch_add(since_report) + since_report;
         since_report = 0;
@@ -653,10 +660,11 @@ class Builder {
     return value;
   }
 
-  // Files u in the heap with its best legal collapse. With exact = false the key is only a
-  // lower bound of that collapse's error (u is marked dirty and measured exactly when the
-  // bound reaches the top of the heap); since a lower bound never delays a vertex, the order
-  // of collapses is the same as with exact keys, at a fraction of the cost.
+  // Files u in the heap with its best legal collapse. With exact = false (the first pass over
+  // all vertices) the key is only a lower bound of that collapse's error: u is marked dirty and
+  // measured exactly when the bound reaches the top of the heap. Measurements that exceed
+  // `cutoff` also leave a lower bound. Since a lower bound never delays a vertex, the order of
+  // collapses is the same as with exact keys, at a fraction of the cost.
   void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
     const auto vu = Mesh::VertexHandle(int(u));
     VertexState& su = vs_[u];
