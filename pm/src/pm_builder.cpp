@@ -124,8 +124,8 @@ class TriangleCache {
 // 16-byte heap entries, so sifting touches only the heap array: half the levels of a binary
 // heap, each about as dear (the heap is tens of MB on a full tile, so sifts are cache misses).
 // Node i is stored at slot i + 3, so the four children of node i (4i+1 .. 4i+4, slots
-// 4(i+1) .. 4(i+1)+3) fill exactly one cache line of a large (2 MiB aligned) heap. prefetch() and
-// prefetch_entry() let the caller start the misses of a coming set() early. A vertex's position
+// 4(i+1) .. 4(i+1)+3) fill exactly one cache line of a large (2 MiB aligned) heap.
+// prefetch_entry() lets the caller start the misses of a coming set() early. A vertex's position
 // in the heap lives in the caller's per-vertex record (reset()), beside what the caller reads
 // with it, so that a set() at a random vertex does not miss one more cache line.
 class VertexHeap {
@@ -154,7 +154,6 @@ class VertexHeap {
       if (less(at(c), at(best))) best = c;
     return at(best).v();
   }
-  bool contains(std::uint32_t v) const { return pos(v) != kAbsent; }
   /// Starts loading v's entry and the line of its children (once v's position is at hand).
   void prefetch_entry(std::uint32_t v) const {
     const std::uint32_t p = pos(v);
@@ -355,7 +354,7 @@ class Builder {
         evaluate(u, /*exact=*/true);  // a change around w made the candidate illegal
         continue;
       }
-      collapse(h);
+      collapse(h, moved_);
       heap_.remove(u);
       --live;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
@@ -503,13 +502,14 @@ class Builder {
   // the edge fold into loops of two halfedges; each loop keeps the edge (w, wing) and deletes
   // the edge (u, wing), so the stored crossing error of every edge that survives still
   // describes its segment, except for u's other edges, which now start at w.
-  void collapse(Mesh::HalfedgeHandle h) {
+  // outgoing_u: u's outgoing halfedges (the caller has just walked u's ring).
+  void collapse(Mesh::HalfedgeHandle h, const std::vector<Mesh::HalfedgeHandle>& outgoing_u) {
     const auto hn = mesh_.next_halfedge_handle(h), hp = mesh_.prev_halfedge_handle(h);
     const auto o = mesh_.opposite_halfedge_handle(h);
     const auto on = mesh_.next_halfedge_handle(o), op = mesh_.prev_halfedge_handle(o);
     const auto fh = mesh_.face_handle(h), fo = mesh_.face_handle(o);
     const auto vw = mesh_.to_vertex_handle(h), vu = mesh_.to_vertex_handle(o);
-    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) { mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw); });
+    for (const auto g : outgoing_u) mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw);
     mesh_.set_next_halfedge_handle(hp, hn);
     mesh_.set_next_halfedge_handle(op, on);
     if (fh.is_valid()) mesh_.set_halfedge_handle(fh, hn);
@@ -778,29 +778,35 @@ class Builder {
     const auto by_bound = [](const Candidate& a, const Candidate& b) {
       return a.lower < b.lower || (a.lower == b.lower && a.tie < b.tie);
     };
-    if (!exact && !cand_.empty()) {  // usually the smallest bound is legal: no sort then
-      const Candidate& c = *std::min_element(cand_.begin(), cand_.end(), by_bound);
-      if (fan_ok(c.k)) {
-        su.dirty = 1;
-        su.target = c.w;
-        heap_.set(u, c.lower, c.tie);
-        return;
-      }
-    }
     // Insertion sort (stable, no allocation; rings are short).
-    for (std::size_t i = 1; i < cand_.size(); ++i)
-      for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j) std::swap(cand_[j], cand_[j - 1]);
+    const auto sort_by_bound = [&] {
+      for (std::size_t i = 1; i < cand_.size(); ++i)
+        for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j) std::swap(cand_[j], cand_[j - 1]);
+    };
     if (!exact) {  // only the smallest bound of a legal candidate is needed
-      for (const Candidate& c : cand_) {
-        if (!fan_ok(c.k)) continue;
-        su.dirty = 1;
-        su.target = c.w;
-        heap_.set(u, c.lower, c.tie);
+      const Candidate* pick = nullptr;
+      if (!cand_.empty()) {  // usually the smallest bound is legal: no sort then
+        const Candidate& c = *std::min_element(cand_.begin(), cand_.end(), by_bound);
+        if (fan_ok(c.k)) pick = &c;
+      }
+      if (!pick) {
+        sort_by_bound();
+        for (const Candidate& c : cand_)
+          if (fan_ok(c.k)) {
+            pick = &c;
+            break;
+          }
+      }
+      if (!pick) {
+        heap_.remove(u);
         return;
       }
-      heap_.remove(u);
+      su.dirty = 1;
+      su.target = pick->w;
+      heap_.set(u, pick->lower, pick->tie);
       return;
     }
+    sort_by_bound();
     // Exact errors in order of their lower bounds, skipping candidates that cannot win.
     // Measurements stop at `cutoff` (see run()): when every candidate exceeds
     // it, the values reached are a better lower bound and u goes back, still dirty.
