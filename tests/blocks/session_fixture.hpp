@@ -7,6 +7,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <cmath>
@@ -15,6 +16,7 @@
 #include <numeric>
 #include <set>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -241,6 +243,17 @@ inline blocks::SampleRect region_rect(const blocks::TerrainSession& s) {
   const blocks::ActiveRegion& r = s.region();
   const blocks::SampleRect a = s.grid().domain({r.col0, r.row0}), b = s.grid().domain({r.col1, r.row1});
   return {a.col0, a.row0, b.col1, b.row1};
+}
+
+/// Runs frames of `s` at a fixed pose, advancing `t` by 1/60 s each, until every inner block
+/// is refined, nothing morphs and nothing loads; fails the test after 20000 frames.
+inline void settle(blocks::TerrainSession& s, const pm::Camera& cam, double& t) {
+  for (int i = 0; i < 20000; ++i, t += 1.0 / 60) {
+    const blocks::SessionFrameStats& st = s.update(pm::View(cam), t);
+    if (st.refined == st.inner && st.morphing_blocks == 0 && st.loading == 0) return;
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  FAIL() << "session did not settle";
 }
 
 }  // namespace terralod::test

@@ -23,6 +23,7 @@ namespace pm = terralod::pm;
 namespace td = terralod::blocks::detail;
 using terralod::test::BlockedTerrain;
 using terralod::test::MemoryStore;
+using terralod::test::settle;
 using Tri = std::array<std::uint32_t, 3>;
 
 namespace {
@@ -325,16 +326,6 @@ TEST(SeamMerge, RefusedWhenTheMovedTrianglesWouldExceedTheBlocksBound) {
 }
 
 namespace {
-
-// Runs frames at a fixed pose until every inner block is refined and nothing morphs.
-void settle(tb::TerrainSession& s, const pm::Camera& cam, double& t) {
-  for (int i = 0; i < 20000; ++i, t += 1.0 / 60) {
-    const tb::SessionFrameStats& st = s.update(pm::View(cam), t);
-    if (st.refined == st.inner && st.morphing_blocks == 0 && st.loading == 0) return;
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
-  }
-  FAIL() << "session did not settle";
-}
 
 struct OnOff {
   double worst_off = 1, worst_on = 1;

@@ -19,22 +19,13 @@ namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
 using terralod::test::BlockedTerrain;
 using terralod::test::MemoryStore;
+using terralod::test::settle;
 
 namespace {
 
 const BlockedTerrain& terrain() {
   static const BlockedTerrain t = terralod::test::make_blocked_terrain(257, 257, 33, /*seed=*/5, 30.0, 400.0);
   return t;
-}
-
-// Runs frames at a fixed pose until every inner block is refined and nothing morphs.
-void settle(tb::TerrainSession& s, const pm::Camera& cam, double& t) {
-  for (int i = 0; i < 20000; ++i, t += 1.0 / 60) {
-    const tb::SessionFrameStats& st = s.update(pm::View(cam), t);
-    if (st.refined == st.inner && st.morphing_blocks == 0 && st.loading == 0) return;
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
-  }
-  FAIL() << "session did not settle";
 }
 
 pm::TriangleMesh as_triangle_mesh(const tb::DrawnMesh& m) {
