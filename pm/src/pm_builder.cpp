@@ -14,10 +14,11 @@
 // small direct-mapped table keyed by its corners, since re-evaluating a vertex after one
 // neighbour changed meets mostly the same triangles again; long spokes likewise in a 512 KiB
 // table. Vertices are numbered in tiles with Z-order inside (number_vertices), so that the
-// data a collapse touches lies close together. Memory: OpenMesh connectivity (~180 bytes per
-// vertex), heap and per-vertex state (48 bytes per vertex), edge errors (8 bytes per edge);
-// the large arrays (OpenMesh's included) on transparent huge pages where the OS allows it.
-// Peak for the full N44W072 tile (two strips at once): 582 MB.
+// data a collapse touches lies close together, and the live elements are compacted as the mesh
+// shrinks (compact). Memory: OpenMesh connectivity (~180 bytes per vertex), every vertex's
+// ring of halfedges (64 bytes, see Ring), heap and per-vertex state (48 bytes per vertex),
+// edge errors (8 bytes per edge); the large arrays (OpenMesh's included) on transparent huge
+// pages where the OS allows it. Peak for the full N44W072 tile (two strips at once): 744 MB.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
@@ -174,6 +175,14 @@ class VertexHeap {
       else down(p, e);
     }
   }
+  /// Renames every vertex v in the heap to map[v]; map must keep the order of the vertices in
+  /// it, so that the heap order (and every tie) stays. Positions stay where they are.
+  void renumber(const std::vector<std::uint32_t>& map) {
+    for (std::uint32_t i = 0; i < size_; ++i) {
+      Entry& e = at(i);
+      e.key = (e.key >> 32 << 32) | map[e.v()];
+    }
+  }
   void remove(std::uint32_t v) {
     const std::uint32_t p = pos(v);
     if (p == kAbsent) return;
@@ -280,6 +289,7 @@ class Builder {
       if (x1 < W_ - 1) vs_[id_of_[std::size_t(j) * W_ + x1]].locked = 1;
     }
     edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
+    init_rings();
   }
 
   // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips.
@@ -294,6 +304,7 @@ class Builder {
       if (!add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
     edge_err_.assign(mesh_.n_edges(), 0.0);
+    init_rings();
     if (err_.metric() == ErrorMetric::Continuous)
       for (auto e : mesh_.edges()) {
         const auto h = mesh_.halfedge_handle(e, 0);
@@ -335,7 +346,7 @@ class Builder {
         continue;
       }
       const std::uint32_t w = vs_[u].target;
-      const auto vu = Mesh::VertexHandle(int(u));
+      [[maybe_unused]] const auto vu = Mesh::VertexHandle(int(u));
       // One walk around u gives the halfedge to w, the ring for the link test, and what the
       // collapse moves. u's ring is the one it was measured with (any change to it makes u
       // dirty), so w is still a neighbour and the plan-view test still holds; but w's ring
@@ -343,7 +354,7 @@ class Builder {
       neighbours_.clear();
       moved_.clear();
       Mesh::HalfedgeHandle h;
-      for_each_outgoing(vu, [&](Mesh::HalfedgeHandle g) {
+      for_each_ring(u, [&](Mesh::HalfedgeHandle g) {
         const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(g).idx());
         if (x == w) h = g;
         neighbours_.push_back(x);
@@ -357,6 +368,7 @@ class Builder {
       collapse(h, moved_);
       heap_.remove(u);
       --live;
+      ++collapsed_;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
       collapses.push_back(Collapse{sample_of_[u], sample_of_[w], std::ceil(e / quantum) * quantum});
       // The neighbours are measured now, while their rings are in cache, and as far as the
@@ -366,7 +378,10 @@ class Builder {
       // the top. Instructions on the 241 x 241 crop: 3.82 G -> 3.52 G (cutoff 0: 3.88 G,
       // twice the largest child key: 4.37 G).
       for (std::uint32_t n : neighbours_) prefetch_vertex(n);
+      for (std::uint32_t n : neighbours_) prefetch_ring(n);
+      for (std::uint32_t n : neighbours_) prefetch_ring_data(n);
       for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/true, heap_.children_max_error());
+      if (collapsed_ * kCompactAt >= n_ids_) compact();
       if (++since_report == 4096) {
         const std::size_t done = progress.done.fetch_add(since_report) + since_report;
         since_report = 0;
@@ -383,6 +398,9 @@ class Builder {
  private:
   // Integer division by the grid width is slow in the inner loops, so points are tabulated.
   GridPoint point(std::uint32_t v) const { return vs_[v].p; }
+  std::uint32_t sample_at(GridPoint p) const {
+    return std::uint32_t(p.y) * std::uint32_t(W_) + std::uint32_t(p.x);
+  }
 
   // Vertex numbering for locality. The collapse order is global by error, so every collapse
   // works at a random place of the mesh; what it touches there (the rings of u and its
@@ -474,11 +492,149 @@ class Builder {
 #endif
   }
 
+  // After a collapse, the neighbours' rings are read one after the other by evaluate(); these
+  // two start the loads of all of them at once: the halfedges of the rings, then what
+  // evaluate() reads through them (ring vertices' records, the crossing errors of ring edges).
+  void prefetch_ring(std::uint32_t v) const {
+    const Ring& r = rings_[v];
+    const std::uint32_t n = std::min(r.n, kRingCap);
+    for (std::uint32_t i = 0; i < n; ++i)
+      __builtin_prefetch(&mesh_.halfedge(Mesh::HalfedgeHandle(int(r.h[i]))));
+  }
+  void prefetch_ring_data(std::uint32_t v) const {
+    const Ring& r = rings_[v];
+    const std::uint32_t n = std::min(r.n, kRingCap);
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const auto h = Mesh::HalfedgeHandle(int(r.h[i]));
+      __builtin_prefetch(&vs_[std::uint32_t(mesh_.to_vertex_handle(h).idx())]);
+      __builtin_prefetch(&edge_err_[std::uint32_t(mesh_.next_halfedge_handle(h).idx()) >> 1]);
+    }
+  }
+
+  // Collapses leave their deleted vertices, edges and faces in every array, so the live data
+  // of a region thins out: a ring spreads over more cache lines, and the memory the loop reads
+  // at random stays as large as at the start while the mesh shrinks. Once 1/kCompactAt of the
+  // vertices are deleted, compact() moves the live elements down in place, keeping their
+  // order: every tie-break by vertex id, every ring's order and the heap's order stay, so the
+  // PM is the same as without it (the caches are keyed by sample, not by id).
+  static constexpr std::size_t kCompactAt = 2;
+  void compact() {
+    const std::uint32_t nv = std::uint32_t(mesh_.n_vertices()), ne = std::uint32_t(mesh_.n_edges()),
+                        nf = std::uint32_t(mesh_.n_faces());
+    std::vector<std::uint32_t> vmap(nv), emap(ne), fmap(nf);  // old -> new ids, UINT32_MAX: deleted
+    std::uint32_t lv = 0, le = 0, lf = 0;
+    for (std::uint32_t v = 0; v < nv; ++v)
+      vmap[v] = mesh_.status(Mesh::VertexHandle(int(v))).deleted() ? UINT32_MAX : lv++;
+    for (std::uint32_t e = 0; e < ne; ++e)
+      emap[e] = mesh_.status(Mesh::EdgeHandle(int(e))).deleted() ? UINT32_MAX : le++;
+    for (std::uint32_t f = 0; f < nf; ++f)
+      fmap[f] = mesh_.status(Mesh::FaceHandle(int(f))).deleted() ? UINT32_MAX : lf++;
+    const auto mh = [&](Mesh::HalfedgeHandle h) {  // a live halfedge's new id
+      if (!h.is_valid()) return h;
+      const std::uint32_t i = std::uint32_t(h.idx());
+      return Mesh::HalfedgeHandle(int(2 * emap[i >> 1] + (i & 1)));
+    };
+    // Element k moves to map[k] <= k, in increasing k, so nothing is overwritten before it is read.
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      if (vmap[v] == UINT32_MAX) {
+        id_of_[sample_of_[v]] = UINT32_MAX;
+        continue;
+      }
+      const auto vh = Mesh::VertexHandle(int(v)), vj = Mesh::VertexHandle(int(vmap[v]));
+      mesh_.set_halfedge_handle(vj, mh(mesh_.halfedge_handle(vh)));
+      mesh_.status(vj) = mesh_.status(vh);
+      VertexState& sv = vs_[vmap[v]];
+      sv = vs_[v];
+      if (sv.target != UINT32_MAX) sv.target = vmap[sv.target];  // a deleted target is never used again
+      Ring& r = rings_[vmap[v]];
+      r = rings_[v];
+      for (std::uint32_t i = 0; i < std::min(r.n, kRingCap); ++i)
+        r.h[i] = std::uint32_t(mh(Mesh::HalfedgeHandle(int(r.h[i]))).idx());
+      sample_of_[vmap[v]] = sample_of_[v];
+      id_of_[sample_of_[v]] = vmap[v];
+    }
+    // A halfedge's prev is set by set_next_halfedge_handle of its predecessor, and never read
+    // from a moved record (it may not have been written yet).
+    for (std::uint32_t e = 0; e < ne; ++e) {
+      if (emap[e] == UINT32_MAX) continue;
+      for (std::uint32_t k = 0; k < 2; ++k) {
+        const auto h = Mesh::HalfedgeHandle(int(2 * e + k)), hj = Mesh::HalfedgeHandle(int(2 * emap[e] + k));
+        const auto to = mesh_.to_vertex_handle(h);
+        const auto next = mesh_.next_halfedge_handle(h);
+        const auto f = mesh_.face_handle(h);
+        mesh_.set_vertex_handle(hj, Mesh::VertexHandle(int(vmap[std::uint32_t(to.idx())])));
+        mesh_.set_face_handle(hj, f.is_valid() ? Mesh::FaceHandle(int(fmap[std::uint32_t(f.idx())])) : f);
+        mesh_.set_next_halfedge_handle(hj, mh(next));
+      }
+      mesh_.status(Mesh::EdgeHandle(int(emap[e]))) = mesh_.status(Mesh::EdgeHandle(int(e)));
+      edge_err_[emap[e]] = edge_err_[e];
+    }
+    for (std::uint32_t f = 0; f < nf; ++f) {
+      if (fmap[f] == UINT32_MAX) continue;
+      const auto fh = Mesh::FaceHandle(int(f)), fj = Mesh::FaceHandle(int(fmap[f]));
+      mesh_.set_halfedge_handle(fj, mh(mesh_.halfedge_handle(fh)));
+      mesh_.status(fj) = mesh_.status(fh);
+    }
+    mesh_.resize(lv, le, lf);
+    vs_.resize(lv);
+    rings_.resize(lv);
+    sample_of_.resize(lv);
+    edge_err_.resize(le);
+    heap_.renumber(vmap);
+    n_ids_ = lv;
+    collapsed_ = 0;
+  }
+
   // Starts loading the per-vertex data that evaluate(v) and the heap read first.
   void prefetch_vertex(std::uint32_t v) const {
     if (v == UINT32_MAX) return;
-    __builtin_prefetch(&mesh_.vertex(Mesh::VertexHandle(int(v))));
+    __builtin_prefetch(&rings_[v]);
     __builtin_prefetch(&vs_[v]);
+  }
+
+  // Every vertex's outgoing halfedges, in the order for_each_outgoing visits them, in one
+  // cache line. Walking a ring through OpenMesh is a chain of dependent loads (each halfedge
+  // names the next), one cache miss after another at a random place of the mesh: from the
+  // record, the CPU issues all of the ring's loads at once. Only a collapse changes rings,
+  // and only those of w and of the two wing vertices (see collapse): the other neighbours of
+  // u keep their halfedges, now pointing at w, in the same order. Degrees above kRingCap
+  // (1 in 2000 evaluations on N44W072) are walked through OpenMesh.
+  static constexpr std::uint32_t kRingCap = 15;
+  struct alignas(64) Ring {
+    std::uint32_t h[kRingCap];
+    std::uint32_t n;  // the degree; the halfedges are stored when n <= kRingCap
+  };
+  static_assert(sizeof(Ring) == 64);
+  void refresh_ring(std::uint32_t v) {
+    Ring& r = rings_[v];
+    std::uint32_t n = 0;
+    for_each_outgoing(Mesh::VertexHandle(int(v)), [&](Mesh::HalfedgeHandle h) {
+      if (n < kRingCap) r.h[n] = std::uint32_t(h.idx());
+      ++n;
+    });
+    r.n = n;
+  }
+  void init_rings() {
+    rings_.resize(n_ids_);
+    for (std::uint32_t v = 0; v < n_ids_; ++v) refresh_ring(v);
+  }
+  // for_each_outgoing(v, f) from v's record.
+  template <class F>
+  void for_each_ring(std::uint32_t v, F&& f) const {
+    const Ring& r = rings_[v];
+    if (r.n > kRingCap) return for_each_outgoing(Mesh::VertexHandle(int(v)), f);
+    assert(ring_matches(v));
+    for (std::uint32_t i = 0; i < r.n; ++i) f(Mesh::HalfedgeHandle(int(r.h[i])));
+  }
+  bool ring_matches(std::uint32_t v) const {
+    const Ring& r = rings_[v];
+    std::uint32_t n = 0;
+    bool same = true;
+    for_each_outgoing(Mesh::VertexHandle(int(v)), [&](Mesh::HalfedgeHandle h) {
+      if (n < kRingCap && r.h[n] != std::uint32_t(h.idx())) same = false;
+      ++n;
+    });
+    return same && n == r.n;
   }
 
   // Outgoing halfedges of v, calling f(h) for each. Hand-written with the kernel's inline
@@ -509,6 +665,8 @@ class Builder {
     const auto on = mesh_.next_halfedge_handle(o), op = mesh_.prev_halfedge_handle(o);
     const auto fh = mesh_.face_handle(h), fo = mesh_.face_handle(o);
     const auto vw = mesh_.to_vertex_handle(h), vu = mesh_.to_vertex_handle(o);
+    const auto wing_h = fh.is_valid() ? mesh_.to_vertex_handle(hn) : Mesh::VertexHandle();
+    const auto wing_o = fo.is_valid() ? mesh_.to_vertex_handle(on) : Mesh::VertexHandle();
     for (const auto g : outgoing_u) mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw);
     mesh_.set_next_halfedge_handle(hp, hn);
     mesh_.set_next_halfedge_handle(op, on);
@@ -521,6 +679,11 @@ class Builder {
     mesh_.status(vu).set_deleted(true);
     if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(hn)) == hn) collapse_loop(mesh_.next_halfedge_handle(hn));
     if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(on)) == on) collapse_loop(on);
+    // The rings that changed (see Ring).
+    rings_[std::uint32_t(vu.idx())].n = 0;
+    refresh_ring(std::uint32_t(vw.idx()));
+    if (wing_h.is_valid()) refresh_ring(std::uint32_t(wing_h.idx()));
+    if (wing_o.is_valid()) refresh_ring(std::uint32_t(wing_o.idx()));
   }
 
   // Removes the loop of two halfedges h0, next(h0) that a collapse left: h0's edge goes, and
@@ -573,11 +736,13 @@ class Builder {
 
   // Crossing error of the segment (w, x), through a small direct-mapped cache: the same spokes
   // are measured again whenever a vertex is re-evaluated. The table (1 MiB) stays in cache.
+  // Keyed by sample index, which compact() does not change; measured from the endpoint with
+  // the smaller vertex id, an order compact() keeps.
   double spoke_error(std::uint32_t w, std::uint32_t x, double cutoff) {
-    const std::uint32_t a = std::min(w, x), b = std::max(w, x);
-    const GridPoint pa = point(a), pb = point(b);
+    const GridPoint pa = point(std::min(w, x)), pb = point(std::max(w, x));
     // A short segment crosses few grid lines: measuring it costs less than a cache miss.
     if (std::abs(pa.x - pb.x) + std::abs(pa.y - pb.y) <= kShortSpoke) return err_.segment(pa, pb, cutoff);
+    const std::uint32_t a = sample_at(pa), b = sample_at(pb);
     SpokeSlot& s = spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 49];
     if (s.a == a && s.b == b) {
       if (s.value >= 0) return s.value;            // exact
@@ -588,13 +753,6 @@ class Builder {
     return e;
   }
 
-  Mesh::HalfedgeHandle find_halfedge(Mesh::VertexHandle from, Mesh::VertexHandle to) const {
-    Mesh::HalfedgeHandle found;
-    for_each_outgoing(from, [&](Mesh::HalfedgeHandle h) {
-      if (mesh_.to_vertex_handle(h) == to) found = h;
-    });
-    return found;
-  }
 
   // Topological legality of collapsing halfedge h (u -> w), the link condition of Dey et al.
   // as OpenMesh's is_collapse_ok checks it, without its per-call allocations: the common
@@ -613,7 +771,7 @@ class Builder {
     // Common neighbours by comparing the two (short) rings: no per-vertex marks to miss in cache.
     int common = 0;
     bool ok = true;
-    for_each_outgoing(vw, [&](Mesh::HalfedgeHandle g) {
+    for_each_ring(std::uint32_t(vw.idx()), [&](Mesh::HalfedgeHandle g) {
       const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(g).idx());
       if (std::find(ring_u.begin(), ring_u.end(), x) == ring_u.end()) return;
       if (x != wings[0] && x != wings[1]) ok = false;
@@ -650,7 +808,7 @@ class Builder {
     const GridPoint pa = point(a), pb = point(b), pc = point(c);
     const std::int64_t area2 = orient2d(pa, pb, pc);
     if (area2 < 512) return err_.samples_in_triangle(pa, pb, pc, cutoff);
-    std::uint32_t s[3] = {a, b, c};
+    std::uint32_t s[3] = {sample_at(pa), sample_at(pb), sample_at(pc)};  // see spoke_error
     std::sort(s, s + 3);
     double value;
     bool exact;
@@ -666,11 +824,10 @@ class Builder {
   // `cutoff` also leave a lower bound. Since a lower bound never delays a vertex, the order of
   // collapses is the same as with exact keys, at a fraction of the cost.
   void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
-    const auto vu = Mesh::VertexHandle(int(u));
     VertexState& su = vs_[u];
     const GridPoint pu = su.p;
     su.dirty = 0;
-    if (is_corner(pu) || su.locked || mesh_.is_isolated(vu)) {
+    if (is_corner(pu) || su.locked || rings_[u].n == 0) {
       heap_.remove(u);
       return;
     }
@@ -679,16 +836,16 @@ class Builder {
     // ringv_[k-1]) that exist, with the crossing error of their edge opposite u.
     const bool continuous = err_.metric() == ErrorMetric::Continuous;
     ringv_.clear();
+    ringh_.clear();
     ring_.clear();
     rloc_.clear();
     bool boundary = false;
     {
-      const auto start = mesh_.halfedge_handle(vu);
-      auto h = start;
       std::uint32_t k = 0;
-      do {
+      for_each_ring(u, [&](Mesh::HalfedgeHandle h) {
         const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
         ringv_.push_back(a);
+        ringh_.push_back(h);
         const GridPoint pa = point(a);
         rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, vs_[a].z});
         if (mesh_.is_boundary(h)) {
@@ -702,8 +859,7 @@ class Builder {
           ring_.push_back(f);
         }
         ++k;
-        h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
-      } while (h != start);
+      });
     }
     heap_.prefetch_entry(u);  // read by the heap_.set() at the end
     const std::uint32_t n = std::uint32_t(ringv_.size());
@@ -842,7 +998,7 @@ class Builder {
       }
       if (!(e < best || (e == best && c.tie < best_tie))) continue;
       // The topological test is the dearest, so it runs only for a candidate that would win.
-      if (!link_ok(find_halfedge(vu, Mesh::VertexHandle(int(c.w))), ringv_)) continue;
+      if (!link_ok(ringh_[c.k], ringv_)) continue;
       best = e, best_tie = c.tie, best_w = c.w;
     }
     if (best_w == UINT32_MAX && partial_w != UINT32_MAX) {
@@ -920,8 +1076,12 @@ class Builder {
   std::vector<std::uint8_t> face_at_;
   std::vector<std::uint32_t> neighbours_, ringv_;
   std::vector<Mesh::HalfedgeHandle> moved_;  // u's outgoing halfedges before its collapse
+  std::vector<Mesh::HalfedgeHandle> ringh_;  // evaluate(): u's outgoing halfedges, by ring index
+  HugeVector<Ring> rings_;                   // by vertex id
   std::vector<std::uint32_t> sample_of_, id_of_;  // vertex id <-> sample index
-  std::uint32_t n_ids_ = 0;                 // vertex ids are 0 .. n_ids_ - 1 (see number_vertices)
+  std::uint32_t n_ids_ = 0;  // vertex ids are 0 .. n_ids_ - 1 (see number_vertices, compact)
+  std::size_t collapsed_ = 0;          // collapses since the last compact()
+
   std::size_t reserved_edges_ = 0, reserved_faces_ = 0;
   struct SpokeSlot {
     std::uint32_t a = UINT32_MAX, b = 0;
