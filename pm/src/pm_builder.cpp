@@ -222,7 +222,7 @@ class VertexHeap {
   }
   /// Renames every vertex v in the queue to map[v]; map must keep the order of the vertices
   /// in it, so that the key order (and every tie) stays. Positions stay where they are.
-  void renumber(const std::vector<std::uint32_t>& map) {
+  void renumber(const HugeVector<std::uint32_t>& map) {
     const auto rename = [&](Entry& e) { e.key = (e.key >> 32 << 32) | map[e.v()]; };
     for (std::uint32_t i = 0; i < size_; ++i) rename(at(i));
     for (auto& b : buckets_)
@@ -330,7 +330,7 @@ class VertexHeap {
   std::uint32_t pos(std::uint32_t v) const { return pos_[v * stride_]; }
   std::uint16_t& bucket(std::uint32_t v) { return bucket_[v * 2 * stride_]; }
   HugeVector<Entry> slots_;  // the heap, from slot kPad
-  std::vector<std::vector<Entry>> buckets_;
+  std::vector<HugeVector<Entry>> buckets_;
   std::uint32_t* pos_ = nullptr;
   std::uint16_t* bucket_ = nullptr;
   std::size_t stride_ = 1;
@@ -684,7 +684,9 @@ class Builder {
   void compact() {
     const std::uint32_t nv = std::uint32_t(mesh_.n_vertices()), ne = std::uint32_t(mesh_.n_edges()),
                         nf = std::uint32_t(mesh_.n_faces());
-    std::vector<std::uint32_t> vmap(nv), emap(ne), fmap(nf);  // old -> new ids, UINT32_MAX: deleted
+    // Old -> new ids, UINT32_MAX: deleted. Kept between calls: fresh pages cost page faults.
+    auto &vmap = vmap_, &emap = emap_, &fmap = fmap_;
+    vmap.resize(nv), emap.resize(ne), fmap.resize(nf);
     std::uint32_t lv = 0, le = 0, lf = 0;
     for (std::uint32_t v = 0; v < nv; ++v)
       vmap[v] = mesh_.status(Mesh::VertexHandle(int(v))).deleted() ? UINT32_MAX : lv++;
@@ -1267,7 +1269,9 @@ class Builder {
   std::vector<Mesh::HalfedgeHandle> moved_;  // u's outgoing halfedges before its collapse
   std::vector<Mesh::HalfedgeHandle> ringh_;  // evaluate(): u's outgoing halfedges, by ring index
   HugeVector<Ring> rings_;                   // by vertex id
-  std::vector<std::uint32_t> sample_of_, id_of_;  // vertex id <-> sample index
+  std::vector<std::uint32_t> sample_of_;  // vertex id -> sample index
+  HugeVector<std::uint32_t> id_of_;       // sample index -> vertex id
+  HugeVector<std::uint32_t> vmap_, emap_, fmap_;  // compact()'s maps
   std::uint32_t n_ids_ = 0;  // vertex ids are 0 .. n_ids_ - 1 (see number_vertices, compact)
   int grid_x0_ = -1, grid_x1_ = -1;    // init_grid's columns when the grid has no holes
   std::size_t collapsed_ = 0;          // collapses since the last compact()
@@ -1306,6 +1310,7 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
                                   " is not finite; fill or mask voids first");
   const double quantum = error_quantum_for(hf);
   std::vector<Collapse> collapses;
+  collapses.reserve(hf.size());
   std::vector<std::uint32_t> dropped;
   Builder::Progress progress;
   std::size_t valid = 0;
@@ -1343,6 +1348,7 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
         Builder b(hf, options);
         b.init_grid(cuts[t], cuts[t + 1], drop[t]);
         const std::size_t live = b.live_vertices();
+        seq[t].reserve(live);  // one allocation: growing it costs copies and page faults
         b.run(seq[t], quantum, live / kStripKeep, progress, /*report=*/t == 0);
       } catch (...) {
         failure[t] = std::current_exception();
