@@ -468,7 +468,7 @@ class Builder {
       --live;
       ++collapsed_;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
-      collapses.push_back(Collapse{sample_of_[u], sample_of_[w], std::ceil(e / quantum) * quantum});
+      collapses.push_back(Collapse{sample_at(point(u)), sample_at(point(w)), std::ceil(e / quantum) * quantum});
       // The neighbours are measured now, while their rings are in cache, and as far as the
       // keys at the top of the heap (like a popped vertex, see above): most are found to lie
       // above them, and wait with that tighter lower bound instead of being measured again,
@@ -832,13 +832,23 @@ class Builder {
     const auto vw = mesh_.to_vertex_handle(h), vu = mesh_.to_vertex_handle(o);
     const auto wing_h = fh.is_valid() ? mesh_.to_vertex_handle(hn) : Mesh::VertexHandle();
     const auto wing_o = fo.is_valid() ? mesh_.to_vertex_handle(on) : Mesh::VertexHandle();
+    // adjust_outgoing() looks for a boundary halfedge and finds none around an interior
+    // vertex; the collapse of an interior edge makes no vertex a boundary one, so the walks
+    // are skipped for the vertices that are interior now (a boundary vertex's outgoing
+    // halfedge is a boundary one).
+    const auto interior = [&](Mesh::VertexHandle v) {
+      return v.is_valid() && !mesh_.is_boundary(mesh_.halfedge_handle(v));
+    };
+    interior_[0] = interior(vw) ? vw : Mesh::VertexHandle();
+    interior_[1] = interior(wing_h) ? wing_h : Mesh::VertexHandle();
+    interior_[2] = interior(wing_o) ? wing_o : Mesh::VertexHandle();
     for (const auto g : outgoing_u) mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw);
     mesh_.set_next_halfedge_handle(hp, hn);
     mesh_.set_next_halfedge_handle(op, on);
     if (fh.is_valid()) mesh_.set_halfedge_handle(fh, hn);
     if (fo.is_valid()) mesh_.set_halfedge_handle(fo, on);
     if (mesh_.halfedge_handle(vw) == o) mesh_.set_halfedge_handle(vw, hn);
-    adjust_outgoing(vw);
+    if (!is_interior(vw)) adjust_outgoing(vw);
     mesh_.set_isolated(vu);
     mesh_.status(mesh_.edge_handle(h)).set_deleted(true);
     mesh_.status(vu).set_deleted(true);
@@ -850,6 +860,11 @@ class Builder {
     if (wing_h.is_valid()) refresh_ring(std::uint32_t(wing_h.idx()));
     if (wing_o.is_valid()) refresh_ring(std::uint32_t(wing_o.idx()));
   }
+
+  bool is_interior(Mesh::VertexHandle v) const {
+    return v.is_valid() && (v == interior_[0] || v == interior_[1] || v == interior_[2]);
+  }
+  Mesh::VertexHandle interior_[3];  // collapse(): w and the wings, where interior
 
   // Removes the loop of two halfedges h0, next(h0) that a collapse left: h0's edge goes, and
   // next(h0) takes the place of h0's opposite in the face on the other side.
@@ -863,9 +878,9 @@ class Builder {
     mesh_.set_next_halfedge_handle(mesh_.prev_halfedge_handle(o0), h1);
     mesh_.set_face_handle(h1, fo);
     mesh_.set_halfedge_handle(v0, h1);
-    adjust_outgoing(v0);
+    if (!is_interior(v0)) adjust_outgoing(v0);
     mesh_.set_halfedge_handle(v1, o1);
-    adjust_outgoing(v1);
+    if (!is_interior(v1)) adjust_outgoing(v1);
     if (fo.is_valid() && mesh_.halfedge_handle(fo) == o0) mesh_.set_halfedge_handle(fo, h1);
     if (fh.is_valid()) {
       mesh_.set_halfedge_handle(fh, Mesh::HalfedgeHandle());
