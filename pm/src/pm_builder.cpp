@@ -679,8 +679,10 @@ class Builder {
   // at random stays as large as at the start while the mesh shrinks. Once 1/kCompactAt of the
   // vertices are deleted, compact() moves the live elements down in place, keeping their
   // order: every tie-break by vertex id, every ring's order and the heap's order stay, so the
-  // PM is the same as without it (the caches are keyed by sample, not by id).
-  static constexpr std::size_t kCompactAt = 2;
+  // PM is the same as without it (the caches are keyed by sample, not by id). Each pass costs
+  // a sequential sweep of the arrays; every quarter of the vertices (rather than every half)
+  // measured 0.96x the build time (full tile, 14 alternating pairs).
+  static constexpr std::size_t kCompactAt = 4;
   void compact() {
     const std::uint32_t nv = std::uint32_t(mesh_.n_vertices()), ne = std::uint32_t(mesh_.n_edges()),
                         nf = std::uint32_t(mesh_.n_faces());
