@@ -360,10 +360,12 @@ class Builder {
     auto add_cell = [&](int i, int j) {
       const std::uint32_t s00 = std::uint32_t(j) * W_ + i, s10 = s00 + 1, s01 = s00 + W_, s11 = s01 + 1;
       const std::uint32_t faces[2][3] = {{s00, s10, s11}, {s00, s11, s01}};
+      const std::size_t l00 = id_index(i, j), l10 = l00 + 1, l01 = l00 + id_cols_, l11 = l01 + 1;
+      const std::size_t ids[2][3] = {{l00, l10, l11}, {l00, l11, l01}};
       for (int k = 0; k < 2; ++k) {
         if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
           continue;
-        for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[faces[k][c]]));
+        for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[ids[k][c]]));
         if (!add_face(tri).is_valid()) {
           // Cells in tile order always extend the connected fans of their corners (see
           // number_vertices), so only a grid with holes can drop a face.
@@ -383,9 +385,10 @@ class Builder {
     }
     if (!hf_.has_holes()) grid_x0_ = x0, grid_x1_ = x1;
     for (int j = 0; j < H_; ++j) {
-      if (x0 > 0) vs_[id_of_[std::size_t(j) * W_ + x0]].locked = 1;
-      if (x1 < W_ - 1) vs_[id_of_[std::size_t(j) * W_ + x1]].locked = 1;
+      if (x0 > 0) vs_[id_of_[id_index(x0, j)]].locked = 1;
+      if (x1 < W_ - 1) vs_[id_of_[id_index(x1, j)]].locked = 1;
     }
+    HugeVector<std::uint32_t>().swap(id_of_);  // needed no more
     edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
     init_rings();
   }
@@ -398,9 +401,10 @@ class Builder {
     reserve_mesh(3 * faces.size() / 2 + 16, faces.size());
     std::vector<Mesh::VertexHandle> tri(3);
     for (const auto& f : faces) {
-      for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));
+      for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));  // all columns: the sample
       if (!add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
+    HugeVector<std::uint32_t>().swap(id_of_);
     edge_err_.assign(mesh_.n_edges(), 0.0);
     init_rings();
     if (err_.metric() == ErrorMetric::Continuous)
@@ -514,7 +518,6 @@ class Builder {
   // out keeps the order of the others, and with it every tie-break by vertex id.
   static constexpr int kTile = 64;
   void number_vertices(int x0, int x1, const std::vector<std::uint8_t>* used = nullptr) {
-    const std::size_t n = hf_.size();
     sample_of_.clear();
     sample_of_.reserve(used ? std::size_t(std::count(used->begin(), used->end(), 1))
                             : std::size_t(x1 + 1 - x0) * std::size_t(H_));
@@ -536,12 +539,13 @@ class Builder {
         }
       }
     n_ids_ = std::uint32_t(sample_of_.size());
-    id_of_.assign(n, UINT32_MAX);
+    id_x0_ = x0, id_cols_ = std::size_t(x1 + 1 - x0);
+    id_of_.assign(id_cols_ * std::size_t(H_), UINT32_MAX);
     vs_.assign(n_ids_, VertexState{});
     for (std::uint32_t v = 0; v < n_ids_; ++v) {
       const std::uint32_t s = sample_of_[v];
-      id_of_[s] = v;
       vs_[v].p = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
+      id_of_[id_index(vs_[v].p.x, vs_[v].p.y)] = v;
       vs_[v].z = hf_[s];
     }
     heap_.reset(n_ids_, &vs_.data()->heap_pos, &vs_.data()->bucket, sizeof(VertexState) / sizeof(std::uint32_t));
@@ -703,10 +707,7 @@ class Builder {
     };
     // Element k moves to map[k] <= k, in increasing k, so nothing is overwritten before it is read.
     for (std::uint32_t v = 0; v < nv; ++v) {
-      if (vmap[v] == UINT32_MAX) {
-        id_of_[sample_of_[v]] = UINT32_MAX;
-        continue;
-      }
+      if (vmap[v] == UINT32_MAX) continue;
       const auto vh = Mesh::VertexHandle(int(v)), vj = Mesh::VertexHandle(int(vmap[v]));
       mesh_.set_halfedge_handle(vj, mh(mesh_.halfedge_handle(vh)));
       mesh_.status(vj) = mesh_.status(vh);
@@ -718,7 +719,6 @@ class Builder {
       for (std::uint32_t i = 0; i < std::min(r.n, kRingCap); ++i)
         r.h[i] = std::uint32_t(mh(Mesh::HalfedgeHandle(int(r.h[i]))).idx());
       sample_of_[vmap[v]] = sample_of_[v];
-      id_of_[sample_of_[v]] = vmap[v];
     }
     // A halfedge's prev is set by set_next_halfedge_handle of its predecessor, and never read
     // from a moved record (it may not have been written yet).
@@ -1287,7 +1287,12 @@ class Builder {
   std::vector<Mesh::HalfedgeHandle> ringh_;  // evaluate(): u's outgoing halfedges, by ring index
   HugeVector<Ring> rings_;                   // by vertex id
   std::vector<std::uint32_t> sample_of_;  // vertex id -> sample index
-  HugeVector<std::uint32_t> id_of_;       // sample index -> vertex id
+  // While the mesh is made: vertex id of sample (i, j) at id_of_[id_index(i, j)], over the
+  // builder's columns only.
+  HugeVector<std::uint32_t> id_of_;
+  int id_x0_ = 0;
+  std::size_t id_cols_ = 0;
+  std::size_t id_index(int i, int j) const { return std::size_t(j) * id_cols_ + std::size_t(i - id_x0_); }
   HugeVector<std::uint32_t> vmap_, emap_, fmap_;  // compact()'s maps
   std::uint32_t n_ids_ = 0;  // vertex ids are 0 .. n_ids_ - 1 (see number_vertices, compact)
   int grid_x0_ = -1, grid_x1_ = -1;    // init_grid's columns when the grid has no holes
