@@ -381,7 +381,7 @@ class Builder {
         for (int i = x0; i < x1; ++i) add_cell(i, j);
     } else {
       for (std::uint32_t v = 0; v < n_ids_; ++v)  // cell (i,j) has its corner (i,j) first
-        if (vs_[v].p.x < x1 && vs_[v].p.y + 1 < H_) add_cell(vs_[v].p.x, vs_[v].p.y);
+        if (point(v).x < x1 && point(v).y + 1 < H_) add_cell(point(v).x, point(v).y);
     }
     if (!hf_.has_holes()) grid_x0_ = x0, grid_x1_ = x1;
     for (int j = 0; j < H_; ++j) {
@@ -499,7 +499,7 @@ class Builder {
 
  private:
   // Integer division by the grid width is slow in the inner loops, so points are tabulated.
-  GridPoint point(std::uint32_t v) const { return vs_[v].p; }
+  GridPoint point(std::uint32_t v) const { return sites_[v].p; }
   std::uint32_t sample_at(GridPoint p) const {
     return std::uint32_t(p.y) * std::uint32_t(W_) + std::uint32_t(p.x);
   }
@@ -542,11 +542,12 @@ class Builder {
     id_x0_ = x0, id_cols_ = std::size_t(x1 + 1 - x0);
     id_of_.assign(id_cols_ * std::size_t(H_), UINT32_MAX);
     vs_.assign(n_ids_, VertexState{});
+    sites_.assign(n_ids_, Site{});
     for (std::uint32_t v = 0; v < n_ids_; ++v) {
       const std::uint32_t s = sample_of_[v];
-      vs_[v].p = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
-      id_of_[id_index(vs_[v].p.x, vs_[v].p.y)] = v;
-      vs_[v].z = hf_[s];
+      sites_[v].p = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
+      id_of_[id_index(sites_[v].p.x, sites_[v].p.y)] = v;
+      sites_[v].z = hf_[s];
     }
     heap_.reset(n_ids_, &vs_.data()->heap_pos, &vs_.data()->bucket, sizeof(VertexState) / sizeof(std::uint32_t));
   }
@@ -673,7 +674,7 @@ class Builder {
     const std::uint32_t n = std::min(r.n, kRingCap);
     for (std::uint32_t i = 0; i < n; ++i) {
       const auto h = Mesh::HalfedgeHandle(int(r.h[i]));
-      __builtin_prefetch(&vs_[std::uint32_t(mesh_.to_vertex_handle(h).idx())]);
+      __builtin_prefetch(&sites_[std::uint32_t(mesh_.to_vertex_handle(h).idx())]);
       __builtin_prefetch(&edge_err_[std::uint32_t(mesh_.next_halfedge_handle(h).idx()) >> 1]);
     }
   }
@@ -713,6 +714,7 @@ class Builder {
       mesh_.status(vj) = mesh_.status(vh);
       VertexState& sv = vs_[vmap[v]];
       sv = vs_[v];
+      sites_[vmap[v]] = sites_[v];
       if (sv.target != UINT32_MAX) sv.target = vmap[sv.target];  // a deleted target is never used again
       Ring& r = rings_[vmap[v]];
       r = rings_[v];
@@ -744,6 +746,7 @@ class Builder {
     }
     mesh_.resize(lv, le, lf);
     vs_.resize(lv);
+    sites_.resize(lv);
     rings_.resize(lv);
     sample_of_.resize(lv);
     edge_err_.resize(le);
@@ -757,6 +760,7 @@ class Builder {
     if (v == UINT32_MAX) return;
     __builtin_prefetch(&rings_[v]);
     __builtin_prefetch(&vs_[v]);
+    __builtin_prefetch(&sites_[v]);
   }
 
   // Every vertex's outgoing halfedges, in the order for_each_outgoing visits them, in one
@@ -1009,7 +1013,7 @@ class Builder {
   // 720k rings for this was a tenth of a strip's build. Returns false for other vertices.
   bool grid_bound(std::uint32_t v) {
     VertexState& s = vs_[v];
-    const GridPoint p = s.p;
+    const GridPoint p = point(v);
     if (grid_x0_ < 0 || p.x <= grid_x0_ || p.x >= grid_x1_ || p.y <= 0 || p.y >= H_ - 1) return false;
     const std::size_t i = std::size_t(p.y) * std::size_t(W_) + std::size_t(p.x), w = std::size_t(W_);
     const double* z = hf_.samples().data();
@@ -1032,7 +1036,7 @@ class Builder {
   // collapses is the same as with exact keys, at a fraction of the cost.
   void evaluate(std::uint32_t u, bool exact, double cutoff = 1e300) {
     VertexState& su = vs_[u];
-    const GridPoint pu = su.p;
+    const GridPoint pu = point(u);
     su.dirty = 0;
     if (is_corner(pu) || su.locked || rings_[u].n == 0) {
       heap_.remove(u);
@@ -1054,7 +1058,7 @@ class Builder {
         ringv_.push_back(a);
         ringh_.push_back(h);
         const GridPoint pa = point(a);
-        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, vs_[a].z});
+        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, sites_[a].z});
         if (mesh_.is_boundary(h)) {
           boundary = true;
         } else {
@@ -1106,7 +1110,7 @@ class Builder {
     const std::size_t nf = ring_.size();
     const RingFace* fs = ring_.data();
     std::size_t kept = 0;
-    const double zu = su.z;
+    const double zu = sites_[u].z;
     for (Candidate& c : cand_) {
       const Local& lw = rl[c.k];
       // With positions relative to u: orient(w, a, b) = cross(a, b) + X(a) - X(b), where
@@ -1256,17 +1260,23 @@ class Builder {
   LInfError err_;
   int W_, H_;
   Mesh mesh_;
-  // Everything the loop reads of one vertex besides OpenMesh's record, in one 32-byte record.
+  // What the loop reads of a vertex besides OpenMesh's record and its ring, in two arrays:
+  // where it is (read for every ring vertex of an evaluated vertex: a dense 16-byte record),
+  // and its state (read and written for the evaluated vertex and by the heap).
+  struct Site {
+    GridPoint p;  // grid position
+    double z;     // height
+  };
+  static_assert(sizeof(Site) == 16);
+  HugeVector<Site> sites_;  // by vertex id (see number_vertices)
   struct VertexState {
-    GridPoint p;                      // grid position
-    double z;                         // height
     std::uint32_t heap_pos;           // owned by heap_
     std::uint32_t target = UINT32_MAX;  // best collapse target (a lower-bound one when dirty)
     std::uint8_t dirty = 0;           // the heap key is a lower bound
     std::uint8_t locked = 0;          // on a cut column shared with another strip
     std::uint16_t bucket;             // owned by heap_
   };
-  static_assert(sizeof(VertexState) == 32);
+  static_assert(sizeof(VertexState) == 12);
   HugeVector<VertexState> vs_;  // by vertex id (see number_vertices)
   VertexHeap heap_;
   TriangleCache cache_;
