@@ -2,7 +2,7 @@
 //
 // Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 2, Eq. 1. Each live vertex u
 // keeps its best legal collapse u -> w (smallest error, then shortest edge) in an indexed
-// 4-ary heap, or a lower bound of it (then u is dirty and measured when the bound reaches the
+// queue (VertexHeap: a 4-ary heap over buckets), or a lower bound of it (then u is dirty and measured when the bound reaches the
 // top). After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
 // neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
 // move. A popped candidate is re-validated (the link condition may have changed through a
@@ -16,9 +16,10 @@
 // table. Vertices are numbered in tiles with Z-order inside (number_vertices), so that the
 // data a collapse touches lies close together, and the live elements are compacted as the mesh
 // shrinks (compact). Memory: OpenMesh connectivity (~180 bytes per vertex), every vertex's
-// ring of halfedges (64 bytes, see Ring), heap and per-vertex state (48 bytes per vertex),
-// edge errors (8 bytes per edge); the large arrays (OpenMesh's included) on transparent huge
-// pages where the OS allows it. Peak for the full N44W072 tile (two strips at once): 744 MB.
+// ring of halfedges (64 bytes, see Ring), queue entry, position and state (44 bytes per
+// vertex), edge errors (8 bytes per edge); the large arrays (OpenMesh's included) on
+// transparent huge pages where the OS allows it. Peak for the full N44W072 tile (two strips at
+// once): 760 MB.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
