@@ -2,8 +2,9 @@
 //
 // Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 2, Eq. 1. Each live vertex u
 // keeps its best legal collapse u -> w (smallest error, then shortest edge) in an indexed
-// queue (VertexHeap: a 4-ary heap over buckets), or a lower bound of it (then u is dirty and measured when the bound reaches the
-// top). After collapsing u -> w, only vertices whose 1-ring changed (w and u's old
+// queue (VertexHeap: a 4-ary heap over buckets), or a lower bound of it (then u is dirty and
+// measured when the bound reaches the top). After collapsing u -> w, only vertices whose
+// 1-ring changed (w and u's old
 // neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
 // move. A popped candidate is re-validated (the link condition may have changed through a
 // neighbour) and re-evaluated when it became illegal.
@@ -23,6 +24,7 @@
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <atomic>
 #include <thread>
@@ -473,7 +475,8 @@ class Builder {
       --live;
       ++collapsed_;
       if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
-      collapses.push_back(Collapse{sample_at(point(u)), sample_at(point(w)), std::ceil(e / quantum) * quantum});
+      collapses.push_back(
+          Collapse{sample_at(point(u)), sample_at(point(w)), std::ceil(e / quantum) * quantum});
       // The neighbours are measured now, while their rings are in cache, and as far as the
       // keys at the top of the heap (like a popped vertex, see above): most are found to lie
       // above them, and wait with that tighter lower bound instead of being measured again,
@@ -519,8 +522,8 @@ class Builder {
   // out keeps the order of the others, and with it every tie-break by vertex id.
   static constexpr int kTile = 64;
   void number_vertices(int x0, int x1, const std::vector<std::uint8_t>* used = nullptr) {
-    sample_of_.clear();
-    sample_of_.reserve(used ? std::size_t(std::count(used->begin(), used->end(), 1))
+    std::vector<std::uint32_t> sample_of;  // vertex id -> sample index
+    sample_of.reserve(used ? std::size_t(std::count(used->begin(), used->end(), 1))
                             : std::size_t(x1 + 1 - x0) * std::size_t(H_));
     std::vector<std::uint32_t> z_order(std::size_t(kTile) * kTile);  // Morton code -> dx + kTile * dy
     for (std::uint32_t m = 0; m < z_order.size(); ++m) {
@@ -536,21 +539,22 @@ class Builder {
           const int dx = int(c % kTile), dy = int(c / kTile);
           if (dx >= tw || dy >= th) continue;
           const std::uint32_t s = std::uint32_t(std::size_t(ty + dy) * W_ + tx + dx);
-          if (!used || (*used)[s]) sample_of_.push_back(s);
+          if (!used || (*used)[s]) sample_of.push_back(s);
         }
       }
-    n_ids_ = std::uint32_t(sample_of_.size());
+    n_ids_ = std::uint32_t(sample_of.size());
     id_x0_ = x0, id_cols_ = std::size_t(x1 + 1 - x0);
     id_of_.assign(id_cols_ * std::size_t(H_), UINT32_MAX);
     vs_.assign(n_ids_, VertexState{});
     sites_.assign(n_ids_, Site{});
     for (std::uint32_t v = 0; v < n_ids_; ++v) {
-      const std::uint32_t s = sample_of_[v];
+      const std::uint32_t s = sample_of[v];
       sites_[v].p = GridPoint{int(s % std::uint32_t(W_)), int(s / std::uint32_t(W_))};
       id_of_[id_index(sites_[v].p.x, sites_[v].p.y)] = v;
       sites_[v].z = hf_[s];
     }
-    heap_.reset(n_ids_, &vs_.data()->heap_pos, &vs_.data()->bucket, sizeof(VertexState) / sizeof(std::uint32_t));
+    heap_.reset(n_ids_, &vs_.data()->heap_pos, &vs_.data()->bucket,
+                sizeof(VertexState) / sizeof(std::uint32_t));
   }
 
   // Reserves the mesh and adds all vertices. OpenMesh's element and property arrays are the
@@ -602,15 +606,14 @@ class Builder {
       const Mesh::VertexHandle from = v[i], to = v[(i + 1) % 3];
       const auto out = mesh_.halfedge_handle(from);
       if (out.is_valid() && !mesh_.is_boundary(out)) return mesh_.add_face(v, 3);  // not a boundary vertex
-      for_each_outgoing(from, [&](Mesh::HalfedgeHandle h) {
-        if (mesh_.to_vertex_handle(h) == to) he[i] = h;
-      });
+      he[i] = find_halfedge(from, to);
       is_new[i] = !he[i].is_valid();
       if (!is_new[i] && !mesh_.is_boundary(he[i])) return mesh_.add_face(v, 3);  // the edge has two faces
     }
     for (int i = 0; i < 3; ++i) {
       const int ii = (i + 1) % 3;
-      if (!is_new[i] && !is_new[ii] && mesh_.next_halfedge_handle(he[i]) != he[ii]) return mesh_.add_face(v, 3);
+      if (!is_new[i] && !is_new[ii] && mesh_.next_halfedge_handle(he[i]) != he[ii])
+        return mesh_.add_face(v, 3);
     }
     for (int i = 0; i < 3; ++i)
       if (is_new[i]) he[i] = mesh_.new_edge(v[i], v[(i + 1) % 3]);
@@ -721,7 +724,6 @@ class Builder {
       r = rings_[v];
       for (std::uint32_t i = 0; i < std::min(r.n, kRingCap); ++i)
         r.h[i] = std::uint32_t(mh(Mesh::HalfedgeHandle(int(r.h[i]))).idx());
-      sample_of_[vmap[v]] = sample_of_[v];
     }
     // A halfedge's prev is set by set_next_halfedge_handle of its predecessor, and never read
     // from a moved record (it may not have been written yet).
@@ -749,7 +751,6 @@ class Builder {
     vs_.resize(lv);
     sites_.resize(lv);
     rings_.resize(lv);
-    sample_of_.resize(lv);
     edge_err_.resize(le);
     heap_.renumber(vmap);
     n_ids_ = lv;
@@ -843,24 +844,23 @@ class Builder {
     // vertex; the collapse of an interior edge makes no vertex a boundary one, so the walks
     // are skipped for the vertices that are interior now (a boundary vertex's outgoing
     // halfedge is a boundary one).
-    const auto interior = [&](Mesh::VertexHandle v) {
-      return v.is_valid() && !mesh_.is_boundary(mesh_.halfedge_handle(v));
+    const auto if_interior = [&](Mesh::VertexHandle v) {
+      return v.is_valid() && !mesh_.is_boundary(mesh_.halfedge_handle(v)) ? v : Mesh::VertexHandle();
     };
-    interior_[0] = interior(vw) ? vw : Mesh::VertexHandle();
-    interior_[1] = interior(wing_h) ? wing_h : Mesh::VertexHandle();
-    interior_[2] = interior(wing_o) ? wing_o : Mesh::VertexHandle();
+    const Interior interior = {if_interior(vw), if_interior(wing_h), if_interior(wing_o)};
     for (const auto g : outgoing_u) mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw);
     mesh_.set_next_halfedge_handle(hp, hn);
     mesh_.set_next_halfedge_handle(op, on);
     if (fh.is_valid()) mesh_.set_halfedge_handle(fh, hn);
     if (fo.is_valid()) mesh_.set_halfedge_handle(fo, on);
     if (mesh_.halfedge_handle(vw) == o) mesh_.set_halfedge_handle(vw, hn);
-    if (!is_interior(vw)) adjust_outgoing(vw);
+    if (!is_interior(vw, interior)) adjust_outgoing(vw);
     mesh_.set_isolated(vu);
     mesh_.status(mesh_.edge_handle(h)).set_deleted(true);
     mesh_.status(vu).set_deleted(true);
-    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(hn)) == hn) collapse_loop(mesh_.next_halfedge_handle(hn));
-    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(on)) == on) collapse_loop(on);
+    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(hn)) == hn)
+      collapse_loop(mesh_.next_halfedge_handle(hn), interior);
+    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(on)) == on) collapse_loop(on, interior);
     // The rings that changed (see Ring).
     rings_[std::uint32_t(vu.idx())].n = 0;
     refresh_ring(std::uint32_t(vw.idx()));
@@ -868,14 +868,15 @@ class Builder {
     if (wing_o.is_valid()) refresh_ring(std::uint32_t(wing_o.idx()));
   }
 
-  bool is_interior(Mesh::VertexHandle v) const {
-    return v.is_valid() && (v == interior_[0] || v == interior_[1] || v == interior_[2]);
+  // collapse(): w and the wings, each where it is an interior vertex, else invalid.
+  using Interior = std::array<Mesh::VertexHandle, 3>;
+  static bool is_interior(Mesh::VertexHandle v, const Interior& interior) {
+    return v.is_valid() && (v == interior[0] || v == interior[1] || v == interior[2]);
   }
-  Mesh::VertexHandle interior_[3];  // collapse(): w and the wings, where interior
 
   // Removes the loop of two halfedges h0, next(h0) that a collapse left: h0's edge goes, and
   // next(h0) takes the place of h0's opposite in the face on the other side.
-  void collapse_loop(Mesh::HalfedgeHandle h0) {
+  void collapse_loop(Mesh::HalfedgeHandle h0, const Interior& interior) {
     const auto h1 = mesh_.next_halfedge_handle(h0);
     const auto o0 = mesh_.opposite_halfedge_handle(h0), o1 = mesh_.opposite_halfedge_handle(h1);
     const auto v0 = mesh_.to_vertex_handle(h0), v1 = mesh_.to_vertex_handle(h1);
@@ -885,9 +886,9 @@ class Builder {
     mesh_.set_next_halfedge_handle(mesh_.prev_halfedge_handle(o0), h1);
     mesh_.set_face_handle(h1, fo);
     mesh_.set_halfedge_handle(v0, h1);
-    if (!is_interior(v0)) adjust_outgoing(v0);
+    if (!is_interior(v0, interior)) adjust_outgoing(v0);
     mesh_.set_halfedge_handle(v1, o1);
-    if (!is_interior(v1)) adjust_outgoing(v1);
+    if (!is_interior(v1, interior)) adjust_outgoing(v1);
     if (fo.is_valid() && mesh_.halfedge_handle(fo) == o0) mesh_.set_halfedge_handle(fo, h1);
     if (fh.is_valid()) {
       mesh_.set_halfedge_handle(fh, Mesh::HalfedgeHandle());
@@ -922,7 +923,7 @@ class Builder {
   }
 
   // Crossing error of the segment (w, x), through a small direct-mapped cache: the same spokes
-  // are measured again whenever a vertex is re-evaluated. The table (1 MiB) stays in cache.
+  // are measured again whenever a vertex is re-evaluated. The table (512 KiB) stays in cache.
   // Keyed by sample index, which compact() does not change; measured from the endpoint with
   // the smaller vertex id, an order compact() keeps.
   double spoke_error(std::uint32_t w, std::uint32_t x, double cutoff) {
@@ -940,6 +941,13 @@ class Builder {
     return e;
   }
 
+  Mesh::HalfedgeHandle find_halfedge(Mesh::VertexHandle from, Mesh::VertexHandle to) const {
+    Mesh::HalfedgeHandle found;
+    for_each_outgoing(from, [&](Mesh::HalfedgeHandle h) {
+      if (mesh_.to_vertex_handle(h) == to) found = h;
+    });
+    return found;
+  }
 
   // Topological legality of collapsing halfedge h (u -> w), the link condition of Dey et al.
   // as OpenMesh's is_collapse_ok checks it, without its per-call allocations: the common
@@ -1019,7 +1027,9 @@ class Builder {
     const std::size_t i = std::size_t(p.y) * std::size_t(W_) + std::size_t(p.x), w = std::size_t(W_);
     const double* z = hf_.samples().data();
     const double zu = z[i];
-    const auto bound = [&](std::size_t d) { return std::max(0.0, std::abs((z[i + d] + z[i - d]) - 2.0 * zu) / 2.0); };
+    const auto bound = [&](std::size_t d) {
+      return std::max(0.0, std::abs((z[i + d] + z[i - d]) - 2.0 * zu) / 2.0);
+    };
     double lb = bound(1);
     std::uint32_t tie = 1;
     lb = std::min(lb, bound(w));
@@ -1297,7 +1307,6 @@ class Builder {
   std::vector<Mesh::HalfedgeHandle> moved_;  // u's outgoing halfedges before its collapse
   std::vector<Mesh::HalfedgeHandle> ringh_;  // evaluate(): u's outgoing halfedges, by ring index
   HugeVector<Ring> rings_;                   // by vertex id
-  std::vector<std::uint32_t> sample_of_;  // vertex id -> sample index
   // While the mesh is made: vertex id of sample (i, j) at id_of_[id_index(i, j)], over the
   // builder's columns only.
   HugeVector<std::uint32_t> id_of_;
