@@ -30,6 +30,7 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
 
   StitchResult res;
   res.new_triangles.resize(patches.size());
+  res.new_triangle_sources.resize(patches.size());
   for (std::size_t pi = 0; pi < patches.size(); ++pi) {
     StitchPatch& p = patches[pi];
     const SampleRect& d = p.domain;
@@ -107,8 +108,10 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
       ++res.split_triangles;
       p.triangles[ti] = done[0];
       res.new_triangles[pi].push_back(std::uint32_t(ti));
+      res.new_triangle_sources[pi].push_back(std::uint32_t(ti));
       for (std::size_t k = 1; k < done.size(); ++k) {
         res.new_triangles[pi].push_back(std::uint32_t(p.triangles.size()));
+        res.new_triangle_sources[pi].push_back(std::uint32_t(ti));
         p.triangles.push_back(done[k]);
       }
     }

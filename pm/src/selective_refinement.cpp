@@ -930,6 +930,14 @@ RenderMesh SelectiveRefinement::render_mesh() const {
     const std::array<double, 3> p = displayed(s);
     r.positions.push_back(dag_->position(p[0], p[1], p[2]));
   }
+  // mesh() orders the triangles by face id.
+  std::vector<std::uint32_t> faces = active_;
+  std::sort(faces.begin(), faces.end());
+  r.errors.reserve(faces.size());
+  for (std::uint32_t f : faces) {
+    const std::uint32_t c = dag_->creator(f);
+    r.errors.push_back(c == kNone ? 0.0 : dag_->collapse(c).error);  // as FaceRec
+  }
   return r;
 }
 

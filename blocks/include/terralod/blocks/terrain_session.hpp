@@ -94,6 +94,7 @@
 #include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/block_cache.hpp"
 #include "terralod/blocks/block_loader.hpp"
+#include "terralod/blocks/drawn_mesh.hpp"
 #include "terralod/blocks/flight_predictor.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 
@@ -150,20 +151,6 @@ struct SessionFrameStats {
   double bound_px = 0;                 ///< guaranteed screen-space error (see above)
   double max_stitch_delta_m = 0;       ///< largest |z(p) - S(p)| of an inserted vertex
   double update_ms = 0;                ///< wall time of update()
-};
-
-/// The drawn mesh of the whole active region.
-struct DrawnMesh {
-  static constexpr std::uint64_t kNoSample = ~std::uint64_t(0);
-  /// World positions (x, y from BlockGrid::world, z the displayed height), metres.
-  std::vector<pm::Vec3> positions;
-  /// Terrain sample (row * grid_width + col) of each vertex; kNoSample for skirt bottoms.
-  std::vector<std::uint64_t> samples;
-  /// CCW in (col,row) plan view, like every pm/ mesh (clockwise seen from +z in the world for
-  /// north-up transforms); skirts are vertical.
-  std::vector<std::array<std::uint32_t, 3>> triangles;
-  /// Block of each triangle.
-  std::vector<BlockKey> triangle_block;
 };
 
 class TerrainSession {

@@ -168,6 +168,10 @@ struct RenderMesh {
   std::vector<std::uint32_t> samples;                   ///< sample of each vertex
   std::vector<Vec3> positions;                          ///< displayed world position, metres
   std::vector<std::array<std::uint32_t, 3>> triangles;  ///< indices; CCW in (col,row) at rest
+  /// Per triangle: the error of the collapse that created it (0 for a full-resolution face),
+  /// metres: the face is within it of the full-resolution surface (collapse_dag.hpp, point 3),
+  /// and FrameStats::bound_px bounds it with this error.
+  std::vector<double> errors;
 };
 
 class SelectiveRefinement {

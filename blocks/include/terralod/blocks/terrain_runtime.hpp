@@ -1,0 +1,227 @@
+// The one per-frame terrain runtime over a block database: the approximation tree traversed from
+// its root over the whole terrain (frustum culling, coarse grid / TIN / non-regular-grid nodes
+// where their error on screen meets tau), PM blocks below them refined by view-dependent
+// selective refinement, background loading by priority with flight-path prefetch inside a
+// memory budget, watertight seams between any two selected patches, geomorphs, and a bound
+// that holds for the mesh exactly as it is drawn.
+//
+// Usage:
+//   terralod::blocks::RuntimeOptions opt;
+//   opt.tolerance_px = 1.0;                    // tau: what is drawn stays within it
+//   opt.morph_seconds = 0.5;                   // geomorphs; 0 pops
+//   terralod::blocks::TerrainRuntime rt("terrain.db", opt);
+//   for (int f = 0;; ++f) {
+//     terralod::pm::Camera cam = ...;                       // any pose, any altitude
+//     rt.fit_clip_planes(cam);                              // far plane beyond the whole terrain
+//     const auto& s = rt.update(terralod::pm::View(cam), f / 60.0);
+//     const terralod::blocks::DrawnMesh& m = rt.drawn_mesh();   // within s.bound_px, as drawn
+//     // s.missing_in_view == 0  =>  s.bound_px <= s.tolerance_px
+//   }
+//   opt.tolerance_px = 2.0;  rt.set_options(opt);           // next frame; nothing is read again
+//
+// Papers: seeds/approximation-tree.txt sections 3-4 and 6 and
+// seeds/multiresolution-geometry-and-texture.txt (the tree drives the frame: culling, visual
+// error alpha, patches of any strategy); seeds/view-dependent-pm-dynamic-loading.txt section 4
+// (PM blocks, the active region b = a cot(theta), flight-path prefetch, seams by
+// re-triangulation, Fig. 6); Hoppe 1998 (geomorphs within the error budget).
+//
+// Per frame, update(view, t):
+//   1. Loads: finished blocks are taken from the background loader (never waiting).
+//   2. Selection: from the root, a node whose box is outside the frustum is culled with its
+//      subtree. A coarse node (any strategy but PmBlock) is drawn with its own surface when
+//      View::vertical_error_px(box, error) <= tau / 2 (half of tau: the seams may add as much
+//      again, see the bound) or when it is a leaf; otherwise its children are visited. A PmBlock
+//      leaf reached this way is needed: when resident it is drawn by its SelectiveRefinement at
+//      tau / 2 (for the same reason); when not, it is missing, and its nearest ancestor (always resident: every
+//      coarse node is) is drawn in place of that ancestor's whole subtree, with its true bound.
+//      A PmBlock root with no ancestor is drawn as its stand-in (BlockSummary) instead.
+//   3. Residency: the loader's queue is replaced by the needed blocks (missing in view first,
+//      largest screen error first), then the blocks of the active region around the eye
+//      (active_region(), b = a cot(theta)), then (prefetch on) the active regions around the
+//      predicted eye positions, nearest in time first; the queue stops where the blocks' memory
+//      (estimated from their vertex counts) would exceed the budget. Blocks not needed are
+//      evicted least-recently-used first whenever the resident bytes would pass the budget, and
+//      a block that arrives without room is dropped: resident_bytes <= budget_bytes at the end
+//      of every frame (the budget counts the blocks with their refinements, the tree, the
+//      summaries and the drawn mesh).
+//   4. Seams: stitch_seams() (seam_stitch.hpp) over every selected patch: coarse node beside
+//      coarse node of any strategy and level, beside a PM block's front, PM beside PM. Every
+//      patch gets the border vertices of its neighbours; a terrain sample is one vertex of the
+//      drawn mesh with one displayed height, so the union is watertight and shared vertices
+//      are bit-identical, during geomorphs too.
+//   5. Geomorphs: the refinements morph heights (pm::MorphMode::Vertical: plan positions stay
+//      on the samples, so nothing folds); a PM block that arrives blends from the surface drawn
+//      there before (its ancestor's) over morph_seconds. The displayed offset of a vertex from
+//      its true height is then clamped so that every triangle around it stays within tau
+//      (below): geomorphs use the slack left between a triangle's own error and tau, and never
+//      more. With morph_seconds = 0 nothing is clamped (nothing moves).
+//
+// The bound (RuntimeFrameStats::bound_px): for the drawn mesh as drawn. A drawn triangle T has
+//   - its logical error e_T, metres: the error of the node it belongs to (coarse nodes: the
+//     node's exact error), or the error of the collapse that created it (PM faces;
+//     collapse_dag.hpp, point 3; the error SelectiveRefinement bounds its faces with), plus, for a piece made by the stitch from an original
+//     triangle T0, max |z(p) - S0(p)| over the inserted vertices p among its corners, S0 the
+//     plane of T0 (the stitched surface is S0 plus hat functions of those differences:
+//     seam_stitch.hpp);
+//   - its morph offset m_T: the largest |displayed z - true z| of its three corners. The
+//     displayed surface differs from the logical one by the linear interpolation of those
+//     offsets, so it is within e_T + m_T of every sample under T;
+//   - its box: T's plan rectangle x the heights of its displayed corners and of the samples
+//     under it (within e_T0 of the true plane of T0, the triangle T was cut from, itself when
+//     not stitched, and inside the node's sample range), which holds every vertical segment
+//     from the displayed surface to a sample under T. It lies in T0's prism.
+// bound_px = max over triangles whose box is not outside the view of
+// View::vertical_error_px(box_T, e_T + m_T). Triangles with no inserted corner and no offset
+// are covered at once by their patch's own bound (SelectiveRefinement's FrameStats::bound_px,
+// the node's vertical_error_px over its box), so only stitched and moving triangles are
+// evaluated one by one. Why it meets tau when nothing needed is missing: every selected patch
+// is within tau / 2 at rest (coarse nodes by their box, PM faces by their prisms), and a
+// stitched piece of T0 has e <= 2 e_T0 (|z(p) - S0(p)| <= e_T0 at a sample p under T0) in a
+// box inside T0's prism, so it projects to <= 2 x tau / 2. The clamp then keeps every moving
+// triangle within tau: offsets use exactly the slack between a triangle's own error and tau
+// (a face at tau / 2 may move by as much again; a stitched piece at tau not at all).
+//
+// Contract: the database is a complete blocked database (require_complete_build), opened
+// read-only on the constructor's thread and by the loader thread; DatabaseError /
+// TreeFormatError / BuildError name the file. Options are checked by the constructor and
+// set_options (std::invalid_argument). update() times must not decrease (std::invalid_argument);
+// a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
+// and the block. Not thread-safe: one frame thread; the loader thread is internal.
+// Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
+// blocks (LoadedBlock::memory_bytes each: PM, DAG, refinement), the drawn mesh (~40 bytes per
+// vertex, 20 per triangle) and the per-patch meshes of the frame (about as much again).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "terralod/blocks/active_region.hpp"
+#include "terralod/blocks/approximation_tree.hpp"
+#include "terralod/blocks/block_cache.hpp"
+#include "terralod/blocks/block_loader.hpp"
+#include "terralod/blocks/drawn_mesh.hpp"
+#include "terralod/blocks/flight_predictor.hpp"
+#include "terralod/pm/selective_refinement.hpp"
+
+namespace terralod::blocks {
+
+struct RuntimeOptions {
+  double tolerance_px = 1.0;  ///< tau, pixels, > 0: the bound of what is drawn (start value in budget mode)
+  /// Triangle-budget mode when > 0: tau is regulated frame to frame (factor (triangles /
+  /// target)^1, clamped to [1/2, 2] per frame and to [min, max]) to hold about this many.
+  std::size_t target_triangles = 0;
+  double min_tolerance_px = 0.1, max_tolerance_px = 256.0;  ///< budget-mode range, 0 < min <= max
+  double morph_seconds = 0.5;  ///< geomorph duration, seconds, >= 0; 0 = pop
+  std::size_t budget_bytes = std::size_t(512) << 20;  ///< resident memory, bytes (everything loaded)
+  bool prefetch = true;                 ///< queue the blocks around the predicted path
+  PredictorOptions predictor;
+  double prefetch_horizon_s = 3.0;      ///< seconds ahead, >= 0
+  double prefetch_step_s = 0.25;        ///< spacing of predicted points, seconds, > 0
+  /// The region kept ready around the eye (Eq. 2, b = a cot(theta)); p is not used (the tree
+  /// draws everything beyond the blocks).
+  ActiveRegionOptions region;
+};
+
+/// What one frame did and guarantees. Counters named *_total are cumulative.
+struct RuntimeFrameStats {
+  std::uint64_t frame = 0;
+  double time_s = 0;
+  double tolerance_px = 0;       ///< tau used (regulated in budget mode)
+  double bound_px = 0;           ///< guaranteed screen-space error of the drawn mesh, as drawn
+  std::size_t triangles = 0, vertices = 0;
+  std::size_t nodes_visited = 0, nodes_culled = 0;
+  std::size_t coarse_nodes = 0;  ///< selected nodes drawn with their own surface (incl. fallbacks)
+  std::size_t pm_blocks = 0;     ///< PM blocks drawn by selective refinement
+  std::size_t needed_in_view = 0;   ///< PM blocks the selection needs
+  std::size_t missing_in_view = 0;  ///< of those, not resident (an ancestor is drawn)
+  std::size_t fallback_nodes = 0;   ///< ancestors drawn for missing blocks
+  std::size_t nodes_resident = 0;   ///< tree nodes in memory (all of them)
+  std::size_t blocks_resident = 0, blocks_loading = 0, blocks_evicted = 0, evicted_total = 0;
+  std::size_t dropped_total = 0;    ///< arrived blocks dropped for lack of room
+  std::size_t prefetch_hits_total = 0;    ///< blocks resident when they became needed
+  std::size_t prefetch_misses_total = 0;  ///< blocks needed before they were resident
+  std::uint64_t bytes_read = 0, bytes_read_total = 0;  ///< blob bytes this frame / in total
+  std::size_t resident_bytes = 0, peak_resident_bytes = 0;
+  std::size_t morphing_blocks = 0;   ///< PM blocks with vertices still moving (incl. swap-in blends)
+  std::size_t moving_vertices = 0;   ///< drawn vertices off their true height
+  std::size_t clamped_vertices = 0;  ///< of those, held back by the bound
+  std::size_t seam_triangles = 0;    ///< triangles made by the stitch
+  double update_ms = 0, update_cpu_ms = 0;  ///< wall and thread CPU time of update()
+};
+
+class TerrainRuntime {
+ public:
+  /// Opens `db_path` (see the contract) and starts the loader.
+  explicit TerrainRuntime(const std::string& db_path, const RuntimeOptions& options = {});
+  ~TerrainRuntime();
+  TerrainRuntime(const TerrainRuntime&) = delete;
+  TerrainRuntime& operator=(const TerrainRuntime&) = delete;
+
+  /// New tau, budget mode, geomorph time, memory budget: in force at the next update;
+  /// no block is read again (refinements keep their state).
+  void set_options(const RuntimeOptions& options);
+  const RuntimeOptions& options() const { return opt_; }
+
+  const RuntimeFrameStats& update(const pm::View& view, double time_s);
+  const RuntimeFrameStats& stats() const { return stats_; }
+  const DrawnMesh& drawn_mesh() const { return mesh_; }
+
+  /// Sets camera.near_m and far_m from the terrain's box: far beyond its farthest corner (so
+  /// whatever terrain is in the frustum is drawn, at any altitude), near half the distance to
+  /// the box (clamped to [0.05, 1000] m).
+  void fit_clip_planes(pm::Camera& camera) const;
+  /// True while the loader has requests queued or in flight.
+  bool loading() const;
+  /// Waits (up to timeout_s) until the loader finishes a request or has none; for headless
+  /// runs that must be reproducible.
+  void wait_for_loader(double timeout_s) const;
+
+  const ApproximationTree& tree() const { return tree_; }
+  const BlockGrid& grid() const { return grid_; }
+  const std::string& path() const { return path_; }
+  /// World box of the whole terrain (x, y of the grid corners, z the sample height range).
+  const pm::Box& terrain_box() const { return tree_.root().bbox; }
+  /// Height of the drawn surface under world (x, y) (NaN outside what is drawn). O(triangles).
+  double drawn_height(double x, double y) const;
+
+ private:
+  struct Block;  // a resident block with its refinement
+  struct Patch;  // one selected node's mesh this frame
+  void select(const pm::View& view, double tau, std::vector<std::int64_t>& coarse, std::vector<std::int64_t>& pms,
+              std::vector<std::pair<std::int64_t, double>>& needed);
+  bool visit(const pm::View& view, double tau, std::int64_t id, std::vector<std::int64_t>& coarse,
+             std::vector<std::int64_t>& pms, std::vector<std::pair<std::int64_t, double>>& needed, double parent_px);
+  void queue_loads(const pm::View& view, const std::vector<std::pair<std::int64_t, double>>& needed);
+  void take_loads();
+  void make_room(std::size_t bytes, const std::set<BlockKey>& keep);
+  std::size_t fixed_bytes() const;
+  void assemble(const pm::View& view, double tau, std::vector<Patch>& patches, RuntimeFrameStats& s);
+  std::size_t estimate_bytes(BlockKey k) const;
+
+  std::string path_;
+  RuntimeOptions opt_;
+  BlockGrid grid_;
+  ApproximationTree tree_;
+  std::vector<BlockSummary> sums_;
+  std::vector<std::int64_t> leaf_of_block_;      // per block index: its PmBlock node, or -1
+  std::vector<std::uint64_t> block_vertices_;    // per block index: PM vertices (from the build's meta)
+  std::size_t tree_bytes_ = 0, summary_bytes_ = 0;
+  double bytes_per_vertex_ = 600;                // learnt from loaded blocks
+  std::map<BlockKey, std::unique_ptr<Block>> blocks_;
+  std::unique_ptr<BlockLoader> loader_;
+  FlightPredictor predictor_;
+  std::set<BlockKey> needed_prev_, missing_;
+  std::map<std::int64_t, std::int64_t> drawn_as_;  // PM node -> node drawn over it last frame
+  double tau_ = 1.0;
+  double time_ = 0;
+  bool started_ = false;
+  std::uint64_t frame_ = 0;
+  RuntimeFrameStats stats_;
+  DrawnMesh mesh_;
+};
+
+}  // namespace terralod::blocks
