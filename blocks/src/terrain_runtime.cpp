@@ -137,13 +137,9 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   tree_bytes_ = tree_blob->size() * 3;  // decoded: doubles for the points, about 3x the blob
   sums_ = read_block_summaries(db, grid_);
   for (const BlockSummary& s : sums_) summary_bytes_ += 160 + s.points.size() * 16 + s.triangles.size() * 20;
-  leaf_of_block_.assign(grid_.block_count(), -1);
   for (const TreeNode& n : tree_.nodes())
-    if (n.strategy == Strategy::PmBlock) {
-      if (!n.block || !grid_.contains(*n.block))
-        throw DatabaseError(db_path, "tree node " + std::to_string(n.id) + " is a PM block outside the block grid");
-      leaf_of_block_[grid_.index(*n.block)] = n.id;
-    }
+    if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
+      throw DatabaseError(db_path, "tree node " + std::to_string(n.id) + " is a PM block outside the block grid");
   // PM vertex counts from the build's per-block records ("<error> <vertices> <bytes>"), for the
   // memory estimate of blocks not yet read.
   block_vertices_.assign(grid_.block_count(), 0);

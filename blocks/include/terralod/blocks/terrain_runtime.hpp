@@ -207,7 +207,6 @@ class TerrainRuntime {
   BlockGrid grid_;
   ApproximationTree tree_;
   std::vector<BlockSummary> sums_;
-  std::vector<std::int64_t> leaf_of_block_;      // per block index: its PmBlock node, or -1
   std::vector<std::uint64_t> block_vertices_;    // per block index: PM vertices (from the build's meta)
   std::size_t tree_bytes_ = 0, summary_bytes_ = 0;
   double bytes_per_vertex_ = 600;                // learnt from loaded blocks
