@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "flight_log.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -146,25 +147,7 @@ int cmd_fly(const Args& a) {
             grid.grid_width(), grid.grid_height(), grid.cols(), grid.rows(), grid.block_size(), rt.tree().size(),
             format_duration(ms_since(t)).c_str()));
 
-  // frames.csv is written to a temporary renamed onto it after the last frame: a flight that
-  // fails (a corrupt block read by the loader, a full disk) leaves no partial frames.csv.
-  const std::string csv_path = (fs::path(out) / "frames.csv").string(), csv_tmp = csv_path + ".tmp";
-  struct CsvFile {
-    std::FILE* f = nullptr;
-    std::string tmp;
-    ~CsvFile() {
-      if (f) std::fclose(f);
-      if (!tmp.empty()) std::remove(tmp.c_str());
-    }
-  } guard;
-  std::FILE* csv = guard.f = std::fopen(csv_tmp.c_str(), "w");
-  if (!csv) throw std::runtime_error(csv_path + ": cannot write (" + std::strerror(errno) + ")");
-  guard.tmp = csv_tmp;
-  std::fprintf(csv,
-               "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,missing_in_view,update_ms,update_cpu_ms,"
-               "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_evicted,"
-               "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,fallback_nodes,"
-               "moving_vertices,clamped_vertices,seam_triangles\n");
+  FlightLog log(out, /*drawing=*/false);  // frames.csv appears only when the whole flight succeeded
   std::vector<double> ms, cpu;
   ms.reserve(path.size());
   std::size_t complete = 0, over_tau = 0;
@@ -193,14 +176,7 @@ int cmd_fly(const Args& a) {
       worst_complete = std::max(worst_complete, s.bound_px / s.tolerance_px);
       over_tau += s.bound_px > s.tolerance_px;
     }
-    std::fprintf(csv,
-                 "%zu,%.6f,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%.17g,%zu,%.6f,%.6f,%zu,%zu,%zu,%zu,%zu,0,0,%zu,"
-                 "%llu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu\n",
-                 f, s.time_s, r.x, r.y, r.z, r.yaw, r.pitch, r.fovy, s.tolerance_px, s.triangles, s.bound_px,
-                 s.missing_in_view, s.update_ms, s.update_cpu_ms, s.resident_bytes, s.blocks_resident, s.blocks_loading,
-                 s.blocks_evicted, s.nodes_resident, s.prefetch_misses_total,
-                 static_cast<unsigned long long>(s.bytes_read_total), s.nodes_visited, s.nodes_culled, s.coarse_nodes,
-                 s.pm_blocks, s.fallback_nodes, s.moving_vertices, s.clamped_vertices, s.seam_triangles);
+    log.row({f, s.time_s, cam, s});
     if (dump) {
       const blocks::DrawnMesh& m = rt.drawn_mesh();
       pm::TriangleMeshData d;
@@ -214,11 +190,7 @@ int cmd_fly(const Args& a) {
     bar.update(double(f + 1) / double(path.size()));
   }
   bar.finish();
-  guard.f = nullptr;
-  if (std::fclose(csv) != 0) throw std::runtime_error(csv_path + ": cannot write (" + std::strerror(errno) + ")");
-  if (std::rename(csv_tmp.c_str(), csv_path.c_str()) != 0)
-    throw std::runtime_error(csv_path + ": cannot rename " + csv_tmp + " onto it (" + std::strerror(errno) + ")");
-  guard.tmp.clear();
+  log.commit();
   const blocks::RuntimeFrameStats& last = rt.stats();
   say(strf("fly   %zu frames in %s (speed factor %g%s): update median %.2f ms, p99 %.2f ms, worst %.2f ms; "
             "CPU median %.2f ms, p99 %.2f ms",
@@ -231,7 +203,7 @@ int cmd_fly(const Args& a) {
   say(strf("bound %zu of %zu frames had nothing missing; in those the drawn bound was <= tau in %zu (largest bound / "
             "tau %.3f)",
             complete, path.size(), complete - over_tau, worst_complete));
-  say(strf("write %s%s in %s", csv_path.c_str(), dump ? " and the frame meshes" : "", format_duration(ms_since(t_start)).c_str()));
+  say(strf("write %s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "", format_duration(ms_since(t_start)).c_str()));
   return 0;
 }
 

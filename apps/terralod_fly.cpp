@@ -2,9 +2,9 @@
 // and a heads-up display, or, with --headless, the same frames rendered through OSMesa along a
 // scripted camera path, written as PNG frames plus a per-frame statistics CSV.
 //
-// The terrain: a block database streamed through blocks::TerrainSession (active region,
-// background loading with prefetch, per-block selective refinement, watertight seams,
-// geomorphs), or a single progressive mesh run through pm::SelectiveRefinement: a DEM (built
+// The terrain: a block database through blocks::TerrainRuntime (the approximation tree from its
+// root, PM blocks streamed with prefetch, watertight seams, geomorphs, the bound of what is
+// drawn), or a single progressive mesh run through pm::SelectiveRefinement: a DEM (built
 // in memory, with a progress bar), a .pm file, or, given nothing, the built-in generated
 // terrain of `terralod demo`. No terrain algorithm lives here: the app only maps input to a
 // camera and library results to pixels and text.
@@ -28,10 +28,11 @@
 #include <vector>
 
 #include "cli_common.hpp"
+#include "flight_log.hpp"
 #include "layer_options.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
-#include "terralod/blocks/terrain_session.hpp"
+#include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/height_query.hpp"
@@ -61,48 +62,43 @@ CommandSpec fly_spec() {
   s.name = "terralod-fly";
   s.summary = "fly over a terrain with view-dependent level of detail";
   s.description =
-      "Opens a window and flies over the terrain: a block database (--db, from 'terralod build',\n"
-      "streamed block by block: only the blocks around the camera are in memory, read by a\n"
-      "background thread, drawn as two-triangle stand-ins until they arrive), a DEM (built into a\n"
-      "progressive mesh in memory), a .pm file, or, given neither, the built-in generated terrain.\n"
-      "Every frame selects the mesh whose screen-space error is at most --tau pixels (guaranteed),\n"
-      "with geomorphs, and draws it.\n\n"
+      "Opens a window and flies over the terrain: a block database (--db, from 'terralod build':\n"
+      "the approximation tree from its root over the whole terrain, coarse nodes far away, PM\n"
+      "blocks near, read by a background thread within --memory; a block that has not arrived is\n"
+      "drawn as its ancestor in the tree), a DEM (built into one progressive mesh in memory), a .pm\n"
+      "file, or, given neither, the built-in generated terrain. Every frame selects the mesh and\n"
+      "draws it, with geomorphs. What is guaranteed: the HUD's 'drawn within B px' bounds the\n"
+      "screen-space error of the mesh exactly as drawn that frame (geomorphs included); B <= tau\n"
+      "in every frame where no needed block is missing (the HUD says when some are).\n\n"
       "Controls: hold the left mouse button and move the mouse off the window's centre to steer\n"
       "(the farther, the faster the turn); W/S throttle up/down; R/F climb/descend; arrow keys\n"
       "turn and pitch; T terrain following (never below --clearance over the ground); G geomorphs\n"
       "on/off; X wireframe; L freeze the level of detail (fly around it to inspect it from\n"
-      "outside); B triangle-budget mode (holds --budget triangles by regulating tau; with --db\n"
-      "each inner block gets its share); [ and ] tau down/up; C start/stop recording the flight\n"
-      "to --record; P screenshot; Esc quit. With --db, G, B, [ and ] restart the streaming\n"
-      "session with the new settings (the blocks are read again).\n"
+      "outside); B triangle-budget mode (holds --budget triangles by regulating tau over the\n"
+      "whole frame); [ and ] tau down/up; C start/stop recording the flight to --record; P\n"
+      "screenshot; Esc quit. G, B, [ and ] take effect at the next frame; nothing is read again.\n"
       "Texture layers (--layer NAME, from --texture-db, which defaults to --db): keys 1..9 switch\n"
       "layer 1..9 on/off; H switches the highlight lens, which follows the ground point at the\n"
       "screen's centre, or under the mouse while the right button is held (X shows the untextured\n"
       "wireframe).\n"
-      "The heads-up display shows frames per second, tau, triangles, nodes selected (blocks drawn:\n"
-      "refined, stand-ins, outer ring), blocks resident/loading, prefetch misses, bytes read,\n"
-      "texture memory and the guaranteed bound.\n\n"
+      "The heads-up display shows frames per second, tau, the bound of what is drawn, triangles,\n"
+      "update and draw times, nodes drawn (PM blocks, coarse nodes, ancestors drawn for missing\n"
+      "blocks), blocks resident/loading/evicted, prefetch misses, bytes read, resident memory and\n"
+      "texture memory.\n\n"
       "--headless renders --frames frames of --path through OSMesa (no display needed) and\n"
-      "writes DIR/frame_NNNNN.png, DIR/frames.csv (camera, tau, triangles, update time, bound,\n"
-      "draw time, nodes, blocks, loads; see below) and, with --dump-meshes, DIR/frame_NNNNN.ply\n"
+      "writes DIR/frame_NNNNN.png, DIR/frames.csv and, with --dump-meshes, DIR/frame_NNNNN.ply\n"
       "(the drawn mesh, binary little-endian, double x y z in the world frame). Frame k is at time\n"
-      "k/60 s.\n"
-      "headless: every frame waits for its loads, so runs are reproducible; the window never waits.\n"
+      "k/60 s. Every frame waits for its loads, so runs are reproducible; the window never waits.\n"
       "The same path gives the same statistics (apart from times) and identical images.\n"
-      "frames.csv columns: frame, x, y, z, yaw, pitch, fovy, tau_px, triangles, vertices,\n"
-      "update_ms, draw_ms, bound_px, vsplits, ecols, morphing, nodes_selected, blocks_resident,\n"
-      "blocks_loading, texture_bytes, blocks_evicted, prefetch_misses (cumulative), bytes_read\n"
-      "(cumulative), upload_ms (the drawn mesh converted and sent to the GPU), wait_ms (headless:\n"
-      "the wait for loads), update_cpu_ms (the update's thread CPU time). With --db,\n"
-      "nodes_selected counts the blocks drawn and blocks_loading the blocks that arrived while\n"
-      "the frame waited (in the window: queued or being read); without --db the block columns are\n"
-      "1, 1, 0 and empty.\n"
+      "frames.csv has the columns of 'terralod fly' (see 'terralod fly --help': the runtime's\n"
+      "statistics; a single PM fills them as one PM block), then vertices, draw_ms, upload_ms (the\n"
+      "drawn mesh converted and sent to the GPU), wait_ms (the wait for loads) and texture_bytes.\n"
       "PATH.csv: a header x,y,z,yaw,pitch,fovy and one row per frame (conventions of\n"
       "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).";
   s.options = {
       {"--db", "FILE.db", "block database from 'terralod build' (streamed; excludes --input)"},
-      {"--rings", "P", "--db: rings of two-triangle blocks around the inner blocks (default 1, 0..64)"},
-      {"--theta", "DEGREES", "--db: minimum visible angle of b = a cot(theta), (0, 90) (default 20)"},
+      {"--memory", "MB", "--db: resident memory budget, megabytes (default 537: 512 MiB)"},
+      {"--theta", "DEGREES", "--db: the region kept ready around the eye, b = a cot(theta), (0, 90) (default 20)"},
       {"--input", "FILE", "a DEM or a .pm file (default: the built-in generated terrain)"},
       {"--terrain-size", "N", "samples per side of the built-in terrain (default 513, 2..8193)"},
       {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
@@ -153,21 +149,15 @@ Extent make_extent(const pm::GridTransform& t, int width, int height, double zmi
   return e;
 }
 
-// Block streaming counters of a frame (--db only).
-struct BlockRecord {
-  std::size_t nodes = 0, refined = 0, stand_ins = 0, ring = 0;  // blocks drawn, by kind
-  std::size_t resident = 0, loading = 0, evicted = 0, prefetch_misses = 0;
-  std::uint64_t bytes_read = 0;
-  int n = 0;
-};
-
+// One frame: the level of detail's statistics (the runtime's; a single PM fills the same
+// fields as one PM block) and the drawing's.
 struct FrameRecord {
   pm::Camera camera;
-  double tau = 0, bound_px = 0, update_ms = 0, draw_ms = 0, upload_ms = 0, wait_ms = 0;
-  double update_cpu_ms = 0;  // the update's thread CPU time
-  std::size_t triangles = 0, vertices = 0, vsplits = 0, ecols = 0, morphing = 0;
-  std::size_t texture_bytes = 0;      // resident in the texture cache
-  std::optional<BlockRecord> blocks;  // --db
+  tb::RuntimeFrameStats lod;
+  bool streamed = false;  // --db: a block database through the runtime
+  double draw_ms = 0, upload_ms = 0, wait_ms = 0;
+  std::size_t vertices = 0;
+  std::size_t texture_bytes = 0;  // resident in the texture cache
 };
 
 // The level-of-detail side of a frame: one selection update and the mesh it draws.
@@ -180,6 +170,9 @@ class LodSource {
   // A height at or above the terrain under world (x, y) known without loading anything (the
   // built-in flight's reference: it never goes underground).
   virtual double ceiling(double x, double y) const = 0;
+  // Sets the camera's near and far planes for this terrain (the selection and the picture use
+  // the same frustum, so the bound is true of the picture).
+  virtual void fit_clip(pm::Camera& c) const = 0;
   // Runs this frame's selection at time_s; fills r's level-of-detail fields; rewrites `mesh`
   // (origin = extent().origin, CCW from above) and returns true when the drawn mesh changed.
   // wait: finish the loads this frame asks for before returning (headless determinism).
@@ -232,6 +225,13 @@ class PmSource final : public LodSource {
   const Extent& extent() const override { return ext_; }
   double ground(double x, double y) const override { return ground_of(pm_.heightfield(), x, y, ext_.zmin); }
   double ceiling(double x, double y) const override { return ground(x, y); }
+  // Clip planes: reverse-Z depth keeps precision with a near plane close to the eye.
+  void fit_clip(pm::Camera& c) const override {
+    const double above = c.z - ground(c.x, c.y);
+    c.near_m = std::clamp(0.25 * std::max(above, 0.0), 0.1, 100.0);
+    const double extent = ext_.transform.spacing_x() * ext_.width + ext_.transform.spacing_y() * ext_.height;
+    c.far_m = std::max(c.near_m * 2.0, 2.0 * extent + std::fabs(c.z - ext_.zmin) * 2.0);
+  }
   pm::RefinementOptions options() const override { return sel_->options(); }
   void set_options(const pm::RefinementOptions& o) override { sel_->set_options(o); }
   std::size_t budget_share(std::size_t budget) const override { return budget; }
@@ -240,9 +240,11 @@ class PmSource final : public LodSource {
   bool update(const pm::Camera& c, double time_s, bool /*wait*/, FrameRecord& r, rd::DrawMesh& dm) override {
     const double cpu0 = thread_cpu_ms();
     const pm::FrameStats& s = sel_->update(pm::View(c), time_s);
-    r.update_cpu_ms = thread_cpu_ms() - cpu0;
-    r.update_ms = s.update_ms, r.vsplits = s.vsplits, r.ecols = s.ecols, r.morphing = s.morphing;
-    r.bound_px = s.bound_px, r.tau = s.tolerance_px;
+    tb::RuntimeFrameStats& l = r.lod;
+    l.update_cpu_ms = thread_cpu_ms() - cpu0;
+    l.update_ms = s.update_ms, l.moving_vertices = s.morphing;
+    l.bound_px = s.bound_px, l.tolerance_px = s.tolerance_px, l.triangles = s.triangles;
+    l.pm_blocks = l.blocks_resident = l.nodes_resident = l.nodes_visited = 1;
     // The displayed mesh (geomorph positions) relative to the origin, normals of the
     // full-resolution samples, triangles CCW seen from above.
     const auto t0 = Clock::now();
@@ -297,111 +299,73 @@ std::unique_ptr<PmSource> open_pm_terrain(const std::string& input, int generate
   return src;
 }
 
-// A block database streamed through blocks::TerrainSession.
+// A block database through blocks::TerrainRuntime (the tree from its root, PM blocks streamed).
 class DbSource final : public LodSource {
  public:
-  DbSource(const std::string& path, const pm::RefinementOptions& o, const tb::ActiveRegionOptions& region)
-      : path_(path) {
-    opt_.region = region;
+  DbSource(const std::string& path, const pm::RefinementOptions& o, const tb::RuntimeOptions& base) : path_(path) {
     const auto t0 = Clock::now();
-    const tb::BlockDatabase db = tb::BlockDatabase::open(path);
-    if (db.info().kind != "blocks" || db.info().block_size == 0)
-      throw std::runtime_error(path + ": not a block database of 'terralod build' (kind '" + db.info().kind +
-                               "', block size " + std::to_string(db.info().block_size) + ")");
-    grid_ = tb::BlockGrid::from_info(db.info());
-    {
-      ProgressBar bar(db.read_blob(tb::kBlockSummariesBlob) ? "block summaries"
-                                                            : "block summaries (reading every block once)");
-      sums_ = tb::read_block_summaries(db, grid_, [&](double f) { bar.update(f); });
-    }
-    double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
-    for (const tb::BlockSummary& s : sums_) zmin = std::min(zmin, s.zmin), zmax = std::max(zmax, s.zmax);
-    ext_ = make_extent(grid_.transform(), grid_.grid_width(), grid_.grid_height(), zmin, zmax, path);
-    set_options(o);
-    std::printf("terrain: %s, %d x %d samples in %d x %d blocks of %d, heights %.1f..%.1f m, ready in %s\n",
-                path.c_str(), grid_.grid_width(), grid_.grid_height(), grid_.cols(), grid_.rows(),
-                grid_.block_size(), zmin, zmax, format_duration(ms_since(t0)).c_str());
+    tb::RuntimeOptions ro = base;
+    ro.tolerance_px = o.tolerance_px;
+    ro.target_triangles = o.target_triangles;
+    ro.morph_seconds = o.morph_seconds;
+    rt_ = std::make_unique<tb::TerrainRuntime>(path, ro);
+    opt_ = o;
+    const tb::BlockGrid& g = rt_->grid();
+    const pm::Box& box = rt_->terrain_box();
+    ext_ = make_extent(g.transform(), g.grid_width(), g.grid_height(), box.lo.z, box.hi.z, path);
+    std::printf("terrain: %s, %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, heights %.1f..%.1f m, "
+                "ready in %s\n",
+                path.c_str(), g.grid_width(), g.grid_height(), g.cols(), g.rows(), g.block_size(), rt_->tree().size(),
+                box.lo.z, box.hi.z, format_duration(ms_since(t0)).c_str());
   }
   const Extent& extent() const override { return ext_; }
-  pm::RefinementOptions options() const override { return opt_.refinement; }
-  // The session takes its options once: a change starts a new session (blocks are read again).
+  pm::RefinementOptions options() const override { return opt_; }
+  // Live: tau, the budget mode and the geomorph time apply from the next frame; nothing is
+  // read again.
   void set_options(const pm::RefinementOptions& o) override {
-    opt_.refinement = o;
-    opt_.refinement.morph_mode = pm::MorphMode::Vertical;  // the session's seams need it
-    session_.reset();
-    session_ = std::make_unique<tb::TerrainSession>(tb::database_source(path_), grid_, sums_, opt_);
-    start_time_ = last_time_;
-    built_ = false;
+    opt_ = o;
+    tb::RuntimeOptions ro = rt_->options();
+    ro.tolerance_px = o.tolerance_px;
+    ro.target_triangles = o.target_triangles;
+    ro.morph_seconds = o.morph_seconds;
+    rt_->set_options(ro);
   }
-  // Every inner block regulates its own tau: each gets an equal share of the frame's budget.
-  std::size_t budget_share(std::size_t budget) const override {
-    return std::max<std::size_t>(100, budget / std::max<std::size_t>(1, session_->stats().inner));
-  }
-
-  // The resident block's samples, else the block's two-triangle stand-in surface.
+  // The runtime regulates tau over the whole frame.
+  std::size_t budget_share(std::size_t budget) const override { return budget; }
+  // The surface as drawn last frame (the terrain's low point where nothing is drawn).
   double ground(double x, double y) const override {
-    const tb::BlockKey k = grid_.block_at(x, y);
-    if (const auto b = session_->resident(k)) return ground_of(b->pm.heightfield(), x, y, ext_.zmin);
-    const tb::SampleRect d = grid_.domain(k);
-    const auto [c, r] = grid_.to_grid(x, y);
-    return tb::tm_height(grid_, k, sums_[grid_.index(k)], std::clamp(c, double(d.col0), double(d.col1)),
-                         std::clamp(r, double(d.row0), double(d.row1)));
+    const double z = rt_->drawn_height(x, y);
+    return std::isfinite(z) ? z : ext_.zmin;
   }
-
-  // The highest sample of the block under (x, y) (its summary).
-  double ceiling(double x, double y) const override { return sums_[grid_.index(grid_.block_at(x, y))].zmax; }
+  // The highest sample under (x, y) that the tree knows without loading anything.
+  double ceiling(double x, double y) const override { return rt_->max_height_at(x, y); }
+  void fit_clip(pm::Camera& c) const override { rt_->fit_clip_planes(c); }
 
   bool update(const pm::Camera& c, double time_s, bool wait, FrameRecord& r, rd::DrawMesh& dm) override {
-    last_time_ = time_s;
     const pm::View view(c);
-    // A restarted session counts time from its start (times never decrease).
-    const double t = std::max(0.0, time_s - start_time_);
-    r.vsplits = r.ecols = r.morphing = 0;
-    auto run = [&] {  // one update; vsplits and ecols add up over the frame's updates
-      const tb::SessionFrameStats& s = session_->update(view, t);
-      for (const tb::BlockKey k : session_->region().inner)
-        if (const pm::SelectiveRefinement* sel = session_->selection(k))
-          r.vsplits += sel->stats().vsplits, r.ecols += sel->stats().ecols;
-      return s;
-    };
-    const std::vector<tb::BlockKey> before = wait ? session_->resident_keys() : std::vector<tb::BlockKey>{};
-    const double cpu0 = thread_cpu_ms();
-    const tb::SessionFrameStats first = run();
-    r.update_cpu_ms = thread_cpu_ms() - cpu0;
-    r.update_ms = first.update_ms;
-    std::size_t loading = first.loading;
+    r.streamed = true;
+    rt_->update(view, time_s);
+    tb::RuntimeFrameStats first = rt_->stats();
     if (wait) {
-      // Headless: the same view and time again until every load this frame asked for has
-      // arrived (the loader is a thread; without this the frames would depend on its timing).
-      // Two updates in a row must see nothing loading: a read that finished just after the
-      // first one's take is picked up by the second.
+      // Headless: the same view and time again until the loader has nothing left for this
+      // frame (without this the frames would depend on the loader thread's timing). Two quiet
+      // updates in a row: a read that finished just after one update's take is picked up by
+      // the next.
       const auto w0 = Clock::now();
       for (int quiet = 0;;) {
-        quiet = session_->stats().loading == 0 ? quiet + 1 : 0;
+        quiet = rt_->loading() ? 0 : quiet + 1;
         if (quiet == 2) break;
-        if (ms_since(w0) > 600000.0)
-          throw std::runtime_error(path_ + ": block loads did not finish in 10 minutes");
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
-        run();
+        if (ms_since(w0) > 600000.0) throw std::runtime_error(path_ + ": block loads did not finish in 10 minutes");
+        rt_->wait_for_loader(0.05);
+        rt_->update(view, time_s);
       }
       r.wait_ms = ms_since(w0);
-      // The blocks this frame waited for (deterministic, unlike a count taken mid-load).
-      const std::vector<tb::BlockKey> after = session_->resident_keys();
-      const std::set<tb::BlockKey> old(before.begin(), before.end());
-      loading = std::size_t(
-          std::count_if(after.begin(), after.end(), [&](tb::BlockKey k) { return !old.count(k); }));
     }
-    const tb::SessionFrameStats& s = session_->stats();
-    r.tau = s.tolerance_px, r.bound_px = s.bound_px;
-    BlockRecord b;
-    b.refined = s.refined, b.stand_ins = s.stand_ins, b.ring = s.active - s.inner, b.nodes = s.active;
-    b.resident = s.resident, b.loading = loading, b.evicted = s.evicted_total;
-    b.prefetch_misses = s.prefetch_misses_total, b.bytes_read = s.bytes_read_total, b.n = s.n;
-    r.blocks = b;
-    for (const tb::BlockKey k : session_->region().inner)
-      if (const pm::SelectiveRefinement* sel = session_->selection(k)) r.morphing += sel->stats().morphing;
+    r.lod = rt_->stats();
+    // The work of the frame is the first update's (the others only pick up loads).
+    r.lod.update_ms = first.update_ms, r.lod.update_cpu_ms = first.update_cpu_ms;
     const auto t0 = Clock::now();
-    const tb::DrawnMesh& m = session_->drawn_mesh();
+    const tb::DrawnMesh& m = rt_->drawn_mesh();
     if (built_ && same_bytes(m.positions, prev_positions_) && same_bytes(m.triangles, prev_triangles_))
       return false;  // nothing moved: keep the uploaded mesh
     built_ = true;
@@ -412,11 +376,9 @@ class DbSource final : public LodSource {
   }
 
  private:
-  // The session's drawn mesh (geomorphs already in its heights) as a DrawMesh: positions
-  // relative to the origin, triangles CCW from above, normals of the full-resolution samples
-  // of a refined block holding the vertex (so shading does not pop with the level of detail),
-  // else area-weighted normals of its triangles (vertices of two-triangle blocks only).
-  void make_draw_mesh(const tb::DrawnMesh& m, rd::DrawMesh& dm) {
+  // The drawn mesh (geomorphs already in its heights) as a DrawMesh: positions relative to the
+  // origin, triangles CCW from above, area-weighted normals of the drawn triangles.
+  void make_draw_mesh(const tb::DrawnMesh& m, rd::DrawMesh& dm) const {
     const bool flip = ext_.transform.determinant() < 0;
     const glm::dvec3 o = ext_.origin;
     const std::size_t nv = m.positions.size();
@@ -434,44 +396,16 @@ class DbSource final : public LodSource {
       dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
       dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
     }
-    dm.normals.assign(nv * 3, 0.0f);
-    has_normal_.assign(nv, 0);
-    const std::uint64_t w = std::uint64_t(grid_.grid_width());
-    tb::BlockKey key{-1, -1};
-    std::shared_ptr<const tb::LoadedBlock> block;
-    tb::SampleRect dom;
-    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
-      if (!(m.triangle_block[f] == key)) {
-        key = m.triangle_block[f];
-        // Only blocks drawn refined this frame: which other blocks are resident depends on
-        // the loader's timing, and the picture must not.
-        block = session_->selection(key) ? session_->resident(key) : nullptr;
-        dom = grid_.domain(key);
-      }
-      if (!block) continue;
-      for (const std::uint32_t v : m.triangles[f]) {
-        const std::uint64_t s = m.samples[v];
-        if (has_normal_[v] || s == tb::DrawnMesh::kNoSample) continue;
-        const int col = int(s % w), row = int(s / w);
-        if (col < dom.col0 || col > dom.col1 || row < dom.row0 || row > dom.row1) continue;
-        const glm::dvec3 n = rd::heightfield_normal(block->pm.heightfield(), col - dom.col0, row - dom.row0);
-        dm.normals[3 * v] = float(n.x), dm.normals[3 * v + 1] = float(n.y),
-                       dm.normals[3 * v + 2] = float(n.z);
-        has_normal_[v] = 1;
-      }
-    }
-    if (std::find(has_normal_.begin(), has_normal_.end(), 0) == has_normal_.end()) return;
     std::vector<glm::dvec3> acc(nv, glm::dvec3(0.0));
     for (std::size_t f = 0; f < m.triangles.size(); ++f) {
       const std::uint32_t* i = &dm.indices[3 * f];
-      if (has_normal_[i[0]] && has_normal_[i[1]] && has_normal_[i[2]]) continue;
       const pm::Vec3 &a = m.positions[i[0]], &b = m.positions[i[1]], &c = m.positions[i[2]];
       const glm::dvec3 n = glm::cross(glm::dvec3(b.x - a.x, b.y - a.y, b.z - a.z),
                                       glm::dvec3(c.x - a.x, c.y - a.y, c.z - a.z));  // |n| = 2 area
       for (int j = 0; j < 3; ++j) acc[i[j]] += n;
     }
+    dm.normals.resize(nv * 3);
     for (std::size_t v = 0; v < nv; ++v) {
-      if (has_normal_[v]) continue;
       const double len = glm::length(acc[v]);
       const glm::dvec3 n = len > 0 && acc[v].z > 0 ? acc[v] / len : glm::dvec3(0, 0, 1);
       dm.normals[3 * v] = float(n.x), dm.normals[3 * v + 1] = float(n.y), dm.normals[3 * v + 2] = float(n.z);
@@ -479,15 +413,11 @@ class DbSource final : public LodSource {
   }
 
   std::string path_;
-  tb::BlockGrid grid_;
-  std::vector<tb::BlockSummary> sums_;
-  tb::SessionOptions opt_;
-  std::unique_ptr<tb::TerrainSession> session_;
+  pm::RefinementOptions opt_;
+  std::unique_ptr<tb::TerrainRuntime> rt_;
   Extent ext_;
-  double start_time_ = 0, last_time_ = 0;
   std::vector<pm::Vec3> prev_positions_;
   std::vector<std::array<std::uint32_t, 3>> prev_triangles_;
-  std::vector<std::uint8_t> has_normal_;
   bool built_ = false;
 };
 
@@ -517,7 +447,7 @@ class Pipeline {
     if (!frozen) {
       FrameRecord lod;
       if (src_.update(cam, time_s, wait, lod, dm_)) {
-        // The whole mesh is replaced: with --db the session's heights already hold the
+        // The whole mesh is replaced: with --db the runtime's heights already hold the
         // geomorphs, so it is drawn at alpha 0 with no target heights (see the README numbers:
         // replacing costs less than a tenth of the draw on llvmpipe).
         const auto t = Clock::now();
@@ -530,12 +460,11 @@ class Pipeline {
       }
       last_ = lod;
     } else {  // the frozen mesh: no selection work this frame
-      last_.update_ms = last_.update_cpu_ms = last_.upload_ms = last_.wait_ms = 0;
-      last_.vsplits = last_.ecols = last_.morphing = 0;
+      last_.lod.update_ms = last_.lod.update_cpu_ms = last_.upload_ms = last_.wait_ms = 0;
     }
     FrameRecord r = last_;
     r.camera = cam;
-    r.triangles = dm_.triangle_count(), r.vertices = dm_.vertex_count();
+    r.vertices = dm_.vertex_count();
     rd::Camera rc;
     rc.position = {cam.x, cam.y, cam.z};
     rc.yaw_deg = cam.yaw_deg, rc.pitch_deg = cam.pitch_deg, rc.fovy_deg = cam.fovy_deg;
@@ -631,45 +560,21 @@ std::unique_ptr<LodSource> open_terrain(const Args& a) {
     throw UsageError("--terrain-size is for the built-in terrain, not --db");
   const pm::RefinementOptions o = refinement_options(a);
   const int size = int(a.get_int("--terrain-size", kDemoTerrainSize, 2, 8193));
-  if (!a.has("--db") && (a.has("--rings") || a.has("--theta")))
-    throw UsageError("--rings and --theta need --db");
+  if (!a.has("--db") && (a.has("--memory") || a.has("--theta")))
+    throw UsageError("--memory and --theta need --db");
   if (a.has("--db")) {
-    tb::ActiveRegionOptions region;
-    region.p = int(a.get_int("--rings", region.p, 0, 64));
-    region.theta_deg = a.get_double("--theta", region.theta_deg);
-    if (!(region.theta_deg > 0 && region.theta_deg < 90))
+    tb::RuntimeOptions ro;
+    ro.region.theta_deg = a.get_double("--theta", ro.region.theta_deg);
+    if (!(ro.region.theta_deg > 0 && ro.region.theta_deg < 90))
       throw UsageError("--theta must be in (0, 90) degrees");
-    return std::make_unique<DbSource>(a.get("--db"), o, region);
+    const double mb = a.get_double("--memory", double(ro.budget_bytes) / 1e6);
+    if (!(mb > 0)) throw UsageError("--memory must be > 0 megabytes");
+    ro.budget_bytes = std::size_t(mb * 1e6);
+    return std::make_unique<DbSource>(a.get("--db"), o, ro);
   }
   return open_pm_terrain(a.get("--input"), size, o);
 }
 
-// Clip planes for a camera: reverse-Z depth keeps precision with a near plane close to the eye.
-void set_clip(const LodSource& t, pm::Camera& c) {
-  const double above = c.z - t.ground(c.x, c.y);
-  c.near_m = std::clamp(0.25 * std::max(above, 0.0), 0.1, 100.0);
-  const Extent& e = t.extent();
-  const double extent = e.transform.spacing_x() * e.width + e.transform.spacing_y() * e.height;
-  c.far_m = std::max(c.near_m * 2.0, 2.0 * extent + std::fabs(c.z - e.zmin) * 2.0);
-}
-
-const char* kCsvHeader =
-    "frame,x,y,z,yaw,pitch,fovy,tau_px,triangles,vertices,update_ms,draw_ms,bound_px,vsplits,ecols,morphing,"
-    "nodes_selected,blocks_resident,blocks_loading,texture_bytes,blocks_evicted,prefetch_misses,bytes_read,"
-    "upload_ms,wait_ms,update_cpu_ms\n";
-
-void csv_row(std::FILE* f, std::size_t k, const FrameRecord& r) {
-  const pm::Camera& c = r.camera;
-  std::fprintf(f, "%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%zu,%.4f,%.4f,%.17g,%zu,%zu,%zu,", k,
-               c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg, r.tau, r.triangles, r.vertices, r.update_ms,
-               r.draw_ms, r.bound_px, r.vsplits, r.ecols, r.morphing);
-  if (const auto& b = r.blocks)
-    std::fprintf(f, "%zu,%zu,%zu,%zu,%zu,%zu,%llu,", b->nodes, b->resident, b->loading, r.texture_bytes,
-                 b->evicted, b->prefetch_misses, static_cast<unsigned long long>(b->bytes_read));
-  else
-    std::fprintf(f, "1,1,0,%zu,,,,", r.texture_bytes);
-  std::fprintf(f, "%.4f,%.4f,%.4f\n", r.upload_ms, r.wait_ms, r.update_cpu_ms);
-}
 
 // ---------------------------------------------------------------------------------------------
 // Headless
@@ -732,25 +637,29 @@ int run_headless(const Args& a) {
     layers->wait_loaded(/*timeout_ms=*/600000);  // every frame sees every layer: deterministic
     p.set_layers(*ctx, &*layers);
   }
-  const std::string csv = (fs::path(out) / "frames.csv").string();
-  std::FILE* f = std::fopen((csv + ".tmp").c_str(), "wb");
-  if (!f) throw std::runtime_error(csv + ": cannot write");
-  std::fputs(kCsvHeader, f);
+  FlightLog log(out, /*drawing=*/true);  // the columns of 'terralod fly', then the drawing's
   ProgressBar bar("render " + std::to_string(frames) + " frames");
   std::vector<double> update_ms, update_cpu_ms, frame_ms, triangles, resident;
-  double worst_bound = 0, wait_ms = 0;
+  double worst_bound = 0, wait_ms = 0;  // worst bound / tau of the frames with nothing missing
+  std::size_t complete = 0;
   for (long long k = 0; k < frames; ++k) {
     pm::Camera c = path[std::size_t(k)];
-    set_clip(*t, c);
+    t->fit_clip(c);
     const FrameRecord r = p.frame(c, double(k) / 60.0, /*wait=*/true);
-    update_ms.push_back(r.update_ms);
-    update_cpu_ms.push_back(r.update_cpu_ms);
-    frame_ms.push_back(r.update_ms + r.upload_ms + r.draw_ms);
-    triangles.push_back(double(r.triangles));
-    if (r.blocks) resident.push_back(double(r.blocks->resident));
-    worst_bound = std::max(worst_bound, r.bound_px);
+    update_ms.push_back(r.lod.update_ms);
+    update_cpu_ms.push_back(r.lod.update_cpu_ms);
+    frame_ms.push_back(r.lod.update_ms + r.upload_ms + r.draw_ms);
+    triangles.push_back(double(r.lod.triangles));
+    if (r.streamed) resident.push_back(double(r.lod.blocks_resident));
+    if (r.lod.missing_in_view == 0) {
+      ++complete;
+      worst_bound = std::max(worst_bound, r.lod.bound_px / r.lod.tolerance_px);
+    }
     wait_ms += r.wait_ms;
-    csv_row(f, std::size_t(k), r);
+    FlightRow row{std::size_t(k), double(k) / 60.0, r.camera, r.lod};
+    row.vertices = r.vertices, row.draw_ms = r.draw_ms, row.upload_ms = r.upload_ms, row.wait_ms = r.wait_ms;
+    row.texture_bytes = r.texture_bytes;
+    log.row(row);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%05lld", k);
     rd::write_png(p.read_color(), (fs::path(out) / (std::string(name) + ".png")).string());
@@ -758,10 +667,12 @@ int run_headless(const Args& a) {
     bar.update(double(k + 1) / double(frames));
   }
   bar.finish();
-  const bool ok = std::fclose(f) == 0;
-  if (!ok || (fs::rename(csv + ".tmp", csv, ec), ec)) throw std::runtime_error(csv + ": cannot write");
-  std::printf("headless: %lld frames %dx%d -> %s (PNG%s, frames.csv); tau %g px, largest bound %.3f px\n",
-              frames, w, h, out.c_str(), dump ? ", PLY" : "", t->options().tolerance_px, worst_bound);
+  log.commit();
+  std::printf("headless: %lld frames %dx%d -> %s (PNG%s, frames.csv); tau %g px\n", frames, w, h, out.c_str(),
+              dump ? ", PLY" : "", t->options().tolerance_px);
+  std::printf("headless: guarantee: %zu of %lld frames had nothing missing; in those the drawn mesh's bound was at "
+              "most %.3f x tau\n",
+              complete, frames, worst_bound);
   std::printf(
       "headless: frame (update + upload + draw) median %.2f ms, p99 %.2f ms; update median %.3f ms, p99 %.3f "
       "ms (thread CPU: median %.3f ms, p99 %.3f ms); triangles median %.0f, max %.0f\n",
@@ -963,7 +874,7 @@ int run_window(const Args& a) {
     int fw = 1, fh = 1;
     glfwGetFramebufferSize(gw, &fw, &fh);
     cam.width_px = std::max(1, fw), cam.height_px = std::max(1, fh);
-    set_clip(*t, cam);
+    t->fit_clip(cam);
     if (ctl.recording) recorded.push_back(cam);
     if (layers && layers->lens().enabled) {  // the lens follows the centre, or the mouse (right button)
       double sx = 0, sy = 0;
@@ -980,17 +891,21 @@ int run_window(const Args& a) {
     r = p.frame(cam, time_s, /*wait=*/false);
     const pm::RefinementOptions now_o = t->options();
     std::vector<std::string> lines = {
-        strf("%5.1f fps   tau %.2f px%s   bound %.3f px", fps, r.tau,
-             now_o.target_triangles ? strf(" (budget %zu)", now_o.target_triangles).c_str() : "", r.bound_px),
-        strf("%zu triangles   update %.2f ms   draw %.2f ms", r.triangles, r.update_ms, r.draw_ms),
-        r.blocks ? strf("nodes selected %zu (%zu refined, %zu stand-ins, %zu ring)   inner radius n %d",
-                        r.blocks->nodes, r.blocks->refined, r.blocks->stand_ins, r.blocks->ring, r.blocks->n)
-                 : std::string("nodes selected 1"),
-        r.blocks
-            ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   "
+        strf("%5.1f fps   tau %.2f px%s   drawn within %.3f px%s", fps, r.lod.tolerance_px,
+             now_o.target_triangles ? strf(" (budget %zu)", now_o.target_triangles).c_str() : "", r.lod.bound_px,
+             r.lod.missing_in_view ? strf(" (%zu blocks missing: over tau allowed)", r.lod.missing_in_view).c_str()
+                                   : ""),
+        strf("%zu triangles   update %.2f ms   draw %.2f ms", r.lod.triangles, r.lod.update_ms, r.draw_ms),
+        r.streamed ? strf("nodes drawn %zu (%zu PM blocks, %zu coarse, %zu for missing blocks)   culled %zu",
+                          r.lod.pm_blocks + r.lod.coarse_nodes, r.lod.pm_blocks, r.lod.coarse_nodes,
+                          r.lod.fallback_nodes, r.lod.nodes_culled)
+                   : std::string("nodes drawn 1 (one PM)"),
+        r.streamed
+            ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   memory %s   "
                    "texture memory %s",
-                   r.blocks->resident, r.blocks->loading, r.blocks->evicted, r.blocks->prefetch_misses,
-                   format_bytes(r.blocks->bytes_read).c_str(), format_bytes(r.texture_bytes).c_str())
+                   r.lod.blocks_resident, r.lod.blocks_loading, r.lod.evicted_total, r.lod.prefetch_misses_total,
+                   format_bytes(r.lod.bytes_read_total).c_str(), format_bytes(r.lod.resident_bytes).c_str(),
+                   format_bytes(r.texture_bytes).c_str())
             : strf("blocks resident 1, loading 0   texture memory %s", format_bytes(r.texture_bytes).c_str()),
         strf("speed %.0f m/s   height %.0f m above ground%s", ctl.speed, cam.z - t->ground(cam.x, cam.y),
              ctl.follow ? " (following)" : ""),
@@ -1028,7 +943,7 @@ int run_window(const Args& a) {
     rd::write_png(p.read_color(), a.get("--screenshot"));
     std::printf("wrote %s\n", a.get("--screenshot").c_str());
   }
-  std::printf("flew %lld frames, last: %zu triangles, bound %.3f px\n", frame, r.triangles, r.bound_px);
+  std::printf("flew %lld frames, last: %zu triangles, drawn within %.3f px\n", frame, r.lod.triangles, r.lod.bound_px);
   return 0;
 }
 

@@ -747,6 +747,25 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patc
   s.vertices = nv;
 }
 
+double TerrainRuntime::max_height_at(double x, double y) const {
+  auto [c, r] = grid_.to_grid(x, y);
+  c = std::clamp(c, 0.0, double(grid_.grid_width() - 1));
+  r = std::clamp(r, 0.0, double(grid_.grid_height() - 1));
+  const TreeNode* n = &tree_.root();
+  for (bool deeper = true; deeper;) {
+    deeper = false;
+    for (std::int64_t k : n->children) {
+      const SampleRect& d = tree_.node(k).domain;
+      if (c >= d.col0 && c <= d.col1 && r >= d.row0 && r <= d.row1) {
+        n = &tree_.node(k);
+        deeper = true;
+        break;
+      }
+    }
+  }
+  return n->bbox.hi.z;
+}
+
 double TerrainRuntime::drawn_height(double x, double y) const {
   const auto [c, r] = grid_.to_grid(x, y);
   const std::uint64_t W = std::uint64_t(grid_.grid_width());

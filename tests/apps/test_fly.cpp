@@ -110,25 +110,27 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
   std::ifstream in(outs[0] / "frames.csv");
   std::string line;
   std::getline(in, line);
-  // The columns: the original ones in their order, then those of block streaming (--db).
+  // The columns: those of 'terralod fly' (the runtime's statistics), then the drawing's.
   EXPECT_EQ(line,
-            "frame,x,y,z,yaw,pitch,fovy,tau_px,triangles,vertices,update_ms,draw_ms,bound_px,vsplits,ecols,morphing,"
-            "nodes_selected,blocks_resident,blocks_loading,texture_bytes,blocks_evicted,prefetch_misses,bytes_read,"
-            "upload_ms,wait_ms,update_cpu_ms");
+            "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,missing_in_view,update_ms,update_cpu_ms,"
+            "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_evicted,"
+            "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,fallback_nodes,"
+            "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes");
   int rows = 0;
   while (std::getline(in, line)) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     std::string x;
     while (std::getline(ss, x, ',')) f.push_back(x);
-    ASSERT_GE(f.size(), 13u);
-    EXPECT_LE(std::stod(f[12]), std::stod(f[7])) << "frame " << f[0] << ": bound above tau";
-    EXPECT_GT(std::stoul(f[8]), 0u) << "frame " << f[0] << ": no triangles";
-    // One PM: one node, one block resident, none loading; no evictions, misses or reads.
-    ASSERT_EQ(f.size(), 26u) << line;
-    EXPECT_EQ(f[16] + "," + f[17] + "," + f[18], "1,1,0") << line;
-    EXPECT_EQ(f[20] + f[21] + f[22], "") << line;
-    EXPECT_EQ(std::stod(f[24]), 0.0) << "frame " << f[0] << ": a single PM never waits";
+    ASSERT_EQ(f.size(), 36u) << line;
+    EXPECT_LE(std::stod(f[10]), std::stod(f[8])) << "frame " << f[0] << ": bound above tau";
+    EXPECT_GT(std::stoul(f[9]), 0u) << "frame " << f[0] << ": no triangles";
+    // One PM: one block resident, none loading or missing; no evictions, misses or reads.
+    EXPECT_EQ(f[11], "0") << line;
+    EXPECT_EQ(f[15] + "," + f[16] + "," + f[17], "1,0,0") << line;
+    EXPECT_EQ(f[21] + "," + f[22], "0,0") << line;
+    EXPECT_EQ(f[26], "1") << line;
+    EXPECT_EQ(std::stod(f[34]), 0.0) << "frame " << f[0] << ": a single PM never waits";
     ++rows;
   }
   EXPECT_EQ(rows, 40);

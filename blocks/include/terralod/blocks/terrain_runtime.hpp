@@ -187,6 +187,9 @@ class TerrainRuntime {
   const pm::Box& terrain_box() const { return tree_.root().bbox; }
   /// Height of the drawn surface under world (x, y) (NaN outside what is drawn). O(triangles).
   double drawn_height(double x, double y) const;
+  /// The highest sample of the smallest tree node over world (x, y) (clamped to the terrain):
+  /// a height at or above the terrain there, known without loading anything. O(tree depth).
+  double max_height_at(double x, double y) const;
 
  private:
   struct Block;  // a resident block with its refinement
