@@ -79,7 +79,7 @@ CommandSpec fly_spec() {
       "update), resident_bytes, blocks_resident, blocks_loading, blocks_evicted (this frame),\n"
       "nodes_resident, nodes_loading, nodes_evicted (tree nodes: all stay resident), prefetch_misses\n"
       "(cumulative: blocks needed before they were resident), bytes_read (cumulative), nodes_visited,\n"
-      "nodes_culled, coarse_nodes, pm_blocks, fallback_nodes, moving_vertices, clamped_vertices,\n"
+      "nodes_culled, coarse_nodes, pm_blocks, standin_blocks, fallback_nodes, moving_vertices, clamped_vertices,\n"
       "seam_triangles. --dump-meshes also writes each frame's drawn mesh as DIR/frame_NNNNN.ply\n"
       "(binary little-endian, double x y z in the world frame at the displayed heights, int faces,\n"
       "counter-clockwise seen from above).\n\n"

@@ -45,11 +45,15 @@ void check_options(const RuntimeOptions& o) {
     throw std::invalid_argument("RuntimeOptions: need 0 <= region.n_min <= region.n_max");
 }
 
-// PM blocks, like coarse nodes, are selected at half of tau: the stitch can at most double the
-// error of a border face (terrain_runtime.hpp, "The bound").
+// The share of tau every patch is selected at: half, since the stitch can at most double the
+// error of a border face (terrain_runtime.hpp, "The bound"), less a relative 1e-9 so that the
+// rounding of the separately computed bounds (~1e-15) can never carry a frame over tau.
+constexpr double kSelectShare = 0.5 * (1.0 - 1e-9);
+
+// PM blocks, like coarse nodes, are selected at kSelectShare of tau.
 pm::RefinementOptions refinement_options(const RuntimeOptions& o, double tau) {
   pm::RefinementOptions r;
-  r.tolerance_px = 0.5 * tau;
+  r.tolerance_px = kSelectShare * tau;
   r.morph_seconds = o.morph_seconds;
   r.morph_mode = pm::MorphMode::Vertical;  // plan positions stay on the samples: seams hold
   return r;
@@ -136,6 +140,11 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   if (tree_.size() == 0) throw DatabaseError(db_path, "the approximation tree is empty");
   tree_bytes_ = tree_blob->size() * 3;  // decoded: doubles for the points, about 3x the blob
   sums_ = read_block_summaries(db, grid_);
+  for (std::size_t i = 0; i < sums_.size(); ++i)  // a summary without a surface: its two triangles
+    if (sums_[i].triangles.empty()) {
+      const SampleRect d = grid_.domain(grid_.key(i));
+      set_two_triangle_standin(sums_[i], d.width(), d.height());
+    }
   for (const BlockSummary& s : sums_) summary_bytes_ += 160 + s.points.size() * 16 + s.triangles.size() * 20;
   for (const TreeNode& n : tree_.nodes())
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
@@ -195,33 +204,40 @@ std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {
 std::size_t TerrainRuntime::fixed_bytes() const { return tree_bytes_ + summary_bytes_ + mesh_.memory_bytes(); }
 
 // Selection (header, step 2). Returns false when the subtree needs a block that is not resident.
-bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, std::vector<std::int64_t>& coarse,
-                           std::vector<std::int64_t>& pms, std::vector<std::pair<std::int64_t, double>>& needed,
-                           double parent_px) {
+bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px) {
   const TreeNode& n = tree_.node(id);
   ++stats_.nodes_visited;
   if (view.outside(n.bbox)) {
     ++stats_.nodes_culled;
     return true;
   }
+  const double limit = kSelectShare * tau;
   if (n.strategy == Strategy::PmBlock) {
-    needed.push_back({id, parent_px});
+    // The stand-in, when it meets tau / 2: the whole box first, then triangle by triangle.
+    const BlockSummary& sum = sums_[grid_.index(*n.block)];
+    if (!sum.triangles.empty() && (view.vertical_error_px(n.bbox, sum.standin_error) <= limit ||
+                                   standin_bound_px(grid_, *n.block, sum, view) <= limit)) {
+      sel.standins.push_back(id);
+      return true;
+    }
+    sel.needed.push_back({id, parent_px});
     if (!blocks_.count(*n.block)) return false;
-    pms.push_back(id);
+    sel.pms.push_back(id);
     return true;
   }
   const double b = view.vertical_error_px(n.bbox, n.error);
-  if (n.leaf() || b <= 0.5 * tau) {
-    coarse.push_back(id);
+  if (n.leaf() || b <= limit) {
+    sel.coarse.push_back(id);
     return true;
   }
-  const std::size_t c0 = coarse.size(), p0 = pms.size();
+  const std::size_t c0 = sel.coarse.size(), p0 = sel.pms.size(), s0 = sel.standins.size();
   bool complete = true;
-  for (std::int64_t c : n.children) complete = visit(view, tau, c, coarse, pms, needed, b) && complete;
+  for (std::int64_t c : n.children) complete = visit(view, tau, c, sel, b) && complete;
   if (!complete) {  // a needed block is missing: this node, resident, is drawn for its subtree
-    coarse.resize(c0);
-    pms.resize(p0);
-    coarse.push_back(id);
+    sel.coarse.resize(c0);
+    sel.pms.resize(p0);
+    sel.standins.resize(s0);
+    sel.coarse.push_back(id);
     ++stats_.fallback_nodes;
   }
   return true;
@@ -358,9 +374,10 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   take_loads();
 
   // 2. Selection.
-  std::vector<std::int64_t> coarse, pms;
-  std::vector<std::pair<std::int64_t, double>> needed;
-  const bool root_ok = visit(view, tau, 0, coarse, pms, needed, std::numeric_limits<double>::infinity());
+  Selection sel;
+  const bool root_ok = visit(view, tau, 0, sel, std::numeric_limits<double>::infinity());
+  const std::vector<std::int64_t>&coarse = sel.coarse, &pms = sel.pms;
+  const std::vector<std::pair<std::int64_t, double>>& needed = sel.needed;
   // A PmBlock root that is missing is drawn as its stand-in (no ancestor exists).
   const bool root_standin = !root_ok;
   s.needed_in_view = needed.size();
@@ -407,16 +424,25 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
     }
     const bool fresh = b.last_drawn == 0 || b.last_drawn + 1 < frame_;
     if (fresh && opt_.morph_seconds > 0) {
-      // Swap-in blend from the surface drawn over the block last frame (an ancestor's).
+      // Swap-in blend from the surface drawn over the block last frame: its stand-in, or an
+      // ancestor's surface.
       b.blending = false;
       b.old.clear();
       b.old_z.clear();
       const auto it = drawn_as_.find(id);
-      if (it != drawn_as_.end() && it->second != id) {
+      if (it != drawn_as_.end() && (it->second != id || standins_prev_.count(id))) {
         const TreeNode& a = tree_.node(it->second);
-        for (const auto& t : a.surface.triangles) {
+        NodeSurface standin;
+        if (a.strategy == Strategy::PmBlock) {  // the stand-in, in whole-grid coordinates
+          const BlockSummary& sum = sums_[grid_.index(*a.block)];
+          for (const StandinPoint& q : sum.points)
+            standin.points.push_back({double(a.domain.col0 + q.col), double(a.domain.row0 + q.row), q.z});
+          standin.triangles = sum.triangles;
+        }
+        const NodeSurface& old = a.strategy == Strategy::PmBlock ? standin : a.surface;
+        for (const auto& t : old.triangles) {
           Tri3 q;
-          for (int c = 0; c < 3; ++c) q[std::size_t(c)] = a.surface.points[t[std::size_t(c)]];
+          for (int c = 0; c < 3; ++c) q[std::size_t(c)] = old.points[t[std::size_t(c)]];
           const double cmin = std::min({q[0][0], q[1][0], q[2][0]}), cmax = std::max({q[0][0], q[1][0], q[2][0]});
           const double rmin = std::min({q[0][1], q[1][1], q[2][1]}), rmax = std::max({q[0][1], q[1][1], q[2][1]});
           if (cmax < n.domain.col0 || cmin > n.domain.col1 || rmax < n.domain.row0 || rmin > n.domain.row1) continue;
@@ -500,16 +526,23 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
                       std::vector<double>(n.surface.triangles.size(), n.error), view.vertical_error_px(n.bbox, n.error), n.bbox);
   }
   s.coarse_nodes = coarse.size();
-  if (root_standin) {
-    const TreeNode& n = tree_.root();
+  auto add_standin = [&](const TreeNode& n) {
     const BlockSummary& sum = sums_[grid_.index(*n.block)];
     std::vector<std::array<double, 3>> pts;
+    pts.reserve(sum.points.size());
     for (const StandinPoint& q : sum.points) pts.push_back({double(n.domain.col0 + q.col), double(n.domain.row0 + q.row), q.z});
-    add_surface_patch(n.id, n.domain, pts, sum.triangles, sum.triangle_errors,
-                      standin_bound_px(grid_, *n.block, sum, view), n.bbox);
+    add_surface_patch(n.id, n.domain, pts, sum.triangles, sum.triangle_errors, standin_bound_px(grid_, *n.block, sum, view),
+                      n.bbox);
+  };
+  for (std::int64_t id : sel.standins) add_standin(tree_.node(id));
+  s.standin_blocks = sel.standins.size();
+  if (root_standin) {  // a missing PmBlock root: its stand-in, with its true bound
+    add_standin(tree_.root());
     s.fallback_nodes += 1;
   }
+  for (std::int64_t id : sel.standins) drawn_as[id] = id;
   drawn_as_ = std::move(drawn_as);
+  standins_prev_ = std::set<std::int64_t>(sel.standins.begin(), sel.standins.end());
   std::sort(patches.begin(), patches.end(), [](const Patch& a, const Patch& b) { return a.node < b.node; });
 
   // 4-5. Seams, offsets clamped to the bound, the drawn mesh.
@@ -722,7 +755,7 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patc
       ++s.moving_vertices;
       const double o = display[v] - rest[v];
       if (std::abs(o) > allowed[v]) {
-        display[v] = rest[v] + std::copysign(allowed[v] * (1 - 1e-12), o);
+        display[v] = rest[v] + std::copysign(allowed[v] * (1 - 1e-9), o);  // margin for rounding
         ++s.clamped_vertices;
       }
     }

@@ -114,7 +114,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
   EXPECT_EQ(line,
             "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,missing_in_view,update_ms,update_cpu_ms,"
             "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_evicted,"
-            "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,fallback_nodes,"
+            "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_nodes,"
             "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes");
   int rows = 0;
   while (std::getline(in, line)) {
@@ -122,7 +122,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     std::stringstream ss(line);
     std::string x;
     while (std::getline(ss, x, ',')) f.push_back(x);
-    ASSERT_EQ(f.size(), 36u) << line;
+    ASSERT_EQ(f.size(), 37u) << line;
     EXPECT_LE(std::stod(f[10]), std::stod(f[8])) << "frame " << f[0] << ": bound above tau";
     EXPECT_GT(std::stoul(f[9]), 0u) << "frame " << f[0] << ": no triangles";
     // One PM: one block resident, none loading or missing; no evictions, misses or reads.
@@ -130,7 +130,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     EXPECT_EQ(f[15] + "," + f[16] + "," + f[17], "1,0,0") << line;
     EXPECT_EQ(f[21] + "," + f[22], "0,0") << line;
     EXPECT_EQ(f[26], "1") << line;
-    EXPECT_EQ(std::stod(f[34]), 0.0) << "frame " << f[0] << ": a single PM never waits";
+    EXPECT_EQ(std::stod(f[35]), 0.0) << "frame " << f[0] << ": a single PM never waits";
     ++rows;
   }
   EXPECT_EQ(rows, 40);

@@ -31,8 +31,11 @@
 //      subtree. A coarse node (any strategy but PmBlock) is drawn with its own surface when
 //      View::vertical_error_px(box, error) <= tau / 2 (half of tau: the seams may add as much
 //      again, see the bound) or when it is a leaf; otherwise its children are visited. A PmBlock
-//      leaf reached this way is needed: when resident it is drawn by its SelectiveRefinement at
-//      tau / 2 (for the same reason); when not, it is missing, and its nearest ancestor (always resident: every
+//      leaf reached this way is first tried as its stand-in (the block's TIN of at most 64
+//      samples in the database's block summaries, always resident, exact error per triangle):
+//      when that meets tau / 2 the block is drawn with it and need not be loaded. Otherwise the
+//      block is needed: when resident it is drawn by its SelectiveRefinement at tau / 2 (for the
+//      same reason); when not, it is missing, and its nearest ancestor (always resident: every
 //      coarse node is) is drawn in place of that ancestor's whole subtree, with its true bound.
 //      A PmBlock root with no ancestor is drawn as its stand-in (BlockSummary) instead.
 //   3. Residency: the loader's queue is replaced by the needed blocks (missing in view first,
@@ -136,6 +139,7 @@ struct RuntimeFrameStats {
   std::size_t nodes_visited = 0, nodes_culled = 0;
   std::size_t coarse_nodes = 0;  ///< selected nodes drawn with their own surface (incl. fallbacks)
   std::size_t pm_blocks = 0;     ///< PM blocks drawn by selective refinement
+  std::size_t standin_blocks = 0;  ///< PM blocks drawn as their stand-ins (within tau / 2, not loaded)
   std::size_t needed_in_view = 0;   ///< PM blocks the selection needs
   std::size_t missing_in_view = 0;  ///< of those, not resident (an ancestor is drawn)
   std::size_t fallback_nodes = 0;   ///< ancestors drawn for missing blocks
@@ -194,10 +198,11 @@ class TerrainRuntime {
  private:
   struct Block;  // a resident block with its refinement
   struct Patch;  // one selected node's mesh this frame
-  void select(const pm::View& view, double tau, std::vector<std::int64_t>& coarse, std::vector<std::int64_t>& pms,
-              std::vector<std::pair<std::int64_t, double>>& needed);
-  bool visit(const pm::View& view, double tau, std::int64_t id, std::vector<std::int64_t>& coarse,
-             std::vector<std::int64_t>& pms, std::vector<std::pair<std::int64_t, double>>& needed, double parent_px);
+  struct Selection {  // what step 2 chose (node ids)
+    std::vector<std::int64_t> coarse, pms, standins;
+    std::vector<std::pair<std::int64_t, double>> needed;  // PM leaves needed, with their parent's error on screen
+  };
+  bool visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px);
   void queue_loads(const pm::View& view, const std::vector<std::pair<std::int64_t, double>>& needed);
   void take_loads();
   void make_room(std::size_t bytes, const std::set<BlockKey>& keep);
@@ -218,6 +223,7 @@ class TerrainRuntime {
   FlightPredictor predictor_;
   std::set<BlockKey> needed_prev_, missing_;
   std::map<std::int64_t, std::int64_t> drawn_as_;  // PM node -> node drawn over it last frame
+  std::set<std::int64_t> standins_prev_;           // PM nodes drawn as their stand-ins last frame
   double tau_ = 1.0;
   double time_ = 0;
   bool started_ = false;
