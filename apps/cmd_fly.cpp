@@ -148,7 +148,7 @@ int cmd_fly(const Args& a) {
             format_duration(ms_since(t)).c_str()));
 
   FlightLog log(out, /*drawing=*/false);  // frames.csv appears only when the whole flight succeeded
-  std::vector<double> ms, cpu;
+  std::vector<double> ms, cpu, sel_ms, res_ms, ref_ms, seam_ms;
   ms.reserve(path.size());
   std::size_t complete = 0, over_tau = 0;
   double worst_complete = 0;
@@ -171,6 +171,8 @@ int cmd_fly(const Args& a) {
     const blocks::RuntimeFrameStats& s = rt.update(pm::View(cam), double(f) / 60.0);
     ms.push_back(s.update_ms);
     cpu.push_back(s.update_cpu_ms);
+    sel_ms.push_back(s.select_ms), res_ms.push_back(s.residency_ms), ref_ms.push_back(s.refine_ms);
+    seam_ms.push_back(s.seams_ms);
     if (s.missing_in_view == 0) {
       ++complete;
       worst_complete = std::max(worst_complete, s.bound_px / s.tolerance_px);
@@ -196,6 +198,8 @@ int cmd_fly(const Args& a) {
             "CPU median %.2f ms, p99 %.2f ms",
             path.size(), format_duration(ms_since(t_fly)).c_str(), speed, opt.prefetch ? ", prefetch" : ", no prefetch",
             percentile(ms, 0.5), percentile(ms, 0.99), percentile(ms, 1.0), percentile(cpu, 0.5), percentile(cpu, 0.99)));
+  say(strf("steps median: selection %.3f ms, loader queue %.3f ms, refinement %.3f ms, seams and bound %.3f ms",
+            percentile(sel_ms, 0.5), percentile(res_ms, 0.5), percentile(ref_ms, 0.5), percentile(seam_ms, 0.5)));
   say(strf("load  %zu prefetch misses of %zu blocks needed, %s read, peak resident %s (budget %s), %zu evicted",
             last.prefetch_misses_total, last.prefetch_hits_total + last.prefetch_misses_total,
             format_bytes(last.bytes_read_total).c_str(), format_bytes(last.peak_resident_bytes).c_str(),

@@ -41,8 +41,8 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
   return b;
 }
 
-BlockLoader::BlockLoader(BlockSourceFactory factory, const BlockGrid& grid)
-    : factory_(std::move(factory)), grid_(grid), thread_([this] { run(); }) {}
+BlockLoader::BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare)
+    : factory_(std::move(factory)), grid_(grid), prepare_(std::move(prepare)), thread_([this] { run(); }) {}
 
 BlockLoader::~BlockLoader() {
   {
@@ -126,6 +126,7 @@ void BlockLoader::run() {
         bytes = blob.size();
         auto b = std::const_pointer_cast<LoadedBlock>(decode_block(grid_, k, blob, source->name()));
         b->read_ms = read_ms;
+        if (prepare_) r.selection = prepare_(*b);
         r.block = std::move(b);
       } catch (const std::exception& e) {
         r.error = e.what();

@@ -160,7 +160,19 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
     if (v && std::sscanf(v->c_str(), "%lf %llu %llu", &e, &nv, &nb) == 3) block_vertices_[i] = nv;
     else block_vertices_[i] = std::uint64_t(grid_.domain(k).width()) * std::uint64_t(grid_.domain(k).height());
   }
-  loader_ = std::make_unique<BlockLoader>(database_source(db_path), grid_);
+  prep_options_ = refinement_options(opt_, tau_);
+  loader_ = std::make_unique<BlockLoader>(database_source(db_path), grid_, [this](const LoadedBlock& b) {
+    std::optional<pm::View> view;
+    double t = 0;
+    pm::RefinementOptions o;
+    {
+      std::lock_guard lock(prep_mutex_);
+      view = prep_view_, t = prep_time_, o = prep_options_;
+    }
+    auto sel = std::make_unique<pm::SelectiveRefinement>(*b.dag, o);
+    if (view) sel->update(*view, t);  // a first update never morphs
+    return sel;
+  });
 }
 
 TerrainRuntime::~TerrainRuntime() { loader_.reset(); }
@@ -279,7 +291,8 @@ void TerrainRuntime::take_loads() {
     }
     auto b = std::make_unique<Block>();
     b->data = std::move(r.block);
-    b->sel = std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
+    b->sel = r.selection ? std::move(r.selection)
+                         : std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
     b->last_used = frame_;
     blocks_[k] = std::move(b);
     keep.insert(k);
@@ -370,6 +383,12 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.tolerance_px = tau;
   predictor_.observe(time_s, view.eye());
 
+  auto lap = [last = std::chrono::steady_clock::now()]() mutable {
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - last).count();
+    last = now;
+    return ms;
+  };
   // 1. Finished loads.
   take_loads();
 
@@ -397,9 +416,11 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   for (auto it = missing_.begin(); it != missing_.end();) it = needed_now.count(*it) ? std::next(it) : missing_.erase(it);
   needed_prev_ = std::move(needed_now);
 
+  s.select_ms = lap();
   // 3. Residency: the loader's queue.
   queue_loads(view, needed);
 
+  s.residency_ms = lap();
   // Refinement of the drawn PM blocks; what was drawn over a block before it arrived.
   const std::set<std::int64_t> coarse_set(coarse.begin(), coarse.end()), pm_set(pms.begin(), pms.end());
   std::map<std::int64_t, std::int64_t> drawn_as;
@@ -545,8 +566,10 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   standins_prev_ = std::set<std::int64_t>(sel.standins.begin(), sel.standins.end());
   std::sort(patches.begin(), patches.end(), [](const Patch& a, const Patch& b) { return a.node < b.node; });
 
+  s.refine_ms = lap();
   // 4-5. Seams, offsets clamped to the bound, the drawn mesh.
   assemble(view, tau, patches, s);
+  s.seams_ms = lap();
 
   // Eviction: within the budget at the end of every frame; blocks drawn this frame go last.
   {
@@ -564,6 +587,10 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.resident_bytes = fixed_bytes();
   for (const auto& [k, b] : blocks_) s.resident_bytes += b->data->memory_bytes;
   s.peak_resident_bytes = std::max(s.peak_resident_bytes, s.resident_bytes);
+  {
+    std::lock_guard lock(prep_mutex_);
+    prep_view_ = view, prep_time_ = time_s, prep_options_ = refinement_options(opt_, tau);
+  }
   s.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   s.update_cpu_ms = thread_cpu_ms() - cpu0;
   return stats_;

@@ -40,6 +40,7 @@
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/selective_refinement.hpp"
 
 namespace terralod::blocks {
 
@@ -77,7 +78,15 @@ struct LoadResult {
   BlockKey key;
   std::shared_ptr<const LoadedBlock> block;  ///< null on error
   std::string error;                         ///< empty on success
+  /// The refinement the PrepareFn made for the block on the loader thread (null without one).
+  std::unique_ptr<pm::SelectiveRefinement> selection;
 };
+
+/// Optional work done on the loader thread once a block is decoded, so that the frame thread
+/// does not: e.g. build the block's SelectiveRefinement and run its first, largest update.
+/// Called without the loader's lock; it must be thread-safe against the caller's frame thread.
+/// An exception becomes the result's error.
+using PrepareFn = std::function<std::unique_ptr<pm::SelectiveRefinement>(const LoadedBlock&)>;
 
 class BlockLoader {
  public:
@@ -86,7 +95,7 @@ class BlockLoader {
     double priority = 0;  ///< lower is read first; ties in queue order
   };
 
-  BlockLoader(BlockSourceFactory factory, const BlockGrid& grid);
+  BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare = {});
   ~BlockLoader();
   BlockLoader(const BlockLoader&) = delete;
   BlockLoader& operator=(const BlockLoader&) = delete;
@@ -106,6 +115,7 @@ class BlockLoader {
   void run();
   BlockSourceFactory factory_;
   BlockGrid grid_;
+  PrepareFn prepare_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   std::vector<Request> queue_;  // sorted by priority, best first

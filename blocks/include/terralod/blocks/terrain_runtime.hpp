@@ -26,7 +26,10 @@
 // re-triangulation, Fig. 6); Hoppe 1998 (geomorphs within the error budget).
 //
 // Per frame, update(view, t):
-//   1. Loads: finished blocks are taken from the background loader (never waiting).
+//   1. Loads: finished blocks are taken from the background loader (never waiting). The loader
+//      thread also builds each block's SelectiveRefinement and runs its first update (from the
+//      base mesh to the last frame's view: the largest one), so an arrival costs the frame
+//      thread only the change since then.
 //   2. Selection: from the root, a node whose box is outside the frustum is culled with its
 //      subtree. A coarse node (any strategy but PmBlock) is drawn with its own surface when
 //      View::vertical_error_px(box, error) <= tau / 2 (half of tau: the seams may add as much
@@ -98,6 +101,8 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -155,6 +160,9 @@ struct RuntimeFrameStats {
   std::size_t clamped_vertices = 0;  ///< of those, held back by the bound
   std::size_t seam_triangles = 0;    ///< triangles made by the stitch
   double update_ms = 0, update_cpu_ms = 0;  ///< wall and thread CPU time of update()
+  /// Wall time of update()'s steps: selection (with taking loads), the loader's queue, the
+  /// refinements and patch meshes, the seams with the bound and the drawn mesh.
+  double select_ms = 0, residency_ms = 0, refine_ms = 0, seams_ms = 0;
 };
 
 class TerrainRuntime {
@@ -230,6 +238,12 @@ class TerrainRuntime {
   std::uint64_t frame_ = 0;
   RuntimeFrameStats stats_;
   DrawnMesh mesh_;
+  // What the loader thread needs to prepare an arriving block's refinement (the last frame's
+  // view, time and refinement options), behind its own lock.
+  std::mutex prep_mutex_;
+  std::optional<pm::View> prep_view_;
+  double prep_time_ = 0;
+  pm::RefinementOptions prep_options_;
 };
 
 }  // namespace terralod::blocks
