@@ -58,7 +58,10 @@ CommandSpec bench_spec() {
                {"--short", "", "a quick run on a generated 129 x 129 terrain (40 frames)"},
                {"--frames", "N", "frames in all over the two flights (default 600; --short 40), >= 2"},
                {"--size", "WxH", "viewport in pixels (default 1280x720)"},
-               {"--taus", "LIST", "tolerances in pixels, comma-separated (default 0.5,1,2,4,8)"}};
+               {"--taus", "LIST", "tolerances in pixels, comma-separated (default 0.5,1,2,4,8)"},
+               {"--dem", "FILE", "fly over this DEM instead of N44W072 (e.g. from 'terralod generate --size 4097')"},
+               {"--strategies", "LIST",
+                "comma-separated subset of pm_blocks,chunked_lod,tin,nonregular,full_grid (default all)"}};
   return s;
 }
 
@@ -76,7 +79,13 @@ int cmd_bench(const Args& a) {
   }
   if (a.has("--taus")) o.taus = parse_taus(a.get("--taus"));
   const std::string dem = (fs::path(a.get("--data", bench::default_data_dir())) / "N44W072.hgt").string();
-  if (!a.has("--short")) {
+  if (a.has("--strategies")) {
+    std::stringstream in(a.get("--strategies"));
+    for (std::string item; std::getline(in, item, ',');) o.strategies.push_back(item);
+  }
+  if (a.has("--dem")) {
+    o.dem_path = a.get("--dem");
+  } else if (!a.has("--short")) {
     if (fs::exists(dem))
       o.dem_path = dem;
     else

@@ -14,9 +14,10 @@
 // The strategies, each selected so that its screen-space error is guaranteed <= tau pixels
 // (every selection bound is pm::View::vertical_error_px, a conservative bound; trees have exact
 // leaves, error 0, so a selection can always meet tau):
-//   pm_blocks    blocks::build_tree's default tree (grid levels of (P+1)^2 = 25 points above one
-//                PmBlock leaf per block_size block), the selected blocks refined each frame by
-//                pm::SelectiveRefinement with the tolerance the selection leaves them (tau).
+//   pm_blocks    the one runtime, blocks::TerrainRuntime, over a block database built from the
+//                terrain (build_database's defaults: grid levels of (P+1)^2 = 25 points above one
+//                PmBlock leaf per block_size block, 64-point TIN stand-ins): coarse nodes and PM
+//                blocks at tau / 2, stitched seams, the bound of the mesh as drawn; no geomorphs.
 //   chunked_lod  Ulrich's chunked LOD: a regular-grid quadtree of (chunk_patch+1)^2 chunks whose
 //                children halve the spacing, down to the full resolution.
 //   tin          greedy-insertion TIN nodes of at most node_points points (default 1089, the
@@ -24,9 +25,9 @@
 //   nonregular   non-regular-grid nodes (rows and columns through the point of largest error),
 //                at most node_points points, k-d children, exact leaves.
 //   full_grid    every triangle of the grid, no LOD (the same for every tau).
-// No strategy stitches seams (cracks between patches of different resolution are left as they
-// are for all of them: stitching can double a patch's error, see seam_stitch.hpp), and none
-// geomorphs, so the popping metric compares like with like.
+// Only pm_blocks stitches its seams (the tree baselines leave cracks between patches of different
+// resolution, as in their papers; stitching can double a patch's error, which is why the runtime
+// selects at tau / 2); none geomorphs, so the popping metric compares like with like.
 //
 // Measured per strategy and tau, over the frames of the flights (60 frames per second of flight):
 //   triangles     drawn per frame (median, max);
@@ -70,11 +71,15 @@ namespace terralod::bench {
 
 struct LodBenchmarkOptions {
   std::string dem_path;                  ///< DEM to fly over; empty = generate `generated`
+  /// The strategies to run (names of strategy_names(), in any order); empty = all of them.
+  std::vector<std::string> strategies;
   pm::TerrainOptions generated{.width = 513, .height = 513, .seed = 8, .spacing = 30.0, .relief = 1200.0};
   int frames = 600;                      ///< frames in all, split over the two flights, >= 2
   int width_px = 1280, height_px = 720;  ///< viewport, >= 16 x 16
   std::vector<double> taus = {0.5, 1.0, 2.0, 4.0, 8.0};  ///< screen-space tolerances, px, > 0
   int block_size = 257;                  ///< PM blocks: samples per block side, 2^k + 1
+  /// PM blocks: the runtime's resident memory budget, bytes (> 0).
+  std::size_t memory_budget_bytes = std::size_t(2) << 30;
   int chunk_patch = 32;                  ///< chunked LOD: chunks of (P+1)^2 samples, P >= 1
   /// s of TIN and non-regular nodes, >= 4; default (32+1)^2, the chunks' point budget (the trees'
   /// s = 25 default would make exact-leaf trees of ~2 nodes per sample: gigabytes for N44W072).
@@ -96,9 +101,13 @@ struct StrategyRow {
   double triangles_median = 0, triangles_max = 0;
   double update_median_ms = 0, update_p99_ms = 0;          ///< wall clock
   double update_cpu_median_ms = 0, update_cpu_p99_ms = 0;  ///< thread CPU time (no preemption)
-  /// PM blocks: median of the part of update spent in the refinements' screen-space bound pass
-  /// (pm::FrameStats::bound_ms, a pass over every active face); 0 for the other strategies.
+  /// PM blocks: median of the part of update spent in the seams and the bound of what is drawn
+  /// (RuntimeFrameStats::seams_ms); 0 for the other strategies.
   double update_bound_median_ms = 0;
+  /// PM blocks: frames with a needed block not resident (their bound may exceed tau), and the
+  /// runtime's peak resident memory; 0 for the other strategies.
+  std::size_t missing_frames = 0;
+  std::size_t peak_resident_bytes = 0;
   double draw_median_ms = 0, draw_p99_ms = 0;
   double frame_median_ms = 0, frame_p99_ms = 0;
   double guaranteed_px = 0;               ///< largest bound reported by the selection

@@ -58,7 +58,7 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
   const std::vector<std::string> lines = split(slurp(out / "bench.csv"), '\n');
   ASSERT_GE(lines.size(), 2u);
   const std::vector<std::string> header = split(lines[0], ',');
-  ASSERT_EQ(header.size(), 21u) << lines[0];
+  ASSERT_EQ(header.size(), 23u) << lines[0];
   std::map<std::string, std::size_t> col;
   for (std::size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
   for (const char* name : {"strategy", "tau_px", "frames", "drawn_frames", "checked_frames", "triangles_median",
@@ -115,6 +115,12 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
   for (const char* s : {"pm_blocks", "chunked_lod", "tin", "nonregular"})
     EXPECT_GT(rows[s][0.5][col["triangles_median"]], 1.5 * rows[s][8.0][col["triangles_median"]]) << s;
   EXPECT_LT(rows["pm_blocks"][8.0][col["triangles_median"]], 2.0 * 128 * 128);
+  // The runtime's frames wait for what the previous frame queued: nothing needed is missing,
+  // and it reports its resident memory.
+  for (const auto& [tau, v] : rows["pm_blocks"]) {
+    EXPECT_EQ(v[col["missing_frames"]], 0.0) << tau;
+    EXPECT_GT(v[col["peak_resident_bytes"]], 0.0) << tau;
+  }
   EXPECT_GT(rows["pm_blocks"][8.0][col["popping_px"]], 0.0);
 
   // Plots: valid PNGs, 960 x 640 RGB, not blank.
@@ -137,13 +143,29 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
     EXPECT_GT(coloured, 500u);
   }
 
-  // Summary: the table with every strategy at tau = 1 and the four target lines.
+  // Summary: the table with every strategy at tau = 1 and the five target lines.
   const std::string md = slurp(out / "summary.md");
   for (const std::string& s : strategies) EXPECT_NE(md.find("| 1 | " + s + " |"), std::string::npos) << s << "\n" << md;
   std::size_t targets = 0;
   for (const std::string& l : split(md, '\n')) targets += l.rfind("- PASS: ", 0) == 0 || l.rfind("- FAIL: ", 0) == 0;
-  EXPECT_EQ(targets, 4u) << md;
+  EXPECT_EQ(targets, 5u) << md;
   EXPECT_NE(md.find("PASS: measured worst screen error <= tau"), std::string::npos) << md;
+  EXPECT_NE(md.find("PASS: PM blocks: every frame complete"), std::string::npos) << md;
+}
+
+TEST(Bench, StrategiesSubsetAndBadNames) {
+  const fs::path out = tmp_dir() / "subset";
+  const CliResult r = terralod("bench --short --size 320x180 --frames 8 --taus 1 --strategies pm_blocks,chunked_lod --out '" +
+                               out.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::vector<std::string> lines = split(slurp(out / "bench.csv"), '\n');
+  std::set<std::string> seen;
+  for (std::size_t l = 1; l < lines.size(); ++l)
+    if (!lines[l].empty()) seen.insert(split(lines[l], ',')[0]);
+  EXPECT_EQ(seen, (std::set<std::string>{"pm_blocks", "chunked_lod"}));
+  const CliResult bad = terralod("bench --short --strategies pm_blocks,nosuch --out '" + (tmp_dir() / "bad2").string() + "'");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("nosuch"), std::string::npos) << bad.err;
 }
 
 TEST(Bench, BadOptionsAreUsageErrors) {
