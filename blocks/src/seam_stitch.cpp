@@ -31,6 +31,7 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
   StitchResult res;
   res.new_triangles.resize(patches.size());
   res.new_triangle_sources.resize(patches.size());
+  res.new_triangle_source_corners.resize(patches.size());
   for (std::size_t pi = 0; pi < patches.size(); ++pi) {
     StitchPatch& p = patches[pi];
     const SampleRect& d = p.domain;
@@ -74,7 +75,7 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
     std::vector<std::array<std::uint32_t, 3>> work, done;
     const std::size_t original = p.triangles.size();
     for (std::size_t ti = 0; ti < original; ++ti) {
-      const auto& t0 = p.triangles[ti];
+      const std::array<std::uint32_t, 3> t0 = p.triangles[ti];
       const pm::GridPoint g0 = p.vertices[t0[0]], g1 = p.vertices[t0[1]], g2 = p.vertices[t0[2]];
       if (!on_border(g0, g1) && !on_border(g1, g2) && !on_border(g2, g0)) continue;  // nothing to split
       work.assign(1, t0);
@@ -88,8 +89,11 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
           const std::uint32_t ia = t[e], ib = t[(e + 1) % 3], ic = t[(e + 2) % 3];
           find_inside(p.vertices[ia], p.vertices[ib]);
           if (inside.empty()) continue;
-          if (!indexed) {
-            for (std::uint32_t v = 0; v < p.vertices.size(); ++v) index.emplace(key(p.vertices[v]), v);
+          if (!indexed) {  // inserted points lie on the border: only border vertices can match
+            for (std::uint32_t v = 0; v < p.vertices.size(); ++v) {
+              const pm::GridPoint g = p.vertices[v];
+              if (g.x == d.col0 || g.x == d.col1 || g.y == d.row0 || g.y == d.row1) index.emplace(key(g), v);
+            }
             indexed = true;
           }
           std::uint32_t prev = ia;
@@ -109,9 +113,11 @@ StitchResult stitch_seams(std::vector<StitchPatch>& patches) {
       p.triangles[ti] = done[0];
       res.new_triangles[pi].push_back(std::uint32_t(ti));
       res.new_triangle_sources[pi].push_back(std::uint32_t(ti));
+      res.new_triangle_source_corners[pi].push_back(t0);
       for (std::size_t k = 1; k < done.size(); ++k) {
         res.new_triangles[pi].push_back(std::uint32_t(p.triangles.size()));
         res.new_triangle_sources[pi].push_back(std::uint32_t(ti));
+        res.new_triangle_source_corners[pi].push_back(t0);
         p.triangles.push_back(done[k]);
       }
     }

@@ -125,8 +125,29 @@ struct TerrainRuntime::Patch {
   double zlo = 0, zhi = 0;             // height range of the terrain's samples in the domain
 };
 
+// A drawn triangle that is evaluated on its own (stitched, or with a moving corner).
+struct TerrainRuntime::Eval {
+  std::uint32_t tri;
+  double error;                // e_T (a stitched piece: its source's error plus the inserted corners' delta)
+  double source_error;         // the error of the triangle it was cut from (itself when not stitched)
+  std::array<double, 3> base;  // the source's true plane at the three corners
+  std::size_t patch;
+};
+
+// Buffers of assemble(), kept from frame to frame so that a frame allocates nothing new.
+struct TerrainRuntime::Scratch {
+  std::vector<std::size_t> original_vertices;
+  std::vector<StitchPatch> sps;
+  std::unordered_map<std::uint64_t, std::uint32_t> border;
+  std::vector<double> rest, display, allowed;
+  std::vector<std::vector<std::uint32_t>> gidx;
+  std::vector<Eval> eval;
+  std::vector<std::uint8_t> moving;
+  std::vector<std::uint32_t> piece;
+};
+
 TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions& options)
-    : path_(db_path), opt_(options), predictor_(options.predictor) {
+    : path_(db_path), opt_(options), predictor_(options.predictor), scratch_(std::make_unique<Scratch>()) {
   check_options(opt_);
   tau_ = opt_.tolerance_px;
   const BlockDatabase db = BlockDatabase::open(db_path);
@@ -433,8 +454,20 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
     }
     if (a >= 0) drawn_as[id] = a;
   }
-  std::vector<Patch> patches;
-  patches.reserve(coarse.size() + pms.size() + 1);
+  // The frame's patches, in a pool kept from frame to frame (their vectors keep their storage).
+  std::vector<Patch>& patches = patches_;
+  std::size_t used = 0;
+  auto next_patch = [&]() -> Patch& {
+    if (used == patches.size()) patches.emplace_back();
+    Patch& p = patches[used++];
+    p.sp.vertices.clear();
+    p.sp.triangles.clear();
+    p.rest_z.clear();
+    p.display_z.clear();
+    p.tri_error.clear();
+    p.heights = nullptr;
+    return p;
+  };
   const pm::RefinementOptions ropt = refinement_options(opt_, tau);
   for (std::int64_t id : pms) {
     const TreeNode& n = tree_.node(id);
@@ -479,12 +512,12 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
     b.last_used = frame_;
     const pm::FrameStats& fs = b.sel->update(view, time_s);
     if (!b.rm_valid || fs.vsplits > 0 || fs.ecols > 0 || b.sel->morphing() || fs.morphing > 0) {
-      b.rm = b.sel->render_mesh();
+      b.sel->render_mesh_into(b.rm);
       b.rm_valid = true;
     }
     if (b.sel->morphing() || b.blending) ++s.morphing_blocks;
     const double w = b.blending ? std::clamp((time_s - b.blend_t0) / opt_.morph_seconds, 0.0, 1.0) : 1.0;
-    Patch p;
+    Patch& p = next_patch();
     p.node = id;
     p.sp.domain = n.domain;
     const pm::Heightfield& hf = b.data->dag->heightfield();
@@ -513,20 +546,19 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
       b.old = {};
       b.old_z = {};
     }
-    p.sp.triangles = b.rm.triangles;
-    p.tri_error = b.rm.errors;
+    p.sp.triangles.assign(b.rm.triangles.begin(), b.rm.triangles.end());
+    p.tri_error.assign(b.rm.errors.begin(), b.rm.errors.end());
     p.bound_px = fs.bound_px;
     p.heights = &hf;
     p.metric = b.data->pm.metric();
     p.zlo = n.bbox.lo.z;
     p.zhi = n.bbox.hi.z;
-    patches.push_back(std::move(p));
     ++s.pm_blocks;
   }
   auto add_surface_patch = [&](std::int64_t id, const SampleRect& domain, const std::vector<std::array<double, 3>>& pts,
                                const std::vector<std::array<std::uint32_t, 3>>& tris, const std::vector<double>& errs,
                                double bound_px, const pm::Box& box) {
-    Patch p;
+    Patch& p = next_patch();
     p.node = id;
     p.zlo = box.lo.z;
     p.zhi = box.hi.z;
@@ -535,11 +567,10 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
       p.sp.vertices.push_back({int(q[0]), int(q[1])});
       p.rest_z.push_back(q[2]);
     }
-    p.display_z = p.rest_z;
-    p.sp.triangles = tris;
-    p.tri_error = errs;
+    p.display_z.assign(p.rest_z.begin(), p.rest_z.end());
+    p.sp.triangles.assign(tris.begin(), tris.end());
+    p.tri_error.assign(errs.begin(), errs.end());
     p.bound_px = bound_px;
-    patches.push_back(std::move(p));
   };
   for (std::int64_t id : coarse) {
     const TreeNode& n = tree_.node(id);
@@ -564,11 +595,12 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   for (std::int64_t id : sel.standins) drawn_as[id] = id;
   drawn_as_ = std::move(drawn_as);
   standins_prev_ = std::set<std::int64_t>(sel.standins.begin(), sel.standins.end());
-  std::sort(patches.begin(), patches.end(), [](const Patch& a, const Patch& b) { return a.node < b.node; });
+  std::sort(patches.begin(), patches.begin() + std::ptrdiff_t(used),
+            [](const Patch& a, const Patch& b) { return a.node < b.node; });
 
   s.refine_ms = lap();
   // 4-5. Seams, offsets clamped to the bound, the drawn mesh.
-  assemble(view, tau, patches, s);
+  assemble(view, tau, used, s);
   s.seams_ms = lap();
 
   // Eviction: within the budget at the end of every frame; blocks drawn this frame go last.
@@ -596,33 +628,36 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   return stats_;
 }
 
-void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patch>& patches, RuntimeFrameStats& s) {
-  // Original triangles before the stitch (the sources of the pieces) and vertex counts.
-  std::vector<std::vector<std::array<std::uint32_t, 3>>> before(patches.size());
-  std::vector<std::size_t> original_vertices(patches.size());
-  std::vector<StitchPatch> sps;
-  sps.reserve(patches.size());
-  for (std::size_t i = 0; i < patches.size(); ++i) {
-    original_vertices[i] = patches[i].sp.vertices.size();
-    sps.push_back(std::move(patches[i].sp));
+void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t count, RuntimeFrameStats& s) {
+  std::vector<Patch>& patches = patches_;
+  Scratch& x = *scratch_;
+  // The stitch runs on the patches' own StitchPatches (moved out and back: no copies).
+  x.original_vertices.resize(count);
+  x.sps.resize(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    x.original_vertices[i] = patches[i].sp.vertices.size();
+    x.sps[i] = std::move(patches[i].sp);
   }
-  // The stitch needs the old triangles of split ones only; keep a copy of every border triangle.
-  for (std::size_t i = 0; i < patches.size(); ++i) before[i] = sps[i].triangles;
-  const StitchResult sr = stitch_seams(sps);
-  for (std::size_t i = 0; i < patches.size(); ++i) patches[i].sp = std::move(sps[i]);
+  const StitchResult sr = stitch_seams(x.sps);
+  for (std::size_t i = 0; i < count; ++i) patches[i].sp = std::move(x.sps[i]);
+  const std::vector<std::size_t>& original_vertices = x.original_vertices;
 
   // One vertex per terrain sample: border samples through a map (first patch in node order
   // gives the displayed height), interior samples are their patch's own.
-  std::unordered_map<std::uint64_t, std::uint32_t> border;
+  std::unordered_map<std::uint64_t, std::uint32_t>& border = x.border;
+  border.clear();
   mesh_.positions.clear();
   mesh_.samples.clear();
   mesh_.triangles.clear();
   mesh_.triangle_node.clear();
   mesh_.triangle_block.clear();
-  std::vector<double> rest, display;  // per drawn vertex
-  std::vector<std::vector<std::uint32_t>> gidx(patches.size());
+  std::vector<double>&rest = x.rest, &display = x.display;  // per drawn vertex
+  rest.clear();
+  display.clear();
+  if (x.gidx.size() < count) x.gidx.resize(count);
+  std::vector<std::vector<std::uint32_t>>& gidx = x.gidx;
   const std::uint64_t W = std::uint64_t(grid_.grid_width());
-  for (std::size_t i = 0; i < patches.size(); ++i) {
+  for (std::size_t i = 0; i < count; ++i) {
     Patch& p = patches[i];
     const SampleRect& d = p.sp.domain;
     gidx[i].resize(p.sp.vertices.size());
@@ -647,7 +682,7 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patc
     }
   }
   // Inserted vertices are another patch's border vertices: already in the map.
-  for (std::size_t i = 0; i < patches.size(); ++i) {
+  for (std::size_t i = 0; i < count; ++i) {
     Patch& p = patches[i];
     for (std::size_t v = original_vertices[i]; v < p.sp.vertices.size(); ++v) {
       const pm::GridPoint g = p.sp.vertices[v];
@@ -658,29 +693,19 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patc
   }
 
   // Triangles, each with its logical error and whether it must be evaluated on its own.
-  struct Eval {
-    std::uint32_t tri;
-    double error;        // e_T (a stitched piece: its source's error plus the inserted corners' delta)
-    double source_error;  // the error of the triangle it was cut from (itself when not stitched)
-    std::array<double, 3> base;  // the source's true plane at the three corners
-    std::size_t patch;
-  };
-  std::vector<Eval> eval;
+  std::vector<Eval>& eval = x.eval;
+  eval.clear();
   const std::size_t nv = mesh_.samples.size();
-  std::vector<std::uint8_t> moving(nv, 0);
+  std::vector<std::uint8_t>& moving = x.moving;
+  moving.assign(nv, 0);
   for (std::size_t v = 0; v < nv; ++v) moving[v] = display[v] != rest[v];
   double bound = 0;
-  std::vector<std::uint8_t> is_new;
-  std::vector<std::uint32_t> source;
-  for (std::size_t i = 0; i < patches.size(); ++i) {
+  std::vector<std::uint32_t>& piece = x.piece;  // per triangle: its index in new_triangles + 1, or 0
+  for (std::size_t i = 0; i < count; ++i) {
     Patch& p = patches[i];
     const std::size_t T = p.sp.triangles.size();
-    is_new.assign(T, 0);
-    source.assign(T, 0);
-    for (std::size_t k = 0; k < sr.new_triangles[i].size(); ++k) {
-      is_new[sr.new_triangles[i][k]] = 1;
-      source[sr.new_triangles[i][k]] = sr.new_triangle_sources[i][k];
-    }
+    piece.assign(T, 0);
+    for (std::size_t k = 0; k < sr.new_triangles[i].size(); ++k) piece[sr.new_triangles[i][k]] = std::uint32_t(k + 1);
     s.seam_triangles += sr.new_triangles[i].size();
     bool own_needed = false;
     for (std::size_t t = 0; t < T; ++t) {
@@ -690,11 +715,11 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patc
       mesh_.triangles.push_back(tg);
       mesh_.triangle_node.push_back(p.node);
       double e = 0;
-      if (is_new[t]) {
+      if (piece[t]) {
         // Stitched piece: the source's error plus the largest difference between an inserted
         // corner's true height and the source plane there.
-        const auto& src = before[i][source[t]];
-        e = p.tri_error[source[t]];
+        const auto& src = sr.new_triangle_source_corners[i][piece[t] - 1];
+        e = p.tri_error[sr.new_triangle_sources[i][piece[t] - 1]];
         std::array<std::array<double, 3>, 3> q;
         for (int c = 0; c < 3; ++c) {
           const pm::GridPoint g = p.sp.vertices[src[std::size_t(c)]];
@@ -763,7 +788,8 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::vector<Patc
     return std::max(d, near);
   };
   // Clamp the offsets: each moving vertex stays within what every triangle around it allows.
-  std::vector<double> allowed(nv, std::numeric_limits<double>::infinity());
+  std::vector<double>& allowed = x.allowed;
+  allowed.assign(nv, std::numeric_limits<double>::infinity());
   bool any_moving = false;
   for (std::size_t v = 0; v < nv; ++v) any_moving = any_moving || moving[v];
   if (any_moving) {

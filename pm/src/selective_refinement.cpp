@@ -920,6 +920,35 @@ TriangleMesh SelectiveRefinement::mesh() const {
   return m;
 }
 
+void SelectiveRefinement::render_mesh_into(RenderMesh& out) const {
+  out.samples.clear();
+  out.positions.clear();
+  out.triangles.clear();
+  out.errors.clear();
+  out.triangles.reserve(active_.size());
+  out.errors.reserve(active_.size());
+  for (std::uint32_t f : active_) {
+    std::array<std::uint32_t, 3> t;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t s = dag_->face(f)[k];
+      if (scratch_index_[s] == kNone) {
+        scratch_index_[s] = std::uint32_t(out.samples.size());
+        out.samples.push_back(s);
+      }
+      t[k] = scratch_index_[s];
+    }
+    out.triangles.push_back(t);
+    const std::uint32_t c = dag_->creator(f);
+    out.errors.push_back(c == kNone ? 0.0 : dag_->collapse(c).error);  // as FaceRec
+  }
+  out.positions.reserve(out.samples.size());
+  for (std::uint32_t s : out.samples) {
+    const std::array<double, 3> p = displayed(s);
+    out.positions.push_back(dag_->position(p[0], p[1], p[2]));
+    scratch_index_[s] = kNone;
+  }
+}
+
 RenderMesh SelectiveRefinement::render_mesh() const {
   const TriangleMesh m = mesh();
   RenderMesh r;

@@ -52,9 +52,10 @@ struct StitchResult {
   std::size_t split_triangles = 0;    ///< original triangles that were split
   /// Per patch: indices (into its triangles) of the triangles created by splits.
   std::vector<std::vector<std::uint32_t>> new_triangles;
-  /// Parallel to new_triangles: the index of the original triangle each one was split from
-  /// (its corners before the stitch are what the caller passed in).
+  /// Parallel to new_triangles: the index of the original triangle each one was split from,
+  /// and that triangle's corners before the stitch (indices into the patch's vertices).
   std::vector<std::vector<std::uint32_t>> new_triangle_sources;
+  std::vector<std::vector<std::array<std::uint32_t, 3>>> new_triangle_source_corners;
 };
 
 /// Stitches all seams between the patches (see above).

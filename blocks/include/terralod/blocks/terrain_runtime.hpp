@@ -204,8 +204,10 @@ class TerrainRuntime {
   double max_height_at(double x, double y) const;
 
  private:
-  struct Block;  // a resident block with its refinement
-  struct Patch;  // one selected node's mesh this frame
+  struct Block;    // a resident block with its refinement
+  struct Patch;    // one selected node's mesh this frame
+  struct Eval;     // a drawn triangle evaluated on its own
+  struct Scratch;  // assemble()'s buffers, reused
   struct Selection {  // what step 2 chose (node ids)
     std::vector<std::int64_t> coarse, pms, standins;
     std::vector<std::pair<std::int64_t, double>> needed;  // PM leaves needed, with their parent's error on screen
@@ -215,7 +217,7 @@ class TerrainRuntime {
   void take_loads();
   void make_room(std::size_t bytes, const std::set<BlockKey>& keep);
   std::size_t fixed_bytes() const;
-  void assemble(const pm::View& view, double tau, std::vector<Patch>& patches, RuntimeFrameStats& s);
+  void assemble(const pm::View& view, double tau, std::size_t patch_count, RuntimeFrameStats& s);
   std::size_t estimate_bytes(BlockKey k) const;
 
   std::string path_;
@@ -238,6 +240,8 @@ class TerrainRuntime {
   std::uint64_t frame_ = 0;
   RuntimeFrameStats stats_;
   DrawnMesh mesh_;
+  std::vector<Patch> patches_;        // the frame's patches (a pool: the first patch_count are used)
+  std::unique_ptr<Scratch> scratch_;
   // What the loader thread needs to prepare an arriving block's refinement (the last frame's
   // view, time and refinement options), behind its own lock.
   std::mutex prep_mutex_;

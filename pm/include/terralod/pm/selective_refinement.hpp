@@ -210,6 +210,9 @@ class SelectiveRefinement {
   /// The displayed mesh at the time of the last update (geomorph positions), triangles
   /// ordered by face id, vertices in order of first use.
   RenderMesh render_mesh() const;
+  /// The same mesh into `out`, reusing its storage, with the triangles in no particular order
+  /// (the active list's): no sort, no allocation once `out` has grown. For per-frame use.
+  void render_mesh_into(RenderMesh& out) const;
   /// True while some vertex is moving.
   bool morphing() const { return !morphs_.empty(); }
 
