@@ -333,6 +333,22 @@ int cmd_info(const Args& a) {
 // ---------------------------------------------------------------------------------------------
 // terralod demo
 
+// The built-in terrain of --size and --seed (demo, generate), with its line of output: a
+// DEM-like terrain, 30 m spacing, 1/16 m vertical resolution, relief that fades with scale as
+// real landscapes do (the library's default generator is rougher, for tests).
+pm::Heightfield generated_terrain(const Args& a) {
+  const pm::TerrainOptions topt = terralod::cli::demo_terrain_options(
+      int(a.get_int("--size", terralod::cli::kDemoTerrainSize, 2, 8193)),
+      std::uint64_t(a.get_int("--seed", 1, 0, std::numeric_limits<long long>::max())));
+  const auto t = Clock::now();
+  pm::Heightfield hf = pm::generate_terrain(topt);
+  const auto [hmin, hmax] = height_range(hf);
+  line(strf("terrain %d x %d samples, seed %llu, %g m spacing, heights %.1f .. %.1f m, %s", hf.width(), hf.height(),
+            static_cast<unsigned long long>(topt.seed), topt.spacing, hmin, hmax,
+            format_duration(ms_since(t)).c_str()));
+  return hf;
+}
+
 CommandSpec demo_spec() {
   CommandSpec s;
   s.name = "demo";
@@ -349,24 +365,13 @@ CommandSpec demo_spec() {
 }
 
 int cmd_demo(const Args& a) {
-  // A DEM-like terrain: 30 m spacing, 1/16 m vertical resolution, relief that fades with
-  // scale as real landscapes do (the library's default generator is rougher, for tests).
-  const pm::TerrainOptions topt = terralod::cli::demo_terrain_options(
-      int(a.get_int("--size", terralod::cli::kDemoTerrainSize, 2, 8193)),
-      std::uint64_t(a.get_int("--seed", 1, 0, std::numeric_limits<long long>::max())));
   pm::BuildOptions bopt;
   bopt.threads = int(a.get_int("--threads", 0, 0, 1024));
-
-  auto t = Clock::now();
-  const pm::Heightfield hf = pm::generate_terrain(topt);
-  const auto [hmin, hmax] = height_range(hf);
-  line(strf("terrain %d x %d samples, seed %llu, %g m spacing, heights %.1f .. %.1f m, %s", hf.width(), hf.height(),
-            static_cast<unsigned long long>(topt.seed), topt.spacing, hmin, hmax,
-            format_duration(ms_since(t)).c_str()));
+  const pm::Heightfield hf = generated_terrain(a);
 
   terralod::cli::ProgressBar bar("build");
   bopt.progress = [&bar](double f) { return bar.update(f); };
-  t = Clock::now();
+  auto t = Clock::now();
   const pm::ProgressiveMesh mesh = pm::ProgressiveMesh::build(hf, bopt);
   const double build_ms = ms_since(t);
   bar.finish();
@@ -410,16 +415,8 @@ CommandSpec generate_spec() {
 }
 
 int cmd_generate(const Args& a) {
-  const pm::TerrainOptions topt = terralod::cli::demo_terrain_options(
-      int(a.get_int("--size", terralod::cli::kDemoTerrainSize, 2, 8193)),
-      std::uint64_t(a.get_int("--seed", 1, 0, std::numeric_limits<long long>::max())));
-  auto t = Clock::now();
-  const pm::Heightfield hf = pm::generate_terrain(topt);
-  const auto [hmin, hmax] = height_range(hf);
-  line(strf("terrain %d x %d samples, seed %llu, %g m spacing, heights %.1f .. %.1f m, %s", hf.width(), hf.height(),
-            static_cast<unsigned long long>(topt.seed), topt.spacing, hmin, hmax,
-            format_duration(ms_since(t)).c_str()));
-  t = Clock::now();
+  const pm::Heightfield hf = generated_terrain(a);
+  const auto t = Clock::now();
   const std::string out = a.get("--out");
   terralod::blocks::write_geotiff(hf, out);
   std::error_code ec;

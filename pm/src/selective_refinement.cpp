@@ -897,76 +897,65 @@ const FrameStats& SelectiveRefinement::update(const View& view, double time_s) {
 
 // --- Output --------------------------------------------------------------------------------------
 
+// The faces' corners as vertices numbered in order of first use (samples) and triangles
+// indexing them; scratch_index_ is left as it was found (all kNone).
+void SelectiveRefinement::index_faces(const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& samples,
+                                      std::vector<std::array<std::uint32_t, 3>>& triangles) const {
+  samples.clear();
+  triangles.clear();
+  triangles.reserve(faces.size());
+  for (std::uint32_t f : faces) {
+    std::array<std::uint32_t, 3> t;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t s = dag_->face(f)[k];
+      if (scratch_index_[s] == kNone) {
+        scratch_index_[s] = std::uint32_t(samples.size());
+        samples.push_back(s);
+      }
+      t[k] = scratch_index_[s];
+    }
+    triangles.push_back(t);
+  }
+  for (std::uint32_t s : samples) scratch_index_[s] = kNone;
+}
+
 TriangleMesh SelectiveRefinement::mesh() const {
   std::vector<std::uint32_t> faces = active_;
   std::sort(faces.begin(), faces.end());
   TriangleMesh m;
-  m.triangles.reserve(faces.size());
+  index_faces(faces, m.vertices, m.triangles);
   for (std::uint32_t f : faces) {
-    std::array<std::uint32_t, 3> t;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t s = dag_->face(f)[k];
-      if (scratch_index_[s] == kNone) {
-        scratch_index_[s] = std::uint32_t(m.vertices.size());
-        m.vertices.push_back(s);
-      }
-      t[k] = scratch_index_[s];
-    }
-    m.triangles.push_back(t);
     const std::uint32_t c = dag_->creator(f);
     if (c != kNone) m.error_bound = std::max(m.error_bound, dag_->saturated_error(c));
   }
-  for (std::uint32_t s : m.vertices) scratch_index_[s] = kNone;
   return m;
 }
 
-void SelectiveRefinement::render_mesh_into(RenderMesh& out) const {
-  out.samples.clear();
+// The displayed mesh of `faces` into `out` (its storage reused): render_mesh's and
+// render_mesh_into's one body.
+void SelectiveRefinement::render_faces(const std::vector<std::uint32_t>& faces, RenderMesh& out) const {
+  index_faces(faces, out.samples, out.triangles);
   out.positions.clear();
-  out.triangles.clear();
-  out.errors.clear();
-  out.triangles.reserve(active_.size());
-  out.errors.reserve(active_.size());
-  for (std::uint32_t f : active_) {
-    std::array<std::uint32_t, 3> t;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t s = dag_->face(f)[k];
-      if (scratch_index_[s] == kNone) {
-        scratch_index_[s] = std::uint32_t(out.samples.size());
-        out.samples.push_back(s);
-      }
-      t[k] = scratch_index_[s];
-    }
-    out.triangles.push_back(t);
-    const std::uint32_t c = dag_->creator(f);
-    out.errors.push_back(c == kNone ? 0.0 : dag_->collapse(c).error);  // as FaceRec
-  }
   out.positions.reserve(out.samples.size());
   for (std::uint32_t s : out.samples) {
     const std::array<double, 3> p = displayed(s);
     out.positions.push_back(dag_->position(p[0], p[1], p[2]));
-    scratch_index_[s] = kNone;
+  }
+  out.errors.clear();
+  out.errors.reserve(faces.size());
+  for (std::uint32_t f : faces) {
+    const std::uint32_t c = dag_->creator(f);
+    out.errors.push_back(c == kNone ? 0.0 : dag_->collapse(c).error);  // as FaceRec
   }
 }
 
+void SelectiveRefinement::render_mesh_into(RenderMesh& out) const { render_faces(active_, out); }
+
 RenderMesh SelectiveRefinement::render_mesh() const {
-  const TriangleMesh m = mesh();
-  RenderMesh r;
-  r.samples = m.vertices;
-  r.triangles = m.triangles;
-  r.positions.reserve(m.vertices.size());
-  for (std::uint32_t s : m.vertices) {
-    const std::array<double, 3> p = displayed(s);
-    r.positions.push_back(dag_->position(p[0], p[1], p[2]));
-  }
-  // mesh() orders the triangles by face id.
-  std::vector<std::uint32_t> faces = active_;
+  std::vector<std::uint32_t> faces = active_;  // ordered by face id, like mesh()
   std::sort(faces.begin(), faces.end());
-  r.errors.reserve(faces.size());
-  for (std::uint32_t f : faces) {
-    const std::uint32_t c = dag_->creator(f);
-    r.errors.push_back(c == kNone ? 0.0 : dag_->collapse(c).error);  // as FaceRec
-  }
+  RenderMesh r;
+  render_faces(faces, r);
   return r;
 }
 

@@ -310,6 +310,9 @@ class SelectiveRefinement {
     double error;  // its creator's error, metres (0: full resolution)
   };
   double face_bound_px(const Frame& fr, const FaceRec& r) const;
+  void index_faces(const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& samples,
+                   std::vector<std::array<std::uint32_t, 3>>& triangles) const;
+  void render_faces(const std::vector<std::uint32_t>& faces, RenderMesh& out) const;
   double filtered_bound_px(Frame& fr, double& bound_m);  // the bound pass of update()
 
   const CollapseDag* dag_;
