@@ -160,12 +160,19 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   tree_ = decode_tree(*tree_blob, db_path + ": tree");
   if (tree_.size() == 0) throw DatabaseError(db_path, "the approximation tree is empty");
   tree_bytes_ = tree_blob->size() * 3;  // decoded: doubles for the points, about 3x the blob
-  sums_ = read_block_summaries(db, grid_);
-  for (std::size_t i = 0; i < sums_.size(); ++i)  // a summary without a surface: its two triangles
-    if (sums_[i].triangles.empty()) {
-      const SampleRect d = grid_.domain(grid_.key(i));
-      set_two_triangle_standin(sums_[i], d.width(), d.height());
-    }
+  // Block summaries with their stand-ins, when the build stored them (it does not for blocks
+  // with voids: they have no rectangular stand-in). Without them no block is drawn as its
+  // stand-in, and a missing PmBlock root leaves nothing to draw until it arrives.
+  if (db.read_blob(kBlockSummariesBlob)) {
+    sums_ = read_block_summaries(db, grid_);
+    for (std::size_t i = 0; i < sums_.size(); ++i)  // a summary without a surface: its two triangles
+      if (sums_[i].triangles.empty()) {
+        const SampleRect d = grid_.domain(grid_.key(i));
+        set_two_triangle_standin(sums_[i], d.width(), d.height());
+      }
+  } else {
+    sums_.assign(grid_.block_count(), BlockSummary{});
+  }
   for (const BlockSummary& s : sums_) summary_bytes_ += 160 + s.points.size() * 16 + s.triangles.size() * 20;
   for (const TreeNode& n : tree_.nodes())
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
@@ -419,7 +426,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   const std::vector<std::int64_t>&coarse = sel.coarse, &pms = sel.pms;
   const std::vector<std::pair<std::int64_t, double>>& needed = sel.needed;
   // A PmBlock root that is missing is drawn as its stand-in (no ancestor exists).
-  const bool root_standin = !root_ok;
+  const bool root_standin = !root_ok && !sums_[grid_.index(*tree_.root().block)].triangles.empty();
   s.needed_in_view = needed.size();
   std::set<BlockKey> needed_now;
   for (const auto& [id, px] : needed) {

@@ -40,7 +40,9 @@
 //      block is needed: when resident it is drawn by its SelectiveRefinement at tau / 2 (for the
 //      same reason); when not, it is missing, and its nearest ancestor (always resident: every
 //      coarse node is) is drawn in place of that ancestor's whole subtree, with its true bound.
-//      A PmBlock root with no ancestor is drawn as its stand-in (BlockSummary) instead.
+//      A PmBlock root with no ancestor is drawn as its stand-in (BlockSummary) instead. A
+//      database without block summaries (its blocks have voids) has no stand-ins: no block is
+//      drawn as one, and a missing PmBlock root leaves its terrain undrawn (and counted missing).
 //   3. Residency: the loader's queue is replaced by the needed blocks (missing in view first,
 //      largest screen error first), then the blocks of the active region around the eye
 //      (active_region(), b = a cot(theta)), then (prefetch on) the active regions around the
