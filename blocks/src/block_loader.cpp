@@ -1,6 +1,8 @@
 // Background block loader thread: read, decode, build the collapse DAG; see block_loader.hpp.
 #include "terralod/blocks/block_loader.hpp"
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <cassert>
 #include <chrono>
@@ -98,6 +100,7 @@ std::uint64_t BlockLoader::bytes_read() const {
 }
 
 void BlockLoader::run() {
+  pthread_setname_np(pthread_self(), "terralod-loader");  // for profilers and debuggers
   std::unique_ptr<BlockSource> source;
   std::string open_error;
   try {
