@@ -35,26 +35,31 @@ struct Terrain {
   std::string db;
 };
 
+Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> levels, const std::string& name) {
+  Terrain r;
+  tp::TerrainOptions to;
+  to.width = width;
+  to.height = height;
+  to.seed = 16;
+  to.spacing = 30.0;
+  to.relief = 1200.0;
+  to.quantize_to_metres = true;
+  r.hf = tp::generate_terrain(to);
+  // One database per process: ctest runs the tests of this file in parallel processes.
+  r.db = (tt::process_temp_dir("runtime") / name).string();
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  o.threads = 2;
+  o.tree.levels = std::move(levels);
+  tb::build_database(r.hf, r.db, o);
+  return r;
+}
+
 const Terrain& terrain() {
-  static const Terrain t = [] {
-    Terrain r;
-    tp::TerrainOptions to;
-    to.width = to.height = 513;
-    to.seed = 16;
-    to.spacing = 30.0;
-    to.relief = 1200.0;
-    to.quantize_to_metres = true;
-    r.hf = tp::generate_terrain(to);
-    // One database per process: ctest runs the tests of this file in parallel processes.
-    r.db = (tt::process_temp_dir("runtime") / "runtime_513.db").string();
-    tb::DatabaseBuildOptions o;
-    o.block_size = 65;
-    o.threads = 2;
-    o.tree.levels = {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin, tb::StrategyChoice::NonRegularGrid,
-                     tb::StrategyChoice::Auto};
-    tb::build_database(r.hf, r.db, o);
-    return r;
-  }();
+  static const Terrain t = build_terrain(513, 513,
+                                         {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin,
+                                          tb::StrategyChoice::NonRegularGrid, tb::StrategyChoice::Auto},
+                                         "runtime_513.db");
   return t;
 }
 
@@ -86,9 +91,9 @@ struct FlightResult {
 };
 
 FlightResult fly(tb::TerrainRuntime& rt, const std::vector<tp::Camera>& path, double tau, int every, bool wait,
-                 double t0 = 0) {
+                 double t0 = 0, const Terrain& ter = terrain()) {
   FlightResult r;
-  const tp::Heightfield& hf = terrain().hf;
+  const tp::Heightfield& hf = ter.hf;
   for (std::size_t f = 0; f < path.size(); ++f) {
     tp::Camera cam = path[f];
     rt.fit_clip_planes(cam);
@@ -202,6 +207,36 @@ TEST(TerrainRuntime, FastTurnsAndEveryKindOfNodeMeeting) {
   EXPECT_TRUE(pairs.count({int(tb::Strategy::Grid), pmk})) << seen;
   EXPECT_TRUE(pairs.count({int(tb::Strategy::Grid), int(tb::Strategy::NonRegularGrid)})) << seen;
   EXPECT_GE(pairs.size(), 5u) << seen;
+}
+
+TEST(TerrainRuntime, EveryKindOfCoarseNodeMeetsPmBlocks) {
+  // One small database per coarse kind (385 x 385 samples, 6 x 6 blocks of 65, every level
+  // of that kind): its nodes are the only coarse ones, so the seams checked in every frame are
+  // between that kind and PM blocks (and between two nodes of it). Large tolerances make the
+  // coarse levels meet tau / 2 on a terrain this small.
+  const int pmk = int(tb::Strategy::PmBlock);
+  for (const auto& [choice, kind] : {std::pair{tb::StrategyChoice::Grid, tb::Strategy::Grid},
+                                     std::pair{tb::StrategyChoice::Tin, tb::Strategy::Tin},
+                                     std::pair{tb::StrategyChoice::NonRegularGrid, tb::Strategy::NonRegularGrid}}) {
+    const Terrain ter = build_terrain(385, 385, {choice}, std::string("runtime_") + tb::strategy_name(kind) + ".db");
+    std::set<std::pair<int, int>> pairs;
+    for (double tau : {4.0, 12.0, 32.0}) {
+      tb::RuntimeOptions o;
+      o.tolerance_px = tau;
+      o.morph_seconds = 0.3;
+      tb::TerrainRuntime rt(ter.db, o);
+      for (double above : {100.0, 500.0, 1500.0}) {
+        const FlightResult r = fly(rt, turning_flight(ter.hf, 30, above, above > 1000 ? -20 : -4, 12.0, 2.0), tau, 3,
+                                   /*wait=*/true, rt.stats().time_s + 1, ter);
+        pairs.insert(r.kind_pairs.begin(), r.kind_pairs.end());
+      }
+    }
+    std::string seen;
+    for (const auto& [a, b] : pairs)
+      seen += std::string(" ") + tb::strategy_name(tb::Strategy(a)) + "|" + tb::strategy_name(tb::Strategy(b));
+    std::printf("%s tree, node kinds meeting:%s\n", tb::strategy_name(kind), seen.c_str());
+    EXPECT_TRUE(pairs.count({std::min(int(kind), pmk), std::max(int(kind), pmk)})) << seen;
+  }
 }
 
 TEST(TerrainRuntime, MemoryBudgetHeldEveryFrameAndMissingReported) {
