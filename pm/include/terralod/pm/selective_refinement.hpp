@@ -312,7 +312,7 @@ class SelectiveRefinement {
   double face_bound_px(const Frame& fr, const FaceRec& r) const;
   void index_faces(const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& samples,
                    std::vector<std::array<std::uint32_t, 3>>& triangles) const;
-  void render_faces(const std::vector<std::uint32_t>& faces, RenderMesh& out) const;
+  void render_into(const std::vector<std::uint32_t>* order, RenderMesh& out) const;
   double filtered_bound_px(Frame& fr, double& bound_m);  // the bound pass of update()
 
   const CollapseDag* dag_;
