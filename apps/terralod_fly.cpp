@@ -67,9 +67,12 @@ CommandSpec fly_spec() {
       "blocks near, read by a background thread within --memory; a block that has not arrived is\n"
       "drawn as its ancestor in the tree), a DEM (built into one progressive mesh in memory), a .pm\n"
       "file, or, given neither, the built-in generated terrain. Every frame selects the mesh and\n"
-      "draws it, with geomorphs. What is guaranteed: the HUD's 'drawn within B px' bounds the\n"
-      "screen-space error of the mesh exactly as drawn that frame (geomorphs included); B <= tau\n"
-      "in every frame where no needed block is missing (the HUD says when some are).\n\n"
+      "draws it, with geomorphs. What is guaranteed: with --db, the HUD's 'drawn within B px'\n"
+      "bounds the screen-space error of the mesh exactly as drawn that frame (geomorphs\n"
+      "included), and B <= tau in every frame where no needed block is missing (the HUD says when\n"
+      "some are). With one progressive mesh (a DEM, a .pm, the built-in terrain), 'selection\n"
+      "within B px' bounds the selected mesh; while vertices geomorph the display lags it (the HUD\n"
+      "says so; G turns geomorphs off).\n\n"
       "Controls: hold the left mouse button and move the mouse off the window's centre to steer\n"
       "(the farther, the faster the turn); W/S throttle up/down; R/F climb/descend; arrow keys\n"
       "turn and pitch; T terrain following (never below --clearance over the ground); G geomorphs\n"
@@ -582,9 +585,15 @@ std::unique_ptr<LodSource> open_terrain(const Args& a) {
 std::vector<std::string> lod_lines(const FrameRecord& r, const pm::RefinementOptions& now, bool timings) {
   const tb::RuntimeFrameStats& l = r.lod;
   return {
-      strf("tau %.2f px%s   drawn within %.3f px%s", l.tolerance_px,
-           now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
-           l.missing_in_view ? strf(" (%zu blocks missing: over tau allowed)", l.missing_in_view).c_str() : ""),
+      // One PM (no --db): its bound is the selection's; the display lags it while vertices morph.
+      r.streamed ? strf("tau %.2f px%s   drawn within %.3f px%s", l.tolerance_px,
+                        now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
+                        l.missing_in_view ? strf(" (%zu blocks missing: over tau allowed)", l.missing_in_view).c_str()
+                                          : "")
+                 : strf("tau %.2f px%s   selection within %.3f px%s", l.tolerance_px,
+                        now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
+                        l.moving_vertices ? strf(" (display lags: %zu vertices morphing)", l.moving_vertices).c_str()
+                                          : ""),
       timings ? strf("%zu triangles   update %.2f ms   draw %.2f ms", l.triangles, l.update_ms, r.draw_ms)
               : strf("%zu triangles", l.triangles),
       r.streamed ? strf("nodes drawn %zu (%zu PM blocks, %zu stand-ins, %zu coarse, %zu for missing blocks)   "
