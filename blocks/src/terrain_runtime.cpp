@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 #include <stdexcept>
 #include <thread>
 #include <unordered_map>
@@ -146,7 +147,7 @@ struct TerrainRuntime::Scratch {
   std::vector<std::uint32_t> piece;
 };
 
-TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions& options)
+TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions& options, BlockSourceFactory blocks)
     : path_(db_path), opt_(options), predictor_(options.predictor), scratch_(std::make_unique<Scratch>()) {
   check_options(opt_);
   tau_ = opt_.tolerance_px;
@@ -189,7 +190,8 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
     else block_vertices_[i] = std::uint64_t(grid_.domain(k).width()) * std::uint64_t(grid_.domain(k).height());
   }
   prep_options_ = refinement_options(opt_, tau_);
-  loader_ = std::make_unique<BlockLoader>(database_source(db_path), grid_, [this](const LoadedBlock& b) {
+  loader_ = std::make_unique<BlockLoader>(blocks ? std::move(blocks) : database_source(db_path), grid_,
+                                          [this](const LoadedBlock& b) {
     std::optional<pm::View> view;
     double t = 0;
     pm::RefinementOptions o;
@@ -366,17 +368,49 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
     std::sort(around.begin(), around.end());
     for (std::size_t i = 0; i < around.size() && room; ++i) room = want(around[i].second, 1.0 + around[i].first);
   }
-  if (room && opt_.prefetch)
+  if (room && opt_.prefetch) {
+    // Along the predicted path, nearest in time first: the blocks the view from there will need
+    // (the camera moved to the predicted point, turned along the motion, same lens), then the
+    // region around that point.
+    pm::Vec3 prev = eye;
     for (const PredictedPoint& pt : predictor_.predict(opt_.prefetch_horizon_s, opt_.prefetch_step_s)) {
       if (pt.dt == 0 || !room) continue;
+      pm::Camera c = view.camera();
+      c.x = pt.position.x, c.y = pt.position.y, c.z = pt.position.z;
+      const double dx = pt.position.x - prev.x, dy = pt.position.y - prev.y;
+      if (std::hypot(dx, dy) > 1e-6) c.yaw_deg = std::atan2(dx, dy) * 180.0 / std::numbers::pi;
+      prev = pt.position;
+      std::vector<std::pair<double, BlockKey>> ahead;
+      needed_at(pm::View(c), tau_, 0, std::numeric_limits<double>::infinity(), ahead);
+      std::sort(ahead.begin(), ahead.end());
+      for (std::size_t i = 0; i < ahead.size() && room; ++i) room = want(ahead[i].second, 2.0 + pt.dt);
       const ActiveRegion r = active_region(grid_, sums_, pt.position, opt_.region);
       std::vector<std::pair<double, BlockKey>> around;
       for (BlockKey k : r.inner) around.push_back({dist(k), k});
       std::sort(around.begin(), around.end());
       for (std::size_t i = 0; i < around.size() && room; ++i)
-        room = want(around[i].second, 2.0 + pt.dt + around[i].first * opt_.prefetch_step_s);
+        room = want(around[i].second, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s + around[i].first * 0.25 * opt_.prefetch_step_s);
     }
+  }
   loader_->set_queue(std::move(req));
+}
+
+// The PM blocks a view would need (the selection's rules, with the stand-in tried by its whole
+// box only: a cheap, conservative test for prefetching), largest screen error first.
+void TerrainRuntime::needed_at(const pm::View& view, double tau, std::int64_t id, double parent_px,
+                               std::vector<std::pair<double, BlockKey>>& out) const {
+  const TreeNode& n = tree_.node(id);
+  if (view.outside(n.bbox)) return;
+  const double limit = kSelectShare * tau;
+  if (n.strategy == Strategy::PmBlock) {
+    const BlockSummary& sum = sums_[grid_.index(*n.block)];
+    if (!sum.triangles.empty() && view.vertical_error_px(n.bbox, sum.standin_error) <= limit) return;
+    out.push_back({-parent_px, *n.block});
+    return;
+  }
+  const double b = view.vertical_error_px(n.bbox, n.error);
+  if (n.leaf() || b <= limit) return;
+  for (std::int64_t c : n.children) needed_at(view, tau, c, b, out);
 }
 
 const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double time_s) {

@@ -4,6 +4,7 @@
 // blocks during geomorphs and loads, the memory budget, and live settings that read nothing.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -14,6 +15,7 @@
 #include <thread>
 
 #include "drawn_frame_checker.hpp"
+#include "session_fixture.hpp"
 #include "run_command.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
@@ -304,4 +306,107 @@ TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {
   rt.fit_clip_planes(cam);
   rt.update(tp::View(cam), 1.0);
   EXPECT_THROW(rt.update(tp::View(cam), 0.5), std::invalid_argument);
+}
+
+// Flight-path prefetch in the runtime: blocks read with a latency of 6 frames (the session
+// fixture's in-memory source over the database's own blobs), 600 m/s; after the cold start,
+// prediction must remove most of the blocks needed before they arrived.
+namespace {
+
+struct PrefetchTerrain {
+  Terrain ter;
+  terralod::test::BlockedTerrain blobs;  // the database's blocks, for the in-memory source
+};
+
+const PrefetchTerrain& prefetch_terrain() {
+  static const PrefetchTerrain t = [] {
+    PrefetchTerrain r;
+    tp::TerrainOptions to;
+    to.width = to.height = 385;
+    to.seed = 21;
+    to.spacing = 30.0;
+    to.relief = 200.0;
+    to.quantize_to_metres = true;
+    r.ter.hf = tp::generate_terrain(to);
+    r.ter.db = (tt::process_temp_dir("runtime") / "runtime_prefetch.db").string();
+    tb::DatabaseBuildOptions o;
+    o.block_size = 33;  // 12 x 12 blocks of 960 m
+    o.threads = 2;
+    tb::build_database(r.ter.hf, r.ter.db, o);
+    const tb::BlockDatabase db = tb::BlockDatabase::open(r.ter.db);
+    r.blobs.grid = tb::BlockGrid::from_info(db.info());
+    for (tb::BlockKey k : db.blocks()) r.blobs.blobs[k] = db.read_block(k);
+    return r;
+  }();
+  return t;
+}
+
+std::size_t runtime_misses(const std::vector<tp::Camera>& path, bool prefetch, std::size_t& needed) {
+  const PrefetchTerrain& pt = prefetch_terrain();
+  terralod::test::MemoryStore store;
+  store.terrain = &pt.blobs;
+  store.latency_frames = 6;
+  tb::RuntimeOptions o;
+  o.prefetch = prefetch;
+  o.tolerance_px = 4;
+  o.budget_bytes = std::size_t(64) << 20;
+  tb::TerrainRuntime rt(pt.ter.db, o, terralod::test::memory_source(store));
+  const terralod::test::ReleaseAtExit release{store};
+  const std::size_t warm = 90;
+  std::size_t cold_misses = 0, cold_needed = 0;
+  for (std::size_t f = 0; f < path.size(); ++f) {
+    tp::Camera cam = path[f];
+    rt.fit_clip_planes(cam);
+    const tb::RuntimeFrameStats& st = rt.update(tp::View(cam), double(f) / 60.0);
+    store.advance_frame();
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the loader gets a core
+    if (f + 1 == warm) {
+      cold_misses = st.prefetch_misses_total;
+      cold_needed = st.prefetch_hits_total + st.prefetch_misses_total;
+    }
+  }
+  needed = rt.stats().prefetch_hits_total + rt.stats().prefetch_misses_total - cold_needed;
+  return rt.stats().prefetch_misses_total - cold_misses;
+}
+
+tp::Camera prefetch_pose(double x, double y, double heading_rad) {
+  tp::Camera c;
+  c.x = x;
+  c.y = y;
+  c.z = tt::ground_height(prefetch_terrain().ter.hf, x, y) + 250;
+  c.yaw_deg = heading_rad * 180 / std::numbers::pi;
+  c.pitch_deg = -25;
+  return c;
+}
+
+void compare_prefetch(const char* label, const std::vector<tp::Camera>& path) {
+  std::size_t needed_on = 0, needed_off = 0;
+  const std::size_t on = runtime_misses(path, true, needed_on), off = runtime_misses(path, false, needed_off);
+  std::printf("runtime, %s (%zu frames, after the first 90): prefetch misses with prediction %zu of %zu blocks "
+              "needed, without %zu of %zu\n",
+              label, path.size(), on, needed_on, off, needed_off);
+  EXPECT_GT(off, 4u);
+  EXPECT_LE(on * 4, off) << "prediction should remove most misses";
+}
+
+}  // namespace
+
+TEST(TerrainRuntime, StraightFlightMissesFarFewerBlocksWithPrediction) {
+  // East along the middle row at 600 m/s, 12 s.
+  std::vector<tp::Camera> path;
+  const auto [x0, y0] = prefetch_terrain().ter.hf.transform.to_world(40, 192);
+  for (int f = 0; f < 720; ++f) path.push_back(prefetch_pose(x0 + 600.0 * f / 60, y0, std::numbers::pi / 2));
+  compare_prefetch("straight", path);
+}
+
+TEST(TerrainRuntime, CurvedFlightMissesFarFewerBlocksWithPrediction) {
+  // Half a circle of radius 3.5 km around the centre at 600 m/s, clockwise.
+  std::vector<tp::Camera> path;
+  const auto [cx, cy] = prefetch_terrain().ter.hf.transform.to_world(192, 192);
+  const double r = 3500, w = 600 / r;
+  for (int f = 0; f < 1100; ++f) {
+    const double a = w * f / 60;
+    path.push_back(prefetch_pose(cx + r * std::sin(a), cy + r * std::cos(a), a + std::numbers::pi / 2));
+  }
+  compare_prefetch("curved", path);
 }

@@ -45,8 +45,9 @@
 //      drawn as one, and a missing PmBlock root leaves its terrain undrawn (and counted missing).
 //   3. Residency: the loader's queue is replaced by the needed blocks (missing in view first,
 //      largest screen error first), then the blocks of the active region around the eye
-//      (active_region(), b = a cot(theta)), then (prefetch on) the active regions around the
-//      predicted eye positions, nearest in time first; the queue stops where the blocks' memory
+//      (active_region(), b = a cot(theta)), then (prefetch on) for each predicted eye position,
+//      nearest in time first, the blocks the view from there needs (the camera moved there and
+//      turned along the motion) and the active region around it; the queue stops where the blocks' memory
 //      (estimated from their vertex counts) would exceed the budget. Blocks not needed are
 //      evicted least-recently-used first whenever the resident bytes would pass the budget, and
 //      a block that arrives without room is dropped: resident_bytes <= budget_bytes at the end
@@ -169,8 +170,11 @@ struct RuntimeFrameStats {
 
 class TerrainRuntime {
  public:
-  /// Opens `db_path` (see the contract) and starts the loader.
-  explicit TerrainRuntime(const std::string& db_path, const RuntimeOptions& options = {});
+  /// Opens `db_path` (see the contract) and starts the loader. `blocks` (optional) is where
+  /// the loader reads the block blobs from instead of the database (e.g. a remote store or a
+  /// test's source with latency); the tree and the summaries always come from the database.
+  explicit TerrainRuntime(const std::string& db_path, const RuntimeOptions& options = {},
+                          BlockSourceFactory blocks = {});
   ~TerrainRuntime();
   TerrainRuntime(const TerrainRuntime&) = delete;
   TerrainRuntime& operator=(const TerrainRuntime&) = delete;
@@ -216,6 +220,8 @@ class TerrainRuntime {
   };
   bool visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px);
   void queue_loads(const pm::View& view, const std::vector<std::pair<std::int64_t, double>>& needed);
+  void needed_at(const pm::View& view, double tau, std::int64_t id, double parent_px,
+                 std::vector<std::pair<double, BlockKey>>& out) const;
   void take_loads();
   void make_room(std::size_t bytes, const std::set<BlockKey>& keep);
   std::size_t fixed_bytes() const;
