@@ -664,11 +664,15 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
         im.tx.Uniform4f(p.u_lens_uv, float(m.origin.x - g.minx), float(g.maxy - m.origin.y), float(1.0 / g.width()),
                         float(1.0 / g.height()));
       }
+      const std::size_t mesh_tris = m.indices / 3, first = std::min(item.first_triangle, mesh_tris);
+      const std::size_t count = std::min(item.triangle_count, mesh_tris - first);
+      if (count == 0) continue;
       gl.BindVertexArray(m.vao);
-      gl.DrawElements(GL_TRIANGLES, GLsizei(m.indices), GL_UNSIGNED_INT, nullptr);
+      gl.DrawElements(GL_TRIANGLES, GLsizei(3 * count), GL_UNSIGNED_INT,
+                      reinterpret_cast<const void*>(3 * first * sizeof(std::uint32_t)));
       if (pi == 0) {
         ++stats.meshes;
-        stats.triangles += m.indices / 3;
+        stats.triangles += count;
       }
     }
   }

@@ -34,6 +34,7 @@
 //     0 means the layer has no data on that patch (transparent). georef: the world rectangle
 //     the bound texture covers (texture_tree.hpp conventions). Sequences: `next` (the key frame
 //     after `texture`, 0 if none) mixed with weight `mix` in [0,1].
+//   - An item draws a range of its mesh's triangles (LayeredItem::first_triangle/count).
 //   - Items are drawn grouped by their bound textures (FrameStats::texture_binds counts the
 //     switches). Texture data is uploaded only by upload_texture/texture_for, never by draw():
 //     moving the lens or changing styles, weights or times costs no upload.
@@ -92,10 +93,15 @@ struct LayerBinding {
 struct LayeredItem {
   MeshId mesh;
   std::vector<LayerBinding> layers;  ///< one per style
+  /// The mesh's triangles this item draws: [first_triangle, first_triangle + triangle_count)
+  /// clipped to the mesh (the default draws them all). One uploaded mesh whose triangles are
+  /// ordered by texture serves many items (patch_textures.hpp).
+  std::size_t first_triangle = 0;
+  std::size_t triangle_count = ~std::size_t(0);
 };
 
 struct LayeredFrameStats {
-  std::size_t meshes = 0, triangles = 0;
+  std::size_t meshes = 0, triangles = 0;  ///< items drawn (with a triangle), their triangles
   int passes = 0;                     ///< draw passes over the items
   std::size_t texture_binds = 0;      ///< changes of the bound texture set
   std::size_t textures_uploaded = 0;  ///< since the previous draw()
