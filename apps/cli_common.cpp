@@ -8,6 +8,9 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdlib>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
 
 namespace terralod::cli {
 
@@ -204,6 +207,18 @@ std::string format_bytes(std::uint64_t bytes) {
   if (bytes < 1000000) return strf("%.1f kB", double(bytes) / 1e3);
   if (bytes < 1000000000) return strf("%.1f MB", double(bytes) / 1e6);
   return strf("%.2f GB", double(bytes) / 1e9);
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  if (f && std::fclose(f) != 0) ok = false;
+  std::error_code ec;
+  if (!ok || (std::filesystem::rename(tmp, path, ec), ec)) {
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(path + ": cannot write the file (" + (ok ? ec.message() : "write failed") + ")");
+  }
 }
 
 std::string strf(const char* fmt, ...) {

@@ -94,6 +94,10 @@ class ProgressBar {
   std::mutex mutex_;
 };
 
+/// Writes `text` to path + ".tmp", then renames it onto path (never half-written);
+/// std::runtime_error "<path>: cannot write ..." on failure.
+void write_text_file(const std::string& path, const std::string& text);
+
 /// Milliseconds since `start`.
 double ms_since(std::chrono::steady_clock::time_point start);
 /// "12 ms" below a second, "16.9 s" above.

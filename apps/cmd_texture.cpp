@@ -8,7 +8,6 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -38,13 +37,6 @@ std::vector<double> parse_list(const Args& a, const std::string& opt, std::size_
   if (v.size() != n)
     throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" + a.get(opt) + "'");
   return v;
-}
-
-// The texture-tree domains of the database's approximation tree (empty when it has none).
-std::vector<tr::PatchDomain> tree_domains(const tb::BlockDatabase& db) {
-  const auto blob = db.read_blob("tree");
-  if (!blob) return {};
-  return tr::patch_domains(tb::decode_tree(*blob, db.path() + ": tree").nodes());
 }
 
 // The full-resolution terrain, assembled from the block PMs (each holds its samples exactly).
@@ -106,7 +98,7 @@ void store(tb::BlockDatabase& db, tr::LayerRecord& rec, const std::string& pyram
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
   const tr::ImagePyramid pyr(pyramid_path, po);
-  const std::vector<tr::PatchDomain> doms = tree_domains(db);
+  const std::vector<tr::PatchDomain> doms = tr::tree_domains(db);
   {
     ProgressBar bar("texture tiles");
     tr::store_texture_layer(db, rec, pyr, doms, [&](double f) { bar.update(f); });

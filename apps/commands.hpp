@@ -31,6 +31,10 @@ int info_hybrid(const std::string& db_path);   // terralod info hybrid.db
 int view_hybrid(const std::string& db_path, const std::vector<double>& c, double tau, int width, int height,
                 const std::string& out_png, const std::string& dump_mesh, bool wireframe);
 
+// terralod view --db terrain.db (cmd_view_db.cpp): one frame of the block database's runtime,
+// with --layer textures per patch; c = X,Y,Z,YAW,PITCH,FOVY as parsed by view.
+int view_blocks(const Args& a, const std::vector<double>& c, double tau, int width, int height);
+
 // Defined only when the benchmarks are built (TERRALOD_HAVE_BENCH; bench/CMakeLists.txt adds it).
 CommandSpec bench_spec();
 int cmd_bench(const Args&);

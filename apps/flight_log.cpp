@@ -14,7 +14,7 @@ std::string flight_log_header(bool drawing) {
       "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_evicted,"
       "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_nodes,"
       "moving_vertices,clamped_vertices,seam_triangles";
-  if (drawing) h += ",vertices,draw_ms,upload_ms,wait_ms,texture_bytes";
+  if (drawing) h += ",vertices,draw_ms,upload_ms,wait_ms,texture_bytes,texture_patches,textures_from_parent";
   return h;
 }
 
@@ -45,7 +45,8 @@ void FlightLog::row(const FlightRow& r) {
                static_cast<unsigned long long>(s.bytes_read_total), s.nodes_visited, s.nodes_culled, s.coarse_nodes,
                s.pm_blocks, s.standin_blocks, s.fallback_nodes, s.moving_vertices, s.clamped_vertices, s.seam_triangles);
   if (drawing_)
-    std::fprintf(f_, ",%zu,%.4f,%.4f,%.4f,%zu", r.vertices, r.draw_ms, r.upload_ms, r.wait_ms, r.texture_bytes);
+    std::fprintf(f_, ",%zu,%.4f,%.4f,%.4f,%zu,%zu,%zu", r.vertices, r.draw_ms, r.upload_ms, r.wait_ms, r.texture_bytes,
+                 r.texture_patches, r.textures_from_parent);
   std::fputc('\n', f_);
 }
 

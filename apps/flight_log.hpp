@@ -13,7 +13,7 @@
 // blocks_resident, blocks_loading, blocks_evicted, nodes_resident, nodes_loading, nodes_evicted,
 // prefetch_misses, bytes_read, nodes_visited, nodes_culled, coarse_nodes, pm_blocks,
 // fallback_nodes, moving_vertices, clamped_vertices, seam_triangles; with drawing: vertices,
-// draw_ms, upload_ms, wait_ms, texture_bytes.
+// draw_ms, upload_ms, wait_ms, texture_bytes, texture_patches, textures_from_parent.
 #pragma once
 
 #include <cstdio>
@@ -31,7 +31,7 @@ struct FlightRow {
   pm::Camera camera;
   blocks::RuntimeFrameStats stats;
   // Drawing columns (FlightLog with drawing only).
-  std::size_t vertices = 0, texture_bytes = 0;
+  std::size_t vertices = 0, texture_bytes = 0, texture_patches = 0, textures_from_parent = 0;
   double draw_ms = 0, upload_ms = 0, wait_ms = 0;
 };
 

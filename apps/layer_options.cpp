@@ -1,6 +1,7 @@
 // The --texture-db / --layer / --lens options of `terralod view` and `terralod-fly`.
 #include "layer_options.hpp"
 
+#include <cassert>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -79,10 +80,12 @@ LensSpec parse_lens(const std::string& option, const std::string& text) {
 }
 
 LayerSetup LayerSetup::open(const std::string& db_path, const std::vector<std::string>& specs,
-                            std::optional<LensSpec> lens, const LayerSetupOptions& options) {
+                            std::optional<LensSpec> lens, const LayerSetupOptions& options,
+                            const std::vector<rd::PatchDomain>* drawn_tree) {
   if (options.max_texture_size < 1) throw std::invalid_argument("LayerSetup: max_texture_size must be >= 1");
   LayerSetup s;
   s.db_path_ = db_path;
+  s.budget_bytes_ = options.budget_bytes;
   s.lens_texture_size_ = options.lens_texture_size;
   const tb::BlockDatabase db = tb::BlockDatabase::open(db_path);
   for (const std::string& text : specs) {
@@ -118,6 +121,10 @@ LayerSetup LayerSetup::open(const std::string& db_path, const std::vector<std::s
     s.lens_radius_ = lens->radius;
     s.move_lens(lens->x, lens->y);
   }
+  if (drawn_tree) {
+    s.open_patches(db, *drawn_tree, options);
+    return s;
+  }
   // Each load opens its own read-only connection (the cache's worker thread).
   auto records = std::make_shared<const std::vector<rd::LayerRecord>>(s.records_);
   rd::TextureCacheOptions co;
@@ -132,6 +139,67 @@ LayerSetup LayerSetup::open(const std::string& db_path, const std::vector<std::s
   return s;
 }
 
+void LayerSetup::open_patches(const tb::BlockDatabase& db, const std::vector<rd::PatchDomain>& drawn_tree,
+                              const LayerSetupOptions& options) {
+  // The patch tiles are keyed by the node ids of the texture database's own tree: it must be
+  // the drawn one.
+  const std::vector<rd::PatchDomain> own = rd::tree_domains(db);
+  if (own.empty()) throw tb::DatabaseError(db_path_, "has no approximation tree, so its texture layers have no patches");
+  bool same = own.size() == drawn_tree.size();
+  for (std::size_t i = 0; same && i < own.size(); ++i)
+    same = own[i].domain == drawn_tree[i].domain && own[i].parent == drawn_tree[i].parent;
+  if (!same)
+    throw tb::DatabaseError(db_path_, "its approximation tree (" + std::to_string(own.size()) +
+                                          " nodes) is not the drawn terrain's (" + std::to_string(drawn_tree.size()) +
+                                          " nodes): its texture patches cannot be placed");
+  std::vector<std::shared_ptr<const rd::TextureTree>> trees;
+  std::vector<rd::TextureLoader> loaders;
+  for (const rd::LayerRecord& rec : records_) {
+    if (rec.patches == 0)
+      throw tb::DatabaseError(db_path_, "texture layer '" + rec.name +
+                                            "' has no patch tiles (it was stored without the tree): store it "
+                                            "again with 'terralod texture'");
+    auto tree = std::make_shared<const rd::TextureTree>(drawn_tree, rec.levels, rec.georef, rec.constraints);
+    loaders.push_back(rd::database_tile_loader(db_path_, rec.name, tree));
+    trees.push_back(std::move(tree));
+  }
+  rd::PatchTextureOptions po;
+  po.gamma_px = options.gamma_px;
+  po.budget_bytes = options.budget_bytes;
+  patches_ = std::make_unique<rd::PatchTextures>(
+      std::move(trees), [loaders = std::move(loaders)](const rd::TextureKey& k) {
+        return loaders.at(std::size_t(k.layer))(k);
+      },
+      po);
+}
+
+const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node) {
+  assert(patches_);
+  std::vector<bool> enabled(records_.size(), false);
+  for (std::size_t i = 0; i < styles_.size(); ++i)
+    if (styles_[i].enabled) enabled[std::size_t(layer_of_[i])] = true;
+  return patches_->frame(view, triangle_node, enabled);
+}
+
+std::vector<rd::LayeredItem> LayerSetup::items(rd::LayeredRenderer& renderer, rd::MeshId mesh,
+                                               const rd::PatchTextureFrame& frame) {
+  assert(patches_);
+  std::vector<rd::LayeredItem> out;
+  out.reserve(frame.groups.size());
+  for (const rd::PatchTextureGroup& g : frame.groups) {
+    rd::LayeredItem item{mesh, std::vector<rd::LayerBinding>(styles_.size()), g.first_triangle, g.triangle_count};
+    for (std::size_t i = 0; i < styles_.size(); ++i) {
+      const std::size_t layer = std::size_t(layer_of_[i]);
+      item.layers[i].georef = records_[layer].georef;
+      if (!styles_[i].enabled || !g.pixels[layer]) continue;
+      item.layers[i].texture = renderer.texture_for(g.used[layer], *g.pixels[layer]);
+      item.layers[i].georef = patches_->tree(int(layer)).patch(g.used[layer].node).georef;
+    }
+    out.push_back(std::move(item));
+  }
+  return out;
+}
+
 void LayerSetup::move_lens(double x, double y) {
   lens_.rect = {x - lens_radius_, y - lens_radius_, x + lens_radius_, y + lens_radius_};
 }
@@ -144,10 +212,12 @@ void LayerSetup::set_lens_radius(double radius) {
 }
 
 void LayerSetup::attach(rd::LayeredRenderer& renderer) const {
+  renderer.options().texture_budget_bytes = budget_bytes_;
   renderer.set_lens_texture(rd::make_lens_texture(lens_texture_size_));
 }
 
 std::vector<rd::LayerBinding> LayerSetup::bindings(rd::LayeredRenderer& renderer) {
+  assert(cache_ && "bindings() is whole-layer mode; per-patch mode draws items()");
   cache_->begin_frame();
   std::vector<rd::LayerBinding> b(styles_.size());
   for (std::size_t i = 0; i < styles_.size(); ++i) {
@@ -161,6 +231,11 @@ std::vector<rd::LayerBinding> LayerSetup::bindings(rd::LayeredRenderer& renderer
 }
 
 void LayerSetup::wait_loaded(int timeout_ms) {
+  if (patches_) {
+    patches_->cache().wait_idle(timeout_ms);
+    if (patches_->cache().stats().failures > 0) throw std::runtime_error(patches_->cache().last_error());
+    return;
+  }
   for (std::size_t i = 0; i < styles_.size(); ++i)
     if (styles_[i].enabled) cache_->request({layer_of_[i], levels_[std::size_t(layer_of_[i])]});
   cache_->wait_idle(timeout_ms);

@@ -17,23 +17,39 @@
 //     masks the layer by the highlight lens (drawn only inside it). A layer whose kind is
 //     "shading" is topographic: when it is on, the terrain is drawn in decal mode (no
 //     per-vertex lighting). Bad specs throw UsageError naming the spec.
-//   - Each distinct layer is drawn from one texture: the finest pyramid level whose sides are
-//     at most max_texture_size, covering the layer's georef. It is read from the database on a
-//     worker thread of a TextureCache (key: layer index, node = the level); until it is
-//     resident the layer has no data (drawn transparent). The same name given twice shares it.
+//   - Whole-layer mode (a terrain that is not a block database): each distinct layer is drawn
+//     from one texture: the finest pyramid level whose sides are at most max_texture_size,
+//     covering the layer's georef. It is read from the database on a worker thread of a
+//     TextureCache (key: layer index, node = the level); until it is resident the layer has no
+//     data (drawn transparent). The same name given twice shares it.
+//   - Per-patch mode (open() given the drawn terrain's approximation tree: `terralod view --db`,
+//     `terralod-fly --db`): each distinct layer's texture tree is built over that tree from
+//     the layer's record, and every drawn node gets its patch by gamma (patch_textures.hpp:
+//     the parent's patch while one loads; the resident texture memory within budget_bytes,
+//     gamma raised for the frame when needed). The layers must have patch tiles (stored by
+//     `terralod texture` on a database with its tree), and the texture database's tree must
+//     be the drawn one (DatabaseError naming the file otherwise).
+//       auto setup = LayerSetup::open("terrain.db", specs, lens, {}, &domains);
+//       const auto& f = setup.patch_frame(view, drawn.triangle_node);  // order triangles by f
+//       auto items = setup.items(renderer, mesh_id, f);                   // one per group
 //   - --lens X,Y,RADIUS: world metres, RADIUS > 0; the lens covers the square of side 2 RADIUS
 //     centred on (X, Y) with the round texture of render::make_lens_texture.
 //   - Not thread-safe (one render thread); the cache's workers are internal.
-//   - Memory: each layer's chosen level, 4 bytes per texel, once in the cache and once on the GPU.
+//   - Memory: whole-layer mode: each layer's chosen level, 4 bytes per texel, once in the cache
+//     and once on the GPU; per-patch mode: at most budget_bytes in the cache and as much on the
+//     GPU (LayeredRendererOptions::texture_budget_bytes is set to it by attach()).
 #pragma once
 
 #include <cstddef>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "terralod/pm/view.hpp"
 #include "terralod/render/layered_renderer.hpp"
+#include "terralod/render/patch_textures.hpp"
 #include "terralod/render/texture_cache.hpp"
 #include "terralod/render/texture_layers.hpp"
 #include "terralod/render/texture_store.hpp"
@@ -60,14 +76,18 @@ struct LayerSetupOptions {
   int max_texture_size = 4096;  ///< pixels per side of a layer's texture, >= 1
   std::size_t budget_bytes = std::size_t(512) << 20;  ///< texture cache budget
   int lens_texture_size = 128;  ///< pixels per side of the lens texture
+  double gamma_px = 1.0;        ///< per-patch mode: texel area on screen, pixels^2 (> 0)
 };
 
 class LayerSetup {
  public:
   /// Opens the database read-only, reads the records of the named layers (DatabaseError when
   /// one is missing) and queues the loads of their textures.
+  /// `drawn_tree` (the approximation tree of the drawn terrain, render::patch_domains of its
+  /// nodes) selects per-patch mode.
   static LayerSetup open(const std::string& db_path, const std::vector<std::string>& specs,
-                         std::optional<LensSpec> lens, const LayerSetupOptions& options = {});
+                         std::optional<LensSpec> lens, const LayerSetupOptions& options = {},
+                         const std::vector<render::PatchDomain>* drawn_tree = nullptr);
 
   /// The styles, one per spec (in order); toggle `enabled` freely between frames.
   std::vector<render::LayerStyle>& styles() { return styles_; }
@@ -85,21 +105,36 @@ class LayerSetup {
   /// The bindings of this frame, one per style: the layer's texture once resident (uploaded on
   /// first use through renderer.texture_for), texture 0 until then. Never waits.
   std::vector<render::LayerBinding> bindings(render::LayeredRenderer& renderer);
+  /// Per-patch mode: the frame's texture groups over the drawn mesh's triangles (their nodes),
+  /// for the enabled styles. Never waits.
+  const render::PatchTextureFrame& patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node);
+  /// Per-patch mode: one item per group of `frame`, drawing the group's range of `mesh` (whose
+  /// triangles must be in frame.triangle_order), textures uploaded on first use.
+  std::vector<render::LayeredItem> items(render::LayeredRenderer& renderer, render::MeshId mesh,
+                                         const render::PatchTextureFrame& frame);
+  bool per_patch() const { return patches_ != nullptr; }
   /// Blocks until every enabled layer's texture is resident or failed, or timeout_ms passed;
-  /// throws std::runtime_error with the loader's message when a load failed.
+  /// throws std::runtime_error with the loader's message when a load failed. Per-patch mode:
+  /// until the loads queued so far are done (the next patch_frame may queue more).
   void wait_loaded(int timeout_ms);
   /// Texture bytes resident in the cache.
-  std::size_t resident_bytes() const { return cache_->stats().resident_bytes; }
+  std::size_t resident_bytes() const { return cache().stats().resident_bytes; }
+  std::size_t budget_bytes() const { return budget_bytes_; }
 
  private:
   LayerSetup() = default;
+  void open_patches(const blocks::BlockDatabase& db, const std::vector<render::PatchDomain>& drawn_tree,
+                    const LayerSetupOptions& options);
   std::string db_path_;
   std::vector<LayerSpec> specs_;
   std::vector<render::LayerStyle> styles_;
   std::vector<int> layer_of_;                 ///< spec -> distinct layer index
   std::vector<render::LayerRecord> records_;  ///< per distinct layer
   std::vector<int> levels_;                   ///< chosen pyramid level per distinct layer
-  std::unique_ptr<render::TextureCache> cache_;
+  const render::TextureCache& cache() const { return patches_ ? patches_->cache() : *cache_; }
+  std::unique_ptr<render::TextureCache> cache_;              ///< whole-layer mode
+  std::unique_ptr<render::PatchTextures> patches_;           ///< per-patch mode
+  std::size_t budget_bytes_ = 0;
   render::Lens lens_;
   double lens_radius_ = 0;
   int lens_texture_size_ = 128;

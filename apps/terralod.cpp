@@ -431,13 +431,21 @@ int cmd_generate(const Args& a) {
 CommandSpec view_spec() {
   CommandSpec s;
   s.name = "view";
-  s.summary = "Render a .pm file or a DEM offscreen from a camera and write a PNG.";
+  s.summary = "Render a .pm file, a DEM or a database offscreen from a camera and write a PNG.";
   s.description = std::string(
                       "Draws the terrain seen from --camera into an offscreen OpenGL frame (OSMesa, no display\n"
                       "needed), lit by a directional light, and writes it as an 8-bit RGB PNG.\n\n"
                       "Camera: X,Y,Z in world metres (x east, y north, z up; the DEM's frame, see 'terralod info'),\n"
                       "YAW degrees clockwise from north (0 looks north, 90 east), PITCH degrees above the horizon\n"
                       "(negative looks down, -90..90), FOVY the vertical field of view in degrees (0..180).\n\n"
+                      "--db: a block database (from 'terralod build') is drawn as one frame of the runtime that\n"
+                      "'terralod fly' and 'terralod-fly --db' run: the approximation tree from its root, coarse nodes\n"
+                      "far away, PM blocks refined near, stitched seams, every block this view needs read first;\n"
+                      "its bound_px bounds the screen-space error of the picture (<= --tau when nothing needed is\n"
+                      "missing). --layer draws texture layers of --texture-db (default --db) per drawn patch: each\n"
+                      "patch gets the coarsest texture of its layer's texture tree whose texel covers at most --gamma\n"
+                      "pixels^2 (raised when the textures would not fit --texture-memory). A 'terralod hybrid'\n"
+                      "database is drawn from its own tree (TIN near, grid far), without layers.\n\n"
                       "Mesh: the VIEW-DEPENDENT selection of the pm/ runtime (CollapseDag + SelectiveRefinement,\n"
                       "one update from the camera): every collapse is kept only where its error, projected from the\n"
                       "nearest point of its bounding box, is at most --tau pixels, so near terrain is fine and far\n"
@@ -454,7 +462,7 @@ CommandSpec view_spec() {
                       "view-dependent selection also the vsplits and ecols of the update and its time.\n\n") +
                   kDemFormats;
   s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or --db)"},
-                             {"--db", "HYBRID.db", "instead of --input: a 'terralod hybrid' database (its tree at --tau: TIN near, grid far)"},
+                             {"--db", "FILE.db", "instead of --input: a block database (the runtime's frame) or a 'terralod hybrid' one"},
                              {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
                              {"--out", "IMAGE.png", "PNG file to write", true},
                              {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
@@ -463,11 +471,13 @@ CommandSpec view_spec() {
                              {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
                              {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
                              {"--stats", "FILE.json", "write statistics and timings as JSON"},
-                             {"--texture-db", "FILE.db", "block database holding the texture layers of --layer"},
+                             {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
                              {"--layer", "NAME[:OP[:W[:lens]]]",
                               "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]",
                               false, /*repeatable=*/true},
-                             {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"}},
+                             {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
+                             {"--gamma", "PIXELS2", "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
+                             {"--texture-memory", "MB", "--db with --layer: texture memory budget, megabytes (default 537: 512 MiB)"}},
                             build_options()),
                      dem_options());
   return s;
@@ -517,7 +527,15 @@ int cmd_view(const Args& a) {
   const blocks::DemOptions dem = dem_options_from(a);
   const pm::BuildOptions build = build_options_from(a);
   const std::vector<std::string> layer_specs = a.get_all("--layer");
-  if (layer_specs.empty() != !a.has("--texture-db")) throw UsageError("--layer and --texture-db go together");
+  if (!a.has("--db") && layer_specs.empty() != !a.has("--texture-db"))
+    throw UsageError("--layer and --texture-db go together (with --db, --texture-db defaults to it)");
+  if (a.has("--texture-db") && layer_specs.empty()) throw UsageError("--texture-db needs --layer");
+  if ((a.has("--gamma") || a.has("--texture-memory")) && (!a.has("--db") || layer_specs.empty()))
+    throw UsageError("--gamma and --texture-memory need --db and --layer (textures per patch of its tree)");
+  if (a.has("--gamma") && !(a.get_double("--gamma", 1.0) > 0))
+    throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
+  if (a.has("--texture-memory") && !(a.get_double("--texture-memory", 1.0) * 1e6 >= 1))
+    throw UsageError("option '--texture-memory' must be > 0 megabytes, not '" + a.get("--texture-memory") + "'");
   if (!layer_specs.empty() && a.has("--wireframe")) throw UsageError("--wireframe cannot be combined with --layer");
   if (a.has("--lens") && layer_specs.empty()) throw UsageError("--lens needs --layer");
   for (const std::string& spec : layer_specs) terralod::cli::parse_layer_spec(spec);  // usage errors first
@@ -525,7 +543,14 @@ int cmd_view(const Args& a) {
   if (!dump.empty()) check_output_folder(dump);
   if (!stats_path.empty()) check_output_folder(stats_path);
   if (a.has("--db") == a.has("--input")) throw UsageError("view needs exactly one of '--input' and '--db'");
-  if (a.has("--db")) return terralod::cli::view_hybrid(a.get("--db"), c, tau, width, height, out, dump, a.has("--wireframe"));
+  if (a.has("--db") && a.has("--uniform")) throw UsageError("--uniform is for --input (a .pm file or a DEM)");
+  if (a.has("--db")) {
+    if (blocks::BlockDatabase::open(a.get("--db")).info().kind != "hybrid")
+      return terralod::cli::view_blocks(a, c, tau, width, height);
+    if (!layer_specs.empty()) throw UsageError("--layer draws on block databases, not on a hybrid one");
+    if (a.has("--stats")) throw UsageError("--stats is not available for a hybrid database");
+    return terralod::cli::view_hybrid(a.get("--db"), c, tau, width, height, out, dump, a.has("--wireframe"));
+  }
 
   auto t = Clock::now();
   const pm::ProgressiveMesh mesh = is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
@@ -709,15 +734,7 @@ int cmd_view(const Args& a) {
     if (!dump.empty()) j.field("dump_mesh", dump_ms);
     j.end_object();
     j.end_object();
-    const std::string tmp = stats_path + ".tmp";
-    std::FILE* f = std::fopen(tmp.c_str(), "wb");
-    const bool ok = f && std::fwrite(j.str().data(), 1, j.str().size(), f) == j.str().size();
-    if (f && std::fclose(f) != 0) throw std::runtime_error(stats_path + ": cannot write statistics");
-    std::error_code ec;
-    if (!ok || (fs::rename(tmp, stats_path, ec), ec)) {
-      fs::remove(tmp, ec);
-      throw std::runtime_error(stats_path + ": cannot write statistics");
-    }
+    terralod::cli::write_text_file(stats_path, j.str());
     line(strf("write %s: statistics", stats_path.c_str()));
   }
   return 0;

@@ -23,6 +23,7 @@
 #include <numbers>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -80,7 +81,10 @@ CommandSpec fly_spec() {
       "outside); B triangle-budget mode (holds --budget triangles by regulating tau over the\n"
       "whole frame); [ and ] tau down/up; C start/stop recording the flight to --record; P\n"
       "screenshot; Esc quit. G, B, [ and ] take effect at the next frame; nothing is read again.\n"
-      "Texture layers (--layer NAME, from --texture-db, which defaults to --db): keys 1..9 switch\n"
+      "Texture layers (--layer NAME, from --texture-db, which defaults to --db): with --db each\n"
+      "drawn patch gets its texture from the layer's texture tree, the coarsest whose texel covers\n"
+      "at most --gamma pixels^2 on screen (the parent's texture while one loads; gamma is raised\n"
+      "for a frame when the patches would not fit --texture-memory). Keys 1..9 switch\n"
       "layer 1..9 on/off; H switches the highlight lens, which follows the ground point at the\n"
       "screen's centre, or under the mouse while the right button is held (X shows the untextured\n"
       "wireframe).\n"
@@ -95,7 +99,9 @@ CommandSpec fly_spec() {
       "The same path gives the same statistics (apart from times) and identical images.\n"
       "frames.csv has the columns of 'terralod fly' (see 'terralod fly --help': the runtime's\n"
       "statistics; a single PM fills them as one PM block), then vertices, draw_ms, upload_ms (the\n"
-      "drawn mesh converted and sent to the GPU), wait_ms (the wait for loads) and texture_bytes.\n"
+      "drawn mesh converted and sent to the GPU), wait_ms (the wait for loads), texture_bytes (resident\n"
+      "in the texture cache), texture_patches (wanted this frame) and textures_from_parent (those\n"
+      "drawn with an ancestor's texture while they load; headless frames wait for them).\n"
       "PATH.csv: a header x,y,z,yaw,pitch,fovy and one row per frame (conventions of\n"
       "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).";
   s.options = {
@@ -123,7 +129,9 @@ CommandSpec fly_spec() {
       {"--layer", "NAME[:OP[:W[:lens]]]",
        "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
        /*repeatable=*/true},
-      {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"}};
+      {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
+      {"--gamma", "PIXELS2", "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
+      {"--texture-memory", "MB", "texture memory budget, megabytes (default 537: 512 MiB)"}};
   return s;
 }
 
@@ -162,6 +170,7 @@ struct FrameRecord {
   double draw_ms = 0, upload_ms = 0, wait_ms = 0;
   std::size_t vertices = 0;
   std::size_t texture_bytes = 0;  // resident in the texture cache
+  std::size_t texture_patches = 0, textures_from_parent = 0;  // per-patch textures (--db)
 };
 
 // The level-of-detail side of a frame: one selection update and the mesh it draws.
@@ -186,6 +195,8 @@ class LodSource {
   virtual void set_options(const pm::RefinementOptions& o) = 0;
   // Triangle target of the budget mode for a whole-frame budget (RefinementOptions::target_triangles).
   virtual std::size_t budget_share(std::size_t budget) const = 0;
+  // The approximation-tree node of each triangle of the last mesh (empty: no tree).
+  virtual std::span<const std::int64_t> triangle_nodes() const { return {}; }
 };
 
 // CPU time of the calling thread, milliseconds (the update's own cost on a loaded machine).
@@ -343,79 +354,35 @@ class DbSource final : public LodSource {
   }
   // The highest sample under (x, y) that the tree knows without loading anything.
   double ceiling(double x, double y) const override { return rt_->max_height_at(x, y); }
+  std::span<const std::int64_t> triangle_nodes() const override { return rt_->drawn_mesh().triangle_node; }
   void fit_clip(pm::Camera& c) const override { rt_->fit_clip_planes(c); }
 
   bool update(const pm::Camera& c, double time_s, bool wait, FrameRecord& r, rd::DrawMesh& dm) override {
     const pm::View view(c);
     r.streamed = true;
-    rt_->update(view, time_s);
-    tb::RuntimeFrameStats first = rt_->stats();
     if (wait) {
-      // Headless: the same view and time again until the loader has nothing left for this
-      // frame (without this the frames would depend on the loader thread's timing). Two quiet
-      // updates in a row: a read that finished just after one update's take is picked up by
-      // the next.
+      // Headless: the frames must not depend on the loader thread's timing.
       const auto w0 = Clock::now();
-      for (int quiet = 0;;) {
-        quiet = rt_->loading() ? 0 : quiet + 1;
-        if (quiet == 2) break;
-        if (ms_since(w0) > 600000.0) throw std::runtime_error(path_ + ": block loads did not finish in 10 minutes");
-        rt_->wait_for_loader(0.05);
-        rt_->update(view, time_s);
-      }
-      r.wait_ms = ms_since(w0);
+      const tb::RuntimeFrameStats first = rt_->update_until_loaded(view, time_s);
+      r.wait_ms = ms_since(w0) - first.update_ms;
+      r.lod = rt_->stats();
+      // The work of the frame is the first update's (the others only pick up loads).
+      r.lod.update_ms = first.update_ms, r.lod.update_cpu_ms = first.update_cpu_ms;
+    } else {
+      r.lod = rt_->update(view, time_s);
     }
-    r.lod = rt_->stats();
-    // The work of the frame is the first update's (the others only pick up loads).
-    r.lod.update_ms = first.update_ms, r.lod.update_cpu_ms = first.update_cpu_ms;
     const auto t0 = Clock::now();
     const tb::DrawnMesh& m = rt_->drawn_mesh();
     if (built_ && same_bytes(m.positions, prev_positions_) && same_bytes(m.triangles, prev_triangles_))
       return false;  // nothing moved: keep the uploaded mesh
     built_ = true;
     prev_positions_ = m.positions, prev_triangles_ = m.triangles;
-    make_draw_mesh(m, dm);
+    rd::fill_draw_mesh(m, ext_.origin, ext_.transform.determinant() < 0, dm);
     r.upload_ms = ms_since(t0);
     return true;
   }
 
  private:
-  // The drawn mesh (geomorphs already in its heights) as a DrawMesh: positions relative to the
-  // origin, triangles CCW from above, area-weighted normals of the drawn triangles.
-  void make_draw_mesh(const tb::DrawnMesh& m, rd::DrawMesh& dm) const {
-    const bool flip = ext_.transform.determinant() < 0;
-    const glm::dvec3 o = ext_.origin;
-    const std::size_t nv = m.positions.size();
-    dm.origin = o;
-    dm.z_target.clear();
-    dm.xyz.resize(nv * 3);
-    for (std::size_t v = 0; v < nv; ++v) {
-      dm.xyz[3 * v] = float(m.positions[v].x - o.x);
-      dm.xyz[3 * v + 1] = float(m.positions[v].y - o.y);
-      dm.xyz[3 * v + 2] = float(m.positions[v].z - o.z);
-    }
-    dm.indices.resize(m.triangles.size() * 3);
-    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
-      dm.indices[3 * f] = m.triangles[f][0];
-      dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
-      dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
-    }
-    std::vector<glm::dvec3> acc(nv, glm::dvec3(0.0));
-    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
-      const std::uint32_t* i = &dm.indices[3 * f];
-      const pm::Vec3 &a = m.positions[i[0]], &b = m.positions[i[1]], &c = m.positions[i[2]];
-      const glm::dvec3 n = glm::cross(glm::dvec3(b.x - a.x, b.y - a.y, b.z - a.z),
-                                      glm::dvec3(c.x - a.x, c.y - a.y, c.z - a.z));  // |n| = 2 area
-      for (int j = 0; j < 3; ++j) acc[i[j]] += n;
-    }
-    dm.normals.resize(nv * 3);
-    for (std::size_t v = 0; v < nv; ++v) {
-      const double len = glm::length(acc[v]);
-      const glm::dvec3 n = len > 0 && acc[v].z > 0 ? acc[v] / len : glm::dvec3(0, 0, 1);
-      dm.normals[3 * v] = float(n.x), dm.normals[3 * v + 1] = float(n.y), dm.normals[3 * v + 2] = float(n.z);
-    }
-  }
-
   std::string path_;
   pm::RefinementOptions opt_;
   std::unique_ptr<tb::TerrainRuntime> rt_;
@@ -476,15 +443,10 @@ class Pipeline {
     rc.z_near = cam.near_m, rc.z_far = cam.far_m;
     drew_layered_ = layers_ && !wireframe;
     if (drew_layered_) {
-      if (!layered_id_ || layered_version_ != version_) {
-        const auto t = Clock::now();
-        if (layered_id_) layered_->remove(*layered_id_);
-        layered_id_ = layered_->upload(dm_);
-        layered_version_ = version_;
-        r.upload_ms += ms_since(t);
-      }
-      const rd::LayeredItem item{*layered_id_, layers_->bindings(*layered_)};
-      r.draw_ms = layered_->draw(rc, layers_->styles(), layers_->lens(), {item}).draw_ms;
+      if (layers_->per_patch())
+        draw_patches(rc, pm::View(cam), wait, r);
+      else
+        draw_whole_layers(rc, r);
       r.texture_bytes = layers_->resident_bytes();
       return r;
     }
@@ -497,6 +459,52 @@ class Pipeline {
   const rd::DrawMesh& draw_mesh() const { return dm_; }
 
  private:
+  // Whole-layer mode: one texture per layer over the whole mesh.
+  void draw_whole_layers(const rd::Camera& rc, FrameRecord& r) {
+    if (!layered_id_ || layered_version_ != version_) {
+      const auto t = Clock::now();
+      if (layered_id_) layered_->remove(*layered_id_);
+      layered_id_ = layered_->upload(dm_);
+      layered_version_ = version_;
+      r.upload_ms += ms_since(t);
+    }
+    const rd::LayeredItem item{*layered_id_, layers_->bindings(*layered_)};
+    r.draw_ms = layered_->draw(rc, layers_->styles(), layers_->lens(), {item}).draw_ms;
+  }
+
+  // Per-patch mode (--db): the mesh's triangles ordered by the textures of their nodes, one
+  // item per group. wait (headless): the frame waits for its wanted patches, so every frame
+  // shows the textures gamma asks for and runs are reproducible.
+  void draw_patches(const rd::Camera& rc, const pm::View& view, bool wait, FrameRecord& r) {
+    const std::span<const std::int64_t> nodes = src_.triangle_nodes();
+    const rd::PatchTextureFrame* f = &layers_->patch_frame(view, nodes);
+    for (int k = 0; wait && f->stats.from_parent > 0 && k < 64; ++k) {
+      const auto t = Clock::now();
+      layers_->wait_loaded(/*timeout_ms=*/600000);
+      r.wait_ms += ms_since(t);
+      f = &layers_->patch_frame(view, nodes);
+    }
+    if (!layered_id_ || layered_version_ != version_ || f->triangle_order != layered_order_) {
+      const auto t = Clock::now();
+      sorted_.origin = dm_.origin;
+      sorted_.xyz = dm_.xyz;
+      sorted_.normals = dm_.normals;
+      sorted_.z_target = dm_.z_target;
+      sorted_.indices.resize(dm_.indices.size());
+      for (std::size_t k = 0; k < f->triangle_order.size(); ++k)
+        for (int j = 0; j < 3; ++j) sorted_.indices[3 * k + std::size_t(j)] = dm_.indices[3 * f->triangle_order[k] + std::size_t(j)];
+      if (layered_id_) layered_->remove(*layered_id_);
+      layered_id_ = layered_->upload(sorted_);
+      layered_version_ = version_;
+      layered_order_ = f->triangle_order;
+      r.upload_ms += ms_since(t);
+    }
+    const std::vector<rd::LayeredItem> items = layers_->items(*layered_, *layered_id_, *f);
+    r.draw_ms = layered_->draw(rc, layers_->styles(), layers_->lens(), items).draw_ms;
+    r.texture_patches = f->stats.wanted;
+    r.textures_from_parent = f->stats.from_parent;
+  }
+
   LodSource& src_;
   rd::TerrainRenderer renderer_;
   rd::DrawMesh dm_;
@@ -506,6 +514,8 @@ class Pipeline {
   std::unique_ptr<rd::LayeredRenderer> layered_;
   std::optional<rd::MeshId> layered_id_;
   std::uint64_t version_ = 0, layered_version_ = 0;
+  std::vector<std::uint32_t> layered_order_;  // per-patch mode: the uploaded triangle order
+  rd::DrawMesh sorted_;
   bool drew_layered_ = false;
 };
 
@@ -521,20 +531,16 @@ std::optional<LayerSetup> layer_setup(const Args& a) {
   if (specs.empty()) return std::nullopt;
   std::optional<LensSpec> lens;
   if (a.has("--lens")) lens = parse_lens("--lens", a.get("--lens"));
-  return LayerSetup::open(a.get("--texture-db", a.get("--db")), specs, lens);
-}
-
-// World-frame PLY of the drawn mesh (double x y z, int faces).
-void dump_mesh(const rd::DrawMesh& dm, const std::string& path) {
-  pm::TriangleMeshData d;
-  d.positions.resize(dm.vertex_count());
-  for (std::size_t v = 0; v < dm.vertex_count(); ++v)
-    d.positions[v] = {dm.origin.x + double(dm.xyz[3 * v]), dm.origin.y + double(dm.xyz[3 * v + 1]),
-                      dm.origin.z + double(dm.xyz[3 * v + 2])};
-  d.triangles.resize(dm.triangle_count());
-  for (std::size_t f = 0; f < dm.triangle_count(); ++f)
-    d.triangles[f] = {dm.indices[3 * f], dm.indices[3 * f + 1], dm.indices[3 * f + 2]};
-  pm::write_mesh(d, path);
+  LayerSetupOptions lo;
+  lo.budget_bytes = std::size_t(a.get_double("--texture-memory", 536.870912) * 1e6);
+  if (lo.budget_bytes < 1) throw UsageError("option '--texture-memory' must be > 0 megabytes");
+  lo.gamma_px = a.get_double("--gamma", 1.0);
+  if (!(lo.gamma_px > 0)) throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
+  if (a.has("--gamma") && !a.has("--db")) throw UsageError("--gamma needs --db (textures per patch of its tree)");
+  if (!a.has("--db")) return LayerSetup::open(a.get("--texture-db"), specs, lens, lo);
+  // --db: textures per drawn patch, over the drawn database's tree.
+  const std::vector<rd::PatchDomain> tree = rd::tree_domains(tb::BlockDatabase::open(a.get("--db")));
+  return LayerSetup::open(a.get("--texture-db", a.get("--db")), specs, lens, lo, &tree);
 }
 
 std::pair<int, int> parse_size(const Args& a) {
@@ -602,10 +608,13 @@ std::vector<std::string> lod_lines(const FrameRecord& r, const pm::RefinementOpt
                         l.coarse_nodes, l.fallback_nodes, l.nodes_culled)
                  : std::string("nodes drawn 1 (one PM)"),
       r.streamed ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   memory %s   "
-                        "texture memory %s",
+                        "texture memory %s%s",
                         l.blocks_resident, l.blocks_loading, l.evicted_total, l.prefetch_misses_total,
                         format_bytes(l.bytes_read_total).c_str(), format_bytes(l.resident_bytes).c_str(),
-                        format_bytes(r.texture_bytes).c_str())
+                        format_bytes(r.texture_bytes).c_str(),
+                        r.texture_patches ? strf(" (%zu patches, %zu from parents)", r.texture_patches,
+                                                 r.textures_from_parent).c_str()
+                                          : "")
                  : strf("blocks resident 1, loading 0   texture memory %s", format_bytes(r.texture_bytes).c_str())};
 }
 
@@ -701,7 +710,8 @@ int run_headless(const Args& a) {
     wait_ms += r.wait_ms;
     FlightRow row{std::size_t(k), double(k) / 60.0, r.camera, r.lod};
     row.vertices = r.vertices, row.draw_ms = r.draw_ms, row.upload_ms = r.upload_ms, row.wait_ms = r.wait_ms;
-    row.texture_bytes = r.texture_bytes;
+    row.texture_bytes = r.texture_bytes, row.texture_patches = r.texture_patches;
+    row.textures_from_parent = r.textures_from_parent;
     log.row(row);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%05lld", k);
@@ -712,7 +722,7 @@ int run_headless(const Args& a) {
       overlay_text(img, rd::rasterize_text(lines), rd::HudOptions{}.margin);
     }
     rd::write_png(img, (fs::path(out) / (std::string(name) + ".png")).string());
-    if (dump) dump_mesh(p.draw_mesh(), (fs::path(out) / (std::string(name) + ".ply")).string());
+    if (dump) pm::write_mesh(rd::world_mesh(p.draw_mesh()), (fs::path(out) / (std::string(name) + ".ply")).string());
     bar.update(double(k + 1) / double(frames));
   }
   bar.finish();

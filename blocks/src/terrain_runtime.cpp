@@ -232,6 +232,19 @@ void TerrainRuntime::fit_clip_planes(pm::Camera& cam) const {
 
 bool TerrainRuntime::loading() const { return loader_->pending() > 0; }
 
+RuntimeFrameStats TerrainRuntime::update_until_loaded(const pm::View& view, double time_s, double timeout_s) {
+  const RuntimeFrameStats first = update(view, time_s);
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  for (int quiet = 0;;) {
+    quiet = loading() ? 0 : quiet + 1;
+    if (quiet == 2) return first;
+    if (std::chrono::steady_clock::now() > until)
+      throw std::runtime_error(path_ + ": block loads did not finish in " + std::to_string(timeout_s) + " s");
+    wait_for_loader(0.05);
+    update(view, time_s);
+  }
+}
+
 void TerrainRuntime::wait_for_loader(double timeout_s) const {
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   const std::size_t before = loader_->pending();

@@ -126,4 +126,49 @@ std::vector<float> triangle_normals(const DrawMesh& m) {
   return out;
 }
 
+void fill_draw_mesh(const blocks::DrawnMesh& m, const glm::dvec3& o, bool flip, DrawMesh& dm) {
+  const std::size_t nv = m.positions.size();
+  dm.origin = o;
+  dm.z_target.clear();
+  dm.xyz.resize(nv * 3);
+  for (std::size_t v = 0; v < nv; ++v) {
+    dm.xyz[3 * v] = float(m.positions[v].x - o.x);
+    dm.xyz[3 * v + 1] = float(m.positions[v].y - o.y);
+    dm.xyz[3 * v + 2] = float(m.positions[v].z - o.z);
+  }
+  dm.indices.resize(m.triangles.size() * 3);
+  for (std::size_t f = 0; f < m.triangles.size(); ++f) {
+    dm.indices[3 * f] = m.triangles[f][0];
+    dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
+    dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
+  }
+  // Normals in double from the world positions (the floats lose the small slopes far away).
+  std::vector<glm::dvec3> acc(nv, glm::dvec3(0.0));
+  for (std::size_t f = 0; f < m.triangles.size(); ++f) {
+    const std::uint32_t* i = &dm.indices[3 * f];
+    const pm::Vec3 &a = m.positions[i[0]], &b = m.positions[i[1]], &c = m.positions[i[2]];
+    const glm::dvec3 n = glm::cross(glm::dvec3(b.x - a.x, b.y - a.y, b.z - a.z),
+                                    glm::dvec3(c.x - a.x, c.y - a.y, c.z - a.z));  // |n| = 2 area
+    for (int j = 0; j < 3; ++j) acc[i[j]] += n;
+  }
+  dm.normals.resize(nv * 3);
+  for (std::size_t v = 0; v < nv; ++v) {
+    const double len = glm::length(acc[v]);
+    const glm::dvec3 n = len > 0 && acc[v].z > 0 ? acc[v] / len : glm::dvec3(0, 0, 1);
+    dm.normals[3 * v] = float(n.x), dm.normals[3 * v + 1] = float(n.y), dm.normals[3 * v + 2] = float(n.z);
+  }
+}
+
+pm::TriangleMeshData world_mesh(const DrawMesh& dm) {
+  pm::TriangleMeshData d;
+  d.positions.resize(dm.vertex_count());
+  for (std::size_t v = 0; v < dm.vertex_count(); ++v)
+    d.positions[v] = {dm.origin.x + double(dm.xyz[3 * v]), dm.origin.y + double(dm.xyz[3 * v + 1]),
+                      dm.origin.z + double(dm.xyz[3 * v + 2])};
+  d.triangles.resize(dm.triangle_count());
+  for (std::size_t f = 0; f < dm.triangle_count(); ++f)
+    d.triangles[f] = {dm.indices[3 * f], dm.indices[3 * f + 1], dm.indices[3 * f + 2]};
+  return d;
+}
+
 }  // namespace terralod::render

@@ -2,6 +2,8 @@
 // tree, layer metadata as JSON (format documented in texture_store.hpp).
 #include "terralod/render/texture_store.hpp"
 
+#include "terralod/blocks/approximation_tree.hpp"
+
 #include <OpenImageIO/imageio.h>
 #include <zlib.h>
 
@@ -271,6 +273,12 @@ void store_texture_layer(blocks::BlockDatabase& db, LayerRecord& rec, const Imag
       }
   db.set_meta(kMetaPrefix + rec.name, record_json(rec));
   t.commit();
+}
+
+std::vector<PatchDomain> tree_domains(const blocks::BlockDatabase& db) {
+  const auto blob = db.read_blob("tree");
+  if (!blob) return {};
+  return patch_domains(blocks::decode_tree(*blob, db.path() + ": tree").nodes());
 }
 
 std::vector<std::string> stored_layers(const blocks::BlockDatabase& db) {

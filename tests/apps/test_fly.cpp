@@ -115,14 +115,14 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
             "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,missing_in_view,update_ms,update_cpu_ms,"
             "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_evicted,"
             "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_nodes,"
-            "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes");
+            "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes,texture_patches,textures_from_parent");
   int rows = 0;
   while (std::getline(in, line)) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     std::string x;
     while (std::getline(ss, x, ',')) f.push_back(x);
-    ASSERT_EQ(f.size(), 37u) << line;
+    ASSERT_EQ(f.size(), 39u) << line;
     EXPECT_LE(std::stod(f[10]), std::stod(f[8])) << "frame " << f[0] << ": bound above tau";
     EXPECT_GT(std::stoul(f[9]), 0u) << "frame " << f[0] << ": no triangles";
     // One PM: one block resident, none loading or missing; no evictions, misses or reads.

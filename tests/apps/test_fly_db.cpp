@@ -5,6 +5,7 @@
 // mode under a private Xvfb, and bad databases (clear errors naming the file, no crash).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -223,8 +224,9 @@ TEST(FlyDb, TextureLayersComeFromTheSameDatabase) {
   // A copy of the database with a shading layer ('terralod texture shade').
   const fs::path db = tmp() / "shaded.db", log = tmp() / "shade.log";
   fs::copy_file(t.db, db, fs::copy_options::overwrite_existing);
-  ASSERT_EQ(run(std::string(TERRALOD_CLI) + " texture --layer hill shade " + db.string() + " > " +
-                log.string() + " 2>&1"),
+  // Patches of at most 64 x 64 texels (16 KiB): the tree's nodes get textures of their own.
+  ASSERT_EQ(run(std::string(TERRALOD_CLI) + " texture --layer hill --max-texture-size 64 shade " + db.string() +
+                " > " + log.string() + " 2>&1"),
             0)
       << slurp(log);
   const fs::path path = write_path(6);
@@ -235,10 +237,31 @@ TEST(FlyDb, TextureLayersComeFromTheSameDatabase) {
   // No --texture-db: the layer comes from --db.
   ASSERT_EQ(run(base + " --layer hill --out " + layered.string() + " > " + log.string() + " 2>&1"), 0)
       << slurp(log);
+  // Textures per drawn patch by gamma: several patches, every wanted one loaded (headless
+  // frames wait), within the default budget.
   const Csv c = read_csv(layered / "frames.csv");
   ASSERT_EQ(c.rows.size(), 6u);
-  for (const auto& r : c.rows)
+  std::size_t most_patches = 0;
+  for (const auto& r : c.rows) {
     EXPECT_GT(std::stoul(r[std::size_t(c.col("texture_bytes"))]), 0u) << "frame " << r[0];
+    EXPECT_LE(std::stoul(r[std::size_t(c.col("texture_bytes"))]), 536870912u) << "frame " << r[0];
+    EXPECT_EQ(r[std::size_t(c.col("textures_from_parent"))], "0") << "frame " << r[0];
+    most_patches = std::max<std::size_t>(most_patches, std::stoul(r[std::size_t(c.col("texture_patches"))]));
+  }
+  EXPECT_GT(most_patches, 2u) << "near terrain should want finer patches than the root's";
+  // A budget of two patches: gamma is raised until two fit, and the cache holds no more.
+  const fs::path tight = tmp() / "tight";
+  ASSERT_EQ(run(base + " --layer hill --texture-memory 0.032768 --out " + tight.string() + " > " + log.string() +
+                " 2>&1"),
+            0)
+      << slurp(log);
+  const Csv ct = read_csv(tight / "frames.csv");
+  ASSERT_EQ(ct.rows.size(), 6u);
+  for (const auto& r : ct.rows) {
+    EXPECT_LE(std::stoul(r[std::size_t(ct.col("texture_patches"))]), 2u) << "frame " << r[0];
+    EXPECT_GE(std::stoul(r[std::size_t(ct.col("texture_patches"))]), 1u) << "frame " << r[0];
+    EXPECT_LE(std::stoul(r[std::size_t(ct.col("texture_bytes"))]), 32768u) << "frame " << r[0];
+  }
   for (int k = 0; k < 6; ++k) {
     const rd::Image ip = rd::read_image((plain / (png_name(k) + ".png")).string());
     const rd::Image il = rd::read_image((layered / (png_name(k) + ".png")).string());
@@ -255,6 +278,46 @@ TEST(FlyDb, TextureLayersComeFromTheSameDatabase) {
   EXPECT_EQ(run(base + " --layer nothere --out " + (tmp() / "x").string() + " > " + log.string() + " 2>&1"),
             1);
   EXPECT_NE(slurp(log).find("nothere"), std::string::npos) << slurp(log);
+}
+
+// A number field of a flat JSON text ("key": value), NaN when missing.
+double json_number(const std::string& json, const std::string& key) {
+  const std::size_t at = json.find("\"" + key + "\":");
+  return at == std::string::npos ? NAN : std::strtod(json.c_str() + at + key.size() + 3, nullptr);
+}
+
+// `terralod view --db` draws one frame of the same runtime: the first frame of terralod-fly
+// from the same camera (no geomorphs) has the same triangles, and the bound holds.
+TEST(FlyDb, ViewDrawsOneFrameOfTheRuntime) {
+  const Terrain& t = terrain();
+  const auto [x0, y0] = t.hf.transform.to_world(20, 108);
+  const double z = pm::bilinear_height(t.hf, x0, y0) + 150.0;
+  const std::string cam = std::to_string(x0) + "," + std::to_string(y0) + "," + std::to_string(z) + ",53.13,-20,60";
+  const fs::path log = tmp() / "view.log", stats = tmp() / "view.json", png = tmp() / "view.png";
+  const std::string cmd = std::string(TERRALOD_CLI) + " view --db " + t.db.string() + " --camera " + cam +
+                          " --size 200x120 --out " + png.string() + " --stats " + stats.string() + " > " +
+                          log.string() + " 2>&1";
+  ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(log);
+  const std::string j = slurp(stats);
+  EXPECT_NE(j.find("\"selection\": \"runtime\""), std::string::npos) << j;
+  EXPECT_EQ(json_number(j, "missing_in_view"), 0.0) << j;
+  EXPECT_LE(json_number(j, "bound_px"), 1.0) << j;
+  EXPECT_GT(json_number(j, "pm_blocks"), 0.0) << j;
+  EXPECT_TRUE(looks_drawn(rd::read_image(png.string())));
+
+  const fs::path path = tmp() / "one.csv", out = tmp() / "one";
+  {
+    std::ofstream f(path);
+    f << "x,y,z,yaw,pitch,fovy\n" << cam << "\n";
+  }
+  ASSERT_EQ(run(std::string(TERRALOD_FLY) + " --headless --db " + t.db.string() + " --path " + path.string() +
+                " --size 200x120 --morph 0 --out " + out.string() + " > " + log.string() + " 2>&1"),
+            0)
+      << slurp(log);
+  const Csv c = read_csv(out / "frames.csv");
+  ASSERT_EQ(c.rows.size(), 1u);
+  EXPECT_EQ(std::stod(c.rows[0][std::size_t(c.col("triangles"))]), json_number(j, "triangles"));
+  EXPECT_EQ(std::stod(c.rows[0][std::size_t(c.col("bound_px"))]), json_number(j, "bound_px"));
 }
 
 TEST(FlyDb, WindowStreamsBlocksUnderXvfb) {

@@ -185,6 +185,13 @@ class TerrainRuntime {
   const RuntimeOptions& options() const { return opt_; }
 
   const RuntimeFrameStats& update(const pm::View& view, double time_s);
+  /// For tools, tests and headless runs that must be reproducible: update(view, time_s), then
+  /// the same view and time again until the loader has nothing left for this frame (two quiet
+  /// updates in a row: a read that finished just after one update's take is picked up by the
+  /// next). Returns the first update's statistics (the frame's work; the later updates only
+  /// pick up loads); stats() is the last one's. std::runtime_error naming the database when
+  /// the loads take longer than timeout_s.
+  RuntimeFrameStats update_until_loaded(const pm::View& view, double time_s, double timeout_s = 600);
   const RuntimeFrameStats& stats() const { return stats_; }
   const DrawnMesh& drawn_mesh() const { return mesh_; }
 

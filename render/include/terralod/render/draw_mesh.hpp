@@ -30,7 +30,9 @@
 #include <optional>
 #include <vector>
 
+#include "terralod/blocks/drawn_mesh.hpp"
 #include "terralod/pm/heightfield.hpp"
+#include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 
 namespace terralod::render {
@@ -71,6 +73,17 @@ struct DrawMeshOptions {
 /// left empty (no geomorph). Asserts that the mesh's sample indices are inside the grid.
 DrawMesh make_draw_mesh(const pm::TriangleMesh& mesh, const pm::Heightfield& hf,
                         const DrawMeshOptions& options = {});
+
+/// The runtime's drawn mesh (blocks::TerrainRuntime::drawn_mesh(): world positions with the
+/// displayed heights, geomorphs included) as a DrawMesh relative to `origin`: triangles made
+/// CCW from above (flip_winding for a mirroring grid transform, determinant < 0), normals
+/// area-weighted over the drawn triangles (pointing up; (0,0,1) where they cancel), no
+/// z_target. Reuses out's buffers. O(vertices + triangles).
+void fill_draw_mesh(const blocks::DrawnMesh& mesh, const glm::dvec3& origin, bool flip_winding, DrawMesh& out);
+
+/// The mesh in the world frame, as drawn at alpha = 0: positions origin + xyz (double) and its
+/// triangles (for pm::write_mesh: --dump-mesh, --dump-meshes).
+pm::TriangleMeshData world_mesh(const DrawMesh& mesh);
 
 /// Area-weighted vertex normals of the triangles (using xyz, i.e. alpha = 0), 3 floats per
 /// vertex, unit length; (0,0,1) for a vertex no triangle uses.

@@ -87,6 +87,10 @@ void store_texture_layer(blocks::BlockDatabase& db, LayerRecord& rec, const Imag
                          const std::vector<PatchDomain>& domains,
                          const std::function<void(double)>& progress = {});
 
+/// The texture-tree domains of the database's approximation tree (its "tree" blob), in id
+/// order; empty when it has none. DatabaseError for a malformed tree.
+std::vector<PatchDomain> tree_domains(const blocks::BlockDatabase& db);
+
 /// Names of the layers with metadata, sorted.
 std::vector<std::string> stored_layers(const blocks::BlockDatabase& db);
 /// The layer's record; DatabaseError when it is missing or its JSON is malformed.

@@ -1,0 +1,175 @@
+// terralod view --db terrain.db: one frame of a block database's runtime (blocks::TerrainRuntime:
+// the approximation tree from its root, coarse nodes, stand-ins and refined PM blocks, every
+// load this view needs finished) rendered offscreen into a PNG, with texture layers per patch.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cli_common.hpp"
+#include "commands.hpp"
+#include "layer_options.hpp"
+#include "terralod/blocks/terrain_runtime.hpp"
+#include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/view.hpp"
+#include "terralod/render/camera.hpp"
+#include "terralod/render/draw_mesh.hpp"
+#include "terralod/render/gl_context.hpp"
+#include "terralod/render/image.hpp"
+#include "terralod/render/layered_renderer.hpp"
+#include "terralod/render/terrain_renderer.hpp"
+#include "terralod/render/texture_store.hpp"
+
+namespace terralod::cli {
+
+int view_blocks(const Args& a, const std::vector<double>& c, double tau, int width, int height) {
+  namespace fs = std::filesystem;
+  namespace tb = terralod::blocks;
+  namespace rd = terralod::render;
+  using Clock = std::chrono::steady_clock;
+  auto say = [](const std::string& s) {
+    std::fputs((s + "\n").c_str(), stdout);
+    std::fflush(stdout);
+  };
+  const std::string path = a.get("--db"), out = a.get("--out"), dump = a.get("--dump-mesh");
+  const std::string stats_path = a.get("--stats");
+  const std::vector<std::string> specs = a.get_all("--layer");
+
+  auto t = Clock::now();
+  tb::RuntimeOptions ro;
+  ro.tolerance_px = tau;
+  ro.morph_seconds = 0;  // one frame: nothing to blend from
+  tb::TerrainRuntime rt(path, ro);
+  const double open_ms = ms_since(t);
+  const tb::BlockGrid& g = rt.grid();
+  say(strf("read %s: %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, %s", path.c_str(), g.grid_width(),
+           g.grid_height(), g.cols(), g.rows(), g.block_size(), rt.tree().size(), format_duration(open_ms).c_str()));
+
+  // The camera, with the clip planes of the terrain's box (the selection's frustum is the
+  // picture's, so the bound is true of the picture).
+  pm::Camera pc{c[0], c[1], c[2], c[3], c[4], c[5], width, height};
+  rt.fit_clip_planes(pc);
+  const pm::View view(pc);
+  t = Clock::now();
+  const tb::RuntimeFrameStats first = rt.update_until_loaded(view, 0.0);
+  const double select_ms = ms_since(t);
+  const tb::RuntimeFrameStats& s = rt.stats();
+  say(strf("select tau=%g px: %zu nodes visited, %zu culled; drawn %zu PM blocks, %zu stand-ins, %zu coarse nodes, "
+           "%zu ancestors for missing blocks; %zu blocks read (%s) in %s",
+           tau, s.nodes_visited, s.nodes_culled, s.pm_blocks, s.standin_blocks, s.coarse_nodes, s.fallback_nodes,
+           s.blocks_resident, format_bytes(s.bytes_read_total).c_str(), format_duration(select_ms).c_str()));
+  say(strf("mesh: %zu triangles (%zu stitched at seams), bound %.4g px (tau %g)%s; update %s (first, loads "
+           "excluded: %s)",
+           s.triangles, s.seam_triangles, s.bound_px, tau,
+           s.missing_in_view ? strf(", %zu needed blocks missing", s.missing_in_view).c_str() : "",
+           format_duration(s.update_ms).c_str(), format_duration(first.update_ms).c_str()));
+
+  // Texture layers per drawn patch, from the texture trees over the drawn tree.
+  std::optional<LayerSetup> layers;
+  if (!specs.empty()) {
+    LayerSetupOptions lo;
+    lo.gamma_px = a.get_double("--gamma", 1.0);
+    lo.budget_bytes = std::size_t(a.get_double("--texture-memory", 536.870912) * 1e6);
+    const std::vector<rd::PatchDomain> domains = rd::patch_domains(rt.tree().nodes());
+    layers.emplace(LayerSetup::open(a.get("--texture-db", path), specs,
+                                    a.has("--lens") ? std::optional(parse_lens("--lens", a.get("--lens"))) : std::nullopt,
+                                    lo, &domains));
+  }
+
+  t = Clock::now();
+  auto ctx = rd::create_offscreen_context({width, height});
+  rd::Camera cam;
+  cam.position = {pc.x, pc.y, pc.z};
+  cam.yaw_deg = pc.yaw_deg, cam.pitch_deg = pc.pitch_deg, cam.fovy_deg = pc.fovy_deg;
+  cam.width = width, cam.height = height;
+  cam.z_near = pc.near_m, cam.z_far = pc.far_m;
+  const pm::Box& box = rt.terrain_box();
+  const glm::dvec3 origin(0.5 * (box.lo.x + box.hi.x), 0.5 * (box.lo.y + box.hi.y), 0.5 * (box.lo.z + box.hi.z));
+  rd::DrawMesh dm;
+  rd::fill_draw_mesh(rt.drawn_mesh(), origin, g.transform().determinant() < 0, dm);
+  rd::Image img;
+  double draw_ms = 0;
+  std::size_t texture_bytes = 0, texture_patches = 0;
+  double gamma_used = 0;
+  if (layers) {
+    rd::LayeredRenderer r(*ctx);
+    layers->attach(r);
+    // Every wanted patch loaded (the picture shows what gamma asks for).
+    const rd::PatchTextureFrame* f = &layers->patch_frame(view, rt.drawn_mesh().triangle_node);
+    for (int k = 0; f->stats.from_parent > 0 && k < 64; ++k) {
+      layers->wait_loaded(600000);
+      f = &layers->patch_frame(view, rt.drawn_mesh().triangle_node);
+    }
+    rd::DrawMesh sorted = dm;
+    for (std::size_t k = 0; k < f->triangle_order.size(); ++k)
+      for (std::size_t j = 0; j < 3; ++j) sorted.indices[3 * k + j] = dm.indices[3 * std::size_t(f->triangle_order[k]) + j];
+    const rd::MeshId id = r.upload(sorted);
+    const std::vector<rd::LayeredItem> items = layers->items(r, id, *f);
+    draw_ms = r.draw(cam, layers->styles(), layers->lens(), items).draw_ms;
+    img = r.read_color();
+    texture_bytes = layers->resident_bytes(), texture_patches = f->stats.wanted, gamma_used = f->stats.gamma_px;
+    say(strf("textures: %zu patches in %zu groups, gamma %g px^2%s, %s resident (budget %s)", texture_patches,
+             f->groups.size(), gamma_used, gamma_used > a.get_double("--gamma", 1.0) ? " (raised for the budget)" : "",
+             format_bytes(texture_bytes).c_str(), format_bytes(layers->budget_bytes()).c_str()));
+  } else {
+    rd::RendererOptions o;
+    o.wireframe = a.has("--wireframe");
+    rd::TerrainRenderer r(*ctx, o);
+    const rd::MeshId id = r.upload(dm);
+    draw_ms = r.draw(cam, {{id, 0.0f}}).draw_ms;
+    img = r.read_color();
+  }
+  rd::write_png(img, out);
+  say(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height, ctx->info().renderer.c_str(),
+           format_duration(draw_ms).c_str(), out.c_str(), format_bytes(fs::file_size(out)).c_str(),
+           format_duration(ms_since(t)).c_str()));
+  if (!dump.empty()) {
+    pm::write_mesh(rd::world_mesh(dm), dump);
+    say(strf("write %s: %s, world units", dump.c_str(), format_bytes(fs::file_size(dump)).c_str()));
+  }
+  if (!stats_path.empty()) {
+    JsonWriter j;
+    j.begin_object();
+    j.field("db", path);
+    j.field("output", out);
+    j.field("selection", "runtime");
+    j.begin_object("camera");
+    for (const auto& [k, v] : {std::pair{"x", pc.x}, {"y", pc.y}, {"z", pc.z}, {"yaw", pc.yaw_deg},
+                               {"pitch", pc.pitch_deg}, {"fovy", pc.fovy_deg}, {"near", pc.near_m}, {"far", pc.far_m}})
+      j.field(k, v);
+    j.end_object();
+    j.field("width", width);
+    j.field("height", height);
+    j.field("tau", tau);
+    j.field("bound_px", s.bound_px);
+    j.field("missing_in_view", std::uint64_t(s.missing_in_view));
+    j.field("triangles", std::uint64_t(s.triangles));
+    j.field("vertices", std::uint64_t(rt.drawn_mesh().positions.size()));
+    j.field("pm_blocks", std::uint64_t(s.pm_blocks));
+    j.field("standin_blocks", std::uint64_t(s.standin_blocks));
+    j.field("coarse_nodes", std::uint64_t(s.coarse_nodes));
+    j.field("fallback_nodes", std::uint64_t(s.fallback_nodes));
+    j.field("resident_bytes", std::uint64_t(s.resident_bytes));
+    j.field("bytes_read", std::uint64_t(s.bytes_read_total));
+    if (layers) {
+      j.field("texture_bytes", std::uint64_t(texture_bytes));
+      j.field("texture_patches", std::uint64_t(texture_patches));
+      j.field("gamma_px", gamma_used);
+    }
+    j.field("renderer", ctx->info().renderer);
+    j.begin_object("timings_ms");
+    j.field("open", open_ms);
+    j.field("update", first.update_ms);
+    j.field("update_with_loads", select_ms);
+    j.field("draw", draw_ms);
+    j.end_object();
+    j.end_object();
+    write_text_file(stats_path, j.str());
+    say(strf("write %s: statistics", stats_path.c_str()));
+  }
+  return 0;
+}
+
+}  // namespace terralod::cli
