@@ -49,15 +49,15 @@ int view_hybrid(const std::string& path, const std::vector<double>& c, double ta
   const pm::Box& box = tree.tree().root().bbox;
   const glm::dvec3 lo(box.lo.x, box.lo.y, box.lo.z), hi(box.hi.x, box.hi.y, box.hi.z);
   render::Camera cam;
-  cam.position = {c[0], c[1], c[2]};
+  cam.x = c[0], cam.y = c[1], cam.z = c[2];
   cam.yaw_deg = c[3];
   cam.pitch_deg = c[4];
   cam.fovy_deg = c[5];
-  cam.width = width;
-  cam.height = height;
-  cam.z_near = std::clamp(0.5 * render::distance_to_box(cam.position, lo, hi), 0.05, 1000.0);
-  cam.z_far = std::max(cam.z_near * 2.0, 1.01 * render::max_distance_to_box(cam.position, lo, hi) + 1.0);
-  pm::Camera pc{c[0], c[1], c[2], c[3], c[4], c[5], width, height, cam.z_near, cam.z_far};
+  cam.width_px = width;
+  cam.height_px = height;
+  cam.near_m = std::clamp(0.5 * render::distance_to_box(terralod::render::camera_position(cam), lo, hi), 0.05, 1000.0);
+  cam.far_m = std::max(cam.near_m * 2.0, 1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
+  pm::Camera pc{c[0], c[1], c[2], c[3], c[4], c[5], width, height, cam.near_m, cam.far_m};
 
   t = Clock::now();
   const hy::HybridSelection s = tree.select(pm::View(pc), {.alpha_px = tau});

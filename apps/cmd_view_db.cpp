@@ -81,10 +81,10 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
   t = Clock::now();
   auto ctx = rd::create_offscreen_context({width, height});
   rd::Camera cam;
-  cam.position = {pc.x, pc.y, pc.z};
+  cam.x = pc.x, cam.y = pc.y, cam.z = pc.z;
   cam.yaw_deg = pc.yaw_deg, cam.pitch_deg = pc.pitch_deg, cam.fovy_deg = pc.fovy_deg;
-  cam.width = width, cam.height = height;
-  cam.z_near = pc.near_m, cam.z_far = pc.far_m;
+  cam.width_px = width, cam.height_px = height;
+  cam.near_m = pc.near_m, cam.far_m = pc.far_m;
   const pm::Box& box = rt.terrain_box();
   const glm::dvec3 origin(0.5 * (box.lo.x + box.hi.x), 0.5 * (box.lo.y + box.hi.y), 0.5 * (box.lo.z + box.hi.z));
   rd::DrawMesh dm;

@@ -558,12 +558,12 @@ int cmd_view(const Args& a) {
   const pm::Heightfield& hf = mesh.heightfield();
 
   render::Camera cam;
-  cam.position = {c[0], c[1], c[2]};
+  cam.x = c[0], cam.y = c[1], cam.z = c[2];
   cam.yaw_deg = c[3];
   cam.pitch_deg = c[4];
   cam.fovy_deg = c[5];
-  cam.width = width;
-  cam.height = height;
+  cam.width_px = width;
+  cam.height_px = height;
 
   // The terrain's bounding box: the clip planes of the render (and of the selection's view),
   // and, for --uniform, the conservative uniform error for tau: every point of a vertical error
@@ -578,11 +578,11 @@ int cmd_view(const Args& a) {
   const auto [hmin, hmax] = height_range(hf);
   lo.z = std::isfinite(hmin) ? hmin : 0.0;
   hi.z = std::isfinite(hmax) ? hmax : 0.0;
-  const double d_min = render::distance_to_box(cam.position, lo, hi);
+  const double d_min = render::distance_to_box(terralod::render::camera_position(cam), lo, hi);
   const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
   // Clip planes: reverse-Z keeps depth precise even with a near plane close to the eye.
-  cam.z_near = std::clamp(0.5 * d_min, 0.05, 1000.0);
-  cam.z_far = std::max(cam.z_near * 2.0, 1.01 * render::max_distance_to_box(cam.position, lo, hi) + 1.0);
+  cam.near_m = std::clamp(0.5 * d_min, 0.05, 1000.0);
+  cam.far_m = std::max(cam.near_m * 2.0, 1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
 
   const bool uniform = a.has("--uniform");
   pm::TriangleMesh m;
@@ -611,8 +611,8 @@ int cmd_view(const Args& a) {
     pc.fovy_deg = c[5];
     pc.width_px = width;
     pc.height_px = height;
-    pc.near_m = cam.z_near;
-    pc.far_m = cam.z_far;
+    pc.near_m = cam.near_m;
+    pc.far_m = cam.far_m;
     t = Clock::now();
     const pm::CollapseDag dag(mesh);
     dag_ms = ms_since(t);
@@ -694,8 +694,8 @@ int cmd_view(const Args& a) {
     j.field("yaw", c[3]);
     j.field("pitch", c[4]);
     j.field("fovy", c[5]);
-    j.field("near", cam.z_near);
-    j.field("far", cam.z_far);
+    j.field("near", cam.near_m);
+    j.field("far", cam.far_m);
     j.end_object();
     j.field("width", width);
     j.field("height", height);

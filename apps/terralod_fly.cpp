@@ -436,11 +436,7 @@ class Pipeline {
     FrameRecord r = last_;
     r.camera = cam;
     r.vertices = dm_.vertex_count();
-    rd::Camera rc;
-    rc.position = {cam.x, cam.y, cam.z};
-    rc.yaw_deg = cam.yaw_deg, rc.pitch_deg = cam.pitch_deg, rc.fovy_deg = cam.fovy_deg;
-    rc.width = cam.width_px, rc.height = cam.height_px;
-    rc.z_near = cam.near_m, rc.z_far = cam.far_m;
+    const rd::Camera& rc = cam;  // one camera type from the selection to the GPU
     drew_layered_ = layers_ && !wireframe;
     if (drew_layered_) {
       if (layers_->per_patch())

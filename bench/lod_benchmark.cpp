@@ -223,18 +223,6 @@ class FullGrid : public LodStrategy {
   std::vector<Tri> tris_;
 };
 
-render::Camera render_camera(const pm::Camera& c) {
-  render::Camera r;
-  r.position = {c.x, c.y, c.z};
-  r.yaw_deg = c.yaw_deg;
-  r.pitch_deg = c.pitch_deg;
-  r.fovy_deg = c.fovy_deg;
-  r.z_near = c.near_m;
-  r.z_far = c.far_m;
-  r.width = c.width_px;
-  r.height = c.height_px;
-  return r;
-}
 
 /// Draws frames of whole-grid triangle lists with OSMesa (the terrain uploaded once).
 class Drawer {
@@ -262,7 +250,7 @@ class Drawer {
     }
     const std::vector<Tri>& use = mirrored_ ? flipped_ : tris;
     renderer_->update_indices(id_, std::span<const std::uint32_t>(use.empty() ? nullptr : use.front().data(), use.size() * 3));
-    renderer_->draw(render_camera(cam), {{id_, 0.0f}});
+    renderer_->draw((cam), {{id_, 0.0f}});
     return ms_since(t);
   }
 

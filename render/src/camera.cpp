@@ -14,12 +14,12 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 void check(const Camera& c) {
   assert(c.pitch_deg >= -90.0 && c.pitch_deg <= 90.0 && "Camera::pitch_deg must be in [-90, 90]");
   assert(c.fovy_deg > 0.0 && c.fovy_deg < 180.0 && "Camera::fovy_deg must be in (0, 180)");
-  assert(c.z_near > 0.0 && c.z_far > c.z_near && "Camera needs 0 < z_near < z_far");
-  assert(c.width >= 1 && c.height >= 1 && "Camera viewport must be at least 1 x 1");
+  assert(c.near_m > 0.0 && c.far_m > c.near_m && "Camera needs 0 < near_m < far_m");
+  assert(c.width_px >= 1 && c.height_px >= 1 && "Camera viewport must be at least 1 x 1");
   (void)c;
 }
 
-double aspect(const Camera& c) { return double(c.width) / double(c.height); }
+double aspect(const Camera& c) { return double(c.width_px) / double(c.height_px); }
 
 }  // namespace
 
@@ -37,7 +37,7 @@ glm::dvec3 camera_up(const Camera& c) { return glm::cross(camera_right(c), camer
 
 glm::dmat4 view_matrix(const Camera& c) {
   check(c);
-  const glm::dvec3 r = camera_right(c), u = camera_up(c), f = camera_forward(c), p = c.position;
+  const glm::dvec3 r = camera_right(c), u = camera_up(c), f = camera_forward(c), p = camera_position(c);
   glm::dmat4 v(1.0);  // column-major: v[column][row]
   v[0][0] = r.x, v[1][0] = r.y, v[2][0] = r.z, v[3][0] = -glm::dot(r, p);
   v[0][1] = u.x, v[1][1] = u.y, v[2][1] = u.z, v[3][1] = -glm::dot(u, p);
@@ -47,7 +47,7 @@ glm::dmat4 view_matrix(const Camera& c) {
 
 glm::dmat4 projection_matrix(const Camera& c) {
   check(c);
-  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg), n = c.z_near, f = c.z_far;
+  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg), n = c.near_m, f = c.far_m;
   glm::dmat4 p(0.0);
   p[0][0] = t / aspect(c);
   p[1][1] = t;
@@ -60,7 +60,7 @@ glm::dmat4 projection_matrix(const Camera& c) {
 glm::dmat4 reverse_z_projection_matrix(const Camera& c) {
   check(c);
   // clip z = A z_e + B, w = -z_e; depth = z/w: 1 at z_e = -near, 0 at z_e = -far.
-  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg), n = c.z_near, f = c.z_far;
+  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg), n = c.near_m, f = c.far_m;
   glm::dmat4 p(0.0);
   p[0][0] = t / aspect(c);
   p[1][1] = t;
@@ -72,19 +72,19 @@ glm::dmat4 reverse_z_projection_matrix(const Camera& c) {
 
 double focal_length_pixels(const Camera& c) {
   check(c);
-  return 0.5 * double(c.height) / std::tan(0.5 * c.fovy_deg * kDeg);
+  return 0.5 * double(c.height_px) / std::tan(0.5 * c.fovy_deg * kDeg);
 }
 
 double max_pixels_per_radian(const Camera& c) {
   const double k = focal_length_pixels(c);
-  const double r2 = 0.25 * (double(c.width) * c.width + double(c.height) * c.height);
+  const double r2 = 0.25 * (double(c.width_px) * c.width_px + double(c.height_px) * c.height_px);
   return k * (1.0 + r2 / (k * k));
 }
 
 glm::dvec3 pixel_ray(const Camera& c, double px, double py) {
   check(c);
   const double t = std::tan(0.5 * c.fovy_deg * kDeg);
-  const double nx = 2.0 * px / c.width - 1.0, ny = 1.0 - 2.0 * py / c.height;
+  const double nx = 2.0 * px / c.width_px - 1.0, ny = 1.0 - 2.0 * py / c.height_px;
   return glm::normalize(camera_forward(c) + camera_right(c) * (nx * t * aspect(c)) + camera_up(c) * (ny * t));
 }
 

@@ -556,9 +556,9 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
   const bool any_seq = std::find(seq.begin(), seq.end(), true) != seq.end();
   const int passes = passes_for(st, lens, any_seq);
 
-  im.ensure_framebuffer(camera.width, camera.height);
+  im.ensure_framebuffer(camera.width_px, camera.height_px);
   gl.BindFramebuffer(GL_FRAMEBUFFER, im.fbo);
-  gl.Viewport(0, 0, camera.width, camera.height);
+  gl.Viewport(0, 0, camera.width_px, camera.height_px);
   gl.ClearColor(options_.sky_color.r, options_.sky_color.g, options_.sky_color.b, 1.0f);
   gl.ClearDepth(1.0);
   gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);

@@ -417,10 +417,10 @@ FrameStats TerrainRenderer::draw(const Camera& camera, std::span<const DrawItem>
 
   // 2. The frame.
   t = Clock::now();
-  impl_->ensure_framebuffer(camera.width, camera.height);
+  impl_->ensure_framebuffer(camera.width_px, camera.height_px);
   const bool reverse = options_.reverse_z && ctx_.info().clip_control;
   gl.BindFramebuffer(GL_FRAMEBUFFER, impl_->fbo);
-  gl.Viewport(0, 0, camera.width, camera.height);
+  gl.Viewport(0, 0, camera.width_px, camera.height_px);
   if (ctx_.info().clip_control)
     gl.ClipControl(GL_LOWER_LEFT, reverse ? GL_ZERO_TO_ONE : GL_NEGATIVE_ONE_TO_ONE);
   gl.ClearColor(options_.sky_color.r, options_.sky_color.g, options_.sky_color.b, 1.0f);
@@ -585,7 +585,7 @@ std::vector<DepthSample> TerrainRenderer::read_depth(std::span<const glm::ivec2>
       s.world = glm::dvec3(std::numeric_limits<double>::quiet_NaN());
       continue;
     }
-    const glm::dvec4 ndc(2.0 * (p.x + 0.5) / cam.width - 1.0, 1.0 - 2.0 * (p.y + 0.5) / cam.height,
+    const glm::dvec4 ndc(2.0 * (p.x + 0.5) / cam.width_px - 1.0, 1.0 - 2.0 * (p.y + 0.5) / cam.height_px,
                          reverse ? d : 2.0 * d - 1.0, 1.0);
     glm::dvec4 eye = inv_proj * ndc;
     eye /= eye.w;

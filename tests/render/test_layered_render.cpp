@@ -36,12 +36,12 @@ DrawMesh flat_square() {
 // metre exactly.
 Camera down_camera() {
   Camera c;
-  c.position = {32.0, 32.0, 32.0};
+  c.x = 32.0, c.y = 32.0, c.z = 32.0;
   c.pitch_deg = -90.0;
   c.fovy_deg = 90.0;
-  c.width = c.height = 64;
-  c.z_near = 1.0;
-  c.z_far = 1000.0;
+  c.width_px = c.height_px = 64;
+  c.near_m = 1.0;
+  c.far_m = 1000.0;
   return c;
 }
 
@@ -269,12 +269,12 @@ TEST_F(Gl, TwoLayerFrameMatchesTheStoredReference) {
   st[1].name = "stripes", st[1].weight = 0.5f;
   const LayeredItem item{m, {{r.upload_texture(shade), geo}, {r.upload_texture(stripes), geo}}};
   Camera cam;
-  cam.position = {x0 + 32 * sp, y0 - 64 * sp - 900.0, 1300.0};
+  cam.x = x0 + 32 * sp, cam.y = y0 - 64 * sp - 900.0, cam.z = 1300.0;
   cam.yaw_deg = 0.0;
   cam.pitch_deg = -35.0;
-  cam.width = 192;
-  cam.height = 144;
-  cam.z_far = 20000.0;
+  cam.width_px = 192;
+  cam.height_px = 144;
+  cam.far_m = 20000.0;
   const LayeredFrameStats s = r.draw(cam, st, Lens{}, {item});
   EXPECT_EQ(s.passes, 1);
   const Image img = r.read_color();

@@ -136,10 +136,10 @@ pm::Camera down() {
 
 Camera render_camera(const pm::Camera& p) {
   Camera c;
-  c.position = {p.x, p.y, p.z};
+  c.x = p.x, c.y = p.y, c.z = p.z;
   c.yaw_deg = p.yaw_deg, c.pitch_deg = p.pitch_deg, c.fovy_deg = p.fovy_deg;
-  c.width = p.width_px, c.height = p.height_px;
-  c.z_near = p.near_m, c.z_far = p.far_m;
+  c.width_px = p.width_px, c.height_px = p.height_px;
+  c.near_m = p.near_m, c.far_m = p.far_m;
   return c;
 }
 

@@ -96,14 +96,14 @@ struct Plane {
 /// A camera south of the 512 m square, looking north and down at it; the top of the image is sky.
 Camera plane_camera() {
   Camera cam;
-  cam.position = {kX0 + 256.0, kY0 - 150.0, 420.0};
+  cam.x = kX0 + 256.0, cam.y = kY0 - 150.0, cam.z = 420.0;
   cam.yaw_deg = 10.0;
   cam.pitch_deg = -18.0;
   cam.fovy_deg = 50.0;
-  cam.z_near = 1.0;
-  cam.z_far = 5000.0;
-  cam.width = 320;
-  cam.height = 240;
+  cam.near_m = 1.0;
+  cam.far_m = 5000.0;
+  cam.width_px = 320;
+  cam.height_px = 240;
   return cam;
 }
 
@@ -122,14 +122,14 @@ pm::Heightfield rough_terrain(int n, std::uint64_t seed = 7) {
 Camera terrain_camera(int n, int width = 320, int height = 240) {
   Camera cam;
   const double L = (n - 1) * 30.0;
-  cam.position = {kX0 - 0.15 * L, kY0 - 0.15 * L, 0.45 * L + 400.0};
+  cam.x = kX0 - 0.15 * L, cam.y = kY0 - 0.15 * L, cam.z = 0.45 * L + 400.0;
   cam.yaw_deg = 45.0;
   cam.pitch_deg = -28.0;
   cam.fovy_deg = 55.0;
-  cam.z_near = 5.0;
-  cam.z_far = 4.0 * L + 2000.0;
-  cam.width = width;
-  cam.height = height;
+  cam.near_m = 5.0;
+  cam.far_m = 4.0 * L + 2000.0;
+  cam.width_px = width;
+  cam.height_px = height;
   return cam;
 }
 
@@ -210,29 +210,29 @@ TEST(Camera, YawIsClockwiseFromNorthPitchIsAboveTheHorizon) {
 
 TEST(Camera, ViewMatrixPutsTheCameraAtTheOriginLookingDownMinusZ) {
   Camera c;
-  c.position = {kX0 + 12.5, kY0 - 7.0, 830.0};
+  c.x = kX0 + 12.5, c.y = kY0 - 7.0, c.z = 830.0;
   c.yaw_deg = 37.0;
   c.pitch_deg = -21.0;
   const glm::dmat4 v = render::view_matrix(c);
-  expect_near(glm::dvec3(v * glm::dvec4(c.position, 1.0)), {0, 0, 0}, 1e-9, "camera position -> eye origin");
-  expect_near(glm::dvec3(v * glm::dvec4(c.position + 10.0 * render::camera_forward(c), 1.0)), {0, 0, -10},
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c), 1.0)), {0, 0, 0}, 1e-9, "camera position -> eye origin");
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + 10.0 * render::camera_forward(c), 1.0)), {0, 0, -10},
               1e-9, "10 m ahead -> z_eye = -10");
-  expect_near(glm::dvec3(v * glm::dvec4(c.position + render::camera_right(c), 1.0)), {1, 0, 0}, 1e-9,
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + render::camera_right(c), 1.0)), {1, 0, 0}, 1e-9,
               "right -> +x_eye");
-  expect_near(glm::dvec3(v * glm::dvec4(c.position + render::camera_up(c), 1.0)), {0, 1, 0}, 1e-9,
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + render::camera_up(c), 1.0)), {0, 1, 0}, 1e-9,
               "up -> +y_eye");
 }
 
 TEST(Camera, ProjectionAndPixelRaysAgree) {
   Camera c;
-  c.position = {kX0, kY0, 500.0};
+  c.x = kX0, c.y = kY0, c.z = 500.0;
   c.yaw_deg = 200.0;
   c.pitch_deg = -40.0;
   c.fovy_deg = 45.0;
-  c.width = 640;
-  c.height = 360;
-  c.z_near = 2.0;
-  c.z_far = 3000.0;
+  c.width_px = 640;
+  c.height_px = 360;
+  c.near_m = 2.0;
+  c.far_m = 3000.0;
   const glm::dmat4 pv = render::projection_matrix(c) * render::view_matrix(c);
   const glm::dmat4 rpv = render::reverse_z_projection_matrix(c) * render::view_matrix(c);
   // The centre ray is the view direction.
@@ -240,18 +240,18 @@ TEST(Camera, ProjectionAndPixelRaysAgree) {
   // A point along the ray through image point (px, py) projects back to it, top-left origin.
   for (const auto& [px, py] :
        std::vector<std::pair<double, double>>{{0, 0}, {639.5, 0.5}, {100.25, 300.75}}) {
-    const glm::dvec3 p = c.position + 123.0 * render::pixel_ray(c, px, py);
+    const glm::dvec3 p = terralod::render::camera_position(c) + 123.0 * render::pixel_ray(c, px, py);
     glm::dvec4 clip = pv * glm::dvec4(p, 1.0);
     const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
-    EXPECT_NEAR((ndc.x + 1.0) * 0.5 * c.width, px, 1e-6);
-    EXPECT_NEAR((1.0 - ndc.y) * 0.5 * c.height, py, 1e-6);
+    EXPECT_NEAR((ndc.x + 1.0) * 0.5 * c.width_px, px, 1e-6);
+    EXPECT_NEAR((1.0 - ndc.y) * 0.5 * c.height_px, py, 1e-6);
     const glm::dvec4 rclip = rpv * glm::dvec4(p, 1.0);
     EXPECT_NEAR(rclip.x / rclip.w, ndc.x, 1e-12);
   }
   // Depth ranges: standard near -> -1, far -> +1; reverse-Z near -> 1, far -> 0.
   for (const auto& [d, ndc_std, ndc_rev] :
        std::vector<std::tuple<double, double, double>>{{2.0, -1.0, 1.0}, {3000.0, 1.0, 0.0}}) {
-    const glm::dvec4 p(c.position + d * render::camera_forward(c), 1.0);
+    const glm::dvec4 p(terralod::render::camera_position(c) + d * render::camera_forward(c), 1.0);
     const glm::dvec4 a = pv * p, b = rpv * p;
     EXPECT_NEAR(a.z / a.w, ndc_std, 1e-9);
     EXPECT_NEAR(b.z / b.w, ndc_rev, 1e-9);
@@ -267,8 +267,8 @@ TEST(Camera, MaxPixelsPerRadianBoundsTheProjectionEverywhere) {
   c.yaw_deg = 30.0;
   c.pitch_deg = -10.0;
   c.fovy_deg = 70.0;
-  c.width = 800;
-  c.height = 400;
+  c.width_px = 800;
+  c.height_px = 400;
   const double bound = render::max_pixels_per_radian(c);
   // Pixels per radian between two nearby image points: the distance in pixels over the angle
   // between their rays. Never above the bound; at a corner, moving radially, nearly equal.
@@ -454,15 +454,15 @@ void check_plane_depth(bool reverse_z, double rel_tol) {
   r.draw(cam, {{id, 0.0f}});
 
   std::vector<glm::ivec2> pixels;
-  for (int y = 0; y < cam.height; y += 7)
-    for (int x = 0; x < cam.width; x += 9) pixels.push_back({x, y});
+  for (int y = 0; y < cam.height_px; y += 7)
+    for (int x = 0; x < cam.width_px; x += 9) pixels.push_back({x, y});
   const std::vector<render::DepthSample> got = r.read_depth(pixels);
   ASSERT_EQ(got.size(), pixels.size());
   int hits = 0, misses = 0;
   double worst = 0.0;
   for (std::size_t i = 0; i < pixels.size(); ++i) {
     const glm::dvec3 dir = render::pixel_ray(cam, pixels[i].x + 0.5, pixels[i].y + 0.5);
-    const glm::dvec3 o = cam.position;
+    const glm::dvec3 o = terralod::render::camera_position(cam);
     // z(o + t dir) = plane(x, y)  =>  t = (o.z - plane(o)) / (a dx + b dy - dz)
     const double t = (o.z - plane(o.x, o.y)) / (plane.a * dir.x + plane.b * dir.y - dir.z);
     const glm::dvec3 p = o + t * dir;

@@ -170,10 +170,10 @@ void check_case(const Terrain& t, const CameraCase& cc, double tau, rd::TerrainR
 
   if (!renderer) return;
   rd::Camera rc;
-  rc.position = {cc.cam.x, cc.cam.y, cc.cam.z};
+  rc.x = cc.cam.x, rc.y = cc.cam.y, rc.z = cc.cam.z;
   rc.yaw_deg = cc.cam.yaw_deg, rc.pitch_deg = cc.cam.pitch_deg, rc.fovy_deg = cc.cam.fovy_deg;
-  rc.z_near = cc.cam.near_m, rc.z_far = cc.cam.far_m;
-  rc.width = cc.cam.width_px, rc.height = cc.cam.height_px;
+  rc.near_m = cc.cam.near_m, rc.far_m = cc.cam.far_m;
+  rc.width_px = cc.cam.width_px, rc.height_px = cc.cam.height_px;
   const rd::MeshId id = renderer->upload(rd::make_draw_mesh(m, t.hf));
   renderer->draw(rc, {{id, 0.0f}});
   const rd::Image a = renderer->read_color();

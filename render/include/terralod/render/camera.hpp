@@ -1,11 +1,11 @@
 // A terrain camera (position, yaw, pitch, field of view) and the matrices and rays it defines.
 //
 // Usage:
-//   terralod::render::Camera cam;
-//   cam.position = {500000.0, 4200000.0, 1800.0};   // world metres (x east, y north, z up)
+//   terralod::render::Camera cam;   // = terralod::pm::Camera (pm/view.hpp)
+//   cam.x = 500000.0, cam.y = 4200000.0, cam.z = 1800.0;   // world metres (x east, y north, z up)
 //   cam.yaw_deg = 90.0;      // looking east
 //   cam.pitch_deg = -20.0;   // 20 degrees below the horizon
-//   cam.fovy_deg = 60.0;  cam.width = 1280;  cam.height = 720;
+//   cam.fovy_deg = 60.0;  cam.width_px = 1280;  cam.height_px = 720;
 //   glm::dmat4 v = terralod::render::view_matrix(cam);          // world -> eye
 //   glm::dmat4 p = terralod::render::projection_matrix(cam);    // eye -> clip (GL, z in [-1,1])
 //   glm::dvec3 ray = terralod::render::pixel_ray(cam, 640.0, 360.0);  // through the image centre
@@ -18,8 +18,8 @@
 //   - yaw_deg: degrees clockwise from north; 0 looks along +y, 90 along +x. Any value.
 //   - pitch_deg: degrees above the horizon, in [-90, 90]; negative looks down.
 //   - fovy_deg: vertical field of view across the image height, in (0, 180).
-//   - z_near, z_far: clip distances along the view axis, metres, 0 < z_near < z_far.
-//   - width, height: the viewport in pixels, >= 1. Image coordinates (px, py) are pixels with
+//   - near_m, far_m: clip distances along the view axis, metres, 0 < near_m < far_m.
+//   - width_px, height_px: the viewport in pixels, >= 1. Image coordinates (px, py) are pixels with
 //     (0,0) the top-left corner of the image; pixel (i, j) has its centre at (i+0.5, j+0.5).
 //   - The eye frame is OpenGL's: the camera looks along -z_eye, x_eye is image right, y_eye
 //     image up. Roll is always zero: image right is horizontal (cos yaw, -sin yaw, 0).
@@ -28,18 +28,16 @@
 
 #include <glm/glm.hpp>
 
+#include "terralod/pm/view.hpp"
+
 namespace terralod::render {
 
-struct Camera {
-  glm::dvec3 position{0.0, 0.0, 0.0};  ///< world metres
-  double yaw_deg = 0.0;                ///< clockwise from north
-  double pitch_deg = 0.0;              ///< above the horizon, [-90, 90]
-  double fovy_deg = 60.0;              ///< vertical field of view, (0, 180)
-  double z_near = 1.0;                 ///< metres, > 0
-  double z_far = 100000.0;             ///< metres, > z_near
-  int width = 1024;                    ///< viewport, pixels
-  int height = 768;
-};
+/// The camera is pm::Camera (one camera type from the selection to the GPU): eye x, y, z,
+/// yaw, pitch, fovy, width_px x height_px, near_m and far_m, as documented above.
+using Camera = pm::Camera;
+
+/// The eye position as a glm vector.
+inline glm::dvec3 camera_position(const Camera& c) { return {c.x, c.y, c.z}; }
 
 /// Unit view direction in the world frame: (sin yaw cos pitch, cos yaw cos pitch, sin pitch).
 glm::dvec3 camera_forward(const Camera& c);
