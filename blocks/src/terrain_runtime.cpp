@@ -211,9 +211,11 @@ void TerrainRuntime::set_options(const RuntimeOptions& options) {
   check_options(options);
   const bool refine_changed = options.tolerance_px != opt_.tolerance_px || options.morph_seconds != opt_.morph_seconds ||
                               options.target_triangles != opt_.target_triangles;
+  // The flight history is kept unless the predictor itself changes (a new tau must not make
+  // the next frames predict from nothing).
+  if (!(options.predictor == opt_.predictor)) predictor_ = FlightPredictor(options.predictor);
   opt_ = options;
   if (refine_changed) tau_ = opt_.tolerance_px;
-  predictor_ = FlightPredictor(opt_.predictor);
 }
 
 void TerrainRuntime::fit_clip_planes(pm::Camera& cam) const {
@@ -256,7 +258,10 @@ std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {
   return std::size_t(double(block_vertices_[grid_.index(k)]) * bytes_per_vertex_);
 }
 
-std::size_t TerrainRuntime::fixed_bytes() const { return tree_bytes_ + summary_bytes_ + mesh_.memory_bytes(); }
+std::size_t TerrainRuntime::fixed_bytes() const {
+  return tree_bytes_ + summary_bytes_ + mesh_.memory_bytes() +
+         4 * (height_index_.start.capacity() + height_index_.tris.capacity());
+}
 
 // Selection (header, step 2). Returns false when the subtree needs a block that is not resident.
 bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px) {
@@ -907,14 +912,52 @@ double TerrainRuntime::max_height_at(double x, double y) const {
 }
 
 double TerrainRuntime::drawn_height(double x, double y) const {
-  const auto [c, r] = grid_.to_grid(x, y);
+  // A bucket grid over the drawn triangles' sample-space boxes, built on the first call after
+  // an update: a query then tests the triangles of one bucket (ray marches call it often).
+  HeightIndex& ix = height_index_;
   const std::uint64_t W = std::uint64_t(grid_.grid_width());
-  for (const auto& t : mesh_.triangles) {
-    std::array<double, 3> q[3];
+  auto corners = [&](std::size_t f, std::array<double, 3> q[3]) {
+    const auto& t = mesh_.triangles[f];
     for (int k = 0; k < 3; ++k) {
       const std::uint64_t sm = mesh_.samples[t[std::size_t(k)]];
       q[k] = {double(sm % W), double(sm / W), mesh_.positions[t[std::size_t(k)]].z};
     }
+  };
+  if (ix.frame != frame_) {
+    ix.frame = frame_;
+    const int side = std::clamp(int(std::sqrt(double(mesh_.triangles.size()) / 4.0)), 1, 256);
+    ix.nx = ix.ny = side;
+    ix.cell_w = double(std::max(grid_.grid_width() - 1, 1)) / side;
+    ix.cell_h = double(std::max(grid_.grid_height() - 1, 1)) / side;
+    ix.start.assign(std::size_t(side) * side + 1, 0);
+    std::vector<std::array<int, 4>> span(mesh_.triangles.size());
+    for (std::size_t f = 0; f < mesh_.triangles.size(); ++f) {
+      std::array<double, 3> q[3];
+      corners(f, q);
+      auto cell = [&](double v, double w, int n) { return std::clamp(int(std::floor(v / w)), 0, n - 1); };
+      span[f] = {cell(std::min({q[0][0], q[1][0], q[2][0]}), ix.cell_w, side),
+                 cell(std::max({q[0][0], q[1][0], q[2][0]}), ix.cell_w, side),
+                 cell(std::min({q[0][1], q[1][1], q[2][1]}), ix.cell_h, side),
+                 cell(std::max({q[0][1], q[1][1], q[2][1]}), ix.cell_h, side)};
+      for (int j = span[f][2]; j <= span[f][3]; ++j)
+        for (int i = span[f][0]; i <= span[f][1]; ++i) ++ix.start[std::size_t(j) * side + i + 1];
+    }
+    for (std::size_t k = 1; k < ix.start.size(); ++k) ix.start[k] += ix.start[k - 1];
+    ix.tris.resize(ix.start.back());
+    std::vector<std::uint32_t> fill(ix.start.begin(), ix.start.end() - 1);
+    for (std::size_t f = 0; f < mesh_.triangles.size(); ++f)
+      for (int j = span[f][2]; j <= span[f][3]; ++j)
+        for (int i = span[f][0]; i <= span[f][1]; ++i) ix.tris[fill[std::size_t(j) * side + i]++] = std::uint32_t(f);
+  }
+  const auto [c, r] = grid_.to_grid(x, y);
+  if (!(c >= 0 && r >= 0 && c <= grid_.grid_width() - 1 && r <= grid_.grid_height() - 1))
+    return std::numeric_limits<double>::quiet_NaN();
+  const int i = std::clamp(int(std::floor(c / ix.cell_w)), 0, ix.nx - 1);
+  const int j = std::clamp(int(std::floor(r / ix.cell_h)), 0, ix.ny - 1);
+  const std::size_t bucket = std::size_t(j) * ix.nx + i;
+  for (std::uint32_t k = ix.start[bucket]; k < ix.start[bucket + 1]; ++k) {
+    std::array<double, 3> q[3];
+    corners(ix.tris[k], q);
     if (c < std::min({q[0][0], q[1][0], q[2][0]}) || c > std::max({q[0][0], q[1][0], q[2][0]}) ||
         r < std::min({q[0][1], q[1][1], q[2][1]}) || r > std::max({q[0][1], q[1][1], q[2][1]}))
       continue;

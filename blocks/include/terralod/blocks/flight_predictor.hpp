@@ -33,6 +33,7 @@ namespace terralod::blocks {
 struct PredictorOptions {
   double window_s = 0.5;         ///< history used for velocity and turn rate, seconds, > 0
   double max_turn_rate = 1.0;    ///< |omega| limit, radians per second, >= 0
+  bool operator==(const PredictorOptions&) const = default;
 };
 
 struct PredictedPoint {

@@ -210,7 +210,9 @@ class TerrainRuntime {
   const std::string& path() const { return path_; }
   /// World box of the whole terrain (x, y of the grid corners, z the sample height range).
   const pm::Box& terrain_box() const { return tree_.root().bbox; }
-  /// Height of the drawn surface under world (x, y) (NaN outside what is drawn). O(triangles).
+  /// Height of the drawn surface under world (x, y) (NaN outside what is drawn). The first
+  /// call after an update indexes the drawn triangles in a bucket grid (O(triangles)); each
+  /// call then tests one bucket's triangles. Not thread-safe (the frame thread's).
   double drawn_height(double x, double y) const;
   /// The highest sample of the smallest tree node over world (x, y) (clamped to the terrain):
   /// a height at or above the terrain there, known without loading anything. O(tree depth).
@@ -255,6 +257,13 @@ class TerrainRuntime {
   std::uint64_t frame_ = 0;
   RuntimeFrameStats stats_;
   DrawnMesh mesh_;
+  struct HeightIndex {  // drawn_height's bucket grid over mesh_ (sample space)
+    std::uint64_t frame = ~std::uint64_t(0);
+    int nx = 0, ny = 0;
+    double cell_w = 1, cell_h = 1;
+    std::vector<std::uint32_t> start, tris;  // bucket b's triangles: tris[start[b], start[b+1])
+  };
+  mutable HeightIndex height_index_;
   std::vector<Patch> patches_;        // the frame's patches (a pool: the first patch_count are used)
   std::unique_ptr<Scratch> scratch_;
   // What the loader thread needs to prepare an arriving block's refinement (the last frame's
