@@ -17,7 +17,6 @@
 #include <unordered_map>
 
 #include "terralod/blocks/seam_stitch.hpp"
-#include "terralod/blocks/terrain_session.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 
 namespace terralod::blocks {

@@ -12,7 +12,6 @@
 #include "mesh_checker.hpp"
 #include "session_fixture.hpp"
 #include "terralod/blocks/active_region.hpp"
-#include "terralod/blocks/terrain_session.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 

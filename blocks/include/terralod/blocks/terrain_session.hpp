@@ -208,13 +208,4 @@ class TerrainSession {
   std::unique_ptr<BlockLoader> loader_;  // last: stopped first
 };
 
-/// The block summaries of a database: its "block_summaries" blob when present (and matching
-/// the grid; a version 1 blob gives two-triangle stand-ins), otherwise computed by reading every
-/// block once (progress in [0, 1] if given) with stand-ins made by `standin`'s kind and
-/// max_points and the database's metric (standin.metric is not used). Throws DatabaseError /
-/// pm::PmFormatError naming the file and the problem.
-std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const BlockGrid& grid,
-                                               const std::function<void(double)>& progress = {},
-                                               const StandinOptions& standin = {});
-
 }  // namespace terralod::blocks
