@@ -95,6 +95,50 @@ TEST(BlockLoader, ErrorsNameTheSourceAndTheBlock) {
   EXPECT_EQ(r[1].error.rfind("memory: block (4,4): ", 0), 0u) << r[1].error;
 }
 
+TEST(BlockLoader, ReadsTheBlockDatabaseOnItsOwnConnection) {
+  // database_source: the loader thread opens the database read-only on its own connection and
+  // reads exactly the blobs written; a database that is not there is an error naming the file.
+  // read_block_summaries: computed from the blocks without the summaries blob, decoded with it.
+  const BlockedTerrain& t = terrain();
+  const std::string path = std::string(TERRALOD_TEST_TMP) + "/loader_database.db";
+  for (const char* ext : {"", "-wal", "-shm"}) std::remove((path + ext).c_str());
+  tb::DatabaseInfo info;
+  info.grid_width = t.hf.width();
+  info.grid_height = t.hf.height();
+  info.transform = t.hf.transform;
+  info.block_size = t.grid.block_size();
+  {
+    tb::BlockDatabase db = tb::BlockDatabase::create(path, info);
+    for (const auto& [k, blob] : t.blobs) db.put_block(k, blob);
+    EXPECT_EQ(tb::read_block_summaries(db, tb::BlockGrid::from_info(db.info())), t.summaries);
+    db.put_blob(tb::kBlockSummariesBlob, tb::encode_block_summaries(t.grid, t.summaries));
+    EXPECT_EQ(tb::read_block_summaries(db, t.grid), t.summaries);
+  }
+  const std::vector<tb::BlockKey> keys{{0, 0}, {3, 5}, {7, 7}};
+  {
+    tb::BlockLoader loader(tb::database_source(path), t.grid);
+    std::vector<tb::BlockLoader::Request> q;
+    for (tb::BlockKey k : keys) q.push_back({k, double(q.size())});
+    loader.set_queue(q);
+    const std::vector<tb::LoadResult> r = wait_results(loader, keys.size());
+    ASSERT_EQ(r.size(), keys.size());
+    std::uint64_t bytes = 0;
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      EXPECT_EQ(r[i].key, keys[i]);
+      ASSERT_TRUE(r[i].block) << r[i].error;
+      EXPECT_TRUE(r[i].block->pm == pm::decode_pm(t.blobs.at(keys[i]), "blob"));
+      bytes += t.blobs.at(keys[i]).size();
+    }
+    EXPECT_EQ(loader.bytes_read(), bytes);  // each block read once
+  }
+  tb::BlockLoader bad(tb::database_source(path + ".missing"), t.grid);
+  bad.set_queue({{{1, 1}, 0}});
+  const std::vector<tb::LoadResult> r = wait_results(bad, 1);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_FALSE(r[0].block);
+  EXPECT_NE(r[0].error.find(path + ".missing"), std::string::npos) << r[0].error;
+}
+
 TEST(BlockCache, EvictsLeastRecentlyUsedUnpinnedBlocksBeyondTheBudget) {
   // Three blocks of 100 bytes, budget 250: inserting the third evicts the least recently used
   // unpinned one.
