@@ -690,7 +690,6 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
   mesh_.samples.clear();
   mesh_.triangles.clear();
   mesh_.triangle_node.clear();
-  mesh_.triangle_block.clear();
   std::vector<double>&rest = x.rest, &display = x.display;  // per drawn vertex
   rest.clear();
   display.clear();

@@ -132,11 +132,11 @@ struct BlockSummary {
   double standin_error = 0;    ///< exact L-infinity error of the stand-in surface, metres
   /// The stand-in surface: points include the 4 corners; triangles index points, are CCW in
   /// (col,row) and cover the block's domain exactly once. Empty in a summary filled by hand
-  /// (TerrainSession then uses the two triangles of the corners with tm_error).
+  /// (set_two_triangle_standin gives it the two triangles of its corners with tm_error).
   std::vector<StandinPoint> points;
   std::vector<std::array<std::uint32_t, 3>> triangles;
   /// Per triangle: its exact error (same metric) rounded up to the next float, metres; the
-  /// session bounds each triangle in its own box with it. Two-triangle stand-ins decoded from
+  /// runtime bounds each triangle in its own box with it (standin_bound_px). Two-triangle stand-ins decoded from
   /// a version 1 blob have tm_error for both.
   std::vector<double> triangle_errors;
   bool operator==(const BlockSummary&) const = default;
