@@ -11,7 +11,7 @@
 #include <thread>
 #include <vector>
 
-#include "session_fixture.hpp"
+#include "block_fixture.hpp"
 #include "terralod/blocks/block_cache.hpp"
 #include "terralod/blocks/block_loader.hpp"
 

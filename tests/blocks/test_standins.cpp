@@ -9,8 +9,8 @@
 #include <random>
 #include <zlib.h>
 
+#include "block_fixture.hpp"
 #include "mesh_checker.hpp"
-#include "session_fixture.hpp"
 #include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/progressive_mesh.hpp"

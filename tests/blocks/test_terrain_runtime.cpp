@@ -18,8 +18,8 @@
 #include <string>
 #include <thread>
 
+#include "block_fixture.hpp"
 #include "drawn_frame_checker.hpp"
-#include "session_fixture.hpp"
 #include "run_command.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
@@ -312,8 +312,8 @@ TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {
   EXPECT_THROW(rt.update(tp::View(cam), 0.5), std::invalid_argument);
 }
 
-// Flight-path prefetch in the runtime: blocks read with a latency of 6 frames (the session
-// fixture's in-memory source over the database's own blobs), 600 m/s; after the cold start,
+// Flight-path prefetch in the runtime: blocks read with a latency of 6 frames (the in-memory
+// source of tests/support/block_fixture.hpp over the database's own blobs), 600 m/s; after the cold start,
 // prediction must remove most of the blocks needed before they arrived.
 namespace {
 

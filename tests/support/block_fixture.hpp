@@ -1,23 +1,25 @@
-// Test support for dynamic loading: blocked generated terrains (block PMs and summaries with
-// their stand-ins, one kind or a mix of kinds), an in-memory block source with controllable
-// latency (a stalled reader), and an independent watertightness checker of a drawn mesh.
+// Test support for block loading: blocked generated terrains (block PMs encoded as in a block
+// database, and summaries with their stand-ins, one kind or a mix of kinds) and an in-memory
+// block source with controllable latency (a stalled reader), for BlockLoader and for
+// TerrainRuntime's `blocks` source.
+//
+// Usage:
+//   const terralod::test::BlockedTerrain t = terralod::test::make_blocked_terrain(257, 257, 33, /*seed=*/11);
+//   terralod::test::MemoryStore store;
+//   store.terrain = &t;                 // the blobs read; must outlive the readers
+//   store.latency_frames = 2;           // each read waits until advance_frame() was called twice
+//   terralod::blocks::BlockLoader loader(terralod::test::memory_source(store), t.grid);
+//   const terralod::test::ReleaseAtExit release{store};   // after the loader: unblocks its last read
 #pragma once
 
-#include <gtest/gtest.h>
-
-#include <array>
 #include <atomic>
-#include <chrono>
 #include <condition_variable>
 #include <cstdint>
-#include <cmath>
 #include <map>
+#include <memory>
 #include <mutex>
-#include <numeric>
-#include <set>
 #include <string>
-#include <thread>
-#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "terralod/blocks/active_region.hpp"
@@ -74,18 +76,6 @@ inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size,
   return t;
 }
 
-/// A copy of `t` whose summaries get other stand-ins (block PMs decoded from the blobs, not
-/// rebuilt; `standins` as in block_terrain).
-inline BlockedTerrain with_standins(const BlockedTerrain& t, const std::vector<blocks::StandinOptions>& standins) {
-  BlockedTerrain c = t;
-  for (const auto& [k, blob] : c.blobs) {
-    const blocks::StandinOptions o =
-        standins.empty() ? blocks::StandinOptions{} : standins[std::size_t(k.col + 2 * k.row) % standins.size()];
-    c.summaries[c.grid.index(k)] = blocks::summarize_block(pm::decode_pm(blob, "blob"), k, o);
-  }
-  return c;
-}
-
 /// Shared state of MemorySource objects: the blobs, a gate that can stall every read until
 /// the frame counter reaches a value, and counters.
 struct MemoryStore {
@@ -122,13 +112,15 @@ struct MemoryStore {
   }
 };
 
-/// Declared after a session that reads from `store`: releases every waiting read before the
-/// session's loader is joined (a loader waits for the read in progress when it stops).
+/// Declared after the loader or runtime that reads from `store`: releases every waiting read
+/// before the loader thread is joined (a loader waits for the read in progress when it stops).
 struct ReleaseAtExit {
   MemoryStore& store;
   ~ReleaseAtExit() { store.release(); }
 };
 
+/// A block source over store.terrain's blobs: each read first waits at the store's gate, then
+/// returns the blob or throws DatabaseError "memory: block (c,r): not in the database".
 class MemorySource final : public blocks::BlockSource {
  public:
   explicit MemorySource(MemoryStore& s) : s_(&s) {}
