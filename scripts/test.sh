@@ -81,7 +81,8 @@ asan() {
 # thread beside the test thread (test_block_loader: loads, a stalled reader, errors, the
 # database's own connection), and the runtime with its loader thread, which also prepares each
 # arriving block's refinement (test_terrain_runtime's TerrainRuntimeLoading: a stalled reader,
-# errors, eviction and reloads, random flights while blocks arrive).
+# errors, eviction and reloads, random flights while blocks arrive; about 1.5 minutes under TSan
+# on 2 cores, half of it building their database).
 # Only their executables are built.
 tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime)
 tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
