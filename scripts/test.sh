@@ -48,13 +48,14 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # unwinder doubles the cost of every allocation (and makes llvmpipe's shader compiler
 # minutes slower), so it is used for the tests that decode corrupt images only.
 # Also left to the normal pass: the end-to-end tests that drive the command-line tools over
-# whole pipelines (kill-and-resume builds, flights, the benchmark, texture CLI runs, crack
-# flights of 660 frames, every tool on broken databases and camera paths): they spend minutes
-# under ASan in code the unit tests above already run instrumented. Keeps the CI run within its
-# 30 minutes on 2 cores. Of the runtime's flights (test_terrain_runtime), the low flight, the
-# memory budget, the live settings and the prefetch run instrumented; the high, fast-turning
-# and per-kind flights (four minutes under ASan) take the same paths through the runtime.
-asan_exclude='RealTileFull|KauaiVoids|test_database_build|test_cracks|test_bench|test_fly|test_texture_store|test_cmd_|test_prefetch|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse'
+# whole pipelines (kill-and-resume builds, flights, the benchmark, texture CLI runs, and
+# every tool on broken databases and camera paths): they spend minutes under ASan in code the
+# unit tests above already run instrumented. Keeps the CI run within its 30 minutes on 2 cores.
+# Of the runtime's flights (test_terrain_runtime), the low flight, the memory budget, the live
+# settings, the prefetch, the stalled reader, loader errors and eviction run instrumented; the
+# high, fast-turning and per-kind flights and the flights checked frame by frame while blocks
+# arrive (random, per stand-in kind, N44W072) take the same paths through the runtime.
+asan_exclude='RealTileFull|KauaiVoids|test_database_build|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight'
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
 asan() {
   # -O1 -g1: line tables are enough for reports and compile about a third faster than -O2 -g.
@@ -77,12 +78,14 @@ asan() {
 # (TextureCache: loads racing frames and eviction), and the CPU shading generator's row threads
 # (test_topographic_texture ParallelRowsRegionsAndHoles), and the block database's reader threads
 # beside a writer (test_block_database ConcurrentReadersWhileWriting), and the block loader
-# thread beside the frame loop (test_block_loader: loads, a stalled reader, eviction, errors),
-# and the whole session with its loader (test_terrain_session: stand-ins, swap-in blends, seams;
-# about 18 s under TSan).
+# thread beside the test thread (test_block_loader: loads, a stalled reader, errors, the
+# database's own connection), and the runtime with its loader thread, which also prepares each
+# arriving block's refinement (test_terrain_runtime's TerrainRuntimeLoading: a stalled reader,
+# errors, eviction and reloads, random flights while blocks arrive; about 1.5 minutes under TSan
+# on 2 cores, half of it building their database).
 # Only their executables are built.
-tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_session)
-tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|test_terrain_session'
+tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime)
+tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
 tsan() {
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRALOD_BUILD_BENCH=OFF \
     -DTERRALOD_BUILD_APPS=OFF -DCMAKE_CXX_FLAGS="-fsanitize=thread $san_flags" >/dev/null

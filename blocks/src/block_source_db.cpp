@@ -1,8 +1,8 @@
 // The block database as a BlockSource of the loader (one read-only connection per loader
 // thread), and the block summaries (with their stand-ins) read from, or computed over, a database.
+#include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/block_loader.hpp"
-#include "terralod/blocks/terrain_session.hpp"
 #include "terralod/pm/pm_io.hpp"
 
 namespace terralod::blocks {

@@ -17,7 +17,6 @@
 #include <unordered_map>
 
 #include "terralod/blocks/seam_stitch.hpp"
-#include "terralod/blocks/terrain_session.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 
 namespace terralod::blocks {
@@ -709,7 +708,6 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
   mesh_.samples.clear();
   mesh_.triangles.clear();
   mesh_.triangle_node.clear();
-  mesh_.triangle_block.clear();
   std::vector<double>&rest = x.rest, &display = x.display;  // per drawn vertex
   rest.clear();
   display.clear();

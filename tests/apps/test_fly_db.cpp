@@ -1,5 +1,5 @@
 // End-to-end tests of terralod-fly over a block database (--db, streamed through
-// blocks::TerrainSession): a database built by the real `terralod build` from a generated DEM,
+// blocks::TerrainRuntime): a database built by the real `terralod build` from a generated DEM,
 // a headless replayed flight (deterministic statistics and images, every CSV column filled,
 // several blocks resident, loads adding up), texture layers from the same database, the window
 // mode under a private Xvfb, and bad databases (clear errors naming the file, no crash).

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "session_fixture.hpp"
+#include "block_fixture.hpp"
 #include "terralod/blocks/active_region.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 

@@ -9,10 +9,9 @@
 #include <random>
 #include <zlib.h>
 
+#include "block_fixture.hpp"
 #include "mesh_checker.hpp"
-#include "session_fixture.hpp"
 #include "terralod/blocks/active_region.hpp"
-#include "terralod/blocks/terrain_session.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 
@@ -255,7 +254,7 @@ TEST(Standin, CorruptBlobsNameTheFileAndTheProblem) {
 
 TEST(Standin, BuildDatabaseWritesTheSummariesBlob) {
   // build_database writes the blob with the tree; it equals what read_block_summaries computes
-  // from the blocks (the same stand-in options), so a session needs no block read at open.
+  // from the blocks (the same stand-in options), so the runtime needs no block read at open.
   const terralod::test::BlockedTerrain t = terralod::test::make_blocked_terrain(65, 49, 17, /*seed=*/6, 30.0, 400.0);
   const std::string path = std::string(TERRALOD_TEST_TMP) + "/standins.db";
   for (const char* ext : {"", "-wal", "-shm"}) std::remove((path + ext).c_str());
@@ -290,7 +289,7 @@ TEST(Standin, BuildDatabaseWritesTheSummariesBlob) {
 TEST(Standin, HostileBytesNeverCrashTheDecoder) {
   // Every truncation, and random byte edits with a valid checksum: DatabaseError naming the
   // file, or a decoded blob whose stand-ins still cover each block with its 4 corners (the
-  // session relies on that). Run under ASan in CI.
+  // runtime relies on that). Run under ASan in CI.
   const std::uint64_t seed = 777;
   std::printf("seed %llu\n", static_cast<unsigned long long>(seed));
   std::mt19937_64 rng(seed);

@@ -1,21 +1,25 @@
 // Tests of the one terrain runtime (blocks/terrain_runtime.hpp) over real block databases:
 // the guarantee for what is drawn (an independent checker at every sample in view), coverage
 // of the whole view at any altitude, watertight seams between every kind of node and PM
-// blocks during geomorphs and loads, the memory budget, and live settings that read nothing.
+// blocks during geomorphs and loads, the memory budget, live settings that read nothing,
+// flight-path prefetch, and loading from a slow, stalled or broken block source.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
 #include <thread>
 
+#include "block_fixture.hpp"
 #include "drawn_frame_checker.hpp"
-#include "session_fixture.hpp"
 #include "run_command.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
@@ -308,8 +312,8 @@ TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {
   EXPECT_THROW(rt.update(tp::View(cam), 0.5), std::invalid_argument);
 }
 
-// Flight-path prefetch in the runtime: blocks read with a latency of 6 frames (the session
-// fixture's in-memory source over the database's own blobs), 600 m/s; after the cold start,
+// Flight-path prefetch in the runtime: blocks read with a latency of 6 frames (the in-memory
+// source of tests/support/block_fixture.hpp over the database's own blobs), 600 m/s; after the cold start,
 // prediction must remove most of the blocks needed before they arrived.
 namespace {
 
@@ -317,6 +321,15 @@ struct PrefetchTerrain {
   Terrain ter;
   terralod::test::BlockedTerrain blobs;  // the database's blocks, for the in-memory source
 };
+
+// The blobs of a database, for the in-memory source.
+terralod::test::BlockedTerrain blobs_of(const std::string& db_path) {
+  terralod::test::BlockedTerrain b;
+  const tb::BlockDatabase db = tb::BlockDatabase::open(db_path);
+  b.grid = tb::BlockGrid::from_info(db.info());
+  for (tb::BlockKey k : db.blocks()) b.blobs[k] = db.read_block(k);
+  return b;
+}
 
 const PrefetchTerrain& prefetch_terrain() {
   static const PrefetchTerrain t = [] {
@@ -333,9 +346,7 @@ const PrefetchTerrain& prefetch_terrain() {
     o.block_size = 33;  // 12 x 12 blocks of 960 m
     o.threads = 2;
     tb::build_database(r.ter.hf, r.ter.db, o);
-    const tb::BlockDatabase db = tb::BlockDatabase::open(r.ter.db);
-    r.blobs.grid = tb::BlockGrid::from_info(db.info());
-    for (tb::BlockKey k : db.blocks()) r.blobs.blobs[k] = db.read_block(k);
+    r.blobs = blobs_of(r.ter.db);
     return r;
   }();
   return t;
@@ -409,4 +420,291 @@ TEST(TerrainRuntime, CurvedFlightMissesFarFewerBlocksWithPrediction) {
     path.push_back(prefetch_pose(cx + r * std::sin(a), cy + r * std::cos(a), a + std::numbers::pi / 2));
   }
   compare_prefetch("curved", path);
+}
+
+// Loading: what the runtime must do whatever its source does. A stalled reader never blocks a
+// frame, a loader error is rethrown by update() naming the source and the block, blocks evicted
+// under a smaller budget come back and draw the same mesh, and every frame of flights whose
+// reads take a few frames (blocks arriving and blending while the camera moves) is watertight,
+// covers the view and stays within its bound, on generated terrain, with TIN, grid and
+// non-regular-grid stand-ins, and on a crop of N44W072.
+namespace {
+
+// A camera over the prefetch terrain at (col, row), `above` metres over the ground, looking
+// north-east and down.
+tp::Camera loading_pose(double col, double row, double above, double yaw = 45, double pitch = -30) {
+  return pose(prefetch_terrain().ter.hf, col, row, above, yaw, pitch);
+}
+
+// A drawn mesh without its vertex order: per triangle (its node, its samples from the smallest,
+// in order, and their displayed heights), sorted.
+std::vector<std::pair<std::int64_t, std::array<std::pair<std::uint64_t, double>, 3>>> canonical(const tb::DrawnMesh& m) {
+  std::vector<std::pair<std::int64_t, std::array<std::pair<std::uint64_t, double>, 3>>> out;
+  for (std::size_t i = 0; i < m.triangles.size(); ++i) {
+    std::array<std::pair<std::uint64_t, double>, 3> t;
+    for (int k = 0; k < 3; ++k) t[k] = {m.samples[m.triangles[i][k]], m.positions[m.triangles[i][k]].z};
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    out.push_back({m.triangle_node[i], t});
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Checks one frame with the independent checker: error within the bound, the view covered,
+// watertight. Returns false (after a failure) when it does not hold.
+bool frame_holds(const tp::Heightfield& hf, const tb::TerrainRuntime& rt, const tp::Camera& cam,
+                 const std::string& where) {
+  const tb::RuntimeFrameStats& s = rt.stats();
+  const tt::FrameCheck c = tt::check_drawn_frame(hf, frame_of(rt.drawn_mesh()), cam);
+  const bool ok = c.max_error_px <= s.bound_px * (1 + 1e-9) + 1e-9 && c.uncovered_in_view == 0 && c.watertight();
+  EXPECT_TRUE(ok) << where << " (" << s.pm_blocks << " PM blocks, " << s.standin_blocks << " stand-ins, "
+                  << s.missing_in_view << " missing, " << s.moving_vertices << " moving vertices): bound "
+                  << s.bound_px << " px; " << c.describe();
+  return ok;
+}
+
+}  // namespace
+
+TEST(TerrainRuntimeLoading, StalledReaderNeverBlocksAFrame) {
+  // Every read waits until the test lets it go: frames go on with what is resident (the tree
+  // and the stand-ins) and report the blocks they miss; then the blocks arrive and are drawn.
+  const PrefetchTerrain& pt = prefetch_terrain();
+  terralod::test::MemoryStore store;
+  store.terrain = &pt.blobs;
+  store.set_stalled(true);
+  tb::RuntimeOptions o;
+  o.tolerance_px = 1.0;
+  o.morph_seconds = 0.25;
+  tb::TerrainRuntime rt(pt.ter.db, o, terralod::test::memory_source(store));
+  const terralod::test::ReleaseAtExit release{store};
+  tp::Camera cam = loading_pose(190, 190, 300);
+  rt.fit_clip_planes(cam);
+  int frame = 0;
+  for (; frame < 30; ++frame) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), frame / 60.0);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_LT(ms, 2000.0);  // returns although the reader is stalled (a hang would time out)
+    EXPECT_EQ(s.blocks_resident, 0u);
+    EXPECT_EQ(s.pm_blocks, 0u);
+    EXPECT_GT(s.missing_in_view, 0u);
+    EXPECT_GT(s.blocks_loading, 0u);
+    if (!frame_holds(pt.ter.hf, rt, cam, "stalled frame " + std::to_string(frame))) break;
+  }
+  // The reader really is stuck inside a read (on a loaded machine the loader thread may only
+  // now reach it: wait for it, bounded, rather than race the 30 frames).
+  for (int i = 0; i < 1000 && !store.reading.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(store.reading.load());
+  store.set_stalled(false);
+  for (; frame < 5000; ++frame) {
+    const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), frame / 60.0);
+    if (s.missing_in_view == 0 && s.morphing_blocks == 0 && !rt.loading()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const tb::RuntimeFrameStats& s = rt.stats();
+  std::printf("stalled reader: 30 frames drawn without a block; %d frames until %zu PM blocks were drawn, %zu bytes read\n",
+              frame, s.pm_blocks, std::size_t(s.bytes_read_total));
+  EXPECT_EQ(s.missing_in_view, 0u);
+  EXPECT_GT(s.pm_blocks, 0u);
+  EXPECT_GT(s.bytes_read_total, 0u);
+  EXPECT_LE(s.bound_px, o.tolerance_px);
+  frame_holds(pt.ter.hf, rt, cam, "after the stall");
+}
+
+TEST(TerrainRuntimeLoading, LoaderErrorsAreRethrownByUpdate) {
+  // The block under a low camera is missing from the source: update() rethrows the loader's
+  // error, which names the source and the block.
+  const PrefetchTerrain& pt = prefetch_terrain();
+  terralod::test::BlockedTerrain t = pt.blobs;
+  tp::Camera cam = loading_pose(190, 190, 150, 45, -60);
+  const tb::BlockKey k = t.grid.block_at(cam.x, cam.y);
+  ASSERT_EQ(t.blobs.erase(k), 1u);
+  terralod::test::MemoryStore store;
+  store.terrain = &t;
+  tb::TerrainRuntime rt(pt.ter.db, {}, terralod::test::memory_source(store));
+  rt.fit_clip_planes(cam);
+  const std::string expect =
+      "memory: block (" + std::to_string(k.col) + "," + std::to_string(k.row) + "): not in the database";
+  try {
+    for (int f = 0; f < 20000; ++f) {
+      rt.update(tp::View(cam), f / 60.0);
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    FAIL() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), expect);
+  }
+}
+
+TEST(TerrainRuntimeLoading, EvictedBlocksComeBackAndDrawTheSameMesh) {
+  // Settled at home, the budget is cut to what home needs: flying away evicts home's blocks,
+  // and coming back reads them again and draws the same triangles at the same heights as before
+  // (no geomorphs, so the drawn mesh is the selection's).
+  const PrefetchTerrain& pt = prefetch_terrain();
+  tb::RuntimeOptions o;
+  o.tolerance_px = 1.0;
+  o.morph_seconds = 0;
+  o.prefetch = false;
+  tb::TerrainRuntime rt(pt.ter.db, o);
+  double t = 0;
+  auto settle = [&](tp::Camera cam, const char* where) {
+    rt.fit_clip_planes(cam);
+    for (int i = 0; i < 5000; ++i, t += 1.0 / 60) {
+      const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), t);
+      if (s.missing_in_view == 0 && !rt.loading()) break;
+      rt.wait_for_loader(0.02);
+    }
+    for (int i = 0; i < 3; ++i, t += 1.0 / 60) rt.update(tp::View(cam), t);  // the selection at rest
+    EXPECT_EQ(rt.stats().missing_in_view, 0u) << where;
+    frame_holds(pt.ter.hf, rt, cam, where);
+  };
+  const tp::Camera home = loading_pose(90, 90, 300), away = loading_pose(300, 300, 300);
+  settle(home, "home");
+  const tb::DrawnMesh before = rt.drawn_mesh();
+  const std::uint64_t read_home = rt.stats().bytes_read_total;
+  o.budget_bytes = rt.stats().resident_bytes + rt.stats().resident_bytes / 10;
+  rt.set_options(o);
+  settle(away, "away");
+  EXPECT_GT(rt.stats().evicted_total, 0u) << "the smaller budget should evict home's blocks";
+  EXPECT_LE(rt.stats().resident_bytes, o.budget_bytes);
+  const std::uint64_t read_away = rt.stats().bytes_read_total;
+  settle(home, "home again");
+  const tb::DrawnMesh& after = rt.drawn_mesh();
+  std::printf("evicted %zu blocks; %zu bytes read at home, %zu away, %zu coming back; %zu triangles at home\n",
+              rt.stats().evicted_total, std::size_t(read_home), std::size_t(read_away - read_home),
+              std::size_t(rt.stats().bytes_read_total - read_away), before.triangles.size());
+  EXPECT_GT(rt.stats().bytes_read_total, read_away) << "home's blocks should have been read again";
+  // The same triangles of the same nodes with the same heights (vertex order is not fixed).
+  EXPECT_EQ(canonical(after), canonical(before));
+}
+
+namespace {
+
+struct LoadingCounts {
+  std::size_t frames = 0, missing = 0, moving = 0, with_pm = 0, standins_with_pm = 0;
+};
+
+// Flies `path` over the database `db` (blocks read from `blobs` with `latency` frames per read),
+// checking every frame with the independent checker. Stops at the first failing frame.
+LoadingCounts fly_while_loading(const std::string& db, const tp::Heightfield& hf,
+                                const terralod::test::BlockedTerrain& blobs, const std::vector<tp::Camera>& path,
+                                double tau, std::uint64_t latency, const std::string& label) {
+  terralod::test::MemoryStore store;
+  store.terrain = &blobs;
+  store.latency_frames = latency;
+  tb::RuntimeOptions o;
+  o.tolerance_px = tau;
+  o.morph_seconds = 0.3;
+  tb::TerrainRuntime rt(db, o, terralod::test::memory_source(store));
+  const terralod::test::ReleaseAtExit release{store};
+  LoadingCounts n;
+  for (std::size_t f = 0; f < path.size(); ++f) {
+    tp::Camera cam = path[f];
+    rt.fit_clip_planes(cam);
+    const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), double(f) / 60.0);
+    store.advance_frame();
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the loader gets the processor too
+    ++n.frames;
+    n.missing += s.missing_in_view > 0;
+    n.moving += s.moving_vertices > 0;
+    n.with_pm += s.pm_blocks > 0;
+    n.standins_with_pm += s.pm_blocks > 0 && s.standin_blocks > 0;
+    if (!frame_holds(hf, rt, cam, label + " frame " + std::to_string(f))) break;
+  }
+  std::printf("%s: %zu frames checked, %zu with blocks missing, %zu with moving vertices, %zu with PM blocks, %zu "
+              "with stand-ins and PM blocks\n",
+              label.c_str(), n.frames, n.missing, n.moving, n.with_pm, n.standins_with_pm);
+  return n;
+}
+
+// A random low flight (constant speed, random turns, height above ground drifting between 150
+// and 700 m, looking ahead and down).
+std::vector<tp::Camera> random_flight(const tp::Heightfield& hf, std::mt19937_64& rng, int frames) {
+  std::uniform_real_distribution<double> u(0, 1);
+  const double w = (hf.width() - 1) * hf.transform.spacing_x(), h = (hf.height() - 1) * hf.transform.spacing_y();
+  const auto [x0, y0] = hf.transform.to_world(0, hf.height() - 1);  // south-west corner
+  double x = x0 + w * (0.2 + 0.6 * u(rng)), y = y0 + h * (0.2 + 0.6 * u(rng)), heading = 2 * std::numbers::pi * u(rng);
+  double above = 150 + 550 * u(rng), turn = 0;
+  const double speed = 150 + 250 * u(rng);
+  std::vector<tp::Camera> path;
+  for (int f = 0; f < frames; ++f) {
+    if (f % 30 == 0) turn = (u(rng) - 0.5) * 1.2;
+    heading += turn / 60;
+    x += speed / 60 * std::sin(heading);
+    y += speed / 60 * std::cos(heading);
+    above = std::clamp(above + (u(rng) - 0.5) * 20, 150.0, 700.0);
+    tp::Camera c;
+    c.x = x;
+    c.y = y;
+    c.z = tt::ground_height(hf, x, y) + above;
+    c.yaw_deg = heading * 180 / std::numbers::pi;
+    c.pitch_deg = -20 - 15 * u(rng);
+    path.push_back(c);
+  }
+  return path;
+}
+
+}  // namespace
+
+TEST(TerrainRuntimeLoading, RandomFlightsWhileBlocksArriveAreWatertightAndWithinTheBound) {
+  const std::uint64_t seed = 20251122;
+  std::printf("seed %llu\n", static_cast<unsigned long long>(seed));
+  std::mt19937_64 rng(seed);
+  const PrefetchTerrain& pt = prefetch_terrain();
+  LoadingCounts all;
+  for (int flight = 0; flight < 3; ++flight) {
+    const LoadingCounts n = fly_while_loading(pt.ter.db, pt.ter.hf, pt.blobs, random_flight(pt.ter.hf, rng, 90),
+                                              /*tau=*/2.0, /*latency=*/2, "random flight " + std::to_string(flight));
+    all.missing += n.missing, all.moving += n.moving, all.with_pm += n.with_pm;
+  }
+  EXPECT_GT(all.missing, 0u);
+  EXPECT_GT(all.moving, 0u);
+  EXPECT_GT(all.with_pm, 0u);
+}
+
+TEST(TerrainRuntimeLoading, StandInsOfEveryKindBesidePmBlocksWhileBlocksArrive) {
+  // One small database per stand-in kind (257 x 257 samples, 8 x 8 blocks of 33): along a
+  // flight whose reads take 3 frames, stand-ins of that kind are drawn in the same frames as PM
+  // blocks and blocks blending in; every frame is watertight and within its bound. (Two-triangle
+  // stand-ins are left out: a block's two triangles never meet tau / 2 where its parent's
+  // surface does not, so the runtime draws the parent instead.)
+  for (const tb::StandinKind kind : {tb::StandinKind::Tin, tb::StandinKind::Grid, tb::StandinKind::NonRegularGrid}) {
+    Terrain ter;
+    tp::TerrainOptions to;
+    to.width = to.height = 257;
+    to.seed = 5;
+    to.spacing = 30.0;
+    to.relief = 400.0;
+    to.quantize_to_metres = true;
+    ter.hf = tp::generate_terrain(to);
+    ter.db = (tt::process_temp_dir("runtime") / (std::string("runtime_standin_") + tb::standin_kind_name(kind) + ".db")).string();
+    tb::DatabaseBuildOptions o;
+    o.block_size = 33;
+    o.threads = 2;
+    o.standin.kind = kind;
+    o.standin.max_points = 32;
+    tb::build_database(ter.hf, ter.db, o);
+    const terralod::test::BlockedTerrain blobs = blobs_of(ter.db);
+    const LoadingCounts n = fly_while_loading(ter.db, ter.hf, blobs, tt::scripted_flight(ter.hf, 120, 600.0, -25.0),
+                                              /*tau=*/8.0, /*latency=*/3, std::string("stand-ins ") + tb::standin_kind_name(kind));
+    EXPECT_GT(n.standins_with_pm, 0u) << tb::standin_kind_name(kind);
+    EXPECT_GT(n.moving, 0u) << tb::standin_kind_name(kind);
+  }
+}
+
+TEST(TerrainRuntimeLoading, ScriptedFlightOverN44W072WhileBlocksArrive) {
+  std::optional<tp::Heightfield> hf = tt::read_hgt_crop("N44W072.hgt", 400, 400, 257);
+  if (!hf) GTEST_SKIP() << "N44W072.hgt not in TERRALOD_DATA_DIR";
+  Terrain ter;
+  ter.hf = std::move(*hf);
+  ter.db = (tt::process_temp_dir("runtime") / "runtime_n44w072.db").string();
+  tb::DatabaseBuildOptions o;
+  o.block_size = 33;
+  o.threads = 2;
+  tb::build_database(ter.hf, ter.db, o);
+  const terralod::test::BlockedTerrain blobs = blobs_of(ter.db);
+  const LoadingCounts n = fly_while_loading(ter.db, ter.hf, blobs, tt::scripted_flight(ter.hf, 120, 300.0, -20.0),
+                                            /*tau=*/1.0, /*latency=*/2, "N44W072 crop");
+  EXPECT_GT(n.missing, 0u);
+  EXPECT_GT(n.moving, 0u);
 }

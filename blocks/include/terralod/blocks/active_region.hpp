@@ -5,7 +5,7 @@
 // Usage:
 //   terralod::blocks::BlockGrid grid(db.info().grid_width, db.info().grid_height,
 //                                    db.info().block_size, db.info().transform);
-//   std::vector<terralod::blocks::BlockSummary> summaries = read_block_summaries(db, grid);  // terrain_session.hpp
+//   std::vector<terralod::blocks::BlockSummary> summaries = read_block_summaries(db, grid);
 //   terralod::blocks::ActiveRegionOptions opt;                 // theta 20 deg, p = 1
 //   terralod::blocks::ActiveRegion r = terralod::blocks::active_region(grid, summaries, eye, opt);
 //   for (BlockKey k : r.inner) { /* view-dependent PM */ }
@@ -43,6 +43,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -131,11 +132,11 @@ struct BlockSummary {
   double standin_error = 0;    ///< exact L-infinity error of the stand-in surface, metres
   /// The stand-in surface: points include the 4 corners; triangles index points, are CCW in
   /// (col,row) and cover the block's domain exactly once. Empty in a summary filled by hand
-  /// (TerrainSession then uses the two triangles of the corners with tm_error).
+  /// (set_two_triangle_standin gives it the two triangles of its corners with tm_error).
   std::vector<StandinPoint> points;
   std::vector<std::array<std::uint32_t, 3>> triangles;
   /// Per triangle: its exact error (same metric) rounded up to the next float, metres; the
-  /// session bounds each triangle in its own box with it. Two-triangle stand-ins decoded from
+  /// runtime bounds each triangle in its own box with it (standin_bound_px). Two-triangle stand-ins decoded from
   /// a version 1 blob have tm_error for both.
   std::vector<double> triangle_errors;
   bool operator==(const BlockSummary&) const = default;
@@ -162,6 +163,15 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
                                                  const std::string& name_for_errors);
 /// Name of the blob in the block database.
 inline constexpr const char* kBlockSummariesBlob = "block_summaries";
+
+/// The block summaries of a database: its "block_summaries" blob when present (and matching
+/// the grid; a version 1 blob gives two-triangle stand-ins), otherwise computed by reading every
+/// block once (progress in [0, 1] if given) with stand-ins made by `standin`'s kind and
+/// max_points and the database's metric (standin.metric is not used). Throws DatabaseError /
+/// pm::PmFormatError naming the file and the problem. Defined in block_source_db.cpp.
+std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const BlockGrid& grid,
+                                               const std::function<void(double)>& progress = {},
+                                               const StandinOptions& standin = {});
 
 /// The two-triangle surface of a block at grid point (col,row) inside its domain.
 double tm_height(const BlockGrid& grid, BlockKey k, const BlockSummary& s, double col, double row);

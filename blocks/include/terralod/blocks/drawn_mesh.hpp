@@ -7,10 +7,10 @@
 //   for (const auto& t : m.triangles) { /* m.positions[t[0]], ... */ }
 //
 // Contract: positions are world metres (x, y from BlockGrid::world of the vertex's sample, z
-// the displayed height); samples[v] is the terrain sample (row * grid_width + col) of vertex v
-// (kNoSample for skirt bottoms, which only the old block session makes); a terrain sample is
-// at most one vertex; triangles are CCW in (col,row) plan view, like every pm/ mesh (clockwise
-// seen from +z for north-up transforms, whose determinant is negative).
+// the displayed height); samples[v] is the terrain sample (row * grid_width + col) of vertex v;
+// a terrain sample is at most one vertex; triangles are CCW in (col,row) plan view, like every
+// pm/ mesh (clockwise seen from +z for north-up transforms, whose determinant is negative);
+// triangle_node[t] is the approximation-tree node triangle t was drawn for.
 // Memory: 32 bytes per vertex, 20 per triangle.
 #pragma once
 
@@ -18,25 +18,20 @@
 #include <cstdint>
 #include <vector>
 
-#include "terralod/blocks/block_database.hpp"
 #include "terralod/pm/view.hpp"
 
 namespace terralod::blocks {
 
 struct DrawnMesh {
-  static constexpr std::uint64_t kNoSample = ~std::uint64_t(0);
   std::vector<pm::Vec3> positions;                      ///< world metres, displayed heights
   std::vector<std::uint64_t> samples;                   ///< terrain sample of each vertex
   std::vector<std::array<std::uint32_t, 3>> triangles;  ///< CCW in (col,row)
-  /// Per triangle: the approximation-tree node it was drawn for (TerrainRuntime); empty from
-  /// the block session, which fills triangle_block instead.
+  /// Per triangle: the approximation-tree node it was drawn for.
   std::vector<std::int64_t> triangle_node;
-  /// Per triangle: the block it belongs to (TerrainSession only; empty from the runtime).
-  std::vector<BlockKey> triangle_block;
 
   std::size_t memory_bytes() const {
     return positions.capacity() * sizeof(pm::Vec3) + samples.capacity() * 8 + triangles.capacity() * 12 +
-           triangle_node.capacity() * 8 + triangle_block.capacity() * sizeof(BlockKey);
+           triangle_node.capacity() * 8;
   }
 };
 
