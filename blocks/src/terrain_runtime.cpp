@@ -378,13 +378,16 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
     const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}), dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
     return std::min(0.99, std::hypot(dx, dy) * scale);
   };
-  if (room) {
-    const ActiveRegion r = active_region(grid_, sums_, eye, opt_.region);
+  // The inner blocks of the active region around `centre`, nearest the eye first, at
+  // priorities base + spread * distance (distance scaled into [0, 0.99]).
+  auto want_region = [&](const pm::Vec3& centre, double base, double spread) {
+    const ActiveRegion r = active_region(grid_, sums_, centre, opt_.region);
     std::vector<std::pair<double, BlockKey>> around;
     for (BlockKey k : r.inner) around.push_back({dist(k), k});
     std::sort(around.begin(), around.end());
-    for (std::size_t i = 0; i < around.size() && room; ++i) room = want(around[i].second, 1.0 + around[i].first);
-  }
+    for (std::size_t i = 0; i < around.size() && room; ++i) room = want(around[i].second, base + spread * around[i].first);
+  };
+  if (room) want_region(eye, 1.0, 1.0);
   if (room && opt_.prefetch) {
     // Along the predicted path, nearest in time first: the blocks the view from there will need
     // (the camera moved to the predicted point, turned along the motion, same lens), then the
@@ -401,12 +404,7 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
       needed_at(pm::View(c), tau_, 0, std::numeric_limits<double>::infinity(), ahead);
       std::sort(ahead.begin(), ahead.end());
       for (std::size_t i = 0; i < ahead.size() && room; ++i) room = want(ahead[i].second, 2.0 + pt.dt);
-      const ActiveRegion r = active_region(grid_, sums_, pt.position, opt_.region);
-      std::vector<std::pair<double, BlockKey>> around;
-      for (BlockKey k : r.inner) around.push_back({dist(k), k});
-      std::sort(around.begin(), around.end());
-      for (std::size_t i = 0; i < around.size() && room; ++i)
-        room = want(around[i].second, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s + around[i].first * 0.25 * opt_.prefetch_step_s);
+      if (room) want_region(pt.position, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s, 0.25 * opt_.prefetch_step_s);
     }
   }
   loader_->set_queue(std::move(req));
