@@ -603,15 +603,14 @@ std::vector<std::string> lod_lines(const FrameRecord& r, const pm::RefinementOpt
                         l.pm_blocks + l.standin_blocks + l.coarse_nodes, l.pm_blocks, l.standin_blocks,
                         l.coarse_nodes, l.fallback_nodes, l.nodes_culled)
                  : std::string("nodes drawn 1 (one PM)"),
-      r.streamed ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   memory %s   "
-                        "texture memory %s%s",
+      r.streamed ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   memory %s",
                         l.blocks_resident, l.blocks_loading, l.evicted_total, l.prefetch_misses_total,
-                        format_bytes(l.bytes_read_total).c_str(), format_bytes(l.resident_bytes).c_str(),
-                        format_bytes(r.texture_bytes).c_str(),
-                        r.texture_patches ? strf(" (%zu patches, %zu from parents)", r.texture_patches,
-                                                 r.textures_from_parent).c_str()
-                                          : "")
-                 : strf("blocks resident 1, loading 0   texture memory %s", format_bytes(r.texture_bytes).c_str())};
+                        format_bytes(l.bytes_read_total).c_str(), format_bytes(l.resident_bytes).c_str())
+                 : std::string("blocks resident 1, loading 0"),
+      strf("texture memory %s%s", format_bytes(r.texture_bytes).c_str(),
+           r.texture_patches ? strf(" (%zu patches wanted, %zu drawn with a parent's)", r.texture_patches,
+                                    r.textures_from_parent).c_str()
+                             : "")};
 }
 
 // Draws text over an image at its top-left corner (alpha-blended, the HUD's look).
