@@ -12,6 +12,7 @@
 #include <string>
 
 #include "terralod/pm/terrain_generator.hpp"
+#include "gl_fixture.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/layered_renderer.hpp"
@@ -63,16 +64,7 @@ int max_diff(const Image& a, const Image& b) {
   return d;
 }
 
-struct Gl : ::testing::Test {
-  std::unique_ptr<GlContext> ctx;
-  void SetUp() override {
-    try {
-      ctx = create_offscreen_context({256, 256});
-    } catch (const RenderError& e) {
-      GTEST_SKIP() << "no OSMesa context: " << e.what();
-    }
-  }
-};
+struct Gl : terralod::test::OffscreenGl<256, 256> {};
 
 TEST_F(Gl, OnePassAndMultiPassMatchTheCpuReference) {
   // Four layers: Blend, Multiply (weight 0.7), Add masked by layer 0's alpha, Subtract

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "terralod/pm/view.hpp"
+#include "gl_fixture.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/layered_renderer.hpp"
 #include "terralod/render/patch_textures.hpp"
@@ -279,16 +280,7 @@ TEST(PatchTextures, DisabledLayersAndForeignNodesBindNothing) {
   EXPECT_THROW(PatchTextures({loader.tree}, loader.fn(), {0.0, 1, 1}), std::invalid_argument);
 }
 
-struct Gl : ::testing::Test {
-  std::unique_ptr<GlContext> ctx;
-  void SetUp() override {
-    try {
-      ctx = create_offscreen_context({64, 64});
-    } catch (const RenderError& e) {
-      GTEST_SKIP() << "no OSMesa context: " << e.what();
-    }
-  }
-};
+struct Gl : terralod::test::OffscreenGl<64, 64> {};
 
 // Drawn through the layered renderer (nearest texels, no lighting), the picture is exactly the
 // chosen level: each child's patch at its quadrant (gamma 1.5), or the root's (gamma 100).
