@@ -59,8 +59,9 @@ asan_exclude='RealTileFull|KauaiVoids|test_database_build|test_bench|test_fly|te
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
 asan() {
   # -O1 -g1: line tables are enough for reports and compile about a third faster than -O2 -g.
+  # No NDEBUG: this pass is also the one where the asserts (the misuse tier, STYLE.md 7) run.
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=None -DTERRALOD_BUILD_BENCH=OFF \
-    -DCMAKE_CXX_FLAGS="-O1 -g1 -DNDEBUG -fsanitize=address,undefined -fno-sanitize-recover=undefined $san_flags" >/dev/null
+    -DCMAKE_CXX_FLAGS="-O1 -g1 -fsanitize=address,undefined -fno-sanitize-recover=undefined $san_flags" >/dev/null
   cmake --build build-asan -j"$jobs" >/dev/null
   local asan_options="detect_leaks=1:check_initialization_order=1:detect_stack_use_after_return=1"
   export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
