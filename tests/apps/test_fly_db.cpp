@@ -219,16 +219,23 @@ TEST(FlyDb, HeadlessIsDeterministicAndFillsTheBlockColumns) {
   }
 }
 
+// A copy of the database with a shading layer 'hill' ('terralod texture shade'), made once,
+// in patches of at most 64 x 64 texels (16 KiB): the tree's nodes get textures of their own.
+const fs::path& shaded_db() {
+  static const fs::path db = [] {
+    const fs::path d = tmp() / "shaded.db", log = tmp() / "shade.log";
+    fs::copy_file(terrain().db, d, fs::copy_options::overwrite_existing);
+    const std::string cmd = std::string(TERRALOD_CLI) + " texture --layer hill --max-texture-size 64 shade " +
+                            d.string() + " > " + log.string() + " 2>&1";
+    if (run(cmd) != 0) ADD_FAILURE() << cmd << "\n" << slurp(log);
+    return d;
+  }();
+  return db;
+}
+
 TEST(FlyDb, TextureLayersComeFromTheSameDatabase) {
-  const Terrain& t = terrain();
-  // A copy of the database with a shading layer ('terralod texture shade').
-  const fs::path db = tmp() / "shaded.db", log = tmp() / "shade.log";
-  fs::copy_file(t.db, db, fs::copy_options::overwrite_existing);
-  // Patches of at most 64 x 64 texels (16 KiB): the tree's nodes get textures of their own.
-  ASSERT_EQ(run(std::string(TERRALOD_CLI) + " texture --layer hill --max-texture-size 64 shade " + db.string() +
-                " > " + log.string() + " 2>&1"),
-            0)
-      << slurp(log);
+  const fs::path& db = shaded_db();
+  const fs::path log = tmp() / "shade.log";
   const fs::path path = write_path(6);
   const std::string base = std::string(TERRALOD_FLY) + " --headless --db " + db.string() + " --path " +
                            path.string() + " --size 200x120";
@@ -335,6 +342,21 @@ TEST(FlyDb, WindowStreamsBlocksUnderXvfb) {
   ASSERT_EQ(img.width, 320);
   ASSERT_EQ(img.height, 240);
   EXPECT_TRUE(looks_drawn(img)) << "the screenshot looks blank";
+}
+
+// The window draws per-patch textures without waiting for them (the parent's texture while
+// a patch loads): a flight with a layer under Xvfb draws and exits cleanly.
+TEST(FlyDb, WindowDrawsTexturesPerPatchUnderXvfb) {
+  terralod::test::Xvfb xvfb;
+  if (xvfb.display().empty()) GTEST_SKIP() << "Xvfb could not be started (is the xvfb package installed?)";
+  const fs::path path = write_path(90);
+  const fs::path shot = tmp() / "window_layer.png", log = tmp() / "window_layer.log";
+  const std::string cmd = "DISPLAY=" + xvfb.display() + " " + TERRALOD_FLY + " --db " + shaded_db().string() +
+                          " --layer hill --replay " + path.string() + " --frames 90 --size 320x240 --screenshot " +
+                          shot.string() + " > " + log.string() + " 2>&1";
+  ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(log);
+  EXPECT_NE(slurp(log).find("flew 90 frames"), std::string::npos) << slurp(log);
+  EXPECT_TRUE(looks_drawn(rd::read_image(shot.string()))) << "the screenshot looks blank";
 }
 
 TEST(FlyDb, BadDatabasesAreClearErrors) {
