@@ -27,11 +27,7 @@ std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const Bl
                                                const std::function<void(double)>& progress,
                                                const StandinOptions& standin) {
   if (const auto blob = db.read_blob(kBlockSummariesBlob)) return decode_block_summaries(grid, *blob, db.path());
-  // The database's metric (build_database's parameters; continuous when not recorded).
   StandinOptions o = standin;
-  o.metric = db.info().build_parameters.find("\"metric\": \"samples\"") != std::string::npos
-                 ? pm::ErrorMetric::Samples
-                 : pm::ErrorMetric::Continuous;
   std::vector<BlockSummary> out(grid.block_count());
   for (std::size_t i = 0; i < out.size(); ++i) {
     const BlockKey k = grid.key(i);
@@ -42,6 +38,9 @@ std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const Bl
     if (pm.heightfield().width() != d.width() || pm.heightfield().height() != d.height())
       throw DatabaseError(db.path(), "block (" + std::to_string(k.col) + "," + std::to_string(k.row) +
                           "): size does not match the block grid");
+    // Each block's errors are measured with the metric its PM was built with (stored in the
+    // PM itself, not searched for in the build parameters' JSON).
+    o.metric = pm.metric();
     try {
       out[i] = summarize_block(pm, k, o);
     } catch (const std::invalid_argument& e) {

@@ -167,7 +167,7 @@ inline constexpr const char* kBlockSummariesBlob = "block_summaries";
 /// The block summaries of a database: its "block_summaries" blob when present (and matching
 /// the grid; a version 1 blob gives two-triangle stand-ins), otherwise computed by reading every
 /// block once (progress in [0, 1] if given) with stand-ins made by `standin`'s kind and
-/// max_points and the database's metric (standin.metric is not used). Throws DatabaseError /
+/// max_points and each block PM's own metric (standin.metric is not used). Throws DatabaseError /
 /// pm::PmFormatError naming the file and the problem. Defined in block_source_db.cpp.
 std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const BlockGrid& grid,
                                                const std::function<void(double)>& progress = {},
