@@ -69,9 +69,7 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
   // Texture layers per drawn patch, from the texture trees over the drawn tree.
   std::optional<LayerSetup> layers;
   if (!specs.empty()) {
-    LayerSetupOptions lo;
-    lo.gamma_px = a.get_double("--gamma", 1.0);
-    lo.budget_bytes = std::size_t(a.get_double("--texture-memory", 536.870912) * 1e6);
+    const LayerSetupOptions lo = layer_setup_options(a);
     const std::vector<rd::PatchDomain> domains = rd::patch_domains(rt.tree().nodes());
     layers.emplace(LayerSetup::open(a.get("--texture-db", path), specs,
                                     a.has("--lens") ? std::optional(parse_lens("--lens", a.get("--lens"))) : std::nullopt,
@@ -80,11 +78,7 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
 
   t = Clock::now();
   auto ctx = rd::create_offscreen_context({width, height});
-  rd::Camera cam;
-  cam.x = pc.x, cam.y = pc.y, cam.z = pc.z;
-  cam.yaw_deg = pc.yaw_deg, cam.pitch_deg = pc.pitch_deg, cam.fovy_deg = pc.fovy_deg;
-  cam.width_px = width, cam.height_px = height;
-  cam.near_m = pc.near_m, cam.far_m = pc.far_m;
+  const rd::Camera& cam = pc;  // the selection's camera is the renderer's
   const pm::Box& box = rt.terrain_box();
   const glm::dvec3 origin(0.5 * (box.lo.x + box.hi.x), 0.5 * (box.lo.y + box.hi.y), 0.5 * (box.lo.z + box.hi.z));
   rd::DrawMesh dm;
@@ -97,21 +91,16 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
     rd::LayeredRenderer r(*ctx);
     layers->attach(r);
     // Every wanted patch loaded (the picture shows what gamma asks for).
-    const rd::PatchTextureFrame* f = &layers->patch_frame(view, rt.drawn_mesh().triangle_node);
-    for (int k = 0; f->stats.from_parent > 0 && k < 64; ++k) {
-      layers->wait_loaded(600000);
-      f = &layers->patch_frame(view, rt.drawn_mesh().triangle_node);
-    }
-    rd::DrawMesh sorted = dm;
-    for (std::size_t k = 0; k < f->triangle_order.size(); ++k)
-      for (std::size_t j = 0; j < 3; ++j) sorted.indices[3 * k + j] = dm.indices[3 * std::size_t(f->triangle_order[k]) + j];
+    const rd::PatchTextureFrame& f = layers->patch_frame(view, rt.drawn_mesh().triangle_node, /*wait=*/true);
+    rd::DrawMesh sorted;
+    rd::order_triangles(dm, f.triangle_order, sorted);
     const rd::MeshId id = r.upload(sorted);
-    const std::vector<rd::LayeredItem> items = layers->items(r, id, *f);
+    const std::vector<rd::LayeredItem> items = layers->items(r, id, f);
     draw_ms = r.draw(cam, layers->styles(), layers->lens(), items).draw_ms;
     img = r.read_color();
-    texture_bytes = layers->resident_bytes(), texture_patches = f->stats.wanted, gamma_used = f->stats.gamma_px;
+    texture_bytes = layers->resident_bytes(), texture_patches = f.stats.wanted, gamma_used = f.stats.gamma_px;
     say(strf("textures: %zu patches in %zu groups, gamma %g px^2%s, %s resident (budget %s)", texture_patches,
-             f->groups.size(), gamma_used, gamma_used > a.get_double("--gamma", 1.0) ? " (raised for the budget)" : "",
+             f.groups.size(), gamma_used, gamma_used > layers->gamma_px() ? " (raised for the budget)" : "",
              format_bytes(texture_bytes).c_str(), format_bytes(layers->budget_bytes()).c_str()));
   } else {
     rd::RendererOptions o;

@@ -173,12 +173,29 @@ void LayerSetup::open_patches(const tb::BlockDatabase& db, const std::vector<rd:
       po);
 }
 
-const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node) {
+const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node,
+                                                     bool wait) {
   assert(patches_);
   std::vector<bool> enabled(records_.size(), false);
   for (std::size_t i = 0; i < styles_.size(); ++i)
     if (styles_[i].enabled) enabled[std::size_t(layer_of_[i])] = true;
-  return patches_->frame(view, triangle_node, enabled);
+  const rd::PatchTextureFrame* f = &patches_->frame(view, triangle_node, enabled);
+  for (int k = 0; wait && f->stats.from_parent > 0 && k < 64; ++k) {
+    wait_loaded(/*timeout_ms=*/600000);
+    f = &patches_->frame(view, triangle_node, enabled);
+  }
+  return *f;
+}
+
+LayerSetupOptions layer_setup_options(const Args& a) {
+  LayerSetupOptions lo;
+  lo.gamma_px = a.get_double("--gamma", 1.0);
+  if (!(lo.gamma_px > 0)) throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
+  const double mb = a.get_double("--texture-memory", 536.870912);
+  if (!(mb * 1e6 >= 1))
+    throw UsageError("option '--texture-memory' must be > 0 megabytes, not '" + a.get("--texture-memory") + "'");
+  lo.budget_bytes = std::size_t(mb * 1e6);
+  return lo;
 }
 
 std::vector<rd::LayeredItem> LayerSetup::items(rd::LayeredRenderer& renderer, rd::MeshId mesh,

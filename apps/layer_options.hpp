@@ -47,6 +47,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_common.hpp"
 #include "terralod/pm/view.hpp"
 #include "terralod/render/layered_renderer.hpp"
 #include "terralod/render/patch_textures.hpp"
@@ -79,6 +80,11 @@ struct LayerSetupOptions {
   double gamma_px = 1.0;        ///< per-patch mode: texel area on screen, pixels^2 (> 0)
 };
 
+/// LayerSetupOptions from --gamma (pixels^2, default 1) and --texture-memory (megabytes,
+/// default 536.870912 = 512 MiB), the options `terralod view` and `terralod-fly` share;
+/// UsageError for a value that is not > 0.
+LayerSetupOptions layer_setup_options(const Args& a);
+
 class LayerSetup {
  public:
   /// Opens the database read-only, reads the records of the named layers (DatabaseError when
@@ -107,7 +113,10 @@ class LayerSetup {
   std::vector<render::LayerBinding> bindings(render::LayeredRenderer& renderer);
   /// Per-patch mode: the frame's texture groups over the drawn mesh's triangles (their nodes),
   /// for the enabled styles. Never waits.
-  const render::PatchTextureFrame& patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node);
+  /// wait (tools, headless runs): until every wanted patch is resident, so the frame shows what
+  /// gamma asks for (at most 64 rounds of loads; a failed load throws as wait_loaded does).
+  const render::PatchTextureFrame& patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node,
+                                               bool wait = false);
   /// Per-patch mode: one item per group of `frame`, drawing the group's range of `mesh` (whose
   /// triangles must be in frame.triangle_order), textures uploaded on first use.
   std::vector<render::LayeredItem> items(render::LayeredRenderer& renderer, render::MeshId mesh,
@@ -120,6 +129,8 @@ class LayerSetup {
   /// Texture bytes resident in the cache.
   std::size_t resident_bytes() const { return cache().stats().resident_bytes; }
   std::size_t budget_bytes() const { return budget_bytes_; }
+  /// Per-patch mode: the gamma asked for (a frame may raise it for the budget).
+  double gamma_px() const { return patches_ ? patches_->options().gamma_px : 0.0; }
 
  private:
   LayerSetup() = default;

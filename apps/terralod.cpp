@@ -532,10 +532,7 @@ int cmd_view(const Args& a) {
   if (a.has("--texture-db") && layer_specs.empty()) throw UsageError("--texture-db needs --layer");
   if ((a.has("--gamma") || a.has("--texture-memory")) && (!a.has("--db") || layer_specs.empty()))
     throw UsageError("--gamma and --texture-memory need --db and --layer (textures per patch of its tree)");
-  if (a.has("--gamma") && !(a.get_double("--gamma", 1.0) > 0))
-    throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
-  if (a.has("--texture-memory") && !(a.get_double("--texture-memory", 1.0) * 1e6 >= 1))
-    throw UsageError("option '--texture-memory' must be > 0 megabytes, not '" + a.get("--texture-memory") + "'");
+  if (a.has("--db")) terralod::cli::layer_setup_options(a);  // usage errors before the terrain loads
   if (!layer_specs.empty() && a.has("--wireframe")) throw UsageError("--wireframe cannot be combined with --layer");
   if (a.has("--lens") && layer_specs.empty()) throw UsageError("--lens needs --layer");
   for (const std::string& spec : layer_specs) terralod::cli::parse_layer_spec(spec);  // usage errors first

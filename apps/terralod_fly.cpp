@@ -472,33 +472,22 @@ class Pipeline {
   // item per group. wait (headless): the frame waits for its wanted patches, so every frame
   // shows the textures gamma asks for and runs are reproducible.
   void draw_patches(const rd::Camera& rc, const pm::View& view, bool wait, FrameRecord& r) {
-    const std::span<const std::int64_t> nodes = src_.triangle_nodes();
-    const rd::PatchTextureFrame* f = &layers_->patch_frame(view, nodes);
-    for (int k = 0; wait && f->stats.from_parent > 0 && k < 64; ++k) {
+    const auto t_wait = Clock::now();
+    const rd::PatchTextureFrame& f = layers_->patch_frame(view, src_.triangle_nodes(), wait);
+    if (wait) r.wait_ms += ms_since(t_wait);
+    if (!layered_id_ || layered_version_ != version_ || f.triangle_order != layered_order_) {
       const auto t = Clock::now();
-      layers_->wait_loaded(/*timeout_ms=*/600000);
-      r.wait_ms += ms_since(t);
-      f = &layers_->patch_frame(view, nodes);
-    }
-    if (!layered_id_ || layered_version_ != version_ || f->triangle_order != layered_order_) {
-      const auto t = Clock::now();
-      sorted_.origin = dm_.origin;
-      sorted_.xyz = dm_.xyz;
-      sorted_.normals = dm_.normals;
-      sorted_.z_target = dm_.z_target;
-      sorted_.indices.resize(dm_.indices.size());
-      for (std::size_t k = 0; k < f->triangle_order.size(); ++k)
-        for (int j = 0; j < 3; ++j) sorted_.indices[3 * k + std::size_t(j)] = dm_.indices[3 * f->triangle_order[k] + std::size_t(j)];
+      rd::order_triangles(dm_, f.triangle_order, sorted_);
       if (layered_id_) layered_->remove(*layered_id_);
       layered_id_ = layered_->upload(sorted_);
       layered_version_ = version_;
-      layered_order_ = f->triangle_order;
+      layered_order_ = f.triangle_order;
       r.upload_ms += ms_since(t);
     }
-    const std::vector<rd::LayeredItem> items = layers_->items(*layered_, *layered_id_, *f);
+    const std::vector<rd::LayeredItem> items = layers_->items(*layered_, *layered_id_, f);
     r.draw_ms = layered_->draw(rc, layers_->styles(), layers_->lens(), items).draw_ms;
-    r.texture_patches = f->stats.wanted;
-    r.textures_from_parent = f->stats.from_parent;
+    r.texture_patches = f.stats.wanted;
+    r.textures_from_parent = f.stats.from_parent;
   }
 
   LodSource& src_;
@@ -527,11 +516,7 @@ std::optional<LayerSetup> layer_setup(const Args& a) {
   if (specs.empty()) return std::nullopt;
   std::optional<LensSpec> lens;
   if (a.has("--lens")) lens = parse_lens("--lens", a.get("--lens"));
-  LayerSetupOptions lo;
-  lo.budget_bytes = std::size_t(a.get_double("--texture-memory", 536.870912) * 1e6);
-  if (lo.budget_bytes < 1) throw UsageError("option '--texture-memory' must be > 0 megabytes");
-  lo.gamma_px = a.get_double("--gamma", 1.0);
-  if (!(lo.gamma_px > 0)) throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
+  const LayerSetupOptions lo = layer_setup_options(a);
   if (a.has("--gamma") && !a.has("--db")) throw UsageError("--gamma needs --db (textures per patch of its tree)");
   if (!a.has("--db")) return LayerSetup::open(a.get("--texture-db"), specs, lens, lo);
   // --db: textures per drawn patch, over the drawn database's tree.

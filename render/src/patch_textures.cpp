@@ -2,6 +2,7 @@
 #include "terralod/render/patch_textures.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -44,6 +45,17 @@ PatchTextures::PatchTextures(std::vector<std::shared_ptr<const TextureTree>> tre
   depth_.assign(t0.node_count(), 0);
   for (std::size_t n = 0; n < t0.node_count(); ++n)
     for (std::int64_t a = t0.domain(std::int64_t(n)).parent; a >= 0; a = t0.domain(a).parent) ++depth_[n];
+}
+
+void order_triangles(const DrawMesh& mesh, std::span<const std::uint32_t> order, DrawMesh& out) {
+  assert(order.size() == mesh.triangle_count());
+  out.origin = mesh.origin;
+  out.xyz = mesh.xyz;
+  out.z_target = mesh.z_target;
+  out.normals = mesh.normals;
+  out.indices.resize(mesh.indices.size());
+  for (std::size_t k = 0; k < order.size(); ++k)
+    for (std::size_t j = 0; j < 3; ++j) out.indices[3 * k + j] = mesh.indices[3 * std::size_t(order[k]) + j];
 }
 
 void PatchTextures::set_gamma(double gamma_px) {

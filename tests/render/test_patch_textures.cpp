@@ -135,15 +135,6 @@ pm::Camera down() {
   return c;
 }
 
-Camera render_camera(const pm::Camera& p) {
-  Camera c;
-  c.x = p.x, c.y = p.y, c.z = p.z;
-  c.yaw_deg = p.yaw_deg, c.pitch_deg = p.pitch_deg, c.fovy_deg = p.fovy_deg;
-  c.width_px = p.width_px, c.height_px = p.height_px;
-  c.near_m = p.near_m, c.far_m = p.far_m;
-  return c;
-}
-
 // Every triangle exactly once, the groups' ranges tiling the order.
 void expect_grouped(const PatchTextureFrame& f, std::size_t triangles) {
   std::vector<std::uint32_t> sorted = f.triangle_order;
@@ -295,9 +286,8 @@ TEST_F(Gl, EveryPatchIsDrawnWhereItBelongs) {
     pt.frame(view, nodes, {true});
     pt.cache().wait_idle(10000);
     const PatchTextureFrame& f = pt.frame(view, nodes, {true});
-    DrawMesh sorted = mesh;
-    for (std::size_t k = 0; k < f.triangle_order.size(); ++k)
-      for (int j = 0; j < 3; ++j) sorted.indices[3 * k + std::size_t(j)] = mesh.indices[3 * f.triangle_order[k] + std::size_t(j)];
+    DrawMesh sorted;
+    order_triangles(mesh, f.triangle_order, sorted);
     LayeredRendererOptions o;
     o.linear_filter = false;
     o.stack.lighting = false;
@@ -311,7 +301,7 @@ TEST_F(Gl, EveryPatchIsDrawnWhereItBelongs) {
                                   g.first_triangle,
                                   g.triangle_count});
     const std::vector<LayerStyle> styles(1);
-    const LayeredFrameStats s = r.draw(render_camera(cam), styles, Lens{}, items);
+    const LayeredFrameStats s = r.draw(cam, styles, Lens{}, items);
     EXPECT_EQ(s.triangles, 8u);
     EXPECT_EQ(s.meshes, level == 0 ? 4u : 1u);
     const Image img = r.read_color();

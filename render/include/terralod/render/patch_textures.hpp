@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "terralod/pm/view.hpp"
+#include "terralod/render/draw_mesh.hpp"
 #include "terralod/render/rgba_image.hpp"
 #include "terralod/render/texture_cache.hpp"
 #include "terralod/render/texture_tree.hpp"
@@ -76,6 +77,10 @@ struct PatchTextureFrame {
   std::vector<PatchTextureGroup> groups;
   PatchTextureStats stats;
 };
+
+/// `mesh` with its triangles in `order` (a permutation, e.g. PatchTextureFrame::triangle_order)
+/// written to `out` (vertex data copied; out's buffers reused).
+void order_triangles(const DrawMesh& mesh, std::span<const std::uint32_t> order, DrawMesh& out);
 
 class PatchTextures {
  public:
