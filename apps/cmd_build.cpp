@@ -24,8 +24,10 @@ CommandSpec build_spec() {
       "border), built in parallel and written in its own transaction. Then the approximation tree\n"
       "is built above the blocks: --strategy gives the node strategy per level from the root\n"
       "(comma-separated, the last one repeats): grid ((P+1)^2 points, quadtree), tin (greedy TIN of\n"
-      "at most --max-points points, k-d tree), nonregular (non-regular grid, k-d tree) or auto (per\n"
-      "node, the one with the smallest error x bytes). The leaves are the blocks' PMs.\n"
+      "at most --max-points points, k-d tree), nonregular (non-regular grid, k-d tree), hybrid (the\n"
+      "grid plus a TIN microstructure of at most --max-points points in the 2 x 2 cells where the\n"
+      "grid is worst, joined by local convexification; quadtree) or auto (per node, the one with\n"
+      "the smallest error x bytes). The leaves are the blocks' PMs. 'terralod fly' draws every kind.\n"
       "Every block also gets a stand-in, drawn by 'terralod fly' where the block is not refined\n"
       "(outer rings, blocks still loading): --standin tin (greedy TIN, default), grid, nonregular\n"
       "or two-triangle, of at most --standin-points samples (default 64) at their true heights,\n"
@@ -37,9 +39,9 @@ CommandSpec build_spec() {
       {"--out", "DB", "database file to create or resume (.db)", true},
       {"--block-size", "N", "samples per block side, 2^k + 1 (default 257)"},
       {"--threads", "N", "blocks built in parallel, 0 = all cores (default 0)"},
-      {"--strategy", "LIST", "per level from the root: grid|tin|nonregular|auto[,...] (default grid)"},
+      {"--strategy", "LIST", "per level from the root: grid|tin|nonregular|hybrid|auto[,...] (default grid)"},
       {"--patch", "P", "grid nodes have (P+1)^2 points (default 4)"},
-      {"--max-points", "S", "TIN and non-regular nodes have at most S points (default 25)"},
+      {"--max-points", "S", "TIN and non-regular nodes (and hybrid microstructures) have at most S points (default 25)"},
       {"--metric", "NAME", "error metric: continuous (default) or samples"},
       {"--standin", "KIND", "block stand-in surface: tin (default), grid, nonregular or two-triangle"},
       {"--standin-points", "N", "stand-ins have at most N points, 4..4096 (default 64)"},
@@ -113,11 +115,11 @@ int cmd_build(const Args& a) {
   std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s\n", out.c_str(), s.blocks,
               s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
               format_duration(ms_since(t)).c_str());
-  std::printf("tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, pm_block %zu; root error %.2f m, "
-              "largest block base error %.2f m\n",
+  std::printf("tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, hybrid %zu, pm_block %zu; root error "
+              "%.2f m, largest block base error %.2f m\n",
               s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
-              n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::PmBlock)], s.root_error,
-              s.max_block_error);
+              n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::Hybrid)],
+              n[std::size_t(blocks::Strategy::PmBlock)], s.root_error, s.max_block_error);
   const std::string standins = s.standin.empty()                ? std::string("none (the blocks have voids)")
                                : s.standin == "two-triangle" ? s.standin
                                                              : strf("%s of <= %zu points", s.standin.c_str(), opt.standin.max_points);

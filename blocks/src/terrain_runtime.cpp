@@ -174,9 +174,17 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
     sums_.assign(grid_.block_count(), BlockSummary{});
   }
   for (const BlockSummary& s : sums_) summary_bytes_ += 160 + s.points.size() * 16 + s.triangles.size() * 20;
-  for (const TreeNode& n : tree_.nodes())
+  for (const TreeNode& n : tree_.nodes()) {
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
       throw DatabaseError(db_path, "tree node " + std::to_string(n.id) + " is a PM block outside the block grid");
+    // Seams are stitched in sample coordinates: every coarse node's points must be samples of
+    // its domain (hybrid nodes built over blocks are; a hybrid database's own tree, whose TIN
+    // vertices lie between samples, is drawn by 'terralod view' instead).
+    for (const auto& p : n.surface.points)
+      if (p[0] != std::floor(p[0]) || p[1] != std::floor(p[1]) || !n.domain.contains(int(p[0]), int(p[1])))
+        throw DatabaseError(db_path, "tree node " + std::to_string(n.id) + " (" + strategy_name(n.strategy) +
+                                         ") has a point off its domain's samples");
+  }
   // PM vertex counts from the build's per-block records ("<error> <vertices> <bytes>"), for the
   // memory estimate of blocks not yet read.
   block_vertices_.assign(grid_.block_count(), 0);

@@ -243,15 +243,17 @@ const char* strategy_choice_name(StrategyChoice c) {
     case StrategyChoice::Grid: return "grid";
     case StrategyChoice::Tin: return "tin";
     case StrategyChoice::NonRegularGrid: return "nonregular";
+    case StrategyChoice::Hybrid: return "hybrid";
     case StrategyChoice::Auto: return "auto";
   }
   return "unknown";
 }
 
 StrategyChoice parse_strategy_choice(const std::string& name) {
-  for (StrategyChoice c : {StrategyChoice::Grid, StrategyChoice::Tin, StrategyChoice::NonRegularGrid, StrategyChoice::Auto})
+  for (StrategyChoice c : {StrategyChoice::Grid, StrategyChoice::Tin, StrategyChoice::NonRegularGrid,
+                           StrategyChoice::Hybrid, StrategyChoice::Auto})
     if (name == strategy_choice_name(c)) return c;
-  throw std::invalid_argument("unknown strategy '" + name + "' (grid, tin, nonregular or auto)");
+  throw std::invalid_argument("unknown strategy '" + name + "' (grid, tin, nonregular, hybrid or auto)");
 }
 
 ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout, const TreeBuildOptions& opt,
@@ -262,11 +264,13 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
   const auto grid = make_grid_strategy(opt.patch);
   const auto tin = make_tin_strategy(opt.max_points, opt.metric);
   const auto nonreg = make_nonregular_strategy(opt.max_points, opt.metric);
+  const auto hybrid = make_hybrid_strategy(opt.patch, opt.max_points, opt.metric);
   auto strategy_of = [&](StrategyChoice c) -> const NodeStrategy* {
     switch (c) {
       case StrategyChoice::Grid: return grid.get();
       case StrategyChoice::Tin: return tin.get();
       case StrategyChoice::NonRegularGrid: return nonreg.get();
+      case StrategyChoice::Hybrid: return hybrid.get();
       case StrategyChoice::Auto: return nullptr;
     }
     return nullptr;
@@ -282,7 +286,7 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
   params.max_children = 0;
   for (StrategyChoice c : opt.levels) {
     const std::vector<const NodeStrategy*> used =
-        c == StrategyChoice::Auto ? std::vector<const NodeStrategy*>{grid.get(), tin.get(), nonreg.get()}
+        c == StrategyChoice::Auto ? std::vector<const NodeStrategy*>{grid.get(), tin.get(), nonreg.get(), hybrid.get()}
                                   : std::vector<const NodeStrategy*>{strategy_of(c)};
     for (const NodeStrategy* s : used) {
       params.max_points = std::max(params.max_points, s->max_points());
@@ -317,7 +321,7 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
         // Error per byte: keep the candidate with the smallest error x bytes (ties: fewer bytes).
         double best_score = std::numeric_limits<double>::infinity();
         std::size_t best_bytes = 0;
-        for (const NodeStrategy* s : {grid.get(), nonreg.get(), tin.get()}) {
+        for (const NodeStrategy* s : {grid.get(), nonreg.get(), tin.get(), hybrid.get()}) {
           TreeNode cand = n;
           cand.strategy = s->kind();
           cand.surface = s->approximate(hf, p.domain);
@@ -345,7 +349,7 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
       if (n.parent >= 0) nodes[std::size_t(n.parent)].children.push_back(n.id);
       std::vector<Pending> kids;
       if (built[i].split) {
-        const int d = n.strategy == Strategy::Grid ? 4 : 2;
+        const int d = n.strategy == Strategy::Grid || n.strategy == Strategy::Hybrid ? 4 : 2;
         kids = split(level[i], d, layout);
       }
       if (kids.empty()) done_area += double(n.domain.width() - 1) * double(n.domain.height() - 1);

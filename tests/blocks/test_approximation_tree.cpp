@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
+#include <set>
+#include <utility>
 
 #include "mesh_checker.hpp"
 #include "terralod/blocks/approximation_tree.hpp"
@@ -44,9 +47,13 @@ void check_tree(const pm::Heightfield& hf, const tb::ApproximationTree& tree, co
   for (const tb::TreeNode& n : tree.nodes()) {
     SCOPED_TRACE("node " + std::to_string(n.id) + " " + tb::strategy_name(n.strategy));
     // s and d.
-    const std::size_t s = n.strategy == tb::Strategy::Grid ? std::size_t(opt.patch + 1) * (opt.patch + 1) : opt.max_points;
+    const std::size_t s = n.strategy == tb::Strategy::Grid ? std::size_t(opt.patch + 1) * (opt.patch + 1)
+                          : n.strategy == tb::Strategy::Hybrid
+                              ? tb::make_hybrid_strategy(opt.patch, opt.max_points, opt.metric)->max_points()
+                              : opt.max_points;
     EXPECT_LE(n.surface.points.size(), s);
-    EXPECT_LE(n.children.size(), n.strategy == tb::Strategy::Grid ? 4u : 2u);
+    const bool quad = n.strategy == tb::Strategy::Grid || n.strategy == tb::Strategy::Hybrid;
+    EXPECT_LE(n.children.size(), quad ? 4u : 2u);
     EXPECT_LE(n.surface.points.size(), tree.parameters().max_points);
     EXPECT_LE(int(n.children.size()), tree.parameters().max_children);
     // Exact error.
@@ -67,6 +74,24 @@ void check_tree(const pm::Heightfield& hf, const tb::ApproximationTree& tree, co
         area2 += o;
       }
       EXPECT_EQ(area2, 2 * std::int64_t(n.domain.width() - 1) * (n.domain.height() - 1));
+      // Every point is a corner of a triangle (a point under the surface would be drawn on an edge).
+      std::vector<bool> used(n.surface.points.size(), false);
+      for (const auto& t : n.surface.triangles)
+        for (std::uint32_t v : t) used[v] = true;
+      EXPECT_EQ(std::count(used.begin(), used.end(), false), 0);
+      // ... and without a T-junction: every edge inside the domain has its twin.
+      std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
+      for (const auto& t : n.surface.triangles)
+        for (int k = 0; k < 3; ++k) edges.insert({t[std::size_t(k)], t[std::size_t((k + 1) % 3)]});
+      for (const auto& [a, b] : edges) {
+        if (edges.count({b, a})) continue;
+        const auto& p = n.surface.points[a];
+        const auto& q = n.surface.points[b];
+        const bool on_border = (p[0] == q[0] && (p[0] == n.domain.col0 || p[0] == n.domain.col1)) ||
+                               (p[1] == q[1] && (p[1] == n.domain.row0 || p[1] == n.domain.row1));
+        EXPECT_TRUE(on_border) << "edge (" << p[0] << "," << p[1] << ")-(" << q[0] << "," << q[1]
+                               << ") has no twin inside the domain";
+      }
       for (const auto& p : n.surface.points) {
         EXPECT_TRUE(n.domain.contains(int(p[0]), int(p[1])));
         EXPECT_EQ(p[2], hf.at(int(p[0]), int(p[1])));
@@ -201,7 +226,7 @@ INSTANTIATE_TEST_SUITE_P(
     Strategies, PureTrees,
     ::testing::Values(Case{"grid", {tb::StrategyChoice::Grid}, 0.0}, Case{"tin", {tb::StrategyChoice::Tin}, 2.0},
                       Case{"nonregular", {tb::StrategyChoice::NonRegularGrid}, 2.0},
-                      Case{"auto", {tb::StrategyChoice::Auto}, 5.0},
+                      Case{"hybrid", {tb::StrategyChoice::Hybrid}, 3.0}, Case{"auto", {tb::StrategyChoice::Auto}, 5.0},
                       Case{"mixed", {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin, tb::StrategyChoice::NonRegularGrid}, 3.0}),
     [](const auto& info) { return std::string(info.param.name); });
 
@@ -216,7 +241,8 @@ TEST(ApproximationTree, AutoPicksSmallestErrorTimesBytes) {
   ASSERT_EQ(tree.size(), 1u);
   double best = 1e300;
   for (const auto& s : {tb::make_grid_strategy(opt.patch), tb::make_tin_strategy(opt.max_points, opt.metric),
-                        tb::make_nonregular_strategy(opt.max_points, opt.metric)}) {
+                        tb::make_nonregular_strategy(opt.max_points, opt.metric),
+                        tb::make_hybrid_strategy(opt.patch, opt.max_points, opt.metric)}) {
     tb::TreeNode n = tree.root();
     n.strategy = s->kind();
     n.surface = s->approximate(hf, n.domain);
@@ -224,6 +250,85 @@ TEST(ApproximationTree, AutoPicksSmallestErrorTimesBytes) {
     best = std::min(best, n.error * double(tb::encoded_node_bytes(n)));
   }
   EXPECT_EQ(tree.root().error * double(tb::encoded_node_bytes(tree.root())), best);
+}
+
+// The hybrid strategy puts its TIN microstructure in the 2 x 2 cells where the grid is worst
+// (here around a narrow peak), joins it to the grid by convexification, keeps every point on a
+// sample at the sample's height, and lowers the node's error below the grid's.
+TEST(ApproximationTree, HybridStrategyRefinesWhereTheGridIsWorst) {
+  pm::Heightfield hf(65, 65);
+  for (int r = 0; r < 65; ++r)
+    for (int c = 0; c < 65; ++c) {
+      const double d2 = (c - 41.0) * (c - 41.0) + (r - 23.0) * (r - 23.0);
+      hf.at(c, r) = std::round(0.3 * c + 0.2 * r + 400.0 * std::exp(-d2 / 40.0));
+    }
+  const tb::SampleRect d{0, 0, 64, 64};
+  const auto grid = tb::make_grid_strategy(4);
+  const auto hybrid = tb::make_hybrid_strategy(4, 25, pm::ErrorMetric::Continuous);
+  const tb::NodeSurface g = grid->approximate(hf, d);
+  const tb::NodeSurface h = hybrid->approximate(hf, d);
+  const double eg = tb::surface_error(hf, g, pm::ErrorMetric::Continuous);
+  const double eh = tb::surface_error(hf, h, pm::ErrorMetric::Continuous);
+  std::printf("grid: %zu points, error %.2f m; hybrid: %zu points, %zu triangles, error %.2f m\n", g.points.size(), eg,
+              h.points.size(), h.triangles.size(), eh);
+  EXPECT_LT(eh, 0.5 * eg);
+  EXPECT_GT(h.points.size(), g.points.size());
+  EXPECT_LE(h.points.size(), hybrid->max_points());
+  EXPECT_TRUE(h.cols.empty() && h.rows.empty());
+  // The microstructure sits in the 2 x 2 cells around grid node (48, 16) (the worst block); the
+  // grid's points come first, less the block's centre node, which the TIN covers.
+  for (std::size_t v = g.points.size() - 1; v < h.points.size(); ++v) {
+    EXPECT_GT(h.points[v][0], 32);
+    EXPECT_LT(h.points[v][0], 64);
+    EXPECT_GT(h.points[v][1], 0);
+    EXPECT_LT(h.points[v][1], 32);
+  }
+  tb::TreeBuildOptions opt;
+  opt.levels = {tb::StrategyChoice::Hybrid};
+  opt.pm_leaves = false;
+  opt.leaf_error = 1e9;  // the root only
+  const tb::ApproximationTree tree = tb::build_tree(hf, tb::partition(65, 65, 65), opt);
+  check_tree(hf, tree, opt, /*pm_leaves=*/false);
+  EXPECT_EQ(tree.root().strategy, tb::Strategy::Hybrid);
+  EXPECT_EQ(tree.root().surface.points, h.points);
+  const tb::ApproximationTree back = tb::decode_tree(tb::encode_tree(tree), "mem");
+  EXPECT_EQ(back.root().surface.points, h.points);
+  EXPECT_EQ(back.root().surface.triangles, h.triangles);
+  // Rectangular cells (16 x 8 samples): the block's hybrid grid has step 8, so the cells beside
+  // the block take its extra border nodes into fans; check_tree finds any T-junction.
+  pm::Heightfield flat(65, 33);
+  for (int r = 0; r < 33; ++r)
+    for (int c = 0; c < 65; ++c) flat.at(c, r) = hf.at(c, r + 7);
+  const tb::ApproximationTree rect = tb::build_tree(flat, tb::partition(65, 33, 65), opt);
+  check_tree(flat, rect, opt, /*pm_leaves=*/false);
+  const tb::NodeSurface g2 = grid->approximate(flat, rect.root().domain);
+  std::printf("65 x 33: grid error %.2f m, hybrid %.2f m with %zu points\n",
+              tb::surface_error(flat, g2, pm::ErrorMetric::Continuous), rect.root().error,
+              rect.root().surface.points.size());
+  EXPECT_GT(rect.root().surface.points.size(), g2.points.size() + 5);  // the microstructure and the block's nodes
+  EXPECT_LT(rect.root().error, tb::surface_error(flat, g2, pm::ErrorMetric::Continuous));
+}
+
+// Hybrid levels above PM blocks (the runtime's configuration): every hybrid node keeps the
+// contract, including those whose block touches the node's border.
+TEST(ApproximationTree, HybridAbovePmBlocks) {
+  pm::TerrainOptions to;
+  to.width = 385;
+  to.height = 385;
+  to.seed = 16;
+  to.spacing = 30.0;
+  to.relief = 1200.0;
+  to.quantize_to_metres = true;
+  const pm::Heightfield hf = pm::generate_terrain(to);
+  const tb::BlockLayout l = tb::partition(385, 385, 65);
+  tb::TreeBuildOptions opt;
+  opt.levels = {tb::StrategyChoice::Hybrid};
+  const tb::ApproximationTree tree = tb::build_tree(hf, l, opt, std::vector<double>(l.count(), 1.0));
+  check_tree(hf, tree, opt, /*pm_leaves=*/true);
+  std::size_t with_tin = 0;
+  for (const tb::TreeNode& n : tree.nodes())
+    if (n.strategy == tb::Strategy::Hybrid && n.surface.points.size() > 25) ++with_tin;
+  EXPECT_GT(with_tin, 0u);
 }
 
 TEST(TreeFormat, CorruptionTruncationAndVersion) {

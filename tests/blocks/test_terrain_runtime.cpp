@@ -36,8 +36,8 @@ namespace {
 
 // A generated 513 x 513 terrain (30 m spacing, 15 km across) in a database of 65-sample blocks
 // (8 x 8 PM blocks) under a tree whose levels are grid, TIN, non-regular grid, then the best of
-// the three per node (Auto) right above the blocks: every kind of coarse node meets the others
-// and the PM blocks.
+// the four kinds (grid, TIN, non-regular, hybrid) per node (Auto) right above the blocks: coarse
+// kinds meet each other and the PM blocks.
 struct Terrain {
   tp::Heightfield hf;
   std::string db;
@@ -160,6 +160,36 @@ std::vector<tp::Camera> turning_flight(const tp::Heightfield& hf, int frames, do
   return out;
 }
 
+// Turning flights (`frames` frames each, 2 cells a frame, `turn` degrees a frame) at every tau
+// and height above the terrain, one runtime per tau, every third frame checked by fly(): the
+// pairs of node kinds that met across an edge, and the same as text.
+struct KindsMeeting {
+  std::set<std::pair<int, int>> pairs;
+  std::string text;
+  bool met(tb::Strategy a, tb::Strategy b) const {
+    return pairs.count({std::min(int(a), int(b)), std::max(int(a), int(b))}) != 0;
+  }
+};
+KindsMeeting kinds_meeting(const Terrain& ter, std::initializer_list<double> taus,
+                           std::initializer_list<double> heights, int frames, double pitch_low, double pitch_high,
+                           double turn) {
+  KindsMeeting k;
+  for (double tau : taus) {
+    tb::RuntimeOptions o;
+    o.tolerance_px = tau;
+    o.morph_seconds = 0.3;
+    tb::TerrainRuntime rt(ter.db, o);
+    for (double above : heights) {
+      const FlightResult r = fly(rt, turning_flight(ter.hf, frames, above, above > 1000 ? pitch_high : pitch_low, turn, 2.0),
+                                 tau, 3, /*wait=*/true, rt.stats().time_s + 1, ter);
+      k.pairs.insert(r.kind_pairs.begin(), r.kind_pairs.end());
+    }
+  }
+  for (const auto& [a, b] : k.pairs)
+    k.text += std::string(" ") + tb::strategy_name(tb::Strategy(a)) + "|" + tb::strategy_name(tb::Strategy(b));
+  return k;
+}
+
 }  // namespace
 
 TEST(TerrainRuntime, LowFlightWithinBoundCoveredAndWatertight) {
@@ -194,21 +224,9 @@ TEST(TerrainRuntime, HighAndHorizonViewsDrawTheWholeTerrainInView) {
 }
 
 TEST(TerrainRuntime, FastTurnsAndEveryKindOfNodeMeeting) {
-  std::set<std::pair<int, int>> pairs;
-  for (double tau : {1.0, 6.0}) {
-    tb::RuntimeOptions o;
-    o.tolerance_px = tau;
-    o.morph_seconds = 0.3;
-    tb::TerrainRuntime rt(terrain().db, o);
-    for (double above : {60.0, 600.0, 3000.0, 9000.0}) {
-      const FlightResult r = fly(rt, turning_flight(terrain().hf, 45, above, above > 1000 ? -12 : -6, 8.0, 2.0), tau, 3,
-                                 /*wait=*/true, rt.stats().time_s + 1);
-      pairs.insert(r.kind_pairs.begin(), r.kind_pairs.end());
-    }
-  }
-  std::string seen;
-  for (const auto& [a, b] : pairs)
-    seen += std::string(" ") + tb::strategy_name(tb::Strategy(a)) + "|" + tb::strategy_name(tb::Strategy(b));
+  const KindsMeeting k = kinds_meeting(terrain(), {1.0, 6.0}, {60.0, 600.0, 3000.0, 9000.0}, 45, -6, -12, 8.0);
+  const auto& pairs = k.pairs;
+  const std::string& seen = k.text;
   std::printf("node kinds meeting:%s\n", seen.c_str());
   const int pmk = int(tb::Strategy::PmBlock);
   EXPECT_TRUE(pairs.count({pmk, pmk})) << seen;
@@ -222,28 +240,90 @@ TEST(TerrainRuntime, EveryKindOfCoarseNodeMeetsPmBlocks) {
   // of that kind): its nodes are the only coarse ones, so the seams checked in every frame are
   // between that kind and PM blocks (and between two nodes of it). Large tolerances make the
   // coarse levels meet tau / 2 on a terrain this small.
-  const int pmk = int(tb::Strategy::PmBlock);
   for (const auto& [choice, kind] : {std::pair{tb::StrategyChoice::Grid, tb::Strategy::Grid},
                                      std::pair{tb::StrategyChoice::Tin, tb::Strategy::Tin},
-                                     std::pair{tb::StrategyChoice::NonRegularGrid, tb::Strategy::NonRegularGrid}}) {
+                                     std::pair{tb::StrategyChoice::NonRegularGrid, tb::Strategy::NonRegularGrid},
+                                     std::pair{tb::StrategyChoice::Hybrid, tb::Strategy::Hybrid}}) {
     const Terrain ter = build_terrain(385, 385, {choice}, std::string("runtime_") + tb::strategy_name(kind) + ".db");
-    std::set<std::pair<int, int>> pairs;
-    for (double tau : {4.0, 12.0, 32.0}) {
-      tb::RuntimeOptions o;
-      o.tolerance_px = tau;
-      o.morph_seconds = 0.3;
-      tb::TerrainRuntime rt(ter.db, o);
-      for (double above : {100.0, 500.0, 1500.0}) {
-        const FlightResult r = fly(rt, turning_flight(ter.hf, 30, above, above > 1000 ? -20 : -4, 12.0, 2.0), tau, 3,
-                                   /*wait=*/true, rt.stats().time_s + 1, ter);
-        pairs.insert(r.kind_pairs.begin(), r.kind_pairs.end());
-      }
+    const KindsMeeting k = kinds_meeting(ter, {4.0, 12.0, 32.0}, {100.0, 500.0, 1500.0}, 30, -4, -20, 12.0);
+    std::printf("%s tree, node kinds meeting:%s\n", tb::strategy_name(kind), k.text.c_str());
+    EXPECT_TRUE(k.met(kind, tb::Strategy::PmBlock)) << k.text;
+  }
+}
+
+// Every pair of coarse kinds side by side: the quadtree's 16 nodes right above the PM blocks
+// (2 x 2 blocks each) are re-made as grid, TIN, non-regular grid and hybrid nodes in the pattern
+// (i + 2 j) mod 4, so that horizontal neighbours differ by one kind and vertical ones by two:
+// every pair of the four kinds shares edges, and each kind meets PM blocks where a neighbour is
+// refined. Every frame is checked watertight and within its bound.
+TEST(TerrainRuntime, EveryPairOfCoarseKindsMeetsWatertight) {
+  const tp::Heightfield& hf = terrain().hf;
+  Terrain ter{hf, (tt::process_temp_dir("runtime") / "runtime_kinds.db").string()};
+  {
+    tb::DatabaseBuildOptions o;
+    o.block_size = 65;
+    o.threads = 2;
+    o.tree.levels = {tb::StrategyChoice::Grid};
+    tb::build_database(hf, ter.db, o);
+  }
+  const std::array<tb::Strategy, 4> kinds{tb::Strategy::Grid, tb::Strategy::Tin, tb::Strategy::NonRegularGrid,
+                                          tb::Strategy::Hybrid};
+  const std::array<std::unique_ptr<tb::NodeStrategy>, 4> make{
+      tb::make_grid_strategy(4), tb::make_tin_strategy(25, tp::ErrorMetric::Continuous),
+      tb::make_nonregular_strategy(25, tp::ErrorMetric::Continuous),
+      tb::make_hybrid_strategy(4, 25, tp::ErrorMetric::Continuous)};
+  {
+    tb::BlockDatabase db = tb::BlockDatabase::open(ter.db, tb::BlockDatabase::Mode::ReadWrite);
+    const tb::ApproximationTree tree = tb::decode_tree(*db.read_blob("tree"), ter.db);
+    std::vector<tb::TreeNode> nodes = tree.nodes();
+    tb::ApproximationTree::Parameters params = tree.parameters();
+    std::size_t remade = 0;
+    for (tb::TreeNode& n : nodes) {
+      if (n.leaf() || tree.node(n.children[0]).strategy != tb::Strategy::PmBlock) continue;
+      const int i = n.domain.col0 / (n.domain.width() - 1), j = n.domain.row0 / (n.domain.height() - 1);
+      const std::size_t k = std::size_t(i + 2 * j) % 4;
+      n.strategy = kinds[k];
+      n.surface = make[k]->approximate(hf, n.domain);
+      n.error = tb::surface_error(hf, n.surface, tp::ErrorMetric::Continuous);
+      params.max_points = std::max(params.max_points, n.surface.points.size());
+      ++remade;
     }
-    std::string seen;
-    for (const auto& [a, b] : pairs)
-      seen += std::string(" ") + tb::strategy_name(tb::Strategy(a)) + "|" + tb::strategy_name(tb::Strategy(b));
-    std::printf("%s tree, node kinds meeting:%s\n", tb::strategy_name(kind), seen.c_str());
-    EXPECT_TRUE(pairs.count({std::min(int(kind), pmk), std::max(int(kind), pmk)})) << seen;
+    ASSERT_EQ(remade, 16u);
+    db.put_blob("tree", tb::encode_tree(tb::ApproximationTree(params, std::move(nodes))));
+  }
+  const KindsMeeting k = kinds_meeting(ter, {1.0, 4.0, 12.0}, {150.0, 800.0, 3000.0}, 30, -6, -15, 12.0);
+  std::printf("node kinds meeting:%s\n", k.text.c_str());
+  // Each kind beside PM blocks is asserted by EveryKindOfCoarseNodeMeetsPmBlocks (one tree per
+  // kind); here the coarse 5 x 5 grid nodes are refined wherever a neighbour is, so most but not
+  // all kinds meet PM blocks.
+  std::size_t meeting_pm = 0;
+  for (std::size_t a = 0; a < kinds.size(); ++a) {
+    meeting_pm += k.met(kinds[a], tb::Strategy::PmBlock);
+    for (std::size_t b = a + 1; b < kinds.size(); ++b)
+      EXPECT_TRUE(k.met(kinds[a], kinds[b])) << tb::strategy_name(kinds[a]) << " | " << tb::strategy_name(kinds[b])
+                                             << ":" << k.text;
+  }
+  EXPECT_GE(meeting_pm, 3u) << k.text;
+}
+
+// Seams are stitched in sample coordinates, so a tree whose coarse node has a point between
+// samples (as a 'terralod hybrid' database's own tree has) is refused with the file's name.
+TEST(TerrainRuntime, RefusesATreeWithPointsOffTheSamples) {
+  const Terrain ter = build_terrain(129, 129, {tb::StrategyChoice::Hybrid}, "runtime_off_samples.db");
+  {
+    tb::BlockDatabase db = tb::BlockDatabase::open(ter.db, tb::BlockDatabase::Mode::ReadWrite);
+    const tb::ApproximationTree tree = tb::decode_tree(*db.read_blob("tree"), ter.db);
+    std::vector<tb::TreeNode> nodes = tree.nodes();
+    ASSERT_EQ(nodes[0].strategy, tb::Strategy::Hybrid);
+    nodes[0].surface.points[0][0] += 0.5;
+    db.put_blob("tree", tb::encode_tree(tb::ApproximationTree(tree.parameters(), std::move(nodes))));
+  }
+  try {
+    tb::TerrainRuntime rt(ter.db, {});
+    ADD_FAILURE() << "opened";
+  } catch (const tb::DatabaseError& e) {
+    EXPECT_NE(std::string(e.what()).find(ter.db), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("off its domain's samples"), std::string::npos) << e.what();
   }
 }
 

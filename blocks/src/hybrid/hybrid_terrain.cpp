@@ -786,6 +786,16 @@ std::vector<std::array<std::uint32_t, 3>> HybridTerrain::direct_fill(int level, 
 }
 
 HybridTerrain HybridTerrain::build(const pm::Heightfield& grid, const TinMesh& tin, const HybridOptions& o) {
+  return build(
+      grid.width(), grid.height(),
+      [&](int col, int row) {
+        return grid.valid(col, row) ? grid.at(col, row) : std::numeric_limits<double>::quiet_NaN();
+      },
+      grid.source, tin, o);
+}
+
+HybridTerrain HybridTerrain::build(int width, int height, const std::function<double(int, int)>& node_z,
+                                   const std::string& source, const TinMesh& tin, const HybridOptions& o) {
   assert(o.grid_step >= 1 && o.levels >= 1 && o.levels <= 16);
   HybridTerrain h;
   Builder b(h);
@@ -793,9 +803,9 @@ HybridTerrain HybridTerrain::build(const pm::Heightfield& grid, const TinMesh& t
   b.L = o.levels;
   h.step_ = o.grid_step;
   const int coarse = o.grid_step << (o.levels - 1);
-  const int ncx = (grid.width() - 1) / coarse, ncy = (grid.height() - 1) / coarse;
+  const int ncx = (width - 1) / coarse, ncy = (height - 1) / coarse;
   if (ncx < 1 || ncy < 1)
-    throw HybridError(grid.source + ": a " + std::to_string(grid.width()) + "x" + std::to_string(grid.height()) +
+    throw HybridError(source + ": a " + std::to_string(width) + "x" + std::to_string(height) +
                       " grid holds no coarsest cell of " + std::to_string(coarse) + " samples (grid step " +
                       std::to_string(o.grid_step) + ", " + std::to_string(o.levels) + " levels)");
   h.domain_w_ = ncx * coarse;
@@ -804,10 +814,11 @@ HybridTerrain HybridTerrain::build(const pm::Heightfield& grid, const TinMesh& t
   h.grid_z_.resize(std::size_t(nx) * ny);
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) {
-      if (!grid.valid(i * o.grid_step, j * o.grid_step))
-        throw HybridError(grid.source + ": grid node (" + std::to_string(i * o.grid_step) + "," +
+      const double z = node_z(i * o.grid_step, j * o.grid_step);
+      if (std::isnan(z))
+        throw HybridError(source + ": grid node (" + std::to_string(i * o.grid_step) + "," +
                           std::to_string(j * o.grid_step) + ") is a void");
-      h.grid_z_[std::size_t(j) * nx + i] = grid.at(i * o.grid_step, j * o.grid_step);
+      h.grid_z_[std::size_t(j) * nx + i] = z;
     }
   b.ks = std::int64_t(o.grid_step) * kScale;
   b.load_tin(tin);

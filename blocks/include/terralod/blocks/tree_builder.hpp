@@ -24,13 +24,18 @@
 //                   sample: d = 2.
 //   NonRegularGrid  row and column through the point of largest error (build_nonregular_grid),
 //                   at most s points; binary k-d children: d = 2.
+//   Hybrid          the grid's (P+1) x (P+1) points plus, in the 2 x 2 cells around the interior
+//                   grid node where the grid is worst, a greedy TIN microstructure of at most s
+//                   points joined to the grid by local convexification (hybrid/hybrid_terrain.hpp,
+//                   seeds/hybrid-grid-tin-convexification.txt); every point a sample; quadtree
+//                   children: d = 4. Details in src/hybrid/hybrid_strategy.cpp.
 //   PmBlock         a leaf whose surface is a block's PM in the database (refined at run time).
 // Splits: while a domain spans several blocks, children are aligned to block borders (the
 // first part gets the largest power of two of blocks smaller than the count, so a 2^m-block
 // tree is a classic quadtree/k-d tree); inside one block (pm_leaves = false) the domain is cut
 // at its middle sample. With pm_leaves a domain of exactly one block is a PmBlock leaf; without,
 // splitting stops when error <= leaf_error or the domain is a single cell.
-// StrategyChoice::Auto builds the grid, TIN and non-regular candidates for the node and keeps
+// StrategyChoice::Auto builds the grid, TIN, non-regular and hybrid candidates for the node and keeps
 // the one with the smallest error x bytes (bytes = encoded_node_bytes: "error per byte").
 //
 // Errors: every node's error is measured exactly with pm::LInfError over its own triangles
@@ -75,12 +80,14 @@ class NodeStrategy {
 std::unique_ptr<NodeStrategy> make_grid_strategy(int patch);
 std::unique_ptr<NodeStrategy> make_tin_strategy(std::size_t max_points, pm::ErrorMetric metric);
 std::unique_ptr<NodeStrategy> make_nonregular_strategy(std::size_t max_points, pm::ErrorMetric metric);
+/// Grid of patch P plus a TIN microstructure of at most tin_points (>= 4) points (see above).
+std::unique_ptr<NodeStrategy> make_hybrid_strategy(int patch, std::size_t tin_points, pm::ErrorMetric metric);
 
 /// Exact error of a surface against hf: max over its triangles of pm::LInfError::triangle.
 double surface_error(const pm::Heightfield& hf, const NodeSurface& surface, pm::ErrorMetric metric);
 
-enum class StrategyChoice : std::uint8_t { Grid, Tin, NonRegularGrid, Auto };
-/// "grid", "tin", "nonregular", "auto"; parse throws std::invalid_argument for anything else.
+enum class StrategyChoice : std::uint8_t { Grid, Tin, NonRegularGrid, Auto, Hybrid };
+/// "grid", "tin", "nonregular", "auto", "hybrid"; parse throws std::invalid_argument for anything else.
 const char* strategy_choice_name(StrategyChoice c);
 StrategyChoice parse_strategy_choice(const std::string& name);
 

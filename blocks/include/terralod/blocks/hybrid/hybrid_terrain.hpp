@@ -59,6 +59,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -154,6 +155,12 @@ class HybridTerrain {
  public:
   /// Builds the model (see the header comment). Throws HybridError on bad data.
   static HybridTerrain build(const pm::Heightfield& grid, const TinMesh& tin, const HybridOptions& options = {});
+  /// The same from the grid nodes alone (all build() reads of the DEM): a `width` x `height`
+  /// sample grid whose node (col, row), both multiples of grid_step, has height node_z(col, row)
+  /// (NaN = a void). `source` names the grid in errors. The tree builder's hybrid node strategy
+  /// uses it over a window of a larger DEM without copying the window.
+  static HybridTerrain build(int width, int height, const std::function<double(int, int)>& node_z,
+                             const std::string& source, const TinMesh& tin, const HybridOptions& options = {});
 
   int levels() const { return int(levels_.size()); }
   int grid_step() const { return step_; }
