@@ -7,8 +7,8 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdarg>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
 
@@ -34,12 +34,14 @@ std::string CommandSpec::usage() const {
 
   std::vector<std::pair<std::string, std::string>> rows;
   for (const OptionSpec& o : options)
-    rows.emplace_back(o.name + (o.metavar.empty() ? "" : " " + o.metavar), o.help + (o.required ? " (required)" : ""));
+    rows.emplace_back(o.name + (o.metavar.empty() ? "" : " " + o.metavar),
+                      o.help + (o.required ? " (required)" : ""));
   rows.emplace_back("-h, --help", "show this help and exit");
   std::size_t width = 0;
   for (const auto& r : rows) width = std::max(width, r.first.size());
   u += "\noptions:\n";
-  for (const auto& r : rows) u += "  " + r.first + std::string(width + 2 - r.first.size(), ' ') + r.second + "\n";
+  for (const auto& r : rows)
+    u += "  " + r.first + std::string(width + 2 - r.first.size(), ' ') + r.second + "\n";
   return u;
 }
 
@@ -128,8 +130,8 @@ long long Args::get_int(const std::string& name, long long fallback, long long l
   errno = 0;
   const long long v = s.empty() ? 0 : std::strtoll(s.c_str(), &end, 10);
   if (s.empty() || *end != '\0' || errno == ERANGE || v < lo || v > hi)
-    throw UsageError("option '" + name + "' needs an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                     "], not '" + s + "'");
+    throw UsageError("option '" + name + "' needs an integer in [" + std::to_string(lo) + ", " +
+                     std::to_string(hi) + "], not '" + s + "'");
   return v;
 }
 
@@ -139,7 +141,8 @@ std::string Args::get_choice(const std::string& name, const std::vector<std::str
   if (it == values_.end()) return fallback;
   if (std::find(choices.begin(), choices.end(), it->second) != choices.end()) return it->second;
   std::string list;
-  for (std::size_t i = 0; i < choices.size(); ++i) list += (i ? (i + 1 == choices.size() ? " or " : ", ") : "") + choices[i];
+  for (std::size_t i = 0; i < choices.size(); ++i)
+    list += (i ? (i + 1 == choices.size() ? " or " : ", ") : "") + choices[i];
   throw UsageError("option '" + name + "' must be " + list + ", not '" + it->second + "'");
 }
 
@@ -242,16 +245,32 @@ std::string JsonWriter::quote(const std::string& s) {
   for (const char ch : s) {
     const unsigned char c = static_cast<unsigned char>(ch);
     switch (c) {
-      case '"': q += "\\\""; break;
-      case '\\': q += "\\\\"; break;
-      case '\b': q += "\\b"; break;
-      case '\f': q += "\\f"; break;
-      case '\n': q += "\\n"; break;
-      case '\r': q += "\\r"; break;
-      case '\t': q += "\\t"; break;
+      case '"':
+        q += "\\\"";
+        break;
+      case '\\':
+        q += "\\\\";
+        break;
+      case '\b':
+        q += "\\b";
+        break;
+      case '\f':
+        q += "\\f";
+        break;
+      case '\n':
+        q += "\\n";
+        break;
+      case '\r':
+        q += "\\r";
+        break;
+      case '\t':
+        q += "\\t";
+        break;
       default:
-        if (c < 0x20 || c == 0x7f) q += strf("\\u%04x", c);
-        else q += ch;  // UTF-8 bytes pass through unchanged
+        if (c < 0x20 || c == 0x7f)
+          q += strf("\\u%04x", c);
+        else
+          q += ch;  // UTF-8 bytes pass through unchanged
     }
   }
   return q + "\"";

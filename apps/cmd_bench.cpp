@@ -41,7 +41,8 @@ std::vector<double> parse_taus(const std::string& text) {
 CommandSpec bench_spec() {
   CommandSpec s;
   s.name = "bench";
-  s.summary = "Run-time-versus-error benchmark of PM blocks against chunked LOD, TIN, non-regular grid, full grid.";
+  s.summary =
+      "Run-time-versus-error benchmark of PM blocks against chunked LOD, TIN, non-regular grid, full grid.";
   s.description =
       "Flies two fixed scripted flights (a low terrain-following circle and a high diagonal pass)\n"
       "over N44W072.hgt from --data (or, with --short or when that file is absent, over a\n"
@@ -53,27 +54,29 @@ CommandSpec bench_spec() {
       "error_vs_triangles.png and summary.md (ratios to chunked LOD, PASS/FAIL per target).\n"
       "Progress goes to stderr, one line per stage. Exit status 0 when the run completed (the\n"
       "targets' PASS/FAIL is in summary.md and on stdout).";
-  s.options = {{"--data", "DIR", "folder with N44W072.hgt (default: the build's TERRALOD_DATA_DIR)"},
-               {"--out", "DIR", "output folder, created if needed (default: terralod-bench)"},
-               {"--short", "", "a quick run on a generated 129 x 129 terrain (40 frames)"},
-               {"--frames", "N", "frames in all over the two flights (default 600; --short 40), >= 2"},
-               {"--size", "WxH", "viewport in pixels (default 1280x720)"},
-               {"--taus", "LIST", "tolerances in pixels, comma-separated (default 0.5,1,2,4,8)"},
-               {"--dem", "FILE", "fly over this DEM instead of N44W072 (e.g. from 'terralod generate --size 4097')"},
-               {"--strategies", "LIST",
-                "comma-separated subset of pm_blocks,chunked_lod,tin,nonregular,full_grid (default all)"}};
+  s.options = {
+      {"--data", "DIR", "folder with N44W072.hgt (default: the build's TERRALOD_DATA_DIR)"},
+      {"--out", "DIR", "output folder, created if needed (default: terralod-bench)"},
+      {"--short", "", "a quick run on a generated 129 x 129 terrain (40 frames)"},
+      {"--frames", "N", "frames in all over the two flights (default 600; --short 40), >= 2"},
+      {"--size", "WxH", "viewport in pixels (default 1280x720)"},
+      {"--taus", "LIST", "tolerances in pixels, comma-separated (default 0.5,1,2,4,8)"},
+      {"--dem", "FILE", "fly over this DEM instead of N44W072 (e.g. from 'terralod generate --size 4097')"},
+      {"--strategies", "LIST",
+       "comma-separated subset of pm_blocks,chunked_lod,tin,nonregular,full_grid (default all)"}};
   return s;
 }
 
 int cmd_bench(const Args& a) {
-  bench::LodBenchmarkOptions o = a.has("--short") ? bench::short_benchmark_options() : bench::LodBenchmarkOptions{};
+  bench::LodBenchmarkOptions o =
+      a.has("--short") ? bench::short_benchmark_options() : bench::LodBenchmarkOptions{};
   o.frames = int(a.get_int("--frames", o.frames, 2, 1000000));
   if (a.has("--size")) {
     const std::string v = a.get("--size");
     int w = 0, h = 0;
     char x = 0, extra = 0;
-    if (std::sscanf(v.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 16 || h < 16 ||
-        w > 16384 || h > 16384)
+    if (std::sscanf(v.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 16 ||
+        h < 16 || w > 16384 || h > 16384)
       throw UsageError("option '--size' wants WxH with 16 <= W, H <= 16384, not '" + v + "'");
     o.width_px = w, o.height_px = h;
   }

@@ -1,12 +1,13 @@
 // terralod build: a DEM -> a block database (per-block PMs built in parallel, the approximation
 // tree above them), resumable, with progress and a one-line-per-stage summary.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <sstream>
 #include <string>
 #include <thread>
-#include <unistd.h>
 
 #include "commands.hpp"
 #include "terralod/blocks/dem_reader.hpp"
@@ -41,7 +42,8 @@ CommandSpec build_spec() {
       {"--threads", "N", "blocks built in parallel, 0 = all cores (default 0)"},
       {"--strategy", "LIST", "per level from the root: grid|tin|nonregular|hybrid|auto[,...] (default grid)"},
       {"--patch", "P", "grid nodes have (P+1)^2 points (default 4)"},
-      {"--max-points", "S", "TIN and non-regular nodes (and hybrid microstructures) have at most S points (default 25)"},
+      {"--max-points", "S",
+       "TIN and non-regular nodes (and hybrid microstructures) have at most S points (default 25)"},
       {"--metric", "NAME", "error metric: continuous (default) or samples"},
       {"--standin", "KIND", "block stand-in surface: tin (default), grid, nonregular or two-triangle"},
       {"--standin-points", "N", "stand-ins have at most N points, 4..4096 (default 64)"},
@@ -56,7 +58,8 @@ int cmd_build(const Args& a) {
   blocks::DatabaseBuildOptions opt;
   opt.block_size = int(a.get_int("--block-size", 257, 3, 1 << 20));
   if (!blocks::is_valid_block_size(opt.block_size))
-    throw UsageError("option '--block-size' must be 2^k + 1 (3, 5, 9, ..., 257, ...), not '" + a.get("--block-size") + "'");
+    throw UsageError("option '--block-size' must be 2^k + 1 (3, 5, 9, ..., 257, ...), not '" +
+                     a.get("--block-size") + "'");
   opt.threads = int(a.get_int("--threads", 0, 0, 1024));
   opt.tree.patch = int(a.get_int("--patch", 4, 1, 255));
   opt.tree.max_points = std::size_t(a.get_int("--max-points", 25, 4, 1 << 20));
@@ -112,23 +115,27 @@ int cmd_build(const Args& a) {
   const blocks::DatabaseSummary s = blocks::build_database(hf, out, opt);
   if (tty) std::fputs("\r\033[K", stderr);
   const auto& n = s.nodes_per_strategy;
-  std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s\n", out.c_str(), s.blocks,
-              s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
+  std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s\n", out.c_str(),
+              s.blocks, s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
               format_duration(ms_since(t)).c_str());
-  std::printf("tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, hybrid %zu, pm_block %zu; root error "
-              "%.2f m, largest block base error %.2f m\n",
-              s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
-              n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::Hybrid)],
-              n[std::size_t(blocks::Strategy::PmBlock)], s.root_error, s.max_block_error);
-  const std::string standins = s.standin.empty()                ? std::string("none (the blocks have voids)")
-                               : s.standin == "two-triangle" ? s.standin
-                                                             : strf("%s of <= %zu points", s.standin.c_str(), opt.standin.max_points);
-  std::printf("stand-ins %s: mean error %.2f m (two triangles: %.2f m), %s of block summaries\n", standins.c_str(),
-              s.mean_standin_error, s.mean_tm_error, format_bytes(s.summaries_bytes).c_str());
-  std::printf("size  %llu samples, %llu block PM vertices, %s of blocks + %s of tree = %.2f bytes/vertex, total %s\n",
-              static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
-              format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
-              format_duration(ms_since(t0)).c_str());
+  std::printf(
+      "tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, hybrid %zu, pm_block %zu; root error "
+      "%.2f m, largest block base error %.2f m\n",
+      s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
+      n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::Hybrid)],
+      n[std::size_t(blocks::Strategy::PmBlock)], s.root_error, s.max_block_error);
+  const std::string standins = s.standin.empty() ? std::string("none (the blocks have voids)")
+                               : s.standin == "two-triangle"
+                                   ? s.standin
+                                   : strf("%s of <= %zu points", s.standin.c_str(), opt.standin.max_points);
+  std::printf("stand-ins %s: mean error %.2f m (two triangles: %.2f m), %s of block summaries\n",
+              standins.c_str(), s.mean_standin_error, s.mean_tm_error,
+              format_bytes(s.summaries_bytes).c_str());
+  std::printf(
+      "size  %llu samples, %llu block PM vertices, %s of blocks + %s of tree = %.2f bytes/vertex, total %s\n",
+      static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
+      format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
+      format_duration(ms_since(t0)).c_str());
   return 0;
 }
 

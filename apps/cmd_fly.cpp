@@ -42,14 +42,16 @@ struct PathRow {
 // The shared PATH.csv reader (pm/camera_path.hpp): same format and errors as every tool.
 std::vector<PathRow> read_path(const std::string& path) {
   std::vector<PathRow> rows;
-  for (const pm::Camera& c : pm::read_camera_path(path)) rows.push_back({c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg});
+  for (const pm::Camera& c : pm::read_camera_path(path))
+    rows.push_back({c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg});
   return rows;
 }
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
-  const std::size_t i = std::min(v.size() - 1, std::size_t(std::ceil(q * double(v.size()))) - (q > 0 ? 1 : 0));
+  const std::size_t i =
+      std::min(v.size() - 1, std::size_t(std::ceil(q * double(v.size()))) - (q > 0 ? 1 : 0));
   return v[i];
 }
 
@@ -79,7 +81,8 @@ CommandSpec fly_spec() {
       "update), resident_bytes, blocks_resident, blocks_loading, blocks_evicted (this frame),\n"
       "nodes_resident, nodes_loading, nodes_evicted (tree nodes: all stay resident), prefetch_misses\n"
       "(cumulative: blocks needed before they were resident), bytes_read (cumulative), nodes_visited,\n"
-      "nodes_culled, coarse_nodes, pm_blocks, standin_blocks, fallback_nodes, moving_vertices, clamped_vertices,\n"
+      "nodes_culled, coarse_nodes, pm_blocks, standin_blocks, fallback_nodes, moving_vertices, "
+      "clamped_vertices,\n"
       "seam_triangles. --dump-meshes also writes each frame's drawn mesh as DIR/frame_NNNNN.ply\n"
       "(binary little-endian, double x y z in the world frame at the displayed heights, int faces,\n"
       "counter-clockwise seen from above).\n\n"
@@ -97,7 +100,8 @@ CommandSpec fly_spec() {
       {"--no-prefetch", "", "no flight-path prediction (load what the view and the region need)"},
       {"--speed-factor", "K", "replay speed relative to real time, >= 0 (default 1; 0 = unpaced)"},
       {"--morph", "SECONDS", "geomorph duration, >= 0 (default 0.5; 0 pops)"},
-      {"--theta", "DEGREES", "minimum visible angle of the region kept ready, b = a cot(theta), (0, 90) (default 20)"},
+      {"--theta", "DEGREES",
+       "minimum visible angle of the region kept ready, b = a cot(theta), (0, 90) (default 20)"},
       {"--budget", "MB", "resident memory budget, megabytes (default 512): blocks, tree, summaries, mesh"},
   };
   return s;
@@ -110,20 +114,24 @@ int cmd_fly(const Args& a) {
   if (a.has("--size")) {
     const std::string sz = a.get("--size");
     int consumed = 0;
-    if (std::sscanf(sz.c_str(), "%dx%d%n", &width, &height, &consumed) != 2 || consumed != int(sz.size()) || width < 1 ||
-        height < 1 || width > 16384 || height > 16384)
+    if (std::sscanf(sz.c_str(), "%dx%d%n", &width, &height, &consumed) != 2 || consumed != int(sz.size()) ||
+        width < 1 || height < 1 || width > 16384 || height > 16384)
       throw UsageError("option '--size' needs WxH with each in 1..16384, not '" + sz + "'");
   }
   const double tau = a.get_double("--tau", 1.0);
   if (!(tau > 0)) throw UsageError("option '--tau' must be > 0 pixels, not '" + a.get("--tau") + "'");
   const double speed = a.get_double("--speed-factor", 1.0);
-  if (!(speed >= 0)) throw UsageError("option '--speed-factor' must be >= 0, not '" + a.get("--speed-factor") + "'");
+  if (!(speed >= 0))
+    throw UsageError("option '--speed-factor' must be >= 0, not '" + a.get("--speed-factor") + "'");
   const double morph = a.get_double("--morph", 0.5);
-  if (!(morph >= 0)) throw UsageError("option '--morph' must be >= 0 seconds, not '" + a.get("--morph") + "'");
+  if (!(morph >= 0))
+    throw UsageError("option '--morph' must be >= 0 seconds, not '" + a.get("--morph") + "'");
   const double theta = a.get_double("--theta", 20.0);
-  if (!(theta > 0 && theta < 90)) throw UsageError("option '--theta' must be in (0, 90) degrees, not '" + a.get("--theta") + "'");
+  if (!(theta > 0 && theta < 90))
+    throw UsageError("option '--theta' must be in (0, 90) degrees, not '" + a.get("--theta") + "'");
   const double budget_mb = a.get_double("--budget", 512.0);
-  if (!(budget_mb > 0)) throw UsageError("option '--budget' must be > 0 megabytes, not '" + a.get("--budget") + "'");
+  if (!(budget_mb > 0))
+    throw UsageError("option '--budget' must be > 0 megabytes, not '" + a.get("--budget") + "'");
   const long long target = a.has("--triangles") ? a.get_int("--triangles", 0, 1, 1000000000) : 0;
   const bool dump = a.has("--dump-meshes");
 
@@ -144,8 +152,8 @@ int cmd_fly(const Args& a) {
   blocks::TerrainRuntime rt(db_path, opt);
   const blocks::BlockGrid& grid = rt.grid();
   say(strf("open  %s: %d x %d samples, %d x %d blocks of %d, tree of %zu nodes, in %s", db_path.c_str(),
-            grid.grid_width(), grid.grid_height(), grid.cols(), grid.rows(), grid.block_size(), rt.tree().size(),
-            format_duration(ms_since(t)).c_str()));
+           grid.grid_width(), grid.grid_height(), grid.cols(), grid.rows(), grid.block_size(),
+           rt.tree().size(), format_duration(ms_since(t)).c_str()));
 
   FlightLog log(out, /*drawing=*/false);  // frames.csv appears only when the whole flight succeeded
   std::vector<double> ms, cpu, sel_ms, res_ms, ref_ms, seam_ms;
@@ -156,7 +164,8 @@ int cmd_fly(const Args& a) {
   ProgressBar bar("fly");
   const auto t_fly = Clock::now();
   for (std::size_t f = 0; f < path.size(); ++f) {
-    if (speed > 0) std::this_thread::sleep_until(t_fly + std::chrono::duration<double>(double(f) / (60.0 * speed)));
+    if (speed > 0)
+      std::this_thread::sleep_until(t_fly + std::chrono::duration<double>(double(f) / (60.0 * speed)));
     const PathRow& r = path[f];
     pm::Camera cam;
     cam.x = r.x;
@@ -194,20 +203,27 @@ int cmd_fly(const Args& a) {
   bar.finish();
   log.commit();
   const blocks::RuntimeFrameStats& last = rt.stats();
-  say(strf("fly   %zu frames in %s (speed factor %g%s): update median %.2f ms, p99 %.2f ms, worst %.2f ms; "
-            "CPU median %.2f ms, p99 %.2f ms",
-            path.size(), format_duration(ms_since(t_fly)).c_str(), speed, opt.prefetch ? ", prefetch" : ", no prefetch",
-            percentile(ms, 0.5), percentile(ms, 0.99), percentile(ms, 1.0), percentile(cpu, 0.5), percentile(cpu, 0.99)));
-  say(strf("steps median: selection %.3f ms, loader queue %.3f ms, refinement %.3f ms, seams and bound %.3f ms",
-            percentile(sel_ms, 0.5), percentile(res_ms, 0.5), percentile(ref_ms, 0.5), percentile(seam_ms, 0.5)));
-  say(strf("load  %zu prefetch misses of %zu blocks needed, %s read, peak resident %s (budget %s), %zu evicted",
-            last.prefetch_misses_total, last.prefetch_hits_total + last.prefetch_misses_total,
-            format_bytes(last.bytes_read_total).c_str(), format_bytes(last.peak_resident_bytes).c_str(),
-            format_bytes(opt.budget_bytes).c_str(), last.evicted_total));
-  say(strf("bound %zu of %zu frames had nothing missing; in those the drawn bound was <= tau in %zu (largest bound / "
-            "tau %.3f)",
-            complete, path.size(), complete - over_tau, worst_complete));
-  say(strf("write %s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "", format_duration(ms_since(t_start)).c_str()));
+  say(
+      strf("fly   %zu frames in %s (speed factor %g%s): update median %.2f ms, p99 %.2f ms, worst %.2f ms; "
+           "CPU median %.2f ms, p99 %.2f ms",
+           path.size(), format_duration(ms_since(t_fly)).c_str(), speed,
+           opt.prefetch ? ", prefetch" : ", no prefetch", percentile(ms, 0.5), percentile(ms, 0.99),
+           percentile(ms, 1.0), percentile(cpu, 0.5), percentile(cpu, 0.99)));
+  say(strf(
+      "steps median: selection %.3f ms, loader queue %.3f ms, refinement %.3f ms, seams and bound %.3f ms",
+      percentile(sel_ms, 0.5), percentile(res_ms, 0.5), percentile(ref_ms, 0.5), percentile(seam_ms, 0.5)));
+  say(strf(
+      "load  %zu prefetch misses of %zu blocks needed, %s read, peak resident %s (budget %s), %zu evicted",
+      last.prefetch_misses_total, last.prefetch_hits_total + last.prefetch_misses_total,
+      format_bytes(last.bytes_read_total).c_str(), format_bytes(last.peak_resident_bytes).c_str(),
+      format_bytes(opt.budget_bytes).c_str(), last.evicted_total));
+  say(
+      strf("bound %zu of %zu frames had nothing missing; in those the drawn bound was <= tau in %zu (largest "
+           "bound / "
+           "tau %.3f)",
+           complete, path.size(), complete - over_tau, worst_complete));
+  say(strf("write %s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "",
+           format_duration(ms_since(t_start)).c_str()));
   return 0;
 }
 

@@ -38,17 +38,17 @@ std::vector<std::string> split_list(const std::string& s) {
 }  // namespace
 
 static std::string hybrid_report_text(const hy::StorageReport& r) {
-  std::string s = strf("TIN boundary: %zu vertices in %zu ring(s); TIN %zu vertices, %zu triangles\n", r.tb_vertices,
-                       r.rings, r.tin_vertices, r.tin_triangles);
+  std::string s = strf("TIN boundary: %zu vertices in %zu ring(s); TIN %zu vertices, %zu triangles\n",
+                       r.tb_vertices, r.rings, r.tin_vertices, r.tin_triangles);
   s += strf("connectivity: max %u -> %d bits per TB vertex; A (TB address) %d bits\n", r.max_connectivity,
             r.connectivity_bits, r.address_bits);
   s += "Table 2  level   cells     NC     CC    PC (%)          conn.max  L max  bits/section  GC bits  "
        "VC bits  tree bits/PC (max)\n";
   for (const hy::LevelReport& l : r.levels)
-    s += strf("         LOD %d  %6d  %5d  %5d  %4d (%6.2f%%)  %8u  %5u  %12d  %7llu  %7llu  %6.2f (%llu)\n", l.level,
-              l.cells, l.nc, l.cc, l.pc, l.pc_percent, l.max_connectivity, l.l_max, l.bits_per_section,
-              (unsigned long long)l.gc_bits, (unsigned long long)l.vc_bits, l.tree_bits_per_pc,
-              (unsigned long long)l.tree_bits_max);
+    s += strf("         LOD %d  %6d  %5d  %5d  %4d (%6.2f%%)  %8u  %5u  %12d  %7llu  %7llu  %6.2f (%llu)\n",
+              l.level, l.cells, l.nc, l.cc, l.pc, l.pc_percent, l.max_connectivity, l.l_max,
+              l.bits_per_section, (unsigned long long)l.gc_bits, (unsigned long long)l.vc_bits,
+              l.tree_bits_per_pc, (unsigned long long)l.tree_bits_max);
   return s;
 }
 
@@ -82,7 +82,8 @@ int cmd_hybrid(const Args& a) {
   const int levels = int(a.get_int("--levels", 3, 1, 10));
   const std::vector<std::string> tins = split_list(a.get("--tin"));
   if (tins.empty()) throw UsageError("option '--tin' names no file");
-  if (fs::exists(out)) throw std::runtime_error(out + ": already exists (the hybrid database is created new)");
+  if (fs::exists(out))
+    throw std::runtime_error(out + ": already exists (the hybrid database is created new)");
   auto t = Clock::now();
   const pm::Heightfield dem = blocks::read_dem(dem_path);
   print_line(strf("read %s: %dx%d samples, %s", dem_path.c_str(), dem.width(), dem.height(),
@@ -90,13 +91,15 @@ int cmd_hybrid(const Args& a) {
   std::vector<hy::TinMesh> parts;
   for (const std::string& p : tins) {
     t = Clock::now();
-    if (fs::path(p).extension() != ".ply") throw std::runtime_error(p + ": the TIN must be a binary .ply file");
+    if (fs::path(p).extension() != ".ply")
+      throw std::runtime_error(p + ": the TIN must be a binary .ply file");
     parts.push_back(hy::tin_from_world(pm::read_ply(p), dem.transform, p));
     print_line(strf("read %s: %zu vertices, %zu triangles, %s", p.c_str(), parts.back().points.size(),
                     parts.back().triangles.size(), format_duration(ms_since(t)).c_str()));
   }
   t = Clock::now();
-  const hy::HybridTerrain h = hy::HybridTerrain::build(dem, hy::merge_tins(parts), {.grid_step = step, .levels = levels});
+  const hy::HybridTerrain h =
+      hy::HybridTerrain::build(dem, hy::merge_tins(parts), {.grid_step = step, .levels = levels});
   const hy::StorageReport r = h.storage_report();
   print_line(strf("hybrid: grid step %d, %d levels, domain %dx%d samples, %zu TB vertices, %s", step, levels,
                   h.domain_width(), h.domain_height(), r.tb_vertices, format_duration(ms_since(t)).c_str()));
@@ -105,10 +108,10 @@ int cmd_hybrid(const Args& a) {
   const hy::HybridTree tree = hy::HybridTree::build(h, dem);
   const std::vector<std::uint8_t> tree_blob = blocks::encode_tree(tree.tree());
   const auto per = tree.tree().count_by_strategy();
-  print_line(strf("hybrid tree: %zu nodes (%zu grid, %zu hybrid), depth %d, root error %.2f m, %s, %s", tree.tree().size(),
-                  per[std::size_t(blocks::Strategy::Grid)], per[std::size_t(blocks::Strategy::Hybrid)],
-                  tree.tree().depth(), tree.tree().root().error, format_bytes(tree_blob.size()).c_str(),
-                  format_duration(ms_since(t)).c_str()));
+  print_line(strf("hybrid tree: %zu nodes (%zu grid, %zu hybrid), depth %d, root error %.2f m, %s, %s",
+                  tree.tree().size(), per[std::size_t(blocks::Strategy::Grid)],
+                  per[std::size_t(blocks::Strategy::Hybrid)], tree.tree().depth(), tree.tree().root().error,
+                  format_bytes(tree_blob.size()).c_str(), format_duration(ms_since(t)).c_str()));
   t = Clock::now();
   const std::vector<std::uint8_t> blob = h.encode();
   blocks::DatabaseInfo info;
@@ -182,17 +185,20 @@ int cmd_extract_hybrid(const Args& a) {
   const std::string scheme = a.get_choice("--scheme", {"triangles", "subcells"}, "triangles");
   auto t = Clock::now();
   const blocks::BlockDatabase db = blocks::BlockDatabase::open(path);
-  if (db.info().kind != "hybrid") throw std::runtime_error(path + ": not a hybrid database (kind '" + db.info().kind + "')");
+  if (db.info().kind != "hybrid")
+    throw std::runtime_error(path + ": not a hybrid database (kind '" + db.info().kind + "')");
   const auto blob = db.read_blob("hybrid");
   if (!blob) throw std::runtime_error(path + ": no 'hybrid' blob");
   const hy::HybridTerrain h = hy::HybridTerrain::decode(*blob, path);
   const int level = int(a.get_int("--grid-level", 0, 0, h.levels() - 1));
-  const hy::HybridMesh m = h.extract(level, scheme == "subcells" ? hy::Scheme::SubCells : hy::Scheme::Triangles);
-  print_line(strf("extract %s grid level %d (%s): %zu triangles (grid %zu, TIN %zu, convexification %zu, corner %zu, "
-                  "%zu split at T-junctions), %zu vertices, %s",
-                  path.c_str(), level, scheme.c_str(), m.triangles.size(), m.grid_triangles, m.tin_triangles,
-                  m.convexification_triangles, m.corner_triangles, m.split_edges, m.points.size(),
-                  format_duration(ms_since(t)).c_str()));
+  const hy::HybridMesh m =
+      h.extract(level, scheme == "subcells" ? hy::Scheme::SubCells : hy::Scheme::Triangles);
+  print_line(strf(
+      "extract %s grid level %d (%s): %zu triangles (grid %zu, TIN %zu, convexification %zu, corner %zu, "
+      "%zu split at T-junctions), %zu vertices, %s",
+      path.c_str(), level, scheme.c_str(), m.triangles.size(), m.grid_triangles, m.tin_triangles,
+      m.convexification_triangles, m.corner_triangles, m.split_edges, m.points.size(),
+      format_duration(ms_since(t)).c_str()));
   t = Clock::now();
   pm::write_mesh(hy::to_world(m, db.info().transform), out);
   print_line(strf("write %s: %s, world units, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(),

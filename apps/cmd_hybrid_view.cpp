@@ -55,8 +55,11 @@ int view_hybrid(const std::string& path, const std::vector<double>& c, double ta
   cam.fovy_deg = c[5];
   cam.width_px = width;
   cam.height_px = height;
-  cam.near_m = std::clamp(0.5 * render::distance_to_box(terralod::render::camera_position(cam), lo, hi), 0.05, 1000.0);
-  cam.far_m = std::max(cam.near_m * 2.0, 1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
+  cam.near_m =
+      std::clamp(0.5 * render::distance_to_box(terralod::render::camera_position(cam), lo, hi), 0.05, 1000.0);
+  cam.far_m =
+      std::max(cam.near_m * 2.0,
+               1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
   pm::Camera pc{c[0], c[1], c[2], c[3], c[4], c[5], width, height, cam.near_m, cam.far_m};
 
   t = Clock::now();

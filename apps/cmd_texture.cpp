@@ -31,18 +31,22 @@ std::vector<double> parse_list(const Args& a, const std::string& opt, std::size_
     char* end = nullptr;
     const double d = std::strtod(item.c_str(), &end);
     if (item.empty() || *end != '\0' || !std::isfinite(d))
-      throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" + a.get(opt) + "'");
+      throw UsageError("option '" + opt + "' must be " + std::to_string(n) +
+                       " comma-separated numbers, not '" + a.get(opt) + "'");
     v.push_back(d);
   }
   if (v.size() != n)
-    throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" + a.get(opt) + "'");
+    throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" +
+                     a.get(opt) + "'");
   return v;
 }
 
 // The full-resolution terrain, assembled from the block PMs (each holds its samples exactly).
 pm::Heightfield read_terrain(const tb::BlockDatabase& db) {
   const tb::DatabaseInfo& info = db.info();
-  if (info.block_size <= 0) throw tb::DatabaseError(db.path(), "not a blocked database (kind '" + info.kind + "'): no terrain samples to shade");
+  if (info.block_size <= 0)
+    throw tb::DatabaseError(db.path(),
+                            "not a blocked database (kind '" + info.kind + "'): no terrain samples to shade");
   const tb::BlockLayout layout = tb::partition(info.grid_width, info.grid_height, info.block_size);
   pm::Heightfield hf(info.grid_width, info.grid_height);
   hf.transform = info.transform;
@@ -104,9 +108,11 @@ void store(tb::BlockDatabase& db, tr::LayerRecord& rec, const std::string& pyram
     tr::store_texture_layer(db, rec, pyr, doms, [&](double f) { bar.update(f); });
   }
   const tr::LevelSize l0 = rec.levels.front(), last = rec.levels.back();
-  std::printf("store layer '%s': %zu levels (%d x %d -> %d x %d), %zu texture-tree patches of %zu nodes%s, %s\n",
-              rec.name.c_str(), rec.levels.size(), l0.width, l0.height, last.width, last.height, rec.patches, doms.size(),
-              doms.empty() ? " (no approximation tree in the database)" : "", format_duration(ms_since(t)).c_str());
+  std::printf(
+      "store layer '%s': %zu levels (%d x %d -> %d x %d), %zu texture-tree patches of %zu nodes%s, %s\n",
+      rec.name.c_str(), rec.levels.size(), l0.width, l0.height, last.width, last.height, rec.patches,
+      doms.size(), doms.empty() ? " (no approximation tree in the database)" : "",
+      format_duration(ms_since(t)).c_str());
 }
 
 std::string pyramid_file(const std::string& db, const std::string& layer) {
@@ -138,7 +144,8 @@ int texture_add(const Args& a, const std::string& path) {
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
   tr::ImagePyramid::convert(rec.source, pyr, po);
-  std::printf("pyramid %s -> tiled MIP-mapped TIFF, %s\n", rec.source.c_str(), format_duration(ms_since(t)).c_str());
+  std::printf("pyramid %s -> tiled MIP-mapped TIFF, %s\n", rec.source.c_str(),
+              format_duration(ms_since(t)).c_str());
   store(db, rec, pyr);
   return 0;
 }
@@ -147,11 +154,13 @@ int texture_shade(const Args& a, const std::string& path) {
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
   require_complete_blocks(db);
   tr::ShadingOptions so;
-  const std::string method = a.get_choice("--method", {"lambert", "phong", "multidirectional", "relative"}, "lambert");
+  const std::string method =
+      a.get_choice("--method", {"lambert", "phong", "multidirectional", "relative"}, "lambert");
   so.method = tr::parse_shading_method(method);
   if (a.has("--light")) {
     const std::vector<double> l = parse_list(a, "--light", 2);
-    if (!(l[1] > 0 && l[1] <= 90)) throw UsageError("option '--light': the altitude must be in (0, 90] degrees");
+    if (!(l[1] > 0 && l[1] <= 90))
+      throw UsageError("option '--light': the altitude must be in (0, 90] degrees");
     so.azimuth_deg = l[0];
     so.altitude_deg = l[1];
   }
@@ -159,7 +168,8 @@ int texture_shade(const Args& a, const std::string& path) {
   const bool gpu = a.has("--gpu");
   auto t = Clock::now();
   const pm::Heightfield hf = read_terrain(db);
-  std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(), format_duration(ms_since(t)).c_str());
+  std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(),
+              format_duration(ms_since(t)).c_str());
   t = Clock::now();
   tr::RgbaImage img;
   std::string where = "cpu";
@@ -170,17 +180,18 @@ int texture_shade(const Args& a, const std::string& path) {
   } else {
     img = tr::shading_texture(hf, so);
   }
-  std::printf("shade %s, light %.1f/%.1f deg, shadows %s: %d x %d texels on the %s, %s\n", method.c_str(), so.azimuth_deg,
-              so.altitude_deg, so.shadows ? "on" : "off", img.width, img.height, where.c_str(),
-              format_duration(ms_since(t)).c_str());
+  std::printf("shade %s, light %.1f/%.1f deg, shadows %s: %d x %d texels on the %s, %s\n", method.c_str(),
+              so.azimuth_deg, so.altitude_deg, so.shadows ? "on" : "off", img.width, img.height,
+              where.c_str(), format_duration(ms_since(t)).c_str());
   tr::LayerRecord rec;
   rec.name = a.get("--layer");
   rec.kind = "shading";
   rec.source = "terralod texture shade";
   rec.constraints = constraints(a);
   rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
-  rec.parameters = strf("{\"method\": \"%s\", \"azimuth_deg\": %.17g, \"altitude_deg\": %.17g, \"shadows\": %s, \"gpu\": %s}",
-                        method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "true" : "false", gpu ? "true" : "false");
+  rec.parameters = strf(
+      "{\"method\": \"%s\", \"azimuth_deg\": %.17g, \"altitude_deg\": %.17g, \"shadows\": %s, \"gpu\": %s}",
+      method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "true" : "false", gpu ? "true" : "false");
   const std::string pyr = pyramid_file(path, rec.name);
   const RemoveFile remove_pyramid{pyr};
   tr::PyramidOptions po;
@@ -196,12 +207,13 @@ int texture_export(const Args& a, const std::string& path) {
   const tr::LayerRecord rec = tr::read_layer_record(db, a.get("--layer"));
   const int level = int(a.get_int("--level", 0, 0, 1000));
   if (level >= int(rec.levels.size()))
-    throw UsageError(strf("option '--level': layer '%s' has levels 0..%zu", rec.name.c_str(), rec.levels.size() - 1));
+    throw UsageError(
+        strf("option '--level': layer '%s' has levels 0..%zu", rec.name.c_str(), rec.levels.size() - 1));
   auto t = Clock::now();
   const tr::RgbaImage img = tr::read_layer_level(db, rec, level);
   tr::write_layer_image(img, a.get("--out"));
-  std::printf("export layer '%s' level %d: %d x %d pixels -> %s, %s\n", rec.name.c_str(), level, img.width, img.height,
-              a.get("--out").c_str(), format_duration(ms_since(t)).c_str());
+  std::printf("export layer '%s' level %d: %d x %d pixels -> %s, %s\n", rec.name.c_str(), level, img.width,
+              img.height, a.get("--out").c_str(), format_duration(ms_since(t)).c_str());
   return 0;
 }
 

@@ -49,8 +49,8 @@ std::vector<std::array<double, 2>> read_polygon_csv(const std::string& path) {
       std::string h = a + "," + b;
       std::transform(h.begin(), h.end(), h.begin(), [](unsigned char c) { return char(std::tolower(c)); });
       if (h != "x,y")
-        throw std::runtime_error(path + ": line " + std::to_string(line_no) + ": expected the header 'x,y', got '" +
-                                 l + "'");
+        throw std::runtime_error(path + ": line " + std::to_string(line_no) +
+                                 ": expected the header 'x,y', got '" + l + "'");
       header = true;
       continue;
     }
@@ -65,14 +65,16 @@ std::vector<std::array<double, 2>> read_polygon_csv(const std::string& path) {
           ok = false;
         }
       if (!ok || used != parts[k].size() || !std::isfinite(v[k]))
-        throw std::runtime_error(path + ": line " + std::to_string(line_no) + ": expected two numbers 'x,y', got '" +
-                                 l + "'");
+        throw std::runtime_error(path + ": line " + std::to_string(line_no) +
+                                 ": expected two numbers 'x,y', got '" + l + "'");
     }
     out.push_back({v[0], v[1]});
   }
-  if (!header) throw std::runtime_error(path + ": empty polygon file (expected the header 'x,y' and vertices)");
+  if (!header)
+    throw std::runtime_error(path + ": empty polygon file (expected the header 'x,y' and vertices)");
   if (out.size() < 3)
-    throw std::runtime_error(path + ": a polygon needs at least 3 vertices, the file has " + std::to_string(out.size()));
+    throw std::runtime_error(path + ": a polygon needs at least 3 vertices, the file has " +
+                             std::to_string(out.size()));
   return out;
 }
 
@@ -111,12 +113,15 @@ int cmd_tin(const Args& a) {
   using Clock = std::chrono::steady_clock;
   const std::string input = a.get("--input"), poly_path = a.get("--polygon"), out = a.get("--out");
   const double max_error = a.get_double("--max-error", 0.0);
-  if (max_error < 0.0) throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
+  if (max_error < 0.0)
+    throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
   std::string ext = fs::path(out).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if (ext != ".ply" && ext != ".obj") throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
-  const pm::Units units =
-      a.get_choice("--units", {"world", "samples"}, "world") == "samples" ? pm::Units::Samples : pm::Units::World;
+  if (ext != ".ply" && ext != ".obj")
+    throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
+  const pm::Units units = a.get_choice("--units", {"world", "samples"}, "world") == "samples"
+                              ? pm::Units::Samples
+                              : pm::Units::World;
   blocks::TinOptions opt;
   opt.max_error = max_error;
   opt.metric = a.get_choice("--metric", {"continuous", "samples"}, "continuous") == "samples"
@@ -143,7 +148,8 @@ int cmd_tin(const Args& a) {
   // World -> (col,row): the inverse of the heightfield's affine GridTransform.
   const pm::GridTransform& g = hf.transform;
   const double det = g.determinant();
-  if (det == 0.0 || !std::isfinite(det)) throw std::runtime_error(input + ": the grid transform is not invertible");
+  if (det == 0.0 || !std::isfinite(det))
+    throw std::runtime_error(input + ": the grid transform is not invertible");
   std::vector<std::array<double, 2>> grid;
   for (const auto& p : world) {
     const double dx = p[0] - g.x0, dy = p[1] - g.y0;
@@ -166,15 +172,18 @@ int cmd_tin(const Args& a) {
   if (tin.error > max_error && tin.points.size() >= opt.max_points)
     note = strf(" (> E: --max-points %zu reached)", opt.max_points);
   else if (tin.error > max_error)
-    note = strf(" (> E on the polygon's boundary: its slanted edges cross grid edges, which no inner sample can "
-                "fix; use --metric samples for the error at the samples)");
-  print_line(strf("tin   %s: %zu polygon vertices, %zu points, %zu triangles, error %.6g m%s, metric %s, %.0f ms",
-                  poly_path.c_str(), world.size(), tin.points.size(), tin.triangles.size(), tin.error, note.c_str(),
-                  opt.metric == pm::ErrorMetric::Samples ? "samples" : "continuous", ms));
+    note = strf(
+        " (> E on the polygon's boundary: its slanted edges cross grid edges, which no inner sample can "
+        "fix; use --metric samples for the error at the samples)");
+  print_line(
+      strf("tin   %s: %zu polygon vertices, %zu points, %zu triangles, error %.6g m%s, metric %s, %.0f ms",
+           poly_path.c_str(), world.size(), tin.points.size(), tin.triangles.size(), tin.error, note.c_str(),
+           opt.metric == pm::ErrorMetric::Samples ? "samples" : "continuous", ms));
 
   pm::TriangleMesh mesh;
   mesh.vertices.reserve(tin.points.size());
-  for (const auto& p : tin.points) mesh.vertices.push_back(std::uint32_t(std::size_t(p[1]) * hf.width() + p[0]));
+  for (const auto& p : tin.points)
+    mesh.vertices.push_back(std::uint32_t(std::size_t(p[1]) * hf.width() + p[0]));
   mesh.triangles = tin.triangles;
   mesh.error_bound = tin.error;
   t = Clock::now();

@@ -44,8 +44,9 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
   tb::TerrainRuntime rt(path, ro);
   const double open_ms = ms_since(t);
   const tb::BlockGrid& g = rt.grid();
-  say(strf("read %s: %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, %s", path.c_str(), g.grid_width(),
-           g.grid_height(), g.cols(), g.rows(), g.block_size(), rt.tree().size(), format_duration(open_ms).c_str()));
+  say(strf("read %s: %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, %s", path.c_str(),
+           g.grid_width(), g.grid_height(), g.cols(), g.rows(), g.block_size(), rt.tree().size(),
+           format_duration(open_ms).c_str()));
 
   // The camera, with the clip planes of the terrain's box (the selection's frustum is the
   // picture's, so the bound is true of the picture).
@@ -56,11 +57,14 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
   const tb::RuntimeFrameStats first = rt.update_until_loaded(view, 0.0);
   const double select_ms = ms_since(t);
   const tb::RuntimeFrameStats& s = rt.stats();
-  say(strf("select tau=%g px: %zu nodes visited, %zu culled; drawn %zu PM blocks, %zu stand-ins, %zu coarse nodes, "
-           "%zu ancestors for missing blocks; %zu blocks read (%s) in %s",
-           tau, s.nodes_visited, s.nodes_culled, s.pm_blocks, s.standin_blocks, s.coarse_nodes, s.fallback_nodes,
-           s.blocks_resident, format_bytes(s.bytes_read_total).c_str(), format_duration(select_ms).c_str()));
-  say(strf("mesh: %zu triangles (%zu stitched at seams), bound %.4g px (tau %g)%s; update %s (first, loads "
+  say(strf(
+      "select tau=%g px: %zu nodes visited, %zu culled; drawn %zu PM blocks, %zu stand-ins, %zu coarse "
+      "nodes, "
+      "%zu ancestors for missing blocks; %zu blocks read (%s) in %s",
+      tau, s.nodes_visited, s.nodes_culled, s.pm_blocks, s.standin_blocks, s.coarse_nodes, s.fallback_nodes,
+      s.blocks_resident, format_bytes(s.bytes_read_total).c_str(), format_duration(select_ms).c_str()));
+  say(
+      strf("mesh: %zu triangles (%zu stitched at seams), bound %.4g px (tau %g)%s; update %s (first, loads "
            "excluded: %s)",
            s.triangles, s.seam_triangles, s.bound_px, tau,
            s.missing_in_view ? strf(", %zu needed blocks missing", s.missing_in_view).c_str() : "",
@@ -71,16 +75,17 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
   if (!specs.empty()) {
     const LayerSetupOptions lo = layer_setup_options(a);
     const std::vector<rd::PatchDomain> domains = rd::patch_domains(rt.tree().nodes());
-    layers.emplace(LayerSetup::open(a.get("--texture-db", path), specs,
-                                    a.has("--lens") ? std::optional(parse_lens("--lens", a.get("--lens"))) : std::nullopt,
-                                    lo, &domains));
+    layers.emplace(LayerSetup::open(
+        a.get("--texture-db", path), specs,
+        a.has("--lens") ? std::optional(parse_lens("--lens", a.get("--lens"))) : std::nullopt, lo, &domains));
   }
 
   t = Clock::now();
   auto ctx = rd::create_offscreen_context({width, height});
   const rd::Camera& cam = pc;  // the selection's camera is the renderer's
   const pm::Box& box = rt.terrain_box();
-  const glm::dvec3 origin(0.5 * (box.lo.x + box.hi.x), 0.5 * (box.lo.y + box.hi.y), 0.5 * (box.lo.z + box.hi.z));
+  const glm::dvec3 origin(0.5 * (box.lo.x + box.hi.x), 0.5 * (box.lo.y + box.hi.y),
+                          0.5 * (box.lo.z + box.hi.z));
   rd::DrawMesh dm;
   rd::fill_draw_mesh(rt.drawn_mesh(), origin, g.transform().determinant() < 0, dm);
   rd::Image img;
@@ -125,8 +130,14 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
     j.field("output", out);
     j.field("selection", "runtime");
     j.begin_object("camera");
-    for (const auto& [k, v] : {std::pair{"x", pc.x}, {"y", pc.y}, {"z", pc.z}, {"yaw", pc.yaw_deg},
-                               {"pitch", pc.pitch_deg}, {"fovy", pc.fovy_deg}, {"near", pc.near_m}, {"far", pc.far_m}})
+    for (const auto& [k, v] : {std::pair{"x", pc.x},
+                               {"y", pc.y},
+                               {"z", pc.z},
+                               {"yaw", pc.yaw_deg},
+                               {"pitch", pc.pitch_deg},
+                               {"fovy", pc.fovy_deg},
+                               {"near", pc.near_m},
+                               {"far", pc.far_m}})
       j.field(k, v);
     j.end_object();
     j.field("width", width);

@@ -25,8 +25,8 @@ int cmd_fly(const Args&);
 
 CommandSpec hybrid_spec();
 int cmd_hybrid(const Args&);
-int cmd_extract_hybrid(const Args&);           // terralod extract --db hybrid.db --grid-level L
-int info_hybrid(const std::string& db_path);   // terralod info hybrid.db
+int cmd_extract_hybrid(const Args&);          // terralod extract --db hybrid.db --grid-level L
+int info_hybrid(const std::string& db_path);  // terralod info hybrid.db
 // terralod view --db hybrid.db (cmd_hybrid_view.cpp); c = X,Y,Z,YAW,PITCH,FOVY as parsed by view.
 int view_hybrid(const std::string& db_path, const std::vector<double>& c, double tau, int width, int height,
                 const std::string& out_png, const std::string& dump_mesh, bool wireframe);

@@ -44,7 +44,8 @@ bool parse_number(const std::string& s, double& out) {
 LayerSpec parse_layer_spec(const std::string& text) {
   const std::vector<std::string> f = split(text, ':');
   const auto bad = [&](const std::string& why) {
-    return UsageError("--layer '" + text + "': " + why + " (NAME[:blend|add|subtract|multiply[:WEIGHT[:lens]]])");
+    return UsageError("--layer '" + text + "': " + why +
+                      " (NAME[:blend|add|subtract|multiply[:WEIGHT[:lens]]])");
   };
   if (f.size() > 4) throw bad("too many fields");
   LayerSpec s;
@@ -52,11 +53,16 @@ LayerSpec parse_layer_spec(const std::string& text) {
   if (s.name.empty()) throw bad("empty layer name");
   if (f.size() > 1) {
     const std::string& op = f[1];
-    if (op == "blend") s.op = rd::LayerOp::Blend;
-    else if (op == "add") s.op = rd::LayerOp::Add;
-    else if (op == "subtract") s.op = rd::LayerOp::Subtract;
-    else if (op == "multiply") s.op = rd::LayerOp::Multiply;
-    else throw bad("unknown operation '" + op + "'");
+    if (op == "blend")
+      s.op = rd::LayerOp::Blend;
+    else if (op == "add")
+      s.op = rd::LayerOp::Add;
+    else if (op == "subtract")
+      s.op = rd::LayerOp::Subtract;
+    else if (op == "multiply")
+      s.op = rd::LayerOp::Multiply;
+    else
+      throw bad("unknown operation '" + op + "'");
   }
   if (f.size() > 2) {
     double w = 0;
@@ -73,9 +79,10 @@ LayerSpec parse_layer_spec(const std::string& text) {
 LensSpec parse_lens(const std::string& option, const std::string& text) {
   const std::vector<std::string> f = split(text, ',');
   LensSpec l;
-  if (f.size() != 3 || !parse_number(f[0], l.x) || !parse_number(f[1], l.y) || !parse_number(f[2], l.radius) ||
-      !(l.radius > 0))
-    throw UsageError("option '" + option + "' needs X,Y,RADIUS (world metres, RADIUS > 0), not '" + text + "'");
+  if (f.size() != 3 || !parse_number(f[0], l.x) || !parse_number(f[1], l.y) ||
+      !parse_number(f[2], l.radius) || !(l.radius > 0))
+    throw UsageError("option '" + option + "' needs X,Y,RADIUS (world metres, RADIUS > 0), not '" + text +
+                     "'");
   return l;
 }
 
@@ -99,11 +106,13 @@ LayerSetup LayerSetup::open(const std::string& db_path, const std::vector<std::s
       const rd::LayerRecord& rec = s.records_.back();
       int level = int(rec.levels.size()) - 1;  // the coarsest when nothing fits
       for (std::size_t k = 0; k < rec.levels.size(); ++k)
-        if (rec.levels[k].width <= options.max_texture_size && rec.levels[k].height <= options.max_texture_size) {
+        if (rec.levels[k].width <= options.max_texture_size &&
+            rec.levels[k].height <= options.max_texture_size) {
           level = int(k);
           break;
         }
-      if (level < 0) throw tb::DatabaseError(db_path, "texture layer '" + spec.name + "' has no pyramid levels");
+      if (level < 0)
+        throw tb::DatabaseError(db_path, "texture layer '" + spec.name + "' has no pyramid levels");
       s.levels_.push_back(level);
     }
     rd::LayerStyle st;
@@ -144,13 +153,15 @@ void LayerSetup::open_patches(const tb::BlockDatabase& db, const std::vector<rd:
   // The patch tiles are keyed by the node ids of the texture database's own tree: it must be
   // the drawn one.
   const std::vector<rd::PatchDomain> own = rd::tree_domains(db);
-  if (own.empty()) throw tb::DatabaseError(db_path_, "has no approximation tree, so its texture layers have no patches");
+  if (own.empty())
+    throw tb::DatabaseError(db_path_, "has no approximation tree, so its texture layers have no patches");
   bool same = own.size() == drawn_tree.size();
   for (std::size_t i = 0; same && i < own.size(); ++i)
     same = own[i].domain == drawn_tree[i].domain && own[i].parent == drawn_tree[i].parent;
   if (!same)
     throw tb::DatabaseError(db_path_, "its approximation tree (" + std::to_string(own.size()) +
-                                          " nodes) is not the drawn terrain's (" + std::to_string(drawn_tree.size()) +
+                                          " nodes) is not the drawn terrain's (" +
+                                          std::to_string(drawn_tree.size()) +
                                           " nodes): its texture patches cannot be placed");
   std::vector<std::shared_ptr<const rd::TextureTree>> trees;
   std::vector<rd::TextureLoader> loaders;
@@ -167,14 +178,13 @@ void LayerSetup::open_patches(const tb::BlockDatabase& db, const std::vector<rd:
   po.gamma_px = options.gamma_px;
   po.budget_bytes = options.budget_bytes;
   patches_ = std::make_unique<rd::PatchTextures>(
-      std::move(trees), [loaders = std::move(loaders)](const rd::TextureKey& k) {
-        return loaders.at(std::size_t(k.layer))(k);
-      },
+      std::move(trees),
+      [loaders = std::move(loaders)](const rd::TextureKey& k) { return loaders.at(std::size_t(k.layer))(k); },
       po);
 }
 
-const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node,
-                                                     bool wait) {
+const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view,
+                                                     std::span<const std::int64_t> triangle_node, bool wait) {
   assert(patches_);
   std::vector<bool> enabled(records_.size(), false);
   for (std::size_t i = 0; i < styles_.size(); ++i)
@@ -190,10 +200,12 @@ const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view, std::
 LayerSetupOptions layer_setup_options(const Args& a) {
   LayerSetupOptions lo;
   lo.gamma_px = a.get_double("--gamma", 1.0);
-  if (!(lo.gamma_px > 0)) throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
+  if (!(lo.gamma_px > 0))
+    throw UsageError("option '--gamma' must be > 0 pixels^2, not '" + a.get("--gamma") + "'");
   const double mb = a.get_double("--texture-memory", 536.870912);
   if (!(mb * 1e6 >= 1))
-    throw UsageError("option '--texture-memory' must be > 0 megabytes, not '" + a.get("--texture-memory") + "'");
+    throw UsageError("option '--texture-memory' must be > 0 megabytes, not '" + a.get("--texture-memory") +
+                     "'");
   lo.budget_bytes = std::size_t(mb * 1e6);
   return lo;
 }
@@ -204,7 +216,8 @@ std::vector<rd::LayeredItem> LayerSetup::items(rd::LayeredRenderer& renderer, rd
   std::vector<rd::LayeredItem> out;
   out.reserve(frame.groups.size());
   for (const rd::PatchTextureGroup& g : frame.groups) {
-    rd::LayeredItem item{mesh, std::vector<rd::LayerBinding>(styles_.size()), g.first_triangle, g.triangle_count};
+    rd::LayeredItem item{mesh, std::vector<rd::LayerBinding>(styles_.size()), g.first_triangle,
+                         g.triangle_count};
     for (std::size_t i = 0; i < styles_.size(); ++i) {
       const std::size_t layer = std::size_t(layer_of_[i]);
       item.layers[i].georef = records_[layer].georef;

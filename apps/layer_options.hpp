@@ -74,10 +74,10 @@ struct LensSpec {
 LensSpec parse_lens(const std::string& option, const std::string& text);
 
 struct LayerSetupOptions {
-  int max_texture_size = 4096;  ///< pixels per side of a layer's texture, >= 1
+  int max_texture_size = 4096;                        ///< pixels per side of a layer's texture, >= 1
   std::size_t budget_bytes = std::size_t(512) << 20;  ///< texture cache budget
-  int lens_texture_size = 128;  ///< pixels per side of the lens texture
-  double gamma_px = 1.0;        ///< per-patch mode: texel area on screen, pixels^2 (> 0)
+  int lens_texture_size = 128;                        ///< pixels per side of the lens texture
+  double gamma_px = 1.0;  ///< per-patch mode: texel area on screen, pixels^2 (> 0)
 };
 
 /// LayerSetupOptions from --gamma (pixels^2, default 1) and --texture-memory (megabytes,
@@ -115,7 +115,8 @@ class LayerSetup {
   /// for the enabled styles. Never waits.
   /// wait (tools, headless runs): until every wanted patch is resident, so the frame shows what
   /// gamma asks for (at most 64 rounds of loads; a failed load throws as wait_loaded does).
-  const render::PatchTextureFrame& patch_frame(const pm::View& view, std::span<const std::int64_t> triangle_node,
+  const render::PatchTextureFrame& patch_frame(const pm::View& view,
+                                               std::span<const std::int64_t> triangle_node,
                                                bool wait = false);
   /// Per-patch mode: one item per group of `frame`, drawing the group's range of `mesh` (whose
   /// triangles must be in frame.triangle_order), textures uploaded on first use.
@@ -143,8 +144,8 @@ class LayerSetup {
   std::vector<render::LayerRecord> records_;  ///< per distinct layer
   std::vector<int> levels_;                   ///< chosen pyramid level per distinct layer
   const render::TextureCache& cache() const { return patches_ ? patches_->cache() : *cache_; }
-  std::unique_ptr<render::TextureCache> cache_;              ///< whole-layer mode
-  std::unique_ptr<render::PatchTextures> patches_;           ///< per-patch mode
+  std::unique_ptr<render::TextureCache> cache_;     ///< whole-layer mode
+  std::unique_ptr<render::PatchTextures> patches_;  ///< per-patch mode
   std::size_t budget_bytes_ = 0;
   render::Lens lens_;
   double lens_radius_ = 0;

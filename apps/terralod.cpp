@@ -48,19 +48,19 @@ namespace pm = terralod::pm;
 namespace blocks = terralod::blocks;
 namespace render = terralod::render;
 using terralod::cli::Args;
+using terralod::cli::build_stage;
 using terralod::cli::CommandSpec;
 using terralod::cli::format_bytes;
 using terralod::cli::format_duration;
-using terralod::cli::ms_since;
-using terralod::cli::OptionSpec;
-using terralod::cli::strf;
-using terralod::cli::UsageError;
-using terralod::cli::build_stage;
 using terralod::cli::is_pm_file;
 using terralod::cli::lower_extension;
 using terralod::cli::metric_name;
+using terralod::cli::ms_since;
+using terralod::cli::OptionSpec;
 using terralod::cli::read_pm_stage;
 using terralod::cli::read_stage;
+using terralod::cli::strf;
+using terralod::cli::UsageError;
 using Clock = std::chrono::steady_clock;
 
 // ---------------------------------------------------------------------------------------------
@@ -76,7 +76,8 @@ std::vector<OptionSpec> dem_options() {
 
 std::vector<OptionSpec> build_options() {
   return {
-      {"--metric", "NAME", "error metric: continuous (true L-infinity, default) or samples (at the samples only)"},
+      {"--metric", "NAME",
+       "error metric: continuous (true L-infinity, default) or samples (at the samples only)"},
       {"--threads", "N", "worker threads for the build, 0 = all cores (default 0)"},
   };
 }
@@ -138,11 +139,12 @@ CommandSpec pm_spec() {
   CommandSpec s;
   s.name = "pm";
   s.summary = "Build the progressive mesh of a DEM and write it to a .pm file.";
-  s.description = std::string(
-                      "Collapses edges in order of increasing L-infinity error until nothing can collapse; the file\n"
-                      "holds the grid and the whole collapse sequence, so any error level can be extracted later.\n"
-                      "A progress bar goes to stderr, one line per stage to stdout.\n\n") +
-                  kDemFormats;
+  s.description =
+      std::string(
+          "Collapses edges in order of increasing L-infinity error until nothing can collapse; the file\n"
+          "holds the grid and the whole collapse sequence, so any error level can be extracted later.\n"
+          "A progress bar goes to stderr, one line per stage to stdout.\n\n") +
+      kDemFormats;
   s.options = concat(concat({{"--input", "DEM", "elevation model to read", true},
                              {"--out", "FILE.pm", "progressive mesh file to write", true}},
                             build_options()),
@@ -164,7 +166,8 @@ int cmd_pm(const Args& a) {
   const double ms = ms_since(t);
   const std::uintmax_t bytes = fs::file_size(out);
   line(strf("write %s: %s, %.2f bytes/vertex, %s", out.c_str(), format_bytes(bytes).c_str(),
-            double(bytes) / double(std::max<std::size_t>(1, mesh.full_vertex_count())), format_duration(ms).c_str()));
+            double(bytes) / double(std::max<std::size_t>(1, mesh.full_vertex_count())),
+            format_duration(ms).c_str()));
   return 0;
 }
 
@@ -175,27 +178,32 @@ CommandSpec extract_spec() {
   CommandSpec s;
   s.name = "extract";
   s.summary = "Extract the mesh within a given L-infinity error from a .pm file, a DEM or a block database.";
-  s.description = std::string(
-                      "The mesh's error against the full-resolution surface is at most --max-error (the 'bound'\n"
-                      "printed is the guaranteed error actually reached). A DEM input is built into a progressive\n"
-                      "mesh in memory first (--metric, --threads and the DEM options apply to it).\n"
-                      "Output by extension: .ply (binary little-endian, double x y z) or .obj (text).\n"
-                      "Units: samples = x column, y row (row 0 = the file's first row), z metres;\n"
-                      "       world   = x east, y north in metres from the DEM's transform (see 'terralod info'),\n"
-                      "                 z metres; faces counter-clockwise seen from above.\n\n") +
-                  kDemFormats;
-  s.description += "\n\nWith --db DB (a block database from 'terralod build') instead of --input, the blocks are\n"
-                   "extracted, their seams stitched (neighbours' border vertices inserted) and blocks whose\n"
-                   "stitched triangles exceed E re-extracted at E/2; the printed bound is measured exactly.";
-  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or use --db)"},
-                             {"--db", "DB", "a block database (from 'terralod build') instead of --input"},
-                             {"--max-error", "E", "largest L-infinity error allowed, metres (finite, >= 0); required except with --grid-level"},
-                             {"--grid-level", "L", "with --db of a hybrid database ('terralod hybrid'): its grid level L (0 = finest)"},
-                             {"--scheme", "S", "with --grid-level: triangles (default) or subcells (the paper's section 5)"},
-                             {"--out", "MESH", "mesh file to write: .ply or .obj", true},
-                             {"--units", "UNITS", "vertex coordinates: world (default) or samples"}},
-                            build_options()),
-                     dem_options());
+  s.description =
+      std::string(
+          "The mesh's error against the full-resolution surface is at most --max-error (the 'bound'\n"
+          "printed is the guaranteed error actually reached). A DEM input is built into a progressive\n"
+          "mesh in memory first (--metric, --threads and the DEM options apply to it).\n"
+          "Output by extension: .ply (binary little-endian, double x y z) or .obj (text).\n"
+          "Units: samples = x column, y row (row 0 = the file's first row), z metres;\n"
+          "       world   = x east, y north in metres from the DEM's transform (see 'terralod info'),\n"
+          "                 z metres; faces counter-clockwise seen from above.\n\n") +
+      kDemFormats;
+  s.description +=
+      "\n\nWith --db DB (a block database from 'terralod build') instead of --input, the blocks are\n"
+      "extracted, their seams stitched (neighbours' border vertices inserted) and blocks whose\n"
+      "stitched triangles exceed E re-extracted at E/2; the printed bound is measured exactly.";
+  s.options = concat(
+      concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or use --db)"},
+              {"--db", "DB", "a block database (from 'terralod build') instead of --input"},
+              {"--max-error", "E",
+               "largest L-infinity error allowed, metres (finite, >= 0); required except with --grid-level"},
+              {"--grid-level", "L",
+               "with --db of a hybrid database ('terralod hybrid'): its grid level L (0 = finest)"},
+              {"--scheme", "S", "with --grid-level: triangles (default) or subcells (the paper's section 5)"},
+              {"--out", "MESH", "mesh file to write: .ply or .obj", true},
+              {"--units", "UNITS", "vertex coordinates: world (default) or samples"}},
+             build_options()),
+      dem_options());
   return s;
 }
 
@@ -204,20 +212,25 @@ int cmd_extract(const Args& a) {
   if (!a.has("--max-error")) throw UsageError("missing option '--max-error'");
   const std::string input = a.get("--input"), out = a.get("--out");
   const double max_error = a.get_double("--max-error", 0.0);
-  if (max_error < 0.0) throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
+  if (max_error < 0.0)
+    throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
   const std::string ext = lower_extension(out);
-  if (ext != ".ply" && ext != ".obj") throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
-  const pm::Units units = a.get_choice("--units", {"world", "samples"}, "world") == "samples" ? pm::Units::Samples
-                                                                                             : pm::Units::World;
+  if (ext != ".ply" && ext != ".obj")
+    throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
+  const pm::Units units = a.get_choice("--units", {"world", "samples"}, "world") == "samples"
+                              ? pm::Units::Samples
+                              : pm::Units::World;
   if (a.has("--db") == a.has("--input")) throw UsageError("give exactly one of '--input' and '--db'");
   if (a.has("--db")) {
     check_output_folder(out);
     auto t = Clock::now();
     const blocks::ExtractedMesh m = blocks::extract_mesh(a.get("--db"), max_error);
-    line(strf("extract %s E=%g m: %zu blocks (%zu re-extracted for seams, %zu rounds), %zu triangles, %zu vertices, "
-              "%zu seam vertices inserted, measured error %g m, %s",
-              a.get("--db").c_str(), max_error, m.blocks, m.blocks_refined, m.iterations, m.mesh.triangles.size(),
-              m.mesh.vertices.size(), m.inserted_vertices, m.measured_error, format_duration(ms_since(t)).c_str()));
+    line(strf(
+        "extract %s E=%g m: %zu blocks (%zu re-extracted for seams, %zu rounds), %zu triangles, %zu "
+        "vertices, "
+        "%zu seam vertices inserted, measured error %g m, %s",
+        a.get("--db").c_str(), max_error, m.blocks, m.blocks_refined, m.iterations, m.mesh.triangles.size(),
+        m.mesh.vertices.size(), m.inserted_vertices, m.measured_error, format_duration(ms_since(t)).c_str()));
     t = Clock::now();
     pm::write_mesh(m.mesh, m.heightfield, out, units);
     line(strf("write %s: %s, %s units, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(),
@@ -228,7 +241,8 @@ int cmd_extract(const Args& a) {
   const pm::BuildOptions build = build_options_from(a);
   check_output_folder(out);
 
-  const pm::ProgressiveMesh mesh = is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
+  const pm::ProgressiveMesh mesh =
+      is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
 
   auto t = Clock::now();
   const pm::TriangleMesh m = mesh.extract(max_error);
@@ -253,12 +267,13 @@ CommandSpec info_spec() {
   s.positionals = "FILE";
   s.min_positionals = s.max_positionals = 1;
   s.summary = "Describe a .pm file, a block database (.db) or a DEM as JSON on stdout.";
-  s.description = std::string(
-                      "Fields: file, kind (pm|dem), grid {width, height}, transform {x0, xc, xr, y0, yc, yr, formula}\n"
-                      "(sample (col,row) -> world (x,y) metres), spacing {x, y} metres, frame, crs_wkt,\n"
-                      "height {min, max} metres, voids {found, filled}; for a .pm also metric, vertices,\n"
-                      "base_vertices, vsplits, max_error, error_quantum (metres), bytes, bytes_per_vertex.\n\n") +
-                  kDemFormats;
+  s.description =
+      std::string(
+          "Fields: file, kind (pm|dem), grid {width, height}, transform {x0, xc, xr, y0, yc, yr, formula}\n"
+          "(sample (col,row) -> world (x,y) metres), spacing {x, y} metres, frame, crs_wkt,\n"
+          "height {min, max} metres, voids {found, filled}; for a .pm also metric, vertices,\n"
+          "base_vertices, vsplits, max_error, error_quantum (metres), bytes, bytes_per_vertex.\n\n") +
+      kDemFormats;
   s.options = dem_options();
   return s;
 }
@@ -343,8 +358,8 @@ pm::Heightfield generated_terrain(const Args& a) {
   const auto t = Clock::now();
   pm::Heightfield hf = pm::generate_terrain(topt);
   const auto [hmin, hmax] = height_range(hf);
-  line(strf("terrain %d x %d samples, seed %llu, %g m spacing, heights %.1f .. %.1f m, %s", hf.width(), hf.height(),
-            static_cast<unsigned long long>(topt.seed), topt.spacing, hmin, hmax,
+  line(strf("terrain %d x %d samples, seed %llu, %g m spacing, heights %.1f .. %.1f m, %s", hf.width(),
+            hf.height(), static_cast<unsigned long long>(topt.seed), topt.spacing, hmin, hmax,
             format_duration(ms_since(t)).c_str()));
   return hf;
 }
@@ -385,8 +400,9 @@ int cmd_demo(const Args& a) {
               100.0 * double(m.triangles.size()) / double(std::max<std::size_t>(1, full)), m.error_bound,
               format_duration(ms).c_str()));
   }
-  line(strf("build %zu vertices -> %zu base vertices, %zu vsplits, max error %.1f m, %s", mesh.full_vertex_count(),
-            mesh.base_vertex_count(), mesh.vsplit_count(), mesh.max_error(), format_duration(build_ms).c_str()));
+  line(strf("build %zu vertices -> %zu base vertices, %zu vsplits, max error %.1f m, %s",
+            mesh.full_vertex_count(), mesh.base_vertex_count(), mesh.vsplit_count(), mesh.max_error(),
+            format_duration(build_ms).c_str()));
   t = Clock::now();
   const std::size_t bytes = pm::encode_pm(mesh).size();
   line(strf("encode %s, %.2f bytes/vertex, %s", format_bytes(bytes).c_str(),
@@ -432,54 +448,60 @@ CommandSpec view_spec() {
   CommandSpec s;
   s.name = "view";
   s.summary = "Render a .pm file, a DEM or a database offscreen from a camera and write a PNG.";
-  s.description = std::string(
-                      "Draws the terrain seen from --camera into an offscreen OpenGL frame (OSMesa, no display\n"
-                      "needed), lit by a directional light, and writes it as an 8-bit RGB PNG.\n\n"
-                      "Camera: X,Y,Z in world metres (x east, y north, z up; the DEM's frame, see 'terralod info'),\n"
-                      "YAW degrees clockwise from north (0 looks north, 90 east), PITCH degrees above the horizon\n"
-                      "(negative looks down, -90..90), FOVY the vertical field of view in degrees (0..180).\n\n"
-                      "--db: a block database (from 'terralod build') is drawn as one frame of the runtime that\n"
-                      "'terralod fly' and 'terralod-fly --db' run: the approximation tree from its root, coarse nodes\n"
-                      "far away, PM blocks refined near, stitched seams, every block this view needs read first;\n"
-                      "its bound_px bounds the screen-space error of the picture (<= --tau when nothing needed is\n"
-                      "missing). --layer draws texture layers of --texture-db (default --db) per drawn patch: each\n"
-                      "patch gets the coarsest texture of its layer's texture tree whose texel covers at most --gamma\n"
-                      "pixels^2 (raised when the textures would not fit --texture-memory). A 'terralod hybrid'\n"
-                      "database is drawn from its own tree (TIN near, grid far), without layers.\n\n"
-                      "Mesh: the VIEW-DEPENDENT selection of the pm/ runtime (CollapseDag + SelectiveRefinement,\n"
-                      "one update from the camera): every collapse is kept only where its error, projected from the\n"
-                      "nearest point of its bounding box, is at most --tau pixels, so near terrain is fine and far\n"
-                      "terrain coarse. The guarantee: no vertical error segment inside the view frustum projects\n"
-                      "to more than bound_px <= --tau pixels (the near and far planes are those of the render).\n"
-                      "--uniform restores the earlier UNIFORM extraction at the largest error E that no part of\n"
-                      "the terrain can show larger than --tau pixels: E = TAU * d_min / K_max, where d_min is the\n"
-                      "distance from the camera to the nearest point of the terrain's bounding box and\n"
-                      "K_max = K (1 + r^2/K^2) bounds the pixels per radian anywhere in the image\n"
-                      "(K = H / (2 tan(FOVY/2)), r = half the image diagonal in pixels): conservative, distant\n"
-                      "terrain keeps more triangles than it needs.\n\n"
-                      "--stats writes JSON: the selection, the triangle and active vertex counts, the guaranteed\n"
-                      "error bound (pixels: bound_px; metres), tau and the time of every stage; for the\n"
-                      "view-dependent selection also the vsplits and ecols of the update and its time.\n\n") +
-                  kDemFormats;
-  s.options = concat(concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or --db)"},
-                             {"--db", "FILE.db", "instead of --input: a block database (the runtime's frame) or a 'terralod hybrid' one"},
-                             {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
-                             {"--out", "IMAGE.png", "PNG file to write", true},
-                             {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
-                             {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
-                             {"--wireframe", "", "draw the triangle edges over the surface"},
-                             {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
-                             {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
-                             {"--stats", "FILE.json", "write statistics and timings as JSON"},
-                             {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
-                             {"--layer", "NAME[:OP[:W[:lens]]]",
-                              "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]",
-                              false, /*repeatable=*/true},
-                             {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
-                             {"--gamma", "PIXELS2", "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
-                             {"--texture-memory", "MB", "--db with --layer: texture memory budget, megabytes (default 537: 512 MiB)"}},
-                            build_options()),
-                     dem_options());
+  s.description =
+      std::string(
+          "Draws the terrain seen from --camera into an offscreen OpenGL frame (OSMesa, no display\n"
+          "needed), lit by a directional light, and writes it as an 8-bit RGB PNG.\n\n"
+          "Camera: X,Y,Z in world metres (x east, y north, z up; the DEM's frame, see 'terralod info'),\n"
+          "YAW degrees clockwise from north (0 looks north, 90 east), PITCH degrees above the horizon\n"
+          "(negative looks down, -90..90), FOVY the vertical field of view in degrees (0..180).\n\n"
+          "--db: a block database (from 'terralod build') is drawn as one frame of the runtime that\n"
+          "'terralod fly' and 'terralod-fly --db' run: the approximation tree from its root, coarse nodes\n"
+          "far away, PM blocks refined near, stitched seams, every block this view needs read first;\n"
+          "its bound_px bounds the screen-space error of the picture (<= --tau when nothing needed is\n"
+          "missing). --layer draws texture layers of --texture-db (default --db) per drawn patch: each\n"
+          "patch gets the coarsest texture of its layer's texture tree whose texel covers at most --gamma\n"
+          "pixels^2 (raised when the textures would not fit --texture-memory). A 'terralod hybrid'\n"
+          "database is drawn from its own tree (TIN near, grid far), without layers.\n\n"
+          "Mesh: the VIEW-DEPENDENT selection of the pm/ runtime (CollapseDag + SelectiveRefinement,\n"
+          "one update from the camera): every collapse is kept only where its error, projected from the\n"
+          "nearest point of its bounding box, is at most --tau pixels, so near terrain is fine and far\n"
+          "terrain coarse. The guarantee: no vertical error segment inside the view frustum projects\n"
+          "to more than bound_px <= --tau pixels (the near and far planes are those of the render).\n"
+          "--uniform restores the earlier UNIFORM extraction at the largest error E that no part of\n"
+          "the terrain can show larger than --tau pixels: E = TAU * d_min / K_max, where d_min is the\n"
+          "distance from the camera to the nearest point of the terrain's bounding box and\n"
+          "K_max = K (1 + r^2/K^2) bounds the pixels per radian anywhere in the image\n"
+          "(K = H / (2 tan(FOVY/2)), r = half the image diagonal in pixels): conservative, distant\n"
+          "terrain keeps more triangles than it needs.\n\n"
+          "--stats writes JSON: the selection, the triangle and active vertex counts, the guaranteed\n"
+          "error bound (pixels: bound_px; metres), tau and the time of every stage; for the\n"
+          "view-dependent selection also the vsplits and ecols of the update and its time.\n\n") +
+      kDemFormats;
+  s.options = concat(
+      concat(
+          {{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or --db)"},
+           {"--db", "FILE.db",
+            "instead of --input: a block database (the runtime's frame) or a 'terralod hybrid' one"},
+           {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
+           {"--out", "IMAGE.png", "PNG file to write", true},
+           {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
+           {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
+           {"--wireframe", "", "draw the triangle edges over the surface"},
+           {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
+           {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
+           {"--stats", "FILE.json", "write statistics and timings as JSON"},
+           {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
+           {"--layer", "NAME[:OP[:W[:lens]]]",
+            "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
+            /*repeatable=*/true},
+           {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
+           {"--gamma", "PIXELS2",
+            "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
+           {"--texture-memory", "MB",
+            "--db with --layer: texture memory budget, megabytes (default 537: 512 MiB)"}},
+          build_options()),
+      dem_options());
   return s;
 }
 
@@ -488,7 +510,8 @@ std::vector<double> parse_numbers(const std::string& option, const std::string& 
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    const std::string item =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
     char* end = nullptr;
     errno = 0;
     const double x = item.empty() ? NAN : std::strtod(item.c_str(), &end);
@@ -500,14 +523,15 @@ std::vector<double> parse_numbers(const std::string& option, const std::string& 
     start = comma + 1;
   }
   if (v.size() != count)
-    throw UsageError("option '" + option + "' needs " + std::to_string(count) + " comma-separated numbers, not " +
-                     std::to_string(v.size()) + " ('" + text + "')");
+    throw UsageError("option '" + option + "' needs " + std::to_string(count) +
+                     " comma-separated numbers, not " + std::to_string(v.size()) + " ('" + text + "')");
   return v;
 }
 
 int cmd_view(const Args& a) {
   const std::string input = a.get("--input"), out = a.get("--out");
-  if (lower_extension(out) != ".png") throw UsageError("option '--out' must name a .png file, not '" + out + "'");
+  if (lower_extension(out) != ".png")
+    throw UsageError("option '--out' must name a .png file, not '" + out + "'");
   const std::vector<double> c = parse_numbers("--camera", a.get("--camera"), 6);
   if (c[4] < -90.0 || c[4] > 90.0) throw UsageError("--camera: PITCH must be in [-90, 90] degrees");
   if (c[5] <= 0.0 || c[5] >= 180.0) throw UsageError("--camera: FOVY must be in (0, 180) degrees");
@@ -533,7 +557,8 @@ int cmd_view(const Args& a) {
   if ((a.has("--gamma") || a.has("--texture-memory")) && (!a.has("--db") || layer_specs.empty()))
     throw UsageError("--gamma and --texture-memory need --db and --layer (textures per patch of its tree)");
   if (a.has("--db")) terralod::cli::layer_setup_options(a);  // usage errors before the terrain loads
-  if (!layer_specs.empty() && a.has("--wireframe")) throw UsageError("--wireframe cannot be combined with --layer");
+  if (!layer_specs.empty() && a.has("--wireframe"))
+    throw UsageError("--wireframe cannot be combined with --layer");
   if (a.has("--lens") && layer_specs.empty()) throw UsageError("--lens needs --layer");
   for (const std::string& spec : layer_specs) terralod::cli::parse_layer_spec(spec);  // usage errors first
   check_output_folder(out);
@@ -550,7 +575,8 @@ int cmd_view(const Args& a) {
   }
 
   auto t = Clock::now();
-  const pm::ProgressiveMesh mesh = is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
+  const pm::ProgressiveMesh mesh =
+      is_pm_file(input) ? read_pm_stage(input) : build_stage(read_stage(input, dem), build);
   const double load_ms = ms_since(t);
   const pm::Heightfield& hf = mesh.heightfield();
 
@@ -567,7 +593,8 @@ int cmd_view(const Args& a) {
   // segment lies in the box, hence at least d_min from the camera, so it covers at most
   // E * K_max / d_min pixels anywhere in the image.
   glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-  for (const auto& [col, row] : {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
+  for (const auto& [col, row] :
+       {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
     const auto [x, y] = hf.transform.to_world(col, row);
     lo = glm::min(lo, glm::dvec3(x, y, lo.z));
     hi = glm::max(hi, glm::dvec3(x, y, hi.z));
@@ -579,7 +606,9 @@ int cmd_view(const Args& a) {
   const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
   // Clip planes: reverse-Z keeps depth precise even with a near plane close to the eye.
   cam.near_m = std::clamp(0.5 * d_min, 0.05, 1000.0);
-  cam.far_m = std::max(cam.near_m * 2.0, 1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
+  cam.far_m =
+      std::max(cam.near_m * 2.0,
+               1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
 
   const bool uniform = a.has("--uniform");
   pm::TriangleMesh m;
@@ -587,15 +616,17 @@ int cmd_view(const Args& a) {
   pm::FrameStats sel_stats;
   if (uniform) {
     max_error = tau * d_min / k_max;
-    line(strf("select tau=%g px: nearest terrain %.1f m, K %.1f px, K_max %.1f px/rad -> E=%.4g m "
-              "(uniform extraction, --uniform)",
-              tau, d_min, k, k_max, max_error));
+    line(
+        strf("select tau=%g px: nearest terrain %.1f m, K %.1f px, K_max %.1f px/rad -> E=%.4g m "
+             "(uniform extraction, --uniform)",
+             tau, d_min, k, k_max, max_error));
     t = Clock::now();
     m = mesh.extract(max_error);
     extract_ms = ms_since(t);
     screen_bound = d_min > 0.0 ? m.error_bound * k_max / d_min : (m.error_bound > 0.0 ? INFINITY : 0.0);
     line(strf("extract E=%.4g m: %zu triangles, %zu vertices, bound %g m (<= %.3g px), %s", max_error,
-              m.triangles.size(), m.vertices.size(), m.error_bound, screen_bound, format_duration(extract_ms).c_str()));
+              m.triangles.size(), m.vertices.size(), m.error_bound, screen_bound,
+              format_duration(extract_ms).c_str()));
   } else {
     // View-dependent selection: the pm::Camera conventions are the CLI's; same clip planes as
     // the render, so the guarantee covers exactly what is drawn.
@@ -621,10 +652,11 @@ int cmd_view(const Args& a) {
     m = sel.mesh();
     extract_ms = ms_since(t);
     screen_bound = sel_stats.bound_px;
-    line(strf("select tau=%g px (view-dependent): dag %zu collapses in %s; update %zu vsplits, %zu ecols, "
-              "%zu evaluated in %s",
-              tau, dag.collapse_count(), format_duration(dag_ms).c_str(), sel_stats.vsplits, sel_stats.ecols,
-              sel_stats.evaluated, format_duration(sel_stats.update_ms).c_str()));
+    line(
+        strf("select tau=%g px (view-dependent): dag %zu collapses in %s; update %zu vsplits, %zu ecols, "
+             "%zu evaluated in %s",
+             tau, dag.collapse_count(), format_duration(dag_ms).c_str(), sel_stats.vsplits, sel_stats.ecols,
+             sel_stats.evaluated, format_duration(sel_stats.update_ms).c_str()));
     line(strf("selection: %zu triangles, %zu active vertices, bound %.4g px (<= tau %g), %g m at the samples",
               m.triangles.size(), sel_stats.active_vertices, sel_stats.bound_px, tau, sel_stats.bound_m));
   }
@@ -640,7 +672,8 @@ int cmd_view(const Args& a) {
   if (!layer_specs.empty()) {
     layers.emplace(terralod::cli::LayerSetup::open(
         a.get("--texture-db"), layer_specs,
-        a.has("--lens") ? std::optional(terralod::cli::parse_lens("--lens", a.get("--lens"))) : std::nullopt));
+        a.has("--lens") ? std::optional(terralod::cli::parse_lens("--lens", a.get("--lens")))
+                        : std::nullopt));
     layers->wait_loaded(/*timeout_ms=*/600000);
     layered.emplace(*ctx);
     layers->attach(*layered);
@@ -661,13 +694,15 @@ int cmd_view(const Args& a) {
   const render::Image img = layered ? layered->read_color() : renderer.read_color();
   const double readback_ms = ms_since(t);
   line(strf("render %d x %d on %s: context %s, upload %s, draw %s, read back %s", width, height,
-            ctx->info().renderer.c_str(), format_duration(context_ms).c_str(), format_duration(upload_ms).c_str(),
-            format_duration(frame.draw_ms).c_str(), format_duration(readback_ms).c_str()));
+            ctx->info().renderer.c_str(), format_duration(context_ms).c_str(),
+            format_duration(upload_ms).c_str(), format_duration(frame.draw_ms).c_str(),
+            format_duration(readback_ms).c_str()));
 
   t = Clock::now();
   render::write_png(img, out);
   const double write_ms = ms_since(t);
-  line(strf("write %s: %s, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(), format_duration(write_ms).c_str()));
+  line(strf("write %s: %s, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(),
+            format_duration(write_ms).c_str()));
 
   double dump_ms = 0.0;
   if (!dump.empty()) {
@@ -747,8 +782,12 @@ struct Command {
 
 const std::vector<Command>& commands() {
   static const std::vector<Command> c = {
-      {pm_spec, cmd_pm},     {extract_spec, cmd_extract}, {info_spec, cmd_info},
-      {demo_spec, cmd_demo}, {generate_spec, cmd_generate}, {view_spec, cmd_view},
+      {pm_spec, cmd_pm},
+      {extract_spec, cmd_extract},
+      {info_spec, cmd_info},
+      {demo_spec, cmd_demo},
+      {generate_spec, cmd_generate},
+      {view_spec, cmd_view},
       {terralod::cli::build_spec, terralod::cli::cmd_build},
       {terralod::cli::tin_spec, terralod::cli::cmd_tin},
       {terralod::cli::hybrid_spec, terralod::cli::cmd_hybrid},
@@ -769,10 +808,9 @@ std::string main_usage() {
     const CommandSpec s = c.spec();
     u += "  " + s.name + std::string(9 - s.name.size(), ' ') + s.summary + "\n";
   }
-  u +=
-      "\nRun 'terralod <command> --help' for a command's options.\n"
-      "Exit status: 0 success, 1 error (bad data, I/O), 2 bad command line.\n"
-      "\noptions:\n  -h, --help  show this help and exit\n  --version   print the version and exit\n";
+  u += "\nRun 'terralod <command> --help' for a command's options.\n"
+       "Exit status: 0 success, 1 error (bad data, I/O), 2 bad command line.\n"
+       "\noptions:\n  -h, --help  show this help and exit\n  --version   print the version and exit\n";
   return u;
 }
 
@@ -809,7 +847,8 @@ int main(int argc, char** argv) {
     }
     return cmd->run(parsed);
   } catch (const UsageError& e) {
-    std::fprintf(stderr, "terralod %s: %s (see 'terralod %s --help')\n", spec.name.c_str(), e.what(), spec.name.c_str());
+    std::fprintf(stderr, "terralod %s: %s (see 'terralod %s --help')\n", spec.name.c_str(), e.what(),
+                 spec.name.c_str());
     return 2;
   } catch (const std::bad_alloc&) {
     std::fputs("terralod: out of memory\n", stderr);

@@ -90,7 +90,8 @@ CommandSpec fly_spec() {
       "wireframe).\n"
       "The heads-up display shows frames per second, tau, the bound of what is drawn, triangles,\n"
       "update and draw times, nodes drawn (PM blocks, blocks drawn as their stand-ins, coarse\n"
-      "nodes, ancestors drawn for missing blocks), blocks resident/loading/evicted, prefetch misses, bytes read, resident memory and\n"
+      "nodes, ancestors drawn for missing blocks), blocks resident/loading/evicted, prefetch misses, bytes "
+      "read, resident memory and\n"
       "texture memory.\n\n"
       "--headless renders --frames frames of --path through OSMesa (no display needed) and\n"
       "writes DIR/frame_NNNNN.png, DIR/frames.csv and, with --dump-meshes, DIR/frame_NNNNN.ply\n"
@@ -107,7 +108,8 @@ CommandSpec fly_spec() {
   s.options = {
       {"--db", "FILE.db", "block database from 'terralod build' (streamed; excludes --input)"},
       {"--memory", "MB", "--db: resident memory budget, megabytes (default 537: 512 MiB)"},
-      {"--theta", "DEGREES", "--db: the region kept ready around the eye, b = a cot(theta), (0, 90) (default 20)"},
+      {"--theta", "DEGREES",
+       "--db: the region kept ready around the eye, b = a cot(theta), (0, 90) (default 20)"},
       {"--input", "FILE", "a DEM or a .pm file (default: the built-in generated terrain)"},
       {"--terrain-size", "N", "samples per side of the built-in terrain (default 513, 2..8193)"},
       {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
@@ -130,7 +132,8 @@ CommandSpec fly_spec() {
        "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
        /*repeatable=*/true},
       {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
-      {"--gamma", "PIXELS2", "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
+      {"--gamma", "PIXELS2",
+       "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
       {"--texture-memory", "MB", "texture memory budget, megabytes (default 537: 512 MiB)"}};
   return s;
 }
@@ -169,7 +172,7 @@ struct FrameRecord {
   bool streamed = false;  // --db: a block database through the runtime
   double draw_ms = 0, upload_ms = 0, wait_ms = 0;
   std::size_t vertices = 0;
-  std::size_t texture_bytes = 0;  // resident in the texture cache
+  std::size_t texture_bytes = 0;                              // resident in the texture cache
   std::size_t texture_patches = 0, textures_from_parent = 0;  // per-patch textures (--db)
 };
 
@@ -317,7 +320,8 @@ std::unique_ptr<PmSource> open_pm_terrain(const std::string& input, int generate
 // A block database through blocks::TerrainRuntime (the tree from its root, PM blocks streamed).
 class DbSource final : public LodSource {
  public:
-  DbSource(const std::string& path, const pm::RefinementOptions& o, const tb::RuntimeOptions& base) : path_(path) {
+  DbSource(const std::string& path, const pm::RefinementOptions& o, const tb::RuntimeOptions& base)
+      : path_(path) {
     const auto t0 = Clock::now();
     tb::RuntimeOptions ro = base;
     ro.tolerance_px = o.tolerance_px;
@@ -328,10 +332,11 @@ class DbSource final : public LodSource {
     const tb::BlockGrid& g = rt_->grid();
     const pm::Box& box = rt_->terrain_box();
     ext_ = make_extent(g.transform(), g.grid_width(), g.grid_height(), box.lo.z, box.hi.z, path);
-    std::printf("terrain: %s, %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, heights %.1f..%.1f m, "
-                "ready in %s\n",
-                path.c_str(), g.grid_width(), g.grid_height(), g.cols(), g.rows(), g.block_size(), rt_->tree().size(),
-                box.lo.z, box.hi.z, format_duration(ms_since(t0)).c_str());
+    std::printf(
+        "terrain: %s, %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, heights %.1f..%.1f m, "
+        "ready in %s\n",
+        path.c_str(), g.grid_width(), g.grid_height(), g.cols(), g.rows(), g.block_size(), rt_->tree().size(),
+        box.lo.z, box.hi.z, format_duration(ms_since(t0)).c_str());
   }
   const Extent& extent() const override { return ext_; }
   pm::RefinementOptions options() const override { return opt_; }
@@ -517,7 +522,8 @@ std::optional<LayerSetup> layer_setup(const Args& a) {
   std::optional<LensSpec> lens;
   if (a.has("--lens")) lens = parse_lens("--lens", a.get("--lens"));
   const LayerSetupOptions lo = layer_setup_options(a);
-  if (a.has("--gamma") && !a.has("--db")) throw UsageError("--gamma needs --db (textures per patch of its tree)");
+  if (a.has("--gamma") && !a.has("--db"))
+    throw UsageError("--gamma needs --db (textures per patch of its tree)");
   if (!a.has("--db")) return LayerSetup::open(a.get("--texture-db"), specs, lens, lo);
   // --db: textures per drawn patch, over the drawn database's tree.
   const std::vector<rd::PatchDomain> tree = rd::tree_domains(tb::BlockDatabase::open(a.get("--db")));
@@ -566,35 +572,39 @@ std::unique_ptr<LodSource> open_terrain(const Args& a) {
   return open_pm_terrain(a.get("--input"), size, o);
 }
 
-
 // The heads-up display's lines about the level of detail of a frame (the window's and, with
 // --hud, the headless frames'; without timings the text is the same on every run).
 std::vector<std::string> lod_lines(const FrameRecord& r, const pm::RefinementOptions& now, bool timings) {
   const tb::RuntimeFrameStats& l = r.lod;
   return {
       // One PM (no --db): its bound is the selection's; the display lags it while vertices morph.
-      r.streamed ? strf("tau %.2f px%s   drawn within %.3f px%s", l.tolerance_px,
-                        now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
-                        l.missing_in_view ? strf(" (%zu blocks missing: over tau allowed)", l.missing_in_view).c_str()
-                                          : "")
-                 : strf("tau %.2f px%s   selection within %.3f px%s", l.tolerance_px,
-                        now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
-                        l.moving_vertices ? strf(" (display lags: %zu vertices morphing)", l.moving_vertices).c_str()
-                                          : ""),
+      r.streamed
+          ? strf("tau %.2f px%s   drawn within %.3f px%s", l.tolerance_px,
+                 now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
+                 l.missing_in_view
+                     ? strf(" (%zu blocks missing: over tau allowed)", l.missing_in_view).c_str()
+                     : "")
+          : strf("tau %.2f px%s   selection within %.3f px%s", l.tolerance_px,
+                 now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
+                 l.moving_vertices ? strf(" (display lags: %zu vertices morphing)", l.moving_vertices).c_str()
+                                   : ""),
       timings ? strf("%zu triangles   update %.2f ms   draw %.2f ms", l.triangles, l.update_ms, r.draw_ms)
               : strf("%zu triangles", l.triangles),
-      r.streamed ? strf("nodes drawn %zu (%zu PM blocks, %zu stand-ins, %zu coarse, %zu for missing blocks)   "
-                        "culled %zu",
-                        l.pm_blocks + l.standin_blocks + l.coarse_nodes, l.pm_blocks, l.standin_blocks,
-                        l.coarse_nodes, l.fallback_nodes, l.nodes_culled)
-                 : std::string("nodes drawn 1 (one PM)"),
-      r.streamed ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   memory %s",
-                        l.blocks_resident, l.blocks_loading, l.evicted_total, l.prefetch_misses_total,
-                        format_bytes(l.bytes_read_total).c_str(), format_bytes(l.resident_bytes).c_str())
-                 : std::string("blocks resident 1, loading 0"),
+      r.streamed
+          ? strf("nodes drawn %zu (%zu PM blocks, %zu stand-ins, %zu coarse, %zu for missing blocks)   "
+                 "culled %zu",
+                 l.pm_blocks + l.standin_blocks + l.coarse_nodes, l.pm_blocks, l.standin_blocks,
+                 l.coarse_nodes, l.fallback_nodes, l.nodes_culled)
+          : std::string("nodes drawn 1 (one PM)"),
+      r.streamed
+          ? strf("blocks resident %zu, loading %zu, evicted %zu   prefetch misses %zu   read %s   memory %s",
+                 l.blocks_resident, l.blocks_loading, l.evicted_total, l.prefetch_misses_total,
+                 format_bytes(l.bytes_read_total).c_str(), format_bytes(l.resident_bytes).c_str())
+          : std::string("blocks resident 1, loading 0"),
       strf("texture memory %s%s", format_bytes(r.texture_bytes).c_str(),
            r.texture_patches ? strf(" (%zu patches wanted, %zu drawn with a parent's)", r.texture_patches,
-                                    r.textures_from_parent).c_str()
+                                    r.textures_from_parent)
+                                   .c_str()
                              : "")};
 }
 
@@ -702,7 +712,8 @@ int run_headless(const Args& a) {
       overlay_text(img, rd::rasterize_text(lines), rd::HudOptions{}.margin);
     }
     rd::write_png(img, (fs::path(out) / (std::string(name) + ".png")).string());
-    if (dump) pm::write_mesh(rd::world_mesh(p.draw_mesh()), (fs::path(out) / (std::string(name) + ".ply")).string());
+    if (dump)
+      pm::write_mesh(rd::world_mesh(p.draw_mesh()), (fs::path(out) / (std::string(name) + ".ply")).string());
     bar.update(double(k + 1) / double(frames));
   }
   bar.finish();
@@ -719,9 +730,10 @@ int run_headless(const Args& a) {
     std::printf("headless: blocks resident median %.0f, max %.0f; waited %s for block loads in all\n",
                 percentile(resident, 0.5), percentile(resident, 1.0), format_duration(wait_ms).c_str());
   // The last line: the guarantee as measured on this run, and the update's cost.
-  std::printf("headless: guarantee: %zu of %lld frames had nothing missing, and in those the drawn mesh was within "
-              "%.3f x tau (bound / tau <= 1 is the promise); update thread CPU median %.3f ms, p99 %.3f ms\n",
-              complete, frames, worst_bound, percentile(update_cpu_ms, 0.5), percentile(update_cpu_ms, 0.99));
+  std::printf(
+      "headless: guarantee: %zu of %lld frames had nothing missing, and in those the drawn mesh was within "
+      "%.3f x tau (bound / tau <= 1 is the promise); update thread CPU median %.3f ms, p99 %.3f ms\n",
+      complete, frames, worst_bound, percentile(update_cpu_ms, 0.5), percentile(update_cpu_ms, 0.99));
   return 0;
 }
 
@@ -932,11 +944,11 @@ int run_window(const Args& a) {
     const pm::RefinementOptions now_o = t->options();
     std::vector<std::string> lines = lod_lines(r, now_o, /*timings=*/true);
     lines[0] = strf("%5.1f fps   ", fps) + lines[0];
-    lines.insert(lines.end(), {
-        strf("speed %.0f m/s   height %.0f m above ground%s", ctl.speed, cam.z - t->ground(cam.x, cam.y),
-             ctl.follow ? " (following)" : ""),
-        strf("%s%s%s%s", now_o.morph_seconds > 0 ? "geomorphs" : "no geomorphs",
-             p.wireframe ? "  wireframe" : "", p.frozen ? "  LOD FROZEN" : "", ctl.recording ? "  REC" : "")});
+    lines.insert(lines.end(), {strf("speed %.0f m/s   height %.0f m above ground%s", ctl.speed,
+                                    cam.z - t->ground(cam.x, cam.y), ctl.follow ? " (following)" : ""),
+                               strf("%s%s%s%s", now_o.morph_seconds > 0 ? "geomorphs" : "no geomorphs",
+                                    p.wireframe ? "  wireframe" : "", p.frozen ? "  LOD FROZEN" : "",
+                                    ctl.recording ? "  REC" : "")});
     if (layers) {
       std::string on = "layers";
       for (std::size_t k = 0; k < layers->styles().size(); ++k)
@@ -969,7 +981,8 @@ int run_window(const Args& a) {
     rd::write_png(p.read_color(), a.get("--screenshot"));
     std::printf("wrote %s\n", a.get("--screenshot").c_str());
   }
-  std::printf("flew %lld frames, last: %zu triangles, drawn within %.3f px\n", frame, r.lod.triangles, r.lod.bound_px);
+  std::printf("flew %lld frames, last: %zu triangles, drawn within %.3f px\n", frame, r.lod.triangles,
+              r.lod.bound_px);
   return 0;
 }
 

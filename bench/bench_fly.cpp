@@ -39,7 +39,8 @@ namespace {
 std::string build_database(int block_size) {
   const std::string dem = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
   const std::string path =
-      (fs::temp_directory_path() / ("terralod-bench-fly-runtime-" + std::to_string(block_size) + ".db")).string();
+      (fs::temp_directory_path() / ("terralod-bench-fly-runtime-" + std::to_string(block_size) + ".db"))
+          .string();
   const pm::Heightfield hf = tb::read_dem(dem);
   tb::DatabaseBuildOptions o;
   o.block_size = block_size;
@@ -65,16 +66,21 @@ int main(int argc, char** argv) {
   int block_size = 129;
   double tau = 1.0, budget_mb = 1024.0;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--block-size") && i + 1 < argc) block_size = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--tau") && i + 1 < argc) tau = std::atof(argv[++i]);
-    else if (!std::strcmp(argv[i], "--budget") && i + 1 < argc) budget_mb = std::atof(argv[++i]);
+    if (!std::strcmp(argv[i], "--block-size") && i + 1 < argc)
+      block_size = std::atoi(argv[++i]);
+    else if (!std::strcmp(argv[i], "--tau") && i + 1 < argc)
+      tau = std::atof(argv[++i]);
+    else if (!std::strcmp(argv[i], "--budget") && i + 1 < argc)
+      budget_mb = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {
-      std::puts("usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB]\n"
-                "Replays a scripted 60 s flight over N44W072 in real time through the terrain runtime\n"
-                "with prediction on and off. Without DB, builds one (blocks of N samples, default 129).\n"
-                "--budget: resident memory of the runtime, megabytes (default 1024).");
+      std::puts(
+          "usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB]\n"
+          "Replays a scripted 60 s flight over N44W072 in real time through the terrain runtime\n"
+          "with prediction on and off. Without DB, builds one (blocks of N samples, default 129).\n"
+          "--budget: resident memory of the runtime, megabytes (default 1024).");
       return 0;
-    } else db_path = argv[i];
+    } else
+      db_path = argv[i];
   }
   if (!(tau > 0) || !(budget_mb > 0) || block_size < 3) {
     std::fprintf(stderr, "terralod-bench-fly: need --tau > 0, --budget > 0 and --block-size >= 3\n");
@@ -97,7 +103,8 @@ int main(int argc, char** argv) {
     // turn of radius 12 km), 700 m above the highest sample, looking ahead 20 deg down.
     const auto [xa, ya] = grid.transform().to_world(0, grid.grid_height() - 1);
     const auto [xb, yb] = grid.transform().to_world(grid.grid_width() - 1, 0);
-    const double w = std::abs(xb - xa), h = std::abs(yb - ya), x_lo = std::min(xa, xb), y_lo = std::min(ya, yb);
+    const double w = std::abs(xb - xa), h = std::abs(yb - ya), x_lo = std::min(xa, xb),
+                 y_lo = std::min(ya, yb);
     std::vector<pm::Camera> path;
     double x = x_lo + 0.1 * w, y = y_lo + 0.1 * h, heading = 0.2;  // radians clockwise from north
     const double speed = 400, radius = 12000;
@@ -117,9 +124,11 @@ int main(int argc, char** argv) {
       c.height_px = 720;
       path.push_back(c);
     }
-    std::printf("flight: %zu frames (%.0f s) at %.0f m/s, %.0f m up, over %s (%d x %d blocks of %d samples), tau %g px\n",
-                path.size(), double(path.size()) / 60.0, speed, zmax + 700, db_path.c_str(), grid.cols(), grid.rows(),
-                grid.block_size(), tau);
+    std::printf(
+        "flight: %zu frames (%.0f s) at %.0f m/s, %.0f m up, over %s (%d x %d blocks of %d samples), tau %g "
+        "px\n",
+        path.size(), double(path.size()) / 60.0, speed, zmax + 700, db_path.c_str(), grid.cols(), grid.rows(),
+        grid.block_size(), tau);
     for (bool prefetch : {true, false}) {
       tb::RuntimeOptions opt;
       opt.prefetch = prefetch;
@@ -155,18 +164,19 @@ int main(int argc, char** argv) {
       const tb::RuntimeFrameStats& st = rt.stats();
       struct rusage ru {};
       getrusage(RUSAGE_SELF, &ru);
-      std::printf("prediction %-3s: frame median %.2f ms, p99 %.2f ms, worst %.2f ms, %zu frames over 16.7 ms; "
-                  "prefetch misses %zu of %zu blocks needed in view (after the first 2 s: %zu of %zu), %zu frames "
-                  "with a block missing in view; peak resident %.1f MB (budget %.0f MB), %.1f MB read, %zu evicted, "
-                  "%zu dropped; "
-                  "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB\n",
-                  prefetch ? "on" : "off", pct(ms, 0.5), pct(ms, 0.99), pct(ms, 1.0), slow_frames,
-                  st.prefetch_misses_total, st.prefetch_hits_total + st.prefetch_misses_total,
-                  st.prefetch_misses_total - cold_misses,
-                  st.prefetch_hits_total + st.prefetch_misses_total - cold_needed, missing_frames,
-                  double(st.peak_resident_bytes) / 1e6, double(opt.budget_bytes) / 1e6,
-                  double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, triangles, pct(bounds, 0.5), bound,
-                  double(ru.ru_maxrss) / 1024.0);
+      std::printf(
+          "prediction %-3s: frame median %.2f ms, p99 %.2f ms, worst %.2f ms, %zu frames over 16.7 ms; "
+          "prefetch misses %zu of %zu blocks needed in view (after the first 2 s: %zu of %zu), %zu frames "
+          "with a block missing in view; peak resident %.1f MB (budget %.0f MB), %.1f MB read, %zu evicted, "
+          "%zu dropped; "
+          "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB\n",
+          prefetch ? "on" : "off", pct(ms, 0.5), pct(ms, 0.99), pct(ms, 1.0), slow_frames,
+          st.prefetch_misses_total, st.prefetch_hits_total + st.prefetch_misses_total,
+          st.prefetch_misses_total - cold_misses,
+          st.prefetch_hits_total + st.prefetch_misses_total - cold_needed, missing_frames,
+          double(st.peak_resident_bytes) / 1e6, double(opt.budget_bytes) / 1e6,
+          double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, triangles, pct(bounds, 0.5),
+          bound, double(ru.ru_maxrss) / 1024.0);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod-bench-fly: %s\n", e.what());

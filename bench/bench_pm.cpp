@@ -27,9 +27,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
-#include <functional>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <string>
 #include <thread>
@@ -63,14 +63,17 @@ struct Reference {
   std::array<double, 7> delatin_ms;
   std::optional<std::array<long, 7>> martini_triangles;
 };
-const Reference kCropReference = {{1631656, 1321340, 894475, 371901, 159745, 63944, 19038},
-                                  {5532, 4500, 2960, 1191, 560, 281, 153},
-                                  std::array<long, 7>{1985504, 1785161, 1596206, 1099180, 550590, 271285, 69332}};
+const Reference kCropReference = {
+    {1631656, 1321340, 894475, 371901, 159745, 63944, 19038},
+    {5532, 4500, 2960, 1191, 560, 281, 153},
+    std::array<long, 7>{1985504, 1785161, 1596206, 1099180, 550590, 271285, 69332}};
 const Reference kFullReference = {{2255284, 1842121, 1263624, 542793, 236856, 96296, 29146},
                                   {8516, 6948, 4825, 1923, 936, 470, 236},
                                   std::nullopt};
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -78,7 +81,9 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-const char* metric_name(pm::ErrorMetric m) { return m == pm::ErrorMetric::Samples ? "samples" : "continuous"; }
+const char* metric_name(pm::ErrorMetric m) {
+  return m == pm::ErrorMetric::Samples ? "samples" : "continuous";
+}
 const char* pass(bool ok) { return ok ? "PASS" : "FAIL"; }
 
 /// Top-left w x h samples of `hf`, same transform (the origin is the first sample's centre).
@@ -113,7 +118,7 @@ struct TerrainRun {
   int width = 0, height = 0;
   const Reference* ref = nullptr;
   std::vector<MetricRun> metrics;  // [0] continuous (default), [1] samples
-  std::vector<double> delatin_ms;   // delatin's 0.5 m mesh timed in this run (--delatin), one per build
+  std::vector<double> delatin_ms;  // delatin's 0.5 m mesh timed in this run (--delatin), one per build
 };
 
 // Single-quoted for the shell.
@@ -127,8 +132,8 @@ std::string shell_quote(const std::string& s) {
 // top-left `crop` x `crop` samples of `tile` (crop 0: all of it), checking its triangle count.
 double time_delatin(const std::string& index_js, const std::string& tile, int crop, long expected_triangles) {
   const std::string script = std::string(TERRALOD_BENCH_DIR) + "/delatin_time.mjs";
-  const std::string cmd = "node " + shell_quote(script) + " " + shell_quote(index_js) + " " + shell_quote(tile) +
-                          " 0.5 " + std::to_string(crop) + " 2>&1";
+  const std::string cmd = "node " + shell_quote(script) + " " + shell_quote(index_js) + " " +
+                          shell_quote(tile) + " 0.5 " + std::to_string(crop) + " 2>&1";
   std::FILE* p = popen(cmd.c_str(), "r");
   if (!p) throw std::runtime_error("cannot start node for " + script);
   std::string out;
@@ -144,8 +149,9 @@ double time_delatin(const std::string& index_js, const std::string& tile, int cr
   };
   const long triangles = long(field("triangles"));
   if (triangles != expected_triangles)
-    throw std::runtime_error(index_js + " gave " + std::to_string(triangles) + " triangles at 0.5 m, not delatin's " +
-                             std::to_string(expected_triangles) + ": is it delatin?");
+    throw std::runtime_error(index_js + " gave " + std::to_string(triangles) +
+                             " triangles at 0.5 m, not delatin's " + std::to_string(expected_triangles) +
+                             ": is it delatin?");
   return field("ms");
 }
 
@@ -163,8 +169,8 @@ MetricRun run_metric(const std::string& name, const pm::Heightfield& hf, pm::Err
     const auto t = Clock::now();
     mesh = pm::ProgressiveMesh::build(hf, opt);
     r.build_ms.push_back(ms_since(t));
-    std::printf("  build %s, metric %s, run %d/%d: %.0f ms\n", name.c_str(), metric_name(metric), k + 1, repeat,
-                r.build_ms.back());
+    std::printf("  build %s, metric %s, run %d/%d: %.0f ms\n", name.c_str(), metric_name(metric), k + 1,
+                repeat, r.build_ms.back());
     std::fflush(stdout);
   }
   r.build_median_ms = median(r.build_ms);
@@ -183,8 +189,9 @@ MetricRun run_metric(const std::string& name, const pm::Heightfield& hf, pm::Err
     l.bound_ok = m.error_bound <= e;
     r.levels.push_back(l);
   }
-  std::printf("  %s, metric %s: %zu vertices, %zu vsplits, %.3f bytes/vertex, median build %.0f ms\n", name.c_str(),
-              metric_name(metric), r.vertices, r.vsplits, r.bytes_per_vertex, r.build_median_ms);
+  std::printf("  %s, metric %s: %zu vertices, %zu vsplits, %.3f bytes/vertex, median build %.0f ms\n",
+              name.c_str(), metric_name(metric), r.vertices, r.vsplits, r.bytes_per_vertex,
+              r.build_median_ms);
   std::fflush(stdout);
   return r;
 }
@@ -196,7 +203,8 @@ void print_usage(std::FILE* f) {
       "Benchmarks PM build time, encoded size and triangles per error level on N44W072.hgt\n"
       "(top-left 1025 x 1025 crop and the full 1201 x 1201 tile) against delatin/martini numbers.\n\n"
       "options:\n"
-      "  --data DIR    folder holding N44W072.hgt (default: " TERRALOD_DATA_DIR ")\n"
+      "  --data DIR    folder holding N44W072.hgt (default: " TERRALOD_DATA_DIR
+      ")\n"
       "  --repeat N    builds per terrain and metric; the median time is reported (default 3)\n"
       "  --quick       only the 1025 x 1025 crop, one build per metric\n"
       "  --threads N   build threads, 0 = all cores (default 0)\n"
@@ -229,8 +237,8 @@ int main(int argc, char** argv) {
       char* end = nullptr;
       const long n = std::strtol(v.c_str(), &end, 10);
       if (v.empty() || *end != '\0' || n < lo || n > 1000) {
-        std::fprintf(stderr, "terralod-bench-pm: option '%s' needs an integer in [%d, 1000], not '%s'\n", name, lo,
-                     v.c_str());
+        std::fprintf(stderr, "terralod-bench-pm: option '%s' needs an integer in [%d, 1000], not '%s'\n",
+                     name, lo, v.c_str());
         std::exit(2);
       }
       return int(n);
@@ -274,14 +282,15 @@ int main(int argc, char** argv) {
   try {
     std::printf("# terralod PM benchmark\n\n");
     std::printf("data %s, %u hardware threads, build threads %d, %d build(s) per terrain and metric%s\n\n",
-                tile.c_str(), std::thread::hardware_concurrency(), threads, repeat, quick ? " (--quick)" : "");
+                tile.c_str(), std::thread::hardware_concurrency(), threads, repeat,
+                quick ? " (--quick)" : "");
     auto t = Clock::now();
     const pm::Heightfield full = terralod::blocks::read_dem(tile);
     std::printf("read %s: %d x %d samples, %zu voids, %.0f ms\n", tile.c_str(), full.width(), full.height(),
                 full.voids.voids, ms_since(t));
     if (full.width() < 1025 || full.height() < 1025) {
-      std::fprintf(stderr, "terralod-bench-pm: %s is %d x %d, expected 1201 x 1201\n", tile.c_str(), full.width(),
-                   full.height());
+      std::fprintf(stderr, "terralod-bench-pm: %s is %d x %d, expected 1201 x 1201\n", tile.c_str(),
+                   full.width(), full.height());
       return 1;
     }
 
@@ -309,8 +318,8 @@ int main(int argc, char** argv) {
         delatin = [&] {
           r.delatin_ms.push_back(
               time_delatin(delatin_js, tile, r.full ? 0 : r.width, r.ref->delatin_triangles[0]));
-          std::printf("  delatin %s, 0.5 m, run %zu/%d: %.0f ms\n", r.name.c_str(), r.delatin_ms.size(), repeat,
-                      r.delatin_ms.back());
+          std::printf("  delatin %s, 0.5 m, run %zu/%d: %.0f ms\n", r.name.c_str(), r.delatin_ms.size(),
+                      repeat, r.delatin_ms.back());
           std::fflush(stdout);
         };
       for (const pm::ErrorMetric m : {pm::ErrorMetric::Continuous, pm::ErrorMetric::Samples})
@@ -322,18 +331,22 @@ int main(int argc, char** argv) {
     bool all_bounds_ok = true;
     bool tri_ok_default = true, tri_ok_samples = true;
     std::printf(
-        "\nReference columns marked * were measured by the issue author on this kind of machine, not in this run\n"
+        "\nReference columns marked * were measured by the issue author on this kind of machine, not in this "
+        "run\n"
         "(with --delatin, delatin's build time is also measured in this run).\n"
         "(delatin/martini triangles whose L-infinity error, checked at every sample, is <= E).\n"
-        "ratio = ours / delatin*; target: ratio <= %.2f at every E. 'cont.' = metric continuous (the default,\n"
-        "true L-infinity distance of the surfaces), 'samples' = metric samples (error at the samples only).\n",
+        "ratio = ours / delatin*; target: ratio <= %.2f at every E. 'cont.' = metric continuous (the "
+        "default,\n"
+        "true L-infinity distance of the surfaces), 'samples' = metric samples (error at the samples "
+        "only).\n",
         kTriangleRatioTarget);
     for (const TerrainRun& r : runs) {
       const MetricRun& c = r.metrics[0];
       const MetricRun& s = r.metrics[1];
       std::printf("\n### N44W072.hgt, %s (%zu vertices)\n\n", r.name.c_str(), c.vertices);
       std::printf(
-          "| E (m) | delatin* | ours cont. | ratio | target | ours samples | ratio | target | martini* | bound cont. | "
+          "| E (m) | delatin* | ours cont. | ratio | target | ours samples | ratio | target | martini* | "
+          "bound cont. | "
           "bound samples |\n");
       std::printf("|---:|---:|---:|---:|:---:|---:|---:|:---:|---:|---:|---:|\n");
       for (std::size_t k = 0; k < kErrors.size(); ++k) {
@@ -347,15 +360,16 @@ int main(int argc, char** argv) {
         const std::string martini =
             r.ref->martini_triangles ? std::to_string((*r.ref->martini_triangles)[k]) : std::string("-");
         std::printf("| %g | %ld | %zu | %.3f | %s | %zu | %.3f | %s | %s | %g %s | %g %s |\n", kErrors[k],
-                    r.ref->delatin_triangles[k], lc.triangles, rc, pass(rc <= kTriangleRatioTarget), ls.triangles, rs,
-                    pass(rs <= kTriangleRatioTarget), martini.c_str(), lc.bound, lc.bound_ok ? "ok" : "EXCEEDS E",
-                    ls.bound, ls.bound_ok ? "ok" : "EXCEEDS E");
+                    r.ref->delatin_triangles[k], lc.triangles, rc, pass(rc <= kTriangleRatioTarget),
+                    ls.triangles, rs, pass(rs <= kTriangleRatioTarget), martini.c_str(), lc.bound,
+                    lc.bound_ok ? "ok" : "EXCEEDS E", ls.bound, ls.bound_ok ? "ok" : "EXCEEDS E");
       }
     }
 
     std::printf("\n### Build time and size\n\n");
     std::printf(
-        "| terrain | metric | builds (ms) | median build | delatin* 0.5 m | ratio | delatin this run (ms) | ratio this "
+        "| terrain | metric | builds (ms) | median build | delatin* 0.5 m | ratio | delatin this run (ms) | "
+        "ratio this "
         "run | target | bytes/vertex | target |\n");
     std::printf("|---|---|---|---:|---:|---:|---|---:|:---:|---:|:---:|\n");
     bool build_ok = true, bytes_ok = true;
@@ -363,7 +377,8 @@ int main(int argc, char** argv) {
     for (const TerrainRun& r : runs) {
       for (const MetricRun& m : r.metrics) {
         std::string builds;
-        for (const double b : m.build_ms) builds += (builds.empty() ? "" : ", ") + std::to_string(long(std::lround(b)));
+        for (const double b : m.build_ms)
+          builds += (builds.empty() ? "" : ", ") + std::to_string(long(std::lround(b)));
         const double ref_ms = r.ref->delatin_ms[0];
         const bool is_default = m.metric == pm::ErrorMetric::Continuous;
         // Same-run ratio: the median of ours / delatin over the pairs timed back to back.
@@ -400,8 +415,9 @@ int main(int argc, char** argv) {
     std::printf("- triangles <= %.2f x delatin* at every E: %s (metric samples: %s)\n", kTriangleRatioTarget,
                 pass(tri_ok_default), pass(tri_ok_samples));
     if (build_measured && build_same_run)
-      std::printf("- full-tile build <= delatin's 0.5 m time, both measured in this run (median ratio <= 1): %s\n",
-                  pass(build_ok));
+      std::printf(
+          "- full-tile build <= delatin's 0.5 m time, both measured in this run (median ratio <= 1): %s\n",
+          pass(build_ok));
     else if (build_measured)
       std::printf("- full-tile build <= 8.5 s (delatin* 0.5 m time): %s\n", pass(build_ok));
     else
@@ -418,12 +434,13 @@ int main(int argc, char** argv) {
           for (std::size_t k = 0; k < kErrors.size(); ++k) {
             const Level& l = m.levels[k];
             char row[512];
-            std::snprintf(row, sizeof row, "%s,%s,%g,%zu,%ld,%.4f,%s,%.17g,%d,%.1f,%.1f,%.0f,%.4f\n", r.name.c_str(),
-                          metric_name(m.metric), l.e, l.triangles, r.ref->delatin_triangles[k],
-                          double(l.triangles) / double(r.ref->delatin_triangles[k]),
-                          r.ref->martini_triangles ? std::to_string((*r.ref->martini_triangles)[k]).c_str() : "",
-                          l.bound, l.bound_ok ? 1 : 0, l.extract_ms, m.build_median_ms, r.ref->delatin_ms[0],
-                          m.bytes_per_vertex);
+            std::snprintf(
+                row, sizeof row, "%s,%s,%g,%zu,%ld,%.4f,%s,%.17g,%d,%.1f,%.1f,%.0f,%.4f\n", r.name.c_str(),
+                metric_name(m.metric), l.e, l.triangles, r.ref->delatin_triangles[k],
+                double(l.triangles) / double(r.ref->delatin_triangles[k]),
+                r.ref->martini_triangles ? std::to_string((*r.ref->martini_triangles)[k]).c_str() : "",
+                l.bound, l.bound_ok ? 1 : 0, l.extract_ms, m.build_median_ms, r.ref->delatin_ms[0],
+                m.bytes_per_vertex);
             csv << row;
           }
       csv.close();

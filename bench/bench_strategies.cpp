@@ -33,7 +33,9 @@ namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
 using Clock = std::chrono::steady_clock;
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -93,12 +95,17 @@ int main(int argc, char** argv) {
   bool keep_db = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--dem" && i + 1 < argc) dem = argv[++i];
-    else if (a == "--leaf-error" && i + 1 < argc) leaf_error = std::atof(argv[++i]);
-    else if (a == "--frames" && i + 1 < argc) frames = std::max(1, std::atoi(argv[++i]));
-    else if (a == "--keep-db") keep_db = true;
+    if (a == "--dem" && i + 1 < argc)
+      dem = argv[++i];
+    else if (a == "--leaf-error" && i + 1 < argc)
+      leaf_error = std::atof(argv[++i]);
+    else if (a == "--frames" && i + 1 < argc)
+      frames = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--keep-db")
+      keep_db = true;
     else {
-      std::printf("usage: terralod-bench-strategies [--dem FILE] [--leaf-error M] [--frames N] [--keep-db]\n");
+      std::printf(
+          "usage: terralod-bench-strategies [--dem FILE] [--leaf-error M] [--frames N] [--keep-db]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -110,15 +117,16 @@ int main(int argc, char** argv) {
   std::printf("terrain %s: %d x %d samples\n", dem.c_str(), hf.width(), hf.height());
 
   // 1. The whole database (default options: 257-sample blocks, grid levels above PM blocks).
-  const std::string db_path = (std::filesystem::temp_directory_path() / "terralod-bench-strategies.db").string();
+  const std::string db_path =
+      (std::filesystem::temp_directory_path() / "terralod-bench-strategies.db").string();
   for (const std::string& f : {db_path, db_path + "-wal", db_path + "-shm"}) std::filesystem::remove(f);
   tb::DatabaseBuildOptions dbo;
   dbo.threads = 2;
   auto t = Clock::now();
   const tb::DatabaseSummary summary = tb::build_database(hf, db_path, dbo);
   const double db_ms = ms_since(t);
-  std::printf("database build: %zu blocks, %zu nodes, %.2f bytes/vertex, %.1f s (2 threads)\n", summary.blocks,
-              summary.nodes, summary.bytes_per_vertex, db_ms / 1000.0);
+  std::printf("database build: %zu blocks, %zu nodes, %.2f bytes/vertex, %.1f s (2 threads)\n",
+              summary.blocks, summary.nodes, summary.bytes_per_vertex, db_ms / 1000.0);
 
   const tb::BlockDatabase db = tb::BlockDatabase::open(db_path);
   const tb::ApproximationTree pm_tree = tb::decode_tree(*db.read_blob("tree"), db_path + ": tree");
@@ -134,7 +142,9 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   std::vector<tb::ApproximationTree> trees;
   const std::pair<const char*, tb::StrategyChoice> kinds[] = {
-      {"grid", tb::StrategyChoice::Grid}, {"nonregular", tb::StrategyChoice::NonRegularGrid}, {"tin", tb::StrategyChoice::Tin}};
+      {"grid", tb::StrategyChoice::Grid},
+      {"nonregular", tb::StrategyChoice::NonRegularGrid},
+      {"tin", tb::StrategyChoice::Tin}};
   for (const auto& [name, choice] : kinds) {
     tb::TreeBuildOptions o;
     o.levels = {choice};
@@ -177,7 +187,8 @@ int main(int argc, char** argv) {
     for (int s = 0; s < 3; ++s) {
       double sum = 0, worst = 0;
       for (tb::BlockKey k : layout.keys()) {
-        const double e = tb::surface_error(hf, strategies[s]->approximate(hf, layout.rect(k)), pm::ErrorMetric::Continuous);
+        const double e = tb::surface_error(hf, strategies[s]->approximate(hf, layout.rect(k)),
+                                           pm::ErrorMetric::Continuous);
         sum += e;
         worst = std::max(worst, e);
       }
@@ -234,23 +245,26 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("\nStrategies on %s (s = 25 points per node, pure trees down to %.1f m; PM block = the\n"
-              "database tree: grid levels above one PM leaf per 257-sample block, refined at alpha).\n"
-              "Flight: %d frames, 1280 x 720, fovy 60, 2500 m, pitch -25; medians per frame.\n\n",
-              dem.c_str(), leaf_error, frames);
+  std::printf(
+      "\nStrategies on %s (s = 25 points per node, pure trees down to %.1f m; PM block = the\n"
+      "database tree: grid levels above one PM leaf per 257-sample block, refined at alpha).\n"
+      "Flight: %d frames, 1280 x 720, fovy 60, 2500 m, pitch -25; medians per frame.\n\n",
+      dem.c_str(), leaf_error, frames);
   std::printf("%-10s %7s %5s %10s %9s | %14s %14s\n", "strategy", "nodes", "depth", "bytes/node", "build s",
               "err@s mean m", "err@s max m");
   for (const Row& r : rows)
-    std::printf("%-10s %7zu %5d %10.1f %9.2f | %14.2f %14.2f\n", r.name.c_str(), r.nodes, r.depth, r.bytes_per_node,
-                r.build_ms / 1000.0, r.budget_error_mean, r.budget_error_max);
-  std::printf("\n%-10s %5s %9s %11s %10s %10s %9s\n", "strategy", "alpha", "selected", "triangles", "select ms",
-              "refine ms", "bound px");
+    std::printf("%-10s %7zu %5d %10.1f %9.2f | %14.2f %14.2f\n", r.name.c_str(), r.nodes, r.depth,
+                r.bytes_per_node, r.build_ms / 1000.0, r.budget_error_mean, r.budget_error_max);
+  std::printf("\n%-10s %5s %9s %11s %10s %10s %9s\n", "strategy", "alpha", "selected", "triangles",
+              "select ms", "refine ms", "bound px");
   for (const Row& r : rows)
     for (const auto& [alpha, s] : r.sel)
-      std::printf("%-10s %5.0f %9.0f %11.0f %10.3f %10.3f %9.2f\n", r.name.c_str(), alpha, s.selected, s.triangles,
-                  s.select_ms, s.refine_ms, s.bound_px);
-  std::printf("\n(bound px: the largest guaranteed screen error of a frame; pure trees exceed alpha where a\n"
-              "leaf of error %.1f m is still too coarse, PM blocks refine to alpha.)\n", leaf_error);
+      std::printf("%-10s %5.0f %9.0f %11.0f %10.3f %10.3f %9.2f\n", r.name.c_str(), alpha, s.selected,
+                  s.triangles, s.select_ms, s.refine_ms, s.bound_px);
+  std::printf(
+      "\n(bound px: the largest guaranteed screen error of a frame; pure trees exceed alpha where a\n"
+      "leaf of error %.1f m is still too coarse, PM blocks refine to alpha.)\n",
+      leaf_error);
   if (!keep_db)
     for (const std::string& f : {db_path, db_path + "-wal", db_path + "-shm"}) std::filesystem::remove(f);
   return 0;

@@ -44,7 +44,9 @@ namespace pm = terralod::pm;
 namespace tr = terralod::render;
 using Clock = std::chrono::steady_clock;
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
 
 double percentile(std::vector<double> v, double p) {
   std::sort(v.begin(), v.end());
@@ -53,15 +55,16 @@ double percentile(std::vector<double> v, double p) {
 }
 
 // Quadtree domains over the grid down to leaves of <= leaf samples per side.
-void split(const pm::Heightfield& hf, std::vector<tr::PatchDomain>& out, std::int64_t parent, terralod::blocks::SampleRect r,
-           int leaf) {
+void split(const pm::Heightfield& hf, std::vector<tr::PatchDomain>& out, std::int64_t parent,
+           terralod::blocks::SampleRect r, int leaf) {
   tr::PatchDomain d;
   d.id = std::int64_t(out.size());
   d.parent = parent;
   d.domain = r;
   double lo = 1e300, hi = -1e300;
   for (int row = r.row0; row <= r.row1; ++row)
-    for (int col = r.col0; col <= r.col1; ++col) lo = std::min(lo, hf.at(col, row)), hi = std::max(hi, hf.at(col, row));
+    for (int col = r.col0; col <= r.col1; ++col)
+      lo = std::min(lo, hf.at(col, row)), hi = std::max(hi, hf.at(col, row));
   const auto [xa, ya] = hf.transform.to_world(r.col0, r.row0);
   const auto [xb, yb] = hf.transform.to_world(r.col1, r.row1);
   d.bbox = pm::Box{{std::min(xa, xb), std::min(ya, yb), lo}, {std::max(xa, xb), std::max(ya, yb), hi}};
@@ -91,12 +94,17 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--data") data = next();
-    else if (a == "--frames") frames = std::max(1, std::atoi(next().c_str()));
-    else if (a == "--max-texture-size") max_tex = std::max(1, std::atoi(next().c_str()));
-    else if (a == "--budget-mb") budget_mb = std::max(0.001, std::atof(next().c_str()));
+    if (a == "--data")
+      data = next();
+    else if (a == "--frames")
+      frames = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--max-texture-size")
+      max_tex = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--budget-mb")
+      budget_mb = std::max(0.001, std::atof(next().c_str()));
     else if (a == "--help" || a == "-h") {
-      std::puts("usage: terralod-bench-textures [--data DIR] [--frames N] [--max-texture-size N] [--budget-mb M]");
+      std::puts(
+          "usage: terralod-bench-textures [--data DIR] [--frames N] [--max-texture-size N] [--budget-mb M]");
       return 0;
     } else {
       std::fprintf(stderr, "terralod-bench-textures: unknown option %s\n", a.c_str());
@@ -127,19 +135,20 @@ int main(int argc, char** argv) {
     po.max_texture_size = max_tex;
     tr::ImagePyramid::convert(shade, tx, po);
     const tr::ImagePyramid pyr(tx, po);
-    std::printf("pyramid %d levels down to %d x %d (max texture %d), %.0f ms\n", pyr.levels(), pyr.level_sizes().back().width,
-                pyr.level_sizes().back().height, max_tex, ms_since(t));
+    std::printf("pyramid %d levels down to %d x %d (max texture %d), %.0f ms\n", pyr.levels(),
+                pyr.level_sizes().back().width, pyr.level_sizes().back().height, max_tex, ms_since(t));
     std::vector<tr::PatchDomain> doms;
     split(hf, doms, -1, {0, 0, hf.width() - 1, hf.height() - 1}, 65);
-    const tr::GeoRect geo{doms[0].bbox.lo.x - hf.transform.spacing_x() / 2, doms[0].bbox.lo.y - hf.transform.spacing_y() / 2,
-                          doms[0].bbox.hi.x + hf.transform.spacing_x() / 2, doms[0].bbox.hi.y + hf.transform.spacing_y() / 2};
+    const tr::GeoRect geo{
+        doms[0].bbox.lo.x - hf.transform.spacing_x() / 2, doms[0].bbox.lo.y - hf.transform.spacing_y() / 2,
+        doms[0].bbox.hi.x + hf.transform.spacing_x() / 2, doms[0].bbox.hi.y + hf.transform.spacing_y() / 2};
     const tr::TextureTree tree(doms, pyr.level_sizes(), geo, tr::TextureConstraints{max_tex, false});
     std::printf("tree   %zu nodes, %zu texture patches\n", tree.node_count(), tree.patch_count());
 
     const pm::Box& root = doms[0].bbox;
     const double ex = root.hi.x - root.lo.x, ey = root.hi.y - root.lo.y;
-    std::printf("\n%8s %9s %9s %12s %12s %12s %12s %7s %9s\n", "gamma", "patches", "textures", "upload_med", "upload_p99",
-                "upload_max", "resident_max", "loads", "evictions");
+    std::printf("\n%8s %9s %9s %12s %12s %12s %12s %7s %9s\n", "gamma", "patches", "textures", "upload_med",
+                "upload_p99", "upload_max", "resident_max", "loads", "evictions");
     for (double gamma : {0.5, 1.0, 2.0, 4.0, 8.0, 16.0}) {
       tr::TextureCacheOptions co;
       co.budget_bytes = std::size_t(budget_mb * 1024 * 1024);

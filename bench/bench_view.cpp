@@ -60,7 +60,9 @@ double thread_cpu_ms() {
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
 
 /// Nearest-rank percentile (p in [0, 100]) of a non-empty sample.
 double percentile(std::vector<double> v, double p) {
@@ -91,7 +93,8 @@ double ground(const pm::Heightfield& hf, double x, double y) {
 /// The scripted flight: see the header comment.
 std::vector<pm::Camera> flight(const pm::Heightfield& hf, int frames) {
   double xlo = 1e300, xhi = -1e300, ylo = 1e300, yhi = -1e300;
-  for (const auto& [c, r] : {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
+  for (const auto& [c, r] :
+       {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
     const auto [x, y] = hf.transform.to_world(c, r);
     xlo = std::min(xlo, x), xhi = std::max(xhi, x), ylo = std::min(ylo, y), yhi = std::max(yhi, y);
   }
@@ -131,7 +134,6 @@ struct Row {
   double vsplits_median = 0, ecols_median = 0;
 };
 
-
 std::string strf_measured(const Row& r) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.3f (%d frames)", r.measured_max, r.measured_frames);
@@ -159,10 +161,12 @@ int main(int argc, char** argv) {
           "usage: terralod-bench-view [--data DIR] [--full] [--frames N] [--measure-every K] [--csv FILE]\n\n"
           "Benchmarks the view-dependent selection (one update per frame) along a scripted low\n"
           "flight over N44W072.hgt at 1280 x 720 for tau = 0.5, 1, 2, 4, 8 px.\n\n"
-          "  --data DIR    folder holding N44W072.hgt (default: " TERRALOD_DATA_DIR ")\n"
+          "  --data DIR    folder holding N44W072.hgt (default: " TERRALOD_DATA_DIR
+          ")\n"
           "  --full        the whole 1201 x 1201 tile (default: the top-left 1025 x 1025 crop)\n"
           "  --frames N    frames of the flight (default 300, >= 2)\n"
-          "  --measure-every K  measure the exact screen-space error every K-th frame (default 10; 0 = never)\n"
+          "  --measure-every K  measure the exact screen-space error every K-th frame (default 10; 0 = "
+          "never)\n"
           "  --csv FILE    also write the table as CSV\n");
       return 0;
     } else if (a == "--data") {
@@ -183,7 +187,8 @@ int main(int argc, char** argv) {
       char* end = nullptr;
       const long n = std::strtol(v.c_str(), &end, 10);
       if (v.empty() || *end != '\0' || n < 0 || n > 1000000) {
-        std::fprintf(stderr, "terralod-bench-view: --measure-every needs an integer >= 0, not '%s'\n", v.c_str());
+        std::fprintf(stderr, "terralod-bench-view: --measure-every needs an integer >= 0, not '%s'\n",
+                     v.c_str());
         return 2;
       }
       measure_every = int(n);
@@ -215,8 +220,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     const pm::Heightfield hf = full ? tile_hf : crop(tile_hf, 1025, 1025);
-    std::printf("data %s (%s), %d x %d samples, read %.0f ms\n", tile.c_str(), full ? "full tile" : "top-left crop",
-                hf.width(), hf.height(), ms_since(t));
+    std::printf("data %s (%s), %d x %d samples, read %.0f ms\n", tile.c_str(),
+                full ? "full tile" : "top-left crop", hf.width(), hf.height(), ms_since(t));
     t = Clock::now();
     const pm::ProgressiveMesh mesh = pm::ProgressiveMesh::build(hf);
     std::printf("build PM: %zu collapses, %.0f ms\n", mesh.collapses().size(), ms_since(t));
@@ -224,11 +229,11 @@ int main(int argc, char** argv) {
     const pm::CollapseDag dag(mesh);
     std::printf("build DAG: %.0f ms, %.1f MB\n", ms_since(t), double(dag.memory_bytes()) / 1e6);
     const std::vector<pm::Camera> cams = flight(hf, frames);
-    std::printf("flight: %d frames at 1280 x 720, fovy 60, pitch -15, 150 m above ground, heading 45 -> 75 deg, "
-                "%.0f m per frame (%.0f m/s at 60 fps)\n\n",
-                frames,
-                std::hypot(cams[1].x - cams[0].x, cams[1].y - cams[0].y),
-                60.0 * std::hypot(cams[1].x - cams[0].x, cams[1].y - cams[0].y));
+    std::printf(
+        "flight: %d frames at 1280 x 720, fovy 60, pitch -15, 150 m above ground, heading 45 -> 75 deg, "
+        "%.0f m per frame (%.0f m/s at 60 fps)\n\n",
+        frames, std::hypot(cams[1].x - cams[0].x, cams[1].y - cams[0].y),
+        60.0 * std::hypot(cams[1].x - cams[0].x, cams[1].y - cams[0].y));
 
     std::vector<Row> rows;
     bool bound_ok = true;
@@ -247,14 +252,14 @@ int main(int argc, char** argv) {
         row.bound_max = std::max(row.bound_max, s.bound_px);
         if (s.bound_px > tau) bound_ok = false;
         if (measure_every > 0 && i % measure_every == 0) {
-          const terralod::test::ScreenCheck c =
-              terralod::test::check_screen_error(hf, sel.mesh(), terralod::test::ScreenProjector(view.camera()));
+          const terralod::test::ScreenCheck c = terralod::test::check_screen_error(
+              hf, sel.mesh(), terralod::test::ScreenProjector(view.camera()));
           row.measured_max = std::max(row.measured_max, c.max_error_px);
           ++row.measured_frames;
           if (c.max_error_px > s.bound_px + 1e-9) {
             bound_ok = false;
-            std::fprintf(stderr, "frame %d, tau %g: measured %.4f px > bound %.4f px: %s\n", i, tau, c.max_error_px,
-                         s.bound_px, c.describe().c_str());
+            std::fprintf(stderr, "frame %d, tau %g: measured %.4f px > bound %.4f px: %s\n", i, tau,
+                         c.max_error_px, s.bound_px, c.describe().c_str());
           }
         }
         if (i == 0) {
@@ -279,16 +284,16 @@ int main(int argc, char** argv) {
       rows.push_back(row);
     }
 
-    std::printf("| tau (px) | triangles (median) | update median (ms) | update p99 (ms) | update max (ms) | "
-                "update CPU median / p99 (ms) | "
-                "vsplits / ecols (median) | max bound_px | measured worst (px) | cold start (ms, triangles) |\n");
+    std::printf(
+        "| tau (px) | triangles (median) | update median (ms) | update p99 (ms) | update max (ms) | "
+        "update CPU median / p99 (ms) | "
+        "vsplits / ecols (median) | max bound_px | measured worst (px) | cold start (ms, triangles) |\n");
     std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const Row& r : rows)
-      std::printf("| %g | %.0f | %.3f | %.3f | %.3f | %.3f / %.3f | %.0f / %.0f | %.3f | %s | %.1f, %zu |\n", r.tau,
-                  r.triangles_median, r.update_median, r.update_p99, r.update_max, r.cpu_median, r.cpu_p99,
-                  r.vsplits_median, r.ecols_median,
-                  r.bound_max, r.measured_frames ? strf_measured(r).c_str() : "not measured", r.cold_ms,
-                  r.cold_triangles);
+      std::printf("| %g | %.0f | %.3f | %.3f | %.3f | %.3f / %.3f | %.0f / %.0f | %.3f | %s | %.1f, %zu |\n",
+                  r.tau, r.triangles_median, r.update_median, r.update_p99, r.update_max, r.cpu_median,
+                  r.cpu_p99, r.vsplits_median, r.ecols_median, r.bound_max,
+                  r.measured_frames ? strf_measured(r).c_str() : "not measured", r.cold_ms, r.cold_triangles);
 
     if (!csv_path.empty()) {
       std::ofstream f(csv_path);
@@ -297,7 +302,8 @@ int main(int argc, char** argv) {
       for (const Row& r : rows)
         f << r.tau << ',' << r.triangles_median << ',' << r.update_median << ',' << r.update_p99 << ','
           << r.update_max << ',' << r.vsplits_median << ',' << r.ecols_median << ',' << r.bound_max << ','
-          << r.measured_max << ',' << r.measured_frames << ',' << r.cold_ms << ',' << r.cold_triangles << '\n';
+          << r.measured_max << ',' << r.measured_frames << ',' << r.cold_ms << ',' << r.cold_triangles
+          << '\n';
       if (!f) throw std::runtime_error(csv_path + ": cannot write");
     }
 
@@ -308,9 +314,10 @@ int main(int argc, char** argv) {
                 bound_ok ? "PASS" : "FAIL");
     std::printf("target at tau = 1 px: median update %.3f ms <= %.0f ms and p99 %.3f ms <= %.0f ms: %s\n",
                 one.update_median, kTargetMedianMs, one.update_p99, kTargetP99Ms, target ? "PASS" : "FAIL");
-    std::printf("target at tau = 1 px, thread CPU time (what one core spends, whatever else runs): median %.3f ms, "
-                "p99 %.3f ms: %s\n",
-                one.cpu_median, one.cpu_p99, target_cpu ? "PASS" : "FAIL");
+    std::printf(
+        "target at tau = 1 px, thread CPU time (what one core spends, whatever else runs): median %.3f ms, "
+        "p99 %.3f ms: %s\n",
+        one.cpu_median, one.cpu_p99, target_cpu ? "PASS" : "FAIL");
     return bound_ok ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod-bench-view: %s\n", e.what());

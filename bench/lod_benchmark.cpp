@@ -6,6 +6,9 @@
 // on checked frames two height grids of the terrain (16 bytes per sample).
 #include "lod_benchmark.hpp"
 
+#include <time.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -20,9 +23,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <thread>
-
-#include <time.h>
-#include <unistd.h>
 
 #include "plot.hpp"
 #include "screen_error_checker.hpp"
@@ -47,7 +47,9 @@ using Tri = std::array<std::uint32_t, 3>;
 
 constexpr double kFps = 60.0;
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
 
 /// CPU time of the calling thread, ms (not advanced while the thread waits for a core).
 double thread_cpu_ms() {
@@ -82,13 +84,13 @@ double median(const std::vector<double>& v) { return quantile(v, 0.5); }
 
 /// What one LOD update produced.
 struct Frame {
-  std::vector<Tri> triangles;  ///< whole-grid sample indices, CCW in (col, row)
-  std::size_t nodes = 0;       ///< selected nodes
-  double bound_px = 0;         ///< guaranteed screen-space error reported by the selection
-  double update_ms = 0;        ///< LOD work (selection + refinement), wall clock
-  double update_cpu_ms = 0;    ///< the same, CPU time of the thread
-  double bound_ms = 0;         ///< PM blocks: of update_ms, the seams and the bound of what is drawn
-  std::size_t missing = 0;     ///< PM blocks: needed blocks not resident (the bound may exceed tau)
+  std::vector<Tri> triangles;      ///< whole-grid sample indices, CCW in (col, row)
+  std::size_t nodes = 0;           ///< selected nodes
+  double bound_px = 0;             ///< guaranteed screen-space error reported by the selection
+  double update_ms = 0;            ///< LOD work (selection + refinement), wall clock
+  double update_cpu_ms = 0;        ///< the same, CPU time of the thread
+  double bound_ms = 0;             ///< PM blocks: of update_ms, the seams and the bound of what is drawn
+  std::size_t missing = 0;         ///< PM blocks: needed blocks not resident (the bound may exceed tau)
   std::size_t resident_bytes = 0;  ///< PM blocks: the runtime's resident memory
 };
 
@@ -149,7 +151,9 @@ class TreeLod : public LodStrategy {
 class RuntimeLod : public LodStrategy {
  public:
   RuntimeLod(const pm::Heightfield& hf, int block_size, int threads, std::size_t budget_bytes)
-      : db_((std::filesystem::temp_directory_path() / ("terralod_bench_" + std::to_string(::getpid()) + ".db")).string()),
+      : db_((std::filesystem::temp_directory_path() /
+             ("terralod_bench_" + std::to_string(::getpid()) + ".db"))
+                .string()),
         budget_(budget_bytes) {
     std::filesystem::remove(db_);
     tb::DatabaseBuildOptions o;
@@ -185,7 +189,8 @@ class RuntimeLod : public LodStrategy {
     const tb::DrawnMesh& m = rt_->drawn_mesh();
     f.triangles.clear();
     for (const auto& t : m.triangles)
-      f.triangles.push_back({std::uint32_t(m.samples[t[0]]), std::uint32_t(m.samples[t[1]]), std::uint32_t(m.samples[t[2]])});
+      f.triangles.push_back(
+          {std::uint32_t(m.samples[t[0]]), std::uint32_t(m.samples[t[1]]), std::uint32_t(m.samples[t[2]])});
   }
   std::size_t tree_nodes() const { return nodes_; }
 
@@ -223,7 +228,6 @@ class FullGrid : public LodStrategy {
   std::vector<Tri> tris_;
 };
 
-
 /// Draws frames of whole-grid triangle lists with OSMesa (the terrain uploaded once).
 class Drawer {
  public:
@@ -249,7 +253,8 @@ class Drawer {
       for (std::size_t i = 0; i < tris.size(); ++i) flipped_[i] = {tris[i][0], tris[i][2], tris[i][1]};
     }
     const std::vector<Tri>& use = mirrored_ ? flipped_ : tris;
-    renderer_->update_indices(id_, std::span<const std::uint32_t>(use.empty() ? nullptr : use.front().data(), use.size() * 3));
+    renderer_->update_indices(
+        id_, std::span<const std::uint32_t>(use.empty() ? nullptr : use.front().data(), use.size() * 3));
     renderer_->draw((cam), {{id_, 0.0f}});
     return ms_since(t);
   }
@@ -287,10 +292,12 @@ void check_options(const LodBenchmarkOptions& o) {
   if (o.taus.empty()) bad("no tau given");
   for (double t : o.taus)
     if (!(t > 0) || !std::isfinite(t)) bad("every tau must be a finite number > 0, not " + fmt("%g", t));
-  if (!tb::is_valid_block_size(o.block_size)) bad("block size must be 2^k + 1, not " + std::to_string(o.block_size));
+  if (!tb::is_valid_block_size(o.block_size))
+    bad("block size must be 2^k + 1, not " + std::to_string(o.block_size));
   if (o.chunk_patch < 1) bad("chunk patch must be >= 1");
   if (o.node_points < 4) bad("node points must be >= 4");
-  if (o.check_every < 1 || o.draw_every < 1 || o.full_draw_every < 1) bad("check/draw intervals must be >= 1");
+  if (o.check_every < 1 || o.draw_every < 1 || o.full_draw_every < 1)
+    bad("check/draw intervals must be >= 1");
   if (o.build_threads < 1) bad("build threads must be >= 1");
   for (const std::string& n : o.strategies)
     if (std::find(strategy_names().begin(), strategy_names().end(), n) == strategy_names().end())
@@ -321,7 +328,8 @@ LodBenchmarkOptions short_benchmark_options() {
 std::string default_data_dir() { return TERRALOD_DATA_DIR; }
 
 const std::vector<std::string>& strategy_names() {
-  static const std::vector<std::string> names = {"pm_blocks", "chunked_lod", "tin", "nonregular", "full_grid"};
+  static const std::vector<std::string> names = {"pm_blocks", "chunked_lod", "tin", "nonregular",
+                                                 "full_grid"};
   return names;
 }
 
@@ -358,7 +366,8 @@ std::vector<std::vector<pm::Camera>> benchmark_flights(const pm::Heightfield& hf
     c.yaw_deg = std::atan2(dx, dy) / deg;
     c.pitch_deg = -15.0;
     double ground = tt::ground_height(hf, c.x, c.y);
-    for (double d : {100.0, 200.0, 400.0}) ground = std::max(ground, tt::ground_height(hf, c.x + d * dx, c.y + d * dy));
+    for (double d : {100.0, 200.0, 400.0})
+      ground = std::max(ground, tt::ground_height(hf, c.x + d * dx, c.y + d * dy));
     c.z = ground + 150.0;
     out[0].push_back(c);
   }
@@ -392,8 +401,8 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
     res.terrain = o.dem_path;
   } else {
     hf = pm::generate_terrain(o.generated);
-    res.terrain = "generated " + std::to_string(o.generated.width) + "x" + std::to_string(o.generated.height) +
-                  " seed " + std::to_string(o.generated.seed);
+    res.terrain = "generated " + std::to_string(o.generated.width) + "x" +
+                  std::to_string(o.generated.height) + " seed " + std::to_string(o.generated.seed);
   }
   res.grid_width = hf.width();
   res.grid_height = hf.height();
@@ -405,7 +414,8 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
 
   // Offline: the trees and the block PMs.
   auto wanted = [&](const std::string& name) {
-    return o.strategies.empty() || std::find(o.strategies.begin(), o.strategies.end(), name) != o.strategies.end();
+    return o.strategies.empty() ||
+           std::find(o.strategies.begin(), o.strategies.end(), name) != o.strategies.end();
   };
   std::vector<std::unique_ptr<LodStrategy>> strategies;
   const tb::BlockLayout layout = tb::partition(hf.width(), hf.height(), o.block_size);
@@ -416,14 +426,16 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
     strategies.push_back(std::move(pmb));
   }
   if (wanted("pm_blocks")) {
-  res.build_seconds.push_back({"pm_blocks", ms_since(t) / 1000});
-  log("build pm_blocks: a block database of " + std::to_string(layout.count()) + " block PMs of " +
-      std::to_string(o.block_size) + " samples + grid tree of " + std::to_string(res.tree_nodes.back().second) + " nodes (" +
-      fmt("%.1f s", res.build_seconds.back().second) + ")");
+    res.build_seconds.push_back({"pm_blocks", ms_since(t) / 1000});
+    log("build pm_blocks: a block database of " + std::to_string(layout.count()) + " block PMs of " +
+        std::to_string(o.block_size) + " samples + grid tree of " +
+        std::to_string(res.tree_nodes.back().second) + " nodes (" +
+        fmt("%.1f s", res.build_seconds.back().second) + ")");
   }
-  const std::pair<const char*, tb::StrategyChoice> pure[] = {{"chunked_lod", tb::StrategyChoice::Grid},
-                                                             {"tin", tb::StrategyChoice::Tin},
-                                                             {"nonregular", tb::StrategyChoice::NonRegularGrid}};
+  const std::pair<const char*, tb::StrategyChoice> pure[] = {
+      {"chunked_lod", tb::StrategyChoice::Grid},
+      {"tin", tb::StrategyChoice::Tin},
+      {"nonregular", tb::StrategyChoice::NonRegularGrid}};
   for (const auto& [name, choice] : pure) {
     if (!wanted(name)) continue;
     tb::TreeBuildOptions to;
@@ -446,11 +458,13 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
     res.build_seconds.push_back({"full_grid", 0.0});
   }
 
-  const std::vector<std::vector<pm::Camera>> flights = benchmark_flights(hf, o.frames, o.width_px, o.height_px);
-  res.flights = {std::to_string(flights[0].size()) +
-                     " frames: low circle, 150 m above the ground ahead, 120 m/s, pitch -15, fovy 60",
-                 std::to_string(flights[1].size()) +
-                     " frames: high diagonal pass, 1500 m above the highest sample, 400 m/s, pitch -30, fovy 60"};
+  const std::vector<std::vector<pm::Camera>> flights =
+      benchmark_flights(hf, o.frames, o.width_px, o.height_px);
+  res.flights = {
+      std::to_string(flights[0].size()) +
+          " frames: low circle, 150 m above the ground ahead, 120 m/s, pitch -15, fovy 60",
+      std::to_string(flights[1].size()) +
+          " frames: high diagonal pass, 1500 m above the highest sample, 400 m/s, pitch -30, fovy 60"};
   t = Clock::now();
   Drawer drawer(hf);
   res.renderer = drawer.renderer_name();
@@ -474,7 +488,8 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
         StrategyRow r = res.rows.back();
         r.tau_px = tau;
         res.rows.push_back(r);
-        log("run full_grid tau " + fmt("%g", tau) + " px: the same as tau " + fmt("%g", o.taus[0]) + " px (no LOD)");
+        log("run full_grid tau " + fmt("%g", tau) + " px: the same as tau " + fmt("%g", o.taus[0]) +
+            " px (no LOD)");
         continue;
       }
       t = Clock::now();
@@ -537,12 +552,14 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
       res.rows.push_back(row);
       log("run " + row.strategy + " tau " + fmt("%g", tau) + " px: " + fmt("%.0f", row.triangles_median) +
           " triangles, update " + fmt("%.3f", row.update_median_ms) + "/" + fmt("%.3f", row.update_p99_ms) +
-          " ms (cpu " + fmt("%.3f", row.update_cpu_median_ms) + "/" + fmt("%.3f", row.update_cpu_p99_ms) + "), draw " + fmt("%.1f", row.draw_median_ms) + " ms, measured worst " + fmt("%.3f", row.measured_worst_px) +
-          " px, popping " + fmt("%.2f", row.popping_px) + " px" +
-          (row.strategy == "pm_blocks" ? ", guaranteed " + fmt("%.3f", row.guaranteed_px) + " px, " +
-                                             std::to_string(row.missing_frames) + " frames missing blocks, peak resident " +
-                                             fmt("%.0f MB", double(row.peak_resident_bytes) / 1e6)
-                                       : std::string()) +
+          " ms (cpu " + fmt("%.3f", row.update_cpu_median_ms) + "/" + fmt("%.3f", row.update_cpu_p99_ms) +
+          "), draw " + fmt("%.1f", row.draw_median_ms) + " ms, measured worst " +
+          fmt("%.3f", row.measured_worst_px) + " px, popping " + fmt("%.2f", row.popping_px) + " px" +
+          (row.strategy == "pm_blocks"
+               ? ", guaranteed " + fmt("%.3f", row.guaranteed_px) + " px, " +
+                     std::to_string(row.missing_frames) + " frames missing blocks, peak resident " +
+                     fmt("%.0f MB", double(row.peak_resident_bytes) / 1e6)
+               : std::string()) +
           " (" + fmt("%.1f s", ms_since(t) / 1000) + ")");
     }
   }
@@ -552,14 +569,17 @@ LodBenchmarkResult run_lod_benchmark(const LodBenchmarkOptions& o) {
 void write_csv(const LodBenchmarkResult& r, const std::string& path) {
   std::ostringstream s;
   s << "strategy,tau_px,frames,drawn_frames,checked_frames,nodes_median,triangles_median,triangles_max,"
-       "update_median_ms,update_p99_ms,update_cpu_median_ms,update_cpu_p99_ms,update_bound_median_ms,draw_median_ms,draw_p99_ms,frame_median_ms,frame_p99_ms,guaranteed_px,"
+       "update_median_ms,update_p99_ms,update_cpu_median_ms,update_cpu_p99_ms,update_bound_median_ms,draw_"
+       "median_ms,draw_p99_ms,frame_median_ms,frame_p99_ms,guaranteed_px,"
        "measured_worst_px,popping_px,changed_frames,missing_frames,peak_resident_bytes\n";
   char buf[512];
   for (const StrategyRow& w : r.rows) {
-    std::snprintf(buf, sizeof buf, "%s,%g,%zu,%zu,%zu,%g,%g,%g,%.4f,%.4f,%.4f,%.4f,%.4f,%.3f,%.3f,%.3f,%.3f,%.6g,%.6g,%.6g,%zu,%zu,%zu\n",
+    std::snprintf(buf, sizeof buf,
+                  "%s,%g,%zu,%zu,%zu,%g,%g,%g,%.4f,%.4f,%.4f,%.4f,%.4f,%.3f,%.3f,%.3f,%.3f,%.6g,%.6g,%.6g,%"
+                  "zu,%zu,%zu\n",
                   w.strategy.c_str(), w.tau_px, w.frames, w.drawn_frames, w.checked_frames, w.nodes_median,
-                  w.triangles_median, w.triangles_max, w.update_median_ms, w.update_p99_ms, w.update_cpu_median_ms,
-                  w.update_cpu_p99_ms, w.update_bound_median_ms, w.draw_median_ms,
+                  w.triangles_median, w.triangles_max, w.update_median_ms, w.update_p99_ms,
+                  w.update_cpu_median_ms, w.update_cpu_p99_ms, w.update_bound_median_ms, w.draw_median_ms,
                   w.draw_p99_ms, w.frame_median_ms, w.frame_p99_ms, w.guaranteed_px, w.measured_worst_px,
                   w.popping_px, w.changed_frames, w.missing_frames, w.peak_resident_bytes);
     s << buf;
@@ -587,7 +607,8 @@ void write_plots(const LodBenchmarkResult& r, const std::string& folder) {
     by_tris.push_back(b);
   }
   PlotOptions o;
-  o.title = "guaranteed screen error vs frame time (" + std::to_string(r.width_px) + "x" + std::to_string(r.height_px) + ")";
+  o.title = "guaranteed screen error vs frame time (" + std::to_string(r.width_px) + "x" +
+            std::to_string(r.height_px) + ")";
   o.x_label = "median frame time, ms (LOD update + OSMesa draw)";
   o.y_label = "tau, px (measured worst <= tau)";
   write_line_plot(by_time, o, (std::filesystem::path(folder) / "error_vs_time.png").string());
@@ -598,13 +619,16 @@ void write_plots(const LodBenchmarkResult& r, const std::string& folder) {
 
 std::vector<TargetCheck> check_targets(const LodBenchmarkResult& r) {
   std::vector<TargetCheck> out;
-  const StrategyRow *pm1 = r.find("pm_blocks", 1.0), *ch1 = r.find("chunked_lod", 1.0), *tin1 = r.find("tin", 1.0);
+  const StrategyRow *pm1 = r.find("pm_blocks", 1.0), *ch1 = r.find("chunked_lod", 1.0),
+                    *tin1 = r.find("tin", 1.0);
   {
-    TargetCheck c{"tau = 1 px: PM blocks draw <= 0.5 x the chunked-LOD triangles", false, "tau = 1 px not run"};
+    TargetCheck c{"tau = 1 px: PM blocks draw <= 0.5 x the chunked-LOD triangles", false,
+                  "tau = 1 px not run"};
     if (pm1 && ch1) {
       const double q = pm1->triangles_median / std::max(1.0, ch1->triangles_median);
       c.pass = q <= 0.5;
-      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", ch1->triangles_median) + " = " + fmt("%.3f", q);
+      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", ch1->triangles_median) + " = " +
+                 fmt("%.3f", q);
     }
     out.push_back(c);
   }
@@ -613,34 +637,38 @@ std::vector<TargetCheck> check_targets(const LodBenchmarkResult& r) {
     if (pm1 && tin1) {
       const double q = pm1->triangles_median / std::max(1.0, tin1->triangles_median);
       c.pass = q <= 1.2;
-      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", tin1->triangles_median) + " = " + fmt("%.3f", q);
+      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", tin1->triangles_median) + " = " +
+                 fmt("%.3f", q);
     }
     out.push_back(c);
   }
   {
     // Thread CPU time: on a shared machine the wall clock also counts the time the thread waits
     // for a core (preemption), which is not LOD work; the wall-clock numbers are in the table.
-    TargetCheck c{"PM blocks LOD update (thread CPU time): median <= 1 ms and p99 <= 4 ms (every tau)", true, ""};
+    TargetCheck c{"PM blocks LOD update (thread CPU time): median <= 1 ms and p99 <= 4 ms (every tau)", true,
+                  ""};
     for (const StrategyRow& w : r.rows)
       if (w.strategy == "pm_blocks") {
         const bool ok = w.update_cpu_median_ms <= 1.0 && w.update_cpu_p99_ms <= 4.0;
         c.pass = c.pass && ok;
-        c.detail += (c.detail.empty() ? "" : "; ") + fmt("tau %g: ", w.tau_px) + fmt("%.3f", w.update_cpu_median_ms) +
-                    " / " + fmt("%.3f ms", w.update_cpu_p99_ms) + " (wall " + fmt("%.3f", w.update_median_ms) + " / " +
-                    fmt("%.3f", w.update_p99_ms) + ", seams and bound " + fmt("%.3f)", w.update_bound_median_ms) +
-                    (ok ? "" : " over");
+        c.detail += (c.detail.empty() ? "" : "; ") + fmt("tau %g: ", w.tau_px) +
+                    fmt("%.3f", w.update_cpu_median_ms) + " / " + fmt("%.3f ms", w.update_cpu_p99_ms) +
+                    " (wall " + fmt("%.3f", w.update_median_ms) + " / " + fmt("%.3f", w.update_p99_ms) +
+                    ", seams and bound " + fmt("%.3f)", w.update_bound_median_ms) + (ok ? "" : " over");
       }
     out.push_back(c);
   }
   {
-    TargetCheck c{"PM blocks: every frame complete (no needed block missing) and drawn within tau; resident memory",
-                  true, ""};
+    TargetCheck c{
+        "PM blocks: every frame complete (no needed block missing) and drawn within tau; resident memory",
+        true, ""};
     for (const StrategyRow& w : r.rows)
       if (w.strategy == "pm_blocks") {
         const bool ok = w.missing_frames == 0 && w.guaranteed_px <= w.tau_px;
         c.pass = c.pass && ok;
-        c.detail += (c.detail.empty() ? "" : "; ") + fmt("tau %g: ", w.tau_px) + fmt("bound <= %.3f px, ", w.guaranteed_px) +
-                    std::to_string(w.missing_frames) + " frames missing blocks, peak resident " +
+        c.detail += (c.detail.empty() ? "" : "; ") + fmt("tau %g: ", w.tau_px) +
+                    fmt("bound <= %.3f px, ", w.guaranteed_px) + std::to_string(w.missing_frames) +
+                    " frames missing blocks, peak resident " +
                     fmt("%.0f MB", double(w.peak_resident_bytes) / 1e6) + (ok ? "" : " over");
       }
     out.push_back(c);
@@ -664,8 +692,9 @@ std::vector<TargetCheck> check_targets(const LodBenchmarkResult& r) {
 std::string summary_markdown(const LodBenchmarkResult& r) {
   std::ostringstream s;
   s << "# terralod bench: run time versus error\n\n";
-  s << "Terrain: " << r.terrain << " (" << r.grid_width << " x " << r.grid_height << " samples), " << r.width_px
-    << " x " << r.height_px << " pixels, renderer " << r.renderer << ".\n\nFlights (60 frames per second):\n";
+  s << "Terrain: " << r.terrain << " (" << r.grid_width << " x " << r.grid_height << " samples), "
+    << r.width_px << " x " << r.height_px << " pixels, renderer " << r.renderer
+    << ".\n\nFlights (60 frames per second):\n";
   for (const std::string& f : r.flights) s << "- " << f << "\n";
   s << "\nEvery strategy is selected for a guaranteed screen-space error <= tau; 'measured' is the\n"
        "independent brute-force checker's worst error on the checked frames; 'popping' the largest\n"
@@ -673,7 +702,8 @@ std::string summary_markdown(const LodBenchmarkResult& r) {
        "of the frames: 'changed' counts all frames whose triangles differ from the previous\n"
        "frame's). Ratios (x) are to chunked_lod at the same tau, measured in this run. Times:\n"
        "median / p99, ms; 'update' wall clock, 'update cpu' the thread's CPU time.\n\n";
-  s << "| tau px | strategy | triangles | x chunked | nodes | update ms | update cpu ms | draw ms | frame ms | "
+  s << "| tau px | strategy | triangles | x chunked | nodes | update ms | update cpu ms | draw ms | frame ms "
+       "| "
        "x chunked (frame) | measured px | popping px | changed |\n";
   s << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   std::vector<double> taus;
@@ -687,12 +717,13 @@ std::string summary_markdown(const LodBenchmarkResult& r) {
       if (!w) continue;
       const double qt = ch ? w->triangles_median / std::max(1.0, ch->triangles_median) : 0.0;
       const double qf = ch && ch->frame_median_ms > 0 ? w->frame_median_ms / ch->frame_median_ms : 0.0;
-      std::snprintf(buf, sizeof buf,
-                    "| %g | %s | %.0f | %.2f | %.0f | %.3f / %.3f | %.3f / %.3f | %.1f / %.1f | %.1f / %.1f | %.2f | "
-                    "%.3f | %.2f | %zu |\n",
-                    tau, name.c_str(), w->triangles_median, qt, w->nodes_median, w->update_median_ms,
-                    w->update_p99_ms, w->update_cpu_median_ms, w->update_cpu_p99_ms, w->draw_median_ms, w->draw_p99_ms, w->frame_median_ms, w->frame_p99_ms, qf,
-                    w->measured_worst_px, w->popping_px, w->changed_frames);
+      std::snprintf(
+          buf, sizeof buf,
+          "| %g | %s | %.0f | %.2f | %.0f | %.3f / %.3f | %.3f / %.3f | %.1f / %.1f | %.1f / %.1f | %.2f | "
+          "%.3f | %.2f | %zu |\n",
+          tau, name.c_str(), w->triangles_median, qt, w->nodes_median, w->update_median_ms, w->update_p99_ms,
+          w->update_cpu_median_ms, w->update_cpu_p99_ms, w->draw_median_ms, w->draw_p99_ms,
+          w->frame_median_ms, w->frame_p99_ms, qf, w->measured_worst_px, w->popping_px, w->changed_frames);
       s << buf;
     }
   }
@@ -703,7 +734,8 @@ std::string summary_markdown(const LodBenchmarkResult& r) {
       if (n == r.build_seconds[i].first) s << " (" << c << " nodes)";
   }
   s << ".\n\n## Targets\n\n";
-  for (const TargetCheck& c : check_targets(r)) s << "- " << (c.pass ? "PASS" : "FAIL") << ": " << c.name << " — " << c.detail << "\n";
+  for (const TargetCheck& c : check_targets(r))
+    s << "- " << (c.pass ? "PASS" : "FAIL") << ": " << c.name << " — " << c.detail << "\n";
   return s.str();
 }
 

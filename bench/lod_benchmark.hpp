@@ -70,24 +70,24 @@
 namespace terralod::bench {
 
 struct LodBenchmarkOptions {
-  std::string dem_path;                  ///< DEM to fly over; empty = generate `generated`
+  std::string dem_path;  ///< DEM to fly over; empty = generate `generated`
   /// The strategies to run (names of strategy_names(), in any order); empty = all of them.
   std::vector<std::string> strategies;
   pm::TerrainOptions generated{.width = 513, .height = 513, .seed = 8, .spacing = 30.0, .relief = 1200.0};
-  int frames = 600;                      ///< frames in all, split over the two flights, >= 2
-  int width_px = 1280, height_px = 720;  ///< viewport, >= 16 x 16
+  int frames = 600;                                      ///< frames in all, split over the two flights, >= 2
+  int width_px = 1280, height_px = 720;                  ///< viewport, >= 16 x 16
   std::vector<double> taus = {0.5, 1.0, 2.0, 4.0, 8.0};  ///< screen-space tolerances, px, > 0
-  int block_size = 257;                  ///< PM blocks: samples per block side, 2^k + 1
+  int block_size = 257;                                  ///< PM blocks: samples per block side, 2^k + 1
   /// PM blocks: the runtime's resident memory budget, bytes (> 0).
   std::size_t memory_budget_bytes = std::size_t(2) << 30;
-  int chunk_patch = 32;                  ///< chunked LOD: chunks of (P+1)^2 samples, P >= 1
+  int chunk_patch = 32;  ///< chunked LOD: chunks of (P+1)^2 samples, P >= 1
   /// s of TIN and non-regular nodes, >= 4; default (32+1)^2, the chunks' point budget (the trees'
   /// s = 25 default would make exact-leaf trees of ~2 nodes per sample: gigabytes for N44W072).
   std::size_t node_points = 1089;
-  int check_every = 20;                  ///< error and popping checked on every k-th frame, >= 1
-  int draw_every = 10;                   ///< LOD strategies drawn on every k-th frame, >= 1
-  int full_draw_every = 30;              ///< the full grid drawn on every k-th frame, >= 1
-  int build_threads = 2;                 ///< threads for building trees and PMs (offline), >= 1
+  int check_every = 20;      ///< error and popping checked on every k-th frame, >= 1
+  int draw_every = 10;       ///< LOD strategies drawn on every k-th frame, >= 1
+  int full_draw_every = 30;  ///< the full grid drawn on every k-th frame, >= 1
+  int build_threads = 2;     ///< threads for building trees and PMs (offline), >= 1
   /// One line per stage (progress); may be empty.
   std::function<void(const std::string&)> log;
 };
@@ -97,7 +97,7 @@ struct StrategyRow {
   std::string strategy;  ///< pm_blocks | chunked_lod | tin | nonregular | full_grid
   double tau_px = 0;
   std::size_t frames = 0, drawn_frames = 0, checked_frames = 0;
-  double nodes_median = 0;                ///< selected nodes (PM: blocks and grid nodes)
+  double nodes_median = 0;  ///< selected nodes (PM: blocks and grid nodes)
   double triangles_median = 0, triangles_max = 0;
   double update_median_ms = 0, update_p99_ms = 0;          ///< wall clock
   double update_cpu_median_ms = 0, update_cpu_p99_ms = 0;  ///< thread CPU time (no preemption)
@@ -110,21 +110,21 @@ struct StrategyRow {
   std::size_t peak_resident_bytes = 0;
   double draw_median_ms = 0, draw_p99_ms = 0;
   double frame_median_ms = 0, frame_p99_ms = 0;
-  double guaranteed_px = 0;               ///< largest bound reported by the selection
-  double measured_worst_px = 0;           ///< largest error found by the independent checker
-  double popping_px = 0;                  ///< largest per-frame change of the surface, px
-  std::size_t changed_frames = 0;         ///< frames whose triangles differ from the previous frame's
+  double guaranteed_px = 0;        ///< largest bound reported by the selection
+  double measured_worst_px = 0;    ///< largest error found by the independent checker
+  double popping_px = 0;           ///< largest per-frame change of the surface, px
+  std::size_t changed_frames = 0;  ///< frames whose triangles differ from the previous frame's
 };
 
 struct LodBenchmarkResult {
-  std::string terrain;                    ///< the DEM's path or "generated WxH seed S"
+  std::string terrain;  ///< the DEM's path or "generated WxH seed S"
   int grid_width = 0, grid_height = 0;
   int frames = 0, width_px = 0, height_px = 0;
-  std::string renderer;                   ///< the GL renderer string (llvmpipe ...)
-  std::vector<std::string> flights;       ///< one line describing each flight
-  std::vector<std::pair<std::string, double>> build_seconds;  ///< per strategy, offline
+  std::string renderer;                                         ///< the GL renderer string (llvmpipe ...)
+  std::vector<std::string> flights;                             ///< one line describing each flight
+  std::vector<std::pair<std::string, double>> build_seconds;    ///< per strategy, offline
   std::vector<std::pair<std::string, std::size_t>> tree_nodes;  ///< per tree strategy
-  std::vector<StrategyRow> rows;          ///< strategy-major, taus in the given order
+  std::vector<StrategyRow> rows;                                ///< strategy-major, taus in the given order
   const StrategyRow* find(const std::string& strategy, double tau_px) const;
 };
 

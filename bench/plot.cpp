@@ -84,7 +84,8 @@ std::string tick_label(double v) {
 
 }  // namespace
 
-void write_line_plot(const std::vector<PlotSeries>& series, const PlotOptions& options, const std::string& path) {
+void write_line_plot(const std::vector<PlotSeries>& series, const PlotOptions& options,
+                     const std::string& path) {
   assert(options.width_px >= 320 && options.height_px >= 240);
   const int W = options.width_px, H = options.height_px;
   const int left = 80, right = W - 200, top = 50, bottom = H - 60;
@@ -108,12 +109,14 @@ void write_line_plot(const std::vector<PlotSeries>& series, const PlotOptions& o
   for (double v : ax.ticks()) {
     const int p = ax.pixel(v);
     OIIO::ImageBufAlgo::render_line(img, p, top, p, bottom, grid);
-    OIIO::ImageBufAlgo::render_text(img, p, bottom + 18, tick_label(v), 13, f, black, OIIO::ImageBufAlgo::TextAlignX::Center);
+    OIIO::ImageBufAlgo::render_text(img, p, bottom + 18, tick_label(v), 13, f, black,
+                                    OIIO::ImageBufAlgo::TextAlignX::Center);
   }
   for (double v : ay.ticks()) {
     const int p = ay.pixel(v);
     OIIO::ImageBufAlgo::render_line(img, left, p, right, p, grid);
-    OIIO::ImageBufAlgo::render_text(img, left - 6, p + 5, tick_label(v), 13, f, black, OIIO::ImageBufAlgo::TextAlignX::Right);
+    OIIO::ImageBufAlgo::render_text(img, left - 6, p + 5, tick_label(v), 13, f, black,
+                                    OIIO::ImageBufAlgo::TextAlignX::Right);
   }
   OIIO::ImageBufAlgo::render_box(img, left, top, right, bottom, black);
   OIIO::ImageBufAlgo::render_text(img, (left + right) / 2, 22, options.title, 18, f, black,

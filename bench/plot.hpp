@@ -39,6 +39,7 @@ struct PlotOptions {
 };
 
 /// Draws the series and writes a PNG (8-bit RGB) to `path`.
-void write_line_plot(const std::vector<PlotSeries>& series, const PlotOptions& options, const std::string& path);
+void write_line_plot(const std::vector<PlotSeries>& series, const PlotOptions& options,
+                     const std::string& path);
 
 }  // namespace terralod::bench

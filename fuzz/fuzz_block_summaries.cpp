@@ -79,17 +79,20 @@ void check_summary(const tb::BlockGrid& grid, std::size_t i, const tb::BlockSumm
   unsigned corners = 0;
   for (const tb::StandinPoint& p : s.points) {
     if (p.col < 0 || p.row < 0 || p.col >= w || p.row >= h) finding(at + "stand-in point outside the block");
-    if (!std::isfinite(p.z) || p.z < s.zmin || p.z > s.zmax) finding(at + "stand-in point height outside [zmin, zmax]");
+    if (!std::isfinite(p.z) || p.z < s.zmin || p.z > s.zmax)
+      finding(at + "stand-in point height outside [zmin, zmax]");
     const double corner_z[4] = {s.z00, s.z10, s.z01, s.z11};
     for (int c = 0; c < 4; ++c)
-      if (p.col == (c & 1 ? w - 1 : 0) && p.row == (c & 2 ? h - 1 : 0) && p.z == corner_z[c]) corners |= 1u << c;
+      if (p.col == (c & 1 ? w - 1 : 0) && p.row == (c & 2 ? h - 1 : 0) && p.z == corner_z[c])
+        corners |= 1u << c;
   }
   if (corners != 15) finding(at + "a block corner (at its corner height) is not among the stand-in points");
   if (s.triangles.empty()) finding(at + "a stand-in without triangles");
   for (const auto& t : s.triangles)
     for (std::uint32_t v : t)
       if (v >= s.points.size()) finding(at + "stand-in triangle index out of range");
-  if (s.triangle_errors.size() != s.triangles.size()) finding(at + "triangle_errors.size() != triangles.size()");
+  if (s.triangle_errors.size() != s.triangles.size())
+    finding(at + "triangle_errors.size() != triangles.size()");
   double emax = 0;
   for (double e : s.triangle_errors) {
     if (!std::isfinite(e) || !(e >= 0)) finding(at + "a non-finite or negative triangle error");
@@ -111,7 +114,8 @@ void check(const tb::BlockGrid& grid, std::span<const std::uint8_t> blob) {
   }
   if (out.size() != grid.block_count()) finding("not one summary per block");
   for (std::size_t i = 0; i < out.size(); ++i) check_summary(grid, i, out[i]);
-  if (u32_at(blob, 4) == 2 && tb::encode_block_summaries(grid, out) != std::vector<std::uint8_t>(blob.begin(), blob.end()))
+  if (u32_at(blob, 4) == 2 &&
+      tb::encode_block_summaries(grid, out) != std::vector<std::uint8_t>(blob.begin(), blob.end()))
     finding("decoded version 2 blob does not re-encode to the same bytes");
 }
 

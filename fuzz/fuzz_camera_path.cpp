@@ -4,8 +4,8 @@
 //
 // Bounded work: inputs over 64 KiB are skipped (returning -1 keeps them out of the corpus).
 #include <cmath>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -43,8 +43,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     REQUIRE(c.pitch_deg >= -90.0 && c.pitch_deg <= 90.0);
     REQUIRE(c.fovy_deg > 0.0 && c.fovy_deg < 180.0);
     char buf[256];
-    std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", c.x, c.y, c.z, c.yaw_deg, c.pitch_deg,
-                  c.fovy_deg);
+    std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", c.x, c.y, c.z, c.yaw_deg,
+                  c.pitch_deg, c.fovy_deg);
     again += buf;
   }
   const std::vector<pm::Camera> back = pm::parse_camera_path(again, "again.csv");

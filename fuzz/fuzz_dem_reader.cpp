@@ -43,9 +43,9 @@ namespace tb = terralod::blocks;
 constexpr std::uint64_t kMaxForeignSamples = std::uint64_t(1) << 20;
 
 [[noreturn]] void finding(const std::string& what) { terralod::fuzz::finding("fuzz_dem_reader", what); }
-#define REQUIRE(cond)                                       \
-  do {                                                      \
-    if (!(cond)) finding("invariant broken: " #cond);       \
+#define REQUIRE(cond)                                 \
+  do {                                                \
+    if (!(cond)) finding("invariant broken: " #cond); \
   } while (0)
 
 fs::path scratch_dir;
@@ -64,7 +64,8 @@ std::uint64_t declared_samples(const std::string& path, bool gdal) {
   // .tif files without georeferencing go to OpenImageIO too; ask it as well.
   if (auto in = OIIO::ImageInput::open(path)) {
     const OIIO::ImageSpec& s = in->spec();
-    n = std::max<std::uint64_t>(n, std::uint64_t(std::max(s.width, 0)) * std::uint64_t(std::max(s.height, 0)) *
+    n = std::max<std::uint64_t>(n, std::uint64_t(std::max(s.width, 0)) *
+                                       std::uint64_t(std::max(s.height, 0)) *
                                        std::uint64_t(std::max(s.depth, 1)));
   } else {
     (void)OIIO::geterror();  // clear the thread's error message
@@ -76,8 +77,10 @@ std::uint64_t declared_samples(const std::string& path, bool gdal) {
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   char tmpl[] = "/tmp/fuzz_dem_reader.XXXXXX";
-  if (const char* d = ::mkdtemp(tmpl)) scratch_dir = d;
-  else finding("cannot create a temporary folder");
+  if (const char* d = ::mkdtemp(tmpl))
+    scratch_dir = d;
+  else
+    finding("cannot create a temporary folder");
   // Keep GDAL's block cache small, so that libFuzzer's RSS limit measures the reader.
   CPLSetConfigOption("GDAL_CACHEMAX", "32");
   GDALAllRegister();

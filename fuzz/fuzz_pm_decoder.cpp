@@ -31,13 +31,14 @@ namespace pm = terralod::pm;
 constexpr std::uint64_t kMaxFuzzSamples = std::uint64_t(1) << 16;
 
 [[noreturn]] void finding(const std::string& what) { terralod::fuzz::finding("fuzz_pm_decoder", what); }
-#define REQUIRE(cond)                                      \
-  do {                                                     \
-    if (!(cond)) finding("invariant broken: " #cond);      \
+#define REQUIRE(cond)                                 \
+  do {                                                \
+    if (!(cond)) finding("invariant broken: " #cond); \
   } while (0)
 
 std::uint32_t le32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
+         std::uint32_t(p[3]) << 24;
 }
 
 bool same_pm(const pm::ProgressiveMesh& a, const pm::ProgressiveMesh& b) {

@@ -28,12 +28,14 @@ void check(std::span<const std::uint8_t> bytes) {
   }
   const auto& p = tree.parameters();
   for (const tb::TreeNode& n : tree.nodes()) {
-    if (n.id != 0 && (n.parent < 0 || n.parent >= n.id)) terralod::fuzz::finding("fuzz_tree_decoder", "bad parent");
+    if (n.id != 0 && (n.parent < 0 || n.parent >= n.id))
+      terralod::fuzz::finding("fuzz_tree_decoder", "bad parent");
     if (n.domain.col0 < 0 || n.domain.col1 >= std::max(1, p.grid_width) || n.domain.col0 > n.domain.col1)
       terralod::fuzz::finding("fuzz_tree_decoder", "domain outside the grid");
     for (const auto& t : n.surface.triangles)
       for (std::uint32_t v : t)
-        if (v >= n.surface.points.size()) terralod::fuzz::finding("fuzz_tree_decoder", "triangle index out of range");
+        if (v >= n.surface.points.size())
+          terralod::fuzz::finding("fuzz_tree_decoder", "triangle index out of range");
   }
   if (tb::encode_tree(tree) != std::vector<std::uint8_t>(bytes.begin(), bytes.end()))
     terralod::fuzz::finding("fuzz_tree_decoder", "decoded tree does not re-encode to the same bytes");

@@ -66,9 +66,11 @@ void pm_seeds(const fs::path& dir) {
   pm::BuildOptions one_thread;
   one_thread.threads = 1;
   // 9 x 9, whole metres (quantized heights), full hierarchy.
-  write(dir / "seed_9x9_metres.pm", pm::encode_pm(pm::ProgressiveMesh::build(terrain(9, 9, true), one_thread)));
+  write(dir / "seed_9x9_metres.pm",
+        pm::encode_pm(pm::ProgressiveMesh::build(terrain(9, 9, true), one_thread)));
   // 9 x 9, arbitrary doubles (raw height planes).
-  write(dir / "seed_9x9_doubles.pm", pm::encode_pm(pm::ProgressiveMesh::build(terrain(9, 9, false), one_thread)));
+  write(dir / "seed_9x9_doubles.pm",
+        pm::encode_pm(pm::ProgressiveMesh::build(terrain(9, 9, false), one_thread)));
   // 8 x 7 with a 2 x 2 hole (void mask, dropped faces) and the samples-only metric.
   pm::Heightfield holes = terrain(8, 7, true);
   std::vector<std::uint8_t> mask(holes.size(), 1);
@@ -113,7 +115,8 @@ void dem_seeds(const fs::path& dir, const fs::path& tmp) {
     std::vector<std::uint16_t> px(20);
     for (int i = 0; i < 20; ++i) px[std::size_t(i)] = std::uint16_t(i * 11 % 200);
     OIIO::ImageSpec spec(5, 4, 1, type);
-    if (!out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT16, px.data()) || !out->close())
+    if (!out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT16, px.data()) ||
+        !out->close())
       throw std::runtime_error("OpenImageIO cannot write " + path.string() + ": " + out->geterror());
     write(dir / (std::string("seed_") + name), with_selector(selector, slurp(path)));
   };
@@ -122,7 +125,8 @@ void dem_seeds(const fs::path& dir, const fs::path& tmp) {
 
   // .tif: GeoTIFFs through GDAL: int16 UTM with nodata, float32 geographic, and a plain one.
   GDALAllRegister();
-  auto tif = [&](const char* name, GDALDataType type, int epsg, bool nodata, bool georef, std::uint8_t selector) {
+  auto tif = [&](const char* name, GDALDataType type, int epsg, bool nodata, bool georef,
+                 std::uint8_t selector) {
     const fs::path path = tmp / (std::string(name) + ".tif");
     GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
     if (!drv) throw std::runtime_error("GDAL has no GTiff driver");
@@ -205,7 +209,8 @@ void db_seeds(const fs::path& dir, const fs::path& tmp) {
 }
 
 /// Summaries of every block of hf in blocks of block_size samples, stand-ins made by `o`.
-std::vector<terralod::blocks::BlockSummary> summaries(const pm::Heightfield& hf, const terralod::blocks::BlockGrid& g,
+std::vector<terralod::blocks::BlockSummary> summaries(const pm::Heightfield& hf,
+                                                      const terralod::blocks::BlockGrid& g,
                                                       const terralod::blocks::StandinOptions& o) {
   namespace tb = terralod::blocks;
   pm::BuildOptions one_thread;
@@ -252,7 +257,8 @@ void summaries_seeds(const fs::path& dir) {
   // One 17 x 17 block (B = 17, k = 3, both nibbles 15 -> 17 samples) with a 289-point grid.
   const tb::BlockGrid g17(17, 17, 17, pm::GridTransform::identity());
   Bytes big{3, 0xff};
-  const Bytes big_blob = tb::encode_block_summaries(g17, summaries(terrain(17, 17, true), g17, opt(tb::StandinKind::Grid, 289)));
+  const Bytes big_blob =
+      tb::encode_block_summaries(g17, summaries(terrain(17, 17, true), g17, opt(tb::StandinKind::Grid, 289)));
   big.insert(big.end(), big_blob.begin(), big_blob.end());
   write(dir / "seed_v2_grid_u16", big);
 
@@ -276,7 +282,8 @@ void summaries_seeds(const fs::path& dir) {
     v1.insert(v1.end(), 7, 0);
   }
   u32(std::uint32_t(crc32(0L, v1.data(), uInt(v1.size()))));
-  if (tb::decode_block_summaries(g, v1, "seed").size() != g.block_count()) throw std::runtime_error("bad v1 seed");
+  if (tb::decode_block_summaries(g, v1, "seed").size() != g.block_count())
+    throw std::runtime_error("bad v1 seed");
   v1.insert(v1.begin(), sel.begin(), sel.end());
   write(dir / "seed_v1", v1);
 }
@@ -290,7 +297,8 @@ int main(int argc, char** argv) {
   }
   try {
     const fs::path root = argv[1];
-    const fs::path pm_dir = root / "fuzz_pm_decoder", dem_dir = root / "fuzz_dem_reader", tmp = root / ".seed_tmp";
+    const fs::path pm_dir = root / "fuzz_pm_decoder", dem_dir = root / "fuzz_dem_reader",
+                   tmp = root / ".seed_tmp";
     const fs::path db_dir = root / "fuzz_block_database";
     for (const fs::path& d : {pm_dir, dem_dir, db_dir, tmp}) fs::create_directories(d);
     pm_seeds(pm_dir);

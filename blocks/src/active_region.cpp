@@ -20,9 +20,10 @@ namespace terralod::blocks {
 BlockGrid::BlockGrid(int grid_width, int grid_height, int block_size, const pm::GridTransform& transform)
     : w_(grid_width), h_(grid_height), b_(block_size), t_(transform) {
   if (grid_width < 2 || grid_height < 2)
-    throw std::invalid_argument("BlockGrid: terrain needs at least 2 x 2 samples, not " + std::to_string(grid_width) +
-                                " x " + std::to_string(grid_height));
-  if (block_size < 3) throw std::invalid_argument("BlockGrid: block_size must be >= 3, not " + std::to_string(block_size));
+    throw std::invalid_argument("BlockGrid: terrain needs at least 2 x 2 samples, not " +
+                                std::to_string(grid_width) + " x " + std::to_string(grid_height));
+  if (block_size < 3)
+    throw std::invalid_argument("BlockGrid: block_size must be >= 3, not " + std::to_string(block_size));
   if (!(transform.determinant() != 0.0) || !std::isfinite(transform.determinant()))
     throw std::invalid_argument("BlockGrid: the grid transform is singular");
   // ceil((w - 1) / (b - 1)) in 64 bits: w - 1 + b - 2 overflows an int near INT_MAX.
@@ -70,16 +71,21 @@ pm::Vec3 BlockGrid::world(int col, int row, double z) const {
 
 const char* standin_kind_name(StandinKind k) {
   switch (k) {
-    case StandinKind::TwoTriangles: return "two-triangle";
-    case StandinKind::Grid: return "grid";
-    case StandinKind::Tin: return "tin";
-    case StandinKind::NonRegularGrid: return "nonregular";
+    case StandinKind::TwoTriangles:
+      return "two-triangle";
+    case StandinKind::Grid:
+      return "grid";
+    case StandinKind::Tin:
+      return "tin";
+    case StandinKind::NonRegularGrid:
+      return "nonregular";
   }
   return "unknown";
 }
 
 StandinKind parse_standin_kind(const std::string& name) {
-  for (StandinKind k : {StandinKind::TwoTriangles, StandinKind::Grid, StandinKind::Tin, StandinKind::NonRegularGrid})
+  for (StandinKind k :
+       {StandinKind::TwoTriangles, StandinKind::Grid, StandinKind::Tin, StandinKind::NonRegularGrid})
     if (name == standin_kind_name(k)) return k;
   throw std::invalid_argument("unknown stand-in '" + name + "' (tin, grid, nonregular or two-triangle)");
 }
@@ -108,15 +114,20 @@ void make_standin(const pm::Heightfield& hf, const StandinOptions& o, BlockSumma
   const int w = hf.width(), h = hf.height();
   std::unique_ptr<NodeStrategy> strategy;
   switch (o.kind) {
-    case StandinKind::TwoTriangles: break;
+    case StandinKind::TwoTriangles:
+      break;
     case StandinKind::Grid: {
       int p = 1;
       while (std::size_t(p + 2) * std::size_t(p + 2) <= o.max_points) ++p;
       strategy = make_grid_strategy(p);
       break;
     }
-    case StandinKind::Tin: strategy = make_tin_strategy(o.max_points, o.metric); break;
-    case StandinKind::NonRegularGrid: strategy = make_nonregular_strategy(o.max_points, o.metric); break;
+    case StandinKind::Tin:
+      strategy = make_tin_strategy(o.max_points, o.metric);
+      break;
+    case StandinKind::NonRegularGrid:
+      strategy = make_nonregular_strategy(o.max_points, o.metric);
+      break;
   }
   if (strategy) {
     const NodeSurface n = strategy->approximate(hf, SampleRect{0, 0, w - 1, h - 1});
@@ -157,10 +168,12 @@ BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k, const St
   s.zmin = *lo;
   s.zmax = *hi;
   const pm::LInfError err(hf, pm::ErrorMetric::Continuous);
-  s.tm_error = std::max(err.triangle({0, 0}, {w - 1, 0}, {w - 1, h - 1}), err.triangle({0, 0}, {w - 1, h - 1}, {0, h - 1}));
+  s.tm_error = std::max(err.triangle({0, 0}, {w - 1, 0}, {w - 1, h - 1}),
+                        err.triangle({0, 0}, {w - 1, h - 1}, {0, h - 1}));
   const pm::TriangleMesh base = pm.extract_after(pm.vsplit_count());
   if (base.triangles.size() == 2) {
-    const std::uint32_t c00 = 0, c10 = std::uint32_t(w - 1), c01 = std::uint32_t((h - 1) * w), c11 = c01 + c10;
+    const std::uint32_t c00 = 0, c10 = std::uint32_t(w - 1), c01 = std::uint32_t((h - 1) * w),
+                        c11 = c01 + c10;
     auto sorted = [&](const std::array<std::uint32_t, 3>& t) {
       std::array<std::uint32_t, 3> v{base.vertices[t[0]], base.vertices[t[1]], base.vertices[t[2]]};
       std::sort(v.begin(), v.end());
@@ -195,7 +208,8 @@ void put_f64(std::vector<std::uint8_t>& o, double d) {
 }
 std::uint32_t get_u16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
 std::uint32_t get_u32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
+         std::uint32_t(p[3]) << 24;
 }
 double get_f64(const std::uint8_t* p) {
   std::uint64_t v = 0;
@@ -291,17 +305,20 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
   if (get_u32(bytes.data()) != kMagic) fail("bad magic");
   const std::uint32_t version = get_u32(bytes.data() + 4);
   if (version != 1 && version != 2) fail("unsupported version " + std::to_string(version));
-  if (get_u32(bytes.data() + 8) != std::uint32_t(grid.cols()) || get_u32(bytes.data() + 12) != std::uint32_t(grid.rows()))
-    fail("block grid " + std::to_string(get_u32(bytes.data() + 8)) + " x " + std::to_string(get_u32(bytes.data() + 12)) +
-         " does not match the database's " + std::to_string(grid.cols()) + " x " + std::to_string(grid.rows()));
+  if (get_u32(bytes.data() + 8) != std::uint32_t(grid.cols()) ||
+      get_u32(bytes.data() + 12) != std::uint32_t(grid.rows()))
+    fail("block grid " + std::to_string(get_u32(bytes.data() + 8)) + " x " +
+         std::to_string(get_u32(bytes.data() + 12)) + " does not match the database's " +
+         std::to_string(grid.cols()) + " x " + std::to_string(grid.rows()));
   if (version == 1 && bytes.size() != 16 + grid.block_count() * kRecordV1 + 4)
     fail("size " + std::to_string(bytes.size()) + " bytes, expected " +
          std::to_string(16 + grid.block_count() * kRecordV1 + 4));
   // A v2 record takes >= 40 + 4 x 12 + 3 + 4 bytes: check before allocating the summaries.
   if (version == 2 && (bytes.size() - 20) / 95 < grid.block_count())
-    fail("size " + std::to_string(bytes.size()) + " bytes, too small for " + std::to_string(grid.block_count()) +
-         " block records");
-  if (crc(bytes.data(), bytes.size() - 4) != get_u32(bytes.data() + bytes.size() - 4)) fail("checksum mismatch");
+    fail("size " + std::to_string(bytes.size()) + " bytes, too small for " +
+         std::to_string(grid.block_count()) + " block records");
+  if (crc(bytes.data(), bytes.size() - 4) != get_u32(bytes.data() + bytes.size() - 4))
+    fail("checksum mismatch");
   std::vector<BlockSummary> out(grid.block_count());
   const std::uint8_t* p = bytes.data() + 16;
   const std::uint8_t* const end = bytes.data() + bytes.size() - 4;
@@ -323,7 +340,8 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
           !std::isfinite(b.zmax - b.zmin + b.tm_error + b.z00 + b.z10 + b.z01 + b.z11))
         fail("block record " + std::to_string(i) + " is inconsistent");
       for (double z : {b.z00, b.z10, b.z01, b.z11})  // corners are samples: inside the height range
-        if (!(z >= b.zmin && z <= b.zmax)) fail("block record " + std::to_string(i) + ": a corner outside zmin..zmax");
+        if (!(z >= b.zmin && z <= b.zmax))
+          fail("block record " + std::to_string(i) + ": a corner outside zmin..zmax");
       set_two_triangle_standin(b, w, h);
       p += kRecordV1;
       continue;
@@ -342,7 +360,8 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     b.standin = StandinKind(kind);
     b.base_is_tm = flags != 0;
     const std::size_t isize = n <= 256 ? 1 : 2;
-    if (n < 4 || m < 1 || std::size_t(end - p) < 40 + 12 * std::size_t(n) + (3 * isize + 4) * m) bad("truncated stand-in");
+    if (n < 4 || m < 1 || std::size_t(end - p) < 40 + 12 * std::size_t(n) + (3 * isize + 4) * m)
+      bad("truncated stand-in");
     p += 40;
     unsigned corners = 0;
     b.points.resize(n);
@@ -350,7 +369,8 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
       q.col = int(get_u16(p));
       q.row = int(get_u16(p + 2));
       q.z = get_f64(p + 4);
-      if (q.col >= w || q.row >= h || !(q.z >= b.zmin && q.z <= b.zmax)) bad("stand-in point outside the block");
+      if (q.col >= w || q.row >= h || !(q.z >= b.zmin && q.z <= b.zmax))
+        bad("stand-in point outside the block");
       const bool c0 = q.col == 0, c1 = q.col == w - 1, r0 = q.row == 0, r1 = q.row == h - 1;
       if ((c0 || c1) && (r0 || r1)) {
         (c0 ? (r0 ? b.z00 : b.z01) : (r0 ? b.z10 : b.z11)) = q.z;
@@ -368,7 +388,8 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
         if (v >= n) bad("stand-in triangle index out of range");
       }
       const StandinPoint &a = b.points[t[0]], &e = b.points[t[1]], &c = b.points[t[2]];
-      const std::int64_t o = std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
+      const std::int64_t o =
+          std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
       if (o <= 0) bad("stand-in triangle not counter-clockwise");
       area2 += o;
     }
@@ -386,7 +407,8 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     }
     if (!(emax >= b.standin_error)) bad("stand-in triangle errors below the stand-in's error");
   }
-  if (p != end) fail("size " + std::to_string(bytes.size()) + " bytes, expected " + std::to_string(p - bytes.data() + 4));
+  if (p != end)
+    fail("size " + std::to_string(bytes.size()) + " bytes, expected " + std::to_string(p - bytes.data() + 4));
   return out;
 }
 
@@ -447,10 +469,13 @@ pm::Box block_box(const BlockGrid& grid, BlockKey k, const BlockSummary& s) {
 }
 
 bool ActiveRegion::is_inner(BlockKey k) const { return std::binary_search(inner.begin(), inner.end(), k); }
-bool ActiveRegion::is_active(BlockKey k) const { return k.col >= col0 && k.col <= col1 && k.row >= row0 && k.row <= row1; }
+bool ActiveRegion::is_active(BlockKey k) const {
+  return k.col >= col0 && k.col <= col1 && k.row >= row0 && k.row <= row1;
+}
 
 int inner_radius(double height_m, double block_extent_m, const ActiveRegionOptions& opt) {
-  assert(opt.theta_deg > 0 && opt.theta_deg < 90 && opt.n_min >= 0 && opt.n_min <= opt.n_max && block_extent_m > 0);
+  assert(opt.theta_deg > 0 && opt.theta_deg < 90 && opt.n_min >= 0 && opt.n_min <= opt.n_max &&
+         block_extent_m > 0);
   const double b = std::max(height_m, 0.0) / std::tan(opt.theta_deg * M_PI / 180.0);
   // 1e-9 absorbs the rounding of cot (cot 45 deg is not exactly 1 in doubles).
   const double n = std::ceil(b / block_extent_m - 1e-9);
@@ -458,8 +483,8 @@ int inner_radius(double height_m, double block_extent_m, const ActiveRegionOptio
   return std::max(opt.n_min, int(n));
 }
 
-ActiveRegion active_region(const BlockGrid& grid, std::span<const BlockSummary> summaries, const pm::Vec3& eye,
-                           const ActiveRegionOptions& opt) {
+ActiveRegion active_region(const BlockGrid& grid, std::span<const BlockSummary> summaries,
+                           const pm::Vec3& eye, const ActiveRegionOptions& opt) {
   assert(summaries.size() == grid.block_count() && opt.p >= 0);
   ActiveRegion r;
   r.centre = grid.block_at(eye.x, eye.y);

@@ -15,11 +15,16 @@ namespace terralod::blocks {
 
 const char* strategy_name(Strategy s) {
   switch (s) {
-    case Strategy::Grid: return "grid";
-    case Strategy::Tin: return "tin";
-    case Strategy::NonRegularGrid: return "nonregular";
-    case Strategy::PmBlock: return "pm_block";
-    case Strategy::Hybrid: return "hybrid";
+    case Strategy::Grid:
+      return "grid";
+    case Strategy::Tin:
+      return "tin";
+    case Strategy::NonRegularGrid:
+      return "nonregular";
+    case Strategy::PmBlock:
+      return "pm_block";
+    case Strategy::Hybrid:
+      return "hybrid";
   }
   return "unknown";
 }
@@ -232,7 +237,8 @@ std::vector<std::uint8_t> encode_tree(const ApproximationTree& tree) {
   w.var(std::uint64_t(p.max_children));
   w.var(std::uint64_t(p.patch));
   w.u8(std::uint8_t(p.metric));
-  for (double v : {p.transform.x0, p.transform.xc, p.transform.xr, p.transform.y0, p.transform.yc, p.transform.yr})
+  for (double v :
+       {p.transform.x0, p.transform.xc, p.transform.xr, p.transform.y0, p.transform.yc, p.transform.yr})
     w.f64(v);
   w.var(std::uint64_t(p.grid_width));
   w.var(std::uint64_t(p.grid_height));
@@ -245,7 +251,8 @@ std::vector<std::uint8_t> encode_tree(const ApproximationTree& tree) {
 
 ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::string& name) {
   Reader r{bytes, 0, name};
-  if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0) r.fail("not an approximation tree (bad magic)");
+  if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0)
+    r.fail("not an approximation tree (bad magic)");
   {
     std::uint32_t stored = 0;
     for (int i = 0; i < 4; ++i) stored |= std::uint32_t(bytes[bytes.size() - 4 + i]) << (8 * i);
@@ -287,8 +294,10 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
     t.level = int(r.var(1 << 20, "level"));
     t.domain.col0 = int(r.var(std::uint64_t(std::max(0, p.grid_width - 1)), "column"));
     t.domain.row0 = int(r.var(std::uint64_t(std::max(0, p.grid_height - 1)), "row"));
-    t.domain.col1 = t.domain.col0 + int(r.var(std::uint64_t(std::max(0, p.grid_width - 1 - t.domain.col0)), "width"));
-    t.domain.row1 = t.domain.row0 + int(r.var(std::uint64_t(std::max(0, p.grid_height - 1 - t.domain.row0)), "height"));
+    t.domain.col1 =
+        t.domain.col0 + int(r.var(std::uint64_t(std::max(0, p.grid_width - 1 - t.domain.col0)), "width"));
+    t.domain.row1 =
+        t.domain.row0 + int(r.var(std::uint64_t(std::max(0, p.grid_height - 1 - t.domain.row0)), "height"));
     t.error = r.f64();
     t.bbox.lo = {r.f64(), r.f64(), r.f64()};
     t.bbox.hi = {r.f64(), r.f64(), r.f64()};
@@ -296,7 +305,8 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
     const std::uint64_t k = r.var(r.left(), "child count");
     for (std::uint64_t i = 0; i < k; ++i) {
       const std::uint64_t c = r.var(n - 1, "child id");
-      if (c <= id) r.fail("node " + std::to_string(id) + ": child " + std::to_string(c) + " does not follow it");
+      if (c <= id)
+        r.fail("node " + std::to_string(id) + ": child " + std::to_string(c) + " does not follow it");
       t.children.push_back(std::int64_t(c));
     }
     NodeSurface& s = t.surface;
@@ -310,12 +320,16 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
       case Strategy::NonRegularGrid: {
         const std::uint64_t nc = r.var(std::uint64_t(t.domain.width()), "column count");
         const std::uint64_t nr = r.var(std::uint64_t(t.domain.height()), "row count");
-        if (nc * nr > r.left() / 8) r.fail("node " + std::to_string(id) + ": grid larger than the bytes left");
-        for (std::uint64_t i = 0; i < nc; ++i) s.cols.push_back(t.domain.col0 + int(r.var(std::uint64_t(t.domain.width() - 1), "column")));
-        for (std::uint64_t j = 0; j < nr; ++j) s.rows.push_back(t.domain.row0 + int(r.var(std::uint64_t(t.domain.height() - 1), "row")));
+        if (nc * nr > r.left() / 8)
+          r.fail("node " + std::to_string(id) + ": grid larger than the bytes left");
+        for (std::uint64_t i = 0; i < nc; ++i)
+          s.cols.push_back(t.domain.col0 + int(r.var(std::uint64_t(t.domain.width() - 1), "column")));
+        for (std::uint64_t j = 0; j < nr; ++j)
+          s.rows.push_back(t.domain.row0 + int(r.var(std::uint64_t(t.domain.height() - 1), "row")));
         s.points.reserve(std::size_t(nc * nr));
         for (std::uint64_t j = 0; j < nr; ++j)
-          for (std::uint64_t i = 0; i < nc; ++i) s.points.push_back({double(s.cols[i]), double(s.rows[j]), r.f64()});
+          for (std::uint64_t i = 0; i < nc; ++i)
+            s.points.push_back({double(s.cols[i]), double(s.rows[j]), r.f64()});
         triangulate_grid(s);
         break;
       }
@@ -326,7 +340,8 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
         for (std::uint64_t i = 0; i < m; ++i) {
           if (t.strategy == Strategy::Hybrid) {
             const double c = r.f64(), rr = r.f64();
-            if (!std::isfinite(c) || !std::isfinite(rr)) r.fail("node " + std::to_string(id) + ": point not finite");
+            if (!std::isfinite(c) || !std::isfinite(rr))
+              r.fail("node " + std::to_string(id) + ": point not finite");
             s.points.push_back({c, rr, r.f64()});
             continue;
           }
@@ -336,8 +351,8 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
         }
         const std::uint64_t nt = r.var(r.left() / 3, "triangle count");
         if (nt > 0 && m < 3)  // (found by fuzz_tree_decoder: indices of an empty point list)
-          r.fail("node " + std::to_string(id) + ": " + std::to_string(nt) + " triangles over " + std::to_string(m) +
-                 " points");
+          r.fail("node " + std::to_string(id) + ": " + std::to_string(nt) + " triangles over " +
+                 std::to_string(m) + " points");
         s.triangles.reserve(std::size_t(nt));
         for (std::uint64_t i = 0; i < nt; ++i) {
           std::array<std::uint32_t, 3> tri{};
@@ -366,7 +381,8 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
 
 double paper_alpha_px(const pm::View& view, const pm::Box& b, double error_m) {
   const pm::Vec3& e = view.eye();
-  const pm::Vec3 p{std::clamp(e.x, b.lo.x, b.hi.x), std::clamp(e.y, b.lo.y, b.hi.y), std::clamp(e.z, b.lo.z, b.hi.z)};
+  const pm::Vec3 p{std::clamp(e.x, b.lo.x, b.hi.x), std::clamp(e.y, b.lo.y, b.hi.y),
+                   std::clamp(e.z, b.lo.z, b.hi.z)};
   if (p.x == e.x && p.y == e.y && p.z == e.z) return std::numeric_limits<double>::infinity();
   if (error_m <= 0.0) return 0.0;
   pm::Vec3 a{p.x, p.y, p.z - 0.5 * error_m}, c{p.x, p.y, p.z + 0.5 * error_m};
@@ -401,7 +417,8 @@ double paper_alpha_px(const pm::View& view, const pm::Box& b, double error_m) {
 // — from the node's surface to the terrain at a point of D_N — is vertical, no longer than
 // epsilon(N), and lies in B_N (both surfaces are inside the box), so a node selected with
 // bound <= threshold is drawn within the threshold on screen. alpha is reported beside it.
-SelectionResult select_nodes(const ApproximationTree& tree, const pm::View& view, const SelectionOptions& opt) {
+SelectionResult select_nodes(const ApproximationTree& tree, const pm::View& view,
+                             const SelectionOptions& opt) {
   assert(opt.alpha_px > 0.0);
   const auto t0 = std::chrono::steady_clock::now();
   SelectionResult res;

@@ -15,10 +15,13 @@ namespace {
 double ms_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
-std::string block_name(BlockKey k) { return "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")"; }
+std::string block_name(BlockKey k) {
+  return "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
+}
 }  // namespace
 
-std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k, std::span<const std::uint8_t> blob,
+std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k,
+                                                std::span<const std::uint8_t> blob,
                                                 const std::string& source_name) {
   assert(grid.contains(k));
   const std::string name = source_name + ": " + block_name(k);
@@ -29,16 +32,17 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
   const SampleRect d = grid.domain(k);
   const pm::Heightfield& hf = b->pm.heightfield();
   if (hf.width() != d.width() || hf.height() != d.height())
-    throw DatabaseError(source_name, block_name(k) + ": " + std::to_string(hf.width()) + " x " + std::to_string(hf.height()) +
-                        " samples, the block grid expects " + std::to_string(d.width()) + " x " +
-                        std::to_string(d.height()));
+    throw DatabaseError(source_name, block_name(k) + ": " + std::to_string(hf.width()) + " x " +
+                                         std::to_string(hf.height()) + " samples, the block grid expects " +
+                                         std::to_string(d.width()) + " x " + std::to_string(d.height()));
   b->dag = std::make_unique<pm::CollapseDag>(b->pm);
   b->blob_bytes = blob.size();
   const std::size_t collapses = b->pm.collapses().size(), samples = hf.size();
   // PM (heights + collapses) + DAG + a SelectiveRefinement (selective_refinement.hpp: ~50 bytes
   // per collapse, 8 per sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
-  b->memory_bytes = sizeof(LoadedBlock) + samples * 8 + collapses * sizeof(pm::Collapse) + b->dag->memory_bytes() +
-                    collapses * 50 + samples * 8 + b->dag->face_id_count() * 4 + b->pm.full_vertex_count() * 96;
+  b->memory_bytes = sizeof(LoadedBlock) + samples * 8 + collapses * sizeof(pm::Collapse) +
+                    b->dag->memory_bytes() + collapses * 50 + samples * 8 + b->dag->face_id_count() * 4 +
+                    b->pm.full_vertex_count() * 96;
   b->decode_ms = ms_since(t);
   return b;
 }
@@ -62,14 +66,16 @@ void BlockLoader::set_queue(std::vector<Request> requests) {
   unique.reserve(requests.size());
   for (const Request& r : requests) {
     assert(grid_.contains(r.key));
-    if (std::none_of(unique.begin(), unique.end(), [&](const Request& u) { return u.key == r.key; })) unique.push_back(r);
+    if (std::none_of(unique.begin(), unique.end(), [&](const Request& u) { return u.key == r.key; }))
+      unique.push_back(r);
   }
   {
     std::lock_guard lock(mutex_);
     // Not again what is being read or finished and not yet taken.
     std::erase_if(unique, [&](const Request& r) {
       return (in_flight_ && *in_flight_ == r.key) ||
-             std::any_of(results_.begin(), results_.end(), [&](const LoadResult& x) { return x.key == r.key; });
+             std::any_of(results_.begin(), results_.end(),
+                         [&](const LoadResult& x) { return x.key == r.key; });
     });
     queue_ = std::move(unique);
   }

@@ -10,7 +10,8 @@ namespace terralod::blocks {
 namespace {
 class DatabaseSource final : public BlockSource {
  public:
-  explicit DatabaseSource(const std::string& path) : db_(BlockDatabase::open(path, BlockDatabase::Mode::ReadOnly)) {}
+  explicit DatabaseSource(const std::string& path)
+      : db_(BlockDatabase::open(path, BlockDatabase::Mode::ReadOnly)) {}
   std::vector<std::uint8_t> read(BlockKey k) override { return db_.read_block(k); }
   std::string name() const override { return db_.path(); }
 
@@ -26,18 +27,19 @@ BlockSourceFactory database_source(const std::string& path) {
 std::vector<BlockSummary> read_block_summaries(const BlockDatabase& db, const BlockGrid& grid,
                                                const std::function<void(double)>& progress,
                                                const StandinOptions& standin) {
-  if (const auto blob = db.read_blob(kBlockSummariesBlob)) return decode_block_summaries(grid, *blob, db.path());
+  if (const auto blob = db.read_blob(kBlockSummariesBlob))
+    return decode_block_summaries(grid, *blob, db.path());
   StandinOptions o = standin;
   std::vector<BlockSummary> out(grid.block_count());
   for (std::size_t i = 0; i < out.size(); ++i) {
     const BlockKey k = grid.key(i);
     const std::vector<std::uint8_t> blob = db.read_block(k);
-    const pm::ProgressiveMesh pm = pm::decode_pm(blob, db.path() + ": block (" + std::to_string(k.col) + "," +
-                                                           std::to_string(k.row) + ")");
+    const pm::ProgressiveMesh pm = pm::decode_pm(
+        blob, db.path() + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")");
     const SampleRect d = grid.domain(k);
     if (pm.heightfield().width() != d.width() || pm.heightfield().height() != d.height())
       throw DatabaseError(db.path(), "block (" + std::to_string(k.col) + "," + std::to_string(k.row) +
-                          "): size does not match the block grid");
+                                         "): size does not match the block grid");
     // Each block's errors are measured with the metric its PM was built with (stored in the
     // PM itself, not searched for in the build parameters' JSON).
     o.metric = pm.metric();

@@ -39,7 +39,8 @@ ExtractedMesh extract_mesh(const BlockDatabase& db, double max_error) {
   pms.reserve(keys.size());
   pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
   for (BlockKey k : keys) {
-    const std::string name = db.path() + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
+    const std::string name =
+        db.path() + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
     pms.push_back(pm::decode_pm(db.read_block(k), name));
     const pm::ProgressiveMesh& p = pms.back();
     const SampleRect r = layout.rect(k);
@@ -109,16 +110,20 @@ ExtractedMesh extract_mesh(const BlockDatabase& db, double max_error) {
   for (const StitchPatch& p : patches) {
     std::vector<std::uint32_t> local(p.vertices.size());
     for (std::size_t v = 0; v < p.vertices.size(); ++v) {
-      const std::uint32_t s = std::uint32_t(p.vertices[v].y) * std::uint32_t(W) + std::uint32_t(p.vertices[v].x);
+      const std::uint32_t s =
+          std::uint32_t(p.vertices[v].y) * std::uint32_t(W) + std::uint32_t(p.vertices[v].x);
       auto [it, inserted] = index.try_emplace(s, std::uint32_t(mesh.vertices.size()));
       if (inserted) mesh.vertices.push_back(s);
       local[v] = it->second;
     }
     for (const auto& t : p.triangles) mesh.triangles.push_back({local[t[0]], local[t[1]], local[t[2]]});
   }
-  auto point = [&](std::uint32_t v) { return pm::GridPoint{int(mesh.vertices[v] % W), int(mesh.vertices[v] / W)}; };
+  auto point = [&](std::uint32_t v) {
+    return pm::GridPoint{int(mesh.vertices[v] % W), int(mesh.vertices[v] / W)};
+  };
   double worst = 0.0;
-  for (const auto& t : mesh.triangles) worst = std::max(worst, err.triangle(point(t[0]), point(t[1]), point(t[2])));
+  for (const auto& t : mesh.triangles)
+    worst = std::max(worst, err.triangle(point(t[0]), point(t[1]), point(t[2])));
   out.measured_error = mesh.error_bound = worst;
   out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return out;

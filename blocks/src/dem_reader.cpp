@@ -726,7 +726,8 @@ void write_geotiff(const pm::Heightfield& hf, const std::string& path) {
       const std::size_t i = std::size_t(r) * std::size_t(hf.width()) + std::size_t(c);
       row[std::size_t(c)] = hf.valid(i) ? float(hf[i]) : std::numeric_limits<float>::quiet_NaN();
     }
-    ok = band->RasterIO(GF_Write, 0, r, hf.width(), 1, row.data(), hf.width(), 1, GDT_Float32, 0, 0) == CE_None;
+    ok = band->RasterIO(GF_Write, 0, r, hf.width(), 1, row.data(), hf.width(), 1, GDT_Float32, 0, 0) ==
+         CE_None;
   }
   const std::string err = ok ? "" : CPLGetLastErrorMsg();
   GDALClose(ds);

@@ -59,7 +59,8 @@ inline int prev_he(int e) { return e % 3 == 0 ? e + 2 : e - 1; }
 
 /// Closed segments p-q and r-s share a point (exact).
 bool segments_touch(GridPoint p, GridPoint q, GridPoint r, GridPoint s) {
-  const std::int64_t o1 = orient2d(p, q, r), o2 = orient2d(p, q, s), o3 = orient2d(r, s, p), o4 = orient2d(r, s, q);
+  const std::int64_t o1 = orient2d(p, q, r), o2 = orient2d(p, q, s), o3 = orient2d(r, s, p),
+                     o4 = orient2d(r, s, q);
   auto sgn = [](std::int64_t v) { return (v > 0) - (v < 0); };
   auto on = [](GridPoint a, GridPoint b, GridPoint c) {  // c on segment a-b, given collinear
     return std::min(a.x, b.x) <= c.x && c.x <= std::max(a.x, b.x) && std::min(a.y, b.y) <= c.y &&
@@ -73,7 +74,12 @@ bool segments_touch(GridPoint p, GridPoint q, GridPoint r, GridPoint s) {
 class GreedyTin {
  public:
   GreedyTin(const pm::Heightfield& hf, const TinOptions& options, int bx0, int by0, int bx1, int by1)
-      : hf_(hf), opt_(options), linf_(hf, options.metric), bx0_(bx0), by0_(by0), bw_(bx1 - bx0 + 1),
+      : hf_(hf),
+        opt_(options),
+        linf_(hf, options.metric),
+        bx0_(bx0),
+        by0_(by0),
+        bw_(bx1 - bx0 + 1),
         bh_(by1 - by0 + 1) {
     assert(hf.width() < (1 << 24) && hf.height() < (1 << 24));
     vid_.assign(std::size_t(bw_) * std::size_t(bh_), -1);
@@ -108,12 +114,14 @@ class GreedyTin {
         idx.erase(idx.begin() + i);
         clipped = true;
       }
-      if (!clipped) throw std::invalid_argument("build_greedy_tin: the polygon could not be triangulated (not simple)");
+      if (!clipped)
+        throw std::invalid_argument("build_greedy_tin: the polygon could not be triangulated (not simple)");
     }
     if (orient2d(pts_[idx[0]], pts_[idx[1]], pts_[idx[2]]) <= 0)
       throw std::invalid_argument("build_greedy_tin: the polygon is degenerate after rounding to samples");
     tris.push_back({idx[0], idx[1], idx[2]});
-    for (const auto& t : tris) detail::mark_triangle(pts_[t[0]], pts_[t[1]], pts_[t[2]], bx0_, by0_, bw_, inside_);
+    for (const auto& t : tris)
+      detail::mark_triangle(pts_[t[0]], pts_[t[1]], pts_[t[2]], bx0_, by0_, bw_, inside_);
     std::unordered_map<std::uint64_t, int> edges;
     for (const auto& t : tris) {
       const int id = new_triangle();
@@ -122,8 +130,10 @@ class GreedyTin {
     for (int e = 0; e < int(tri_.size()); ++e) {
       const std::uint64_t a = std::uint32_t(tri_[e]), b = std::uint32_t(tri_[next_he(e)]);
       auto it = edges.find((b << 32) | a);
-      if (it != edges.end()) link(e, it->second), edges.erase(it);
-      else edges.emplace((a << 32) | b, e);
+      if (it != edges.end())
+        link(e, it->second), edges.erase(it);
+      else
+        edges.emplace((a << 32) | b, e);
     }
     std::vector<int> stack;
     for (int e = 0; e < int(tri_.size()); ++e)
@@ -147,7 +157,8 @@ class GreedyTin {
         continue;
       }
       insert(p, at);
-      if (opt_.progress && (++step & 1023) == 0 && !heap_.empty()) opt_.progress(progress(first, heap_[0].err));
+      if (opt_.progress && (++step & 1023) == 0 && !heap_.empty())
+        opt_.progress(progress(first, heap_[0].err));
     }
     TinSurface out;
     out.error = heap_.empty() ? 0.0 : heap_[0].err;
@@ -160,7 +171,8 @@ class GreedyTin {
     for (const GridPoint& p : pts_) out.points.push_back({p.x, p.y});
     out.triangles.resize(triangles());
     for (int t = 0; t < triangles(); ++t)
-      out.triangles[t] = {std::uint32_t(tri_[3 * t]), std::uint32_t(tri_[3 * t + 1]), std::uint32_t(tri_[3 * t + 2])};
+      out.triangles[t] = {std::uint32_t(tri_[3 * t]), std::uint32_t(tri_[3 * t + 1]),
+                          std::uint32_t(tri_[3 * t + 2])};
     if (opt_.progress) opt_.progress(1.0);
     return out;
   }
@@ -227,20 +239,25 @@ class GreedyTin {
       const GridPoint P[3] = {a, b, c};
       for (int k = 0; k < 3; ++k) {
         const double e = detail::edge_error(linf_, hf_, P[k], P[(k + 1) % 3]);
-        if (half_[3 * t + k] >= 0) ce = std::max(ce, e);
-        else be = std::max(be, e);
+        if (half_[3 * t + k] >= 0)
+          ce = std::max(ce, e);
+        else
+          be = std::max(be, e);
       }
     }
     cerr_[t] = ce;
     berr_[t] = be;
     err_[t] = std::max(s.error, ce);
     stuck_[t] = 0;
-    if (heap_pos_[t] < 0) heap_push(t);
-    else heap_fix(t);
+    if (heap_pos_[t] < 0)
+      heap_push(t);
+    else
+      heap_fix(t);
   }
 
   bool insertable(GridPoint p) {
-    return in_box(p) && hf_.valid(p.x, p.y) && vid(p) < 0 && inside_[std::size_t(p.y - by0_) * bw_ + (p.x - bx0_)];
+    return in_box(p) && hf_.valid(p.x, p.y) && vid(p) < 0 &&
+           inside_[std::size_t(p.y - by0_) * bw_ + (p.x - bx0_)];
   }
 
   /// The sample to insert for triangle t and the triangle containing it (at = -1: none).
@@ -351,7 +368,8 @@ class GreedyTin {
       // corners are all vertices: its (1,-1) diagonal crosses the grid diagonal between two
       // vertices, an error no insertion could remove.
       const int ic = in_circle(pts_[pr], pts_[pl], pts_[p0], pts_[p1]);
-      if (ic < 0 || (ic == 0 && (main_diagonal(pts_[pr], pts_[pl]) || !main_diagonal(pts_[p0], pts_[p1])))) continue;
+      if (ic < 0 || (ic == 0 && (main_diagonal(pts_[pr], pts_[pl]) || !main_diagonal(pts_[p0], pts_[p1]))))
+        continue;
       tri_[e] = p1, tri_[f] = p0;
       const int hbl = half_[bl], har = half_[ar];
       link(e, hbl), link(f, har), link(ar, bl);
@@ -393,8 +411,10 @@ class GreedyTin {
     const int i = heap_pos_[t];
     const double old = heap_[i].err;
     heap_[i].err = err_[t];
-    if (err_[t] > old) up(i);
-    else down(i);
+    if (err_[t] > old)
+      up(i);
+    else
+      down(i);
   }
   void heap_remove(int t) {
     const int i = heap_pos_[t];
@@ -459,7 +479,8 @@ TinSurface build_greedy_tin(const pm::Heightfield& hf, const std::vector<std::ar
   }
   while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
   if (ring.size() < 3)
-    throw std::invalid_argument("build_greedy_tin: the polygon has fewer than 3 distinct vertices after rounding");
+    throw std::invalid_argument(
+        "build_greedy_tin: the polygon has fewer than 3 distinct vertices after rounding");
   std::int64_t area2 = 0;
   for (std::size_t i = 0; i < ring.size(); ++i) {
     const GridPoint a = ring[i], b = ring[(i + 1) % ring.size()];
@@ -471,17 +492,19 @@ TinSurface build_greedy_tin(const pm::Heightfield& hf, const std::vector<std::ar
   for (std::size_t i = 0; i < n; ++i) {
     const GridPoint a = ring[i], b = ring[(i + 1) % n], c = ring[(i + 2) % n];
     // Adjacent edges a-b, b-c may only meet at b: a spike folding back on itself is a crossing.
-    if (orient2d(a, b, c) == 0 && (std::int64_t(b.x - a.x) * (c.x - b.x) + std::int64_t(b.y - a.y) * (c.y - b.y)) < 0)
+    if (orient2d(a, b, c) == 0 &&
+        (std::int64_t(b.x - a.x) * (c.x - b.x) + std::int64_t(b.y - a.y) * (c.y - b.y)) < 0)
       throw std::invalid_argument("build_greedy_tin: the polygon folds back on itself at vertex (" +
                                   std::to_string(b.x) + ", " + std::to_string(b.y) + ") after rounding");
     for (std::size_t j = i + 2; j < n; ++j) {
       if ((j + 1) % n == i) continue;  // adjacent through the closing edge
       if (segments_touch(a, b, ring[j], ring[(j + 1) % n]))
-        throw std::invalid_argument("build_greedy_tin: the polygon is not simple after rounding to samples: edge (" +
-                                    std::to_string(a.x) + "," + std::to_string(a.y) + ")-(" + std::to_string(b.x) +
-                                    "," + std::to_string(b.y) + ") meets edge (" + std::to_string(ring[j].x) + "," +
-                                    std::to_string(ring[j].y) + ")-(" + std::to_string(ring[(j + 1) % n].x) + "," +
-                                    std::to_string(ring[(j + 1) % n].y) + ")");
+        throw std::invalid_argument(
+            "build_greedy_tin: the polygon is not simple after rounding to samples: edge (" +
+            std::to_string(a.x) + "," + std::to_string(a.y) + ")-(" + std::to_string(b.x) + "," +
+            std::to_string(b.y) + ") meets edge (" + std::to_string(ring[j].x) + "," +
+            std::to_string(ring[j].y) + ")-(" + std::to_string(ring[(j + 1) % n].x) + "," +
+            std::to_string(ring[(j + 1) % n].y) + ")");
     }
   }
   assert(options.max_points >= ring.size());

@@ -32,7 +32,8 @@ struct Cell {
 
 class NonRegularBuilder {
  public:
-  NonRegularBuilder(const pm::Heightfield& hf, const NonRegularGridOptions& o) : hf_(hf), opt_(o), linf_(hf, o.metric) {}
+  NonRegularBuilder(const pm::Heightfield& hf, const NonRegularGridOptions& o)
+      : hf_(hf), opt_(o), linf_(hf, o.metric) {}
 
   /// Error of the cell with corners (c0,r0)-(c1,r1), and the sample to insert for it.
   Cell measure(int c0, int r0, int c1, int r1) const {
@@ -66,10 +67,12 @@ class NonRegularBuilder {
     std::vector<int> cols = {d.col0, d.col1}, rows = {d.row0, d.row1};
     std::map<std::pair<int, int>, Cell> cells;  // keyed by (top-left column, top-left row)
     auto measure_strip_cols = [&](int c0, int c1) {
-      for (std::size_t j = 0; j + 1 < rows.size(); ++j) cells[{c0, rows[j]}] = measure(c0, rows[j], c1, rows[j + 1]);
+      for (std::size_t j = 0; j + 1 < rows.size(); ++j)
+        cells[{c0, rows[j]}] = measure(c0, rows[j], c1, rows[j + 1]);
     };
     auto measure_strip_rows = [&](int r0, int r1) {
-      for (std::size_t i = 0; i + 1 < cols.size(); ++i) cells[{cols[i], r0}] = measure(cols[i], r0, cols[i + 1], r1);
+      for (std::size_t i = 0; i + 1 < cols.size(); ++i)
+        cells[{cols[i], r0}] = measure(cols[i], r0, cols[i + 1], r1);
     };
     measure_strip_cols(d.col0, d.col1);
     double error = 0.0;
@@ -122,7 +125,8 @@ class NonRegularBuilder {
 
 }  // namespace
 
-NonRegularGrid build_nonregular_grid(const pm::Heightfield& hf, SampleRect domain, const NonRegularGridOptions& options) {
+NonRegularGrid build_nonregular_grid(const pm::Heightfield& hf, SampleRect domain,
+                                     const NonRegularGridOptions& options) {
   assert(domain.col0 >= 0 && domain.row0 >= 0 && domain.col1 < hf.width() && domain.row1 < hf.height());
   assert(domain.width() >= 2 && domain.height() >= 2);
   assert(options.max_error >= 0.0 && options.max_points >= 4);

@@ -61,7 +61,8 @@ pm::Heightfield block_heightfield(const pm::Heightfield& hf, SampleRect r) {
       b.at(i, j) = hf.at(r.col0 + i, r.row0 + j);
       if (!mask.empty()) mask[std::size_t(j) * b.width() + i] = hf.valid(r.col0 + i, r.row0 + j) ? 1 : 0;
     }
-  if (!mask.empty() && std::find(mask.begin(), mask.end(), std::uint8_t(0)) != mask.end()) b.set_mask(std::move(mask));
+  if (!mask.empty() && std::find(mask.begin(), mask.end(), std::uint8_t(0)) != mask.end())
+    b.set_mask(std::move(mask));
   b.transform = hf.transform;
   const auto [x0, y0] = hf.transform.to_world(r.col0, r.row0);
   b.transform.x0 = x0;

@@ -32,7 +32,8 @@ double thread_cpu_ms() {
 void check_options(const RuntimeOptions& o) {
   if (!(o.tolerance_px > 0) || !std::isfinite(o.tolerance_px))
     throw std::invalid_argument("RuntimeOptions: tolerance_px must be > 0 and finite");
-  if (!(o.min_tolerance_px > 0) || !(o.min_tolerance_px <= o.max_tolerance_px) || !std::isfinite(o.max_tolerance_px))
+  if (!(o.min_tolerance_px > 0) || !(o.min_tolerance_px <= o.max_tolerance_px) ||
+      !std::isfinite(o.max_tolerance_px))
     throw std::invalid_argument("RuntimeOptions: need 0 < min_tolerance_px <= max_tolerance_px (finite)");
   if (!(o.morph_seconds >= 0) || !std::isfinite(o.morph_seconds))
     throw std::invalid_argument("RuntimeOptions: morph_seconds must be >= 0 and finite");
@@ -64,8 +65,8 @@ bool on_border(const SampleRect& d, int col, int row) {
 }
 
 // Height at (c, r) of the plane through three (col, row, z) points.
-double plane_height(const std::array<double, 3>& a, const std::array<double, 3>& b, const std::array<double, 3>& e,
-                    double c, double r) {
+double plane_height(const std::array<double, 3>& a, const std::array<double, 3>& b,
+                    const std::array<double, 3>& e, double c, double r) {
   const double det = (b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0]);
   const double l1 = ((c - a[0]) * (e[1] - a[1]) - (r - a[1]) * (e[0] - a[0])) / det;
   const double l2 = ((b[0] - a[0]) * (r - a[1]) - (b[1] - a[1]) * (c - a[0])) / det;
@@ -80,8 +81,8 @@ double surface_height(const std::vector<Tri3>& tris, double c, double r) {
   double best = std::numeric_limits<double>::quiet_NaN(), best_in = -1e300;
   for (const Tri3& t : tris) {
     const auto &a = t[0], &b = t[1], &e = t[2];
-    if (c < std::min({a[0], b[0], e[0]}) || c > std::max({a[0], b[0], e[0]}) || r < std::min({a[1], b[1], e[1]}) ||
-        r > std::max({a[1], b[1], e[1]}))
+    if (c < std::min({a[0], b[0], e[0]}) || c > std::max({a[0], b[0], e[0]}) ||
+        r < std::min({a[1], b[1], e[1]}) || r > std::max({a[1], b[1], e[1]}))
       continue;
     const double det = (b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0]);
     if (det == 0) continue;
@@ -103,26 +104,26 @@ double surface_height(const std::vector<Tri3>& tris, double c, double r) {
 struct TerrainRuntime::Block {
   std::shared_ptr<const LoadedBlock> data;
   std::unique_ptr<pm::SelectiveRefinement> sel;
-  std::uint64_t last_used = 0;    // frame it was last wanted
-  std::uint64_t last_drawn = 0;   // frame it was last drawn (0: never)
-  pm::RenderMesh rm;              // the refinement's displayed mesh, cached while it does not change
+  std::uint64_t last_used = 0;   // frame it was last wanted
+  std::uint64_t last_drawn = 0;  // frame it was last drawn (0: never)
+  pm::RenderMesh rm;             // the refinement's displayed mesh, cached while it does not change
   bool rm_valid = false;
-  bool blending = false;          // swap-in blend from `old` running
+  bool blending = false;  // swap-in blend from `old` running
   double blend_t0 = 0;
-  std::vector<Tri3> old;          // whole-grid triangles drawn over the block before it arrived
+  std::vector<Tri3> old;  // whole-grid triangles drawn over the block before it arrived
   std::unordered_map<std::uint32_t, double> old_z;  // old surface at local samples
 };
 
 // One selected node's mesh this frame (whole-grid samples).
 struct TerrainRuntime::Patch {
   std::int64_t node = 0;
-  StitchPatch sp;                      // domain, vertices (col,row), triangles
+  StitchPatch sp;  // domain, vertices (col,row), triangles
   std::vector<double> rest_z, display_z;
-  std::vector<double> tri_error;       // logical error per triangle, metres
-  double bound_px = 0;                 // own bound of the unstitched triangles at rest
+  std::vector<double> tri_error;             // logical error per triangle, metres
+  double bound_px = 0;                       // own bound of the unstitched triangles at rest
   const pm::Heightfield* heights = nullptr;  // PM blocks: the block's samples (block-local)
   pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
-  double zlo = 0, zhi = 0;             // height range of the terrain's samples in the domain
+  double zlo = 0, zhi = 0;  // height range of the terrain's samples in the domain
 };
 
 // A drawn triangle that is evaluated on its own (stitched, or with a moving corner).
@@ -146,13 +147,15 @@ struct TerrainRuntime::Scratch {
   std::vector<std::uint32_t> piece;
 };
 
-TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions& options, BlockSourceFactory blocks)
+TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions& options,
+                               BlockSourceFactory blocks)
     : path_(db_path), opt_(options), predictor_(options.predictor), scratch_(std::make_unique<Scratch>()) {
   check_options(opt_);
   tau_ = opt_.tolerance_px;
   const BlockDatabase db = BlockDatabase::open(db_path);
   if (db.info().block_size <= 0)
-    throw DatabaseError(db_path, "not a blocked database (kind '" + db.info().kind + "'): no PM blocks to draw");
+    throw DatabaseError(db_path,
+                        "not a blocked database (kind '" + db.info().kind + "'): no PM blocks to draw");
   require_complete_build(db);
   grid_ = BlockGrid::from_info(db.info());
   const auto tree_blob = db.read_blob("tree");
@@ -176,7 +179,8 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   for (const BlockSummary& s : sums_) summary_bytes_ += 160 + s.points.size() * 16 + s.triangles.size() * 20;
   for (const TreeNode& n : tree_.nodes()) {
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
-      throw DatabaseError(db_path, "tree node " + std::to_string(n.id) + " is a PM block outside the block grid");
+      throw DatabaseError(db_path,
+                          "tree node " + std::to_string(n.id) + " is a PM block outside the block grid");
     // Seams are stitched in sample coordinates: every coarse node's points must be samples of
     // its domain (hybrid nodes built over blocks are; a hybrid database's own tree, whose TIN
     // vertices lie between samples, is drawn by 'terralod view' instead).
@@ -193,30 +197,33 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
     const auto v = db.get_meta("block/" + std::to_string(k.col) + "," + std::to_string(k.row));
     double e = 0;
     unsigned long long nv = 0, nb = 0;
-    if (v && std::sscanf(v->c_str(), "%lf %llu %llu", &e, &nv, &nb) == 3) block_vertices_[i] = nv;
-    else block_vertices_[i] = std::uint64_t(grid_.domain(k).width()) * std::uint64_t(grid_.domain(k).height());
+    if (v && std::sscanf(v->c_str(), "%lf %llu %llu", &e, &nv, &nb) == 3)
+      block_vertices_[i] = nv;
+    else
+      block_vertices_[i] = std::uint64_t(grid_.domain(k).width()) * std::uint64_t(grid_.domain(k).height());
   }
   prep_options_ = refinement_options(opt_, tau_);
   loader_ = std::make_unique<BlockLoader>(blocks ? std::move(blocks) : database_source(db_path), grid_,
                                           [this](const LoadedBlock& b) {
-    std::optional<pm::View> view;
-    double t = 0;
-    pm::RefinementOptions o;
-    {
-      std::lock_guard lock(prep_mutex_);
-      view = prep_view_, t = prep_time_, o = prep_options_;
-    }
-    auto sel = std::make_unique<pm::SelectiveRefinement>(*b.dag, o);
-    if (view) sel->update(*view, t);  // a first update never morphs
-    return sel;
-  });
+                                            std::optional<pm::View> view;
+                                            double t = 0;
+                                            pm::RefinementOptions o;
+                                            {
+                                              std::lock_guard lock(prep_mutex_);
+                                              view = prep_view_, t = prep_time_, o = prep_options_;
+                                            }
+                                            auto sel = std::make_unique<pm::SelectiveRefinement>(*b.dag, o);
+                                            if (view) sel->update(*view, t);  // a first update never morphs
+                                            return sel;
+                                          });
 }
 
 TerrainRuntime::~TerrainRuntime() { loader_.reset(); }
 
 void TerrainRuntime::set_options(const RuntimeOptions& options) {
   check_options(options);
-  const bool refine_changed = options.tolerance_px != opt_.tolerance_px || options.morph_seconds != opt_.morph_seconds ||
+  const bool refine_changed = options.tolerance_px != opt_.tolerance_px ||
+                              options.morph_seconds != opt_.morph_seconds ||
                               options.target_triangles != opt_.target_triangles;
   // The flight history is kept unless the predictor itself changes (a new tau must not make
   // the next frames predict from nothing).
@@ -271,7 +278,8 @@ std::size_t TerrainRuntime::fixed_bytes() const {
 }
 
 // Selection (header, step 2). Returns false when the subtree needs a block that is not resident.
-bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px) {
+bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Selection& sel,
+                           double parent_px) {
   const TreeNode& n = tree_.node(id);
   ++stats_.nodes_visited;
   if (view.outside(n.bbox)) {
@@ -336,7 +344,8 @@ void TerrainRuntime::take_loads() {
     if (!r.block) throw std::runtime_error(r.error);
     const BlockKey k = r.key;
     const std::uint64_t nv = r.block->pm.full_vertex_count();
-    if (nv > 0) bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
+    if (nv > 0)
+      bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
     make_room(r.block->memory_bytes, keep);
     std::size_t resident = fixed_bytes();
     for (const auto& [kk, b] : blocks_) resident += b->data->memory_bytes;
@@ -346,15 +355,17 @@ void TerrainRuntime::take_loads() {
     }
     auto b = std::make_unique<Block>();
     b->data = std::move(r.block);
-    b->sel = r.selection ? std::move(r.selection)
-                         : std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
+    b->sel = r.selection
+                 ? std::move(r.selection)
+                 : std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
     b->last_used = frame_;
     blocks_[k] = std::move(b);
     keep.insert(k);
   }
 }
 
-void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pair<std::int64_t, double>>& needed) {
+void TerrainRuntime::queue_loads(const pm::View& view,
+                                 const std::vector<std::pair<std::int64_t, double>>& needed) {
   // Requests in priority order (lower first): needed blocks by screen error, then the active
   // region around the eye, then the regions around the predicted path. The queue stops where
   // the estimated memory would pass the budget.
@@ -369,8 +380,10 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
     const std::size_t bytes = it != blocks_.end() ? it->second->data->memory_bytes : estimate_bytes(k);
     if (planned + bytes > opt_.budget_bytes) return false;
     planned += bytes;
-    if (it != blocks_.end()) it->second->last_used = frame_;  // keep what the policy wants
-    else req.push_back({k, priority});
+    if (it != blocks_.end())
+      it->second->last_used = frame_;  // keep what the policy wants
+    else
+      req.push_back({k, priority});
     return true;
   };
   std::vector<std::pair<double, BlockKey>> order;
@@ -383,7 +396,8 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
   const double scale = 1.0 / (grid_.block_extent_m() * double(2 * opt_.region.n_max + 3));
   auto dist = [&](BlockKey k) {
     const pm::Box b = block_box(grid_, k, sums_[grid_.index(k)]);
-    const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}), dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
+    const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}),
+                 dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
     return std::min(0.99, std::hypot(dx, dy) * scale);
   };
   // The inner blocks of the active region around `centre`, nearest the eye first, at
@@ -393,7 +407,8 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
     std::vector<std::pair<double, BlockKey>> around;
     for (BlockKey k : r.inner) around.push_back({dist(k), k});
     std::sort(around.begin(), around.end());
-    for (std::size_t i = 0; i < around.size() && room; ++i) room = want(around[i].second, base + spread * around[i].first);
+    for (std::size_t i = 0; i < around.size() && room; ++i)
+      room = want(around[i].second, base + spread * around[i].first);
   };
   if (room) want_region(eye, 1.0, 1.0);
   if (room && opt_.prefetch) {
@@ -412,7 +427,8 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<std::pa
       needed_at(pm::View(c), tau_, 0, std::numeric_limits<double>::infinity(), ahead);
       std::sort(ahead.begin(), ahead.end());
       for (std::size_t i = 0; i < ahead.size() && room; ++i) room = want(ahead[i].second, 2.0 + pt.dt);
-      if (room) want_region(pt.position, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s, 0.25 * opt_.prefetch_step_s);
+      if (room)
+        want_region(pt.position, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s, 0.25 * opt_.prefetch_step_s);
     }
   }
   loader_->set_queue(std::move(req));
@@ -440,8 +456,8 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = thread_cpu_ms();
   if (started_ && time_s < time_)
-    throw std::invalid_argument("TerrainRuntime::update: time went backwards (" + std::to_string(time_s) + " s after " +
-                                std::to_string(time_) + " s)");
+    throw std::invalid_argument("TerrainRuntime::update: time went backwards (" + std::to_string(time_s) +
+                                " s after " + std::to_string(time_) + " s)");
   started_ = true;
   time_ = time_s;
   ++frame_;
@@ -498,7 +514,8 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
       if (missing_.insert(k).second) ++s.prefetch_misses_total;
     }
   }
-  for (auto it = missing_.begin(); it != missing_.end();) it = needed_now.count(*it) ? std::next(it) : missing_.erase(it);
+  for (auto it = missing_.begin(); it != missing_.end();)
+    it = needed_now.count(*it) ? std::next(it) : missing_.erase(it);
   needed_prev_ = std::move(needed_now);
 
   s.select_ms = lap();
@@ -536,7 +553,8 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   for (std::int64_t id : pms) {
     const TreeNode& n = tree_.node(id);
     Block& b = *blocks_.at(*n.block);
-    if (b.sel->options().tolerance_px != ropt.tolerance_px || b.sel->options().morph_seconds != ropt.morph_seconds) {
+    if (b.sel->options().tolerance_px != ropt.tolerance_px ||
+        b.sel->options().morph_seconds != ropt.morph_seconds) {
       b.sel->set_options(ropt);
       b.rm_valid = false;
     }
@@ -561,9 +579,12 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
         for (const auto& t : old.triangles) {
           Tri3 q;
           for (int c = 0; c < 3; ++c) q[std::size_t(c)] = old.points[t[std::size_t(c)]];
-          const double cmin = std::min({q[0][0], q[1][0], q[2][0]}), cmax = std::max({q[0][0], q[1][0], q[2][0]});
-          const double rmin = std::min({q[0][1], q[1][1], q[2][1]}), rmax = std::max({q[0][1], q[1][1], q[2][1]});
-          if (cmax < n.domain.col0 || cmin > n.domain.col1 || rmax < n.domain.row0 || rmin > n.domain.row1) continue;
+          const double cmin = std::min({q[0][0], q[1][0], q[2][0]}),
+                       cmax = std::max({q[0][0], q[1][0], q[2][0]});
+          const double rmin = std::min({q[0][1], q[1][1], q[2][1]}),
+                       rmax = std::max({q[0][1], q[1][1], q[2][1]});
+          if (cmax < n.domain.col0 || cmin > n.domain.col1 || rmax < n.domain.row0 || rmin > n.domain.row1)
+            continue;
           b.old.push_back(q);
         }
         if (!b.old.empty()) {
@@ -619,9 +640,10 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
     p.zhi = n.bbox.hi.z;
     ++s.pm_blocks;
   }
-  auto add_surface_patch = [&](std::int64_t id, const SampleRect& domain, const std::vector<std::array<double, 3>>& pts,
-                               const std::vector<std::array<std::uint32_t, 3>>& tris, const std::vector<double>& errs,
-                               double bound_px, const pm::Box& box) {
+  auto add_surface_patch = [&](std::int64_t id, const SampleRect& domain,
+                               const std::vector<std::array<double, 3>>& pts,
+                               const std::vector<std::array<std::uint32_t, 3>>& tris,
+                               const std::vector<double>& errs, double bound_px, const pm::Box& box) {
     Patch& p = next_patch();
     p.node = id;
     p.zlo = box.lo.z;
@@ -639,16 +661,18 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   for (std::int64_t id : coarse) {
     const TreeNode& n = tree_.node(id);
     add_surface_patch(id, n.domain, n.surface.points, n.surface.triangles,
-                      std::vector<double>(n.surface.triangles.size(), n.error), view.vertical_error_px(n.bbox, n.error), n.bbox);
+                      std::vector<double>(n.surface.triangles.size(), n.error),
+                      view.vertical_error_px(n.bbox, n.error), n.bbox);
   }
   s.coarse_nodes = coarse.size();
   auto add_standin = [&](const TreeNode& n) {
     const BlockSummary& sum = sums_[grid_.index(*n.block)];
     std::vector<std::array<double, 3>> pts;
     pts.reserve(sum.points.size());
-    for (const StandinPoint& q : sum.points) pts.push_back({double(n.domain.col0 + q.col), double(n.domain.row0 + q.row), q.z});
-    add_surface_patch(n.id, n.domain, pts, sum.triangles, sum.triangle_errors, standin_bound_px(grid_, *n.block, sum, view),
-                      n.bbox);
+    for (const StandinPoint& q : sum.points)
+      pts.push_back({double(n.domain.col0 + q.col), double(n.domain.row0 + q.row), q.z});
+    add_surface_patch(n.id, n.domain, pts, sum.triangles, sum.triangle_errors,
+                      standin_bound_px(grid_, *n.block, sum, view), n.bbox);
   };
   for (std::int64_t id : sel.standins) add_standin(tree_.node(id));
   s.standin_blocks = sel.standins.size();
@@ -768,7 +792,8 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
     Patch& p = patches[i];
     const std::size_t T = p.sp.triangles.size();
     piece.assign(T, 0);
-    for (std::size_t k = 0; k < sr.new_triangles[i].size(); ++k) piece[sr.new_triangles[i][k]] = std::uint32_t(k + 1);
+    for (std::size_t k = 0; k < sr.new_triangles[i].size(); ++k)
+      piece[sr.new_triangles[i][k]] = std::uint32_t(k + 1);
     s.seam_triangles += sr.new_triangles[i].size();
     bool own_needed = false;
     for (std::size_t t = 0; t < T; ++t) {
@@ -794,7 +819,8 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
           const std::uint32_t lv = tl[std::size_t(c)];
           const pm::GridPoint g = p.sp.vertices[lv];
           base[std::size_t(c)] = plane_height(q[0], q[1], q[2], g.x, g.y);
-          if (lv >= original_vertices[i]) delta = std::max(delta, std::abs(rest[tg[std::size_t(c)]] - base[std::size_t(c)]));
+          if (lv >= original_vertices[i])
+            delta = std::max(delta, std::abs(rest[tg[std::size_t(c)]] - base[std::size_t(c)]));
         }
         eval.push_back({ti, e + delta, e, base, i});
       } else {
@@ -837,7 +863,8 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
     for (const pm::Plane& pl : view.planes()) {
       double top = -1e300;
       for (int k = 0; k < 3; ++k)
-        top = std::max(top, pl.n.x * q.x[k] + pl.n.y * q.y[k] + std::max(pl.n.z * q.lo[k], pl.n.z * q.hi[k]) + pl.d);
+        top = std::max(
+            top, pl.n.x * q.x[k] + pl.n.y * q.y[k] + std::max(pl.n.z * q.lo[k], pl.n.z * q.hi[k]) + pl.d);
       if (top < 0.0) return true;
     }
     return false;
@@ -847,7 +874,8 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
   auto min_depth = [&](const Prism& q) {
     double d = 1e300;
     for (int k = 0; k < 3; ++k)
-      d = std::min(d, fwd.x * q.x[k] + fwd.y * q.y[k] + std::min(fwd.z * q.lo[k], fwd.z * q.hi[k]) - eye_depth);
+      d = std::min(d,
+                   fwd.x * q.x[k] + fwd.y * q.y[k] + std::min(fwd.z * q.lo[k], fwd.z * q.hi[k]) - eye_depth);
     return std::max(d, near);
   };
   // Clamp the offsets: each moving vertex stays within what every triangle around it allows.
@@ -951,7 +979,8 @@ double TerrainRuntime::drawn_height(double x, double y) const {
     std::vector<std::uint32_t> fill(ix.start.begin(), ix.start.end() - 1);
     for (std::size_t f = 0; f < mesh_.triangles.size(); ++f)
       for (int j = span[f][2]; j <= span[f][3]; ++j)
-        for (int i = span[f][0]; i <= span[f][1]; ++i) ix.tris[fill[std::size_t(j) * side + i]++] = std::uint32_t(f);
+        for (int i = span[f][0]; i <= span[f][1]; ++i)
+          ix.tris[fill[std::size_t(j) * side + i]++] = std::uint32_t(f);
   }
   const auto [c, r] = grid_.to_grid(x, y);
   if (!(c >= 0 && r >= 0 && c <= grid_.grid_width() - 1 && r <= grid_.grid_height() - 1))
@@ -970,7 +999,8 @@ double TerrainRuntime::drawn_height(double x, double y) const {
     if (det == 0) continue;
     const double l1 = ((c - a[0]) * (e[1] - a[1]) - (r - a[1]) * (e[0] - a[0])) / det;
     const double l2 = ((b[0] - a[0]) * (r - a[1]) - (b[1] - a[1]) * (c - a[0])) / det;
-    if (l1 >= -1e-12 && l2 >= -1e-12 && 1 - l1 - l2 >= -1e-12) return (1 - l1 - l2) * a[2] + l1 * b[2] + l2 * e[2];
+    if (l1 >= -1e-12 && l2 >= -1e-12 && 1 - l1 - l2 >= -1e-12)
+      return (1 - l1 - l2) * a[2] + l1 * b[2] + l2 * e[2];
   }
   return std::numeric_limits<double>::quiet_NaN();
 }

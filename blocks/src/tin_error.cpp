@@ -23,9 +23,12 @@ inline void row_span(const std::int64_t A[3], const std::int64_t B[3], const std
                      std::int64_t& xl, std::int64_t& xr) {
   for (int k = 0; k < 3; ++k) {
     const std::int64_t Cy = B[k] * y + C[k];  // A x + Cy >= 0 inside
-    if (A[k] > 0) xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
-    else if (A[k] < 0) xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
-    else if (Cy < 0) xr = xl - 1;
+    if (A[k] > 0)
+      xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
+    else if (A[k] < 0)
+      xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
+    else if (Cy < 0)
+      xr = xl - 1;
   }
 }
 
@@ -80,7 +83,8 @@ SampleScan scan_triangle(const pm::Heightfield& hf, pm::GridPoint a, pm::GridPoi
     std::int64_t xl = xmin, xr = xmax;
     row_span(A, B, C, y, xl, xr);
     if (xl > xr) continue;
-    const double sy = double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
+    const double sy =
+        double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
     const std::size_t row = std::size_t(y) * width;
     const double* zr = z0 + row;
     double rmax = -1.0;  // this row's largest |numerator| and where
@@ -163,10 +167,18 @@ Crossing worst_crossing(const pm::Heightfield& hf, pm::GridPoint p, pm::GridPoin
     r = N - i * D;
     s0 = {int(i), int(i - k)}, s1 = {int(i) + 1, int(i + 1 - k)};
   };
-  if (q.x >= p.x) family(p, q, p.x, q.x, vertical); else family(q, p, q.x, p.x, vertical);
-  if (q.y >= p.y) family(p, q, p.y, q.y, horizontal); else family(q, p, q.y, p.y, horizontal);
-  if (q.x - q.y >= p.x - p.y) family(p, q, p.x - p.y, q.x - q.y, diagonal);
-  else family(q, p, q.x - q.y, p.x - p.y, diagonal);
+  if (q.x >= p.x)
+    family(p, q, p.x, q.x, vertical);
+  else
+    family(q, p, q.x, p.x, vertical);
+  if (q.y >= p.y)
+    family(p, q, p.y, q.y, horizontal);
+  else
+    family(q, p, q.y, p.y, horizontal);
+  if (q.x - q.y >= p.x - p.y)
+    family(p, q, p.x - p.y, q.x - q.y, diagonal);
+  else
+    family(q, p, q.x - q.y, p.x - p.y, diagonal);
   return out;
 }
 

@@ -240,11 +240,16 @@ double surface_error(const pm::Heightfield& hf, const NodeSurface& s, pm::ErrorM
 
 const char* strategy_choice_name(StrategyChoice c) {
   switch (c) {
-    case StrategyChoice::Grid: return "grid";
-    case StrategyChoice::Tin: return "tin";
-    case StrategyChoice::NonRegularGrid: return "nonregular";
-    case StrategyChoice::Hybrid: return "hybrid";
-    case StrategyChoice::Auto: return "auto";
+    case StrategyChoice::Grid:
+      return "grid";
+    case StrategyChoice::Tin:
+      return "tin";
+    case StrategyChoice::NonRegularGrid:
+      return "nonregular";
+    case StrategyChoice::Hybrid:
+      return "hybrid";
+    case StrategyChoice::Auto:
+      return "auto";
   }
   return "unknown";
 }
@@ -256,8 +261,9 @@ StrategyChoice parse_strategy_choice(const std::string& name) {
   throw std::invalid_argument("unknown strategy '" + name + "' (grid, tin, nonregular, hybrid or auto)");
 }
 
-ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout, const TreeBuildOptions& opt,
-                             std::span<const double> block_errors, const std::function<void(double)>& progress) {
+ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout,
+                             const TreeBuildOptions& opt, std::span<const double> block_errors,
+                             const std::function<void(double)>& progress) {
   assert(!opt.levels.empty() && opt.patch >= 1 && opt.max_points >= 4 && opt.leaf_error >= 0.0);
   assert(layout.grid_width == hf.width() && layout.grid_height == hf.height());
   assert(!opt.pm_leaves || block_errors.size() == layout.count());
@@ -267,11 +273,16 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
   const auto hybrid = make_hybrid_strategy(opt.patch, opt.max_points, opt.metric);
   auto strategy_of = [&](StrategyChoice c) -> const NodeStrategy* {
     switch (c) {
-      case StrategyChoice::Grid: return grid.get();
-      case StrategyChoice::Tin: return tin.get();
-      case StrategyChoice::NonRegularGrid: return nonreg.get();
-      case StrategyChoice::Hybrid: return hybrid.get();
-      case StrategyChoice::Auto: return nullptr;
+      case StrategyChoice::Grid:
+        return grid.get();
+      case StrategyChoice::Tin:
+        return tin.get();
+      case StrategyChoice::NonRegularGrid:
+        return nonreg.get();
+      case StrategyChoice::Hybrid:
+        return hybrid.get();
+      case StrategyChoice::Auto:
+        return nullptr;
     }
     return nullptr;
   };
@@ -286,8 +297,9 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
   params.max_children = 0;
   for (StrategyChoice c : opt.levels) {
     const std::vector<const NodeStrategy*> used =
-        c == StrategyChoice::Auto ? std::vector<const NodeStrategy*>{grid.get(), tin.get(), nonreg.get(), hybrid.get()}
-                                  : std::vector<const NodeStrategy*>{strategy_of(c)};
+        c == StrategyChoice::Auto
+            ? std::vector<const NodeStrategy*>{grid.get(), tin.get(), nonreg.get(), hybrid.get()}
+            : std::vector<const NodeStrategy*>{strategy_of(c)};
     for (const NodeStrategy* s : used) {
       params.max_points = std::max(params.max_points, s->max_points());
       params.max_children = std::max(params.max_children, s->max_children());
@@ -316,7 +328,8 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
         n.error = block_errors[std::size_t(p.bc0) * std::size_t(layout.blocks_y) + std::size_t(p.br0)];
         return;
       }
-      const StrategyChoice choice = opt.levels[std::min<std::size_t>(std::size_t(p.level), opt.levels.size() - 1)];
+      const StrategyChoice choice =
+          opt.levels[std::min<std::size_t>(std::size_t(p.level), opt.levels.size() - 1)];
       if (choice == StrategyChoice::Auto) {
         // Error per byte: keep the candidate with the smallest error x bytes (ties: fewer bytes).
         double best_score = std::numeric_limits<double>::infinity();
@@ -370,7 +383,9 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
 
 namespace {
 
-const char* metric_name(pm::ErrorMetric m) { return m == pm::ErrorMetric::Samples ? "samples" : "continuous"; }
+const char* metric_name(pm::ErrorMetric m) {
+  return m == pm::ErrorMetric::Samples ? "samples" : "continuous";
+}
 
 std::uint32_t samples_crc(const pm::Heightfield& hf) {
   uLong crc = crc32(0L, Z_NULL, 0);
@@ -383,13 +398,15 @@ std::uint32_t samples_crc(const pm::Heightfield& hf) {
 
 std::string build_parameters_json(const pm::Heightfield& hf, const DatabaseBuildOptions& o) {
   std::string levels;
-  for (StrategyChoice c : o.tree.levels) levels += std::string(levels.empty() ? "" : ",") + strategy_choice_name(c);
+  for (StrategyChoice c : o.tree.levels)
+    levels += std::string(levels.empty() ? "" : ",") + strategy_choice_name(c);
   char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "{\"block_size\": %d, \"metric\": \"%s\", \"strategy\": \"%s\", \"patch\": %d, \"max_points\": %zu, "
-                "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 "}",
-                o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, hf.width(),
-                hf.height(), samples_crc(hf));
+  std::snprintf(
+      buf, sizeof buf,
+      "{\"block_size\": %d, \"metric\": \"%s\", \"strategy\": \"%s\", \"patch\": %d, \"max_points\": %zu, "
+      "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 "}",
+      o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, hf.width(),
+      hf.height(), samples_crc(hf));
   return buf;
 }
 
@@ -402,7 +419,8 @@ bool is_interrupted_create(const std::string& path) {
   if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
     sqlite3_stmt* st = nullptr;
     std::int64_t app_id = -1, objects = -1;
-    if (sqlite3_prepare_v2(db, "PRAGMA application_id", -1, &st, nullptr) == SQLITE_OK && sqlite3_step(st) == SQLITE_ROW)
+    if (sqlite3_prepare_v2(db, "PRAGMA application_id", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW)
       app_id = sqlite3_column_int64(st, 0);
     sqlite3_finalize(st);
     st = nullptr;
@@ -416,7 +434,9 @@ bool is_interrupted_create(const std::string& path) {
   return empty;
 }
 
-std::string block_meta_key(BlockKey k) { return "block/" + std::to_string(k.col) + "," + std::to_string(k.row); }
+std::string block_meta_key(BlockKey k) {
+  return "block/" + std::to_string(k.col) + "," + std::to_string(k.row);
+}
 
 struct BlockRecord {
   double error = 0;
@@ -448,12 +468,14 @@ std::string DatabaseSummary::to_json() const {
   auto quote = [](const std::string& s) {
     std::string q = "\"";
     for (char c : s) {
-      if (c == '"' || c == '\\') q += '\\', q += c;
+      if (c == '"' || c == '\\')
+        q += '\\', q += c;
       else if (static_cast<unsigned char>(c) < 0x20) {
         char b[8];
         std::snprintf(b, sizeof b, "\\u%04x", c);
         q += b;
-      } else q += c;
+      } else
+        q += c;
     }
     return q + "\"";
   };
@@ -470,14 +492,16 @@ std::string DatabaseSummary::to_json() const {
   field("kind", quote("blocks"));
   field("source", quote(source));
   field("complete", complete ? "true" : "false");
-  field("grid", "{\"width\": " + std::to_string(grid_width) + ", \"height\": " + std::to_string(grid_height) + "}");
+  field("grid",
+        "{\"width\": " + std::to_string(grid_width) + ", \"height\": " + std::to_string(grid_height) + "}");
   field("block_size", std::to_string(block_size));
   field("blocks_grid", "{\"x\": " + std::to_string(blocks_x) + ", \"y\": " + std::to_string(blocks_y) + "}");
   field("blocks", std::to_string(blocks));
   field("blocks_built", std::to_string(blocks_built));
   std::string per = "{";
   for (int s = 0; s < kStrategyCount; ++s)
-    per += std::string(s ? ", " : "") + quote(strategy_name(Strategy(s))) + ": " + std::to_string(nodes_per_strategy[std::size_t(s)]);
+    per += std::string(s ? ", " : "") + quote(strategy_name(Strategy(s))) + ": " +
+           std::to_string(nodes_per_strategy[std::size_t(s)]);
   field("nodes", std::to_string(nodes));
   field("nodes_per_strategy", per + "}");
   field("tree_depth", std::to_string(tree_depth));
@@ -499,8 +523,9 @@ std::string DatabaseSummary::to_json() const {
 
 void require_complete_build(const BlockDatabase& db) {
   if (db.get_meta("build_complete").value_or("") != "1")
-    throw BuildError(db.path() +
-                     ": the build is not complete (run 'terralod build' again with the same options to finish it)");
+    throw BuildError(
+        db.path() +
+        ": the build is not complete (run 'terralod build' again with the same options to finish it)");
 }
 
 DatabaseSummary summarize_database(const BlockDatabase& db) {
@@ -550,7 +575,8 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
   return s;
 }
 
-DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path, const DatabaseBuildOptions& opt) {
+DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path,
+                               const DatabaseBuildOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string source = hf.source.empty() ? std::string("(in memory)") : hf.source;
   if (hf.width() < 2 || hf.height() < 2)
@@ -560,7 +586,8 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   for (std::size_t i = 0; !any_valid && i < hf.size(); ++i) any_valid = hf.valid(i);
   if (!any_valid) throw BuildError(source + ": every sample is void; there is no terrain to build");
   if (!is_valid_block_size(opt.block_size))
-    throw BuildError(path + ": block size must be 2^k + 1 (3, 5, 9, ..., 257, ...), not " + std::to_string(opt.block_size));
+    throw BuildError(path + ": block size must be 2^k + 1 (3, 5, 9, ..., 257, ...), not " +
+                     std::to_string(opt.block_size));
   const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
 
   DatabaseInfo info;
@@ -582,8 +609,9 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     const DatabaseInfo& have = dbo->info();
     if (have.build_parameters != info.build_parameters || have.grid_width != info.grid_width ||
         have.grid_height != info.grid_height || have.kind != info.kind)
-      throw BuildError(path + ": exists and was built with other parameters or input (stored " + have.build_parameters +
-                       ", requested " + info.build_parameters + "); use the same options and input to resume, or remove it");
+      throw BuildError(path + ": exists and was built with other parameters or input (stored " +
+                       have.build_parameters + ", requested " + info.build_parameters +
+                       "); use the same options and input to resume, or remove it");
   } else {
     dbo.emplace(BlockDatabase::create(path, info));
   }
@@ -679,7 +707,8 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
       }
       if (opt.stop_after_blocks && written >= opt.stop_after_blocks && written < todo.size()) {
         stop_workers();
-        throw BuildError(path + ": build stopped after " + std::to_string(written) + " blocks (stop_after_blocks)");
+        throw BuildError(path + ": build stopped after " + std::to_string(written) +
+                         " blocks (stop_after_blocks)");
       }
     }
   } catch (...) {
@@ -694,7 +723,9 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   std::vector<double> errors(keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const auto r = read_block_record(db, keys[i]);
-    if (!r) throw DatabaseError(path, "block (" + std::to_string(keys[i].col) + "," + std::to_string(keys[i].row) + "): no build record");
+    if (!r)
+      throw DatabaseError(path, "block (" + std::to_string(keys[i].col) + "," + std::to_string(keys[i].row) +
+                                    "): no build record");
     errors[i] = r->error;
   }
   TreeBuildOptions topt = opt.tree;
@@ -731,8 +762,10 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   std::vector<BlockSummary> sums(bgrid.block_count());
   bool complete_sums = true;
   for (const auto& [k, sum] : summaries) {
-    if (!sum) complete_sums = false;
-    else sums[bgrid.index(k)] = *sum;
+    if (!sum)
+      complete_sums = false;
+    else
+      sums[bgrid.index(k)] = *sum;
   }
   const std::vector<std::uint8_t> sum_bytes =
       complete_sums ? encode_block_summaries(bgrid, sums) : std::vector<std::uint8_t>{};

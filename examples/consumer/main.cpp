@@ -3,7 +3,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
-
 #include <terralod/blocks/database_extract.hpp>
 #include <terralod/blocks/tree_builder.hpp>
 #include <terralod/pm/terrain_generator.hpp>

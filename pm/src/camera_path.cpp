@@ -64,12 +64,14 @@ std::vector<Camera> parse_camera_path(std::string_view text, const std::string& 
     if (!header) {
       bool ok = f.size() == 6;
       for (std::size_t i = 0; ok && i < 6; ++i) ok = f[i] == kNames[i];
-      if (!ok) fail(name, line_no, "expected the header 'x,y,z,yaw,pitch,fovy', found '" + printable(line) + "'");
+      if (!ok)
+        fail(name, line_no, "expected the header 'x,y,z,yaw,pitch,fovy', found '" + printable(line) + "'");
       header = true;
       continue;
     }
     if (f.size() != 6)
-      fail(name, line_no, "expected 6 comma-separated numbers, found " + std::to_string(f.size()) + " fields");
+      fail(name, line_no,
+           "expected 6 comma-separated numbers, found " + std::to_string(f.size()) + " fields");
     if (path.size() >= o.max_rows) fail(name, line_no, "more than " + std::to_string(o.max_rows) + " rows");
     double v[6];
     for (int i = 0; i < 6; ++i) {
@@ -96,7 +98,8 @@ std::vector<Camera> parse_camera_path(std::string_view text, const std::string& 
 std::vector<Camera> read_camera_path(const std::string& path, const CameraPathOptions& options) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw std::runtime_error(path + ": " + (std::filesystem::exists(path, ec) ? "not a regular file" : "no such file"));
+    throw std::runtime_error(path + ": " +
+                             (std::filesystem::exists(path, ec) ? "not a regular file" : "no such file"));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path + ": cannot open for reading");
   std::ostringstream ss;

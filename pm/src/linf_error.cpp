@@ -81,11 +81,20 @@ double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
       worst = std::max(worst, std::abs(lin - orig) / double(D));
     }
   };
-  if (q.x >= p.x) vertical(p, q, zp, zq); else vertical(q, p, zq, zp);
+  if (q.x >= p.x)
+    vertical(p, q, zp, zq);
+  else
+    vertical(q, p, zq, zp);
   if (worst > cutoff) return worst;
-  if (q.y >= p.y) horizontal(p, q, zp, zq); else horizontal(q, p, zq, zp);
+  if (q.y >= p.y)
+    horizontal(p, q, zp, zq);
+  else
+    horizontal(q, p, zq, zp);
   if (worst > cutoff) return worst;
-  if ((q.x - q.y) >= (p.x - p.y)) diagonal(p, q, zp, zq); else diagonal(q, p, zq, zp);
+  if ((q.x - q.y) >= (p.x - p.y))
+    diagonal(p, q, zp, zq);
+  else
+    diagonal(q, p, zq, zp);
   return worst;
 }
 
@@ -119,12 +128,16 @@ double LInfError::samples_in_triangle(GridPoint a, GridPoint b, GridPoint c, dou
     std::int64_t xl = xmin, xr = xmax;
     for (int k = 0; k < 3; ++k) {
       const std::int64_t Cy = B[k] * y + C[k];  // A x + Cy >= 0
-      if (A[k] > 0) xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
-      else if (A[k] < 0) xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
-      else if (Cy < 0) xr = xl - 1;
+      if (A[k] > 0)
+        xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
+      else if (A[k] < 0)
+        xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
+      else if (Cy < 0)
+        xr = xl - 1;
     }
     if (xl > xr) continue;
-    const double sy = double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
+    const double sy =
+        double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
     const double* zr = zrow0 + std::size_t(y) * width;
     double rhi = hi, rlo = lo;
     for (std::int64_t x = xl; x <= xr; ++x) {

@@ -238,7 +238,8 @@ TriangleMeshData read_ply(const std::string& path) {
   // the stream throw a message without the path.
   std::error_code ec;
   const std::filesystem::file_status st = std::filesystem::status(path, ec);
-  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) throw fail("cannot read: not a regular file");
+  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+    throw fail("cannot read: not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw fail(std::string("cannot open: ") + std::strerror(errno));
   const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

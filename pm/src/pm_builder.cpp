@@ -22,20 +22,19 @@
 // transparent huge pages where the OS allows it. Peak for the full N44W072 tile (two strips at
 // once): 760 MB.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <atomic>
-#include <thread>
+#include <bit>
 #include <cassert>
 #include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <new>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
-#include <cstdlib>
-#include <new>
-#include <memory>
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
@@ -66,11 +65,15 @@ struct HugeAllocator {
     return static_cast<T*>(p);
   }
   void deallocate(T* p, std::size_t n) {
-    if (n * sizeof(T) < kHuge) std::allocator<T>().deallocate(p, n);
-    else std::free(p);
+    if (n * sizeof(T) < kHuge)
+      std::allocator<T>().deallocate(p, n);
+    else
+      std::free(p);
   }
   template <class U>
-  bool operator==(const HugeAllocator<U>&) const { return true; }
+  bool operator==(const HugeAllocator<U>&) const {
+    return true;
+  }
 };
 template <class T>
 using HugeVector = std::vector<T, HugeAllocator<T>>;
@@ -220,8 +223,10 @@ class VertexHeap {
   void remove(std::uint32_t v) {
     const std::uint32_t p = pos(v);
     if (p == kAbsent) return;
-    if (p >= kInBucket) bucket_remove(v, p);
-    else heap_remove(p);
+    if (p >= kInBucket)
+      bucket_remove(v, p);
+    else
+      heap_remove(p);
   }
   /// Renames every vertex v in the queue to map[v]; map must keep the order of the vertices
   /// in it, so that the key order (and every tie) stays. Positions stay where they are.
@@ -290,8 +295,10 @@ class VertexHeap {
     pos(at(p).v()) = kAbsent;
     const Entry last = at(--size_);
     if (p == size_) return;
-    if (p > 0 && less(last, at((p - 1) / 4))) up(p, last);
-    else down(p, last);
+    if (p > 0 && less(last, at((p - 1) / 4)))
+      up(p, last);
+    else
+      down(p, last);
   }
   void bucket_push(std::uint32_t b, const Entry& e) {
     auto& q = buckets_[b];
@@ -337,9 +344,9 @@ class VertexHeap {
   std::uint32_t* pos_ = nullptr;
   std::uint16_t* bucket_ = nullptr;
   std::size_t stride_ = 1;
-  std::uint32_t size_ = 0;       // entries in the heap
-  std::uint32_t active_ = 0;     // the heap holds the keys of buckets 0 .. active_
-  std::size_t in_buckets_ = 0;   // entries in buckets
+  std::uint32_t size_ = 0;      // entries in the heap
+  std::uint32_t active_ = 0;    // the heap holds the keys of buckets 0 .. active_
+  std::size_t in_buckets_ = 0;  // entries in buckets
 };
 
 class Builder {
@@ -372,7 +379,8 @@ class Builder {
         if (!add_face(tri).is_valid()) {
           // Cells in tile order always extend the connected fans of their corners (see
           // number_vertices), so only a grid with holes can drop a face.
-          if (!hf_.has_holes()) throw std::logic_error("progressive mesh: the full-resolution grid is not manifold");
+          if (!hf_.has_holes())
+            throw std::logic_error("progressive mesh: the full-resolution grid is not manifold");
           dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
         }
       }
@@ -392,7 +400,7 @@ class Builder {
       if (x1 < W_ - 1) vs_[id_of_[id_index(x1, j)]].locked = 1;
     }
     HugeVector<std::uint32_t>().swap(id_of_);  // needed no more
-    edge_err_.assign(mesh_.n_edges(), 0.0);  // edges of the full-resolution grid lie on it
+    edge_err_.assign(mesh_.n_edges(), 0.0);    // edges of the full-resolution grid lie on it
     init_rings();
   }
 
@@ -405,7 +413,8 @@ class Builder {
     std::vector<Mesh::VertexHandle> tri(3);
     for (const auto& f : faces) {
       for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));  // all columns: the sample
-      if (!add_face(tri).is_valid()) throw std::logic_error("progressive mesh: joined strips are not manifold");
+      if (!add_face(tri).is_valid())
+        throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
     HugeVector<std::uint32_t>().swap(id_of_);
     edge_err_.assign(mesh_.n_edges(), 0.0);
@@ -524,7 +533,7 @@ class Builder {
   void number_vertices(int x0, int x1, const std::vector<std::uint8_t>* used = nullptr) {
     std::vector<std::uint32_t> sample_of;  // vertex id -> sample index
     sample_of.reserve(used ? std::size_t(std::count(used->begin(), used->end(), 1))
-                            : std::size_t(x1 + 1 - x0) * std::size_t(H_));
+                           : std::size_t(x1 + 1 - x0) * std::size_t(H_));
     std::vector<std::uint32_t> z_order(std::size_t(kTile) * kTile);  // Morton code -> dx + kTile * dy
     for (std::uint32_t m = 0; m < z_order.size(); ++m) {
       std::uint32_t dx = 0, dy = 0;
@@ -931,10 +940,11 @@ class Builder {
     // A short segment crosses few grid lines: measuring it costs less than a cache miss.
     if (std::abs(pa.x - pb.x) + std::abs(pa.y - pb.y) <= kShortSpoke) return err_.segment(pa, pb, cutoff);
     const std::uint32_t a = sample_at(pa), b = sample_at(pb);
-    SpokeSlot& s = spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 49];
+    SpokeSlot& s =
+        spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 49];
     if (s.a == a && s.b == b) {
-      if (s.value >= 0) return s.value;            // exact
-      if (-s.value > cutoff) return -s.value;      // a lower bound above the cutoff
+      if (s.value >= 0) return s.value;        // exact
+      if (-s.value > cutoff) return -s.value;  // a lower bound above the cutoff
     }
     const double e = err_.segment(pa, pb, cutoff);
     s = SpokeSlot{a, b, e <= cutoff ? e : -e};  // lower bounds (> cutoff >= 0) stored negated
@@ -960,8 +970,10 @@ class Builder {
     const bool edge_boundary = mesh_.is_boundary(h) || mesh_.is_boundary(o);
     if (!edge_boundary && mesh_.is_boundary(vu) && mesh_.is_boundary(vw)) return false;
     std::uint32_t wings[2] = {UINT32_MAX, UINT32_MAX};
-    if (!mesh_.is_boundary(h)) wings[0] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx());
-    if (!mesh_.is_boundary(o)) wings[1] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx());
+    if (!mesh_.is_boundary(h))
+      wings[0] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx());
+    if (!mesh_.is_boundary(o))
+      wings[1] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx());
     if (wings[0] == wings[1]) return false;
     // Common neighbours by comparing the two (short) rings: no per-vertex marks to miss in cache.
     int common = 0;
@@ -1133,7 +1145,8 @@ class Builder {
       for (std::size_t j = 0; j < nf; ++j) {
         const RingFace& f = fs[j];
         if (f.ka == c.k || f.kb == c.k) continue;
-        const std::int64_t xa = lw.x * rl[f.ka].y - lw.y * rl[f.ka].x, xb = lw.x * rl[f.kb].y - lw.y * rl[f.kb].x;
+        const std::int64_t xa = lw.x * rl[f.ka].y - lw.y * rl[f.ka].x,
+                           xb = lw.x * rl[f.kb].y - lw.y * rl[f.kb].x;
         const std::int64_t e2 = xa, e1 = -xb;
         if (e2 >= 0 && e1 >= 0) {
           const std::int64_t area2 = f.cross + xa - xb;
@@ -1159,7 +1172,8 @@ class Builder {
     // Insertion sort (stable, no allocation; rings are short).
     const auto sort_by_bound = [&] {
       for (std::size_t i = 1; i < cand_.size(); ++i)
-        for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j) std::swap(cand_[j], cand_[j - 1]);
+        for (std::size_t j = i; j > 0 && by_bound(cand_[j], cand_[j - 1]); --j)
+          std::swap(cand_[j], cand_[j - 1]);
     };
     if (!exact) {  // only the smallest bound of a legal candidate is needed
       const Candidate* pick = nullptr;
@@ -1252,16 +1266,21 @@ class Builder {
   // Tie-break of equal errors: the squared length of the collapsed edge, saturated (exact
   // below 46341 samples per side, where every order below is the one of the exact length).
   static std::uint32_t tie_of(GridPoint a, GridPoint b) {
-    const std::uint64_t dx = std::uint64_t(std::abs(std::int64_t(a.x) - b.x)), dy = std::uint64_t(std::abs(std::int64_t(a.y) - b.y));
+    const std::uint64_t dx = std::uint64_t(std::abs(std::int64_t(a.x) - b.x)),
+                        dy = std::uint64_t(std::abs(std::int64_t(a.y) - b.y));
     return std::uint32_t(std::min<std::uint64_t>(dx * dx + dy * dy, UINT32_MAX));
   }
 
   bool border_line_contains(int line, GridPoint p) const {
     switch (line) {
-      case 1: return p.x == 0;
-      case 2: return p.x == W_ - 1;
-      case 3: return p.y == 0;
-      case 4: return p.y == H_ - 1;
+      case 1:
+        return p.x == 0;
+      case 2:
+        return p.x == W_ - 1;
+      case 3:
+        return p.y == 0;
+      case 4:
+        return p.y == H_ - 1;
     }
     return false;
   }
@@ -1281,11 +1300,11 @@ class Builder {
   static_assert(sizeof(Site) == 16);
   HugeVector<Site> sites_;  // by vertex id (see number_vertices)
   struct VertexState {
-    std::uint32_t heap_pos;           // owned by heap_
+    std::uint32_t heap_pos;             // owned by heap_
     std::uint32_t target = UINT32_MAX;  // best collapse target (a lower-bound one when dirty)
-    std::uint8_t dirty = 0;           // the heap key is a lower bound
-    std::uint8_t locked = 0;          // on a cut column shared with another strip
-    std::uint16_t bucket;             // owned by heap_
+    std::uint8_t dirty = 0;             // the heap key is a lower bound
+    std::uint8_t locked = 0;            // on a cut column shared with another strip
+    std::uint16_t bucket;               // owned by heap_
   };
   static_assert(sizeof(VertexState) == 12);
   HugeVector<VertexState> vs_;  // by vertex id (see number_vertices)
@@ -1314,9 +1333,9 @@ class Builder {
   std::size_t id_cols_ = 0;
   std::size_t id_index(int i, int j) const { return std::size_t(j) * id_cols_ + std::size_t(i - id_x0_); }
   HugeVector<std::uint32_t> vmap_, emap_, fmap_;  // compact()'s maps
-  std::uint32_t n_ids_ = 0;  // vertex ids are 0 .. n_ids_ - 1 (see number_vertices, compact)
-  int grid_x0_ = -1, grid_x1_ = -1;    // init_grid's columns when the grid has no holes
-  std::size_t collapsed_ = 0;          // collapses since the last compact()
+  std::uint32_t n_ids_ = 0;          // vertex ids are 0 .. n_ids_ - 1 (see number_vertices, compact)
+  int grid_x0_ = -1, grid_x1_ = -1;  // init_grid's columns when the grid has no holes
+  std::size_t collapsed_ = 0;        // collapses since the last compact()
 
   std::size_t reserved_edges_ = 0, reserved_faces_ = 0;
   struct SpokeSlot {
@@ -1327,11 +1346,11 @@ class Builder {
   static constexpr int kShortSpoke = 6;
   std::vector<Candidate> cand_;
 
-  struct RingFace {          // the face (u, a, b) of u's ring
-    std::uint32_t a, b;        // vertex ids
-    std::uint32_t ka, kb;      // their ring indices: kb = ka - 1 (mod n)
-    std::int64_t cross;        // cross(a - u, b - u), twice the face's area
-    double edge_error;         // crossing error of the edge (a, b)
+  struct RingFace {        // the face (u, a, b) of u's ring
+    std::uint32_t a, b;    // vertex ids
+    std::uint32_t ka, kb;  // their ring indices: kb = ka - 1 (mod n)
+    std::int64_t cross;    // cross(a - u, b - u), twice the face's area
+    double edge_error;     // crossing error of the edge (a, b)
   };
   std::vector<RingFace> ring_;
   HugeVector<double> edge_err_;
@@ -1364,9 +1383,11 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
   // Two strips: this machine kind has two cores, and every cut column stays at full
   // resolution below the join error, so more cuts cost triangles at fine levels.
   const int strips =
-      (options.parallel_strips && hf.width() - 1 >= 256 && hf.size() >= (1u << 16) && !hf.has_holes()) ? 2 : 1;
+      (options.parallel_strips && hf.width() - 1 >= 256 && hf.size() >= (1u << 16) && !hf.has_holes()) ? 2
+                                                                                                       : 1;
   const int threads = std::max(
-      1, std::min(strips, options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()))));
+      1, std::min(strips, options.threads > 0 ? options.threads
+                                              : int(std::max(1u, std::thread::hardware_concurrency()))));
   // With holes the union of two manifold strips can pinch at a cut vertex; those build whole.
   if (strips == 1) {
     Builder b(hf, options);
@@ -1376,8 +1397,8 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
     // Phase 1: vertical strips sharing their cut columns (locked), decimated in parallel
     // until each keeps 1/kStripKeep of its vertices. The join below runs on one thread, so
     // the strips go far: a smaller join costs only a higher common error, below which the cut
-    // column stays at full resolution (about 2 triangles per row, at coarse levels only). Collapses of different strips are
-    // independent (their 1-rings never cross a cut column), so any interleaving of the
+    // column stays at full resolution (about 2 triangles per row, at coarse levels only). Collapses of
+    // different strips are independent (their 1-rings never cross a cut column), so any interleaving of the
     // strips' sequences is a valid sequence; they are merged in error order below.
     constexpr std::size_t kStripKeep = 128;
     std::vector<int> cuts(strips + 1);

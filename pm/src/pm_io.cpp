@@ -291,8 +291,8 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
   for (std::size_t i = 0; i < n; ++i)
     if (hf.valid(i) && !std::isfinite(hf[i]))
       throw std::invalid_argument("encode_pm: height " + std::to_string(i) + " is not finite");
-  for (double v : {hf.transform.x0, hf.transform.xc, hf.transform.xr, hf.transform.y0, hf.transform.yc,
-                   hf.transform.yr})
+  for (double v :
+       {hf.transform.x0, hf.transform.xc, hf.transform.xr, hf.transform.y0, hf.transform.yc, hf.transform.yr})
     if (!std::isfinite(v)) throw std::invalid_argument("encode_pm: the grid transform is not finite");
   if (!finite_over_grid(hf.transform, W, H))
     throw std::invalid_argument("encode_pm: the grid transform maps samples to non-finite world coordinates");

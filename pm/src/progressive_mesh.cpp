@@ -20,15 +20,19 @@ bool ProgressiveMesh::full_face(std::uint32_t f, std::array<std::uint32_t, 3>& o
   const std::uint32_t W = std::uint32_t(hf_.width());
   const std::uint32_t cell = f / 2, i = cell % (W - 1), j = cell / (W - 1);
   const std::uint32_t v00 = j * W + i, v10 = v00 + 1, v01 = v00 + W, v11 = v01 + 1;
-  if (f % 2 == 0) out = {v00, v10, v11};
-  else out = {v00, v11, v01};
+  if (f % 2 == 0)
+    out = {v00, v10, v11};
+  else
+    out = {v00, v11, v01};
   if (hf_.has_holes() && !(hf_.valid(out[0]) && hf_.valid(out[1]) && hf_.valid(out[2]))) return false;
-  if (!dropped_faces_.empty() && std::binary_search(dropped_faces_.begin(), dropped_faces_.end(), f)) return false;
+  if (!dropped_faces_.empty() && std::binary_search(dropped_faces_.begin(), dropped_faces_.end(), f))
+    return false;
   return true;
 }
 
 ProgressiveMesh ProgressiveMesh::from_parts(Heightfield hf, ErrorMetric metric, double error_quantum,
-                                            std::vector<Collapse> collapses, std::vector<std::uint32_t> dropped) {
+                                            std::vector<Collapse> collapses,
+                                            std::vector<std::uint32_t> dropped) {
   ProgressiveMesh pm;
   pm.hf_ = std::move(hf);
   pm.metric_ = metric;
@@ -60,10 +64,12 @@ void ProgressiveMesh::finish() {
   for (std::size_t k = 0; k < collapses_.size(); ++k) {
     const Collapse& c = collapses_[k];
     if (c.u >= hf_.size() || c.w >= hf_.size() || c.u == c.w || !alive[c.u] || !alive[c.w])
-      throw std::invalid_argument("progressive mesh: collapse " + std::to_string(k) + " (" + std::to_string(c.u) +
-                                  " -> " + std::to_string(c.w) + ") does not join two live vertices");
+      throw std::invalid_argument("progressive mesh: collapse " + std::to_string(k) + " (" +
+                                  std::to_string(c.u) + " -> " + std::to_string(c.w) +
+                                  ") does not join two live vertices");
     if (!(c.error >= 0.0) || !std::isfinite(c.error))
-      throw std::invalid_argument("progressive mesh: collapse " + std::to_string(k) + " has an invalid error");
+      throw std::invalid_argument("progressive mesh: collapse " + std::to_string(k) +
+                                  " has an invalid error");
     alive[c.u] = 0;
     prefix_max_[k + 1] = std::max(prefix_max_[k], c.error);
   }
@@ -81,7 +87,8 @@ TriangleMesh ProgressiveMesh::extract(double max_error) const {
 }
 
 TriangleMesh ProgressiveMesh::extract_after(std::size_t count) const {
-  if (count > collapses_.size()) throw std::invalid_argument("extract_after: count exceeds the number of collapses");
+  if (count > collapses_.size())
+    throw std::invalid_argument("extract_after: count exceeds the number of collapses");
   // Representative of every sample after `count` collapses; see the header for why the mesh
   // is exactly the image of the full-resolution faces under this map.
   std::vector<std::uint32_t> rep(hf_.size());

@@ -183,8 +183,8 @@ void SelectiveRefinement::add_face(std::uint32_t f) {
   const auto& t = dag_->face(f);
   const std::uint32_t c = dag_->creator(f);
   const Heightfield& hf = dag_->heightfield();
-  face_rec_.push_back(
-      FaceRec{{t[0], t[1], t[2]}, {hf[t[0]], hf[t[1]], hf[t[2]]}, c == kNone ? 0.0 : dag_->collapse(c).error});
+  face_rec_.push_back(FaceRec{
+      {t[0], t[1], t[2]}, {hf[t[0]], hf[t[1]], hf[t[2]]}, c == kNone ? 0.0 : dag_->collapse(c).error});
   if (!defer_boxes_) push_face_box(face_rec_.back());
   if (!vfaces_.empty())
     for (std::uint32_t s : dag_->face(f)) vfaces_[s].push_back(f);
@@ -213,7 +213,8 @@ void SelectiveRefinement::push_face_box(const FaceRec& r) {
     lo[2] = std::min(lo[2], std::max(r.z[k] - r.error, zlo_));
     hi[2] = std::max(hi[2], std::min(r.z[k] + r.error, zhi_));
   }
-  for (int a = 0; a < 3; ++a) fbox_[2 * a].push_back(float_below(lo[a])), fbox_[2 * a + 1].push_back(float_above(hi[a]));
+  for (int a = 0; a < 3; ++a)
+    fbox_[2 * a].push_back(float_below(lo[a])), fbox_[2 * a + 1].push_back(float_above(hi[a]));
   ferr_.push_back(float_above(r.error));
 }
 
@@ -707,7 +708,8 @@ double SelectiveRefinement::filtered_bound_px(Frame& fr, double& bound_m) {
     pl[k][3] = q.distance(Vec3{g.x0, g.y0, 0.0}) + slack;
   }
   auto box_out = [&](std::size_t i) {
-    const double lo[3] = {fbox_[0][i], fbox_[2][i], fbox_[4][i]}, hi[3] = {fbox_[1][i], fbox_[3][i], fbox_[5][i]};
+    const double lo[3] = {fbox_[0][i], fbox_[2][i], fbox_[4][i]},
+                 hi[3] = {fbox_[1][i], fbox_[3][i], fbox_[5][i]};
     double zmax = fr.pd0 + slack;
     for (int a = 0; a < 3; ++a) zmax += std::max(fr.pf[a] * lo[a], fr.pf[a] * hi[a]);
     if (zmax < near) return true;
@@ -904,7 +906,8 @@ namespace {
 // entry) is left as it was found.
 template <class Corners>
 void index_corners(std::size_t n, const Corners& corner, std::vector<std::uint32_t>& index,
-                   std::vector<std::uint32_t>& samples, std::vector<std::array<std::uint32_t, 3>>& triangles) {
+                   std::vector<std::uint32_t>& samples,
+                   std::vector<std::array<std::uint32_t, 3>>& triangles) {
   samples.clear();
   triangles.clear();
   triangles.reserve(n);
@@ -925,10 +928,12 @@ void index_corners(std::size_t n, const Corners& corner, std::vector<std::uint32
 }
 }  // namespace
 
-void SelectiveRefinement::index_faces(const std::vector<std::uint32_t>& faces, std::vector<std::uint32_t>& samples,
+void SelectiveRefinement::index_faces(const std::vector<std::uint32_t>& faces,
+                                      std::vector<std::uint32_t>& samples,
                                       std::vector<std::array<std::uint32_t, 3>>& triangles) const {
-  index_corners(faces.size(), [&](std::size_t i) { return dag_->face(faces[i]).data(); }, scratch_index_, samples,
-                triangles);
+  index_corners(
+      faces.size(), [&](std::size_t i) { return dag_->face(faces[i]).data(); }, scratch_index_, samples,
+      triangles);
 }
 
 TriangleMesh SelectiveRefinement::mesh() const {
@@ -949,7 +954,8 @@ TriangleMesh SelectiveRefinement::mesh() const {
 void SelectiveRefinement::render_into(const std::vector<std::uint32_t>* order, RenderMesh& out) const {
   const std::size_t n = face_rec_.size();
   auto at = [&](std::size_t i) -> const FaceRec& { return face_rec_[order ? (*order)[i] : i]; };
-  index_corners(n, [&](std::size_t i) { return at(i).s; }, scratch_index_, out.samples, out.triangles);
+  index_corners(
+      n, [&](std::size_t i) { return at(i).s; }, scratch_index_, out.samples, out.triangles);
   out.positions.clear();
   out.positions.reserve(out.samples.size());
   for (std::uint32_t s : out.samples) {
@@ -965,7 +971,8 @@ void SelectiveRefinement::render_mesh_into(RenderMesh& out) const { render_into(
 RenderMesh SelectiveRefinement::render_mesh() const {
   std::vector<std::uint32_t> order(active_.size());  // ordered by face id, like mesh()
   std::iota(order.begin(), order.end(), 0u);
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return active_[a] < active_[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return active_[a] < active_[b]; });
   RenderMesh r;
   render_into(&order, r);
   return r;

@@ -27,11 +27,14 @@ double noise(std::uint64_t seed, int i, int j) {
 }  // namespace
 
 Heightfield generate_terrain(const TerrainOptions& o) {
-  if (o.width < 1 || o.height < 1) throw std::invalid_argument("generate_terrain: width and height must be >= 1");
+  if (o.width < 1 || o.height < 1)
+    throw std::invalid_argument("generate_terrain: width and height must be >= 1");
   if (!(o.spacing > 0.0)) throw std::invalid_argument("generate_terrain: spacing must be > 0");
   if (!(o.relief >= 0.0)) throw std::invalid_argument("generate_terrain: relief must be >= 0");
-  if (!(o.height_quantum >= 0.0)) throw std::invalid_argument("generate_terrain: height_quantum must be >= 0");
-  if (!(o.roughness > 0.0 && o.roughness < 1.0)) throw std::invalid_argument("generate_terrain: roughness must be in (0,1)");
+  if (!(o.height_quantum >= 0.0))
+    throw std::invalid_argument("generate_terrain: height_quantum must be >= 0");
+  if (!(o.roughness > 0.0 && o.roughness < 1.0))
+    throw std::invalid_argument("generate_terrain: roughness must be in (0,1)");
 
   int n = 1;
   while (n + 1 < std::max(o.width, o.height)) n *= 2;
@@ -69,8 +72,10 @@ Heightfield generate_terrain(const TerrainOptions& o) {
   for (int j = 0; j < o.height; ++j)
     for (int i = 0; i < o.width; ++i) {
       double z = (at(i, j) - lo) * scale;
-      if (o.quantize_to_metres) z = std::floor(z + 0.5);
-      else if (o.height_quantum > 0.0) z = std::floor(z / o.height_quantum + 0.5) * o.height_quantum;
+      if (o.quantize_to_metres)
+        z = std::floor(z + 0.5);
+      else if (o.height_quantum > 0.0)
+        z = std::floor(z / o.height_quantum + 0.5) * o.height_quantum;
       hf.at(i, j) = z;
     }
   hf.transform = GridTransform::north_up(0.0, (o.height - 1) * o.spacing, o.spacing, o.spacing);

@@ -14,9 +14,11 @@
 namespace terralod::render {
 
 TextImage rasterize_text(const std::vector<std::string>& lines, const HudOptions& o) {
-  if (o.pixel_size < 6 || o.pixel_size > 128) throw std::invalid_argument("hud: pixel_size must be in [6, 128]");
+  if (o.pixel_size < 6 || o.pixel_size > 128)
+    throw std::invalid_argument("hud: pixel_size must be in [6, 128]");
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(o.font, ec)) throw std::runtime_error(o.font + ": font file not found");
+  if (!std::filesystem::is_regular_file(o.font, ec))
+    throw std::runtime_error(o.font + ": font file not found");
   const int line_h = o.pixel_size * 5 / 4, pad = o.pixel_size / 3;
   int width = 1;
   for (const std::string& l : lines) {
@@ -82,7 +84,8 @@ unsigned compile(const detail::GlApi& gl, GLenum type, const char* src) {
 
 }  // namespace
 
-Hud::Hud(GlContext& context, const HudOptions& options) : ctx_(context), opt_(options), gl_(std::make_unique<Gl>()) {
+Hud::Hud(GlContext& context, const HudOptions& options)
+    : ctx_(context), opt_(options), gl_(std::make_unique<Gl>()) {
   try {
     rasterize_text({"terralod"}, opt_);
   } catch (const std::exception& e) {

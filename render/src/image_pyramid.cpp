@@ -70,7 +70,8 @@ struct ImagePyramid::Impl {
   }
 };
 
-void ImagePyramid::convert(const std::string& image_path, const std::string& out_path, const PyramidOptions& options) {
+void ImagePyramid::convert(const std::string& image_path, const std::string& out_path,
+                           const PyramidOptions& options) {
   {
     auto in = OIIO::ImageInput::open(image_path);
     if (!in) throw std::runtime_error(image_path + ": cannot read the image: " + OIIO::geterror());
@@ -92,8 +93,10 @@ void ImagePyramid::convert(const std::string& image_path, const std::string& out
   finish_convert(ok, image_path, tmp, out_path, log);
 }
 
-void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path, const PyramidOptions& options) {
-  assert(image.width >= 1 && image.height >= 1 && image.rgba.size() == std::size_t(image.width) * image.height * 4);
+void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path,
+                           const PyramidOptions& options) {
+  assert(image.width >= 1 && image.height >= 1 &&
+         image.rgba.size() == std::size_t(image.width) * image.height * 4);
   OIIO::ImageSpec spec(image.width, image.height, 4, OIIO::TypeDesc::UINT8);
   spec.alpha_channel = 3;
   const OIIO::ImageBuf buf(spec, const_cast<std::uint8_t*>(image.rgba.data()));
@@ -104,15 +107,16 @@ void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path, 
   finish_convert(ok, "(pixels in memory)", tmp, out_path, log);
 }
 
-ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& options) : impl_(std::make_unique<Impl>()) {
+ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& options)
+    : impl_(std::make_unique<Impl>()) {
   assert(options.max_texture_size >= 1 && options.cache_mb >= 1);
   impl_->path = path;
   impl_->upath = OIIO::ustring(path);
   impl_->cache = std::shared_ptr<OIIO::ImageCache>(OIIO::ImageCache::create(/*shared=*/false),
-                                                  [](OIIO::ImageCache* c) { OIIO::ImageCache::destroy(c); });
+                                                   [](OIIO::ImageCache* c) { OIIO::ImageCache::destroy(c); });
   impl_->cache->attribute("max_memory_MB", float(options.cache_mb));
   impl_->cache->attribute("unassociatedalpha", 1);  // keep straight alpha (PNG) straight
-  impl_->cache->attribute("autotile", 64);  // untiled sources are read in 64 x 64 pieces too
+  impl_->cache->attribute("autotile", 64);          // untiled sources are read in 64 x 64 pieces too
   OIIO::ImageSpec spec;
   if (!impl_->cache->get_imagespec(impl_->upath, spec, 0, 0)) {
     const std::string why = impl_->cache->geterror();
@@ -151,10 +155,11 @@ RgbaImage ImagePyramid::read(const PixelRect& r) const {
   if (x0 >= x1 || y0 >= y1) return out;
   const int nc = channels_;
   std::vector<std::uint8_t> raw(std::size_t(x1 - x0) * (y1 - y0) * nc);
-  if (!impl_->cache->get_pixels(impl_->upath, 0, r.level, x0, x1, y0, y1, 0, 1, OIIO::TypeDesc::UINT8, raw.data()))
+  if (!impl_->cache->get_pixels(impl_->upath, 0, r.level, x0, x1, y0, y1, 0, 1, OIIO::TypeDesc::UINT8,
+                                raw.data()))
     throw std::runtime_error(impl_->path + ": cannot read level " + std::to_string(r.level) + " pixels [" +
-                             std::to_string(x0) + "," + std::to_string(x1) + ") x [" + std::to_string(y0) + "," +
-                             std::to_string(y1) + "): " + impl_->cache->geterror());
+                             std::to_string(x0) + "," + std::to_string(x1) + ") x [" + std::to_string(y0) +
+                             "," + std::to_string(y1) + "): " + impl_->cache->geterror());
   for (int y = y0; y < y1; ++y)
     for (int x = x0; x < x1; ++x) {
       const std::uint8_t* s = raw.data() + (std::size_t(y - y0) * (x1 - x0) + (x - x0)) * nc;

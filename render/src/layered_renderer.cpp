@@ -116,7 +116,8 @@ GLuint compile(const detail::GlApi& gl, GLenum type, const std::string& source) 
     char log[4096] = {};
     gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
     gl.DeleteShader(s);
-    throw RenderError(std::string("layered renderer: a generated shader does not compile: ") + log + "\n" + source);
+    throw RenderError(std::string("layered renderer: a generated shader does not compile: ") + log + "\n" +
+                      source);
   }
   return s;
 }
@@ -164,13 +165,15 @@ struct LayeredRenderer::Impl {
 
   GLuint make_texture(const RgbaImage& img, bool border) {
     if (img.width < 1 || img.height < 1 || img.rgba.size() != std::size_t(img.width) * img.height * 4)
-      throw std::invalid_argument("LayeredRenderer: a " + std::to_string(img.width) + " x " + std::to_string(img.height) +
-                                  " texture with " + std::to_string(img.rgba.size()) + " bytes");
+      throw std::invalid_argument("LayeredRenderer: a " + std::to_string(img.width) + " x " +
+                                  std::to_string(img.height) + " texture with " +
+                                  std::to_string(img.rgba.size()) + " bytes");
     GLuint t = 0;
     tx.GenTextures(1, &t);
     tx.BindTexture(GL_TEXTURE_2D, t);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    tx.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, img.width, img.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
+    tx.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, img.width, img.height, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+                  img.rgba.data());
     tx.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
     const GLint wrap = border ? GL_CLAMP_TO_BORDER : GL_CLAMP_TO_EDGE;
     tx.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, wrap);
@@ -261,8 +264,9 @@ struct LayeredRenderer::Impl {
     if (found != programs.end()) return found->second;
 
     Program p;
-    std::string fs = "#version 330 core\nin vec2 v_rel;\nin vec3 v_normal;\nout vec4 o_color;\n"
-                     "uniform vec3 u_base;\nuniform vec3 u_light;\nuniform float u_ambient;\nuniform vec4 u_lens_uv;\n";
+    std::string fs =
+        "#version 330 core\nin vec2 v_rel;\nin vec3 v_normal;\nout vec4 o_color;\n"
+        "uniform vec3 u_base;\nuniform vec3 u_light;\nuniform float u_ambient;\nuniform vec4 u_lens_uv;\n";
     int unit = 0;
     std::string body;
     for (int i : sampled) {
@@ -270,8 +274,8 @@ struct LayeredRenderer::Impl {
       if (seq[std::size_t(i)]) sl.next_unit = unit++;
       const std::string n = std::to_string(i);
       fs += "uniform sampler2D u_t" + n + ";\nuniform vec4 u_uv" + n + ";\nuniform float u_w" + n + ";\n";
-      body += "  vec2 uv" + n + " = vec2((v_rel.x + u_uv" + n + ".x) * u_uv" + n + ".z, (u_uv" + n + ".y - v_rel.y) * u_uv" +
-              n + ".w);\n  vec4 t" + n + " = texture(u_t" + n + ", uv" + n + ");\n";
+      body += "  vec2 uv" + n + " = vec2((v_rel.x + u_uv" + n + ".x) * u_uv" + n + ".z, (u_uv" + n +
+              ".y - v_rel.y) * u_uv" + n + ".w);\n  vec4 t" + n + " = texture(u_t" + n + ", uv" + n + ");\n";
       if (sl.next_unit >= 0) {
         fs += "uniform sampler2D u_n" + n + ";\nuniform float u_mix" + n + ";\n";
         body += "  t" + n + " = mix(t" + n + ", texture(u_n" + n + ", uv" + n + "), u_mix" + n + ");\n";
@@ -281,8 +285,10 @@ struct LayeredRenderer::Impl {
     if (uses_lens) {
       p.lens_unit = unit++;
       fs += "uniform sampler2D u_lens;\n";
-      body += "  float lens = texture(u_lens, vec2((v_rel.x + u_lens_uv.x) * u_lens_uv.z, (u_lens_uv.y - v_rel.y) * "
-              "u_lens_uv.w)).a;\n";
+      body +=
+          "  float lens = texture(u_lens, vec2((v_rel.x + u_lens_uv.x) * u_lens_uv.z, (u_lens_uv.y - "
+          "v_rel.y) * "
+          "u_lens_uv.w)).a;\n";
     }
     assert(unit <= kMaxUnits);
     fs += "void main() {\n" + body;
@@ -302,10 +308,18 @@ struct LayeredRenderer::Impl {
         const std::string n = std::to_string(i);
         fs += "  { float s = " + weight(i) + ";\n";
         switch (st[std::size_t(i)].op) {
-          case LayerOp::Blend: fs += "    c = c + (t" + n + ".rgb - c) * s;\n"; break;
-          case LayerOp::Add: fs += "    c = c + s * t" + n + ".rgb;\n"; break;
-          case LayerOp::Subtract: fs += "    c = c - s * t" + n + ".rgb;\n"; break;
-          case LayerOp::Multiply: fs += "    c = c * (vec3(1.0) + (t" + n + ".rgb - vec3(1.0)) * s);\n"; break;
+          case LayerOp::Blend:
+            fs += "    c = c + (t" + n + ".rgb - c) * s;\n";
+            break;
+          case LayerOp::Add:
+            fs += "    c = c + s * t" + n + ".rgb;\n";
+            break;
+          case LayerOp::Subtract:
+            fs += "    c = c - s * t" + n + ".rgb;\n";
+            break;
+          case LayerOp::Multiply:
+            fs += "    c = c * (vec3(1.0) + (t" + n + ".rgb - vec3(1.0)) * s);\n";
+            break;
         }
         fs += "    c = clamp(c, 0.0, 1.0); }\n";
       }
@@ -320,10 +334,16 @@ struct LayeredRenderer::Impl {
       const std::string n = std::to_string(i);
       fs += "  float s = " + weight(i) + ";\n";
       switch (st[std::size_t(i)].op) {
-        case LayerOp::Blend: fs += "  o_color = vec4(t" + n + ".rgb, s);\n"; break;
+        case LayerOp::Blend:
+          fs += "  o_color = vec4(t" + n + ".rgb, s);\n";
+          break;
         case LayerOp::Add:
-        case LayerOp::Subtract: fs += "  o_color = vec4(s * t" + n + ".rgb, 1.0);\n"; break;
-        case LayerOp::Multiply: fs += "  o_color = vec4(vec3(1.0) + (t" + n + ".rgb - vec3(1.0)) * s, 1.0);\n"; break;
+        case LayerOp::Subtract:
+          fs += "  o_color = vec4(s * t" + n + ".rgb, 1.0);\n";
+          break;
+        case LayerOp::Multiply:
+          fs += "  o_color = vec4(vec3(1.0) + (t" + n + ".rgb - vec3(1.0)) * s, 1.0);\n";
+          break;
       }
     }
     fs += "}\n";
@@ -468,7 +488,8 @@ MeshId LayeredRenderer::upload(const DrawMesh& d) {
   gl.EnableVertexAttribArray(0);
   gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
   gl.EnableVertexAttribArray(1);
-  gl.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<const void*>(3 * sizeof(float)));
+  gl.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float),
+                         reinterpret_cast<const void*>(3 * sizeof(float)));
   gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, m.ibo);
   gl.BufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(d.indices.size() * 4), d.indices.data(), GL_STATIC_DRAW);
   gl.BindVertexArray(0);
@@ -536,8 +557,8 @@ void LayeredRenderer::set_lens_texture(const RgbaImage& image) {
 std::size_t LayeredRenderer::texture_bytes() const { return impl_->texture_bytes + impl_->lens_bytes; }
 std::size_t LayeredRenderer::textures_uploaded_total() const { return impl_->uploads_total; }
 
-LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const LayerStyle> st, const Lens& lens,
-                                        std::span<const LayeredItem> items) {
+LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const LayerStyle> st,
+                                        const Lens& lens, std::span<const LayeredItem> items) {
   const auto t0 = Clock::now();
   ctx_.make_current();
   Impl& im = *impl_;
@@ -573,7 +594,8 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
     for (const LayerBinding& b : items[i].layers) k.push_back(b.texture.value), k.push_back(b.next.value);
     return k;
   };
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return tex_key(a) < tex_key(b); });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return tex_key(a) < tex_key(b); });
 
   const glm::dmat4 pv = projection_matrix(camera) * view_matrix(camera);
   const glm::dvec3 light = glm::normalize(options_.light_direction);
@@ -584,7 +606,8 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
   } else {
     plan.push_back({PassSpec::Base, -1, ""});
     for (int i = 0; i < int(st.size()); ++i)
-      if (st[std::size_t(i)].enabled && !st[std::size_t(i)].mask_only) plan.push_back({PassSpec::Layer, i, ""});
+      if (st[std::size_t(i)].enabled && !st[std::size_t(i)].mask_only)
+        plan.push_back({PassSpec::Layer, i, ""});
     if (options_.stack.lighting && !decal_mode(st)) plan.push_back({PassSpec::Light, -1, ""});
   }
   stats.passes = int(plan.size());
@@ -604,13 +627,19 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
         im.tx.BlendFunc(GL_DST_COLOR, GL_ZERO);
       } else {
         switch (st[std::size_t(pass.layer)].op) {
-          case LayerOp::Blend: im.tx.BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA); break;
-          case LayerOp::Add: im.tx.BlendFunc(GL_ONE, GL_ONE); break;
+          case LayerOp::Blend:
+            im.tx.BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+            break;
+          case LayerOp::Add:
+            im.tx.BlendFunc(GL_ONE, GL_ONE);
+            break;
           case LayerOp::Subtract:
             im.tx.BlendEquation(GL_FUNC_REVERSE_SUBTRACT);
             im.tx.BlendFunc(GL_ONE, GL_ONE);
             break;
-          case LayerOp::Multiply: im.tx.BlendFunc(GL_DST_COLOR, GL_ZERO); break;
+          case LayerOp::Multiply:
+            im.tx.BlendFunc(GL_DST_COLOR, GL_ZERO);
+            break;
         }
       }
     }
@@ -641,8 +670,9 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
         // uv = ((x_rel + ox) / w, (oy - y_rel) / h), offsets formed in doubles.
         const GeoRect& g = b.georef;
         const bool valid = b.texture.value != 0 && g.width() > 0 && g.height() > 0;
-        im.tx.Uniform4f(p.u_uv[s], valid ? float(m.origin.x - g.minx) : 0.0f, valid ? float(g.maxy - m.origin.y) : 0.0f,
-                        valid ? float(1.0 / g.width()) : 0.0f, valid ? float(1.0 / g.height()) : 0.0f);
+        im.tx.Uniform4f(p.u_uv[s], valid ? float(m.origin.x - g.minx) : 0.0f,
+                        valid ? float(g.maxy - m.origin.y) : 0.0f, valid ? float(1.0 / g.width()) : 0.0f,
+                        valid ? float(1.0 / g.height()) : 0.0f);
         if (sl.next_unit >= 0) gl.Uniform1f(p.u_mix[s], b.next.value ? b.mix : 0.0f);
       }
       if (want != bound) {
@@ -661,8 +691,8 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
       }
       if (p.lens_unit >= 0) {
         const GeoRect& g = lens.rect;
-        im.tx.Uniform4f(p.u_lens_uv, float(m.origin.x - g.minx), float(g.maxy - m.origin.y), float(1.0 / g.width()),
-                        float(1.0 / g.height()));
+        im.tx.Uniform4f(p.u_lens_uv, float(m.origin.x - g.minx), float(g.maxy - m.origin.y),
+                        float(1.0 / g.width()), float(1.0 / g.height()));
       }
       const std::size_t mesh_tris = m.indices / 3, first = std::min(item.first_triangle, mesh_tris);
       const std::size_t count = std::min(item.triangle_count, mesh_tris - first);
@@ -687,7 +717,8 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
   while (im.texture_bytes > options_.texture_budget_bytes) {
     auto victim = im.resident.end();
     for (auto it = im.resident.begin(); it != im.resident.end(); ++it)
-      if (it->second.last_frame < im.frame && (victim == im.resident.end() || it->second.last_frame < victim->second.last_frame))
+      if (it->second.last_frame < im.frame &&
+          (victim == im.resident.end() || it->second.last_frame < victim->second.last_frame))
         victim = it;
     if (victim == im.resident.end()) break;
     im.free_texture(victim->second.id.value);

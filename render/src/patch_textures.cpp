@@ -63,7 +63,8 @@ void PatchTextures::set_gamma(double gamma_px) {
   options_.gamma_px = gamma_px;
 }
 
-const PatchTextureFrame& PatchTextures::frame(const pm::View& view, std::span<const std::int64_t> triangle_node,
+const PatchTextureFrame& PatchTextures::frame(const pm::View& view,
+                                              std::span<const std::int64_t> triangle_node,
                                               const std::vector<bool>& enabled) {
   if (enabled.size() != trees_.size())
     throw std::invalid_argument("PatchTextures: " + std::to_string(enabled.size()) + " enabled flags for " +
@@ -125,7 +126,8 @@ const PatchTextureFrame& PatchTextures::frame(const pm::View& view, std::span<co
     for (std::size_t l = 0; l < layers; ++l) {
       if (!enabled[l]) continue;
       for (const TextureGroup& g : choose_textures(*trees_[l], view, nodes_, gamma))
-        for (std::int64_t n : g.nodes) wanted[std::size_t(node_slot_[std::size_t(n)]) * layers + l] = g.texture_node;
+        for (std::int64_t n : g.nodes)
+          wanted[std::size_t(node_slot_[std::size_t(n)]) * layers + l] = g.texture_node;
     }
     const bool coarser = cost(bytes, count);
     if (bytes <= options_.budget_bytes || !coarser || round >= kMaxGammaDoublings) break;
@@ -134,7 +136,8 @@ const PatchTextureFrame& PatchTextures::frame(const pm::View& view, std::span<co
   // Texels seen from inside their node's box or edge-on have an unbounded gamma, so doubling
   // may not be enough: the deepest wanted patches then give way to their parents' until the
   // patches fit or only the roots' are left.
-  for (bool coarser = cost(bytes, count); bytes > options_.budget_bytes && coarser; coarser = cost(bytes, count)) {
+  for (bool coarser = cost(bytes, count); bytes > options_.budget_bytes && coarser;
+       coarser = cost(bytes, count)) {
     int deepest = -1;
     for (std::size_t i = 0; i < wanted.size(); ++i)
       if (wanted[i] >= 0 && trees_[i % layers]->parent_patch(wanted[i]) >= 0)

@@ -40,7 +40,7 @@ struct TextureCache::Impl {
 
   std::shared_ptr<const RgbaImage> request_locked(const TextureKey& k) {
     ++stats.requests;
-    Entry& e = entries[k];  // a new key starts Queued
+    Entry& e = entries[k];      // a new key starts Queued
     e.last_used = stats.frame;  // also for loads: what arrives is in use in the frame that asked
     if (e.state == State::Ready) {
       e.tick = ++tick;
@@ -106,14 +106,16 @@ struct TextureCache::Impl {
       } else {
         e.state = State::Failed;
         ++stats.failures;
-        last_error = "texture layer " + std::to_string(k.layer) + " node " + std::to_string(k.node) + ": " + error;
+        last_error =
+            "texture layer " + std::to_string(k.layer) + " node " + std::to_string(k.node) + ": " + error;
       }
       idle_cv.notify_all();
     }
   }
 };
 
-TextureCache::TextureCache(TextureLoader loader, const TextureCacheOptions& options) : impl_(std::make_unique<Impl>()) {
+TextureCache::TextureCache(TextureLoader loader, const TextureCacheOptions& options)
+    : impl_(std::make_unique<Impl>()) {
   assert(loader && options.threads >= 1);
   impl_->loader = std::move(loader);
   impl_->options = options;
@@ -140,7 +142,8 @@ std::shared_ptr<const RgbaImage> TextureCache::request(const TextureKey& key) {
   return impl_->request_locked(key);
 }
 
-std::shared_ptr<const RgbaImage> TextureCache::resolve(const TextureTree& tree, const TextureKey& key, TextureKey* used) {
+std::shared_ptr<const RgbaImage> TextureCache::resolve(const TextureTree& tree, const TextureKey& key,
+                                                       TextureKey* used) {
   std::lock_guard lock(impl_->mutex);
   for (TextureKey k = key; k.node >= 0; k.node = tree.parent_patch(k.node)) {
     assert(tree.has_patch(k.node));
@@ -171,7 +174,8 @@ std::string TextureCache::last_error() const {
 
 bool TextureCache::wait_idle(int timeout_ms) const {
   std::unique_lock lock(impl_->mutex);
-  return impl_->idle_cv.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return impl_->stats.pending == 0; });
+  return impl_->idle_cv.wait_for(lock, std::chrono::milliseconds(timeout_ms),
+                                 [&] { return impl_->stats.pending == 0; });
 }
 
 }  // namespace terralod::render

@@ -33,11 +33,13 @@ SequencePosition sequence_position(int frames, float time) {
 }
 
 bool decal_mode(std::span<const LayerStyle> styles) {
-  return std::any_of(styles.begin(), styles.end(), [](const LayerStyle& s) { return s.enabled && s.topographic; });
+  return std::any_of(styles.begin(), styles.end(),
+                     [](const LayerStyle& s) { return s.enabled && s.topographic; });
 }
 
-std::array<float, 3> combine_texels(std::span<const LayerStyle> styles, std::span<const std::array<float, 4>> texels,
-                                    float lens_alpha, float light, const LayerStackOptions& o) {
+std::array<float, 3> combine_texels(std::span<const LayerStyle> styles,
+                                    std::span<const std::array<float, 4>> texels, float lens_alpha,
+                                    float light, const LayerStackOptions& o) {
   assert(styles.size() == texels.size());
   std::array<float, 3> c = o.base_color;
   for (std::size_t i = 0; i < styles.size(); ++i) {
@@ -46,7 +48,8 @@ std::array<float, 3> combine_texels(std::span<const LayerStyle> styles, std::spa
     assert(s.weight >= 0.0f && s.weight <= 1.0f);
     float m = 1.0f;
     if (s.mask == MaskSource::Layer) {
-      assert(s.mask_layer >= 0 && std::size_t(s.mask_layer) < styles.size() && std::size_t(s.mask_layer) != i);
+      assert(s.mask_layer >= 0 && std::size_t(s.mask_layer) < styles.size() &&
+             std::size_t(s.mask_layer) != i);
       m = texels[std::size_t(s.mask_layer)][3];
     } else if (s.mask == MaskSource::Lens) {
       m = lens_alpha;
@@ -56,10 +59,18 @@ std::array<float, 3> combine_texels(std::span<const LayerStyle> styles, std::spa
     const float w = s.weight * t[3] * m;
     for (int k = 0; k < 3; ++k) {
       switch (s.op) {
-        case LayerOp::Blend: c[k] = c[k] + (t[k] - c[k]) * w; break;
-        case LayerOp::Add: c[k] = c[k] + w * t[k]; break;
-        case LayerOp::Subtract: c[k] = c[k] - w * t[k]; break;
-        case LayerOp::Multiply: c[k] = c[k] * (1.0f + (t[k] - 1.0f) * w); break;
+        case LayerOp::Blend:
+          c[k] = c[k] + (t[k] - c[k]) * w;
+          break;
+        case LayerOp::Add:
+          c[k] = c[k] + w * t[k];
+          break;
+        case LayerOp::Subtract:
+          c[k] = c[k] - w * t[k];
+          break;
+        case LayerOp::Multiply:
+          c[k] = c[k] * (1.0f + (t[k] - 1.0f) * w);
+          break;
       }
       c[k] = clamp01(c[k]);
     }
@@ -70,8 +81,8 @@ std::array<float, 3> combine_texels(std::span<const LayerStyle> styles, std::spa
 }
 
 RgbaImage combine_layers(std::span<const LayerStyle> styles, std::span<const LayerSource> sources,
-                         const RgbaImage* lens_image, const Lens& lens, const GeoRect& out, int width, int height,
-                         const LayerStackOptions& options) {
+                         const RgbaImage* lens_image, const Lens& lens, const GeoRect& out, int width,
+                         int height, const LayerStackOptions& options) {
   assert(styles.size() == sources.size() && width >= 1 && height >= 1);
   assert(!lens.enabled || lens_image);
   RgbaImage img(width, height);

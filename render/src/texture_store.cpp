@@ -2,12 +2,8 @@
 // tree, layer metadata as JSON (format documented in texture_store.hpp).
 #include "terralod/render/texture_store.hpp"
 
-#include "terralod/blocks/approximation_tree.hpp"
-
 #include <OpenImageIO/imageio.h>
 #include <zlib.h>
-
-#include <filesystem>
 
 #include <algorithm>
 #include <cassert>
@@ -15,7 +11,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <stdexcept>
+
+#include "terralod/blocks/approximation_tree.hpp"
 
 namespace terralod::render {
 namespace {
@@ -27,18 +26,21 @@ void put_u32(std::vector<std::uint8_t>& b, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) b.push_back(std::uint8_t(v >> (8 * i)));
 }
 std::uint32_t get_u32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
+         std::uint32_t(p[3]) << 24;
 }
 
 std::string json_string(const std::string& s) {
   std::string o = "\"";
   for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\', o += c;
+    if (c == '"' || c == '\\')
+      o += '\\', o += c;
     else if (static_cast<unsigned char>(c) < 0x20) {
       char b[8];
       std::snprintf(b, sizeof b, "\\u%04x", unsigned(c));
       o += b;
-    } else o += c;
+    } else
+      o += c;
   }
   return o + "\"";
 }
@@ -102,19 +104,24 @@ struct JsonReader {
     for (; i < s.size(); ++i) {
       const char c = s[i];
       if (in_str) {
-        if (c == '\\') ++i;
-        else if (c == '"') in_str = false;
+        if (c == '\\')
+          ++i;
+        else if (c == '"')
+          in_str = false;
         continue;
       }
-      if (c == '"') in_str = true;
-      else if (c == '{' || c == '[') ++depth;
+      if (c == '"')
+        in_str = true;
+      else if (c == '{' || c == '[')
+        ++depth;
       else if (c == '}' || c == ']') {
         if (depth == 0) break;
         if (--depth == 0) {
           ++i;
           break;
         }
-      } else if (c == ',' && depth == 0) break;
+      } else if (c == ',' && depth == 0)
+        break;
     }
     return s.substr(start, i - start);
   }
@@ -123,13 +130,16 @@ struct JsonReader {
 std::string record_json(const LayerRecord& r) {
   std::string j = "{\"format\": 1, \"name\": " + json_string(r.name) + ", \"kind\": " + json_string(r.kind) +
                   ", \"source\": " + json_string(r.source) + ", \"georef\": [" + num(r.georef.minx) + ", " +
-                  num(r.georef.miny) + ", " + num(r.georef.maxx) + ", " + num(r.georef.maxy) + "], \"levels\": [";
+                  num(r.georef.miny) + ", " + num(r.georef.maxx) + ", " + num(r.georef.maxy) +
+                  "], \"levels\": [";
   for (std::size_t k = 0; k < r.levels.size(); ++k)
-    j += (k ? ", [" : "[") + std::to_string(r.levels[k].width) + ", " + std::to_string(r.levels[k].height) + "]";
+    j += (k ? ", [" : "[") + std::to_string(r.levels[k].width) + ", " + std::to_string(r.levels[k].height) +
+         "]";
   j += "], \"tile_size\": " + std::to_string(r.tile_size) +
        ", \"max_texture_size\": " + std::to_string(r.constraints.max_texture_size) +
        ", \"power_of_two\": " + (r.constraints.power_of_two ? "true" : "false") +
-       ", \"patches\": " + std::to_string(r.patches) + ", \"parameters\": " + (r.parameters.empty() ? "{}" : r.parameters) + "}";
+       ", \"patches\": " + std::to_string(r.patches) +
+       ", \"parameters\": " + (r.parameters.empty() ? "{}" : r.parameters) + "}";
   return j;
 }
 
@@ -143,10 +153,14 @@ LayerRecord parse_record(const std::string& text, const std::string& where) {
     do {
       const std::string key = jr.str();
       jr.expect(':');
-      if (key == "format") format = int(jr.number());
-      else if (key == "name") r.name = jr.str();
-      else if (key == "kind") r.kind = jr.str();
-      else if (key == "source") r.source = jr.str();
+      if (key == "format")
+        format = int(jr.number());
+      else if (key == "name")
+        r.name = jr.str();
+      else if (key == "kind")
+        r.kind = jr.str();
+      else if (key == "source")
+        r.source = jr.str();
       else if (key == "georef") {
         jr.expect('[');
         r.georef.minx = jr.number(), jr.expect(','), r.georef.miny = jr.number(), jr.expect(',');
@@ -166,27 +180,35 @@ LayerRecord parse_record(const std::string& text, const std::string& where) {
           } while (jr.eat(','));
           jr.expect(']');
         }
-      } else if (key == "tile_size") r.tile_size = int(jr.number());
-      else if (key == "max_texture_size") r.constraints.max_texture_size = int(jr.number());
+      } else if (key == "tile_size")
+        r.tile_size = int(jr.number());
+      else if (key == "max_texture_size")
+        r.constraints.max_texture_size = int(jr.number());
       else if (key == "power_of_two") {
         const std::string v = jr.raw();
         r.constraints.power_of_two = v == "true";
-      } else if (key == "patches") r.patches = std::size_t(jr.number());
-      else if (key == "parameters") r.parameters = jr.raw();
-      else jr.raw();  // unknown keys of later versions are skipped
+      } else if (key == "patches")
+        r.patches = std::size_t(jr.number());
+      else if (key == "parameters")
+        r.parameters = jr.raw();
+      else
+        jr.raw();  // unknown keys of later versions are skipped
     } while (jr.eat(','));
     jr.expect('}');
   }
   if (format != 1) jr.fail("format " + std::to_string(format) + " (this build reads format 1)");
   if (!(r.georef.width() > 0 && r.georef.height() > 0)) jr.fail("empty georef rectangle");
-  if (r.levels.empty() || r.tile_size < 1 || r.constraints.max_texture_size < 1) jr.fail("no levels or a bad tile size");
+  if (r.levels.empty() || r.tile_size < 1 || r.constraints.max_texture_size < 1)
+    jr.fail("no levels or a bad tile size");
   for (const LevelSize& l : r.levels)
-    if (l.width < 1 || l.height < 1) jr.fail("a level of " + std::to_string(l.width) + " x " + std::to_string(l.height));
+    if (l.width < 1 || l.height < 1)
+      jr.fail("a level of " + std::to_string(l.width) + " x " + std::to_string(l.height));
   return r;
 }
 
 std::string tile_item(const std::string& layer, std::int64_t node, int level) {
-  return "texture layer '" + layer + "' tile (node " + std::to_string(node) + ", level " + std::to_string(level) + ")";
+  return "texture layer '" + layer + "' tile (node " + std::to_string(node) + ", level " +
+         std::to_string(level) + ")";
 }
 
 }  // namespace
@@ -217,11 +239,14 @@ std::vector<std::uint8_t> encode_texture_tile(const RgbaImage& img) {
 }
 
 RgbaImage decode_texture_tile(std::span<const std::uint8_t> b, const std::string& name) {
-  if (b.size() < 16 || std::memcmp(b.data(), "TLTX", 4) != 0) throw std::runtime_error(name + ": not a texture tile (bad magic)");
+  if (b.size() < 16 || std::memcmp(b.data(), "TLTX", 4) != 0)
+    throw std::runtime_error(name + ": not a texture tile (bad magic)");
   const std::uint32_t version = get_u32(b.data() + 4), w = get_u32(b.data() + 8), h = get_u32(b.data() + 12);
-  if (version != kTileVersion) throw std::runtime_error(name + ": texture tile format version " + std::to_string(version));
+  if (version != kTileVersion)
+    throw std::runtime_error(name + ": texture tile format version " + std::to_string(version));
   if (w < 1 || h < 1 || w > 65536 || h > 65536)
-    throw std::runtime_error(name + ": texture tile of " + std::to_string(w) + " x " + std::to_string(h) + " pixels");
+    throw std::runtime_error(name + ": texture tile of " + std::to_string(w) + " x " + std::to_string(h) +
+                             " pixels");
   // zlib cannot expand more than 1032:1: a larger claim is a corrupt header (and no huge
   // allocation is made for it).
   if (std::uint64_t(w) * h * 4 > std::uint64_t(b.size() - 16) * 1032 + 64)
@@ -235,12 +260,14 @@ RgbaImage decode_texture_tile(std::span<const std::uint8_t> b, const std::string
 }
 
 void store_texture_layer(blocks::BlockDatabase& db, LayerRecord& rec, const ImagePyramid& pyr,
-                         const std::vector<PatchDomain>& domains, const std::function<void(double)>& progress) {
+                         const std::vector<PatchDomain>& domains,
+                         const std::function<void(double)>& progress) {
   assert(!rec.name.empty() && rec.tile_size >= 1 && rec.georef.width() > 0 && rec.georef.height() > 0);
   rec.levels = pyr.level_sizes();
   std::size_t work = 0, done = 0;
   for (const LevelSize& l : rec.levels)
-    work += std::size_t((l.width + rec.tile_size - 1) / rec.tile_size) * ((l.height + rec.tile_size - 1) / rec.tile_size);
+    work += std::size_t((l.width + rec.tile_size - 1) / rec.tile_size) *
+            ((l.height + rec.tile_size - 1) / rec.tile_size);
   std::unique_ptr<TextureTree> tree;
   if (!domains.empty()) {
     tree = std::make_unique<TextureTree>(domains, rec.levels, rec.georef, rec.constraints);
@@ -253,10 +280,12 @@ void store_texture_layer(blocks::BlockDatabase& db, LayerRecord& rec, const Imag
   blocks::BlockDatabase::Transaction t(db);
   for (int k = 0; k < int(rec.levels.size()); ++k) {
     const LevelSize l = rec.levels[std::size_t(k)];
-    const int tiles_x = (l.width + rec.tile_size - 1) / rec.tile_size, tiles_y = (l.height + rec.tile_size - 1) / rec.tile_size;
+    const int tiles_x = (l.width + rec.tile_size - 1) / rec.tile_size,
+              tiles_y = (l.height + rec.tile_size - 1) / rec.tile_size;
     for (int ty = 0; ty < tiles_y; ++ty)
       for (int tx = 0; tx < tiles_x; ++tx) {
-        PixelRect r{k, tx * rec.tile_size, ty * rec.tile_size, std::min(rec.tile_size, l.width - tx * rec.tile_size),
+        PixelRect r{k, tx * rec.tile_size, ty * rec.tile_size,
+                    std::min(rec.tile_size, l.width - tx * rec.tile_size),
                     std::min(rec.tile_size, l.height - ty * rec.tile_size)};
         db.put_texture_tile(rec.name, grid_tile_node(tx, ty, tiles_x), k, encode_texture_tile(pyr.read(r)));
         step();
@@ -294,7 +323,8 @@ LayerRecord read_layer_record(const blocks::BlockDatabase& db, const std::string
   if (!meta) {
     std::string have;
     for (const std::string& l : stored_layers(db)) have += (have.empty() ? "" : ", ") + l;
-    throw blocks::DatabaseError(db.path(), "no texture layer '" + name + "' (layers: " + (have.empty() ? "none" : have) + ")");
+    throw blocks::DatabaseError(
+        db.path(), "no texture layer '" + name + "' (layers: " + (have.empty() ? "none" : have) + ")");
   }
   try {
     return parse_record(*meta, "texture layer '" + name + "'");
@@ -303,7 +333,8 @@ LayerRecord read_layer_record(const blocks::BlockDatabase& db, const std::string
   }
 }
 
-RgbaImage read_layer_patch(const blocks::BlockDatabase& db, const std::string& layer, std::int64_t node, int level) {
+RgbaImage read_layer_patch(const blocks::BlockDatabase& db, const std::string& layer, std::int64_t node,
+                           int level) {
   const std::string item = tile_item(layer, node, level);
   const auto bytes = db.read_texture_tile(layer, node, level);
   if (!bytes) throw blocks::DatabaseError(db.path(), item + ": missing");
@@ -325,8 +356,10 @@ RgbaImage read_layer_level(const blocks::BlockDatabase& db, const LayerRecord& r
       const RgbaImage tile = read_layer_patch(db, rec.name, node, level);
       const int w = std::min(ts, l.width - tx * ts), h = std::min(ts, l.height - ty * ts);
       if (tile.width != w || tile.height != h)
-        throw blocks::DatabaseError(db.path(), tile_item(rec.name, node, level) + ": " + std::to_string(tile.width) + " x " + std::to_string(tile.height) +
-                                                   " pixels, expected " + std::to_string(w) + " x " + std::to_string(h));
+        throw blocks::DatabaseError(db.path(), tile_item(rec.name, node, level) + ": " +
+                                                   std::to_string(tile.width) + " x " +
+                                                   std::to_string(tile.height) + " pixels, expected " +
+                                                   std::to_string(w) + " x " + std::to_string(h));
       for (int y = 0; y < h; ++y)
         std::memcpy(out.pixel(tx * ts, ty * ts + y), tile.pixel(0, y), std::size_t(w) * 4);
     }
@@ -355,11 +388,13 @@ void write_layer_image(const RgbaImage& img, const std::string& path) {
   }
 }
 
-TextureLoader database_tile_loader(std::string db_path, std::string layer, std::shared_ptr<const TextureTree> tree) {
-  return [db_path = std::move(db_path), layer = std::move(layer), tree = std::move(tree)](const TextureKey& k) {
-    const blocks::BlockDatabase db = blocks::BlockDatabase::open(db_path);
-    return read_layer_patch(db, layer, k.node, tree->patch(k.node).rect.level);
-  };
+TextureLoader database_tile_loader(std::string db_path, std::string layer,
+                                   std::shared_ptr<const TextureTree> tree) {
+  return
+      [db_path = std::move(db_path), layer = std::move(layer), tree = std::move(tree)](const TextureKey& k) {
+        const blocks::BlockDatabase db = blocks::BlockDatabase::open(db_path);
+        return read_layer_patch(db, layer, k.node, tree->patch(k.node).rect.level);
+      };
 }
 
 }  // namespace terralod::render

@@ -69,7 +69,8 @@ GeoRect pixel_rect_georef(const std::vector<LevelSize>& levels, const GeoRect& g
 double visual_texture_error_px(const pm::View& view, const pm::Box& b, double w, double h) {
   assert(w > 0 && h > 0);
   const pm::Vec3& e = view.eye();
-  const pm::Vec3 p{std::clamp(e.x, b.lo.x, b.hi.x), std::clamp(e.y, b.lo.y, b.hi.y), std::clamp(e.z, b.lo.z, b.hi.z)};
+  const pm::Vec3 p{std::clamp(e.x, b.lo.x, b.hi.x), std::clamp(e.y, b.lo.y, b.hi.y),
+                   std::clamp(e.z, b.lo.z, b.hi.z)};
   const double dx[4] = {-0.5, 0.5, 0.5, -0.5}, dy[4] = {-0.5, -0.5, 0.5, 0.5};
   double px[4], py[4];
   for (int i = 0; i < 4; ++i)
@@ -88,13 +89,15 @@ TextureTree::TextureTree(std::vector<PatchDomain> nodes, std::vector<LevelSize> 
   for (std::size_t i = 0; i < n; ++i) {
     const PatchDomain& d = nodes_[i];
     if (d.id != std::int64_t(i))
-      throw std::invalid_argument("TextureTree: node at position " + std::to_string(i) + " has id " + std::to_string(d.id));
+      throw std::invalid_argument("TextureTree: node at position " + std::to_string(i) + " has id " +
+                                  std::to_string(d.id));
     if ((i == 0) != (d.parent < 0) || d.parent >= std::int64_t(n))
-      throw std::invalid_argument("TextureTree: node " + std::to_string(i) + " has parent " + std::to_string(d.parent));
+      throw std::invalid_argument("TextureTree: node " + std::to_string(i) + " has parent " +
+                                  std::to_string(d.parent));
     for (std::int64_t ch : d.children)
       if (ch <= 0 || ch >= std::int64_t(n) || nodes_[std::size_t(ch)].parent != d.id)
-        throw std::invalid_argument("TextureTree: node " + std::to_string(i) + " lists child " + std::to_string(ch) +
-                                    " whose parent is not it");
+        throw std::invalid_argument("TextureTree: node " + std::to_string(i) + " lists child " +
+                                    std::to_string(ch) + " whose parent is not it");
   }
   patch_index_.assign(n, -1);
   owner_.assign(n, -1);
@@ -108,7 +111,8 @@ TextureTree::TextureTree(std::vector<PatchDomain> nodes, std::vector<LevelSize> 
     bool finest = pruned;
     if (!pruned) {
       const GeoRect dom{d.bbox.lo.x, d.bbox.lo.y, d.bbox.hi.x, d.bbox.hi.y};
-      const bool misses = dom.maxx <= g.minx || dom.minx >= g.maxx || dom.maxy <= g.miny || dom.miny >= g.maxy;
+      const bool misses =
+          dom.maxx <= g.minx || dom.minx >= g.maxx || dom.maxy <= g.miny || dom.miny >= g.maxy;
       if (!misses) {
         TexturePatch p;
         p.node = id;
@@ -122,7 +126,8 @@ TextureTree::TextureTree(std::vector<PatchDomain> nodes, std::vector<LevelSize> 
         finest = p.rect.level == 0;
       }
     }
-    owner_[std::size_t(id)] = patch_index_[std::size_t(id)] >= 0 ? id : (d.parent >= 0 ? owner_[std::size_t(d.parent)] : -1);
+    owner_[std::size_t(id)] =
+        patch_index_[std::size_t(id)] >= 0 ? id : (d.parent >= 0 ? owner_[std::size_t(d.parent)] : -1);
     for (std::int64_t ch : d.children) stack.push_back({ch, finest});
   }
   patch_count_ = patches_.size();

@@ -1,9 +1,8 @@
 // End-to-end test of `terralod bench --short`: runs the built binary on its generated terrain
 // and checks the CSV (every column of every strategy x tau filled, the guarantee measured by the
 // independent checker held, hand-derived counts), the two PNG plots and the summary.
-#include <gtest/gtest.h>
-
 #include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cmath>
@@ -61,9 +60,10 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
   ASSERT_EQ(header.size(), 23u) << lines[0];
   std::map<std::string, std::size_t> col;
   for (std::size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
-  for (const char* name : {"strategy", "tau_px", "frames", "drawn_frames", "checked_frames", "triangles_median",
-                           "update_median_ms", "update_p99_ms", "update_cpu_median_ms", "draw_median_ms", "frame_median_ms", "frame_p99_ms",
-                           "measured_worst_px", "guaranteed_px", "popping_px"})
+  for (const char* name :
+       {"strategy", "tau_px", "frames", "drawn_frames", "checked_frames", "triangles_median",
+        "update_median_ms", "update_p99_ms", "update_cpu_median_ms", "draw_median_ms", "frame_median_ms",
+        "frame_p99_ms", "measured_worst_px", "guaranteed_px", "popping_px"})
     ASSERT_TRUE(col.count(name)) << name;
   std::map<std::string, std::map<double, std::vector<double>>> rows;  // strategy -> tau -> values
   std::size_t n = 0;
@@ -90,7 +90,7 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
     ASSERT_EQ(by_tau.size(), 5u) << name;
     for (const auto& [tau, v] : by_tau) {
       SCOPED_TRACE(name + " tau " + std::to_string(tau));
-      EXPECT_EQ(v[col["frames"]], 40.0);   // 20 + 20 frames of the two flights
+      EXPECT_EQ(v[col["frames"]], 40.0);  // 20 + 20 frames of the two flights
       EXPECT_GT(v[col["drawn_frames"]], 0.0);
       EXPECT_EQ(v[col["checked_frames"]], 8.0);  // frames 4, 9, 14, 19 of each flight
       EXPECT_GT(v[col["triangles_median"]], 0.0);
@@ -145,9 +145,11 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
 
   // Summary: the table with every strategy at tau = 1 and the five target lines.
   const std::string md = slurp(out / "summary.md");
-  for (const std::string& s : strategies) EXPECT_NE(md.find("| 1 | " + s + " |"), std::string::npos) << s << "\n" << md;
+  for (const std::string& s : strategies)
+    EXPECT_NE(md.find("| 1 | " + s + " |"), std::string::npos) << s << "\n" << md;
   std::size_t targets = 0;
-  for (const std::string& l : split(md, '\n')) targets += l.rfind("- PASS: ", 0) == 0 || l.rfind("- FAIL: ", 0) == 0;
+  for (const std::string& l : split(md, '\n'))
+    targets += l.rfind("- PASS: ", 0) == 0 || l.rfind("- FAIL: ", 0) == 0;
   EXPECT_EQ(targets, 5u) << md;
   EXPECT_NE(md.find("PASS: measured worst screen error <= tau"), std::string::npos) << md;
   EXPECT_NE(md.find("PASS: PM blocks: every frame complete"), std::string::npos) << md;
@@ -155,15 +157,17 @@ TEST(Bench, ShortRunWritesCompleteCsvPlotsAndSummary) {
 
 TEST(Bench, StrategiesSubsetAndBadNames) {
   const fs::path out = tmp_dir() / "subset";
-  const CliResult r = terralod("bench --short --size 320x180 --frames 8 --taus 1 --strategies pm_blocks,chunked_lod --out '" +
-                               out.string() + "'");
+  const CliResult r =
+      terralod("bench --short --size 320x180 --frames 8 --taus 1 --strategies pm_blocks,chunked_lod --out '" +
+               out.string() + "'");
   ASSERT_EQ(r.status, 0) << r.err;
   const std::vector<std::string> lines = split(slurp(out / "bench.csv"), '\n');
   std::set<std::string> seen;
   for (std::size_t l = 1; l < lines.size(); ++l)
     if (!lines[l].empty()) seen.insert(split(lines[l], ',')[0]);
   EXPECT_EQ(seen, (std::set<std::string>{"pm_blocks", "chunked_lod"}));
-  const CliResult bad = terralod("bench --short --strategies pm_blocks,nosuch --out '" + (tmp_dir() / "bad2").string() + "'");
+  const CliResult bad =
+      terralod("bench --short --strategies pm_blocks,nosuch --out '" + (tmp_dir() / "bad2").string() + "'");
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.err.find("nosuch"), std::string::npos) << bad.err;
 }

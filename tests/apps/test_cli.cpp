@@ -35,7 +35,9 @@ using terralod::test::slurp;
 const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cli"); }
 
 /// Runs `terralod <args>` (args already shell-quoted where needed), capturing both streams.
-CliResult terralod(const std::string& args) { return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args); }
+CliResult terralod(const std::string& args) {
+  return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args);
+}
 
 /// The number after `"key": ` (first occurrence) in a JSON text; NaN when absent.
 double json_number(const std::string& json, const std::string& key) {
@@ -82,7 +84,8 @@ pm::Heightfield test_heightfield() {
 /// Writes the test grid; `void_at` >= 0 turns that sample index into NODATA.
 void write_asc(const fs::path& path, int void_at = -1) {
   std::ofstream f(path);
-  f << "ncols " << kW << "\nnrows " << kH << "\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
+  f << "ncols " << kW << "\nnrows " << kH
+    << "\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
   char buf[64];
   for (int r = 0; r < kH; ++r) {
     for (int c = 0; c < kW; ++c) {
@@ -151,10 +154,11 @@ TEST(cli_errors, MissingInputExitsOneNamingTheFile) {
   const fs::path missing = tmp_dir() / "does_not_exist.asc";
   const fs::path out = tmp_dir() / "never_written.pm";
   fs::remove(out);
-  for (const std::string& args :
-       {"pm --input " + quote(missing.string()) + " --out " + quote(out.string()), "info " + quote(missing.string()),
-        "extract --input " + quote(missing.string()) + " --max-error 1 --out " + quote((tmp_dir() / "n.ply").string()),
-        "info " + quote((tmp_dir() / "does_not_exist.pm").string())}) {
+  for (const std::string& args : {"pm --input " + quote(missing.string()) + " --out " + quote(out.string()),
+                                  "info " + quote(missing.string()),
+                                  "extract --input " + quote(missing.string()) + " --max-error 1 --out " +
+                                      quote((tmp_dir() / "n.ply").string()),
+                                  "info " + quote((tmp_dir() / "does_not_exist.pm").string())}) {
     SCOPED_TRACE(args);
     const CliResult r = terralod(args);
     EXPECT_EQ(r.status, 1) << r.err;
@@ -185,7 +189,8 @@ class cli_pipeline : public ::testing::Test {
   static void SetUpTestSuite() {
     write_asc(dem());
     fs::remove(pm_file());
-    pm_run_ = new CliResult(terralod("pm --threads 1 --input " + quote(dem().string()) + " --out " + quote(pm_file().string())));
+    pm_run_ = new CliResult(
+        terralod("pm --threads 1 --input " + quote(dem().string()) + " --out " + quote(pm_file().string())));
   }
   static void TearDownTestSuite() {
     delete pm_run_;
@@ -193,10 +198,11 @@ class cli_pipeline : public ::testing::Test {
   }
 
   /// Runs extract and returns its stdout lines (asserting success).
-  static CliResult extract(const std::string& input, double e, const fs::path& out, const std::string& units) {
+  static CliResult extract(const std::string& input, double e, const fs::path& out,
+                           const std::string& units) {
     std::ostringstream a;
-    a << "extract --threads 1 --input " << quote(input) << " --max-error " << e << " --out " << quote(out.string())
-      << " --units " << units;
+    a << "extract --threads 1 --input " << quote(input) << " --max-error " << e << " --out "
+      << quote(out.string()) << " --units " << units;
     return terralod(a.str());
   }
 
@@ -242,7 +248,8 @@ TEST_F(cli_pipeline, InfoReportsGridTransformAndHierarchy) {
   EXPECT_EQ(json_number(j, "bytes"), double(fs::file_size(pm_file()))) << j;
   EXPECT_GE(json_number(j, "max_error"), 0.0) << j;
   EXPECT_NE(j.find("\"metric\": \"continuous\""), std::string::npos) << j;
-  EXPECT_NE(j.find("\"formula\": \"x = x0 + col*xc + row*xr; y = y0 + col*yc + row*yr\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"formula\": \"x = x0 + col*xc + row*xr; y = y0 + col*yc + row*yr\""), std::string::npos)
+      << j;
 
   // The same DEM read directly gives the same grid and transform, and no PM fields.
   const CliResult d = terralod("info " + quote(dem().string()));
@@ -289,7 +296,8 @@ TEST_F(cli_pipeline, ExtractSamplesAndWorldMeshesHoldTheirBound) {
     double xmin = 1e300, xmax = -1e300, ymin = 1e300, ymax = -1e300;
     for (std::size_t i = 0; i < ms.positions.size(); ++i) {
       const auto [x, y, z] = ms.positions[i];
-      ASSERT_TRUE(x == std::floor(x) && y == std::floor(y) && x >= 0 && x < kW && y >= 0 && y < kH) << x << " " << y;
+      ASSERT_TRUE(x == std::floor(x) && y == std::floor(y) && x >= 0 && x < kW && y >= 0 && y < kH)
+          << x << " " << y;
       const int col = int(x), row = int(y);
       ASSERT_EQ(z, height_at(col, row)) << col << " " << row;
       mesh.vertices.push_back(std::uint32_t(row * kW + col));
@@ -297,7 +305,8 @@ TEST_F(cli_pipeline, ExtractSamplesAndWorldMeshesHoldTheirBound) {
       EXPECT_EQ(wx, 1005.0 + 10.0 * col);
       EXPECT_EQ(wy, 2245.0 - 10.0 * row);
       EXPECT_EQ(wz, z);
-      xmin = std::min(xmin, wx), xmax = std::max(xmax, wx), ymin = std::min(ymin, wy), ymax = std::max(ymax, wy);
+      xmin = std::min(xmin, wx), xmax = std::max(xmax, wx), ymin = std::min(ymin, wy),
+      ymax = std::max(ymax, wy);
     }
     EXPECT_EQ(xmin, 1005.0);
     EXPECT_EQ(xmax, 1325.0);
@@ -342,7 +351,8 @@ TEST(cli_voids, VoidsAreReportedFilledOrKept) {
 
   // A PM with a hole: the hole's sample is no vertex.
   const fs::path out = tmp_dir() / "void.pm";
-  const CliResult p = terralod("pm --keep-voids --input " + quote(dem.string()) + " --out " + quote(out.string()));
+  const CliResult p =
+      terralod("pm --keep-voids --input " + quote(dem.string()) + " --out " + quote(out.string()));
   ASSERT_EQ(p.status, 0) << p.err;
   EXPECT_NE(p.out.find("1 voids (0 filled, 1 kept as holes)"), std::string::npos) << p.out;
   const CliResult i = terralod("info " + quote(out.string()));

@@ -34,7 +34,9 @@ namespace tt = terralod::test;
 
 const fs::path& tmp_dir() { return tt::process_temp_dir("cmd-fly"); }
 
-tt::CommandResult terralod(const std::string& args) { return tt::run_command(tt::quote(TERRALOD_CLI) + " " + args); }
+tt::CommandResult terralod(const std::string& args) {
+  return tt::run_command(tt::quote(TERRALOD_CLI) + " " + args);
+}
 
 // The terrain: 65 x 65 generated samples (whole metres), cellsize 30, lower-left corner (0, 0):
 // sample centres x = 15 + 30 col, y = 15 + 30 (64 - row); built in blocks of 17 samples, so
@@ -63,7 +65,8 @@ const Fixture& fixture() {
     const pm::Heightfield gen = pm::generate_terrain(to);
     {
       std::ofstream f(x.asc);
-      f << "ncols " << kN << "\nnrows " << kN << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+      f << "ncols " << kN << "\nnrows " << kN
+        << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
       for (int r = 0; r < kN; ++r)
         for (int c = 0; c < kN; ++c) f << gen.at(c, r) << (c + 1 < kN ? " " : "\n");
     }
@@ -81,8 +84,8 @@ const Fixture& fixture() {
       x.path.push_back(c);
     }
     pm::write_camera_path(x.path, x.path_csv.string());
-    const tt::CommandResult b = terralod("build --threads 1 --block-size 17 --input " + tt::quote(x.asc.string()) +
-                                         " --out " + tt::quote(x.db.string()));
+    const tt::CommandResult b = terralod("build --threads 1 --block-size 17 --input " +
+                                         tt::quote(x.asc.string()) + " --out " + tt::quote(x.db.string()));
     if (b.status != 0) x.build_error = "terralod build failed: " + b.err;
     return x;
   }();
@@ -97,13 +100,38 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return v;
 }
 
-const std::vector<std::string> kColumns = {
-    "frame",          "time_s",          "x",               "y",             "z",              "yaw",
-    "pitch",          "fovy",            "tau_px",          "triangles",     "bound_px",       "missing_in_view",
-    "update_ms",      "update_cpu_ms",   "resident_bytes",  "blocks_resident", "blocks_loading", "blocks_evicted",
-    "nodes_resident", "nodes_loading",   "nodes_evicted",   "prefetch_misses", "bytes_read",     "nodes_visited",
-    "nodes_culled",   "coarse_nodes",    "pm_blocks",       "standin_blocks", "fallback_nodes", "moving_vertices", "clamped_vertices",
-    "seam_triangles"};
+const std::vector<std::string> kColumns = {"frame",
+                                           "time_s",
+                                           "x",
+                                           "y",
+                                           "z",
+                                           "yaw",
+                                           "pitch",
+                                           "fovy",
+                                           "tau_px",
+                                           "triangles",
+                                           "bound_px",
+                                           "missing_in_view",
+                                           "update_ms",
+                                           "update_cpu_ms",
+                                           "resident_bytes",
+                                           "blocks_resident",
+                                           "blocks_loading",
+                                           "blocks_evicted",
+                                           "nodes_resident",
+                                           "nodes_loading",
+                                           "nodes_evicted",
+                                           "prefetch_misses",
+                                           "bytes_read",
+                                           "nodes_visited",
+                                           "nodes_culled",
+                                           "coarse_nodes",
+                                           "pm_blocks",
+                                           "standin_blocks",
+                                           "fallback_nodes",
+                                           "moving_vertices",
+                                           "clamped_vertices",
+                                           "seam_triangles"};
 
 /// frames.csv as rows of numbers, asserting the header and that every field is a finite number.
 std::vector<std::vector<double>> read_frames(const fs::path& csv) {
@@ -120,7 +148,8 @@ std::vector<std::vector<double>> read_frames(const fs::path& csv) {
       char* end = nullptr;
       const double v = std::strtod(fields[k].c_str(), &end);
       EXPECT_TRUE(!fields[k].empty() && *end == '\0' && std::isfinite(v))
-          << "line " << i + 1 << " column " << (k < kColumns.size() ? kColumns[k] : "?") << ": '" << fields[k] << "'";
+          << "line " << i + 1 << " column " << (k < kColumns.size() ? kColumns[k] : "?") << ": '" << fields[k]
+          << "'";
       row.push_back(v);
     }
     rows.push_back(row);
@@ -212,8 +241,8 @@ TEST(CmdFly, FramesCsvAndDumpedMeshesAreCompleteWatertightAndWithinTheBound) {
     for (const auto& p : d.positions) {
       const auto [fc, fr] = tt::world_to_index(f.hf, p[0], p[1]);
       const long ic = std::lround(fc), ir = std::lround(fr);
-      if (std::abs(fc - double(ic)) > 1e-9 || std::abs(fr - double(ir)) > 1e-9 || ic < 0 || ir < 0 || ic >= kN ||
-          ir >= kN) {
+      if (std::abs(fc - double(ic)) > 1e-9 || std::abs(fr - double(ir)) > 1e-9 || ic < 0 || ir < 0 ||
+          ic >= kN || ir >= kN) {
         on_samples = false;
         ADD_FAILURE() << "vertex (" << p[0] << ", " << p[1] << ", " << p[2] << ") is not over a sample";
         break;
@@ -243,7 +272,8 @@ TEST(CmdFly, FramesCsvAndDumpedMeshesAreCompleteWatertightAndWithinTheBound) {
   }
   EXPECT_GT(last_bytes, 0.0);
   EXPECT_FALSE(fs::exists(out / frame_ply(kFrames)));
-  std::printf("terralod fly: %d frames, worst measured / guaranteed screen error %.3f\n", kFrames, worst_ratio);
+  std::printf("terralod fly: %d frames, worst measured / guaranteed screen error %.3f\n", kFrames,
+              worst_ratio);
 }
 
 TEST(CmdFly, NoPrefetchAndSpeedFactor) {
@@ -263,8 +293,8 @@ TEST(CmdFly, NoPrefetchAndSpeedFactor) {
   for (const auto& e : fs::directory_iterator(out)) EXPECT_EQ(e.path().filename(), "frames.csv") << e.path();
   // 16 blocks fit the default 512 MB budget: nothing is ever evicted.
   EXPECT_EQ(col(rows.back(), "blocks_evicted"), 0.0);
-  std::printf("terralod fly --no-prefetch --speed-factor 0.5: %.2f s for %d frames, %g prefetch misses\n", seconds,
-              kFrames, col(rows.back(), "prefetch_misses"));
+  std::printf("terralod fly --no-prefetch --speed-factor 0.5: %.2f s for %d frames, %g prefetch misses\n",
+              seconds, kFrames, col(rows.back(), "prefetch_misses"));
 
   // Bad values of both options are command-line errors (exit 2) naming the option.
   for (const std::string bad : {"--speed-factor -1", "--speed-factor nan", "--tau 0", "--size 0x10"}) {

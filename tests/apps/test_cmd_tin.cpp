@@ -27,19 +27,24 @@ using terralod::test::slurp;
 /// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
 const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cmd-tin"); }
 
-CliResult terralod(const std::string& args) { return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args); }
+CliResult terralod(const std::string& args) {
+  return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args);
+}
 
 // A 21 x 17 Esri ASCII grid, cellsize 10, lower-left corner (1000, 2000): sample centres are
 //   x = 1005 + 10 col,   y = 2005 + 10 (16 - row) = 2165 - 10 row.
 // Heights: the plane 100 + col + 2 row, plus a 50 m bump at (col 8, row 7).
 constexpr int kW = 21, kH = 17, kBumpCol = 8, kBumpRow = 7;
-double height(int col, int row) { return 100.0 + col + 2.0 * row + (col == kBumpCol && row == kBumpRow ? 50.0 : 0.0); }
+double height(int col, int row) {
+  return 100.0 + col + 2.0 * row + (col == kBumpCol && row == kBumpRow ? 50.0 : 0.0);
+}
 std::array<double, 2> world(int col, int row) { return {1005.0 + 10.0 * col, 2165.0 - 10.0 * row}; }
 
 fs::path write_dem() {
   const fs::path p = tmp_dir() / "dem.asc";
   std::ofstream f(p);
-  f << "ncols " << kW << "\nnrows " << kH << "\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
+  f << "ncols " << kW << "\nnrows " << kH
+    << "\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
   for (int r = 0; r < kH; ++r) {
     for (int c = 0; c < kW; ++c) f << height(c, r) << (c + 1 < kW ? " " : "\n");
   }
@@ -60,8 +65,8 @@ fs::path write_polygon(const std::string& name = "area.csv") {
 }
 
 std::string args(const fs::path& dem, const fs::path& poly, const fs::path& out, const std::string& more) {
-  return "tin --input " + quote(dem.string()) + " --polygon " + quote(poly.string()) + " --out " + quote(out.string()) +
-         " " + more;
+  return "tin --input " + quote(dem.string()) + " --polygon " + quote(poly.string()) + " --out " +
+         quote(out.string()) + " " + more;
 }
 
 TEST(CmdTin, Help) {
@@ -77,7 +82,8 @@ TEST(CmdTin, Help) {
 // the plane) is the 4th point; it splits the triangle into 3.
 TEST(CmdTin, BumpIsTheFourthPoint) {
   const fs::path dem = write_dem(), poly = write_polygon(), out = tmp_dir() / "tin.ply";
-  const CliResult r = terralod(args(dem, poly, out, "--max-error 0 --max-points 4 --metric samples --units samples"));
+  const CliResult r =
+      terralod(args(dem, poly, out, "--max-error 0 --max-points 4 --metric samples --units samples"));
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("3 polygon vertices, 4 points, 3 triangles"), std::string::npos) << r.out;
   const pm::TriangleMeshData m = pm::read_ply(out.string());

@@ -84,9 +84,9 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
   std::vector<fs::path> outs = {kTmp / "headless_a", kTmp / "headless_b"};
   for (const fs::path& o : outs) {
     fs::remove_all(o);
-    const std::string cmd = std::string(TERRALOD_FLY) + " --headless --terrain-size 129 --path " + path.string() +
-                            " --size 320x200 --tau 1 --out " + o.string() + " --dump-meshes > " +
-                            (o.string() + ".log") + " 2>&1";
+    const std::string cmd = std::string(TERRALOD_FLY) + " --headless --terrain-size 129 --path " +
+                            path.string() + " --size 320x200 --tau 1 --out " + o.string() +
+                            " --dump-meshes > " + (o.string() + ".log") + " 2>&1";
     ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(o.string() + ".log");
   }
   const auto a = stats_without_times(outs[0] / "frames.csv");
@@ -111,11 +111,15 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
   std::string line;
   std::getline(in, line);
   // The columns: those of 'terralod fly' (the runtime's statistics), then the drawing's.
-  EXPECT_EQ(line,
-            "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,missing_in_view,update_ms,update_cpu_ms,"
-            "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_evicted,"
-            "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_nodes,"
-            "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes,texture_patches,textures_from_parent");
+  EXPECT_EQ(
+      line,
+      "frame,time_s,x,y,z,yaw,pitch,fovy,tau_px,triangles,bound_px,missing_in_view,update_ms,update_cpu_ms,"
+      "resident_bytes,blocks_resident,blocks_loading,blocks_evicted,nodes_resident,nodes_loading,nodes_"
+      "evicted,"
+      "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_"
+      "nodes,"
+      "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes,"
+      "texture_patches,textures_from_parent");
   int rows = 0;
   while (std::getline(in, line)) {
     std::vector<std::string> f;
@@ -157,8 +161,8 @@ TEST(FlyWindow, ReplaysAPathUnderXvfbAndWritesAScreenshot) {
   const fs::path shot = kTmp / "window_shot.png", log = kTmp / "window.log";
   fs::remove(shot);
   const std::string cmd = "DISPLAY=" + xvfb.display() + " " + TERRALOD_FLY + " --terrain-size 129 --replay " +
-                          path.string() + " --frames 300 --size 320x240 --screenshot " + shot.string() + " > " +
-                          log.string() + " 2>&1";
+                          path.string() + " --frames 300 --size 320x240 --screenshot " + shot.string() +
+                          " > " + log.string() + " 2>&1";
   ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(log);
   EXPECT_NE(slurp(log).find("flew 300 frames"), std::string::npos) << slurp(log);
   const rd::Image img = rd::read_image(shot.string());

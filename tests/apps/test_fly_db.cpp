@@ -258,8 +258,8 @@ TEST(FlyDb, TextureLayersComeFromTheSameDatabase) {
   EXPECT_GT(most_patches, 2u) << "near terrain should want finer patches than the root's";
   // A budget of two patches: gamma is raised until two fit, and the cache holds no more.
   const fs::path tight = tmp() / "tight";
-  ASSERT_EQ(run(base + " --layer hill --texture-memory 0.032768 --out " + tight.string() + " > " + log.string() +
-                " 2>&1"),
+  ASSERT_EQ(run(base + " --layer hill --texture-memory 0.032768 --out " + tight.string() + " > " +
+                log.string() + " 2>&1"),
             0)
       << slurp(log);
   const Csv ct = read_csv(tight / "frames.csv");
@@ -299,7 +299,8 @@ TEST(FlyDb, ViewDrawsOneFrameOfTheRuntime) {
   const Terrain& t = terrain();
   const auto [x0, y0] = t.hf.transform.to_world(20, 108);
   const double z = pm::bilinear_height(t.hf, x0, y0) + 150.0;
-  const std::string cam = std::to_string(x0) + "," + std::to_string(y0) + "," + std::to_string(z) + ",53.13,-20,60";
+  const std::string cam =
+      std::to_string(x0) + "," + std::to_string(y0) + "," + std::to_string(z) + ",53.13,-20,60";
   const fs::path log = tmp() / "view.log", stats = tmp() / "view.json", png = tmp() / "view.png";
   const std::string cmd = std::string(TERRALOD_CLI) + " view --db " + t.db.string() + " --camera " + cam +
                           " --size 200x120 --out " + png.string() + " --stats " + stats.string() + " > " +
@@ -352,8 +353,9 @@ TEST(FlyDb, WindowDrawsTexturesPerPatchUnderXvfb) {
   const fs::path path = write_path(90);
   const fs::path shot = tmp() / "window_layer.png", log = tmp() / "window_layer.log";
   const std::string cmd = "DISPLAY=" + xvfb.display() + " " + TERRALOD_FLY + " --db " + shaded_db().string() +
-                          " --layer hill --replay " + path.string() + " --frames 90 --size 320x240 --screenshot " +
-                          shot.string() + " > " + log.string() + " 2>&1";
+                          " --layer hill --replay " + path.string() +
+                          " --frames 90 --size 320x240 --screenshot " + shot.string() + " > " + log.string() +
+                          " 2>&1";
   ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(log);
   EXPECT_NE(slurp(log).find("flew 90 frames"), std::string::npos) << slurp(log);
   EXPECT_TRUE(looks_drawn(rd::read_image(shot.string()))) << "the screenshot looks blank";

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "terralod/blocks/block_database.hpp"
 #include "run_command.hpp"
+#include "terralod/blocks/block_database.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/image_pyramid.hpp"
@@ -36,8 +36,8 @@ int run(const std::string& cmd) {
 using terralod::test::slurp;
 
 // Stores `img` as layer `name` of kind `kind` over `georef` (pyramid converted next to the db).
-void add_layer(tb::BlockDatabase& db, const std::string& name, const std::string& kind, const rd::RgbaImage& img,
-               const rd::GeoRect& georef) {
+void add_layer(tb::BlockDatabase& db, const std::string& name, const std::string& kind,
+               const rd::RgbaImage& img, const rd::GeoRect& georef) {
   const std::string tx = (kTmp / (name + ".tx")).string();
   rd::ImagePyramid::convert(img, tx);
   const rd::ImagePyramid pyr(tx);
@@ -128,8 +128,8 @@ Csv read_csv(const fs::path& csv) {
 TEST(FlyLayers, TwoLayersAreDeterministicAndDifferFromNoLayers) {
   const fs::path db = make_database();
   const fs::path path = write_path(12);
-  const std::string base = std::string(TERRALOD_FLY) + " --headless --terrain-size 129 --path " + path.string() +
-                           " --size 240x160 --tau 1";
+  const std::string base = std::string(TERRALOD_FLY) + " --headless --terrain-size 129 --path " +
+                           path.string() + " --size 240x160 --tau 1";
   const std::string layers = " --texture-db " + db.string() + " --layer shade --layer bands:multiply:0.8";
   const std::vector<std::pair<fs::path, std::string>> runs = {
       {kTmp / "layers_a", layers}, {kTmp / "layers_b", layers}, {kTmp / "plain", ""}};
@@ -178,9 +178,11 @@ TEST(FlyLayers, BadLayerOptionsAreClearErrors) {
   const std::string fly = std::string(TERRALOD_FLY) + " --headless --terrain-size 17 --frames 1 --out " +
                           (kTmp / "bad_out").string();
   EXPECT_EQ(run(fly + " --layer shade > " + log.string() + " 2>&1"), 2) << "--layer without --texture-db";
-  EXPECT_EQ(run(fly + " --texture-db " + db.string() + " --layer shade:divide > " + log.string() + " 2>&1"), 2);
+  EXPECT_EQ(run(fly + " --texture-db " + db.string() + " --layer shade:divide > " + log.string() + " 2>&1"),
+            2);
   EXPECT_NE(slurp(log).find("unknown operation 'divide'"), std::string::npos) << slurp(log);
-  EXPECT_EQ(run(fly + " --texture-db " + db.string() + " --layer shade:blend:1.5 > " + log.string() + " 2>&1"), 2);
+  EXPECT_EQ(
+      run(fly + " --texture-db " + db.string() + " --layer shade:blend:1.5 > " + log.string() + " 2>&1"), 2);
   EXPECT_EQ(run(fly + " --texture-db " + db.string() + " --layer nothere > " + log.string() + " 2>&1"), 1);
   EXPECT_NE(slurp(log).find("nothere"), std::string::npos) << slurp(log);
 }
@@ -202,7 +204,8 @@ TEST(ViewLayers, DrawsTheLayersAndRejectsBadOptions) {
   }
   const std::string view = std::string(TERRALOD_CLI) + " view --input " + dem.string() +
                            " --camera 0,-2500,2500,0,-40,60 --size 200x150";
-  const fs::path plain = kTmp / "view_plain.png", layered = kTmp / "view_layered.png", log = kTmp / "view.log";
+  const fs::path plain = kTmp / "view_plain.png", layered = kTmp / "view_layered.png",
+                 log = kTmp / "view.log";
   ASSERT_EQ(run(view + " --out " + plain.string() + " > " + log.string() + " 2>&1"), 0) << slurp(log);
   ASSERT_EQ(run(view + " --texture-db " + db.string() + " --layer shade --layer bands:multiply:0.8 --out " +
                 layered.string() + " > " + log.string() + " 2>&1"),

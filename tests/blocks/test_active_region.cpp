@@ -34,7 +34,7 @@ TEST(BlockGrid, WorldToBlockAndBack) {
   EXPECT_NEAR(c, 40.5, 1e-12);
   EXPECT_NEAR(r, 70.25, 1e-12);
   EXPECT_EQ(g.block_at(1000 + 30 * 40.5, 5000 - 30 * 70.25), (tb::BlockKey{1, 2}));  // 40.5/32, 70.25/32
-  EXPECT_EQ(g.block_at(-1e9, 1e9), (tb::BlockKey{0, 0}));                         // clamped
+  EXPECT_EQ(g.block_at(-1e9, 1e9), (tb::BlockKey{0, 0}));                            // clamped
   EXPECT_EQ(g.block_at(1e9, -1e9), (tb::BlockKey{7, 7}));
   const pm::Vec3 w = g.world(32, 64, 7.0);
   EXPECT_EQ(w.x, 1000 + 30 * 32.0);
@@ -114,7 +114,7 @@ TEST(ActiveRegion, InnerRadiusFollowsTheHeightRule) {
   EXPECT_EQ(tb::inner_radius(1500, 1000, o), 2);
   EXPECT_EQ(tb::inner_radius(4000, 1000, o), 4);
   EXPECT_EQ(tb::inner_radius(1e12, 1000, o), 5);
-  o.theta_deg = 20;  // cot 20 = 2.7475
+  o.theta_deg = 20;                              // cot 20 = 2.7475
   EXPECT_EQ(tb::inner_radius(300, 960, o), 1);   // b = 824 m
   EXPECT_EQ(tb::inner_radius(400, 960, o), 2);   // b = 1099 m
   EXPECT_EQ(tb::inner_radius(1000, 960, o), 3);  // b = 2747 m

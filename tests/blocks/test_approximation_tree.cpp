@@ -32,7 +32,9 @@ pm::Heightfield terrain(int w, int h, std::uint64_t seed = 3) {
 /// Brute-force epsilon(N): the independent checker's error of every surface triangle.
 double brute_error(const pm::Heightfield& hf, const tb::NodeSurface& s) {
   double worst = 0.0;
-  auto idx = [&](std::uint32_t v) { return std::uint32_t(s.points[v][1]) * std::uint32_t(hf.width()) + std::uint32_t(s.points[v][0]); };
+  auto idx = [&](std::uint32_t v) {
+    return std::uint32_t(s.points[v][1]) * std::uint32_t(hf.width()) + std::uint32_t(s.points[v][0]);
+  };
   for (const auto& t : s.triangles)
     worst = std::max(worst, terralod::test::triangle_error(hf, idx(t[0]), idx(t[1]), idx(t[2])).max());
   return worst;
@@ -68,7 +70,9 @@ void check_tree(const pm::Heightfield& hf, const tb::ApproximationTree& tree, co
       // The surface covers the domain exactly once: its triangle areas sum to the domain's.
       std::int64_t area2 = 0;
       for (const auto& t : n.surface.triangles) {
-        const auto g = [&](std::uint32_t v) { return pm::GridPoint{int(n.surface.points[v][0]), int(n.surface.points[v][1])}; };
+        const auto g = [&](std::uint32_t v) {
+          return pm::GridPoint{int(n.surface.points[v][0]), int(n.surface.points[v][1])};
+        };
         const std::int64_t o = pm::orient2d(g(t[0]), g(t[1]), g(t[2]));
         EXPECT_GT(o, 0);
         area2 += o;
@@ -113,7 +117,8 @@ void check_tree(const pm::Heightfield& hf, const tb::ApproximationTree& tree, co
         EXPECT_EQ(c.parent, n.id);
         EXPECT_EQ(c.level, n.level + 1);
         EXPECT_GT(c.id, n.id);
-        EXPECT_TRUE(n.domain.contains(c.domain.col0, c.domain.row0) && n.domain.contains(c.domain.col1, c.domain.row1));
+        EXPECT_TRUE(n.domain.contains(c.domain.col0, c.domain.row0) &&
+                    n.domain.contains(c.domain.col1, c.domain.row1));
         EXPECT_GE(c.domain.width(), 2);
         EXPECT_GE(c.domain.height(), 2);
         area += std::int64_t(c.domain.width() - 1) * (c.domain.height() - 1);
@@ -222,13 +227,17 @@ TEST_P(PureTrees, InvariantsHold) {
   EXPECT_LT(sum, bytes.size());
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Strategies, PureTrees,
-    ::testing::Values(Case{"grid", {tb::StrategyChoice::Grid}, 0.0}, Case{"tin", {tb::StrategyChoice::Tin}, 2.0},
-                      Case{"nonregular", {tb::StrategyChoice::NonRegularGrid}, 2.0},
-                      Case{"hybrid", {tb::StrategyChoice::Hybrid}, 3.0}, Case{"auto", {tb::StrategyChoice::Auto}, 5.0},
-                      Case{"mixed", {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin, tb::StrategyChoice::NonRegularGrid}, 3.0}),
-    [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Strategies, PureTrees,
+                         ::testing::Values(Case{"grid", {tb::StrategyChoice::Grid}, 0.0},
+                                           Case{"tin", {tb::StrategyChoice::Tin}, 2.0},
+                                           Case{"nonregular", {tb::StrategyChoice::NonRegularGrid}, 2.0},
+                                           Case{"hybrid", {tb::StrategyChoice::Hybrid}, 3.0},
+                                           Case{"auto", {tb::StrategyChoice::Auto}, 5.0},
+                                           Case{"mixed",
+                                                {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin,
+                                                 tb::StrategyChoice::NonRegularGrid},
+                                                3.0}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 // Auto keeps, per node, the candidate with the smallest error x bytes.
 TEST(ApproximationTree, AutoPicksSmallestErrorTimesBytes) {
@@ -269,8 +278,8 @@ TEST(ApproximationTree, HybridStrategyRefinesWhereTheGridIsWorst) {
   const tb::NodeSurface h = hybrid->approximate(hf, d);
   const double eg = tb::surface_error(hf, g, pm::ErrorMetric::Continuous);
   const double eh = tb::surface_error(hf, h, pm::ErrorMetric::Continuous);
-  std::printf("grid: %zu points, error %.2f m; hybrid: %zu points, %zu triangles, error %.2f m\n", g.points.size(), eg,
-              h.points.size(), h.triangles.size(), eh);
+  std::printf("grid: %zu points, error %.2f m; hybrid: %zu points, %zu triangles, error %.2f m\n",
+              g.points.size(), eg, h.points.size(), h.triangles.size(), eh);
   EXPECT_LT(eh, 0.5 * eg);
   EXPECT_GT(h.points.size(), g.points.size());
   EXPECT_LE(h.points.size(), hybrid->max_points());
@@ -305,7 +314,8 @@ TEST(ApproximationTree, HybridStrategyRefinesWhereTheGridIsWorst) {
   std::printf("65 x 33: grid error %.2f m, hybrid %.2f m with %zu points\n",
               tb::surface_error(flat, g2, pm::ErrorMetric::Continuous), rect.root().error,
               rect.root().surface.points.size());
-  EXPECT_GT(rect.root().surface.points.size(), g2.points.size() + 5);  // the microstructure and the block's nodes
+  EXPECT_GT(rect.root().surface.points.size(),
+            g2.points.size() + 5);  // the microstructure and the block's nodes
   EXPECT_LT(rect.root().error, tb::surface_error(flat, g2, pm::ErrorMetric::Continuous));
 }
 

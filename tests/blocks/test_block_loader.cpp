@@ -23,7 +23,8 @@ using terralod::test::MemoryStore;
 namespace {
 
 const BlockedTerrain& terrain() {
-  static const BlockedTerrain t = terralod::test::make_blocked_terrain(257, 257, 33, /*seed=*/11, 30.0, 300.0);
+  static const BlockedTerrain t =
+      terralod::test::make_blocked_terrain(257, 257, 33, /*seed=*/11, 30.0, 300.0);
   return t;
 }
 

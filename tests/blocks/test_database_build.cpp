@@ -2,12 +2,11 @@
 // database_extract.hpp): summary, exact leaf errors, extraction within E and watertight on a
 // generated terrain and on N44W072, resume after an interruption, SIGKILL of the real
 // `terralod build` at random moments, and bad input through the command line.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <fcntl.h>
 
 #include <chrono>
 #include <cstdio>
@@ -92,8 +91,9 @@ TEST(DatabaseBuild, GeneratedTerrainSummaryTreeAndExtraction) {
     const pm::TriangleMesh base = p.extract_after(p.vsplit_count());
     double brute = 0.0;
     for (const auto& t : base.triangles)
-      brute = std::max(brute, terralod::test::triangle_error(p.heightfield(), base.vertices[t[0]], base.vertices[t[1]],
-                                                             base.vertices[t[2]]).max());
+      brute = std::max(brute, terralod::test::triangle_error(p.heightfield(), base.vertices[t[0]],
+                                                             base.vertices[t[1]], base.vertices[t[2]])
+                                  .max());
     EXPECT_EQ(n.error, brute);
   }
   for (double E : {0.0, 1.0, 4.0, 25.0, 400.0}) check_extraction(hf, path, E);
@@ -168,7 +168,8 @@ TEST(DatabaseBuild, N44W072Crop) {
 
 void write_asc(const std::string& path, const pm::Heightfield& hf, bool all_void = false) {
   std::ofstream f(path);
-  f << "ncols " << hf.width() << "\nnrows " << hf.height() << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+  f << "ncols " << hf.width() << "\nnrows " << hf.height()
+    << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
   for (int r = 0; r < hf.height(); ++r) {
     for (int c = 0; c < hf.width(); ++c) f << (all_void ? -9999.0 : hf.at(c, r)) << ' ';
     f << '\n';
@@ -214,15 +215,16 @@ TEST(DatabaseBuild, SigkillAtRandomMomentsThenResume) {
   const pm::Heightfield hf = terrain(97, 97, 5);
   const std::string asc = std::string(TERRALOD_TEST_TMP) + "/database_build_kill.asc";
   write_asc(asc, hf);
-  const std::vector<std::string> base{"build", "--input", asc, "--block-size", "33", "--threads", "2",
-                                      "--strategy", "grid,tin"};
+  const std::vector<std::string> base{"build",     "--input", asc,          "--block-size", "33",
+                                      "--threads", "2",       "--strategy", "grid,tin"};
   // Time of a complete build, to spread the kills over it.
   const std::string ref = tmp("kill_ref.db");
   auto args = base;
   args.insert(args.end(), {"--out", ref});
   const auto t0 = std::chrono::steady_clock::now();
   const ChildRun full = run_terralod(args);
-  const double full_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const double full_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_EQ(full.status, 0) << full.err;
   const std::uint32_t seed = 4242;
   std::printf("seed %u, full build %.0f ms\n", seed, full_ms);
@@ -271,11 +273,16 @@ TEST(DatabaseBuild, CliInfoAndExtract) {
   const std::string asc = std::string(TERRALOD_TEST_TMP) + "/database_build_cli.asc";
   write_asc(asc, hf);
   const std::string db = tmp("cli.db"), ply = std::string(TERRALOD_TEST_TMP) + "/database_build_cli.ply";
-  ASSERT_EQ(run_terralod({"build", "--input", asc, "--out", db, "--block-size", "33", "--strategy", "auto"}).status, 0);
+  ASSERT_EQ(
+      run_terralod({"build", "--input", asc, "--out", db, "--block-size", "33", "--strategy", "auto"}).status,
+      0);
   // Running the same command again resumes (here: finds everything built) and succeeds.
-  ASSERT_EQ(run_terralod({"build", "--input", asc, "--out", db, "--block-size", "33", "--strategy", "auto"}).status, 0);
+  ASSERT_EQ(
+      run_terralod({"build", "--input", asc, "--out", db, "--block-size", "33", "--strategy", "auto"}).status,
+      0);
   EXPECT_EQ(run_terralod({"info", db}).status, 0);
-  const ChildRun r = run_terralod({"extract", "--db", db, "--max-error", "3", "--out", ply, "--units", "samples"});
+  const ChildRun r =
+      run_terralod({"extract", "--db", db, "--max-error", "3", "--out", ply, "--units", "samples"});
   ASSERT_EQ(r.status, 0) << r.err;
   const pm::TriangleMeshData mesh = pm::read_ply(ply);
   const tb::ExtractedMesh want = tb::extract_mesh(db, 3.0);

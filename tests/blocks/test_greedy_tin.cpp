@@ -56,7 +56,8 @@ pm::Heightfield crop(const pm::Heightfield& hf, tb::SampleRect d) {
 /// The surface as a pm::TriangleMesh over `hf` whose sample (0,0) is (col0,row0) of the TIN's.
 pm::TriangleMesh to_mesh(const pm::Heightfield& hf, const tb::TinSurface& s, int col0 = 0, int row0 = 0) {
   pm::TriangleMesh m;
-  for (const auto& p : s.points) m.vertices.push_back(std::uint32_t((p[1] - row0) * hf.width() + (p[0] - col0)));
+  for (const auto& p : s.points)
+    m.vertices.push_back(std::uint32_t((p[1] - row0) * hf.width() + (p[0] - col0)));
   m.triangles = s.triangles;
   m.error_bound = s.error;
   return m;
@@ -79,8 +80,8 @@ void expect_delaunay(const tb::TinSurface& s) {
     const pm::GridPoint a = gp(s.points[t[0]]), b = gp(s.points[t[1]]), c = gp(s.points[t[2]]);
     ASSERT_GT(pm::orient2d(a, b, c), 0);
     for (const auto& q : s.points) {
-      const std::int64_t adx = a.x - q[0], ady = a.y - q[1], bdx = b.x - q[0], bdy = b.y - q[1], cdx = c.x - q[0],
-                         cdy = c.y - q[1];
+      const std::int64_t adx = a.x - q[0], ady = a.y - q[1], bdx = b.x - q[0], bdy = b.y - q[1],
+                         cdx = c.x - q[0], cdy = c.y - q[1];
       const int128 det = int128(adx * adx + ady * ady) * (bdx * cdy - cdx * bdy) +
                          int128(bdx * bdx + bdy * bdy) * (cdx * ady - adx * cdy) +
                          int128(cdx * cdx + cdy * cdy) * (adx * bdy - bdx * ady);
@@ -91,7 +92,8 @@ void expect_delaunay(const tb::TinSurface& s) {
 }
 
 /// Exact cover and exact error of a rect-domain surface by the independent checker.
-void expect_checked(const pm::Heightfield& hf, tb::SampleRect d, const tb::TinSurface& s, ErrorMetric metric) {
+void expect_checked(const pm::Heightfield& hf, tb::SampleRect d, const tb::TinSurface& s,
+                    ErrorMetric metric) {
   const pm::Heightfield c = crop(hf, d);
   tt::CheckOptions co;
   co.continuous = metric == ErrorMetric::Continuous;
@@ -108,7 +110,8 @@ void expect_checked(const pm::Heightfield& hf, tb::SampleRect d, const tb::TinSu
 TEST(GreedyTin, PlaneIsItsFourCorners) {
   const pm::Heightfield hf = plane(9, 9);
   for (ErrorMetric m : {ErrorMetric::Samples, ErrorMetric::Continuous}) {
-    const tb::TinSurface s = tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 8, 8}, {.max_error = 0.0, .metric = m});
+    const tb::TinSurface s =
+        tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 8, 8}, {.max_error = 0.0, .metric = m});
     EXPECT_EQ(s.points.size(), 4u);
     EXPECT_EQ(s.triangles.size(), 2u);
     EXPECT_EQ(s.error, 0.0);
@@ -130,13 +133,15 @@ TEST(GreedyTin, SingleBumpIsInsertedFirst) {
   pm::Heightfield hf(9, 9);
   hf.at(3, 5) = 10.0;
   for (ErrorMetric m : {ErrorMetric::Samples, ErrorMetric::Continuous}) {
-    const tb::TinSurface s = tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 8, 8}, {.max_points = 5, .metric = m});
+    const tb::TinSurface s =
+        tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 8, 8}, {.max_points = 5, .metric = m});
     ASSERT_EQ(s.points.size(), 5u);
     EXPECT_EQ(s.points[4], (std::array<int, 2>{3, 5}));
     EXPECT_EQ(s.triangles.size(), 4u);
     EXPECT_EQ(s.error, m == ErrorMetric::Samples ? 8.0 : 9.0);
     expect_checked(hf, {0, 0, 8, 8}, s, m);
-    const tb::TinSurface four = tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 8, 8}, {.max_points = 4, .metric = m});
+    const tb::TinSurface four =
+        tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 8, 8}, {.max_points = 4, .metric = m});
     EXPECT_EQ(four.error, 10.0);
   }
 }
@@ -180,7 +185,8 @@ TEST(GreedyTin, RandomSetsAreDelaunayAndExact) {
     const ErrorMetric m = trial % 2 ? ErrorMetric::Samples : ErrorMetric::Continuous;
     const std::size_t max_points = 4 + rng() % (d.samples() / 2);
     const tb::TinSurface s = tb::build_greedy_tin(hf, d, {.max_points = max_points, .metric = m});
-    SCOPED_TRACE(testing::Message() << "trial " << trial << " " << w << "x" << h << " max_points " << max_points);
+    SCOPED_TRACE(testing::Message() << "trial " << trial << " " << w << "x" << h << " max_points "
+                                    << max_points);
     EXPECT_LE(s.points.size(), max_points);
     // Euler: a triangulation of a convex domain with n points, b of them on its boundary, has
     // 2n - b - 2 triangles.
@@ -262,8 +268,8 @@ bool in_polygon(const std::vector<pm::GridPoint>& poly, pm::GridPoint p) {
 }
 
 /// Checks that s covers exactly the polygon and that its error over the samples inside is exact.
-void expect_polygon_tin(const pm::Heightfield& hf, const std::vector<pm::GridPoint>& poly, const tb::TinSurface& s,
-                        ErrorMetric m) {
+void expect_polygon_tin(const pm::Heightfield& hf, const std::vector<pm::GridPoint>& poly,
+                        const tb::TinSurface& s, ErrorMetric m) {
   std::int64_t poly2 = 0;
   for (std::size_t i = 0; i < poly.size(); ++i) {
     const pm::GridPoint a = poly[i], b = poly[(i + 1) % poly.size()];
@@ -289,7 +295,8 @@ void expect_polygon_tin(const pm::Heightfield& hf, const std::vector<pm::GridPoi
         on = pm::orient2d(p, q, a) == 0 && pm::orient2d(p, q, b) == 0 && in_polygon({p, q, p}, a) &&
              in_polygon({p, q, p}, b);
       }
-      EXPECT_TRUE(on) << "boundary edge (" << a.x << "," << a.y << ")-(" << b.x << "," << b.y << ") off the polygon";
+      EXPECT_TRUE(on) << "boundary edge (" << a.x << "," << a.y << ")-(" << b.x << "," << b.y
+                      << ") off the polygon";
     }
   }
   for (const auto& p : s.points) EXPECT_TRUE(in_polygon(poly, gp(p)));
@@ -297,7 +304,8 @@ void expect_polygon_tin(const pm::Heightfield& hf, const std::vector<pm::GridPoi
   // is the Samples error, recomputed in long double by barycentric weights.
   long double worst = 0;
   int x0 = hf.width(), x1 = 0, y0 = hf.height(), y1 = 0;
-  for (const auto& q : poly) x0 = std::min(x0, q.x), x1 = std::max(x1, q.x), y0 = std::min(y0, q.y), y1 = std::max(y1, q.y);
+  for (const auto& q : poly)
+    x0 = std::min(x0, q.x), x1 = std::max(x1, q.x), y0 = std::min(y0, q.y), y1 = std::max(y1, q.y);
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) {
       if (!in_polygon(poly, {x, y})) continue;
@@ -307,14 +315,17 @@ void expect_polygon_tin(const pm::Heightfield& hf, const std::vector<pm::GridPoi
         const std::int64_t wa = pm::orient2d(b, c, p), wb = pm::orient2d(c, a, p), wc = pm::orient2d(a, b, p);
         if (wa < 0 || wb < 0 || wc < 0) continue;
         const long double z = (wa * (long double)hf.at(a.x, a.y) + wb * (long double)hf.at(b.x, b.y) +
-                               wc * (long double)hf.at(c.x, c.y)) / (long double)(wa + wb + wc);
+                               wc * (long double)hf.at(c.x, c.y)) /
+                              (long double)(wa + wb + wc);
         worst = std::max(worst, std::abs(z - (long double)hf.at(x, y)));
         found = true;
       }
       EXPECT_TRUE(found) << "sample (" << x << "," << y << ") inside the polygon is not covered";
     }
-  if (m == ErrorMetric::Samples) EXPECT_NEAR(s.error, double(worst), 1e-9 * (1 + double(worst)));
-  else EXPECT_GE(s.error, double(worst) - 1e-9);
+  if (m == ErrorMetric::Samples)
+    EXPECT_NEAR(s.error, double(worst), 1e-9 * (1 + double(worst)));
+  else
+    EXPECT_GE(s.error, double(worst) - 1e-9);
   EXPECT_EQ(s.error, linf_max(hf, s, m));
 }
 
@@ -322,8 +333,8 @@ void expect_polygon_tin(const pm::Heightfield& hf, const std::vector<pm::GridPoi
 // round to samples) over generated terrain with whole-metre heights (so that error 0 is exact).
 TEST(GreedyTinPolygon, LShapeCoversExactlyThePolygon) {
   const pm::Heightfield hf = terrain(40, 11, /*integer_heights=*/true);
-  const std::vector<std::array<double, 2>> poly = {{2.2, 3.1}, {2.0, 36.4}, {30.0, 36.0}, {29.6, 20.0},
-                                                   {15.0, 20.2}, {15.0, 2.8}};
+  const std::vector<std::array<double, 2>> poly = {{2.2, 3.1},   {2.0, 36.4},  {30.0, 36.0},
+                                                   {29.6, 20.0}, {15.0, 20.2}, {15.0, 2.8}};
   // Rounded, and reversed to CCW in (col,row) (orient2d > 0), the order the TIN's points start with.
   const std::vector<pm::GridPoint> rounded = {{15, 3}, {15, 20}, {30, 20}, {30, 36}, {2, 36}, {2, 3}};
   for (ErrorMetric m : {ErrorMetric::Samples, ErrorMetric::Continuous})
@@ -339,7 +350,8 @@ TEST(GreedyTinPolygon, LShapeCoversExactlyThePolygon) {
 // A triangle on a plane: its 3 vertices, 1 triangle, error 0; samples on its slanted edge count.
 TEST(GreedyTinPolygon, TriangleOnAPlane) {
   const pm::Heightfield hf = plane(12, 12);
-  const tb::TinSurface s = tb::build_greedy_tin(hf, std::vector<std::array<double, 2>>{{1, 1}, {10, 1}, {1, 10}});
+  const tb::TinSurface s =
+      tb::build_greedy_tin(hf, std::vector<std::array<double, 2>>{{1, 1}, {10, 1}, {1, 10}});
   EXPECT_EQ(s.points.size(), 3u);
   EXPECT_EQ(s.triangles.size(), 1u);
   EXPECT_EQ(s.error, 0.0);
@@ -362,7 +374,8 @@ TEST(GreedyTinPolygon, StarOnNoise) {
   }
   std::reverse(rounded.begin(), rounded.end());  // CCW in (col,row), as the builder stores it
   for (std::size_t k : {10, 40, 200}) {
-    const tb::TinSurface s = tb::build_greedy_tin(hf, poly, {.max_points = k, .metric = ErrorMetric::Samples});
+    const tb::TinSurface s =
+        tb::build_greedy_tin(hf, poly, {.max_points = k, .metric = ErrorMetric::Samples});
     EXPECT_LE(s.points.size(), k);
     expect_polygon_tin(hf, rounded, s, ErrorMetric::Samples);
   }
@@ -372,15 +385,18 @@ TEST(GreedyTinPolygon, BadPolygonsThrow) {
   const pm::Heightfield hf = plane(20, 20);
   using Poly = std::vector<std::array<double, 2>>;
   EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {5, 1}}), std::invalid_argument);
-  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {5, 1}, {9, 1}}), std::invalid_argument);         // no area
-  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {25, 1}, {5, 9}}), std::invalid_argument);        // outside
-  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {9, 9}, {9, 1}, {1, 9}}), std::invalid_argument);  // bow tie
-  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {1.2, 1.3}, {0.9, 0.8}}), std::invalid_argument);  // one sample
+  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {5, 1}, {9, 1}}), std::invalid_argument);   // no area
+  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {25, 1}, {5, 9}}), std::invalid_argument);  // outside
+  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {9, 9}, {9, 1}, {1, 9}}),
+               std::invalid_argument);  // bow tie
+  EXPECT_THROW(tb::build_greedy_tin(hf, Poly{{1, 1}, {1.2, 1.3}, {0.9, 0.8}}),
+               std::invalid_argument);  // one sample
 }
 
 // --- non-regular grid ----------------------------------------------------------------------
 
-void expect_grid_checked(const pm::Heightfield& hf, tb::SampleRect d, const tb::NonRegularGrid& g, ErrorMetric m) {
+void expect_grid_checked(const pm::Heightfield& hf, tb::SampleRect d, const tb::NonRegularGrid& g,
+                         ErrorMetric m) {
   EXPECT_TRUE(std::is_sorted(g.cols.begin(), g.cols.end()));
   EXPECT_TRUE(std::is_sorted(g.rows.begin(), g.rows.end()));
   EXPECT_EQ(g.cols.front(), d.col0);

@@ -46,18 +46,20 @@ TEST(HybridDecoder, Table1StepByStep) {
   const auto conn = fig5_connectivity();
   const auto d = hy::decode_cavities(range(4, 12), conn, /*trace=*/true);
   // Table 1, column "Triangle", in order.
-  const std::vector<hy::FanTriangle> expected = {{5, 6, 7},  {7, 8, 9},  {5, 7, 9}, {5, 9, 10},
+  const std::vector<hy::FanTriangle> expected = {{5, 6, 7},   {7, 8, 9},  {5, 7, 9},  {5, 9, 10},
                                                  {5, 10, 11}, {4, 5, 11}, {4, 11, 12}};
   EXPECT_EQ(d.triangles, expected);
   // Table 1, column "S list" after each vertex is read (rows of one vertex merged).
   std::vector<std::pair<std::uint32_t, std::vector<std::uint32_t>>> after;
   for (const auto& s : d.steps) {
-    if (!after.empty() && after.back().first == s.vertex) after.back().second = s.s_list;
-    else after.push_back({s.vertex, s.s_list});
+    if (!after.empty() && after.back().first == s.vertex)
+      after.back().second = s.s_list;
+    else
+      after.push_back({s.vertex, s.s_list});
   }
   const std::vector<std::pair<std::uint32_t, std::vector<std::uint32_t>>> table = {
-      {4, {4}},     {5, {4, 5}}, {6, {4, 5}}, {7, {4, 5, 7}}, {8, {4, 5, 7}}, {9, {4, 5}},
-      {10, {4, 5}}, {11, {4}},   {12, {4}}};
+      {4, {4}},    {5, {4, 5}},  {6, {4, 5}}, {7, {4, 5, 7}}, {8, {4, 5, 7}},
+      {9, {4, 5}}, {10, {4, 5}}, {11, {4}},   {12, {4}}};
   EXPECT_EQ(after, table);
   // Vertex 4's cavity ends at 13, outside the cell: (4, 12, 13) is not generated; the local
   // convex hull of the cell is {4, 12} (Fig. 4b).
@@ -97,7 +99,8 @@ TEST(HybridDecoder, Fig6SingleCavity) {
   std::vector<std::uint32_t> conn(40, 1);
   conn[20] = 5;
   auto d = hy::decode_cavities(range(20, 25), conn);
-  EXPECT_EQ(d.triangles, (std::vector<hy::FanTriangle>{{20, 21, 22}, {20, 22, 23}, {20, 23, 24}, {20, 24, 25}}));
+  EXPECT_EQ(d.triangles,
+            (std::vector<hy::FanTriangle>{{20, 21, 22}, {20, 22, 23}, {20, 23, 24}, {20, 24, 25}}));
   EXPECT_EQ(d.hull, (std::vector<std::uint32_t>{20, 25}));
 }
 

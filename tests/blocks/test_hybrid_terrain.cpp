@@ -68,7 +68,8 @@ hy::TinMesh grid_tin(double c0, double r0, int cols, int rows, double step) {
   return t;
 }
 
-double orient(const std::array<double, 3>& a, const std::array<double, 3>& b, const std::array<double, 3>& c) {
+double orient(const std::array<double, 3>& a, const std::array<double, 3>& b,
+              const std::array<double, 3>& c) {
   return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
 }
 
@@ -81,7 +82,8 @@ std::string check_cover(const hy::HybridMesh& m, double W, double H, const pm::H
   std::map<std::pair<double, double>, std::uint32_t> at;
   for (std::uint32_t v = 0; v < m.points.size(); ++v)
     if (!at.emplace(std::make_pair(m.points[v][0], m.points[v][1]), v).second)
-      return "two vertices at (" + std::to_string(m.points[v][0]) + "," + std::to_string(m.points[v][1]) + ")";
+      return "two vertices at (" + std::to_string(m.points[v][0]) + "," + std::to_string(m.points[v][1]) +
+             ")";
   std::set<std::pair<double, double>> tin_pos;
   for (const auto& p : tin.points) {
     tin_pos.insert({p[0], p[1]});
@@ -92,7 +94,8 @@ std::string check_cover(const hy::HybridMesh& m, double W, double H, const pm::H
     const double c = p[0] / step, r = p[1] / step;
     if (c == std::floor(c) && r == std::floor(r) && !tin_pos.count({p[0], p[1]}) &&
         p[2] != hf.at(int(p[0]), int(p[1])) && std::abs(p[2] - tin_height(p[0], p[1])) > 1e-9)
-      return "grid node (" + std::to_string(p[0]) + "," + std::to_string(p[1]) + ") has neither the DEM nor the TIN height";
+      return "grid node (" + std::to_string(p[0]) + "," + std::to_string(p[1]) +
+             ") has neither the DEM nor the TIN height";
   }
   double area = 0;
   std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
@@ -110,10 +113,11 @@ std::string check_cover(const hy::HybridMesh& m, double W, double H, const pm::H
     const bool border = (p[0] == 0 && q[0] == 0) || (p[0] == W && q[0] == W) || (p[1] == 0 && q[1] == 0) ||
                         (p[1] == H && q[1] == H);
     if (!border)
-      return "open edge (" + std::to_string(p[0]) + "," + std::to_string(p[1]) + ")-(" + std::to_string(q[0]) + "," +
-             std::to_string(q[1]) + ") inside the domain (crack or T-junction)";
+      return "open edge (" + std::to_string(p[0]) + "," + std::to_string(p[1]) + ")-(" +
+             std::to_string(q[0]) + "," + std::to_string(q[1]) + ") inside the domain (crack or T-junction)";
   }
-  if (std::abs(area - W * H) > 1e-9 * W * H) return "area " + std::to_string(area) + " != " + std::to_string(W * H);
+  if (std::abs(area - W * H) > 1e-9 * W * H)
+    return "area " + std::to_string(area) + " != " + std::to_string(W * H);
   return "";
 }
 
@@ -129,13 +133,15 @@ void check_model(const hy::HybridTerrain& h, const pm::Heightfield& hf, const hy
         std::sort(v.begin(), v.end());
         return v;
       };
-      EXPECT_EQ(canon(h.decoded_fill(l, pc.cell)), canon(h.direct_fill(l, pc.cell))) << "level " << l << " cell " << pc.cell;
+      EXPECT_EQ(canon(h.decoded_fill(l, pc.cell)), canon(h.direct_fill(l, pc.cell)))
+          << "level " << l << " cell " << pc.cell;
     }
     for (hy::Scheme s : {hy::Scheme::Triangles, hy::Scheme::SubCells}) {
       const auto m = h.extract(l, s);
       EXPECT_EQ(check_cover(m, W, H, hf, h.grid_step(), tin), "") << "level " << l << " scheme " << int(s);
       // Each T-junction split replaces one triangle by at least two.
-      const std::size_t parts = m.grid_triangles + m.tin_triangles + m.convexification_triangles + m.corner_triangles;
+      const std::size_t parts =
+          m.grid_triangles + m.tin_triangles + m.convexification_triangles + m.corner_triangles;
       EXPECT_GE(m.triangles.size(), parts + m.split_edges);
     }
   }
@@ -143,9 +149,11 @@ void check_model(const hy::HybridTerrain& h, const pm::Heightfield& hf, const hy
   for (int phase = 0; phase < 2; ++phase) {
     std::vector<int> lv(std::size_t(top.cells_x) * top.cells_y);
     for (int j = 0; j < top.cells_y; ++j)
-      for (int i = 0; i < top.cells_x; ++i) lv[std::size_t(j) * top.cells_x + i] = ((i + j + phase) % 2) ? 0 : h.levels() - 1;
+      for (int i = 0; i < top.cells_x; ++i)
+        lv[std::size_t(j) * top.cells_x + i] = ((i + j + phase) % 2) ? 0 : h.levels() - 1;
     for (hy::Scheme s : {hy::Scheme::Triangles, hy::Scheme::SubCells})
-      EXPECT_EQ(check_cover(h.extract_mixed(lv, s), W, H, hf, h.grid_step(), tin), "") << "mixed phase " << phase;
+      EXPECT_EQ(check_cover(h.extract_mixed(lv, s), W, H, hf, h.grid_step(), tin), "")
+          << "mixed phase " << phase;
   }
 }
 
@@ -157,8 +165,8 @@ void check_model(const hy::HybridTerrain& h, const pm::Heightfield& hf, const hy
 //                              v22 (5.75,7.5) v23 (6.25,7.5)
 //   (* = intersection vertices with the cell border). The notch is a cavity fanned from v20.
 std::vector<std::array<double, 2>> notch_polygon() {
-  return {{2, 6},      {5, 6},  {5.25, 6.75}, {5.75, 7.5}, {6.25, 7.5}, {6.75, 6.75},
-          {7, 6},      {14, 6}, {14, 14},     {2, 14}};
+  return {{2, 6},       {5, 6}, {5.25, 6.75}, {5.75, 7.5}, {6.25, 7.5},
+          {6.75, 6.75}, {7, 6}, {14, 6},      {14, 14},    {2, 14}};
 }
 
 }  // namespace
@@ -203,13 +211,15 @@ TEST(HybridTerrain, RandomStarTinsAllLevels) {
     std::printf("random star TIN, seed %u\n", seed);
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> amp(0.0, 3.0), phase(0.0, 2 * M_PI);
-    const double a1 = amp(rng), a2 = amp(rng), a3 = amp(rng) / 2, p1 = phase(rng), p2 = phase(rng), p3 = phase(rng);
+    const double a1 = amp(rng), a2 = amp(rng), a3 = amp(rng) / 2, p1 = phase(rng), p2 = phase(rng),
+                 p3 = phase(rng);
     std::vector<std::array<double, 2>> poly;
     const int n = 60;
     for (int i = 0; i < n; ++i) {
       const double a = 2 * M_PI * i / n;
       const double r = 17 + a1 * std::sin(2 * a + p1) + a2 * std::sin(3 * a + p2) + a3 * std::sin(5 * a + p3);
-      poly.push_back({std::round((32.3 + r * std::cos(a)) * 16) / 16, std::round((31.7 + r * std::sin(a)) * 16) / 16});
+      poly.push_back(
+          {std::round((32.3 + r * std::cos(a)) * 16) / 16, std::round((31.7 + r * std::sin(a)) * 16) / 16});
     }
     const auto tin = fan_tin(poly, {32.3, 31.7});
     try {
@@ -275,7 +285,8 @@ TEST(HybridTerrain, ClearErrors) {
   const auto hf = make_grid(33, 33);
   // Inside one coarsest cell (16 samples): refused with a hint.
   try {
-    hy::HybridTerrain::build(hf, fan_tin({{2, 2}, {6, 2}, {6, 6}, {2, 6}}, {4, 4}), {.grid_step = 4, .levels = 3});
+    hy::HybridTerrain::build(hf, fan_tin({{2, 2}, {6, 2}, {6, 6}, {2, 6}}, {4, 4}),
+                             {.grid_step = 4, .levels = 3});
     ADD_FAILURE() << "no error";
   } catch (const hy::HybridError& e) {
     EXPECT_NE(std::string(e.what()).find("inside one coarsest grid cell"), std::string::npos) << e.what();
@@ -311,7 +322,8 @@ TEST(HybridTerrain, BlobRoundTripAndCorruption) {
     hy::HybridTerrain::decode(bad, "x.db");
     ADD_FAILURE() << "corruption not detected";
   } catch (const hy::HybridError& e) {
-    EXPECT_NE(std::string(e.what()).find("x.db: hybrid blob: checksum mismatch"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("x.db: hybrid blob: checksum mismatch"), std::string::npos)
+        << e.what();
   }
   EXPECT_THROW(hy::HybridTerrain::decode(std::span(blob).first(blob.size() / 3), "x.db"), hy::HybridError);
   EXPECT_THROW(hy::HybridTerrain::decode({}, "x.db"), hy::HybridError);
@@ -354,8 +366,10 @@ TEST(HybridTerrain, RealValleyN44W072) {
   std::vector<std::array<double, 2>> poly;
   for (std::string line; std::getline(csv, line);) {
     if (line.empty() || line[0] == '#' || line[0] == 'x') continue;
-    const double x = std::stod(line.substr(0, line.find(','))), y = std::stod(line.substr(line.find(',') + 1));
-    poly.push_back({(x - full.transform.x0) / full.transform.xc - c0, (y - full.transform.y0) / full.transform.yr - r0});
+    const double x = std::stod(line.substr(0, line.find(','))),
+                 y = std::stod(line.substr(line.find(',') + 1));
+    poly.push_back(
+        {(x - full.transform.x0) / full.transform.xc - c0, (y - full.transform.y0) / full.transform.yr - r0});
   }
   ASSERT_EQ(poly.size(), 34u);
   const auto surf = terralod::blocks::build_greedy_tin(crop, poly, {.max_error = 5.0});
@@ -366,8 +380,10 @@ TEST(HybridTerrain, RealValleyN44W072) {
   const auto h = hy::HybridTerrain::build(crop, tin, {.grid_step = 4, .levels = 3});
   const auto r = h.storage_report();
   for (const auto& l : r.levels) {
-    std::printf("LOD %d: PC %d of %d (%.2f%%), max connectivity %u, L max %u, %d bits/section, tree %.2f bits/PC\n",
-                l.level, l.pc, l.cells, l.pc_percent, l.max_connectivity, l.l_max, l.bits_per_section, l.tree_bits_per_pc);
+    std::printf(
+        "LOD %d: PC %d of %d (%.2f%%), max connectivity %u, L max %u, %d bits/section, tree %.2f bits/PC\n",
+        l.level, l.pc, l.cells, l.pc_percent, l.max_connectivity, l.l_max, l.bits_per_section,
+        l.tree_bits_per_pc);
     EXPECT_GT(l.pc, 0);
   }
   // Grid heights at the nodes, TIN heights at the TIN samples: check_cover compares with `crop`
@@ -391,7 +407,8 @@ TEST(HybridTerrain, RealValleyN44W072) {
         if (edges.count({b, a})) continue;
         const auto& p = m.points[a];
         const auto& q = m.points[b];
-        if (!((p[0] == 0 && q[0] == 0) || (p[0] == W && q[0] == W) || (p[1] == 0 && q[1] == 0) || (p[1] == H && q[1] == H)))
+        if (!((p[0] == 0 && q[0] == 0) || (p[0] == W && q[0] == W) || (p[1] == 0 && q[1] == 0) ||
+              (p[1] == H && q[1] == H)))
           ++open_inside;
       }
       EXPECT_TRUE(ok) << "level " << l;

@@ -45,7 +45,8 @@ TEST(Partition, SrtmTileLayout) {
 
 // Neighbours share their border samples and the blocks cover every cell exactly once.
 TEST(Partition, BlocksTileTheGrid) {
-  for (auto [w, h, n] : {std::array{1201, 1201, 257}, std::array{100, 37, 9}, std::array{17, 33, 17}, std::array{18, 5, 5}}) {
+  for (auto [w, h, n] :
+       {std::array{1201, 1201, 257}, std::array{100, 37, 9}, std::array{17, 33, 17}, std::array{18, 5, 5}}) {
     const tb::BlockLayout l = tb::partition(w, h, n);
     std::vector<int> cover(std::size_t(w - 1) * (h - 1), 0);
     for (tb::BlockKey k : l.keys()) {
@@ -111,7 +112,8 @@ TEST(Partition, BlockPmCornersBordersAndBaseError) {
     double brute = 0.0;
     for (const auto& t : base.triangles)
       brute = std::max(brute, terralod::test::triangle_error(b, base.vertices[t[0]], base.vertices[t[1]],
-                                                             base.vertices[t[2]]).max());
+                                                             base.vertices[t[2]])
+                                  .max());
     EXPECT_NEAR(tb::base_mesh_error(p), brute, 1e-9 * (1.0 + brute));
     EXPECT_LE(tb::base_mesh_error(p), p.max_error() + 1e-9);
   }

@@ -61,7 +61,8 @@ TEST(SeamStitch, HandDrawnTJunction) {
   EXPECT_EQ(p[1].triangles.size(), 3u);  // unchanged
   // The two pieces, in either order.
   const std::array<std::uint32_t, 3> a{1, 4, 0}, b{4, 2, 0};
-  EXPECT_TRUE((p[0].triangles[0] == a && p[0].triangles[2] == b) || (p[0].triangles[0] == b && p[0].triangles[2] == a));
+  EXPECT_TRUE((p[0].triangles[0] == a && p[0].triangles[2] == b) ||
+              (p[0].triangles[0] == b && p[0].triangles[2] == a));
   pm::Heightfield hf(9, 5);
   const terralod::test::MeshCheck c = terralod::test::check_mesh(hf, merge(hf, p));
   EXPECT_TRUE(c.topology_ok()) << c.describe();
@@ -93,8 +94,8 @@ TEST(SeamStitch, CornerTriangleAndPatchesOfDifferentSizes) {
   p[4].vertices = {{4, 4}, {6, 4}, {6, 6}, {4, 6}};
   p[4].triangles = {{0, 1, 2}, {0, 2, 3}};
   const tb::StitchResult r = tb::stitch_seams(p);
-  EXPECT_EQ(p[0].vertices.size(), 6u);  // (4,2) and (2,4)
-  EXPECT_EQ(p[0].triangles.size(), 4u); // the corner triangle became three
+  EXPECT_EQ(p[0].vertices.size(), 6u);   // (4,2) and (2,4)
+  EXPECT_EQ(p[0].triangles.size(), 4u);  // the corner triangle became three
   EXPECT_EQ(r.split_triangles, 1u);
   pm::Heightfield hf(7, 7);
   const terralod::test::MeshCheck c = terralod::test::check_mesh(hf, merge(hf, p));
@@ -126,7 +127,8 @@ TEST(SeamStitch, BlocksAtDifferentErrorsStayWithinTwiceTheirError) {
       const pm::TriangleMesh m = pms[b].extract(e[b]);
       const tb::SampleRect r = l.rect(l.keys()[b]);
       patches[b].domain = r;
-      for (std::uint32_t s : m.vertices) patches[b].vertices.push_back({r.col0 + int(s % r.width()), r.row0 + int(s / r.width())});
+      for (std::uint32_t s : m.vertices)
+        patches[b].vertices.push_back({r.col0 + int(s % r.width()), r.row0 + int(s / r.width())});
       patches[b].triangles = m.triangles;
     }
     const tb::StitchResult res = tb::stitch_seams(patches);
@@ -139,7 +141,9 @@ TEST(SeamStitch, BlocksAtDifferentErrorsStayWithinTwiceTheirError) {
       for (std::uint32_t t : res.new_triangles[b]) is_new[t] = 1;
       for (std::size_t t = 0; t < patches[b].triangles.size(); ++t) {
         const auto& tri = patches[b].triangles[t];
-        auto s = [&](std::uint32_t v) { return std::uint32_t(patches[b].vertices[v].y * hf.width() + patches[b].vertices[v].x); };
+        auto s = [&](std::uint32_t v) {
+          return std::uint32_t(patches[b].vertices[v].y * hf.width() + patches[b].vertices[v].x);
+        };
         const double err = terralod::test::triangle_error(hf, s(tri[0]), s(tri[1]), s(tri[2])).max();
         EXPECT_LE(err, (is_new[t] ? 2.0 : 1.0) * e[b] + 1e-9) << "block " << b << " triangle " << t;
       }

@@ -3,11 +3,11 @@
 // blob version 2 round trip, version 1 decoding, corruption and hostile bytes, and
 // build_database writing it.
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <cstdio>
 #include <cstring>
 #include <random>
-#include <zlib.h>
 
 #include "block_fixture.hpp"
 #include "mesh_checker.hpp"
@@ -20,7 +20,8 @@ namespace pm = terralod::pm;
 
 namespace {
 
-tb::StandinOptions standin(tb::StandinKind kind, std::size_t points, pm::ErrorMetric metric = pm::ErrorMetric::Continuous) {
+tb::StandinOptions standin(tb::StandinKind kind, std::size_t points,
+                           pm::ErrorMetric metric = pm::ErrorMetric::Continuous) {
   tb::StandinOptions o;
   o.kind = kind;
   o.max_points = points;
@@ -89,7 +90,8 @@ TEST(Standin, PeakByHand) {
   EXPECT_EQ(tin.triangles.size(), 4u);
   EXPECT_NE(std::find(tin.points.begin(), tin.points.end(), tb::StandinPoint{2, 2, 8.0}), tin.points.end());
   EXPECT_DOUBLE_EQ(tin.standin_error, 6.0);
-  EXPECT_DOUBLE_EQ(tb::summarize_block(p, {0, 0}, standin(tb::StandinKind::Tin, 5, pm::ErrorMetric::Samples)).standin_error,
+  EXPECT_DOUBLE_EQ(tb::summarize_block(p, {0, 0}, standin(tb::StandinKind::Tin, 5, pm::ErrorMetric::Samples))
+                       .standin_error,
                    4.0);
   EXPECT_DOUBLE_EQ(tb::standin_height(tin, 2.5, 1.5), 6.0);
   EXPECT_DOUBLE_EQ(tb::standin_height(tin, 2, 2), 8.0);
@@ -117,7 +119,8 @@ TEST(Standin, ErrorEqualsBruteForceForEveryKind) {
   // Generated blocks (whole-metre heights: the checker is exact), every kind at 3 sizes, both
   // metrics: the stored error is the independent checker's L-infinity error, the surface is an
   // exact single cover of the block, and its points are samples at their true heights.
-  const terralod::test::BlockedTerrain t = terralod::test::make_blocked_terrain(65, 65, 33, /*seed=*/21, 30.0, 800.0);
+  const terralod::test::BlockedTerrain t =
+      terralod::test::make_blocked_terrain(65, 65, 33, /*seed=*/21, 30.0, 800.0);
   for (const auto& [k, blob] : t.blobs) {
     const pm::ProgressiveMesh p = pm::decode_pm(blob, "blob");
     const pm::Heightfield& hf = p.heightfield();
@@ -127,19 +130,22 @@ TEST(Standin, ErrorEqualsBruteForceForEveryKind) {
         for (pm::ErrorMetric metric : {pm::ErrorMetric::Continuous, pm::ErrorMetric::Samples}) {
           const tb::BlockSummary s = tb::summarize_block(p, k, standin(kind, n, metric));
           const std::string what = std::string(tb::standin_kind_name(kind)) + " " + std::to_string(n) +
-                                   (metric == pm::ErrorMetric::Samples ? " samples" : " continuous") + " block (" +
-                                   std::to_string(k.col) + "," + std::to_string(k.row) + ")";
+                                   (metric == pm::ErrorMetric::Samples ? " samples" : " continuous") +
+                                   " block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
           EXPECT_LE(s.points.size(), kind == tb::StandinKind::TwoTriangles ? 4u : n) << what;
           for (const tb::StandinPoint& q : s.points) ASSERT_EQ(q.z, hf.at(q.col, q.row)) << what;
           const terralod::test::MeshCheck c = terralod::test::check_mesh(hf, as_mesh(s, hf.width()));
           EXPECT_TRUE(c.topology_ok()) << what << ": " << c.describe();
-          const double brute = metric == pm::ErrorMetric::Samples ? c.max_sample_error : c.max_continuous_error();
+          const double brute =
+              metric == pm::ErrorMetric::Samples ? c.max_sample_error : c.max_continuous_error();
           EXPECT_NEAR(s.standin_error, brute, 1e-9) << what;
           // Per triangle: the brute-force error, rounded up to a float (relative 2^-23 at most).
           ASSERT_EQ(s.triangle_errors.size(), s.triangles.size()) << what;
           for (std::size_t i = 0; i < s.triangles.size(); ++i) {
             const auto& t = s.triangles[i];
-            const auto sample = [&](std::uint32_t v) { return std::uint32_t(s.points[v].row * hf.width() + s.points[v].col); };
+            const auto sample = [&](std::uint32_t v) {
+              return std::uint32_t(s.points[v].row * hf.width() + s.points[v].col);
+            };
             const terralod::test::TriangleError te = terralod::test::triangle_error(
                 hf, sample(t[0]), sample(t[1]), sample(t[2]), metric == pm::ErrorMetric::Continuous);
             EXPECT_GE(s.triangle_errors[i], te.max() - 1e-9) << what << " triangle " << i;
@@ -155,10 +161,10 @@ TEST(Standin, ErrorEqualsBruteForceForEveryKind) {
 
 TEST(Standin, BlobVersion2RoundTripWithEveryKind) {
   // Mixed kinds, and one 300-point TIN (more than 256 points: 16-bit triangle indices).
-  const std::vector<tb::StandinOptions> mix = {standin(tb::StandinKind::Tin, 32), standin(tb::StandinKind::Grid, 16),
-                                               standin(tb::StandinKind::NonRegularGrid, 30),
-                                               standin(tb::StandinKind::TwoTriangles, 4),
-                                               standin(tb::StandinKind::Tin, 300)};
+  const std::vector<tb::StandinOptions> mix = {
+      standin(tb::StandinKind::Tin, 32), standin(tb::StandinKind::Grid, 16),
+      standin(tb::StandinKind::NonRegularGrid, 30), standin(tb::StandinKind::TwoTriangles, 4),
+      standin(tb::StandinKind::Tin, 300)};
   const terralod::test::BlockedTerrain t =
       terralod::test::make_blocked_terrain(97, 81, 33, /*seed=*/4, 30.0, 600.0, mix);
   ASSERT_EQ(t.grid.block_count(), 9u);
@@ -213,7 +219,8 @@ TEST(Standin, Version1BlobDecodesAsTwoTriangleStandins) {
 }
 
 TEST(Standin, CorruptBlobsNameTheFileAndTheProblem) {
-  const terralod::test::BlockedTerrain t = terralod::test::make_blocked_terrain(65, 33, 33, /*seed=*/8, 30.0, 500.0);
+  const terralod::test::BlockedTerrain t =
+      terralod::test::make_blocked_terrain(65, 33, 33, /*seed=*/8, 30.0, 500.0);
   const std::vector<std::uint8_t> good = tb::encode_block_summaries(t.grid, t.summaries);
   ASSERT_EQ(t.summaries[0].standin, tb::StandinKind::Tin);
   std::vector<std::uint8_t> b = good;
@@ -222,7 +229,8 @@ TEST(Standin, CorruptBlobsNameTheFileAndTheProblem) {
   b = good;
   b.resize(b.size() - 30);
   reseal(b);
-  EXPECT_EQ(decode_error(t.grid, b).rfind("t.db: block_summaries: block record 1: truncated", 0), 0u) << decode_error(t.grid, b);
+  EXPECT_EQ(decode_error(t.grid, b).rfind("t.db: block_summaries: block record 1: truncated", 0), 0u)
+      << decode_error(t.grid, b);
   b = good;
   b[4] = 3;
   reseal(b);
@@ -236,16 +244,19 @@ TEST(Standin, CorruptBlobsNameTheFileAndTheProblem) {
   b[16 + 40] = 0xff;  // first point's col -> far outside the 33-sample block
   b[16 + 41] = 0x7f;
   reseal(b);
-  EXPECT_EQ(decode_error(t.grid, b), "t.db: block_summaries: block record 0: stand-in point outside the block");
+  EXPECT_EQ(decode_error(t.grid, b),
+            "t.db: block_summaries: block record 0: stand-in point outside the block");
   b = good;
   const std::size_t n = t.summaries[0].points.size();
   b[16 + 40 + 12 * n] = std::uint8_t(n);  // first triangle's first index out of range
   reseal(b);
-  EXPECT_EQ(decode_error(t.grid, b), "t.db: block_summaries: block record 0: stand-in triangle index out of range");
+  EXPECT_EQ(decode_error(t.grid, b),
+            "t.db: block_summaries: block record 0: stand-in triangle index out of range");
   b = good;
   std::swap(b[16 + 40 + 12 * n + 1], b[16 + 40 + 12 * n + 2]);  // first triangle turned clockwise
   reseal(b);
-  EXPECT_EQ(decode_error(t.grid, b), "t.db: block_summaries: block record 0: stand-in triangle not counter-clockwise");
+  EXPECT_EQ(decode_error(t.grid, b),
+            "t.db: block_summaries: block record 0: stand-in triangle not counter-clockwise");
   b = good;
   b.insert(b.end() - 4, 3, 0);
   reseal(b);
@@ -255,7 +266,8 @@ TEST(Standin, CorruptBlobsNameTheFileAndTheProblem) {
 TEST(Standin, BuildDatabaseWritesTheSummariesBlob) {
   // build_database writes the blob with the tree; it equals what read_block_summaries computes
   // from the blocks (the same stand-in options), so the runtime needs no block read at open.
-  const terralod::test::BlockedTerrain t = terralod::test::make_blocked_terrain(65, 49, 17, /*seed=*/6, 30.0, 400.0);
+  const terralod::test::BlockedTerrain t =
+      terralod::test::make_blocked_terrain(65, 49, 17, /*seed=*/6, 30.0, 400.0);
   const std::string path = std::string(TERRALOD_TEST_TMP) + "/standins.db";
   for (const char* ext : {"", "-wal", "-shm"}) std::remove((path + ext).c_str());
   tb::DatabaseBuildOptions o;
@@ -293,7 +305,8 @@ TEST(Standin, HostileBytesNeverCrashTheDecoder) {
   const std::uint64_t seed = 777;
   std::printf("seed %llu\n", static_cast<unsigned long long>(seed));
   std::mt19937_64 rng(seed);
-  const terralod::test::BlockedTerrain t = terralod::test::make_blocked_terrain(49, 33, 17, /*seed=*/2, 30.0, 300.0);
+  const terralod::test::BlockedTerrain t =
+      terralod::test::make_blocked_terrain(49, 33, 17, /*seed=*/2, 30.0, 300.0);
   const std::vector<std::uint8_t> good = tb::encode_block_summaries(t.grid, t.summaries);
   std::size_t rejected = 0, accepted = 0;
   auto check = [&](const std::vector<std::uint8_t>& b) {
@@ -306,7 +319,8 @@ TEST(Standin, HostileBytesNeverCrashTheDecoder) {
         for (const auto& tri : s[i].triangles) {
           for (std::uint32_t v : tri) ASSERT_LT(v, s[i].points.size());
           const tb::StandinPoint &a = s[i].points[tri[0]], &e = s[i].points[tri[1]], &c = s[i].points[tri[2]];
-          area2 += std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
+          area2 +=
+              std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
         }
         ASSERT_EQ(area2, 2 * std::int64_t(d.width() - 1) * (d.height() - 1));
         ASSERT_EQ(s[i].triangle_errors.size(), s[i].triangles.size());
@@ -328,6 +342,7 @@ TEST(Standin, HostileBytesNeverCrashTheDecoder) {
     reseal(b);
     check(b);
   }
-  std::printf("%zu rejected, %zu accepted (edits of heights and errors that stay consistent)\n", rejected, accepted);
+  std::printf("%zu rejected, %zu accepted (edits of heights and errors that stay consistent)\n", rejected,
+              accepted);
   EXPECT_GT(rejected, 0u);
 }

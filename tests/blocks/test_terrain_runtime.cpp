@@ -43,7 +43,8 @@ struct Terrain {
   std::string db;
 };
 
-Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> levels, const std::string& name) {
+Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> levels,
+                      const std::string& name) {
   Terrain r;
   tp::TerrainOptions to;
   to.width = width;
@@ -98,8 +99,8 @@ struct FlightResult {
   std::set<std::pair<int, int>> kind_pairs;  // strategies meeting across an edge
 };
 
-FlightResult fly(tb::TerrainRuntime& rt, const std::vector<tp::Camera>& path, double tau, int every, bool wait,
-                 double t0 = 0, const Terrain& ter = terrain()) {
+FlightResult fly(tb::TerrainRuntime& rt, const std::vector<tp::Camera>& path, double tau, int every,
+                 bool wait, double t0 = 0, const Terrain& ter = terrain()) {
   FlightResult r;
   const tp::Heightfield& hf = ter.hf;
   for (std::size_t f = 0; f < path.size(); ++f) {
@@ -171,8 +172,8 @@ struct KindsMeeting {
   }
 };
 KindsMeeting kinds_meeting(const Terrain& ter, std::initializer_list<double> taus,
-                           std::initializer_list<double> heights, int frames, double pitch_low, double pitch_high,
-                           double turn) {
+                           std::initializer_list<double> heights, int frames, double pitch_low,
+                           double pitch_high, double turn) {
   KindsMeeting k;
   for (double tau : taus) {
     tb::RuntimeOptions o;
@@ -180,13 +181,15 @@ KindsMeeting kinds_meeting(const Terrain& ter, std::initializer_list<double> tau
     o.morph_seconds = 0.3;
     tb::TerrainRuntime rt(ter.db, o);
     for (double above : heights) {
-      const FlightResult r = fly(rt, turning_flight(ter.hf, frames, above, above > 1000 ? pitch_high : pitch_low, turn, 2.0),
-                                 tau, 3, /*wait=*/true, rt.stats().time_s + 1, ter);
+      const FlightResult r =
+          fly(rt, turning_flight(ter.hf, frames, above, above > 1000 ? pitch_high : pitch_low, turn, 2.0),
+              tau, 3, /*wait=*/true, rt.stats().time_s + 1, ter);
       k.pairs.insert(r.kind_pairs.begin(), r.kind_pairs.end());
     }
   }
   for (const auto& [a, b] : k.pairs)
-    k.text += std::string(" ") + tb::strategy_name(tb::Strategy(a)) + "|" + tb::strategy_name(tb::Strategy(b));
+    k.text +=
+        std::string(" ") + tb::strategy_name(tb::Strategy(a)) + "|" + tb::strategy_name(tb::Strategy(b));
   return k;
 }
 
@@ -198,9 +201,10 @@ TEST(TerrainRuntime, LowFlightWithinBoundCoveredAndWatertight) {
   o.morph_seconds = 0.5;
   tb::TerrainRuntime rt(terrain().db, o);
   const FlightResult r = fly(rt, tt::scripted_flight(terrain().hf, 180, 120.0, -12.0), 1.0, 3, /*wait=*/true);
-  std::printf("low flight: %zu frames, %zu complete, %zu with missing blocks, %zu with moving vertices; "
-              "measured / bound <= %.3f; bound / tau <= %.3f where complete\n",
-              r.frames, r.complete_frames, r.missing_frames, r.morph_frames, r.worst_ratio, r.worst_bound_complete);
+  std::printf(
+      "low flight: %zu frames, %zu complete, %zu with missing blocks, %zu with moving vertices; "
+      "measured / bound <= %.3f; bound / tau <= %.3f where complete\n",
+      r.frames, r.complete_frames, r.missing_frames, r.morph_frames, r.worst_ratio, r.worst_bound_complete);
   EXPECT_GT(r.complete_frames, r.frames / 2);
   EXPECT_GT(r.morph_frames, 0u) << "the flight should exercise geomorphs";
 }
@@ -215,16 +219,18 @@ TEST(TerrainRuntime, HighAndHorizonViewsDrawTheWholeTerrainInView) {
     // Climbing from 200 m to 12 km over the south-west corner, looking at the horizon across
     // the terrain, then straight down from high up.
     for (int f = 0; f < 40; ++f)
-      path.push_back(pose(hf, 10 + 3 * f, hf.height() - 20 - 3 * f, 200.0 * std::pow(60.0, f / 39.0), 45, -2 + 0.05 * f));
+      path.push_back(pose(hf, 10 + 3 * f, hf.height() - 20 - 3 * f, 200.0 * std::pow(60.0, f / 39.0), 45,
+                          -2 + 0.05 * f));
     for (int f = 0; f < 10; ++f) path.push_back(pose(hf, 256, 256, 20000.0, 10 * f, -90));
     const FlightResult r = fly(rt, path, tau, 2, /*wait=*/true);
-    std::printf("tau %.1f, high and horizon: %zu complete of %zu, measured / bound <= %.3f\n", tau, r.complete_frames,
-                r.frames, r.worst_ratio);
+    std::printf("tau %.1f, high and horizon: %zu complete of %zu, measured / bound <= %.3f\n", tau,
+                r.complete_frames, r.frames, r.worst_ratio);
   }
 }
 
 TEST(TerrainRuntime, FastTurnsAndEveryKindOfNodeMeeting) {
-  const KindsMeeting k = kinds_meeting(terrain(), {1.0, 6.0}, {60.0, 600.0, 3000.0, 9000.0}, 45, -6, -12, 8.0);
+  const KindsMeeting k =
+      kinds_meeting(terrain(), {1.0, 6.0}, {60.0, 600.0, 3000.0, 9000.0}, 45, -6, -12, 8.0);
   const auto& pairs = k.pairs;
   const std::string& seen = k.text;
   std::printf("node kinds meeting:%s\n", seen.c_str());
@@ -240,11 +246,13 @@ TEST(TerrainRuntime, EveryKindOfCoarseNodeMeetsPmBlocks) {
   // of that kind): its nodes are the only coarse ones, so the seams checked in every frame are
   // between that kind and PM blocks (and between two nodes of it). Large tolerances make the
   // coarse levels meet tau / 2 on a terrain this small.
-  for (const auto& [choice, kind] : {std::pair{tb::StrategyChoice::Grid, tb::Strategy::Grid},
-                                     std::pair{tb::StrategyChoice::Tin, tb::Strategy::Tin},
-                                     std::pair{tb::StrategyChoice::NonRegularGrid, tb::Strategy::NonRegularGrid},
-                                     std::pair{tb::StrategyChoice::Hybrid, tb::Strategy::Hybrid}}) {
-    const Terrain ter = build_terrain(385, 385, {choice}, std::string("runtime_") + tb::strategy_name(kind) + ".db");
+  for (const auto& [choice, kind] :
+       {std::pair{tb::StrategyChoice::Grid, tb::Strategy::Grid},
+        std::pair{tb::StrategyChoice::Tin, tb::Strategy::Tin},
+        std::pair{tb::StrategyChoice::NonRegularGrid, tb::Strategy::NonRegularGrid},
+        std::pair{tb::StrategyChoice::Hybrid, tb::Strategy::Hybrid}}) {
+    const Terrain ter =
+        build_terrain(385, 385, {choice}, std::string("runtime_") + tb::strategy_name(kind) + ".db");
     const KindsMeeting k = kinds_meeting(ter, {4.0, 12.0, 32.0}, {100.0, 500.0, 1500.0}, 30, -4, -20, 12.0);
     std::printf("%s tree, node kinds meeting:%s\n", tb::strategy_name(kind), k.text.c_str());
     EXPECT_TRUE(k.met(kind, tb::Strategy::PmBlock)) << k.text;
@@ -300,8 +308,8 @@ TEST(TerrainRuntime, EveryPairOfCoarseKindsMeetsWatertight) {
   for (std::size_t a = 0; a < kinds.size(); ++a) {
     meeting_pm += k.met(kinds[a], tb::Strategy::PmBlock);
     for (std::size_t b = a + 1; b < kinds.size(); ++b)
-      EXPECT_TRUE(k.met(kinds[a], kinds[b])) << tb::strategy_name(kinds[a]) << " | " << tb::strategy_name(kinds[b])
-                                             << ":" << k.text;
+      EXPECT_TRUE(k.met(kinds[a], kinds[b]))
+          << tb::strategy_name(kinds[a]) << " | " << tb::strategy_name(kinds[b]) << ":" << k.text;
   }
   EXPECT_GE(meeting_pm, 3u) << k.text;
 }
@@ -333,10 +341,11 @@ TEST(TerrainRuntime, MemoryBudgetHeldEveryFrameAndMissingReported) {
   o.budget_bytes = std::size_t(12) << 20;
   tb::TerrainRuntime rt(terrain().db, o);
   const FlightResult r = fly(rt, tt::scripted_flight(terrain().hf, 120, 80.0, -5.0), 1.0, 4, /*wait=*/true);
-  std::printf("12 MB budget: %zu frames with missing blocks of %zu, peak resident %zu bytes\n", r.missing_frames,
-              r.frames, rt.stats().peak_resident_bytes);
+  std::printf("12 MB budget: %zu frames with missing blocks of %zu, peak resident %zu bytes\n",
+              r.missing_frames, r.frames, rt.stats().peak_resident_bytes);
   EXPECT_LE(rt.stats().peak_resident_bytes, o.budget_bytes);
-  EXPECT_GT(rt.stats().evicted_total + rt.stats().dropped_total, 0u) << "the budget should bind on this flight";
+  EXPECT_GT(rt.stats().evicted_total + rt.stats().dropped_total, 0u)
+      << "the budget should bind on this flight";
 }
 
 TEST(TerrainRuntime, ChangingTauMidFlightReadsNoBlock) {
@@ -392,7 +401,8 @@ TEST(TerrainRuntime, DrawnHeightIsTheDrawnSurface) {
       if (det == 0) continue;
       const double l1 = ((col - c[0]) * (r[2] - r[0]) - (row - r[0]) * (c[2] - c[0])) / det;
       const double l2 = ((c[1] - c[0]) * (row - r[0]) - (r[1] - r[0]) * (col - c[0])) / det;
-      if (l1 >= -1e-9 && l2 >= -1e-9 && 1 - l1 - l2 >= -1e-9) return (1 - l1 - l2) * z[0] + l1 * z[1] + l2 * z[2];
+      if (l1 >= -1e-9 && l2 >= -1e-9 && 1 - l1 - l2 >= -1e-9)
+        return (1 - l1 - l2) * z[0] + l1 * z[1] + l2 * z[2];
     }
     return std::numeric_limits<double>::quiet_NaN();
   };
@@ -522,9 +532,10 @@ tp::Camera prefetch_pose(double x, double y, double heading_rad) {
 void compare_prefetch(const char* label, const std::vector<tp::Camera>& path) {
   std::size_t needed_on = 0, needed_off = 0;
   const std::size_t on = runtime_misses(path, true, needed_on), off = runtime_misses(path, false, needed_off);
-  std::printf("runtime, %s (%zu frames, after the first 90): prefetch misses with prediction %zu of %zu blocks "
-              "needed, without %zu of %zu\n",
-              label, path.size(), on, needed_on, off, needed_off);
+  std::printf(
+      "runtime, %s (%zu frames, after the first 90): prefetch misses with prediction %zu of %zu blocks "
+      "needed, without %zu of %zu\n",
+      label, path.size(), on, needed_on, off, needed_off);
   EXPECT_GT(off, 4u);
   EXPECT_LE(on * 4, off) << "prediction should remove most misses";
 }
@@ -567,7 +578,8 @@ tp::Camera loading_pose(double col, double row, double above, double yaw = 45, d
 
 // A drawn mesh without its vertex order: per triangle (its node, its samples from the smallest,
 // in order, and their displayed heights), sorted.
-std::vector<std::pair<std::int64_t, std::array<std::pair<std::uint64_t, double>, 3>>> canonical(const tb::DrawnMesh& m) {
+std::vector<std::pair<std::int64_t, std::array<std::pair<std::uint64_t, double>, 3>>> canonical(
+    const tb::DrawnMesh& m) {
   std::vector<std::pair<std::int64_t, std::array<std::pair<std::uint64_t, double>, 3>>> out;
   for (std::size_t i = 0; i < m.triangles.size(); ++i) {
     std::array<std::pair<std::uint64_t, double>, 3> t;
@@ -585,7 +597,8 @@ bool frame_holds(const tp::Heightfield& hf, const tb::TerrainRuntime& rt, const 
                  const std::string& where) {
   const tb::RuntimeFrameStats& s = rt.stats();
   const tt::FrameCheck c = tt::check_drawn_frame(hf, frame_of(rt.drawn_mesh()), cam);
-  const bool ok = c.max_error_px <= s.bound_px * (1 + 1e-9) + 1e-9 && c.uncovered_in_view == 0 && c.watertight();
+  const bool ok =
+      c.max_error_px <= s.bound_px * (1 + 1e-9) + 1e-9 && c.uncovered_in_view == 0 && c.watertight();
   EXPECT_TRUE(ok) << where << " (" << s.pm_blocks << " PM blocks, " << s.standin_blocks << " stand-ins, "
                   << s.missing_in_view << " missing, " << s.moving_vertices << " moving vertices): bound "
                   << s.bound_px << " px; " << c.describe();
@@ -612,7 +625,8 @@ TEST(TerrainRuntimeLoading, StalledReaderNeverBlocksAFrame) {
   for (; frame < 30; ++frame) {
     const auto t0 = std::chrono::steady_clock::now();
     const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), frame / 60.0);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_LT(ms, 2000.0);  // returns although the reader is stalled (a hang would time out)
     EXPECT_EQ(s.blocks_resident, 0u);
     EXPECT_EQ(s.pm_blocks, 0u);
@@ -622,7 +636,8 @@ TEST(TerrainRuntimeLoading, StalledReaderNeverBlocksAFrame) {
   }
   // The reader really is stuck inside a read (on a loaded machine the loader thread may only
   // now reach it: wait for it, bounded, rather than race the 30 frames).
-  for (int i = 0; i < 1000 && !store.reading.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 1000 && !store.reading.load(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_TRUE(store.reading.load());
   store.set_stalled(false);
   for (; frame < 5000; ++frame) {
@@ -631,8 +646,10 @@ TEST(TerrainRuntimeLoading, StalledReaderNeverBlocksAFrame) {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   const tb::RuntimeFrameStats& s = rt.stats();
-  std::printf("stalled reader: 30 frames drawn without a block; %d frames until %zu PM blocks were drawn, %zu bytes read\n",
-              frame, s.pm_blocks, std::size_t(s.bytes_read_total));
+  std::printf(
+      "stalled reader: 30 frames drawn without a block; %d frames until %zu PM blocks were drawn, %zu bytes "
+      "read\n",
+      frame, s.pm_blocks, std::size_t(s.bytes_read_total));
   EXPECT_EQ(s.missing_in_view, 0u);
   EXPECT_GT(s.pm_blocks, 0u);
   EXPECT_GT(s.bytes_read_total, 0u);
@@ -699,9 +716,10 @@ TEST(TerrainRuntimeLoading, EvictedBlocksComeBackAndDrawTheSameMesh) {
   const std::uint64_t read_away = rt.stats().bytes_read_total;
   settle(home, "home again");
   const tb::DrawnMesh& after = rt.drawn_mesh();
-  std::printf("evicted %zu blocks; %zu bytes read at home, %zu away, %zu coming back; %zu triangles at home\n",
-              rt.stats().evicted_total, std::size_t(read_home), std::size_t(read_away - read_home),
-              std::size_t(rt.stats().bytes_read_total - read_away), before.triangles.size());
+  std::printf(
+      "evicted %zu blocks; %zu bytes read at home, %zu away, %zu coming back; %zu triangles at home\n",
+      rt.stats().evicted_total, std::size_t(read_home), std::size_t(read_away - read_home),
+      std::size_t(rt.stats().bytes_read_total - read_away), before.triangles.size());
   EXPECT_GT(rt.stats().bytes_read_total, read_away) << "home's blocks should have been read again";
   // The same triangles of the same nodes with the same heights (vertex order is not fixed).
   EXPECT_EQ(canonical(after), canonical(before));
@@ -716,8 +734,9 @@ struct LoadingCounts {
 // Flies `path` over the database `db` (blocks read from `blobs` with `latency` frames per read),
 // checking every frame with the independent checker. Stops at the first failing frame.
 LoadingCounts fly_while_loading(const std::string& db, const tp::Heightfield& hf,
-                                const terralod::test::BlockedTerrain& blobs, const std::vector<tp::Camera>& path,
-                                double tau, std::uint64_t latency, const std::string& label) {
+                                const terralod::test::BlockedTerrain& blobs,
+                                const std::vector<tp::Camera>& path, double tau, std::uint64_t latency,
+                                const std::string& label) {
   terralod::test::MemoryStore store;
   store.terrain = &blobs;
   store.latency_frames = latency;
@@ -740,9 +759,10 @@ LoadingCounts fly_while_loading(const std::string& db, const tp::Heightfield& hf
     n.standins_with_pm += s.pm_blocks > 0 && s.standin_blocks > 0;
     if (!frame_holds(hf, rt, cam, label + " frame " + std::to_string(f))) break;
   }
-  std::printf("%s: %zu frames checked, %zu with blocks missing, %zu with moving vertices, %zu with PM blocks, %zu "
-              "with stand-ins and PM blocks\n",
-              label.c_str(), n.frames, n.missing, n.moving, n.with_pm, n.standins_with_pm);
+  std::printf(
+      "%s: %zu frames checked, %zu with blocks missing, %zu with moving vertices, %zu with PM blocks, %zu "
+      "with stand-ins and PM blocks\n",
+      label.c_str(), n.frames, n.missing, n.moving, n.with_pm, n.standins_with_pm);
   return n;
 }
 
@@ -750,9 +770,11 @@ LoadingCounts fly_while_loading(const std::string& db, const tp::Heightfield& hf
 // and 700 m, looking ahead and down).
 std::vector<tp::Camera> random_flight(const tp::Heightfield& hf, std::mt19937_64& rng, int frames) {
   std::uniform_real_distribution<double> u(0, 1);
-  const double w = (hf.width() - 1) * hf.transform.spacing_x(), h = (hf.height() - 1) * hf.transform.spacing_y();
+  const double w = (hf.width() - 1) * hf.transform.spacing_x(),
+               h = (hf.height() - 1) * hf.transform.spacing_y();
   const auto [x0, y0] = hf.transform.to_world(0, hf.height() - 1);  // south-west corner
-  double x = x0 + w * (0.2 + 0.6 * u(rng)), y = y0 + h * (0.2 + 0.6 * u(rng)), heading = 2 * std::numbers::pi * u(rng);
+  double x = x0 + w * (0.2 + 0.6 * u(rng)), y = y0 + h * (0.2 + 0.6 * u(rng)),
+         heading = 2 * std::numbers::pi * u(rng);
   double above = 150 + 550 * u(rng), turn = 0;
   const double speed = 150 + 250 * u(rng);
   std::vector<tp::Camera> path;
@@ -782,8 +804,9 @@ TEST(TerrainRuntimeLoading, RandomFlightsWhileBlocksArriveAreWatertightAndWithin
   const PrefetchTerrain& pt = prefetch_terrain();
   LoadingCounts all;
   for (int flight = 0; flight < 3; ++flight) {
-    const LoadingCounts n = fly_while_loading(pt.ter.db, pt.ter.hf, pt.blobs, random_flight(pt.ter.hf, rng, 90),
-                                              /*tau=*/2.0, /*latency=*/2, "random flight " + std::to_string(flight));
+    const LoadingCounts n =
+        fly_while_loading(pt.ter.db, pt.ter.hf, pt.blobs, random_flight(pt.ter.hf, rng, 90),
+                          /*tau=*/2.0, /*latency=*/2, "random flight " + std::to_string(flight));
     all.missing += n.missing, all.moving += n.moving, all.with_pm += n.with_pm;
   }
   EXPECT_GT(all.missing, 0u);
@@ -797,7 +820,8 @@ TEST(TerrainRuntimeLoading, StandInsOfEveryKindBesidePmBlocksWhileBlocksArrive) 
   // blocks and blocks blending in; every frame is watertight and within its bound. (Two-triangle
   // stand-ins are left out: a block's two triangles never meet tau / 2 where its parent's
   // surface does not, so the runtime draws the parent instead.)
-  for (const tb::StandinKind kind : {tb::StandinKind::Tin, tb::StandinKind::Grid, tb::StandinKind::NonRegularGrid}) {
+  for (const tb::StandinKind kind :
+       {tb::StandinKind::Tin, tb::StandinKind::Grid, tb::StandinKind::NonRegularGrid}) {
     Terrain ter;
     tp::TerrainOptions to;
     to.width = to.height = 257;
@@ -806,7 +830,9 @@ TEST(TerrainRuntimeLoading, StandInsOfEveryKindBesidePmBlocksWhileBlocksArrive) 
     to.relief = 400.0;
     to.quantize_to_metres = true;
     ter.hf = tp::generate_terrain(to);
-    ter.db = (tt::process_temp_dir("runtime") / (std::string("runtime_standin_") + tb::standin_kind_name(kind) + ".db")).string();
+    ter.db = (tt::process_temp_dir("runtime") /
+              (std::string("runtime_standin_") + tb::standin_kind_name(kind) + ".db"))
+                 .string();
     tb::DatabaseBuildOptions o;
     o.block_size = 33;
     o.threads = 2;
@@ -814,8 +840,9 @@ TEST(TerrainRuntimeLoading, StandInsOfEveryKindBesidePmBlocksWhileBlocksArrive) 
     o.standin.max_points = 32;
     tb::build_database(ter.hf, ter.db, o);
     const terralod::test::BlockedTerrain blobs = blobs_of(ter.db);
-    const LoadingCounts n = fly_while_loading(ter.db, ter.hf, blobs, tt::scripted_flight(ter.hf, 120, 600.0, -25.0),
-                                              /*tau=*/8.0, /*latency=*/3, std::string("stand-ins ") + tb::standin_kind_name(kind));
+    const LoadingCounts n = fly_while_loading(
+        ter.db, ter.hf, blobs, tt::scripted_flight(ter.hf, 120, 600.0, -25.0),
+        /*tau=*/8.0, /*latency=*/3, std::string("stand-ins ") + tb::standin_kind_name(kind));
     EXPECT_GT(n.standins_with_pm, 0u) << tb::standin_kind_name(kind);
     EXPECT_GT(n.moving, 0u) << tb::standin_kind_name(kind);
   }
@@ -832,8 +859,9 @@ TEST(TerrainRuntimeLoading, ScriptedFlightOverN44W072WhileBlocksArrive) {
   o.threads = 2;
   tb::build_database(ter.hf, ter.db, o);
   const terralod::test::BlockedTerrain blobs = blobs_of(ter.db);
-  const LoadingCounts n = fly_while_loading(ter.db, ter.hf, blobs, tt::scripted_flight(ter.hf, 120, 300.0, -20.0),
-                                            /*tau=*/1.0, /*latency=*/2, "N44W072 crop");
+  const LoadingCounts n =
+      fly_while_loading(ter.db, ter.hf, blobs, tt::scripted_flight(ter.hf, 120, 300.0, -20.0),
+                        /*tau=*/1.0, /*latency=*/2, "N44W072 crop");
   EXPECT_GT(n.missing, 0u);
   EXPECT_GT(n.moving, 0u);
 }

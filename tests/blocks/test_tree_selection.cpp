@@ -105,14 +105,16 @@ Fixture make_tree(bool pm_leaves) {
   return f;
 }
 
-void check_selection(const tb::ApproximationTree& tree, const pm::View& view, const tb::SelectionOptions& opt) {
+void check_selection(const tb::ApproximationTree& tree, const pm::View& view,
+                     const tb::SelectionOptions& opt) {
   const tb::SelectionResult r = tb::select_nodes(tree, view, opt);
   ASSERT_EQ(r.selected.size(), r.visual.size());
   // descend(n): n is visited, inside the frustum, not a leaf, and its bound exceeds the threshold.
   std::vector<char> descends(tree.size(), 0), reached(tree.size(), 0);
   std::size_t visited = 0, culled = 0;
   std::int64_t area = 0;
-  const std::int64_t root_area = std::int64_t(tree.root().domain.width() - 1) * (tree.root().domain.height() - 1);
+  const std::int64_t root_area =
+      std::int64_t(tree.root().domain.width() - 1) * (tree.root().domain.height() - 1);
   std::vector<char> selected(tree.size(), 0);
   for (std::size_t i = 0; i < r.selected.size(); ++i) {
     ASSERT_FALSE(selected[std::size_t(r.selected[i])]) << "selected twice";
@@ -194,8 +196,9 @@ TEST_P(Selection, InvariantsOverRandomCameras) {
   EXPECT_GT(total_selected, 0u);
 }
 
-INSTANTIATE_TEST_SUITE_P(Trees, Selection, ::testing::Values(false, true),
-                         [](const auto& info) { return info.param ? std::string("PmLeaves") : std::string("GridOnly"); });
+INSTANTIATE_TEST_SUITE_P(Trees, Selection, ::testing::Values(false, true), [](const auto& info) {
+  return info.param ? std::string("PmLeaves") : std::string("GridOnly");
+});
 
 TEST(Selection, NoCullingSelectsACoverOfTheWholeTerrain) {
   const Fixture f = make_tree(false);

@@ -26,8 +26,9 @@ std::string error_of(const std::string& text) {
 
 TEST(CameraPath, ParsesRowsWithCommentsBlankLinesAndCrLf) {
   const auto p = pm::parse_camera_path(
-      "# a scripted flight\r\n x , y,z,yaw,pitch,fovy\r\n\r\n1,2,3,45,-15,60\r\n-1.5e3,+2,3.25,-370,90,179.5\n", "p.csv",
-      {.width_px = 640, .height_px = 480, .near_m = 0.5, .far_m = 1e4});
+      "# a scripted flight\r\n x , "
+      "y,z,yaw,pitch,fovy\r\n\r\n1,2,3,45,-15,60\r\n-1.5e3,+2,3.25,-370,90,179.5\n",
+      "p.csv", {.width_px = 640, .height_px = 480, .near_m = 0.5, .far_m = 1e4});
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p[0].x, 1.0);
   EXPECT_EQ(p[0].yaw_deg, 45.0);
@@ -70,7 +71,8 @@ TEST(CameraPath, JunkIsAClearErrorNamingTheFileAndLine) {
   EXPECT_EQ(error_of(h), "path.csv: line 1: no camera rows after the header");
   EXPECT_EQ(error_of("x,y,z,yaw,pitch\n1,2,3,4,5\n"),
             "path.csv: line 1: expected the header 'x,y,z,yaw,pitch,fovy', found 'x,y,z,yaw,pitch'");
-  EXPECT_EQ(error_of(h + "1,2,3,4,5,60\n1,2,3\n"), "path.csv: line 3: expected 6 comma-separated numbers, found 3 fields");
+  EXPECT_EQ(error_of(h + "1,2,3,4,5,60\n1,2,3\n"),
+            "path.csv: line 3: expected 6 comma-separated numbers, found 3 fields");
   EXPECT_EQ(error_of(h + "1,2,abc,4,5,60\n"), "path.csv: line 2: z is not a finite number: 'abc'");
   EXPECT_EQ(error_of(h + "1,2,3,4,5,\n"), "path.csv: line 2: fovy is not a finite number: ''");
   EXPECT_EQ(error_of(h + "nan,2,3,4,5,60\n"), "path.csv: line 2: x is not a finite number: 'nan'");
@@ -82,10 +84,13 @@ TEST(CameraPath, JunkIsAClearErrorNamingTheFileAndLine) {
   EXPECT_EQ(error_of(h + "1,2,3,4,5,0\n"), "path.csv: line 2: fovy must be in (0, 180) degrees");
   std::string binary = h;  // (appending, not h + "...": GCC 12 warns wrongly on that one)
   binary.append("1,2,\x01\xff,4,5,60\n");
-  EXPECT_EQ(error_of(binary), "path.csv: line 2: z is not a finite number: '?" "?'");
+  EXPECT_EQ(error_of(binary),
+            "path.csv: line 2: z is not a finite number: '?"
+            "?'");
   pm::CameraPathOptions few;
   few.max_rows = 2;
-  EXPECT_THROW(pm::parse_camera_path(h + "1,2,3,4,5,60\n1,2,3,4,5,60\n1,2,3,4,5,60\n", "p", few), std::runtime_error);
+  EXPECT_THROW(pm::parse_camera_path(h + "1,2,3,4,5,60\n1,2,3,4,5,60\n1,2,3,4,5,60\n", "p", few),
+               std::runtime_error);
 }
 
 TEST(CameraPath, MissingAndNonRegularFilesNameThePath) {

@@ -230,8 +230,8 @@ FlightChange fly(const Terrain& t, const pm::RefinementOptions& o, const std::ve
       if (k == 0 || before == prev_z.end()) continue;
       // The geomorph it was in at the last frame, or one that started at this update (which
       // starts from where the vertex was displayed, so the earlier one bounds the change).
-      const double allowed = std::max(allowed_change(prev_morphs, m.samples[v], dt),
-                                      allowed_change(morphs, m.samples[v], dt));
+      const double allowed =
+          std::max(allowed_change(prev_morphs, m.samples[v], dt), allowed_change(morphs, m.samples[v], dt));
       const double change = std::abs(m.positions[v].z - before->second);
       ++r.vertex_frames;
       if (allowed == 0.0)
@@ -308,8 +308,9 @@ TEST(RuntimeGeomorph, PerFrameChangeWithAndWithoutGeomorphs) {
   // Bounded by the morph time: every vertex moves at most its jump * dt / T per frame, no
   // geomorph lasts longer than T, and vertices outside geomorphs do not move.
   for (const FlightChange* c : {&full, &vertical}) {
-    std::printf("per-vertex change / (jump * dt / T): worst %.6f over %zu vertex-frames; longest morph %.3f s\n",
-                c->speed_ratio, c->vertex_frames, c->max_duration);
+    std::printf(
+        "per-vertex change / (jump * dt / T): worst %.6f over %zu vertex-frames; longest morph %.3f s\n",
+        c->speed_ratio, c->vertex_frames, c->max_duration);
     EXPECT_LE(c->speed_ratio, 1.0 + 1e-6);
     EXPECT_GT(c->speed_ratio, 0.5);  // the check saw real motion
     EXPECT_LE(c->max_duration, o.morph_seconds + 1e-9);

@@ -141,7 +141,8 @@ TEST(SelectiveRefinementBound, FilteredBoundEqualsTheFullPassOnRandomFlights) {
     o.morph_mode = mode;
     fly_and_compare(t.dag, o, random_flight(t.hf, 120, rng), /*fresh_every=*/0, n);
   }
-  std::printf("%zu frames, %zu with a bound > 0, %zu with running geomorphs\n", n.frames, n.nonzero, n.morphing);
+  std::printf("%zu frames, %zu with a bound > 0, %zu with running geomorphs\n", n.frames, n.nonzero,
+              n.morphing);
   EXPECT_GT(n.nonzero, n.frames / 4);  // the comparison is not between zeros
   EXPECT_GT(n.seen_m, n.frames / 4);
   EXPECT_GT(n.morphing, 0u);

@@ -1,8 +1,7 @@
 // Tests of ImagePyramid: level sizes by hand, exact round trips of level 0 through the tiled
 // MIP-mapped file, box-filtered coarser levels, reads beyond the image, bad files.
-#include <gtest/gtest.h>
-
 #include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <string>
@@ -21,8 +20,7 @@ std::string tmp_path(const std::string& name) { return std::string(TERRALOD_TEST
 RgbaImage blocky(int w, int h) {
   RgbaImage img(w, h);
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      img.set(x, y, {std::uint8_t(x / 2 * 10), std::uint8_t(y / 2 * 20), 7, 200});
+    for (int x = 0; x < w; ++x) img.set(x, y, {std::uint8_t(x / 2 * 10), std::uint8_t(y / 2 * 20), 7, 200});
   return img;
 }
 

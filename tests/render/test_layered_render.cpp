@@ -11,8 +11,8 @@
 #include <filesystem>
 #include <string>
 
-#include "terralod/pm/terrain_generator.hpp"
 #include "gl_fixture.hpp"
+#include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/layered_renderer.hpp"
@@ -51,8 +51,10 @@ RgbaImage pattern(int seed) {
   RgbaImage img(8, 8);
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x)
-      img.set(x, y, {std::uint8_t((x * 37 + y * 11 + seed * 53) % 256), std::uint8_t((x * 5 + y * 71 + seed) % 256),
-                     std::uint8_t((x * y * 13 + seed * 7) % 256), std::uint8_t((x * 29 + y * 3 + seed * 97) % 256)});
+      img.set(
+          x, y,
+          {std::uint8_t((x * 37 + y * 11 + seed * 53) % 256), std::uint8_t((x * 5 + y * 71 + seed) % 256),
+           std::uint8_t((x * y * 13 + seed * 7) % 256), std::uint8_t((x * 29 + y * 3 + seed * 97) % 256)});
   return img;
 }
 
@@ -117,7 +119,8 @@ TEST_F(Gl, MovingTheLensUploadsNothingAndMovesTheHighlight) {
   const MeshId m = r.upload(flat_square());
   r.set_lens_texture(make_lens_texture(32));
   RgbaImage white(64, 64), grey(64, 64);
-  for (std::size_t i = 0; i < white.rgba.size(); ++i) white.rgba[i] = 255, grey.rgba[i] = (i % 4 == 3) ? 255 : 60;
+  for (std::size_t i = 0; i < white.rgba.size(); ++i)
+    white.rgba[i] = 255, grey.rgba[i] = (i % 4 == 3) ? 255 : 60;
   std::vector<LayerStyle> st(2);
   st[1].mask = MaskSource::Lens;  // white only under the lens
   const LayeredItem item{m, {{r.upload_texture(grey), kSquare}, {r.upload_texture(white), kSquare}}};
@@ -228,7 +231,8 @@ DrawMesh terrain_mesh(const pm::Heightfield& hf) {
   const auto id = [&](int c, int r) { return std::uint32_t(r * hf.width() + c); };
   for (int r = 0; r + 1 < hf.height(); ++r)
     for (int c = 0; c + 1 < hf.width(); ++c)  // CCW from above on a north-up grid
-      d.indices.insert(d.indices.end(), {id(c, r), id(c, r + 1), id(c + 1, r + 1), id(c, r), id(c + 1, r + 1), id(c + 1, r)});
+      d.indices.insert(d.indices.end(),
+                       {id(c, r), id(c, r + 1), id(c + 1, r + 1), id(c, r), id(c + 1, r + 1), id(c + 1, r)});
   return d;
 }
 
@@ -248,11 +252,14 @@ TEST_F(Gl, TwoLayerFrameMatchesTheStoredReference) {
       const double dzdx = (hf.at(std::min(c + 1, 64), r) - hf.at(std::max(c - 1, 0), r)) / (2 * sp);
       const double dzdy = (hf.at(c, std::max(r - 1, 0)) - hf.at(c, std::min(r + 1, 64))) / (2 * sp);
       const double n = std::sqrt(dzdx * dzdx + dzdy * dzdy + 1);
-      const double lambert = std::max(0.0, (-dzdx * -0.5 + -dzdy * 0.5 + 0.707) / n / std::sqrt(0.25 + 0.25 + 0.5));
+      const double lambert =
+          std::max(0.0, (-dzdx * -0.5 + -dzdy * 0.5 + 0.707) / n / std::sqrt(0.25 + 0.25 + 0.5));
       const auto g = std::uint8_t(std::lround(255 * lambert));
       shade.set(c, r, {g, g, g, 255});
       const bool band = (c + r) / 8 % 2 == 0;
-      stripes.set(c, r, band ? std::array<std::uint8_t, 4>{200, 60, 40, 255} : std::array<std::uint8_t, 4>{40, 90, 200, 160});
+      stripes.set(c, r,
+                  band ? std::array<std::uint8_t, 4>{200, 60, 40, 255}
+                       : std::array<std::uint8_t, 4>{40, 90, 200, 160});
     }
   LayeredRenderer r(*ctx);
   const MeshId m = r.upload(terrain_mesh(hf));

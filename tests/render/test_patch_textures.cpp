@@ -15,8 +15,8 @@
 #include <thread>
 #include <vector>
 
-#include "terralod/pm/view.hpp"
 #include "gl_fixture.hpp"
+#include "terralod/pm/view.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/layered_renderer.hpp"
 #include "terralod/render/patch_textures.hpp"
@@ -44,8 +44,8 @@ std::vector<PatchDomain> quad_domains() {
 }
 
 std::shared_ptr<const TextureTree> quad_tree() {
-  return std::make_shared<const TextureTree>(quad_domains(), pyramid_levels(64, 64, 32), GeoRect{0, 0, 64, 64},
-                                             TextureConstraints{32, false});
+  return std::make_shared<const TextureTree>(quad_domains(), pyramid_levels(64, 64, 32),
+                                             GeoRect{0, 0, 64, 64}, TextureConstraints{32, false});
 }
 
 // The pyramid: level 0 a pattern of distinct opaque colours, level 1 its even texels.
@@ -54,8 +54,9 @@ RgbaImage level_image(int level) {
   RgbaImage img(n, n);
   for (int y = 0; y < n; ++y)
     for (int x = 0; x < n; ++x)
-      img.set(x, y, {std::uint8_t((x * step * 7 + y * step * 3) % 251), std::uint8_t((x * step * 5 + 11) % 253),
-                     std::uint8_t((y * step * 13 + 7) % 255), 255});
+      img.set(x, y,
+              {std::uint8_t((x * step * 7 + y * step * 3) % 251), std::uint8_t((x * step * 5 + 11) % 253),
+               std::uint8_t((y * step * 13 + 7) % 255), 255});
   return img;
 }
 
@@ -172,7 +173,8 @@ TEST(PatchTextures, GammaChoosesTheCoarsestPatchWhoseTexelFitsAndGroupsTheTriang
       ASSERT_EQ(f.groups.size(), 4u);
       for (const PatchTextureGroup& g : f.groups) {
         ASSERT_EQ(g.triangle_count, 2u);
-        for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(nodes[f.triangle_order[g.first_triangle + k]], g.used[0].node);
+        for (std::size_t k = 0; k < 2; ++k)
+          EXPECT_EQ(nodes[f.triangle_order[g.first_triangle + k]], g.used[0].node);
         ASSERT_TRUE(g.pixels[0]);
         EXPECT_EQ(g.pixels[0]->width, 32);
       }
@@ -235,7 +237,8 @@ TEST(PatchTextures, TheBudgetRaisesGammaAndHoldsTheResidentBytes) {
   EXPECT_EQ(f.stats.wanted, 1u);
   for (const PatchTextureGroup& g : f.groups) EXPECT_LE(g.used[0].node, 0);
   PatchTextures unbounded({loader.tree}, loader.fn(), {1.5, std::size_t(1) << 20, 1});
-  EXPECT_GT(unbounded.frame(pm::View(low), nodes, {true}).stats.wanted, 2u) << "without budget pressure: children";
+  EXPECT_GT(unbounded.frame(pm::View(low), nodes, {true}).stats.wanted, 2u)
+      << "without budget pressure: children";
   // A budget of all five patches: gamma stays as asked.
   PatchTextures roomy({loader.tree}, loader.fn(), {1.5, 5 * patch, 1});
   EXPECT_EQ(roomy.frame(view, nodes, {true}).stats.gamma_px, 1.5);
@@ -263,8 +266,10 @@ TEST(PatchTextures, DisabledLayersAndForeignNodesBindNothing) {
       return k >= g.first_triangle && k < g.first_triangle + g.triangle_count;
     });
     ASSERT_NE(g, f.groups.end());
-    if (n < 0 || n > 4) EXPECT_EQ(g->used[0].node, -1) << "triangle of a foreign node";
-    else EXPECT_EQ(g->used[0].node, n);
+    if (n < 0 || n > 4)
+      EXPECT_EQ(g->used[0].node, -1) << "triangle of a foreign node";
+    else
+      EXPECT_EQ(g->used[0].node, n);
   }
   EXPECT_THROW(pt.frame(view, nodes, {true}), std::invalid_argument);
   EXPECT_THROW(PatchTextures({}, loader.fn()), std::invalid_argument);
@@ -295,11 +300,11 @@ TEST_F(Gl, EveryPatchIsDrawnWhereItBelongs) {
     const MeshId id = r.upload(sorted);
     std::vector<LayeredItem> items;
     for (const PatchTextureGroup& g : f.groups)
-      items.push_back(LayeredItem{id,
-                                  {LayerBinding(r.texture_for(g.used[0], *g.pixels[0]),
-                                                pt.tree(0).patch(g.used[0].node).georef)},
-                                  g.first_triangle,
-                                  g.triangle_count});
+      items.push_back(LayeredItem{
+          id,
+          {LayerBinding(r.texture_for(g.used[0], *g.pixels[0]), pt.tree(0).patch(g.used[0].node).georef)},
+          g.first_triangle,
+          g.triangle_count});
     const std::vector<LayerStyle> styles(1);
     const LayeredFrameStats s = r.draw(cam, styles, Lens{}, items);
     EXPECT_EQ(s.triangles, 8u);
@@ -310,7 +315,8 @@ TEST_F(Gl, EveryPatchIsDrawnWhereItBelongs) {
     for (int y = 0; y < 64; ++y)
       for (int x = 0; x < 64; ++x)
         for (int c = 0; c < 3; ++c)
-          worst = std::max(worst, std::abs(int(img.pixel(x, y)[c]) - int(want.pixel(x >> level, y >> level)[c])));
+          worst =
+              std::max(worst, std::abs(int(img.pixel(x, y)[c]) - int(want.pixel(x >> level, y >> level)[c])));
     EXPECT_LE(worst, 1) << "gamma " << gamma;
   }
 }

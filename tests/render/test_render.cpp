@@ -214,13 +214,16 @@ TEST(Camera, ViewMatrixPutsTheCameraAtTheOriginLookingDownMinusZ) {
   c.yaw_deg = 37.0;
   c.pitch_deg = -21.0;
   const glm::dmat4 v = render::view_matrix(c);
-  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c), 1.0)), {0, 0, 0}, 1e-9, "camera position -> eye origin");
-  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + 10.0 * render::camera_forward(c), 1.0)), {0, 0, -10},
-              1e-9, "10 m ahead -> z_eye = -10");
-  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + render::camera_right(c), 1.0)), {1, 0, 0}, 1e-9,
-              "right -> +x_eye");
-  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + render::camera_up(c), 1.0)), {0, 1, 0}, 1e-9,
-              "up -> +y_eye");
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c), 1.0)), {0, 0, 0}, 1e-9,
+              "camera position -> eye origin");
+  expect_near(
+      glm::dvec3(v *
+                 glm::dvec4(terralod::render::camera_position(c) + 10.0 * render::camera_forward(c), 1.0)),
+      {0, 0, -10}, 1e-9, "10 m ahead -> z_eye = -10");
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + render::camera_right(c), 1.0)),
+              {1, 0, 0}, 1e-9, "right -> +x_eye");
+  expect_near(glm::dvec3(v * glm::dvec4(terralod::render::camera_position(c) + render::camera_up(c), 1.0)),
+              {0, 1, 0}, 1e-9, "up -> +y_eye");
 }
 
 TEST(Camera, ProjectionAndPixelRaysAgree) {

@@ -144,7 +144,8 @@ TEST(TextureCache, FailedLoadsKeepTheParentAndNameTheKey) {
   EXPECT_EQ(used.node, 1);
   ASSERT_TRUE(cache.wait_idle(10000));  // a failed key is not retried
   EXPECT_EQ(cache.stats().failures, 1u);
-  EXPECT_NE(cache.last_error().find("layer 3 node 2: tile is corrupt"), std::string::npos) << cache.last_error();
+  EXPECT_NE(cache.last_error().find("layer 3 node 2: tile is corrupt"), std::string::npos)
+      << cache.last_error();
 }
 
 TEST(TextureCache, ManyThreadsManyKeys) {
@@ -153,7 +154,12 @@ TEST(TextureCache, ManyThreadsManyKeys) {
   TextureCacheOptions o;
   o.threads = 4;
   std::atomic<int> loads{0};
-  TextureCache cache([&](const TextureKey& k) { ++loads; return tagged(k.node % 256); }, o);
+  TextureCache cache(
+      [&](const TextureKey& k) {
+        ++loads;
+        return tagged(k.node % 256);
+      },
+      o);
   for (int round = 0; round < 3; ++round) {
     cache.begin_frame();
     for (int k = 0; k < 200; ++k) cache.request({1, k});

@@ -32,8 +32,8 @@ LayerStackOptions black() {
   o.lighting = false;
   return o;
 }
-Px out(const std::vector<LayerStyle>& st, const std::vector<LayerSource>& s, int x, const LayerStackOptions& o = black(),
-       const RgbaImage* lens_img = nullptr, const Lens& lens = {}) {
+Px out(const std::vector<LayerStyle>& st, const std::vector<LayerSource>& s, int x,
+       const LayerStackOptions& o = black(), const RgbaImage* lens_img = nullptr, const Lens& lens = {}) {
   return combine_layers(st, s, lens_img, lens, kGeo, 2, 1, o).get(x, 0);
 }
 
@@ -132,10 +132,10 @@ TEST(TextureLayers, SequencesInterpolateConsecutiveKeyFrames) {
     return out({st}, s, 0)[0];
   };
   EXPECT_EQ(at(0.0f), 0);
-  EXPECT_EQ(at(0.25f), 25);   // 0.75 * 0 + 0.25 * 100
+  EXPECT_EQ(at(0.25f), 25);  // 0.75 * 0 + 0.25 * 100
   EXPECT_EQ(at(1.0f), 100);
-  EXPECT_EQ(at(1.5f), 150);   // halfway between 100 and 200
-  EXPECT_EQ(at(2.0f), 200);   // the last key frame
+  EXPECT_EQ(at(1.5f), 150);  // halfway between 100 and 200
+  EXPECT_EQ(at(2.0f), 200);  // the last key frame
   const SequencePosition p = sequence_position(3, 1.5f);
   EXPECT_EQ(p.i, 1);
   EXPECT_EQ(p.j, 2);

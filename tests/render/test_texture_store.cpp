@@ -30,7 +30,9 @@ RgbaImage pattern(int w, int h) {
   RgbaImage img(w, h);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
-      img.set(x, y, {std::uint8_t(x * 7 + y), std::uint8_t(y * 3), std::uint8_t((x ^ y) & 255), std::uint8_t(255 - x)});
+      img.set(
+          x, y,
+          {std::uint8_t(x * 7 + y), std::uint8_t(y * 3), std::uint8_t((x ^ y) & 255), std::uint8_t(255 - x)});
   return img;
 }
 
@@ -114,7 +116,8 @@ TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
   EXPECT_EQ(tree->patch(0).rect, (PixelRect{2, 0, 0, 25, 25}));
   EXPECT_EQ(tree->patch(4).rect, (PixelRect{1, 25, 0, 25, 25}));  // north-east quadrant: top rows
   for (std::int64_t n = 0; n < 5; ++n)
-    EXPECT_EQ(read_layer_patch(db, "pattern", n, tree->patch(n).rect.level), pyr.read(tree->patch(n).rect)) << n;
+    EXPECT_EQ(read_layer_patch(db, "pattern", n, tree->patch(n).rect.level), pyr.read(tree->patch(n).rect))
+        << n;
   EXPECT_TRUE(db.check_integrity().ok);
   // On demand through the cache, from another thread with its own connection.
   TextureCache cache(database_tile_loader(dbp.string(), "pattern", tree));
@@ -128,7 +131,8 @@ TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
     read_layer_record(db, "nope");
     FAIL();
   } catch (const tb::DatabaseError& e) {
-    EXPECT_NE(std::string(e.what()).find("no texture layer 'nope' (layers: pattern)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no texture layer 'nope' (layers: pattern)"), std::string::npos)
+        << e.what();
     EXPECT_NE(std::string(e.what()).find(dbp.string()), std::string::npos);
   }
   // Exported files are exact (PNG and TIFF).
@@ -146,8 +150,8 @@ using terralod::test::quote;
 
 /// Runs `terralod <args>` headless; `out` gets stdout and stderr interleaved.
 int run(const std::string& args, std::string* out = nullptr) {
-  const terralod::test::CommandResult r =
-      terralod::test::run_command(quote(TERRALOD_CLI) + " " + args, {.merge_stderr = true, .no_display = true});
+  const terralod::test::CommandResult r = terralod::test::run_command(
+      quote(TERRALOD_CLI) + " " + args, {.merge_stderr = true, .no_display = true});
   if (out) *out = r.err;
   if (r.status != 0) std::fprintf(stderr, "terralod %s:\n%s\n", args.c_str(), r.err.c_str());
   return r.status;
@@ -169,9 +173,12 @@ TEST(TextureCli, ShadeAddAndExportEndToEnd) {
       for (int c = 0; c < 65; ++c) f << gen.at(c, r) << (c + 1 < 65 ? " " : "\n");
     }
   }
-  ASSERT_EQ(run("build --input " + quote(asc.string()) + " --out " + quote(dbp.string()) + " --block-size 33"), 0);
+  ASSERT_EQ(
+      run("build --input " + quote(asc.string()) + " --out " + quote(dbp.string()) + " --block-size 33"), 0);
   std::string text;
-  ASSERT_EQ(run("texture shade " + quote(dbp.string()) + " --layer hill --light 315,45 --max-texture-size 32", &text), 0);
+  ASSERT_EQ(run("texture shade " + quote(dbp.string()) + " --layer hill --light 315,45 --max-texture-size 32",
+                &text),
+            0);
   EXPECT_NE(text.find("store layer 'hill'"), std::string::npos) << text;
   const fs::path png = tmp_dir() / "hill.png";
   ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --out " + quote(png.string())), 0);
@@ -183,21 +190,28 @@ TEST(TextureCli, ShadeAddAndExportEndToEnd) {
   ASSERT_EQ(got.level(0), (LevelSize{65, 65}));
   EXPECT_EQ(got.read({0, 0, 0, 65, 65}), want);
   // Coarser level: 65 -> 32 (fits 32).
-  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --level 1 --out " + quote((tmp_dir() / "l1.tif").string())), 0);
-  EXPECT_EQ(ImagePyramid((tmp_dir() / "l1.tif").string(), PyramidOptions{256, 64, 8}).level(0), (LevelSize{32, 32}));
+  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --level 1 --out " +
+                quote((tmp_dir() / "l1.tif").string())),
+            0);
+  EXPECT_EQ(ImagePyramid((tmp_dir() / "l1.tif").string(), PyramidOptions{256, 64, 8}).level(0),
+            (LevelSize{32, 32}));
   // add: an image over the terrain, exported back unchanged.
   const fs::path img = tmp_dir() / "overlay.png";
   write_layer_image(pattern(90, 70), img.string());
   ASSERT_EQ(run("texture add " + quote(dbp.string()) + " --layer overlay --image " + quote(img.string()) +
-                " --georef 0,0,1950,1950 --max-texture-size 32"), 0);
+                " --georef 0,0,1950,1950 --max-texture-size 32"),
+            0);
   const fs::path back = tmp_dir() / "overlay_back.png";
-  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer overlay --out " + quote(back.string())), 0);
+  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer overlay --out " + quote(back.string())),
+            0);
   EXPECT_EQ(ImagePyramid(back.string(), PyramidOptions{256, 64, 8}).read({0, 0, 0, 90, 70}), pattern(90, 70));
   // Errors: unknown layer, bad level, bad georef.
   EXPECT_NE(run("texture export " + quote(dbp.string()) + " --layer nope --out x.png", &text), 0);
   EXPECT_NE(text.find("no texture layer 'nope'"), std::string::npos) << text;
   EXPECT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --level 9 --out x.png", &text), 2);
-  EXPECT_EQ(run("texture add " + quote(dbp.string()) + " --layer o2 --image " + quote(img.string()) + " --georef 1,2,3"), 2);
+  EXPECT_EQ(run("texture add " + quote(dbp.string()) + " --layer o2 --image " + quote(img.string()) +
+                " --georef 1,2,3"),
+            2);
 }
 #endif
 

@@ -135,10 +135,12 @@ pm::View down(double x, double y, double z = 100) {
 TEST(TextureTree, GammaIsTheProjectedTexelAreaAtTheNearestPoint) {
   // Box [-50,50]^2 x [0,10]: nearest point (0,0,10), depth 90. A 2 x 3 m texel spans
   // (100*2/90) x (100*3/90) = 60000/8100 = 7.4074 pixels^2.
-  EXPECT_NEAR(visual_texture_error_px(down(0, 0), box(-50, -50, 50, 50, 0, 10), 2, 3), 60000.0 / 8100.0, 1e-9);
+  EXPECT_NEAR(visual_texture_error_px(down(0, 0), box(-50, -50, 50, 50, 0, 10), 2, 3), 60000.0 / 8100.0,
+              1e-9);
   // Camera beside the box: nearest point (50, 0, 10), still depth 90 (same area, the
   // rectangle only moves off-centre in a plane parallel to the image).
-  EXPECT_NEAR(visual_texture_error_px(down(80, 0), box(-50, -50, 50, 50, 0, 10), 2, 3), 60000.0 / 8100.0, 1e-9);
+  EXPECT_NEAR(visual_texture_error_px(down(80, 0), box(-50, -50, 50, 50, 0, 10), 2, 3), 60000.0 / 8100.0,
+              1e-9);
   // Level camera at z = 10 looking north; box [-5,5] x [100,200] x [0,0]: nearest point
   // (0,100,0), 10 m below the eye. A 2 x 2 texel's corners at depths 99 and 101 project to
   // x = +-K/depth, y = K*10/depth below the centre: a trapezoid with parallel sides 200/101

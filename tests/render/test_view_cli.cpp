@@ -15,14 +15,14 @@
 #include <sstream>
 #include <string>
 
+#include "mesh_checker.hpp"
+#include "run_command.hpp"
+#include "screen_error_checker.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/image.hpp"
-#include "mesh_checker.hpp"
-#include "run_command.hpp"
-#include "screen_error_checker.hpp"
 
 namespace {
 
@@ -159,7 +159,8 @@ TEST(ViewCli, RendersAPmFileWithTheViewDependentSelection) {
   // A valid plan-view triangulation of the domain (independent checker).
   const terralod::test::MeshCheck check = terralod::test::check_mesh(hf, sel, {f.mesh.dropped_faces()});
   EXPECT_TRUE(check.topology_ok()) << check.describe();
-  EXPECT_LE(check.max_continuous_error(), json_number(s, "error_bound") + check.tolerance) << check.describe();
+  EXPECT_LE(check.max_continuous_error(), json_number(s, "error_bound") + check.tolerance)
+      << check.describe();
 
   // Measured screen-space error of every in-frustum error segment <= bound_px (independent
   // projection, with the clip planes the command used).
@@ -178,8 +179,8 @@ TEST(ViewCli, RendersAPmFileWithTheViewDependentSelection) {
   const fs::path ujson = tmp_dir() / "uniform.json";
   const CliResult ru =
       terralod("view --input " + quote(f.path.string()) + " --camera -300,-300,1000,45,-22,60 --tau 1.5" +
-               " --size 240x160 --uniform --out " + quote((tmp_dir() / "uniform.png").string()) + " --stats " +
-               quote(ujson.string()));
+               " --size 240x160 --uniform --out " + quote((tmp_dir() / "uniform.png").string()) +
+               " --stats " + quote(ujson.string()));
   ASSERT_EQ(ru.status, 0) << ru.err << ru.out;
   EXPECT_LT(triangles, json_number(slurp(ujson), "triangles"));
 
@@ -197,7 +198,8 @@ TEST(ViewCli, RendersAPmFileWithTheViewDependentSelection) {
 
 TEST(ViewCli, UniformRendersTheConservativeUniformExtraction) {
   const PmFixture& f = pm_fixture();
-  const fs::path png = tmp_dir() / "uview.png", json = tmp_dir() / "uview.json", ply = tmp_dir() / "uview.ply";
+  const fs::path png = tmp_dir() / "uview.png", json = tmp_dir() / "uview.json",
+                 ply = tmp_dir() / "uview.ply";
   // South-west of the square, 1 km up, looking north-east (yaw 45) and 22 degrees down.
   const double cx = -300.0, cy = -300.0, cz = 1000.0, fovy = 60.0, tau = 1.5;
   const int w = 240, h = 160;

@@ -57,8 +57,8 @@ pm::BuildOptions threads(int n) {
 /// A fresh scratch folder for the current test (per process: ctest runs tests in parallel).
 fs::path scratch() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(TERRALOD_TEST_TMP) / ("bad_input_" + std::string(info->name()) + "_" +
-                                                      std::to_string(::getpid()));
+  const fs::path dir = fs::path(TERRALOD_TEST_TMP) /
+                       ("bad_input_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -103,7 +103,8 @@ void expect_error(F&& f, const std::string& path, const std::vector<std::string>
   } catch (const E& e) {
     const std::string what = e.what();
     EXPECT_EQ(what.rfind(path + ": ", 0), 0u) << "message does not start with the path: " << what;
-    for (const std::string& n : needles) EXPECT_NE(what.find(n), std::string::npos) << "lacks '" << n << "': " << what;
+    for (const std::string& n : needles)
+      EXPECT_NE(what.find(n), std::string::npos) << "lacks '" << n << "': " << what;
   } catch (const std::exception& e) {
     ADD_FAILURE() << "wrong exception type for " << path << ": " << e.what();
   }
@@ -152,7 +153,8 @@ TEST(BadInput, ReadPlyRejectsNonRegularFiles) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   fs::create_symlink("/dev/zero", dev);
   for (const fs::path& p : {folder, fifo, dev})
-    expect_error<std::runtime_error>([&] { (void)pm::read_ply(p.string()); }, p.string(), {"not a regular file"});
+    expect_error<std::runtime_error>([&] { (void)pm::read_ply(p.string()); }, p.string(),
+                                     {"not a regular file"});
 }
 
 // ------------------------------------------------------------------------------------------
@@ -200,7 +202,8 @@ TEST(BadInput, ImagesThatAreNotHeightmaps) {
   // A PM file renamed to .png.
   const fs::path fake = dir / "terrain.png";
   write_bytes(fake, pm::encode_pm(small_pm()));
-  expect_error<tb::DemError>([&] { (void)tb::read_dem(fake.string()); }, fake.string(), {"cannot read it as an image"});
+  expect_error<tb::DemError>([&] { (void)tb::read_dem(fake.string()); }, fake.string(),
+                             {"cannot read it as an image"});
 }
 
 TEST(BadInput, MultiBandFloatGeoTiffWithNaN) {
@@ -231,9 +234,9 @@ TEST(BadInput, PmFilesOfOtherFormatVersions) {
     for (int i = 0; i < 4; ++i) b[8 + std::size_t(i)] = std::uint8_t(version >> (8 * i));
     const fs::path path = dir / ("v" + std::to_string(version) + ".pm");
     write_bytes(path, b);
-    expect_error<pm::PmFormatError>([&] { (void)pm::read_pm(path.string()); }, path.string(),
-                                    {"format version " + std::to_string(version) + " is not supported",
-                                     "this build reads version 1"});
+    expect_error<pm::PmFormatError>(
+        [&] { (void)pm::read_pm(path.string()); }, path.string(),
+        {"format version " + std::to_string(version) + " is not supported", "this build reads version 1"});
   }
   // A DEM given where a PM is expected.
   const fs::path hgt = dir / "N10E020.pm";
@@ -278,7 +281,8 @@ TEST(BadInput, WritePmThatFailsHalfWayLeavesNothing) {
   // A folder where the file should go: the rename fails, the temporary is removed.
   const fs::path taken = dir / "taken.pm";
   fs::create_directories(taken / "inside");
-  expect_error<std::runtime_error>([&] { pm::write_pm(p, taken.string()); }, taken.string(), {"cannot rename"});
+  expect_error<std::runtime_error>([&] { pm::write_pm(p, taken.string()); }, taken.string(),
+                                   {"cannot rename"});
   EXPECT_TRUE(fs::is_directory(taken / "inside"));
   EXPECT_FALSE(fs::exists(taken.string() + ".tmp"));
 }
@@ -290,8 +294,8 @@ TEST(BadInput, WriteMeshThatFailsHalfWayLeavesNothing) {
   for (const char* name : {"full_disk.ply", "full_disk.obj"}) {
     const fs::path out = dir / name;
     if (!tmp_to_dev_full(out)) GTEST_SKIP() << "/dev/full absent";
-    expect_error<std::runtime_error>([&] { pm::write_mesh(m, p.heightfield(), out.string(), pm::Units::World); },
-                                     out.string(), {});
+    expect_error<std::runtime_error>(
+        [&] { pm::write_mesh(m, p.heightfield(), out.string(), pm::Units::World); }, out.string(), {});
     expect_nothing_left(out);
   }
 }
@@ -336,8 +340,10 @@ void expect_cli_error(const CliResult& r, const std::string& file, const std::ve
   }
   ASSERT_EQ(errors.size(), 1u) << r.err;
   EXPECT_EQ(errors[0], last) << r.err;
-  EXPECT_EQ(errors[0].rfind("terralod: " + file + ": ", 0), 0u) << "does not name " << file << " first: " << r.err;
-  for (const std::string& n : needles) EXPECT_NE(errors[0].find(n), std::string::npos) << "lacks '" << n << "': " << r.err;
+  EXPECT_EQ(errors[0].rfind("terralod: " + file + ": ", 0), 0u)
+      << "does not name " << file << " first: " << r.err;
+  for (const std::string& n : needles)
+    EXPECT_NE(errors[0].find(n), std::string::npos) << "lacks '" << n << "': " << r.err;
 }
 
 TEST(BadInputCli, PmWhoseWriteFailsLeavesNoPartialFile) {
@@ -346,14 +352,15 @@ TEST(BadInputCli, PmWhoseWriteFailsLeavesNoPartialFile) {
   write_text(dem, "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\n1 2 3 4\n5 6 7 8\n9 10 11 12\n");
   const fs::path out = dir / "out.pm";
   if (!tmp_to_dev_full(out)) GTEST_SKIP() << "/dev/full absent";
-  const CliResult r = terralod(dir, "pm --threads 1 --input " + quote(dem.string()) + " --out " + quote(out.string()));
+  const CliResult r =
+      terralod(dir, "pm --threads 1 --input " + quote(dem.string()) + " --out " + quote(out.string()));
   expect_cli_error(r, out.string(), {"No space left"});
   expect_nothing_left(out);
 
   const fs::path mesh = dir / "out.ply";
   ASSERT_TRUE(tmp_to_dev_full(mesh));
-  const CliResult e = terralod(dir, "extract --threads 1 --input " + quote(dem.string()) + " --max-error 1 --out " +
-                                        quote(mesh.string()));
+  const CliResult e = terralod(dir, "extract --threads 1 --input " + quote(dem.string()) +
+                                        " --max-error 1 --out " + quote(mesh.string()));
   expect_cli_error(e, mesh.string(), {});
   expect_nothing_left(mesh);
 }

@@ -49,7 +49,9 @@ using tt::quote;
 
 // 33 x 33 samples, cellsize 30, lower-left corner (0, 0): x = 15 + 30 col, y = 15 + 30 (32 - row).
 constexpr int kN = 33;
-double height(double c, double r) { return 300.0 + 2.0 * c + r + 40.0 * std::sin(c / 4.0) * std::cos(r / 5.0); }
+double height(double c, double r) {
+  return 300.0 + 2.0 * c + r + 40.0 * std::sin(c / 4.0) * std::cos(r / 5.0);
+}
 
 const fs::path& dir() { return tt::process_temp_dir("bad-input-tools"); }
 
@@ -118,7 +120,8 @@ const Inputs& inputs() {
     x.dem = dir() / "dem.asc";
     {
       std::ofstream f(x.dem);
-      f << "ncols " << kN << "\nnrows " << kN << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+      f << "ncols " << kN << "\nnrows " << kN
+        << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
       for (int r = 0; r < kN; ++r)
         for (int c = 0; c < kN; ++c) f << std::round(height(c, r)) << (c + 1 < kN ? " " : "\n");
     }
@@ -156,8 +159,9 @@ const Inputs& inputs() {
       }
     pm::write_mesh(tin, (dir() / "tin.ply").string());
     x.hybrid = dir() / "hybrid.db";
-    const tt::CommandResult h = terralod("hybrid --grid " + dem + " --grid-step 4 --levels 2 --tin " +
-                                         quote((dir() / "tin.ply").string()) + " --out " + quote(x.hybrid.string()));
+    const tt::CommandResult h =
+        terralod("hybrid --grid " + dem + " --grid-step 4 --levels 2 --tin " +
+                 quote((dir() / "tin.ply").string()) + " --out " + quote(x.hybrid.string()));
     if (h.status != 0) x.error = "terralod hybrid: " + h.err;
     return x;
   }();
@@ -197,7 +201,8 @@ fs::path make_variant(const std::string& name, const fs::path& where) {
   } else if (name == "corrupt_block") {
     edit_blob(p, block, "UPDATE blocks SET data = ?1 WHERE col = 1 AND row = 1", flip_middle);
   } else if (name == "cut_block") {
-    edit_blob(p, block, "UPDATE blocks SET data = ?1, size = ?2, crc32 = ?3 WHERE col = 1 AND row = 1", cut_half);
+    edit_blob(p, block, "UPDATE blocks SET data = ?1, size = ?2, crc32 = ?3 WHERE col = 1 AND row = 1",
+              cut_half);
   } else if (name == "short_blob") {
     edit_blob(p, block, "UPDATE blocks SET data = ?1 WHERE col = 1 AND row = 1", cut_half);
   } else if (name == "interrupted") {
@@ -207,10 +212,11 @@ fs::path make_variant(const std::string& name, const fs::path& where) {
               "UPDATE blobs SET data = ?1, size = ?2, crc32 = ?3 WHERE name = 'tree'", cut_half);
   } else if (name == "corrupt_tile") {
     edit_blob(p, "SELECT data FROM texture_tiles WHERE layer = 'hill' AND node = -1 AND level = 0",
-              "UPDATE texture_tiles SET data = ?1 WHERE layer = 'hill' AND node = -1 AND level = 0", flip_middle);
-  } else if (name == "corrupt_hybrid") {
-    edit_blob(p, "SELECT data FROM blobs WHERE name = 'hybrid'", "UPDATE blobs SET data = ?1 WHERE name = 'hybrid'",
+              "UPDATE texture_tiles SET data = ?1 WHERE layer = 'hill' AND node = -1 AND level = 0",
               flip_middle);
+  } else if (name == "corrupt_hybrid") {
+    edit_blob(p, "SELECT data FROM blobs WHERE name = 'hybrid'",
+              "UPDATE blobs SET data = ?1 WHERE name = 'hybrid'", flip_middle);
   } else {
     ADD_FAILURE() << "unknown variant " << name;
   }
@@ -271,7 +277,8 @@ void expect_nothing_half_written(const fs::path& folder, const fs::path& db) {
     }
   for (const auto& e : fs::directory_iterator(db.parent_path())) {
     const std::string n = e.path().filename().string(), base = db.filename().string();
-    if (n != base && n != base + "-wal" && n != base + "-shm") ADD_FAILURE() << "left beside the database: " << e.path();
+    if (n != base && n != base + "-wal" && n != base + "-shm")
+      ADD_FAILURE() << "left beside the database: " << e.path();
   }
 }
 
@@ -284,9 +291,10 @@ std::vector<std::string> layers(const fs::path& db) {
     return out;
   }
   sqlite3_stmt* st = nullptr;
-  if (sqlite3_prepare_v2(h, "SELECT key FROM meta WHERE key LIKE 'texture_layer:%' ORDER BY key", -1, &st, nullptr) ==
-      SQLITE_OK)
-    while (sqlite3_step(st) == SQLITE_ROW) out.emplace_back(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)));
+  if (sqlite3_prepare_v2(h, "SELECT key FROM meta WHERE key LIKE 'texture_layer:%' ORDER BY key", -1, &st,
+                         nullptr) == SQLITE_OK)
+    while (sqlite3_step(st) == SQLITE_ROW)
+      out.emplace_back(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)));
   sqlite3_finalize(st);
   sqlite3_close(h);
   return out;
@@ -318,18 +326,20 @@ std::vector<DbCommand> db_commands() {
        with_open({})},
       {"extract --db", "terralod",
        [](const fs::path& db, const fs::path& out) {
-         return "extract --db " + quote(db.string()) + " --max-error 1 --out " + quote((out / "x.ply").string());
+         return "extract --db " + quote(db.string()) + " --max-error 1 --out " +
+                quote((out / "x.ply").string());
        },
        with_open({"corrupt_block", "cut_block", "short_blob", "interrupted"})},
       {"fly --db", "terralod",
        [&in](const fs::path& db, const fs::path& out) {
-         return "fly --db " + quote(db.string()) + " --path " + quote(in.path.string()) + " --size 64x48 --out " +
-                quote(out.string()) + " --dump-meshes";
+         return "fly --db " + quote(db.string()) + " --path " + quote(in.path.string()) +
+                " --size 64x48 --out " + quote(out.string()) + " --dump-meshes";
        },
        with_open({"corrupt_block", "cut_block", "short_blob", "interrupted"})},
       {"texture export", "terralod",
        [](const fs::path& db, const fs::path& out) {
-         return "texture export " + quote(db.string()) + " --layer hill --out " + quote((out / "t.png").string());
+         return "texture export " + quote(db.string()) + " --layer hill --out " +
+                quote((out / "t.png").string());
        },
        with_open({"corrupt_tile"})},
       {"texture shade", "terralod",
@@ -345,8 +355,8 @@ std::vector<DbCommand> db_commands() {
        with_open({"interrupted", "cut_tree"})},
       {"view --texture-db", "terralod",
        [dem, cam](const fs::path& db, const fs::path& out) {
-         return "view --input " + dem + " --texture-db " + quote(db.string()) + " --layer hill" + cam + " --out " +
-                quote((out / "v.png").string());
+         return "view --input " + dem + " --texture-db " + quote(db.string()) + " --layer hill" + cam +
+                " --out " + quote((out / "v.png").string());
        },
        with_open({"corrupt_tile"})},
       {"view --db", "terralod",
@@ -355,7 +365,8 @@ std::vector<DbCommand> db_commands() {
        },
        with_open({"corrupt_hybrid"})},
       // Resuming a build reads the existing database first (a missing one is simply created).
-      {"build (resume)", "terralod",
+      {"build (resume)",
+       "terralod",
        [dem](const fs::path& db, const fs::path&) {
          return "build --threads 1 --block-size 17 --input " + dem + " --out " + quote(db.string());
        },
@@ -374,7 +385,8 @@ void run_db_command(const DbCommand& c, const std::string& tool_path) {
     const std::vector<std::string> before = layers(db);
     const fs::path out = dir() / ("out_" + c.label.substr(0, c.label.find(' ')) + "_" + v);
     fs::create_directories(out);
-    const tt::CommandResult r = tt::run_command(quote(tool_path) + " " + c.args(db, out), {.no_display = true});
+    const tt::CommandResult r =
+        tt::run_command(quote(tool_path) + " " + c.args(db, out), {.no_display = true});
     expect_error(r, c.tool, db.string(), problem_of(v));
     expect_nothing_half_written(out, db);
     if (fs::exists(db)) {
@@ -408,9 +420,9 @@ TEST(BadInputTools, FlightDemoRefusesBrokenTextureDatabases) {
   const Inputs& in = inputs();
   const DbCommand c{"terralod-fly --texture-db", "terralod-fly",
                     [&in](const fs::path& db, const fs::path& out) {
-                      return "--headless --input " + quote(in.dem.string()) + " --texture-db " + quote(db.string()) +
-                             " --layer hill --path " + quote(in.fast_path.string()) + " --size 64x48 --out " +
-                             quote(out.string());
+                      return "--headless --input " + quote(in.dem.string()) + " --texture-db " +
+                             quote(db.string()) + " --layer hill --path " + quote(in.fast_path.string()) +
+                             " --size 64x48 --out " + quote(out.string());
                     },
                     with_open({"corrupt_tile"})};
   run_db_command(c, TERRALOD_FLY);
@@ -425,13 +437,13 @@ TEST(BadInputTools, InterruptedBuildIsDescribedAsIncompleteAndResumed) {
   ASSERT_EQ(i.status, 0) << i.err;
   EXPECT_NE(i.out.find("\"complete\": false"), std::string::npos) << i.out;
   // Running the build again finishes it; then every reader accepts it.
-  const tt::CommandResult b =
-      terralod("build --threads 1 --block-size 17 --input " + quote(in.dem.string()) + " --out " + quote(db.string()));
+  const tt::CommandResult b = terralod("build --threads 1 --block-size 17 --input " + quote(in.dem.string()) +
+                                       " --out " + quote(db.string()));
   ASSERT_EQ(b.status, 0) << b.err;
   const tt::CommandResult again = terralod("info " + quote(db.string()));
   EXPECT_NE(again.out.find("\"complete\": true"), std::string::npos) << again.out;
-  const tt::CommandResult e =
-      terralod("extract --db " + quote(db.string()) + " --max-error 1 --out " + quote((dir() / "resumed.ply").string()));
+  const tt::CommandResult e = terralod("extract --db " + quote(db.string()) + " --max-error 1 --out " +
+                                       quote((dir() / "resumed.ply").string()));
   EXPECT_EQ(e.status, 0) << e.err;
   EXPECT_GT(pm::read_ply((dir() / "resumed.ply").string()).triangles.size(), 0u);
 }
@@ -472,12 +484,14 @@ void run_path_cases(const std::string& tool, const std::string& tool_path,
     const fs::path csv = folder / "path.csv", out = folder / "out";
     fs::create_directories(out);
     if (p.name != "missing") write_text(csv, p.text);
-    const tt::CommandResult r = tt::run_command(quote(tool_path) + " " + args(csv, out), {.no_display = true});
+    const tt::CommandResult r =
+        tt::run_command(quote(tool_path) + " " + args(csv, out), {.no_display = true});
     expect_error(r, tool, csv.string(), {p.problem});
     for (const std::string& s : p.problem) EXPECT_NE(r.err.find(s), std::string::npos) << s << ": " << r.err;
     EXPECT_FALSE(fs::exists(out / "frames.csv")) << out;
     if (fs::exists(out))
-      for (const auto& e : fs::recursive_directory_iterator(out)) ADD_FAILURE() << "left behind: " << e.path();
+      for (const auto& e : fs::recursive_directory_iterator(out))
+        ADD_FAILURE() << "left behind: " << e.path();
   }
 }
 

@@ -100,21 +100,15 @@ std::size_t replay(const std::string& target, int (*one)(const std::uint8_t*, st
   return files.size();
 }
 
-TEST(FuzzRegressions, PmDecoder) {
-  EXPECT_GE(replay("fuzz_pm_decoder", terralod_fuzz_pm_decoder), 2u);
-}
+TEST(FuzzRegressions, PmDecoder) { EXPECT_GE(replay("fuzz_pm_decoder", terralod_fuzz_pm_decoder), 2u); }
 
-TEST(FuzzRegressions, CameraPath) {
-  EXPECT_GE(replay("fuzz_camera_path", terralod_fuzz_camera_path), 3u);
-}
+TEST(FuzzRegressions, CameraPath) { EXPECT_GE(replay("fuzz_camera_path", terralod_fuzz_camera_path), 3u); }
 
 TEST(FuzzRegressions, BlockDatabase) {
   EXPECT_GE(replay("fuzz_block_database", terralod_fuzz_block_database), 1u);
 }
 
-TEST(FuzzRegressions, TreeDecoder) {
-  EXPECT_GE(replay("fuzz_tree_decoder", terralod_fuzz_tree_decoder), 2u);
-}
+TEST(FuzzRegressions, TreeDecoder) { EXPECT_GE(replay("fuzz_tree_decoder", terralod_fuzz_tree_decoder), 2u); }
 
 TEST(FuzzRegressions, BlockSummaries) {
   EXPECT_GE(replay("fuzz_block_summaries", terralod_fuzz_block_summaries), 3u);
@@ -160,9 +154,11 @@ std::string decode_error(const std::vector<std::uint8_t>& b) {
 }
 
 TEST(FuzzRegressions, NonFiniteGridTransformIsRejected) {
-  constexpr double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
-  for (const pm::GridTransform& t : {pm::GridTransform{nan, 1, 0, 0, 0, -1}, pm::GridTransform{0, inf, 0, 0, 0, -1},
-                                     pm::GridTransform{0, 1, 0, 0, 0, -inf}}) {
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN(),
+                   inf = std::numeric_limits<double>::infinity();
+  for (const pm::GridTransform& t :
+       {pm::GridTransform{nan, 1, 0, 0, 0, -1}, pm::GridTransform{0, inf, 0, 0, 0, -1},
+        pm::GridTransform{0, 1, 0, 0, 0, -inf}}) {
     EXPECT_EQ(decode_error(with_transform(t)), "forged.pm: corrupt header: the grid transform is not finite");
     pm::ProgressiveMesh p = small_pm();
     pm::Heightfield hf = p.heightfield();
@@ -172,13 +168,15 @@ TEST(FuzzRegressions, NonFiniteGridTransformIsRejected) {
     EXPECT_THROW((void)pm::encode_pm(q), std::invalid_argument);
   }
   // Control: the same forgery with an ordinary transform decodes.
-  EXPECT_EQ(decode_error(with_transform(pm::GridTransform::north_up(500000, 5000000, 0.01, 0.01))), "(decoded)");
+  EXPECT_EQ(decode_error(with_transform(pm::GridTransform::north_up(500000, 5000000, 0.01, 0.01))),
+            "(decoded)");
 }
 
 TEST(FuzzRegressions, TransformWhoseWorldCoordinatesOverflowIsRejected) {
   // 1e308 per column: column 8 would be at 8e308 = inf.
   const std::string msg = decode_error(with_transform(pm::GridTransform{0, 1e308, 0, 0, 0, -1}));
-  EXPECT_EQ(msg, "forged.pm: corrupt header: the grid transform maps samples to non-finite world coordinates");
+  EXPECT_EQ(msg,
+            "forged.pm: corrupt header: the grid transform maps samples to non-finite world coordinates");
   // Differences must stay finite too: |x| up to 1.2e308 at both ends of the grid.
   EXPECT_NE(decode_error(with_transform(pm::GridTransform{-1.2e308, 3e307, 0, 0, 0, -1})), "(decoded)");
   // The largest sane planetary coordinates are far inside the limit.

@@ -117,8 +117,8 @@ std::vector<CameraCase> cameras(const Terrain& t) {
   const double relief = std::max(e.zmax - e.zmin, 1e-3);
   add("inside_the_terrain", e.cx, e.cy, e.zmin - 0.5 * relief, 30, -10, 60);
   add("at_the_surface", e.cx, e.cy, ground, 45, 0, 60);
-  add("at_the_surface_looking_down", e.cx + 0.1 * e.size, e.cy, tt::ground_height(t.hf, e.cx + 0.1 * e.size, e.cy),
-      0, -90, 60);
+  add("at_the_surface_looking_down", e.cx + 0.1 * e.size, e.cy,
+      tt::ground_height(t.hf, e.cx + 0.1 * e.size, e.cy), 0, -90, 60);
   aim(e.cx - 7.0e6, e.cy - 7.0e6, 7.0e6, yaw, pitch);
   add("10000_km_away", e.cx - 7.0e6, e.cy - 7.0e6, 7.0e6, yaw, pitch, 60, 1000.0, 1e8);
   add("straight_down", e.cx, e.cy, e.zmax + 0.3 * e.size, 0, -90, 60);
@@ -164,9 +164,10 @@ void check_case(const Terrain& t, const CameraCase& cc, double tau, rd::TerrainR
   EXPECT_TRUE(std::isfinite(sc.max_error_px));
   EXPECT_LE(sc.max_error_px, st.bound_px * (1 + 1e-9) + 1e-9) << sc.describe();
   if (tau == 1.0)
-    std::printf("  %-11s %-28s tau 1: %6zu triangles, bound %.3f px, measured %.3f px over %zu visible segments\n",
-                t.name.c_str(), cc.name.c_str(), m.triangles.size(), st.bound_px, sc.max_error_px,
-                sc.segments_visible);
+    std::printf(
+        "  %-11s %-28s tau 1: %6zu triangles, bound %.3f px, measured %.3f px over %zu visible segments\n",
+        t.name.c_str(), cc.name.c_str(), m.triangles.size(), st.bound_px, sc.max_error_px,
+        sc.segments_visible);
 
   if (!renderer) return;
   rd::Camera rc;

@@ -92,7 +92,8 @@ void check_world_mesh(const pm::Heightfield& hf, const pm::TriangleMesh& m, cons
   for (std::size_t i = 0; i < m.vertices.size(); ++i) {
     const double col = double(m.vertices[i] % W), row = double(m.vertices[i] / W);
     const auto& p = w.positions[i];
-    ASSERT_TRUE(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) << label << " vertex " << i;
+    ASSERT_TRUE(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))
+        << label << " vertex " << i;
     // Exactly the affine map, evaluated in double as the header writes it.
     ASSERT_EQ(p[0], t.x0 + col * t.xc + row * t.xr) << label;
     ASSERT_EQ(p[1], t.y0 + col * t.yc + row * t.yr) << label;
@@ -156,7 +157,8 @@ bool same_bits(const pm::ProgressiveMesh& a, const pm::ProgressiveMesh& b) {
 
 /// Runs the whole pipeline on `hf` and checks every invariant; returns the PM and meshes for
 /// case-specific assertions.
-PipelineResult run_pipeline(const pm::Heightfield& hf, const std::string& label, const PipelineOptions& o = {}) {
+PipelineResult run_pipeline(const pm::Heightfield& hf, const std::string& label,
+                            const PipelineOptions& o = {}) {
   pm::BuildOptions bo;
   bo.metric = o.metric;
   bo.threads = o.threads;
@@ -180,8 +182,8 @@ PipelineResult run_pipeline(const pm::Heightfield& hf, const std::string& label,
     }
   }
 
-  std::vector<double> errors = {0.0, p.max_error() / 1000, p.max_error() / 10, p.max_error() / 2,
-                                p.max_error(), 1e300};
+  std::vector<double> errors = {
+      0.0, p.max_error() / 1000, p.max_error() / 10, p.max_error() / 2, p.max_error(), 1e300};
   errors.insert(errors.end(), o.errors.begin(), o.errors.end());
   std::sort(errors.begin(), errors.end());
   errors.erase(std::unique(errors.begin(), errors.end()), errors.end());
@@ -219,10 +221,11 @@ PipelineResult run_pipeline(const pm::Heightfield& hf, const std::string& label,
   }
   check_hierarchy(p, label);
 
-  std::printf("  %-28s %4d x %-4d build %6.1f ms, %7zu collapses, max error %-10.6g, E=0: %zu tris, "
-              "base: %zu tris, %zu bytes\n",
-              label.c_str(), hf.width(), hf.height(), build_ms, p.vsplit_count(), p.max_error(),
-              r.meshes.front().second.triangles.size(), r.meshes.back().second.triangles.size(), bytes.size());
+  std::printf(
+      "  %-28s %4d x %-4d build %6.1f ms, %7zu collapses, max error %-10.6g, E=0: %zu tris, "
+      "base: %zu tris, %zu bytes\n",
+      label.c_str(), hf.width(), hf.height(), build_ms, p.vsplit_count(), p.max_error(),
+      r.meshes.front().second.triangles.size(), r.meshes.back().second.triangles.size(), bytes.size());
   return r;
 }
 
@@ -344,7 +347,8 @@ TEST(StressShapes, VerticalCliffs) {
   auto step_x = [](int c, int) { return c < 24 ? 0.0 : 1000.0; };
   auto step_diag = [](int c, int r) { return c + r < 40 ? 3.0 : 503.0; };
   auto step_y = [](int, int r) { return r < 11 ? -50.0 : 2500.0; };
-  for (const auto& [name, f] : {std::pair{"cliff_x", +step_x}, {"cliff_diag", +step_diag}, {"cliff_y", +step_y}}) {
+  for (const auto& [name, f] :
+       {std::pair{"cliff_x", +step_x}, {"cliff_diag", +step_diag}, {"cliff_y", +step_y}}) {
     pm::Heightfield hf = make(48, 36, f, name);
     hf.transform = pm::GridTransform::north_up(500000.0, 5000000.0, 1.0, 1.0);
     const PipelineResult r = run_pipeline(hf, name);
@@ -362,10 +366,14 @@ TEST(StressShapes, SawtoothCheckerboardAndWhiteNoise) {
   for (double& v : noise.samples()) v = u(rng);
   noise.source = "white noise";
   const std::vector<std::pair<std::string, pm::Heightfield>> cases = {
-      {"sawtooth_x", make(41, 29, [](int c, int) { return (c % 2) * 50.0; }, "sawtooth")},
-      {"sawtooth_y", make(41, 29, [](int, int r) { return (r % 2) * 50.0; }, "sawtooth")},
-      {"sawtooth_ramp", make(41, 29, [](int c, int r) { return (c % 4) * 10.0 + r; }, "sawtooth ramp")},
-      {"checkerboard", make(41, 29, [](int c, int r) { return ((c + r) % 2) * 100.0; }, "checkerboard")},
+      {"sawtooth_x", make(
+                         41, 29, [](int c, int) { return (c % 2) * 50.0; }, "sawtooth")},
+      {"sawtooth_y", make(
+                         41, 29, [](int, int r) { return (r % 2) * 50.0; }, "sawtooth")},
+      {"sawtooth_ramp", make(
+                            41, 29, [](int c, int r) { return (c % 4) * 10.0 + r; }, "sawtooth ramp")},
+      {"checkerboard", make(
+                           41, 29, [](int c, int r) { return ((c + r) % 2) * 100.0; }, "checkerboard")},
       {"white_noise", noise},
   };
   for (const auto& [name, hf] : cases) {
@@ -408,20 +416,25 @@ TEST(StressShapes, TinyReliefAtHighAltitude) {
 // Grid sizes
 
 TEST(StressSizes, SmallestAndThinGrids) {
-  for (const auto& [W, H] : std::vector<std::pair<int, int>>{{2, 2}, {2, 3}, {3, 2}, {2, 17}, {17, 2}, {3, 3}}) {
+  for (const auto& [W, H] :
+       std::vector<std::pair<int, int>>{{2, 2}, {2, 3}, {3, 2}, {2, 17}, {17, 2}, {3, 3}}) {
     const std::string label = "thin_" + std::to_string(W) + "x" + std::to_string(H);
-    pm::Heightfield hf = make(W, H, [](int c, int r) { return double((c * 7 + r * 13) % 5) * 3.5; }, label);
+    pm::Heightfield hf = make(
+        W, H, [](int c, int r) { return double((c * 7 + r * 13) % 5) * 3.5; }, label);
     run_pipeline(hf, label);
   }
   // The 2 x 2 saddle: no vertex can collapse (all are corners).
-  const PipelineResult r = run_pipeline(make(2, 2, [](int c, int r) { return (c + r) % 2 ? 100.0 : 0.0; }, "saddle"),
-                                        "saddle_2x2");
+  const PipelineResult r =
+      run_pipeline(make(
+                       2, 2, [](int c, int r) { return (c + r) % 2 ? 100.0 : 0.0; }, "saddle"),
+                   "saddle_2x2");
   EXPECT_EQ(r.pm.vsplit_count(), 0u);
   EXPECT_EQ(r.meshes.back().second.triangles.size(), 2u);
 }
 
 TEST(StressSizes, PrimeSizes) {
-  for (const auto& [W, H] : std::vector<std::pair<int, int>>{{127, 131}, {257, 3}, {3, 257}, {2, 257}, {257, 2}}) {
+  for (const auto& [W, H] :
+       std::vector<std::pair<int, int>>{{127, 131}, {257, 3}, {3, 257}, {2, 257}, {257, 2}}) {
     const std::string label = "prime_" + std::to_string(W) + "x" + std::to_string(H);
     run_pipeline(fractal(W, H, 31), label);
   }
@@ -436,7 +449,8 @@ TEST(StressSizes, GridsNarrowerThanTwoSamplesAreAClearError) {
       ADD_FAILURE() << W << " x " << H << " built";
     } catch (const std::invalid_argument& e) {
       const std::string what = e.what();
-      EXPECT_NE(what.find("grid is " + std::to_string(W) + " x " + std::to_string(H)), std::string::npos) << what;
+      EXPECT_NE(what.find("grid is " + std::to_string(W) + " x " + std::to_string(H)), std::string::npos)
+          << what;
       EXPECT_NE(what.find("at least 2 x 2"), std::string::npos) << what;
     }
   }
@@ -457,8 +471,8 @@ TEST(StressNonFinite, BuilderRejectsNaNAndInfNamingTheSampleAndSource) {
   for (int c = 0; c < W; ++c) row.push_back(std::size_t(3 * W + c));
   for (std::size_t i = 0; i < std::size_t(W * H); ++i) all.push_back(i);
   const std::vector<Case> cases = {
-      {"one NaN", {31}, kNaN}, {"one +inf", {0}, kInf},     {"one -inf", {62}, -kInf},
-      {"NaN row", row, kNaN},  {"inf row", row, kInf},     {"all NaN", all, kNaN},
+      {"one NaN", {31}, kNaN}, {"one +inf", {0}, kInf}, {"one -inf", {62}, -kInf},
+      {"NaN row", row, kNaN},  {"inf row", row, kInf},  {"all NaN", all, kNaN},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
@@ -509,7 +523,8 @@ TEST(StressNonFinite, MaskedNonFiniteSamplesAreIgnored) {
   // A void left as NaN/inf under a mask is not terrain: the builder must not read it.
   pm::Heightfield hf = fractal(17, 13, 8, 40.0);
   std::vector<std::uint8_t> mask(hf.size(), 1);
-  for (const auto& [i, v] : std::vector<std::pair<std::size_t, double>>{{40, kNaN}, {41, kInf}, {100, -kInf}}) {
+  for (const auto& [i, v] :
+       std::vector<std::pair<std::size_t, double>>{{40, kNaN}, {41, kInf}, {100, -kInf}}) {
     mask[i] = 0;
     hf[i] = v;
   }
@@ -554,7 +569,8 @@ void write_float_tiff(const fs::path& path, int W, int H, const std::vector<doub
   double gt[6] = {500000.0, 10.0, 0.0, 5000000.0 + 10.0 * H, 0.0, -10.0};
   ASSERT_EQ(ds->SetGeoTransform(gt), CE_None);
   std::vector<double> copy = z;
-  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, W, H, copy.data(), W, H, GDT_Float64, 0, 0), CE_None);
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, W, H, copy.data(), W, H, GDT_Float64, 0, 0),
+            CE_None);
 }
 
 /// An Esri ASCII grid (UTM-sized corner, 1 cm cells); non-finite values become NODATA, or with

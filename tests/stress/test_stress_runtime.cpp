@@ -88,22 +88,27 @@ pm::Heightfield voids_filled() {
 
 Terrain terrain(const std::string& name) {
   if (name == "flat") return {name, grid(49, 49, [](int, int) { return 120.0; })};
-  if (name == "spike") return {name, grid(49, 49, [](int c, int r) { return c == 20 && r == 27 ? 10120.0 : 120.0; })};
+  if (name == "spike")
+    return {name, grid(49, 49, [](int c, int r) { return c == 20 && r == 27 ? 10120.0 : 120.0; })};
   if (name == "cliff") return {name, grid(49, 49, [](int c, int) { return c < 24 ? 0.0 : 1000.0; })};
   if (name == "sawtooth") return {name, grid(49, 33, [](int c, int) { return (c % 2) * 50.0; })};
   if (name == "checkerboard") return {name, grid(33, 49, [](int c, int r) { return ((c + r) % 2) * 100.0; })};
   if (name == "terraces")
     return {name, grid(49, 49, [](int c, int r) {
-              return 1000.0 - 20.0 * std::floor(std::sqrt(double((c - 24) * (c - 24) + (r - 24) * (r - 24))) / 4.0);
+              return 1000.0 -
+                     20.0 * std::floor(std::sqrt(double((c - 24) * (c - 24) + (r - 24) * (r - 24))) / 4.0);
             })};
   if (name == "voids_filled") return {name, voids_filled()};
   if (name == "tiny_2x2") return {name, grid(2, 2, [](int c, int r) { return (c + r) % 2 ? 100.0 : 0.0; })};
-  if (name == "thin_2x41") return {name, grid(2, 41, [](int c, int r) { return 10.0 * ((c * 7 + r * 13) % 5); })};
-  if (name == "thin_41x2") return {name, grid(41, 2, [](int c, int r) { return 10.0 * ((c * 7 + r * 13) % 5); })};
+  if (name == "thin_2x41")
+    return {name, grid(2, 41, [](int c, int r) { return 10.0 * ((c * 7 + r * 13) % 5); })};
+  if (name == "thin_41x2")
+    return {name, grid(41, 2, [](int c, int r) { return 10.0 * ((c * 7 + r * 13) % 5); })};
   Terrain t{name, fractal(49, 49, 17, 150.0)};
   if (name == "utm_1cm") t.hf.transform = pm::GridTransform::north_up(500000.0, 5000000.0, 0.01, 0.01);
   if (name == "utm_1km") t.hf.transform = pm::GridTransform::north_up(500000.0, 5000000.0, 1000.0, 1000.0);
-  if (name == "degrees") t.hf.transform = pm::GridTransform::north_up(-72.0, 45.0, 1.0 / 3600.0, 1.0 / 3600.0);
+  if (name == "degrees")
+    t.hf.transform = pm::GridTransform::north_up(-72.0, 45.0, 1.0 / 3600.0, 1.0 / 3600.0);
   if (name == "prime_53x47") t = {name, fractal(53, 47, 31, 400.0)};
   if (name == "prime_37x59") t = {name, fractal(37, 59, 37, 400.0), 9};
   if (name == "prime_53x47" || name == "prime_37x59")
@@ -123,7 +128,8 @@ struct Extent {
 
 Extent extent_of(const pm::Heightfield& hf) {
   Extent e{1e300, -1e300, 1e300, -1e300, 1e300, -1e300};
-  for (const auto& [c, r] : {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
+  for (const auto& [c, r] :
+       {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
     const auto [x, y] = hf.transform.to_world(c, r);
     e.x0 = std::min(e.x0, x), e.x1 = std::max(e.x1, x), e.y0 = std::min(e.y0, y), e.y1 = std::max(e.y1, y);
   }
@@ -217,7 +223,8 @@ bool check_frame(const tb::TerrainRuntime& rt, const pm::Heightfield& hf, const 
   const tb::DrawnMesh& m = rt.drawn_mesh();
   for (const pm::Vec3& p : m.positions)
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-      ADD_FAILURE() << label << ": drawn position (" << p.x << ", " << p.y << ", " << p.z << ") is not finite";
+      ADD_FAILURE() << label << ": drawn position (" << p.x << ", " << p.y << ", " << p.z
+                    << ") is not finite";
       return false;
     }
   if (!std::isfinite(st.bound_px) || st.bound_px < 0) {
@@ -241,8 +248,8 @@ bool check_frame(const tb::TerrainRuntime& rt, const pm::Heightfield& hf, const 
 
 /// Flies `shots` (each held `hold` frames so that loads arrive and the selection settles) with
 /// one runtime; tau is changed live where a shot asks for another.
-void fly(const std::string& db, const pm::Heightfield& hf, const std::vector<Shot>& shots, int hold, double morph_s,
-         const std::string& label, Counts& n) {
+void fly(const std::string& db, const pm::Heightfield& hf, const std::vector<Shot>& shots, int hold,
+         double morph_s, const std::string& label, Counts& n) {
   tb::RuntimeOptions opt;
   opt.morph_seconds = morph_s;
   std::unique_ptr<tb::TerrainRuntime> rt;
@@ -301,19 +308,22 @@ void run_terrain(const std::string& name) {
   fly(db, tr.hf, flight, 1, /*morph_s=*/0.3, name, n);
   const std::vector<Shot> script = hostile_cameras(tr.hf);
   fly(db, tr.hf, script, 6, /*morph_s=*/0.0, name, n);
-  std::printf("  %zu frames checked (%zu with PM blocks, %zu stitched, %zu with moving vertices; worst measured/bound "
-              "%.3f), %zu clear errors, %.0f ms; cameras:",
-              n.frames, n.pm_frames, n.stitched, n.moving, n.worst_ratio, n.errors,
-              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  std::printf(
+      "  %zu frames checked (%zu with PM blocks, %zu stitched, %zu with moving vertices; worst "
+      "measured/bound "
+      "%.3f), %zu clear errors, %.0f ms; cameras:",
+      n.frames, n.pm_frames, n.stitched, n.moving, n.worst_ratio, n.errors,
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   for (const Shot& s : script) std::printf(" %s", s.name.c_str());
   std::printf("\n");
   // A plain, one spike or one cliff (each caught by a block's 64-point TIN stand-in) and grids 2
   // samples wide are drawn within tau by coarse nodes and stand-ins alone; every other terrain
   // needs PM blocks, so the checks saw them.
-  const bool coarse_suffice = name == "flat" || name == "spike" || name == "cliff" || tr.hf.width() < 3 ||
-                              tr.hf.height() < 3;
+  const bool coarse_suffice =
+      name == "flat" || name == "spike" || name == "cliff" || tr.hf.width() < 3 || tr.hf.height() < 3;
   if (!coarse_suffice) {
-    EXPECT_GT(n.pm_frames, 0u) << "no PM block was ever drawn: the checks saw only coarse nodes and stand-ins";
+    EXPECT_GT(n.pm_frames, 0u)
+        << "no PM block was ever drawn: the checks saw only coarse nodes and stand-ins";
   }
 }
 
@@ -323,8 +333,8 @@ TEST_P(StressRuntime, EveryFrameWatertightCoveredFiniteAndWithinItsBound) { run_
 
 INSTANTIATE_TEST_SUITE_P(Hostile, StressRuntime,
                          ::testing::Values("flat", "spike", "cliff", "sawtooth", "checkerboard", "terraces",
-                                           "voids_filled", "tiny_2x2", "thin_2x41", "thin_41x2", "utm_1cm", "utm_1km",
-                                           "degrees", "prime_53x47", "prime_37x59"),
+                                           "voids_filled", "tiny_2x2", "thin_2x41", "thin_41x2", "utm_1cm",
+                                           "utm_1km", "degrees", "prime_53x47", "prime_37x59"),
                          [](const ::testing::TestParamInfo<std::string>& i) { return i.param; });
 
 }  // namespace

@@ -69,8 +69,9 @@ inline BlockedTerrain block_terrain(pm::Heightfield hf, int block_size,
   for (blocks::BlockKey k : layout.keys()) {
     const pm::ProgressiveMesh pm = blocks::build_block_pm(t.hf, layout.rect(k));
     t.blobs[k] = pm::encode_pm(pm);
-    const blocks::StandinOptions o =
-        standins.empty() ? blocks::StandinOptions{} : standins[std::size_t(k.col + 2 * k.row) % standins.size()];
+    const blocks::StandinOptions o = standins.empty()
+                                         ? blocks::StandinOptions{}
+                                         : standins[std::size_t(k.col + 2 * k.row) % standins.size()];
     t.summaries[t.grid.index(k)] = blocks::summarize_block(pm, k, o);
   }
   return t;

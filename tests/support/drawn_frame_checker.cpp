@@ -12,10 +12,11 @@ namespace terralod::test {
 
 std::string FrameCheck::describe() const {
   std::ostringstream s;
-  s << "max error " << max_error_px << " px (" << max_error_m << " m at col " << worst_col << ", row " << worst_row
-    << "), samples in view " << samples_in_view << ", uncovered " << uncovered_in_view << ", triangles " << triangles
-    << ", flipped " << flipped << ", doubled edges " << doubled_edges << ", T-junctions " << t_junctions
-    << ", split vertices " << split_vertices << ", holes in view " << holes_in_view;
+  s << "max error " << max_error_px << " px (" << max_error_m << " m at col " << worst_col << ", row "
+    << worst_row << "), samples in view " << samples_in_view << ", uncovered " << uncovered_in_view
+    << ", triangles " << triangles << ", flipped " << flipped << ", doubled edges " << doubled_edges
+    << ", T-junctions " << t_junctions << ", split vertices " << split_vertices << ", holes in view "
+    << holes_in_view;
   return s.str();
 }
 
@@ -58,8 +59,10 @@ FrameCheck check_drawn_frame(const pm::Heightfield& hf, const DrawnFrame& f, con
   std::map<std::pair<std::uint64_t, std::uint64_t>, int> edges;
   for (const auto& t : f.triangles) {
     std::int64_t p[3][2];
-    for (int k = 0; k < 3; ++k) p[k][0] = std::int64_t(f.samples[t[k]] % W), p[k][1] = std::int64_t(f.samples[t[k]] / W);
-    const std::int64_t o = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
+    for (int k = 0; k < 3; ++k)
+      p[k][0] = std::int64_t(f.samples[t[k]] % W), p[k][1] = std::int64_t(f.samples[t[k]] / W);
+    const std::int64_t o =
+        (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
     if (o <= 0) ++c.flipped;
     for (int e = 0; e < 3; ++e) ++edges[{f.samples[t[e]], f.samples[t[(e + 1) % 3]]}];
   }

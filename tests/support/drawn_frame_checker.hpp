@@ -45,15 +45,18 @@ struct DrawnFrame {
 };
 
 struct FrameCheck {
-  double max_error_px = 0;           ///< largest projected error at a sample in view
-  double max_error_m = 0;            ///< its vertical length
+  double max_error_px = 0;  ///< largest projected error at a sample in view
+  double max_error_m = 0;   ///< its vertical length
   int worst_col = -1, worst_row = -1;
-  std::size_t samples_in_view = 0;   ///< samples whose true point is inside the frustum
-  std::size_t uncovered_in_view = 0; ///< of those, under no triangle
+  std::size_t samples_in_view = 0;    ///< samples whose true point is inside the frustum
+  std::size_t uncovered_in_view = 0;  ///< of those, under no triangle
   std::size_t flipped = 0, doubled_edges = 0, t_junctions = 0, split_vertices = 0;
-  std::size_t holes_in_view = 0;     ///< boundary edges inside the terrain with an endpoint in view
+  std::size_t holes_in_view = 0;  ///< boundary edges inside the terrain with an endpoint in view
   std::size_t triangles = 0;
-  bool watertight() const { return flipped == 0 && doubled_edges == 0 && t_junctions == 0 && split_vertices == 0 && holes_in_view == 0; }
+  bool watertight() const {
+    return flipped == 0 && doubled_edges == 0 && t_junctions == 0 && split_vertices == 0 &&
+           holes_in_view == 0;
+  }
   std::string describe() const;
 };
 

@@ -18,15 +18,15 @@ namespace {
 constexpr std::size_t kBeyond = std::numeric_limits<std::size_t>::max();
 
 struct Frame {
-  std::size_t apex;         // position in the sequence of the cavity's starting vertex
-  std::size_t last;         // position of the most recent fan vertex, kBeyond = none yet
-  std::size_t end;          // position of the closing vertex, kBeyond = outside the cell
+  std::size_t apex;  // position in the sequence of the cavity's starting vertex
+  std::size_t last;  // position of the most recent fan vertex, kBeyond = none yet
+  std::size_t end;   // position of the closing vertex, kBeyond = outside the cell
 };
 
 }  // namespace
 
-CavityDecode decode_cavities(std::span<const std::uint32_t> seq, std::span<const std::uint32_t> conn, bool trace,
-                             std::span<const std::size_t> gaps) {
+CavityDecode decode_cavities(std::span<const std::uint32_t> seq, std::span<const std::uint32_t> conn,
+                             bool trace, std::span<const std::size_t> gaps) {
   CavityDecode out;
   const std::size_t n = conn.size();
   std::unordered_map<std::uint32_t, std::size_t> pos;
@@ -80,8 +80,10 @@ CavityDecode decode_cavities(std::span<const std::uint32_t> seq, std::span<const
       const std::uint32_t target = std::uint32_t((std::uint64_t(v) + c) % n);
       auto it = pos.find(target);
       opens = true;
-      if (it != pos.end() && it->second > p) end = it->second;
-      else opens_beyond = true;
+      if (it != pos.end() && it->second > p)
+        end = it->second;
+      else
+        opens_beyond = true;
     }
     // Lines 4-5 and 27-28: the convex hull.
     const bool hull = stack.empty() || (closable == 0 && (opens_beyond || p + 1 == seq.size()));

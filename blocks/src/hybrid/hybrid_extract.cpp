@@ -31,7 +31,8 @@ CellTessellation Extractor::tessellate(const HybridTerrain& h, int level, const 
   const LPoint corner[4] = {{x0, y0}, {x0 + cs, y0}, {x0 + cs, y0 + cs}, {x0, y0 + cs}};
   const std::uint32_t n = std::uint32_t(h.tb_.size());
   auto bad = [&](const std::string& why) {
-    return HybridError("hybrid encoding: level " + std::to_string(level) + " cell " + std::to_string(pc.cell) + ": " + why);
+    return HybridError("hybrid encoding: level " + std::to_string(level) + " cell " +
+                       std::to_string(pc.cell) + ": " + why);
   };
   CellTessellation out;
   std::vector<std::uint32_t> seq;
@@ -41,7 +42,8 @@ CellTessellation Extractor::tessellate(const HybridTerrain& h, int level, const 
     std::uint32_t t = s.A;
     if (!seq.empty() && seq.back() != t) gaps.push_back(seq.size() - 1);
     for (std::uint32_t q = 0; q < s.L; ++q, t = next_tb(h, t))
-      if (q > 0 || seq.empty() || seq.back() != t) seq.push_back(t);  // a touch vertex ends one section and starts the next
+      if (q > 0 || seq.empty() || seq.back() != t)
+        seq.push_back(t);  // a touch vertex ends one section and starts the next
     if (!s.closes) continue;
     if (s.C > 3 || s.I > 4) throw bad("corner code out of range");
     const CavityDecode d = decode_cavities(seq, h.conn_, false, gaps);
@@ -79,7 +81,8 @@ CellTessellation Extractor::tessellate(const HybridTerrain& h, int level, const 
     for (const auto& tri : ct) {
       std::array<CellRef, 3> r;
       for (int k = 0; k < 3; ++k)
-        r[k] = tri[k] < m ? CellRef{false, d.hull[tri[k]]} : CellRef{true, std::uint32_t((s.C + tri[k] - m) % 4)};
+        r[k] = tri[k] < m ? CellRef{false, d.hull[tri[k]]}
+                          : CellRef{true, std::uint32_t((s.C + tri[k] - m) % 4)};
       out.corner_tris.push_back(r);
     }
     out.hulls.push_back(d.hull);
@@ -93,7 +96,8 @@ CellTessellation Extractor::tessellate(const HybridTerrain& h, int level, const 
 
 std::vector<std::array<std::uint32_t, 3>> HybridTerrain::decoded_fill(int level, std::uint32_t cell) const {
   const LevelEncoding& enc = levels_.at(std::size_t(level));
-  auto it = std::lower_bound(enc.vc.begin(), enc.vc.end(), cell, [](const PcCell& p, std::uint32_t c) { return p.cell < c; });
+  auto it = std::lower_bound(enc.vc.begin(), enc.vc.end(), cell,
+                             [](const PcCell& p, std::uint32_t c) { return p.cell < c; });
   if (it == enc.vc.end() || it->cell != cell) return {};
   return Extractor::tessellate(*this, level, *it).fill;
 }
@@ -152,16 +156,19 @@ std::size_t split_t_junctions(const std::vector<LPoint>& lp, std::vector<std::ar
       }
       if (!line) continue;
       const bool up = lo < hi;
-      auto first = std::upper_bound(line->begin(), line->end(), std::make_pair(std::min(lo, hi), std::uint32_t(-1)));
+      auto first =
+          std::upper_bound(line->begin(), line->end(), std::make_pair(std::min(lo, hi), std::uint32_t(-1)));
       std::vector<std::uint32_t> mid;
-      for (auto it = first; it != line->end() && it->first < std::max(lo, hi); ++it) mid.push_back(it->second);
+      for (auto it = first; it != line->end() && it->first < std::max(lo, hi); ++it)
+        mid.push_back(it->second);
       if (!up) std::reverse(mid.begin(), mid.end());
       if (!mid.empty()) split = true;
       poly.insert(poly.end(), mid.begin(), mid.end());
     }
     if (!split) continue;
     std::vector<std::array<std::uint32_t, 3>> pieces;
-    if (!detail::ear_clip(lp, poly, pieces)) throw HybridError("hybrid extraction: a T-junction could not be removed");
+    if (!detail::ear_clip(lp, poly, pieces))
+      throw HybridError("hybrid extraction: a T-junction could not be removed");
     tris[ti] = pieces[0];
     for (std::size_t p = 1; p < pieces.size(); ++p) tris.push_back(pieces[p]);
     ++splits;
@@ -186,14 +193,16 @@ HybridMesh Extractor::extract(const HybridTerrain& h, const std::vector<int>& co
   auto& tris = mb.mesh.triangles;
   auto quad = [&](int level, std::uint32_t i, std::uint32_t j) {
     const std::int64_t cs = ks << level, x0 = std::int64_t(i) * cs, y0 = std::int64_t(j) * cs;
-    const std::uint32_t c0 = node(x0, y0), c1 = node(x0 + cs, y0), c2 = node(x0 + cs, y0 + cs), c3 = node(x0, y0 + cs);
+    const std::uint32_t c0 = node(x0, y0), c1 = node(x0 + cs, y0), c2 = node(x0 + cs, y0 + cs),
+                        c3 = node(x0, y0 + cs);
     tris.push_back({c0, c1, c2});
     tris.push_back({c0, c2, c3});
     mb.mesh.grid_triangles += 2;
   };
   auto find_pc = [&](int level, std::uint32_t cell) -> const PcCell& {
     const auto& vc = h.levels_[std::size_t(level)].vc;
-    auto it = std::lower_bound(vc.begin(), vc.end(), cell, [](const PcCell& p, std::uint32_t c) { return p.cell < c; });
+    auto it = std::lower_bound(vc.begin(), vc.end(), cell,
+                               [](const PcCell& p, std::uint32_t c) { return p.cell < c; });
     if (it == vc.end() || it->cell != cell)
       throw HybridError("hybrid encoding: level " + std::to_string(level) + " cell " + std::to_string(cell) +
                         " is PC in the GC list but has no VC entry");
@@ -205,7 +214,8 @@ HybridMesh Extractor::extract(const HybridTerrain& h, const std::vector<int>& co
     const std::int64_t x0 = std::int64_t(pc.cell % std::uint32_t(enc.cells_x)) * cs;
     const std::int64_t y0 = std::int64_t(pc.cell / std::uint32_t(enc.cells_x)) * cs;
     const CellTessellation t = tessellate(h, level, pc);
-    for (const auto& f : t.fill) tris.push_back({mb.tin_out[h.tb_[f[0]]], mb.tin_out[h.tb_[f[1]]], mb.tin_out[h.tb_[f[2]]]});
+    for (const auto& f : t.fill)
+      tris.push_back({mb.tin_out[h.tb_[f[0]]], mb.tin_out[h.tb_[f[1]]], mb.tin_out[h.tb_[f[2]]]});
     mb.mesh.convexification_triangles += t.fill.size();
     for (const auto& c : t.corner_tris) {
       std::array<std::uint32_t, 3> tri;
@@ -240,15 +250,18 @@ HybridMesh Extractor::extract(const HybridTerrain& h, const std::vector<int>& co
       const LevelEncoding& dn = h.levels_[std::size_t(ql - 1)];
       const std::uint32_t pi = qc % std::uint32_t(up.cells_x), pj = qc / std::uint32_t(up.cells_x);
       for (std::uint32_t q = 0; q < 4; ++q) {
-        if (at >= e) throw HybridError("hybrid encoding: sub-cell tree of level " + std::to_string(level) + " cell " +
-                                       std::to_string(cell) + " is truncated");
+        if (at >= e)
+          throw HybridError("hybrid encoding: sub-cell tree of level " + std::to_string(level) + " cell " +
+                            std::to_string(cell) + " is truncated");
         const CellClass code = CellClass(enc.tree[at++]);
         const std::uint32_t ci = 2 * pi + (q & 1), cj = 2 * pj + (q >> 1);
         if (code == CellClass::NC) {
           quad(ql - 1, ci, cj);
         } else if (code == CellClass::PC) {
-          if (ql - 1 == 0) triangles_pc(0, find_pc(0, cj * std::uint32_t(dn.cells_x) + ci));
-          else queue.push_back({ql - 1, cj * std::uint32_t(dn.cells_x) + ci});
+          if (ql - 1 == 0)
+            triangles_pc(0, find_pc(0, cj * std::uint32_t(dn.cells_x) + ci));
+          else
+            queue.push_back({ql - 1, cj * std::uint32_t(dn.cells_x) + ci});
         }
       }
     }
@@ -294,15 +307,19 @@ StorageReport HybridTerrain::storage_report() const {
     lr.level = l;
     lr.cells = int(enc.gc.size());
     for (CellClass c : enc.gc) {
-      if (c == CellClass::NC) ++lr.nc, lr.gc_bits += 1;
-      else if (c == CellClass::CC) ++lr.cc, lr.gc_bits += 2;
-      else ++lr.pc, lr.gc_bits += 2;
+      if (c == CellClass::NC)
+        ++lr.nc, lr.gc_bits += 1;
+      else if (c == CellClass::CC)
+        ++lr.cc, lr.gc_bits += 2;
+      else
+        ++lr.pc, lr.gc_bits += 2;
     }
     lr.pc_percent = lr.cells ? 100.0 * lr.pc / lr.cells : 0.0;
     for (const PcCell& pc : enc.vc) {
       lr.sections += pc.sections.size();
       for (const SectionCode& s : pc.sections) lr.l_max = std::max(lr.l_max, s.L);
-      lr.max_connectivity = std::max(lr.max_connectivity, Extractor::tessellate(*this, l, pc).max_connectivity);
+      lr.max_connectivity =
+          std::max(lr.max_connectivity, Extractor::tessellate(*this, l, pc).max_connectivity);
     }
     lr.bits_per_section = r.address_bits + int(std::bit_width(lr.l_max)) + 2 + 2;
     lr.vc_bits = std::uint64_t(lr.bits_per_section) * lr.sections;

@@ -65,7 +65,8 @@ inline bool ear_clip(const std::vector<LPoint>& pts, std::vector<std::uint32_t> 
         if (v == a || v == b || v == c) continue;
         const LPoint& p = pts[v];
         if (p == pts[a] || p == pts[b] || p == pts[c]) continue;
-        if (orient(pts[a], pts[b], p) >= 0 && orient(pts[b], pts[c], p) >= 0 && orient(pts[c], pts[a], p) >= 0) {
+        if (orient(pts[a], pts[b], p) >= 0 && orient(pts[b], pts[c], p) >= 0 &&
+            orient(pts[c], pts[a], p) >= 0) {
           empty = false;
           break;
         }

@@ -18,12 +18,12 @@ struct CellRef {
 };
 
 struct CellTessellation {
-  std::vector<std::array<std::uint32_t, 3>> fill;   ///< TB indices, CCW
-  std::vector<std::array<CellRef, 3>> corner_tris;  ///< CCW
-  std::vector<std::vector<std::uint32_t>> hulls;    ///< per cycle, TB indices
-  std::vector<double> uncovered_area2;              ///< per cycle, twice the uncovered area (lattice units)
+  std::vector<std::array<std::uint32_t, 3>> fill;     ///< TB indices, CCW
+  std::vector<std::array<CellRef, 3>> corner_tris;    ///< CCW
+  std::vector<std::vector<std::uint32_t>> hulls;      ///< per cycle, TB indices
+  std::vector<double> uncovered_area2;                ///< per cycle, twice the uncovered area (lattice units)
   std::vector<std::vector<std::uint32_t>> sequences;  ///< per cycle, TB indices
-  std::uint32_t max_connectivity = 0;               ///< largest cavity closed inside the cell
+  std::uint32_t max_connectivity = 0;                 ///< largest cavity closed inside the cell
 };
 
 struct Extractor {
@@ -47,7 +47,7 @@ struct Extractor {
 /// a grid line (x or y a multiple of `line_step` lattice units) at every point of `lp` strictly
 /// inside that edge (ear clipping); returns the number of triangles split. HybridError if a
 /// split polygon cannot be triangulated.
-std::size_t split_t_junctions(const std::vector<detail::LPoint>& lp, std::vector<std::array<std::uint32_t, 3>>& tris,
-                              std::int64_t line_step);
+std::size_t split_t_junctions(const std::vector<detail::LPoint>& lp,
+                              std::vector<std::array<std::uint32_t, 3>>& tris, std::int64_t line_step);
 
 }  // namespace terralod::blocks::hybrid

@@ -18,9 +18,10 @@
 //         8+.. u64 number of codes, sub-cell tree bitstream (same code), then (PC cells + 1) x u32
 //              offsets (in codes) of each PC cell's tree
 //   end-4 4    u32 CRC-32 (zlib, polynomial 0xEDB88320) of every byte before it
+#include <zlib.h>
+
 #include <cstring>
 #include <string>
-#include <zlib.h>
 
 #include "hybrid_internal.hpp"
 
@@ -48,8 +49,10 @@ struct Writer {
       if (++nbits == 8) b.push_back(cur), cur = 0, nbits = 0;
     };
     for (CellClass k : c) {
-      if (k == CellClass::NC) bit(0);
-      else bit(1), bit(k == CellClass::PC ? 1 : 0);
+      if (k == CellClass::NC)
+        bit(0);
+      else
+        bit(1), bit(k == CellClass::PC ? 1 : 0);
     }
     if (nbits) b.push_back(cur);
   }
@@ -70,7 +73,8 @@ struct Reader {
   }
   std::size_t count(std::size_t item_size) {
     const std::uint64_t n = get<std::uint64_t>();
-    if (item_size && n > (b.size() - at) / item_size) fail("count " + std::to_string(n) + " exceeds the blob");
+    if (item_size && n > (b.size() - at) / item_size)
+      fail("count " + std::to_string(n) + " exceeds the blob");
     return std::size_t(n);
   }
   std::vector<CellClass> codes() {
@@ -86,8 +90,10 @@ struct Reader {
       return v;
     };
     for (std::uint64_t i = 0; i < n; ++i) {
-      if (bit() == 0) out.push_back(CellClass::NC);
-      else out.push_back(bit() ? CellClass::PC : CellClass::CC);
+      if (bit() == 0)
+        out.push_back(CellClass::NC);
+      else
+        out.push_back(bit() ? CellClass::PC : CellClass::CC);
     }
     at += (bitpos + 7) / 8;
     return out;
@@ -125,7 +131,8 @@ std::vector<std::uint8_t> HybridTerrain::encode() const {
     for (const PcCell& pc : e.vc) {
       w.put(pc.cell);
       w.put<std::uint32_t>(std::uint32_t(pc.sections.size()));
-      for (const SectionCode& s : pc.sections) w.put(s.A), w.put(s.L), w.put(s.C), w.put(s.I), w.put<std::uint8_t>(s.closes);
+      for (const SectionCode& s : pc.sections)
+        w.put(s.A), w.put(s.L), w.put(s.C), w.put(s.I), w.put<std::uint8_t>(s.closes);
     }
     std::vector<CellClass> tree;
     for (std::uint8_t c : e.tree) tree.push_back(CellClass(c));
@@ -161,7 +168,8 @@ HybridTerrain HybridTerrain::decode(std::span<const std::uint8_t> blob, const st
   if (h.grid_z_.size() != std::size_t(h.domain_w_ / h.step_ + 1) * std::size_t(h.domain_h_ / h.step_ + 1))
     r.fail("grid size does not match the domain");
   h.vertices_.resize(r.count(24));
-  for (Vertex& v : h.vertices_) v.x = r.get<std::int64_t>(), v.y = r.get<std::int64_t>(), v.z = r.get<double>();
+  for (Vertex& v : h.vertices_)
+    v.x = r.get<std::int64_t>(), v.y = r.get<std::int64_t>(), v.z = r.get<double>();
   h.tin_.resize(r.count(12));
   for (auto& t : h.tin_)
     for (auto& v : t) {
@@ -193,7 +201,8 @@ HybridTerrain HybridTerrain::decode(std::span<const std::uint8_t> blob, const st
         std::int64_t(e.cells_y) * e.cell_size != h.domain_h_)
       r.fail("level " + std::to_string(l) + " does not match the domain");
     e.gc = r.codes();
-    if (e.gc.size() != std::size_t(e.cells_x) * e.cells_y) r.fail("GC list of level " + std::to_string(l) + " has a wrong size");
+    if (e.gc.size() != std::size_t(e.cells_x) * e.cells_y)
+      r.fail("GC list of level " + std::to_string(l) + " has a wrong size");
     e.vc.resize(r.count(8));
     std::uint32_t prev = 0;
     for (PcCell& pc : e.vc) {
@@ -209,7 +218,8 @@ HybridTerrain HybridTerrain::decode(std::span<const std::uint8_t> blob, const st
         s.C = r.get<std::uint8_t>();
         s.I = r.get<std::uint8_t>();
         s.closes = r.get<std::uint8_t>() != 0;
-        if (s.A >= h.tb_.size() || s.L < 2 || s.L > h.tb_.size() + 1 || s.C > 3 || s.I > 4) r.fail("section out of range");
+        if (s.A >= h.tb_.size() || s.L < 2 || s.L > h.tb_.size() + 1 || s.C > 3 || s.I > 4)
+          r.fail("section out of range");
       }
       if (!pc.sections.back().closes) r.fail("last section of a cell does not close its cycle");
     }
@@ -220,7 +230,8 @@ HybridTerrain HybridTerrain::decode(std::span<const std::uint8_t> blob, const st
     e.tree_offset.resize(e.vc.size() + 1);
     for (auto& o : e.tree_offset) {
       o = r.get<std::uint32_t>();
-      if (o > e.tree.size() || (&o != e.tree_offset.data() && o < *(&o - 1))) r.fail("bad sub-cell tree offsets");
+      if (o > e.tree.size() || (&o != e.tree_offset.data() && o < *(&o - 1)))
+        r.fail("bad sub-cell tree offsets");
     }
     h.levels_.push_back(std::move(e));
   }

@@ -3,6 +3,8 @@
 // index per TIN-boundary vertex plus the VC list, and the sub-cell trees (Boo, Amor, Doellner,
 // "Unified hybrid terrain representation based on local convexifications", sections 2-5 and the
 // appendix). Memory: O(TB vertices) per level while building, plus one byte per cell per level.
+#include "terralod/blocks/hybrid/hybrid_terrain.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cassert>
@@ -16,7 +18,6 @@
 
 #include "hybrid_geometry.hpp"
 #include "hybrid_internal.hpp"
-#include "terralod/blocks/hybrid/hybrid_terrain.hpp"
 
 namespace terralod::blocks::hybrid {
 
@@ -35,9 +36,11 @@ std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) { return (std::uint64_t
 
 }  // namespace
 
-TinMesh tin_from_world(const pm::TriangleMeshData& world, const pm::GridTransform& t, const std::string& source) {
+TinMesh tin_from_world(const pm::TriangleMeshData& world, const pm::GridTransform& t,
+                       const std::string& source) {
   const double det = t.determinant();
-  if (!(std::abs(det) > 0) || !std::isfinite(det)) throw HybridError(source + ": grid transform is not invertible");
+  if (!(std::abs(det) > 0) || !std::isfinite(det))
+    throw HybridError(source + ": grid transform is not invertible");
   TinMesh m;
   m.source = source;
   m.triangles = world.triangles;
@@ -94,7 +97,8 @@ struct Builder {
   LPoint P(std::uint32_t vertex) const { return {h.vertices_[vertex].x, h.vertices_[vertex].y}; }
   LPoint TP(std::uint32_t t) const { return P(h.tb_[t]); }
   std::uint32_t ring_of(std::uint32_t t) const {
-    return std::uint32_t(std::upper_bound(h.ring_begin_.begin(), h.ring_begin_.end(), t) - h.ring_begin_.begin() - 1);
+    return std::uint32_t(std::upper_bound(h.ring_begin_.begin(), h.ring_begin_.end(), t) -
+                         h.ring_begin_.begin() - 1);
   }
   std::uint32_t next_tb(std::uint32_t t) const {
     const std::uint32_t r = ring_of(t);
@@ -115,17 +119,20 @@ struct Builder {
         throw HybridError(src + ": TIN vertex " + std::to_string(i) + " is not finite");
       HybridTerrain::Vertex v{std::llround(p[0] * kScale), std::llround(p[1] * kScale), p[2]};
       if (v.x < 0 || v.y < 0 || v.x > W || v.y > H)
-        throw HybridError(src + ": TIN vertex " + std::to_string(i) + " at (col,row) (" + std::to_string(p[0]) + "," +
-                          std::to_string(p[1]) + ") lies outside the grid domain [0," + std::to_string(h.domain_w_) +
-                          "]x[0," + std::to_string(h.domain_h_) + "]");
+        throw HybridError(src + ": TIN vertex " + std::to_string(i) + " at (col,row) (" +
+                          std::to_string(p[0]) + "," + std::to_string(p[1]) +
+                          ") lies outside the grid domain [0," + std::to_string(h.domain_w_) + "]x[0," +
+                          std::to_string(h.domain_h_) + "]");
       h.vertices_.push_back(v);
     }
     for (std::size_t i = 0; i < tin.triangles.size(); ++i) {
       auto t = tin.triangles[i];
       for (auto v : t)
-        if (v >= tin.points.size()) throw HybridError(src + ": triangle " + std::to_string(i) + " has a bad index");
+        if (v >= tin.points.size())
+          throw HybridError(src + ": triangle " + std::to_string(i) + " has a bad index");
       const auto o = orient(P(t[0]), P(t[1]), P(t[2]));
-      if (o == 0) throw HybridError(src + ": TIN triangle " + std::to_string(i) + " is degenerate in plan view");
+      if (o == 0)
+        throw HybridError(src + ": TIN triangle " + std::to_string(i) + " is degenerate in plan view");
       if (o < 0) std::swap(t[1], t[2]);
       h.tin_.push_back(t);
     }
@@ -161,7 +168,8 @@ struct Builder {
         done[v] = true;
         ring.push_back(v);
         auto it = next.find(v);
-        if (it == next.end()) throw HybridError(src + ": the TIN boundary is not closed at vertex " + std::to_string(v));
+        if (it == next.end())
+          throw HybridError(src + ": the TIN boundary is not closed at vertex " + std::to_string(v));
         v = it->second;
       } while (v != s && ring.size() <= next.size());
       rings.push_back(std::move(ring));
@@ -217,7 +225,8 @@ struct Builder {
       }
       if (start == n)
         throw HybridError(src + ": a TIN boundary ring lies inside one coarsest grid cell (" +
-                          std::to_string(h.step_ << (L - 1)) + " samples); use fewer levels or a smaller grid step");
+                          std::to_string(h.step_ << (L - 1)) +
+                          " samples); use fewer levels or a smaller grid step");
       std::rotate(ring.begin(), ring.begin() + std::ptrdiff_t(start), ring.end());
     }
     h.ring_begin_.push_back(0);
@@ -261,11 +270,11 @@ struct Builder {
     int next = -1;
   };
   struct Cycle {
-    std::vector<std::uint32_t> seq;  // TB indices
-    std::vector<int> sections;       // indices into the cell's sections, cycle order
-    std::vector<LPoint> corners;     // the uncovered corners after the last section, positive order
-    std::vector<std::uint32_t> hull; // direct hull chain (TB indices)
-    std::vector<std::size_t> gaps;   // positions of section exits followed by a border gap
+    std::vector<std::uint32_t> seq;   // TB indices
+    std::vector<int> sections;        // indices into the cell's sections, cycle order
+    std::vector<LPoint> corners;      // the uncovered corners after the last section, positive order
+    std::vector<std::uint32_t> hull;  // direct hull chain (TB indices)
+    std::vector<std::size_t> gaps;    // positions of section exits followed by a border gap
   };
   struct CellWork {
     std::uint32_t cell = 0;
@@ -329,7 +338,8 @@ struct Builder {
       std::vector<double> xs;
       for (std::uint32_t t = 0; t < h.tb_.size(); ++t) {
         const LPoint a = TP(t), b = TP(next_tb(t));
-        if ((a.y <= yc) != (b.y <= yc)) xs.push_back(double(a.x) + double(yc - a.y) * double(b.x - a.x) / double(b.y - a.y));
+        if ((a.y <= yc) != (b.y <= yc))
+          xs.push_back(double(a.x) + double(yc - a.y) * double(b.x - a.x) / double(b.y - a.y));
       }
       std::sort(xs.begin(), xs.end());
       for (int i = 0; i < cx; ++i) {
@@ -352,7 +362,8 @@ struct Builder {
           pc.sections.push_back(code);
         }
         for (std::size_t p = 0; p + 1 < cyc.seq.size(); ++p)
-          if (!std::binary_search(cyc.gaps.begin(), cyc.gaps.end(), p)) cur_group_last_[cyc.seq[p]] = cyc.seq.back();
+          if (!std::binary_search(cyc.gaps.begin(), cyc.gaps.end(), p))
+            cur_group_last_[cyc.seq[p]] = cyc.seq.back();
         convexify(l, cell, cx, cyc);
         hulls_[{l, cell, cyc_index++}] = cyc.hull;
       }
@@ -361,7 +372,8 @@ struct Builder {
     prev_group_last_ = cur_group_last_;
   }
 
-  void close_section(std::map<std::uint32_t, CellWork>& cells, const Section& s, std::int64_t packed, int cx) {
+  void close_section(std::map<std::uint32_t, CellWork>& cells, const Section& s, std::int64_t packed,
+                     int cx) {
     const std::uint32_t cell = std::uint32_t((packed >> 31) * cx + (packed & ((std::int64_t(1) << 31) - 1)));
     CellWork& w = cells[cell];
     w.cell = cell;
@@ -370,7 +382,8 @@ struct Builder {
 
   /// At the common point v of exit(si) and entry(sj): is the border direction of decreasing tau
   /// inside the TIN wedge at v (between sj's first edge and si's last edge, TIN on the left)?
-  bool border_behind_covered(const Section& si, const Section& sj, std::int64_t x0, std::int64_t y0, std::int64_t cs) {
+  bool border_behind_covered(const Section& si, const Section& sj, std::int64_t x0, std::int64_t y0,
+                             std::int64_t cs) {
     const LPoint v = TP(sj.A), prev = TP(section_tb(si, si.L - 2)), next = TP(next_tb(sj.A));
     const std::int64_t t = tau(v, x0, y0, cs);
     const std::int64_t side = ((t - 1 + 4 * cs) % (4 * cs)) / cs;  // edge holding tau - epsilon
@@ -381,14 +394,18 @@ struct Builder {
   }
 
   void build_cycles(int l, CellWork& w, std::int64_t cs, int cx) {
-    const std::int64_t x0 = std::int64_t(w.cell % std::uint32_t(cx)) * cs, y0 = std::int64_t(w.cell / std::uint32_t(cx)) * cs;
+    const std::int64_t x0 = std::int64_t(w.cell % std::uint32_t(cx)) * cs,
+                       y0 = std::int64_t(w.cell / std::uint32_t(cx)) * cs;
     const LPoint corner[4] = {{x0, y0}, {x0 + cs, y0}, {x0 + cs, y0 + cs}, {x0, y0 + cs}};
     auto& S = w.sections;
     for (Section& s : S) {
       const LPoint a = TP(s.A), b = TP(section_tb(s, s.L - 1));
-      auto on_border = [&](const LPoint& p) { return p.x == x0 || p.x == x0 + cs || p.y == y0 || p.y == y0 + cs; };
+      auto on_border = [&](const LPoint& p) {
+        return p.x == x0 || p.x == x0 + cs || p.y == y0 || p.y == y0 + cs;
+      };
       if (!on_border(a) || !on_border(b))
-        throw HybridError(src + ": " + cell_name(l, w.cell, cx) + ": a TIN boundary section does not end on the cell border");
+        throw HybridError(src + ": " + cell_name(l, w.cell, cx) +
+                          ": a TIN boundary section does not end on the cell border");
       s.tau_a = tau(a, x0, y0, cs);
       s.tau_b = tau(b, x0, y0, cs);
     }
@@ -438,15 +455,18 @@ struct Builder {
         k = S[std::size_t(k)].next;
       }
       if (k != int(i))
-        throw HybridError(src + ": " + cell_name(l, w.cell, cx) + ": TIN boundary sections do not form cycles");
+        throw HybridError(src + ": " + cell_name(l, w.cell, cx) +
+                          ": TIN boundary sections do not form cycles");
       int arcs = 0, arc_at = -1;
       for (std::size_t q = 0; q < cyc.size(); ++q)
         if (S[std::size_t(cyc[q])].I > 0) ++arcs, arc_at = int(q);
       if (arcs > 1)
-        throw HybridError(src + ": " + cell_name(l, w.cell, cx) +
-                          ": an uncovered region bounded by several TIN sections reaches two separate groups of "
-                          "corners (the paper's Fig. 16 case) - not supported; use fewer levels");
-      if (arc_at >= 0) std::rotate(cyc.begin(), cyc.begin() + (arc_at + 1) % std::ptrdiff_t(cyc.size()), cyc.end());
+        throw HybridError(
+            src + ": " + cell_name(l, w.cell, cx) +
+            ": an uncovered region bounded by several TIN sections reaches two separate groups of "
+            "corners (the paper's Fig. 16 case) - not supported; use fewer levels");
+      if (arc_at >= 0)
+        std::rotate(cyc.begin(), cyc.begin() + (arc_at + 1) % std::ptrdiff_t(cyc.size()), cyc.end());
       Cycle c;
       c.sections = cyc;
       for (int si : cyc) {
@@ -480,12 +500,14 @@ struct Builder {
     }
     // Andrew's monotone chain, strict.
     std::vector<Pt> s = pts;
-    std::sort(s.begin(), s.end(), [](const Pt& a, const Pt& b) { return a.p.x != b.p.x ? a.p.x < b.p.x : a.p.y < b.p.y; });
+    std::sort(s.begin(), s.end(),
+              [](const Pt& a, const Pt& b) { return a.p.x != b.p.x ? a.p.x < b.p.x : a.p.y < b.p.y; });
     std::vector<LPoint> hull;
     for (int pass = 0; pass < 2; ++pass) {
       const std::size_t base = hull.size();
       for (const Pt& q : s) {
-        while (hull.size() >= base + 2 && orient(hull[hull.size() - 2], hull.back(), q.p) <= 0) hull.pop_back();
+        while (hull.size() >= base + 2 && orient(hull[hull.size() - 2], hull.back(), q.p) <= 0)
+          hull.pop_back();
         hull.push_back(q.p);
       }
       hull.pop_back();
@@ -520,13 +542,15 @@ struct Builder {
       chain.push_back(std::size_t(q.pos));
       if (q.pos == last) break;
     }
-    if (chain.back() != std::size_t(last)) throw fail("the convex hull chain does not reach the section's end");
+    if (chain.back() != std::size_t(last))
+      throw fail("the convex hull chain does not reach the section's end");
     return chain;
   }
 
   void convexify(int l, std::uint32_t cell, int cx, Cycle& cyc) {
     const std::int64_t cs = ks << l;
-    const std::int64_t x0 = std::int64_t(cell % std::uint32_t(cx)) * cs, y0 = std::int64_t(cell / std::uint32_t(cx)) * cs;
+    const std::int64_t x0 = std::int64_t(cell % std::uint32_t(cx)) * cs,
+                       y0 = std::int64_t(cell / std::uint32_t(cx)) * cs;
     const std::vector<std::size_t> chain = hull_chain(l, cell, cx, cyc, x0, y0, cs);
     for (std::size_t p : chain) cyc.hull.push_back(cyc.seq[p]);
     std::unordered_map<std::uint32_t, std::size_t> pos;
@@ -544,8 +568,9 @@ struct Builder {
         if (h.conn_[t] > 1 && !std::binary_search(cyc.gaps.begin(), cyc.gaps.end(), r)) {
           auto it = pos.find((t + h.conn_[t]) % n);
           if (it == pos.end() || it->second <= r || it->second > q)
-            throw HybridError(src + ": " + cell_name(l, cell, cx) +
-                              ": a finer level's cavity crosses this level's convex hull (unsupported configuration)");
+            throw HybridError(
+                src + ": " + cell_name(l, cell, cx) +
+                ": a finer level's cavity crosses this level's convex hull (unsupported configuration)");
           nx = it->second;
         }
         r = nx;
@@ -602,8 +627,8 @@ struct Builder {
     return false;
   }
 
-  void emit(Pocket& pk, const std::vector<std::uint32_t>& tbs, std::size_t a, std::size_t s, std::size_t j, bool need,
-            int l, std::uint32_t cell) {
+  void emit(Pocket& pk, const std::vector<std::uint32_t>& tbs, std::size_t a, std::size_t s, std::size_t j,
+            bool need, int l, std::uint32_t cell) {
     while (s != j) {
       const std::size_t s2 = std::size_t(pk.memo.at(key(a, s, j, need)) - 1);
       std::array<std::uint32_t, 3> tri{tbs[a], tbs[s2], tbs[s]};
@@ -620,7 +645,8 @@ struct Builder {
     }
   }
 
-  void triangulate_pocket(int l, std::uint32_t cell, int cx, const Cycle& cyc, const std::vector<std::size_t>& R) {
+  void triangulate_pocket(int l, std::uint32_t cell, int cx, const Cycle& cyc,
+                          const std::vector<std::size_t>& R) {
     const std::size_t N = R.size() - 1;
     if (N > 400)
       throw HybridError(src + ": " + cell_name(l, cell, cx) + ": a cavity of " + std::to_string(N + 1) +
@@ -632,10 +658,12 @@ struct Builder {
       pk.pt.push_back(TP(cyc.seq[r]));
     }
     pk.fixed.assign(N + 1, 0);
-    for (std::size_t k = 0; k <= N; ++k) pk.fixed[k] = std::binary_search(cyc.gaps.begin(), cyc.gaps.end(), R[k]);
+    for (std::size_t k = 0; k <= N; ++k)
+      pk.fixed[k] = std::binary_search(cyc.gaps.begin(), cyc.gaps.end(), R[k]);
     if (pk.fixed[0])
-      throw HybridError(src + ": " + cell_name(l, cell, cx) +
-                        ": a cavity starts at a section's exit point (unsupported configuration); use fewer levels");
+      throw HybridError(
+          src + ": " + cell_name(l, cell, cx) +
+          ": a cavity starts at a section's exit point (unsupported configuration); use fewer levels");
     // Finer-level groups.
     pk.last.assign(N + 1, -1);
     for (std::size_t k = 0; k <= N; ++k) {
@@ -690,7 +718,8 @@ struct Builder {
       pk.memo.clear();
       need0 = false;
       if (!fan(pk, 0, 1, N, false))
-        throw HybridError(src + ": " + cell_name(l, cell, cx) + ": a cavity of the convexification cannot be triangulated");
+        throw HybridError(src + ": " + cell_name(l, cell, cx) +
+                          ": a cavity of the convexification cannot be triangulated");
     }
     h.conn_[tbs[0]] = dist(tbs[0], tbs[N]);
     emit(pk, tbs, 0, 1, N, need0, l, cell);
@@ -737,7 +766,8 @@ struct Builder {
         if (canon(dec) != canon(dir))
           throw HybridError(src + ": " + cell_name(l, pc.cell, enc.cells_x) +
                             ": the one-index connectivity cannot encode this level's convexification "
-                            "(decoded " + std::to_string(dec.size()) + " triangles, direct " + std::to_string(dir.size()) +
+                            "(decoded " +
+                            std::to_string(dec.size()) + " triangles, direct " + std::to_string(dir.size()) +
                             "); use fewer levels");
         const CellTessellation t = Extractor::tessellate(h, l, pc);
         double tri_area2 = 0, u_area2 = 0;
@@ -749,9 +779,13 @@ struct Builder {
         for (const auto& c : t.corner_tris) {
           std::vector<LPoint> tri;
           for (const CellRef& r : c)
-            tri.push_back(r.corner ? LPoint{x0 + ((r.id == 1 || r.id == 2) ? cs : 0), y0 + (r.id >= 2 ? cs : 0)} : pt(r.id));
+            tri.push_back(r.corner
+                              ? LPoint{x0 + ((r.id == 1 || r.id == 2) ? cs : 0), y0 + (r.id >= 2 ? cs : 0)}
+                              : pt(r.id));
           const double a = detail::area2(tri);
-          if (!(a > 0)) throw HybridError(src + ": " + cell_name(l, pc.cell, enc.cells_x) + ": a corner triangle is flipped or degenerate");
+          if (!(a > 0))
+            throw HybridError(src + ": " + cell_name(l, pc.cell, enc.cells_x) +
+                              ": a corner triangle is flipped or degenerate");
           tri_area2 += a;
         }
         for (double a : t.uncovered_area2) u_area2 += a;

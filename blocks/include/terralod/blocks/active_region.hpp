@@ -125,19 +125,19 @@ struct StandinPoint {
 struct BlockSummary {
   /// Heights of the corners (col0,row0), (col1,row0), (col0,row1), (col1,row1), metres.
   double z00 = 0, z10 = 0, z01 = 0, z11 = 0;
-  double zmin = 0, zmax = 0;   ///< height range of the block's samples
-  double tm_error = 0;         ///< exact L-infinity error of the two-triangle mesh (continuous), metres
-  bool base_is_tm = false;     ///< the PM's base mesh is exactly the two-triangle mesh
+  double zmin = 0, zmax = 0;  ///< height range of the block's samples
+  double tm_error = 0;        ///< exact L-infinity error of the two-triangle mesh (continuous), metres
+  bool base_is_tm = false;    ///< the PM's base mesh is exactly the two-triangle mesh
   StandinKind standin = StandinKind::TwoTriangles;
-  double standin_error = 0;    ///< exact L-infinity error of the stand-in surface, metres
+  double standin_error = 0;  ///< exact L-infinity error of the stand-in surface, metres
   /// The stand-in surface: points include the 4 corners; triangles index points, are CCW in
   /// (col,row) and cover the block's domain exactly once. Empty in a summary filled by hand
   /// (set_two_triangle_standin gives it the two triangles of its corners with tm_error).
   std::vector<StandinPoint> points;
   std::vector<std::array<std::uint32_t, 3>> triangles;
   /// Per triangle: its exact error (same metric) rounded up to the next float, metres; the
-  /// runtime bounds each triangle in its own box with it (standin_bound_px). Two-triangle stand-ins decoded from
-  /// a version 1 blob have tm_error for both.
+  /// runtime bounds each triangle in its own box with it (standin_bound_px). Two-triangle stand-ins decoded
+  /// from a version 1 blob have tm_error for both.
   std::vector<double> triangle_errors;
   bool operator==(const BlockSummary&) const = default;
 };
@@ -196,8 +196,8 @@ struct ActiveRegionOptions {
 struct ActiveRegion {
   BlockKey centre;
   int n = 0, p = 0;
-  double height_m = 0;     ///< a: eye height above the centre block's two-triangle surface
-  double visible_m = 0;    ///< b = a cot(theta)
+  double height_m = 0;          ///< a: eye height above the centre block's two-triangle surface
+  double visible_m = 0;         ///< b = a cot(theta)
   std::vector<BlockKey> inner;  ///< the (2n+1)^2 blocks (clipped to the grid), sorted
   std::vector<BlockKey> outer;  ///< the p rings around them (clipped to the grid), sorted
   /// Inclusive block range of the whole region (clipped to the grid).
@@ -211,7 +211,7 @@ int inner_radius(double height_m, double block_extent_m, const ActiveRegionOptio
 
 /// The active region for an eye position (world metres). `summaries` has grid.block_count()
 /// entries (BlockGrid::index order).
-ActiveRegion active_region(const BlockGrid& grid, std::span<const BlockSummary> summaries, const pm::Vec3& eye,
-                           const ActiveRegionOptions& opt = {});
+ActiveRegion active_region(const BlockGrid& grid, std::span<const BlockSummary> summaries,
+                           const pm::Vec3& eye, const ActiveRegionOptions& opt = {});
 
 }  // namespace terralod::blocks

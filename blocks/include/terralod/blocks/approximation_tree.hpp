@@ -70,8 +70,8 @@ const char* strategy_name(Strategy s);
 
 /// The node's approximating surface (empty for PmBlock: its surface is the block's PM).
 struct NodeSurface {
-  std::vector<std::array<double, 3>> points;             ///< (col, row, z): whole-grid sample + height, metres
-  std::vector<std::array<std::uint32_t, 3>> triangles;   ///< indices into points, CCW in (col, row)
+  std::vector<std::array<double, 3>> points;            ///< (col, row, z): whole-grid sample + height, metres
+  std::vector<std::array<std::uint32_t, 3>> triangles;  ///< indices into points, CCW in (col, row)
   /// Grid and NonRegularGrid only: the sorted columns and rows of the node's grid; points are
   /// then row-major (points[j * cols.size() + i] = (cols[i], rows[j])) and every cell is split
   /// along (cols[i], rows[j])-(cols[i+1], rows[j+1]) like the full-resolution surface.
@@ -83,14 +83,14 @@ struct NodeSurface {
 void triangulate_grid(NodeSurface& surface);
 
 struct TreeNode {
-  std::int64_t id = 0, parent = -1;   ///< root: parent = -1
-  std::vector<std::int64_t> children; ///< at most d
-  int level = 0;                      ///< root = 0
-  SampleRect domain;                  ///< whole-grid samples
+  std::int64_t id = 0, parent = -1;    ///< root: parent = -1
+  std::vector<std::int64_t> children;  ///< at most d
+  int level = 0;                       ///< root = 0
+  SampleRect domain;                   ///< whole-grid samples
   Strategy strategy = Strategy::Grid;
-  double error = 0;                   ///< exact epsilon(N), metres (see the contract)
-  pm::Box bbox;                       ///< world metres
-  std::optional<BlockKey> block;      ///< PmBlock leaves: the block in the database
+  double error = 0;               ///< exact epsilon(N), metres (see the contract)
+  pm::Box bbox;                   ///< world metres
+  std::optional<BlockKey> block;  ///< PmBlock leaves: the block in the database
   NodeSurface surface;
   /// Texture hook (issue "texture layers"): edge length in metres of one texel of the node's
   /// texture patch; 0 = no texture, gamma is then not evaluated.
@@ -109,11 +109,11 @@ class ApproximationTree {
  public:
   /// Build parameters recorded with the tree.
   struct Parameters {
-    std::size_t max_points = 25;   ///< s: no node has more surface points
-    int max_children = 4;          ///< d: no node has more children
-    int patch = 4;                 ///< P: grid nodes have (P+1)^2 points (at most)
+    std::size_t max_points = 25;  ///< s: no node has more surface points
+    int max_children = 4;         ///< d: no node has more children
+    int patch = 4;                ///< P: grid nodes have (P+1)^2 points (at most)
     pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
-    pm::GridTransform transform;   ///< of the whole grid
+    pm::GridTransform transform;  ///< of the whole grid
     int grid_width = 0, grid_height = 0;
     bool operator==(const Parameters&) const = default;
   };
@@ -155,32 +155,32 @@ struct SelectionOptions {
   /// Texture threshold, pixels^2 of one texel (gamma); infinity = ignored. Evaluated only for
   /// nodes with texel_m > 0.
   double gamma_px = std::numeric_limits<double>::infinity();
-  bool cull = true;       ///< hierarchical frustum culling by the node boxes
+  bool cull = true;  ///< hierarchical frustum culling by the node boxes
 };
 
 /// Visual errors of one selected node.
 struct NodeVisual {
-  double alpha_px = 0;      ///< the paper's alpha(N) (at the nearest point of the box)
-  double bound_px = 0;      ///< conservative bound over the whole box (View::vertical_error_px)
-  double gamma_px = 0;      ///< texel area in pixels at the box's smallest depth (0 without texture)
+  double alpha_px = 0;  ///< the paper's alpha(N) (at the nearest point of the box)
+  double bound_px = 0;  ///< conservative bound over the whole box (View::vertical_error_px)
+  double gamma_px = 0;  ///< texel area in pixels at the box's smallest depth (0 without texture)
   /// PmBlock leaves: the tolerance, pixels, to hand to the block's selective refinement (the
   /// remaining budget, SelectionOptions::alpha_px); 0 for nodes drawn with their own surface.
   double tolerance_px = 0;
 };
 
 struct SelectionResult {
-  std::vector<std::int64_t> selected;   ///< node ids, in depth-first order
-  std::vector<NodeVisual> visual;       ///< parallel to selected
-  std::size_t visited = 0;              ///< nodes whose box was tested
-  std::size_t culled = 0;               ///< visited nodes outside the frustum (subtree skipped)
+  std::vector<std::int64_t> selected;     ///< node ids, in depth-first order
+  std::vector<NodeVisual> visual;         ///< parallel to selected
+  std::size_t visited = 0;                ///< nodes whose box was tested
+  std::size_t culled = 0;                 ///< visited nodes outside the frustum (subtree skipped)
   std::size_t points = 0, triangles = 0;  ///< of the selected non-PM surfaces
-  std::size_t pm_blocks = 0;            ///< selected PmBlock leaves
+  std::size_t pm_blocks = 0;              ///< selected PmBlock leaves
   /// The guaranteed screen-space error of the selection, pixels: max over selected nodes of
   /// bound_px (own surface) or min(bound_px, tolerance_px) (PM blocks: the refinement at
   /// tolerance_px never goes coarser than the base mesh, whose bound is bound_px).
   double bound_px = 0;
-  double alpha_max_px = 0;              ///< max over selected nodes of the paper's alpha
-  double ms = 0;                        ///< wall time of select_nodes
+  double alpha_max_px = 0;  ///< max over selected nodes of the paper's alpha
+  double ms = 0;            ///< wall time of select_nodes
 };
 
 /// The paper's alpha(N): the vertical segment of length error_m centred at the point of `box`
@@ -193,6 +193,7 @@ double paper_alpha_px(const pm::View& view, const pm::Box& box, double error_m);
 /// Traverses the tree from the root: a node whose box is outside the frustum is counted as
 /// culled and skipped with its subtree; otherwise it is selected when it is a leaf or when its
 /// conservative bound meets alpha_px (and gamma meets gamma_px), else its children are visited.
-SelectionResult select_nodes(const ApproximationTree& tree, const pm::View& view, const SelectionOptions& options = {});
+SelectionResult select_nodes(const ApproximationTree& tree, const pm::View& view,
+                             const SelectionOptions& options = {});
 
 }  // namespace terralod::blocks

@@ -61,9 +61,9 @@ BlockSourceFactory database_source(const std::string& path);
 /// A block in memory: its decoded PM and the DAG that selective refinement runs on.
 struct LoadedBlock {
   BlockKey key;
-  pm::ProgressiveMesh pm;            ///< heightfield in the block's own grid and transform
+  pm::ProgressiveMesh pm;  ///< heightfield in the block's own grid and transform
   std::unique_ptr<pm::CollapseDag> dag;
-  std::size_t blob_bytes = 0;        ///< bytes read from the source
+  std::size_t blob_bytes = 0;  ///< bytes read from the source
   /// Estimated bytes while resident: PM + DAG + one SelectiveRefinement over it.
   std::size_t memory_bytes = 0;
   double read_ms = 0, decode_ms = 0;
@@ -71,7 +71,8 @@ struct LoadedBlock {
 
 /// Decodes a block blob (pm::decode_pm) and builds its DAG; checks its size against the grid.
 /// Throws pm::PmFormatError / DatabaseError naming `source_name` and the block.
-std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k, std::span<const std::uint8_t> blob,
+std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k,
+                                                std::span<const std::uint8_t> blob,
                                                 const std::string& source_name);
 
 struct LoadResult {

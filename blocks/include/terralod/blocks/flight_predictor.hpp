@@ -31,14 +31,14 @@
 namespace terralod::blocks {
 
 struct PredictorOptions {
-  double window_s = 0.5;         ///< history used for velocity and turn rate, seconds, > 0
-  double max_turn_rate = 1.0;    ///< |omega| limit, radians per second, >= 0
+  double window_s = 0.5;       ///< history used for velocity and turn rate, seconds, > 0
+  double max_turn_rate = 1.0;  ///< |omega| limit, radians per second, >= 0
   bool operator==(const PredictorOptions&) const = default;
 };
 
 struct PredictedPoint {
-  double dt = 0;        ///< seconds ahead of the last observation
-  pm::Vec3 position;    ///< predicted eye, world metres
+  double dt = 0;      ///< seconds ahead of the last observation
+  pm::Vec3 position;  ///< predicted eye, world metres
 };
 
 class FlightPredictor {

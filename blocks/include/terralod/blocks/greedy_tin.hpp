@@ -7,7 +7,8 @@
 //   tb::TinSurface tin = tb::build_greedy_tin(hf, tb::SampleRect{0, 0, 256, 256}, {/*max_error=*/1.0});
 //   // tin.points[i] = (col,row); heights are hf.at(col,row); tin.error <= 1.0 unless max_points hit.
 //   tb::TinSurface area = tb::build_greedy_tin(hf, {{10, 10}, {90, 12}, {50, 80}}, {/*max_error=*/2.0});
-//   tb::NonRegularGrid g = tb::build_nonregular_grid(hf, tb::SampleRect{0, 0, 64, 64}, {.max_error = 0, .max_points = 81});
+//   tb::NonRegularGrid g = tb::build_nonregular_grid(hf, tb::SampleRect{0, 0, 64, 64}, {.max_error = 0,
+//   .max_points = 81});
 //
 // Contract (all three builders):
 //   - hf: the full-resolution terrain; read only, not retained. Its sizes must be < 2^24.
@@ -76,8 +77,8 @@ TinSurface build_greedy_tin(const pm::Heightfield& hf, SampleRect domain, const 
 /// order (orient2d > 0; the input's order reversed when it was clockwise). Under
 /// ErrorMetric::Continuous the crossings of boundary edges with grid edges count in `error` too
 /// (see TinSurface::boundary_error): insertion stops when the rest is <= max_error, so `error`
-/// may stay above it (ErrorMetric::Samples has no such floor). Throws std::invalid_argument when the rounded polygon has
-/// fewer than 3 vertices, zero area, a vertex outside hf, or crosses itself.
+/// may stay above it (ErrorMetric::Samples has no such floor). Throws std::invalid_argument when the rounded
+/// polygon has fewer than 3 vertices, zero area, a vertex outside hf, or crosses itself.
 TinSurface build_greedy_tin(const pm::Heightfield& hf, const std::vector<std::array<double, 2>>& polygon,
                             const TinOptions& options = {});
 

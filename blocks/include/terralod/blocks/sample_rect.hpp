@@ -17,8 +17,8 @@ namespace terralod::blocks {
 struct SampleRect {
   int col0 = 0, row0 = 0, col1 = 0, row1 = 0;
 
-  int width() const { return col1 - col0 + 1; }    ///< samples per row
-  int height() const { return row1 - row0 + 1; }   ///< samples per column
+  int width() const { return col1 - col0 + 1; }   ///< samples per row
+  int height() const { return row1 - row0 + 1; }  ///< samples per column
   std::size_t samples() const { return std::size_t(width()) * std::size_t(height()); }
   bool contains(int col, int row) const { return col >= col0 && col <= col1 && row >= row0 && row <= row1; }
   bool operator==(const SampleRect&) const = default;

@@ -68,9 +68,9 @@
 // The bound (RuntimeFrameStats::bound_px): for the drawn mesh as drawn. A drawn triangle T has
 //   - its logical error e_T, metres: the error of the node it belongs to (coarse nodes: the
 //     node's exact error), or the error of the collapse that created it (PM faces;
-//     collapse_dag.hpp, point 3; the error SelectiveRefinement bounds its faces with), plus, for a piece made by the stitch from an original
-//     triangle T0, max |z(p) - S0(p)| over the inserted vertices p among its corners, S0 the
-//     plane of T0 (the stitched surface is S0 plus hat functions of those differences:
+//     collapse_dag.hpp, point 3; the error SelectiveRefinement bounds its faces with), plus, for a piece made
+//     by the stitch from an original triangle T0, max |z(p) - S0(p)| over the inserted vertices p among its
+//     corners, S0 the plane of T0 (the stitched surface is S0 plus hat functions of those differences:
 //     seam_stitch.hpp);
 //   - its morph offset m_T: the largest |displayed z - true z| of its three corners. The
 //     displayed surface differs from the logical one by the linear interpolation of those
@@ -126,12 +126,12 @@ struct RuntimeOptions {
   /// target)^1, clamped to [1/2, 2] per frame and to [min, max]) to hold about this many.
   std::size_t target_triangles = 0;
   double min_tolerance_px = 0.1, max_tolerance_px = 256.0;  ///< budget-mode range, 0 < min <= max
-  double morph_seconds = 0.5;  ///< geomorph duration, seconds, >= 0; 0 = pop
-  std::size_t budget_bytes = std::size_t(512) << 20;  ///< resident memory, bytes (everything loaded)
-  bool prefetch = true;                 ///< queue the blocks around the predicted path
+  double morph_seconds = 0.5;                               ///< geomorph duration, seconds, >= 0; 0 = pop
+  std::size_t budget_bytes = std::size_t(512) << 20;        ///< resident memory, bytes (everything loaded)
+  bool prefetch = true;                                     ///< queue the blocks around the predicted path
   PredictorOptions predictor;
-  double prefetch_horizon_s = 3.0;      ///< seconds ahead, >= 0
-  double prefetch_step_s = 0.25;        ///< spacing of predicted points, seconds, > 0
+  double prefetch_horizon_s = 3.0;  ///< seconds ahead, >= 0
+  double prefetch_step_s = 0.25;    ///< spacing of predicted points, seconds, > 0
   /// The region kept ready around the eye (Eq. 2, b = a cot(theta)); p is not used (the tree
   /// draws everything beyond the blocks).
   ActiveRegionOptions region;
@@ -141,27 +141,27 @@ struct RuntimeOptions {
 struct RuntimeFrameStats {
   std::uint64_t frame = 0;
   double time_s = 0;
-  double tolerance_px = 0;       ///< tau used (regulated in budget mode)
-  double bound_px = 0;           ///< guaranteed screen-space error of the drawn mesh, as drawn
+  double tolerance_px = 0;  ///< tau used (regulated in budget mode)
+  double bound_px = 0;      ///< guaranteed screen-space error of the drawn mesh, as drawn
   std::size_t triangles = 0, vertices = 0;
   std::size_t nodes_visited = 0, nodes_culled = 0;
-  std::size_t coarse_nodes = 0;  ///< selected nodes drawn with their own surface (incl. fallbacks)
-  std::size_t pm_blocks = 0;     ///< PM blocks drawn by selective refinement
-  std::size_t standin_blocks = 0;  ///< PM blocks drawn as their stand-ins (within tau / 2, not loaded)
+  std::size_t coarse_nodes = 0;     ///< selected nodes drawn with their own surface (incl. fallbacks)
+  std::size_t pm_blocks = 0;        ///< PM blocks drawn by selective refinement
+  std::size_t standin_blocks = 0;   ///< PM blocks drawn as their stand-ins (within tau / 2, not loaded)
   std::size_t needed_in_view = 0;   ///< PM blocks the selection needs
   std::size_t missing_in_view = 0;  ///< of those, not resident (an ancestor is drawn)
   std::size_t fallback_nodes = 0;   ///< ancestors drawn for missing blocks
   std::size_t nodes_resident = 0;   ///< tree nodes in memory (all of them)
   std::size_t blocks_resident = 0, blocks_loading = 0, blocks_evicted = 0, evicted_total = 0;
-  std::size_t dropped_total = 0;    ///< arrived blocks dropped for lack of room
-  std::size_t prefetch_hits_total = 0;    ///< blocks resident when they became needed
-  std::size_t prefetch_misses_total = 0;  ///< blocks needed before they were resident
+  std::size_t dropped_total = 0;                       ///< arrived blocks dropped for lack of room
+  std::size_t prefetch_hits_total = 0;                 ///< blocks resident when they became needed
+  std::size_t prefetch_misses_total = 0;               ///< blocks needed before they were resident
   std::uint64_t bytes_read = 0, bytes_read_total = 0;  ///< blob bytes this frame / in total
   std::size_t resident_bytes = 0, peak_resident_bytes = 0;
-  std::size_t morphing_blocks = 0;   ///< PM blocks with vertices still moving (incl. swap-in blends)
-  std::size_t moving_vertices = 0;   ///< drawn vertices off their true height
-  std::size_t clamped_vertices = 0;  ///< of those, held back by the bound
-  std::size_t seam_triangles = 0;    ///< triangles made by the stitch
+  std::size_t morphing_blocks = 0;          ///< PM blocks with vertices still moving (incl. swap-in blends)
+  std::size_t moving_vertices = 0;          ///< drawn vertices off their true height
+  std::size_t clamped_vertices = 0;         ///< of those, held back by the bound
+  std::size_t seam_triangles = 0;           ///< triangles made by the stitch
   double update_ms = 0, update_cpu_ms = 0;  ///< wall and thread CPU time of update()
   /// Wall time of update()'s steps: selection (with taking loads), the loader's queue, the
   /// refinements and patch meshes, the seams with the bound and the drawn mesh.
@@ -219,13 +219,14 @@ class TerrainRuntime {
   double max_height_at(double x, double y) const;
 
  private:
-  struct Block;    // a resident block with its refinement
-  struct Patch;    // one selected node's mesh this frame
-  struct Eval;     // a drawn triangle evaluated on its own
-  struct Scratch;  // assemble()'s buffers, reused
+  struct Block;       // a resident block with its refinement
+  struct Patch;       // one selected node's mesh this frame
+  struct Eval;        // a drawn triangle evaluated on its own
+  struct Scratch;     // assemble()'s buffers, reused
   struct Selection {  // what step 2 chose (node ids)
     std::vector<std::int64_t> coarse, pms, standins;
-    std::vector<std::pair<std::int64_t, double>> needed;  // PM leaves needed, with their parent's error on screen
+    std::vector<std::pair<std::int64_t, double>>
+        needed;  // PM leaves needed, with their parent's error on screen
   };
   bool visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px);
   void queue_loads(const pm::View& view, const std::vector<std::pair<std::int64_t, double>>& needed);
@@ -242,9 +243,9 @@ class TerrainRuntime {
   BlockGrid grid_;
   ApproximationTree tree_;
   std::vector<BlockSummary> sums_;
-  std::vector<std::uint64_t> block_vertices_;    // per block index: PM vertices (from the build's meta)
+  std::vector<std::uint64_t> block_vertices_;  // per block index: PM vertices (from the build's meta)
   std::size_t tree_bytes_ = 0, summary_bytes_ = 0;
-  double bytes_per_vertex_ = 600;                // learnt from loaded blocks
+  double bytes_per_vertex_ = 600;  // learnt from loaded blocks
   std::map<BlockKey, std::unique_ptr<Block>> blocks_;
   std::unique_ptr<BlockLoader> loader_;
   FlightPredictor predictor_;
@@ -264,7 +265,7 @@ class TerrainRuntime {
     std::vector<std::uint32_t> start, tris;  // bucket b's triangles: tris[start[b], start[b+1])
   };
   mutable HeightIndex height_index_;
-  std::vector<Patch> patches_;        // the frame's patches (a pool: the first patch_count are used)
+  std::vector<Patch> patches_;  // the frame's patches (a pool: the first patch_count are used)
   std::unique_ptr<Scratch> scratch_;
   // What the loader thread needs to prepare an arriving block's refinement (the last frame's
   // view, time and refinement options), behind its own lock.

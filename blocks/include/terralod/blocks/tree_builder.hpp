@@ -94,27 +94,27 @@ StrategyChoice parse_strategy_choice(const std::string& name);
 struct TreeBuildOptions {
   /// Strategy per level from the root; the last entry repeats for deeper levels. Not empty.
   std::vector<StrategyChoice> levels = {StrategyChoice::Grid};
-  int patch = 4;                 ///< P of grid nodes ((P+1)^2 points), >= 1
-  std::size_t max_points = 25;   ///< s of TIN and non-regular nodes, >= 4
-  bool pm_leaves = true;         ///< one PmBlock leaf per block (else strategy nodes inside blocks)
-  double leaf_error = 0.0;       ///< pm_leaves = false: stop splitting at this error, metres >= 0
+  int patch = 4;                ///< P of grid nodes ((P+1)^2 points), >= 1
+  std::size_t max_points = 25;  ///< s of TIN and non-regular nodes, >= 4
+  bool pm_leaves = true;        ///< one PmBlock leaf per block (else strategy nodes inside blocks)
+  double leaf_error = 0.0;      ///< pm_leaves = false: stop splitting at this error, metres >= 0
   pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
-  int threads = 1;               ///< nodes of one level built in parallel; 0 = hardware
+  int threads = 1;  ///< nodes of one level built in parallel; 0 = hardware
 };
 
 /// Builds the tree over `layout` (which must match hf's size). With pm_leaves, block_errors[i]
 /// is the PmBlock leaf error of layout.keys()[i] (base_mesh_error of its PM); otherwise it is
 /// ignored. `progress` (optional) gets the fraction of the terrain's area finished per level.
-ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout, const TreeBuildOptions& options,
-                             std::span<const double> block_errors = {},
+ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout,
+                             const TreeBuildOptions& options, std::span<const double> block_errors = {},
                              const std::function<void(double)>& progress = {});
 
 /// The build parameters as the JSON text stored in DatabaseInfo::build_parameters.
 struct DatabaseBuildOptions {
-  int block_size = 257;          ///< 2^k + 1
-  int threads = 0;               ///< block builders in parallel; 0 = hardware concurrency
+  int block_size = 257;  ///< 2^k + 1
+  int threads = 0;       ///< block builders in parallel; 0 = hardware concurrency
   pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
-  TreeBuildOptions tree;         ///< levels above the blocks (pm_leaves is forced on)
+  TreeBuildOptions tree;  ///< levels above the blocks (pm_leaves is forced on)
   /// Stand-in surface of every block (BlockSummary, written as the "block_summaries" blob with
   /// the tree; metric is forced to `metric`). Not part of the build parameters: a resumed
   /// build may change it. Default TIN of 64 points. Kind chosen on N44W072 (257-sample blocks,
@@ -155,23 +155,23 @@ class BuildError : public std::runtime_error {
 struct DatabaseSummary {
   std::string path, source;
   int grid_width = 0, grid_height = 0, block_size = 0, blocks_x = 0, blocks_y = 0;
-  std::size_t blocks = 0;            ///< blocks in the database
-  std::size_t blocks_built = 0;      ///< built by this run (the others were resumed)
-  std::size_t nodes = 0;             ///< tree nodes
+  std::size_t blocks = 0;        ///< blocks in the database
+  std::size_t blocks_built = 0;  ///< built by this run (the others were resumed)
+  std::size_t nodes = 0;         ///< tree nodes
   std::array<std::size_t, kStrategyCount> nodes_per_strategy{};
   int tree_depth = 0;
-  std::uint64_t samples = 0;         ///< grid samples (unique vertices of the full terrain)
-  std::uint64_t pm_vertices = 0;     ///< sum over blocks of their PM vertices (borders counted twice)
+  std::uint64_t samples = 0;      ///< grid samples (unique vertices of the full terrain)
+  std::uint64_t pm_vertices = 0;  ///< sum over blocks of their PM vertices (borders counted twice)
   std::uint64_t block_bytes = 0, tree_bytes = 0;
   std::uint64_t summaries_bytes = 0;  ///< the "block_summaries" blob (0 when absent)
   std::string standin;                ///< stand-in kind of the blob's first block ("" when absent)
   double mean_standin_error = 0;      ///< mean over blocks of the stand-in error, metres
   double mean_tm_error = 0;           ///< mean over blocks of the two-triangle error, metres
-  double bytes_per_vertex = 0;       ///< (block_bytes + tree_bytes) / samples
-  double max_block_error = 0;        ///< largest PmBlock leaf error (base meshes), metres
-  double root_error = 0;             ///< exact error of the root surface, metres
-  double seconds = 0;                ///< wall time of this run
-  std::string build_parameters;      ///< JSON
+  double bytes_per_vertex = 0;        ///< (block_bytes + tree_bytes) / samples
+  double max_block_error = 0;         ///< largest PmBlock leaf error (base meshes), metres
+  double root_error = 0;              ///< exact error of the root surface, metres
+  double seconds = 0;                 ///< wall time of this run
+  std::string build_parameters;       ///< JSON
   bool complete = false;
   /// One JSON object (the fields above).
   std::string to_json() const;
@@ -183,7 +183,8 @@ struct DatabaseSummary {
 /// naming the file and the differing parameters. Blocks are built on `threads` threads and
 /// each is written in its own transaction; the tree, the summary and "build_complete" = "1"
 /// are written together last. hf must have >= 2 x 2 samples and at least one valid sample.
-DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path, const DatabaseBuildOptions& options);
+DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path,
+                               const DatabaseBuildOptions& options);
 
 /// The summary of what a database holds (from its metadata, per-block records and tree); for
 /// an unfinished build, what is there so far with complete = false. DatabaseError / TreeFormatError

@@ -71,9 +71,9 @@ struct BuildOptions {
 
 /// An indexed triangle mesh whose vertices are samples of the heightfield.
 struct TriangleMesh {
-  std::vector<std::uint32_t> vertices;                 ///< sample indices (row * width + col)
-  std::vector<std::array<std::uint32_t, 3>> triangles; ///< indices into vertices, CCW in (col,row)
-  double error_bound = 0.0;  ///< guaranteed L-infinity error of this mesh, metres
+  std::vector<std::uint32_t> vertices;                  ///< sample indices (row * width + col)
+  std::vector<std::array<std::uint32_t, 3>> triangles;  ///< indices into vertices, CCW in (col,row)
+  double error_bound = 0.0;                             ///< guaranteed L-infinity error of this mesh, metres
 };
 
 class ProgressiveMesh {
@@ -84,7 +84,8 @@ class ProgressiveMesh {
   /// Assembles a PM from its parts (used by the reader); throws std::invalid_argument when the
   /// parts are inconsistent (an index out of range, a vertex removed twice, ...).
   static ProgressiveMesh from_parts(Heightfield hf, ErrorMetric metric, double error_quantum,
-                                    std::vector<Collapse> collapses, std::vector<std::uint32_t> dropped_faces);
+                                    std::vector<Collapse> collapses,
+                                    std::vector<std::uint32_t> dropped_faces);
 
   /// The error quantum used for a heightfield: the smallest power of two >= range / 2^24
   /// (range = max - min of the valid heights, at least 1e-9). Errors are rounded up to a
@@ -120,9 +121,9 @@ class ProgressiveMesh {
   std::size_t full_face_slots() const { return 2 * std::size_t(hf_.width() - 1) * (hf_.height() - 1); }
 
   bool operator==(const ProgressiveMesh& o) const {
-    return hf_.samples() == o.hf_.samples() && hf_.mask() == o.hf_.mask() && hf_.transform == o.hf_.transform &&
-           metric_ == o.metric_ && error_quantum_ == o.error_quantum_ && collapses_ == o.collapses_ &&
-           dropped_faces_ == o.dropped_faces_;
+    return hf_.samples() == o.hf_.samples() && hf_.mask() == o.hf_.mask() &&
+           hf_.transform == o.hf_.transform && metric_ == o.metric_ && error_quantum_ == o.error_quantum_ &&
+           collapses_ == o.collapses_ && dropped_faces_ == o.dropped_faces_;
   }
 
  private:
@@ -131,7 +132,7 @@ class ProgressiveMesh {
   ErrorMetric metric_ = ErrorMetric::Continuous;
   std::vector<Collapse> collapses_;
   std::vector<std::uint32_t> dropped_faces_;  // sorted
-  std::vector<double> prefix_max_;  // prefix_max_[k] = max error of collapses_[0..k-1]; size n+1
+  std::vector<double> prefix_max_;            // prefix_max_[k] = max error of collapses_[0..k-1]; size n+1
   double error_quantum_ = 0.0;
   std::vector<std::uint8_t> present_;  // 1 for samples that are mesh vertices
   std::size_t full_vertex_count_ = 0;

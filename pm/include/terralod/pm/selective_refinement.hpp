@@ -154,7 +154,7 @@ struct FrameStats {
   std::size_t morphing = 0;            ///< vertices moving after this update
   std::size_t pending_ecols = 0;       ///< of those, moving towards a collapse
   double tolerance_px = 0.0;           ///< tau used (regulated in budget mode)
-  double bound_px = 0.0;   ///< guaranteed screen-space error of every in-frustum triangle, <= tolerance_px
+  double bound_px = 0.0;  ///< guaranteed screen-space error of every in-frustum triangle, <= tolerance_px
   /// Largest error at the samples (metres) of an active triangle that may be in view (the box
   /// of its prism, the triangle extruded by +-its error, is not outside the view frustum); 0
   /// when none is. The metric bound of what is seen.
@@ -226,7 +226,7 @@ class SelectiveRefinement {
     std::array<double, 3> from{}, to{};
     double t0 = 0, t1 = 0;
     std::uint32_t anchor = CollapseDag::kNone;  ///< kNone when not riding
-    bool pending_ecol = false;           ///< moving towards a collapse
+    bool pending_ecol = false;                  ///< moving towards a collapse
   };
   /// The running geomorphs (for tests, statistics and debugging views).
   std::vector<MorphState> morph_states() const;
@@ -277,7 +277,7 @@ class SelectiveRefinement {
   };
   struct Frame;  // per-update view constants
 
-  int classify(Frame& fr, std::uint32_t c) const;  // 0 refine, 1 ok by error, 2 ok: outside
+  int classify(Frame& fr, std::uint32_t c) const;             // 0 refine, 1 ok by error, 2 ok: outside
   static int classify_box(const Frame& fr, const Packed& t);  // the same for a packed box
   void perform(std::uint32_t c);
   void undo(std::uint32_t c, bool morph);
@@ -334,17 +334,17 @@ class SelectiveRefinement {
   std::vector<float> fbox_[6];  // x lo, x hi, y lo, y hi, z lo, z hi
   std::vector<float> ferr_;
   std::uint32_t bound_face_ = CollapseDag::kNone;  // the face that attained the last bound
-  bool defer_boxes_ = false;  // true while the constructor descends to the base mesh
+  bool defer_boxes_ = false;                       // true while the constructor descends to the base mesh
   void push_face_box(const FaceRec& r);
   const std::vector<Packed>& list_records() const;
   std::vector<Morph> morphs_;
-  std::vector<std::uint32_t> morph_of_;             // per sample: index into morphs_, or kNone
-  std::vector<std::vector<std::uint32_t>> vfaces_;  // per sample: active faces (Full mode only)
-  std::vector<std::vector<std::uint32_t>> riders_;  // per sample: vertices riding on it (Full)
-  mutable std::vector<std::uint32_t> cluster_;      // scratch of can_slide
+  std::vector<std::uint32_t> morph_of_;                          // per sample: index into morphs_, or kNone
+  std::vector<std::vector<std::uint32_t>> vfaces_;               // per sample: active faces (Full mode only)
+  std::vector<std::vector<std::uint32_t>> riders_;               // per sample: vertices riding on it (Full)
+  mutable std::vector<std::uint32_t> cluster_;                   // scratch of can_slide
   void prefilter(Frame& fr, const IndexSet& set, bool want_ok);  // loads work_ (see update)
   std::vector<std::uint32_t> work_;
-  std::vector<std::int8_t> work_verdict_;  // parallel to work_: the item's verdict, -1 untested
+  std::vector<std::int8_t> work_verdict_;             // parallel to work_: the item's verdict, -1 untested
   std::vector<std::uint32_t> appeared_;               // vsplits of this update waiting for their morph
   std::vector<std::uint8_t> undone_now_;              // per collapse: undone in this update's refine pass
   mutable std::vector<std::uint32_t> scratch_index_;  // per sample, for mesh output

@@ -21,9 +21,9 @@ struct TerrainOptions {
   int width = 257;
   int height = 257;
   std::uint64_t seed = 1;
-  double spacing = 30.0;     ///< metres between samples, both axes
-  double relief = 1200.0;    ///< approximate peak-to-valley height, metres
-  double roughness = 0.55;   ///< amplitude ratio between octaves, 0 < roughness < 1
+  double spacing = 30.0;            ///< metres between samples, both axes
+  double relief = 1200.0;           ///< approximate peak-to-valley height, metres
+  double roughness = 0.55;          ///< amplitude ratio between octaves, 0 < roughness < 1
   bool quantize_to_metres = false;  ///< round heights to whole metres, like SRTM
   /// Round heights to multiples of this (metres, > 0), like a DEM's vertical resolution;
   /// 0 keeps full double precision. quantize_to_metres takes precedence.

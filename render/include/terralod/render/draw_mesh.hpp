@@ -79,7 +79,8 @@ DrawMesh make_draw_mesh(const pm::TriangleMesh& mesh, const pm::Heightfield& hf,
 /// CCW from above (flip_winding for a mirroring grid transform, determinant < 0), normals
 /// area-weighted over the drawn triangles (pointing up; (0,0,1) where they cancel), no
 /// z_target. Reuses out's buffers. O(vertices + triangles).
-void fill_draw_mesh(const blocks::DrawnMesh& mesh, const glm::dvec3& origin, bool flip_winding, DrawMesh& out);
+void fill_draw_mesh(const blocks::DrawnMesh& mesh, const glm::dvec3& origin, bool flip_winding,
+                    DrawMesh& out);
 
 /// The mesh in the world frame, as drawn at alpha = 0: positions origin + xyz (double) and its
 /// triangles (for pm::write_mesh: --dump-mesh, --dump-meshes).

@@ -102,11 +102,11 @@ struct LayeredItem {
 
 struct LayeredFrameStats {
   std::size_t meshes = 0, triangles = 0;  ///< items drawn (with a triangle), their triangles
-  int passes = 0;                     ///< draw passes over the items
-  std::size_t texture_binds = 0;      ///< changes of the bound texture set
-  std::size_t textures_uploaded = 0;  ///< since the previous draw()
-  std::size_t bytes_uploaded = 0;     ///< texture bytes uploaded since the previous draw()
-  std::size_t texture_bytes = 0;      ///< texture memory held after this frame
+  int passes = 0;                         ///< draw passes over the items
+  std::size_t texture_binds = 0;          ///< changes of the bound texture set
+  std::size_t textures_uploaded = 0;      ///< since the previous draw()
+  std::size_t bytes_uploaded = 0;         ///< texture bytes uploaded since the previous draw()
+  std::size_t texture_bytes = 0;          ///< texture memory held after this frame
   double draw_ms = 0.0;
 };
 

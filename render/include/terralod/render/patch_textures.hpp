@@ -22,10 +22,10 @@
 //     gamma is doubled for this frame (PatchTextureStats::gamma_px says the value used; at
 //     most 2^24 times). A texel seen from inside its node's box or edge-on has an unbounded
 //     gamma, so if the patches still do not fit, the deepest wanted patches are replaced by
-//     their parent patches until they fit; at the root's patches it stops. The patches bound in a frame are never more than those
-//     wanted (each wanted patch is bound as itself or one ancestor), so the cache, which
-//     evicts least-recently-used patches not bound this frame, holds at most budget_bytes
-//     whenever the root patches fit (TextureCache's contract).
+//     their parent patches until they fit; at the root's patches it stops. The patches bound in a frame are
+//     never more than those wanted (each wanted patch is bound as itself or one ancestor), so the cache,
+//     which evicts least-recently-used patches not bound this frame, holds at most budget_bytes whenever the
+//     root patches fit (TextureCache's contract).
 //   - Loading: a wanted patch that is not resident is requested (a worker thread reads it)
 //     and the nearest resident ancestor patch is bound meanwhile (TextureCache::resolve);
 //     none resident: the layer is unbound (transparent) on that group.
@@ -59,8 +59,8 @@ struct PatchTextureOptions {
 };
 
 struct PatchTextureGroup {
-  std::size_t first_triangle = 0, triangle_count = 0;  ///< range of PatchTextureFrame::triangle_order
-  std::vector<TextureKey> used;                        ///< per layer; node -1: unbound
+  std::size_t first_triangle = 0, triangle_count = 0;    ///< range of PatchTextureFrame::triangle_order
+  std::vector<TextureKey> used;                          ///< per layer; node -1: unbound
   std::vector<std::shared_ptr<const RgbaImage>> pixels;  ///< per layer; null when unbound
 };
 

@@ -72,8 +72,9 @@ struct CavityDecode {
   std::vector<DecodeStep> steps;    ///< filled when trace = true
 };
 
-CavityDecode decode_cavities(std::span<const std::uint32_t> sequence, std::span<const std::uint32_t> connectivity,
-                             bool trace = false, std::span<const std::size_t> gaps = {});
+CavityDecode decode_cavities(std::span<const std::uint32_t> sequence,
+                             std::span<const std::uint32_t> connectivity, bool trace = false,
+                             std::span<const std::size_t> gaps = {});
 
 /// A point in (col,row) plan coordinates.
 using PlanPoint = std::array<double, 2>;

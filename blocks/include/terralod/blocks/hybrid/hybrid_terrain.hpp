@@ -154,20 +154,22 @@ struct StorageReport {
 class HybridTerrain {
  public:
   /// Builds the model (see the header comment). Throws HybridError on bad data.
-  static HybridTerrain build(const pm::Heightfield& grid, const TinMesh& tin, const HybridOptions& options = {});
+  static HybridTerrain build(const pm::Heightfield& grid, const TinMesh& tin,
+                             const HybridOptions& options = {});
   /// The same from the grid nodes alone (all build() reads of the DEM): a `width` x `height`
   /// sample grid whose node (col, row), both multiples of grid_step, has height node_z(col, row)
   /// (NaN = a void). `source` names the grid in errors. The tree builder's hybrid node strategy
   /// uses it over a window of a larger DEM without copying the window.
   static HybridTerrain build(int width, int height, const std::function<double(int, int)>& node_z,
-                             const std::string& source, const TinMesh& tin, const HybridOptions& options = {});
+                             const std::string& source, const TinMesh& tin,
+                             const HybridOptions& options = {});
 
   int levels() const { return int(levels_.size()); }
   int grid_step() const { return step_; }
   int domain_width() const { return domain_w_; }   ///< samples
   int domain_height() const { return domain_h_; }  ///< samples
   const LevelEncoding& level(int l) const { return levels_.at(std::size_t(l)); }
-  const std::vector<std::uint32_t>& tb() const { return tb_; }             ///< TB index -> vertex id
+  const std::vector<std::uint32_t>& tb() const { return tb_; }              ///< TB index -> vertex id
   const std::vector<std::uint32_t>& connectivity() const { return conn_; }  ///< per TB index
   const std::vector<std::uint32_t>& ring_begin() const { return ring_begin_; }
   /// Position (col,row) of a TB vertex.
@@ -199,7 +201,7 @@ class HybridTerrain {
   friend struct Builder;
   friend struct Extractor;
   int step_ = 1, domain_w_ = 0, domain_h_ = 0;
-  std::vector<double> grid_z_;  ///< finest-level nodes, row-major, (domain_w/step + 1) per row
+  std::vector<double> grid_z_;    ///< finest-level nodes, row-major, (domain_w/step + 1) per row
   std::vector<Vertex> vertices_;  ///< TIN vertices incl. intersection vertices
   std::vector<std::array<std::uint32_t, 3>> tin_;  ///< CCW, boundary triangles split
   std::vector<std::uint32_t> tb_, conn_, ring_begin_;
