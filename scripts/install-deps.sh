@@ -6,7 +6,7 @@ packages=(
   libopenmesh-dev libgdal-dev libopenimageio-dev libsqlite3-dev
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  xvfb fonts-dejavu-core
+  xvfb fonts-dejavu-core clang-format
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -15,8 +15,10 @@ for arg in "$@"; do
   esac
 done
 bash scripts/install-deps.sh
+# Every C++ file follows .clang-format (fix with: git ls-files '*.cpp' '*.hpp' | xargs clang-format -i).
+git ls-files '*.cpp' '*.hpp' | xargs clang-format --dry-run -Werror
 jobs="$(nproc)"
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$PWD/build/install" >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DTERRALOD_WERROR=ON -DCMAKE_INSTALL_PREFIX="$PWD/build/install" >/dev/null
 cmake --build build -j"$jobs"
 ctest --test-dir build -j"$jobs" --output-on-failure --timeout 1200
 # The installed package must be usable by another CMake project.

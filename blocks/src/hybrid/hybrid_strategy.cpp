@@ -11,9 +11,9 @@
 //      (the largest, then the sum of the four).
 //   3. The best candidate gets a TIN microstructure: the greedy TIN (build_greedy_tin, at most
 //      `tin_points` points) of the block less its border samples, so the TIN's boundary ring
-//      crosses the hybrid grid lines through the centre and stays strictly inside the block. HybridTerrain::build (one level, step K) classifies
-//      the block's cells, convexifies the uncovered part of each PC cell and adds the corner
-//      triangles; extract(0) gives the block's triangles.
+//      crosses the hybrid grid lines through the centre and stays strictly inside the block.
+//      HybridTerrain::build (one level, step K) classifies the block's cells, convexifies the uncovered part
+//      of each PC cell and adds the corner triangles; extract(0) gives the block's triangles.
 //   4. The cells outside the block keep the grid's two triangles, except that a cell sharing a
 //      side with the block takes the block's hybrid grid nodes on that side into a fan (no
 //      T-junction inside the node).
@@ -126,8 +126,8 @@ class HybridStrategy final : public NodeStrategy {
   /// The grid with block b's microstructure; false when HybridTerrain refuses the block.
   bool with_block(const pm::Heightfield& hf, const NodeSurface& g, const Block& b, NodeSurface& s) const {
     const int nc = int(g.cols.size());
-    const int c0 = g.cols[std::size_t(b.i - 1)], cx = g.cols[std::size_t(b.i)], c1 = g.cols[std::size_t(b.i + 1)];
-    const int r0 = g.rows[std::size_t(b.j - 1)], cy = g.rows[std::size_t(b.j)], r1 = g.rows[std::size_t(b.j + 1)];
+    const int c0 = g.cols[std::size_t(b.i - 1)], c1 = g.cols[std::size_t(b.i + 1)];
+    const int r0 = g.rows[std::size_t(b.j - 1)], r1 = g.rows[std::size_t(b.j + 1)];
     // The microstructure: the greedy TIN of the block less its border samples.
     const SampleRect rect{c0 + 1, r0 + 1, c1 - 1, r1 - 1};
     TinOptions to;
@@ -135,16 +135,18 @@ class HybridStrategy final : public NodeStrategy {
     to.metric = metric_;
     const TinSurface tin = build_greedy_tin(hf, rect, to);
     hybrid::TinMesh local;
-    local.source = hf.source + ": hybrid node over samples (" + std::to_string(c0) + "," + std::to_string(r0) +
-                   ")-(" + std::to_string(c1) + "," + std::to_string(r1) + ")";
-    for (const auto& p : tin.points) local.points.push_back({double(p[0] - c0), double(p[1] - r0), hf.at(p[0], p[1])});
+    local.source = hf.source + ": hybrid node over samples (" + std::to_string(c0) + "," +
+                   std::to_string(r0) + ")-(" + std::to_string(c1) + "," + std::to_string(r1) + ")";
+    for (const auto& p : tin.points)
+      local.points.push_back({double(p[0] - c0), double(p[1] - r0), hf.at(p[0], p[1])});
     local.triangles = tin.triangles;
     hybrid::HybridMesh m;
     try {
       const hybrid::HybridTerrain h = hybrid::HybridTerrain::build(
           c1 - c0 + 1, r1 - r0 + 1,
           [&](int col, int row) {
-            return hf.valid(c0 + col, r0 + row) ? hf.at(c0 + col, r0 + row) : std::numeric_limits<double>::quiet_NaN();
+            return hf.valid(c0 + col, r0 + row) ? hf.at(c0 + col, r0 + row)
+                                                : std::numeric_limits<double>::quiet_NaN();
           },
           local.source, local, {.grid_step = b.step, .levels = 1});
       m = h.extract(0, hybrid::Scheme::Triangles);
@@ -206,7 +208,8 @@ class HybridStrategy final : public NodeStrategy {
         if (ring.size() == 4 && apex % 2 == 1) {  // keep triangulate_grid's diagonal (x0,y0)-(x1,y1)
           std::rotate(ring.begin(), ring.begin() + 1, ring.end());
         }
-        for (std::size_t k = 1; k + 1 < ring.size(); ++k) s.triangles.push_back({ring[0], ring[k], ring[k + 1]});
+        for (std::size_t k = 1; k + 1 < ring.size(); ++k)
+          s.triangles.push_back({ring[0], ring[k], ring[k + 1]});
       }
     // Drop the points no triangle uses (the grid nodes inside the block that the TIN covers).
     std::vector<std::uint32_t> renum(s.points.size(), UINT32_MAX);
@@ -232,7 +235,8 @@ class HybridStrategy final : public NodeStrategy {
 
 }  // namespace
 
-std::unique_ptr<NodeStrategy> make_hybrid_strategy(int patch, std::size_t tin_points, pm::ErrorMetric metric) {
+std::unique_ptr<NodeStrategy> make_hybrid_strategy(int patch, std::size_t tin_points,
+                                                   pm::ErrorMetric metric) {
   return std::make_unique<HybridStrategy>(patch, tin_points, metric);
 }
 
