@@ -1,0 +1,259 @@
+// quantized-mesh-1.0 tiles (see quantized_mesh.hpp).
+#include "terralod/blocks/quantized_mesh.hpp"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <bit>
+#include <cassert>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+
+namespace terralod::blocks {
+namespace {
+
+constexpr int kMaxQ = 32767;
+
+struct Writer {
+  std::vector<std::uint8_t> out;
+  template <class T>
+  void put(T v) {
+    std::uint8_t b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));  // little-endian host (checked below)
+    out.insert(out.end(), b, b + sizeof(T));
+  }
+  void pad_to(std::size_t a) {
+    while (out.size() % a != 0) out.push_back(0);
+  }
+};
+static_assert(std::endian::native == std::endian::little,
+              "the encoders write the host's bytes: little-endian only");
+
+std::uint16_t zigzag(int d) { return std::uint16_t((d << 1) ^ (d >> 31)); }
+
+std::uint16_t quantize(double t) { return std::uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * kMaxQ)); }
+
+double snorm(double v) { return std::round((std::clamp(v, -1.0, 1.0) * 0.5 + 0.5) * 255.0); }
+
+}  // namespace
+
+GeoRect tile_rect(TileId id) {
+  const double w = 180.0 / std::ldexp(1.0, id.z);
+  return {-180.0 + id.x * w, -90.0 + id.y * w, -180.0 + (id.x + 1) * w, -90.0 + (id.y + 1) * w};
+}
+
+double level_max_geometric_error(int z) {
+  return pm::kWgs84A * 2.0 * std::numbers::pi * 0.25 / (65.0 * 2.0) / std::ldexp(1.0, z);
+}
+
+std::array<std::uint8_t, 2> oct_encode(const pm::Ecef& n) {
+  const double l1 = std::abs(n[0]) + std::abs(n[1]) + std::abs(n[2]);
+  double x = n[0] / l1, y = n[1] / l1;
+  if (n[2] < 0) {
+    const double ox = x, oy = y;
+    x = (1.0 - std::abs(oy)) * (ox < 0 ? -1.0 : 1.0);
+    y = (1.0 - std::abs(ox)) * (oy < 0 ? -1.0 : 1.0);
+  }
+  return {std::uint8_t(snorm(x)), std::uint8_t(snorm(y))};
+}
+
+QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::Geodetic> vertices,
+                                      std::span<const std::array<std::uint32_t, 3>> triangles,
+                                      const QuantizedMeshOptions& options) {
+  assert(rect.east > rect.west && rect.north > rect.south);
+  QuantizedMeshTile t;
+  // Vertices in order of first use (the high-water-mark index coding needs it).
+  std::vector<std::uint32_t> order, index(vertices.size(), UINT32_MAX);
+  for (const auto& tri : triangles)
+    for (std::uint32_t v : tri) {
+      assert(v < vertices.size());
+      if (index[v] == UINT32_MAX) {
+        index[v] = std::uint32_t(order.size());
+        order.push_back(v);
+      }
+    }
+  t.triangles.reserve(triangles.size());
+  for (const auto& tri : triangles) t.triangles.push_back({index[tri[0]], index[tri[1]], index[tri[2]]});
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (std::uint32_t v : order) {
+    lo = std::min(lo, vertices[v].height);
+    hi = std::max(hi, vertices[v].height);
+  }
+  if (order.empty()) lo = hi = 0;
+  t.min_height = float(lo);
+  t.max_height = float(hi);
+  // Quantize against the heights as stored (floats), so that decoding reproduces them.
+  const double hlo = t.min_height, hhi = t.max_height;
+  std::vector<pm::Ecef> ecef;
+  ecef.reserve(order.size());
+  for (std::uint32_t v : order) {
+    const pm::Geodetic& g = vertices[v];
+    t.u.push_back(quantize((g.lon_deg - rect.west) / (rect.east - rect.west)));
+    t.v.push_back(quantize((g.lat_deg - rect.south) / (rect.north - rect.south)));
+    t.h.push_back(hhi > hlo ? quantize((g.height - hlo) / (hhi - hlo)) : 0);
+    // The decoded position, so that the header bounds what a client draws.
+    const double lon = rect.west + (rect.east - rect.west) * t.u.back() / kMaxQ;
+    const double lat = rect.south + (rect.north - rect.south) * t.v.back() / kMaxQ;
+    ecef.push_back(pm::ecef_from_geodetic({lon, lat, hlo + (hhi - hlo) * t.h.back() / kMaxQ}));
+  }
+  t.sphere = pm::bounding_sphere(ecef);
+  t.center = t.sphere.center;
+  t.horizon = pm::horizon_occlusion_point(ecef, t.sphere.center);
+  // Edges, sorted along each edge (west and east by v, south and north by u).
+  for (std::uint32_t i = 0; i < order.size(); ++i) {
+    if (t.u[i] == 0) t.edges[0].push_back(i);
+    if (t.v[i] == 0) t.edges[1].push_back(i);
+    if (t.u[i] == kMaxQ) t.edges[2].push_back(i);
+    if (t.v[i] == kMaxQ) t.edges[3].push_back(i);
+  }
+  for (int e = 0; e < 4; ++e) {
+    const auto& key = e % 2 == 0 ? t.v : t.u;
+    std::sort(t.edges[std::size_t(e)].begin(), t.edges[std::size_t(e)].end(),
+              [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
+  }
+  if (options.normals) {
+    std::vector<pm::Ecef> n(order.size(), pm::Ecef{0, 0, 0});
+    for (const auto& tri : t.triangles) {
+      const pm::Ecef &a = ecef[tri[0]], &b = ecef[tri[1]], &c = ecef[tri[2]];
+      const pm::Ecef e1{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      const pm::Ecef f{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                       e1[0] * e2[1] - e1[1] * e2[0]};
+      for (std::uint32_t v : tri)
+        for (int k = 0; k < 3; ++k) n[v][std::size_t(k)] += f[std::size_t(k)];
+    }
+    t.normals.reserve(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      pm::Ecef m = n[i];
+      const double len = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+      if (len > 0) {
+        for (double& x : m) x /= len;
+      } else {  // an isolated vertex: the ellipsoid's normal
+        const pm::Geodetic& g = vertices[order[i]];
+        m = pm::geodetic_surface_normal(g.lon_deg, g.lat_deg);
+      }
+      t.normals.push_back(oct_encode(m));
+    }
+  }
+  t.metadata = options.metadata;
+  return t;
+}
+
+std::vector<std::uint8_t> encode_quantized_mesh(const QuantizedMeshTile& t) {
+  const std::size_t n = t.u.size();
+  assert(t.v.size() == n && t.h.size() == n && (t.normals.empty() || t.normals.size() == n));
+  Writer w;
+  for (double c : t.center) w.put(c);
+  w.put(t.min_height);
+  w.put(t.max_height);
+  for (double c : t.sphere.center) w.put(c);
+  w.put(t.sphere.radius);
+  for (double c : t.horizon) w.put(c);
+  w.put(std::uint32_t(n));
+  for (const auto* a : {&t.u, &t.v, &t.h}) {
+    int prev = 0;
+    for (std::uint16_t x : *a) {
+      w.put(zigzag(int(x) - prev));
+      prev = x;
+    }
+  }
+  const bool wide = n > 65536;
+  auto put_index = [&](std::uint32_t i) {
+    if (wide)
+      w.put(i);
+    else
+      w.put(std::uint16_t(i));
+  };
+  w.pad_to(wide ? 4 : 2);
+  w.put(std::uint32_t(t.triangles.size()));
+  std::uint32_t highest = 0;
+  for (const auto& tri : t.triangles)
+    for (std::uint32_t i : tri) {
+      if (i > highest) throw std::invalid_argument("quantized mesh: vertices are not in order of first use");
+      put_index(highest - i);
+      if (i == highest) ++highest;
+    }
+  for (const auto& e : t.edges) {
+    w.put(std::uint32_t(e.size()));
+    for (std::uint32_t i : e) put_index(i);
+  }
+  if (!t.normals.empty()) {
+    w.put(std::uint8_t(1));
+    w.put(std::uint32_t(2 * n));
+    for (const auto& o : t.normals) {
+      w.put(o[0]);
+      w.put(o[1]);
+    }
+  }
+  if (!t.metadata.empty()) {
+    w.put(std::uint8_t(4));
+    w.put(std::uint32_t(4 + t.metadata.size()));
+    w.put(std::uint32_t(t.metadata.size()));
+    w.out.insert(w.out.end(), t.metadata.begin(), t.metadata.end());
+  }
+  return std::move(w.out);
+}
+
+std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes) {
+  z_stream zs{};
+  if (deflateInit2(&zs, 9, Z_DEFLATED, 15 + 16, 9, Z_DEFAULT_STRATEGY) != Z_OK)
+    throw std::runtime_error("gzip: zlib initialisation failed");
+  std::vector<std::uint8_t> out(deflateBound(&zs, uLong(bytes.size())) + 32);
+  zs.next_in = const_cast<Bytef*>(bytes.data());
+  zs.avail_in = uInt(bytes.size());
+  zs.next_out = out.data();
+  zs.avail_out = uInt(out.size());
+  const int rc = deflate(&zs, Z_FINISH);
+  out.resize(zs.total_out);
+  deflateEnd(&zs);
+  if (rc != Z_STREAM_END) throw std::runtime_error("gzip: deflate failed");
+  return out;
+}
+
+std::string layer_json(const std::string& name, const GeoRect& b,
+                       const std::vector<std::vector<TileRange>>& available,
+                       const std::vector<std::string>& extensions) {
+  auto quoted = [](const std::string& s) {
+    std::string q = "\"";
+    for (char c : s) {
+      if (c == '"' || c == '\\') q += '\\';
+      if (static_cast<unsigned char>(c) < 0x20) {
+        char buf[8];
+        std::snprintf(buf, sizeof buf, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
+        q += buf;
+        continue;
+      }
+      q += c;
+    }
+    return q + "\"";
+  };
+  char buf[256];
+  std::string j =
+      "{\n  \"tilejson\": \"2.1.0\",\n  \"name\": " + quoted(name) +
+      ",\n  \"version\": \"1.0.0\",\n  \"format\": \"quantized-mesh-1.0\",\n  \"scheme\": \"tms\",\n"
+      "  \"projection\": \"EPSG:4326\",\n  \"tiles\": [\"{z}/{x}/{y}.terrain?v={version}\"],\n";
+  std::snprintf(buf, sizeof buf,
+                "  \"bounds\": [%.17g, %.17g, %.17g, %.17g],\n  \"minzoom\": 0,\n  \"maxzoom\": %d,\n",
+                b.west, b.south, b.east, b.north, int(available.size()) - 1);
+  j += buf;
+  j += "  \"extensions\": [";
+  for (std::size_t i = 0; i < extensions.size(); ++i) j += (i ? ", " : "") + quoted(extensions[i]);
+  j += "],\n  \"available\": [\n";
+  for (std::size_t z = 0; z < available.size(); ++z) {
+    j += "    [";
+    for (std::size_t i = 0; i < available[z].size(); ++i) {
+      const TileRange& r = available[z][i];
+      std::snprintf(buf, sizeof buf, "%s{\"startX\": %d, \"startY\": %d, \"endX\": %d, \"endY\": %d}",
+                    i ? ", " : "", r.start_x, r.start_y, r.end_x, r.end_y);
+      j += buf;
+    }
+    j += z + 1 < available.size() ? "],\n" : "]\n";
+  }
+  j += "  ]\n}\n";
+  return j;
+}
+
+}  // namespace terralod::blocks
