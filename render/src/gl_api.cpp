@@ -1,6 +1,7 @@
 // Loads the renderer's OpenGL entry points from a context (see gl_api.hpp for why).
 #include "gl_api.hpp"
 
+#include <cstdint>
 #include <cstdio>
 
 #include "terralod/render/gl_context.hpp"
@@ -27,6 +28,59 @@ void check_gl(const GlApi& gl, const char* what) {
     codes += buf;
   }
   throw RenderError(std::string(what) + ": GL error " + codes);
+}
+
+void OffscreenTarget::ensure(const GlApi& gl, int w, int h, const char* who) {
+  if (fbo && w == width && h == height) return;
+  if (!fbo) {
+    gl.GenFramebuffers(1, &fbo);
+    gl.GenRenderbuffers(1, &color_rb);
+    gl.GenRenderbuffers(1, &depth_rb);
+  }
+  gl.BindRenderbuffer(GL_RENDERBUFFER, color_rb);
+  gl.RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, w, h);
+  gl.BindRenderbuffer(GL_RENDERBUFFER, depth_rb);
+  gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
+  gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+  gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb);
+  gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
+  const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE)
+    throw RenderError(std::string(who) + ": the " + std::to_string(w) + " x " + std::to_string(h) +
+                      " framebuffer is incomplete (status " + std::to_string(status) + ")");
+  check_gl(gl, (std::string(who) + ": allocating the framebuffer").c_str());
+  width = w;
+  height = h;
+}
+
+void OffscreenTarget::release(const GlApi& gl) {
+  if (!fbo) return;
+  gl.DeleteFramebuffers(1, &fbo);
+  const GLuint rbs[2] = {color_rb, depth_rb};
+  gl.DeleteRenderbuffers(2, rbs);
+  fbo = color_rb = depth_rb = 0;
+  width = height = 0;
+}
+
+Image OffscreenTarget::read_rgb(const GlApi& gl, const char* who) const {
+  const int w = width, h = height;
+  std::vector<std::uint8_t> rgba(std::size_t(w) * h * 4);
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
+  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+  check_gl(gl, (std::string(who) + ": reading the frame back").c_str());
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.rgb.resize(std::size_t(w) * h * 3);
+  for (int y = 0; y < h; ++y) {  // GL rows go bottom-up
+    const std::uint8_t* src = rgba.data() + std::size_t(h - 1 - y) * w * 4;
+    std::uint8_t* dst = img.pixel(0, y);
+    for (int x = 0; x < w; ++x)
+      dst[3 * x] = src[4 * x], dst[3 * x + 1] = src[4 * x + 1], dst[3 * x + 2] = src[4 * x + 2];
+  }
+  return img;
 }
 
 }  // namespace terralod::render::detail

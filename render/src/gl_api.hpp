@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "terralod/render/image.hpp"
+
 namespace terralod::render::detail {
 
 // X(type, name, required): the member is `name`, the GL symbol "gl" #name.
@@ -108,5 +110,18 @@ struct GlApi {
 
 /// Throws RenderError("<what>: GL error 0x0502 ...") when glGetError reports errors.
 void check_gl(const GlApi& gl, const char* what);
+
+/// The offscreen framebuffer both renderers draw into: RGBA8 colour and 32-bit float depth
+/// renderbuffers, reallocated when the size changes. `who` names the renderer in errors.
+struct OffscreenTarget {
+  GLuint fbo = 0, color_rb = 0, depth_rb = 0;
+  int width = 0, height = 0;
+  /// Makes the target w x h (a no-op when it already is); RenderError when incomplete.
+  void ensure(const GlApi& gl, int w, int h, const char* who);
+  /// Deletes the GL objects (the context must be current).
+  void release(const GlApi& gl);
+  /// The colour buffer as an RGB image, top row first.
+  Image read_rgb(const GlApi& gl, const char* who) const;
+};
 
 }  // namespace terralod::render::detail

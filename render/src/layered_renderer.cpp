@@ -144,8 +144,7 @@ struct LayeredRenderer::Impl {
   const detail::GlApi& gl;
   TexApi tx;
   int gl_units = 16;
-  GLuint fbo = 0, color_rb = 0, depth_rb = 0;
-  int fb_width = 0, fb_height = 0;
+  detail::OffscreenTarget target;
   std::map<std::uint32_t, GpuMesh> meshes;
   std::uint32_t next_mesh = 1;
   std::map<std::uint32_t, GpuTexture> textures;
@@ -191,26 +190,7 @@ struct LayeredRenderer::Impl {
     tx.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, f);
   }
 
-  void ensure_framebuffer(int w, int h) {
-    if (fbo && w == fb_width && h == fb_height) return;
-    if (!fbo) {
-      gl.GenFramebuffers(1, &fbo);
-      gl.GenRenderbuffers(1, &color_rb);
-      gl.GenRenderbuffers(1, &depth_rb);
-    }
-    gl.BindRenderbuffer(GL_RENDERBUFFER, color_rb);
-    gl.RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, w, h);
-    gl.BindRenderbuffer(GL_RENDERBUFFER, depth_rb);
-    gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
-    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb);
-    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-    if (gl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      throw RenderError("layered renderer: the " + std::to_string(w) + " x " + std::to_string(h) +
-                        " framebuffer is incomplete");
-    fb_width = w;
-    fb_height = h;
-  }
+  void ensure_framebuffer(int w, int h) { target.ensure(gl, w, h, "layered renderer"); }
 
   // Layers a colour layer samples: itself and its mask layer.
   static bool sampled_by_any(std::span<const LayerStyle> st, int i) {
@@ -438,11 +418,7 @@ LayeredRenderer::~LayeredRenderer() {
   impl_->tx.DeleteTextures(1, &impl_->empty_texture);
   if (impl_->lens_texture) impl_->tx.DeleteTextures(1, &impl_->lens_texture);
   for (auto& [sig, p] : impl_->programs) gl.DeleteProgram(p.id);
-  if (impl_->fbo) {
-    gl.DeleteFramebuffers(1, &impl_->fbo);
-    const GLuint rbs[2] = {impl_->color_rb, impl_->depth_rb};
-    gl.DeleteRenderbuffers(2, rbs);
-  }
+  impl_->target.release(gl);
 }
 
 int LayeredRenderer::texture_units() const {
@@ -578,7 +554,7 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
   const int passes = passes_for(st, lens, any_seq);
 
   im.ensure_framebuffer(camera.width_px, camera.height_px);
-  gl.BindFramebuffer(GL_FRAMEBUFFER, im.fbo);
+  gl.BindFramebuffer(GL_FRAMEBUFFER, im.target.fbo);
   gl.Viewport(0, 0, camera.width_px, camera.height_px);
   gl.ClearColor(options_.sky_color.r, options_.sky_color.g, options_.sky_color.b, 1.0f);
   gl.ClearDepth(1.0);
@@ -735,25 +711,7 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
 Image LayeredRenderer::read_color() const {
   assert(impl_->drawn && "LayeredRenderer::read_color before the first draw()");
   ctx_.make_current();
-  const detail::GlApi& gl = impl_->gl;
-  const int w = impl_->fb_width, h = impl_->fb_height;
-  std::vector<std::uint8_t> rgba(std::size_t(w) * h * 4);
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
-  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
-  gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-  detail::check_gl(gl, "layered renderer: reading the frame");
-  Image img;
-  img.width = w;
-  img.height = h;
-  img.rgb.resize(std::size_t(w) * h * 3);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      const std::uint8_t* s = rgba.data() + 4 * (std::size_t(h - 1 - y) * w + x);
-      std::uint8_t* d = img.pixel(x, y);
-      d[0] = s[0], d[1] = s[1], d[2] = s[2];
-    }
-  return img;
+  return impl_->target.read_rgb(impl_->gl, "layered renderer");
 }
 
 }  // namespace terralod::render

@@ -122,8 +122,7 @@ struct TerrainRenderer::Impl {
   const detail::GlApi& gl;
   GLuint program = 0;
   GLint u_mvp = -1, u_alpha = -1, u_ramp = -1, u_light = -1, u_ambient = -1, u_flat = -1, u_color = -1;
-  GLuint fbo = 0, color_rb = 0, depth_rb = 0;
-  int fb_width = 0, fb_height = 0;
+  detail::OffscreenTarget target;
   std::map<std::uint32_t, GpuMesh> meshes;
   std::uint32_t next_id = 1;
   bool drawn = false;
@@ -177,28 +176,7 @@ struct TerrainRenderer::Impl {
     detail::check_gl(gl, "renderer: building the shaders");
   }
 
-  void ensure_framebuffer(int w, int h) {
-    if (fbo && w == fb_width && h == fb_height) return;
-    if (!fbo) {
-      gl.GenFramebuffers(1, &fbo);
-      gl.GenRenderbuffers(1, &color_rb);
-      gl.GenRenderbuffers(1, &depth_rb);
-    }
-    gl.BindRenderbuffer(GL_RENDERBUFFER, color_rb);
-    gl.RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, w, h);
-    gl.BindRenderbuffer(GL_RENDERBUFFER, depth_rb);
-    gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
-    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb);
-    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-    const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
-    if (status != GL_FRAMEBUFFER_COMPLETE)
-      throw RenderError("renderer: the " + std::to_string(w) + " x " + std::to_string(h) +
-                        " framebuffer is incomplete (status " + std::to_string(status) + ")");
-    detail::check_gl(gl, "renderer: allocating the framebuffer");
-    fb_width = w;
-    fb_height = h;
-  }
+  void ensure_framebuffer(int w, int h) { target.ensure(gl, w, h, "renderer"); }
 
   /// blend_buffer = 0: heights from vbo_z (GPU path); else both heights read it (CPU path).
   void set_attributes(GLuint vao, const GpuMesh& m, GLuint blend_buffer) {
@@ -324,11 +302,7 @@ TerrainRenderer::~TerrainRenderer() {
   ctx_.make_current();
   const detail::GlApi& gl = impl_->gl;
   for (auto& [id, m] : impl_->meshes) impl_->free_mesh(m);
-  if (impl_->fbo) {
-    gl.DeleteFramebuffers(1, &impl_->fbo);
-    const GLuint rbs[2] = {impl_->color_rb, impl_->depth_rb};
-    gl.DeleteRenderbuffers(2, rbs);
-  }
+  impl_->target.release(gl);
   gl.DeleteProgram(impl_->program);
 }
 
@@ -419,7 +393,7 @@ FrameStats TerrainRenderer::draw(const Camera& camera, std::span<const DrawItem>
   t = Clock::now();
   impl_->ensure_framebuffer(camera.width_px, camera.height_px);
   const bool reverse = options_.reverse_z && ctx_.info().clip_control;
-  gl.BindFramebuffer(GL_FRAMEBUFFER, impl_->fbo);
+  gl.BindFramebuffer(GL_FRAMEBUFFER, impl_->target.fbo);
   gl.Viewport(0, 0, camera.width_px, camera.height_px);
   if (ctx_.info().clip_control)
     gl.ClipControl(GL_LOWER_LEFT, reverse ? GL_ZERO_TO_ONE : GL_NEGATIVE_ONE_TO_ONE);
@@ -495,25 +469,7 @@ FrameStats TerrainRenderer::draw(const Camera& camera, std::span<const DrawItem>
 Image TerrainRenderer::read_color() const {
   assert(impl_->drawn && "TerrainRenderer::read_color before the first draw()");
   ctx_.make_current();
-  const detail::GlApi& gl = impl_->gl;
-  const int w = impl_->fb_width, h = impl_->fb_height;
-  std::vector<std::uint8_t> rgba(std::size_t(w) * h * 4);
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
-  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
-  gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-  detail::check_gl(gl, "renderer: reading the frame back");
-  Image img;
-  img.width = w;
-  img.height = h;
-  img.rgb.resize(std::size_t(w) * h * 3);
-  for (int y = 0; y < h; ++y) {  // GL rows go bottom-up
-    const std::uint8_t* src = rgba.data() + std::size_t(h - 1 - y) * w * 4;
-    std::uint8_t* dst = img.pixel(0, y);
-    for (int x = 0; x < w; ++x)
-      dst[3 * x] = src[4 * x], dst[3 * x + 1] = src[4 * x + 1], dst[3 * x + 2] = src[4 * x + 2];
-  }
-  return img;
+  return impl_->target.read_rgb(impl_->gl, "renderer");
 }
 
 Image TerrainRenderer::read_window_color(bool blit) {
@@ -522,10 +478,10 @@ Image TerrainRenderer::read_window_color(bool blit) {
   const detail::GlApi& gl = impl_->gl;
   const int w = ctx_.framebuffer_width(), h = ctx_.framebuffer_height();
   if (blit) {
-    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->target.fbo);
     gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
-    const bool same = w == impl_->fb_width && h == impl_->fb_height;
-    gl.BlitFramebuffer(0, 0, impl_->fb_width, impl_->fb_height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
+    const bool same = w == impl_->target.width && h == impl_->target.height;
+    gl.BlitFramebuffer(0, 0, impl_->target.width, impl_->target.height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
                        same ? GL_NEAREST : GL_LINEAR);
   }
   // The default framebuffer keeps its own read buffer (GL_BACK, or GL_FRONT when single-buffered).
@@ -551,7 +507,7 @@ std::vector<DepthSample> TerrainRenderer::read_depth(std::span<const glm::ivec2>
   assert(impl_->drawn && "TerrainRenderer::read_depth before the first draw()");
   std::vector<DepthSample> out(pixels.size());
   if (pixels.empty()) return out;
-  const int w = impl_->fb_width, h = impl_->fb_height;
+  const int w = impl_->target.width, h = impl_->target.height;
   glm::ivec2 lo = pixels[0], hi = pixels[0];
   for (const glm::ivec2& p : pixels) {
     assert(p.x >= 0 && p.y >= 0 && p.x < w && p.y < h && "read_depth: pixel outside the frame");
@@ -563,7 +519,7 @@ std::vector<DepthSample> TerrainRenderer::read_depth(std::span<const glm::ivec2>
   // Image rows [lo.y, hi.y] are GL rows [h-1-hi.y, h-1-lo.y].
   const int rw = hi.x - lo.x + 1, rh = hi.y - lo.y + 1, gl_y0 = h - 1 - hi.y;
   std::vector<float> depth(std::size_t(rw) * rh);
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->target.fbo);
   gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
   gl.ReadPixels(lo.x, gl_y0, rw, rh, GL_DEPTH_COMPONENT, GL_FLOAT, depth.data());
   detail::check_gl(gl, "renderer: reading depth back");
@@ -601,10 +557,10 @@ void TerrainRenderer::present(bool swap) {
   ctx_.make_current();
   const detail::GlApi& gl = impl_->gl;
   const int w = ctx_.framebuffer_width(), h = ctx_.framebuffer_height();
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->fbo);
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, impl_->target.fbo);
   gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
-  const bool same = w == impl_->fb_width && h == impl_->fb_height;
-  gl.BlitFramebuffer(0, 0, impl_->fb_width, impl_->fb_height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
+  const bool same = w == impl_->target.width && h == impl_->target.height;
+  gl.BlitFramebuffer(0, 0, impl_->target.width, impl_->target.height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
                      same ? GL_NEAREST : GL_LINEAR);
   detail::check_gl(gl, "renderer: presenting the frame");
   if (swap) ctx_.swap_buffers();
