@@ -24,17 +24,7 @@ namespace {
 
 using Terrain = tt::RefinableTerrain;
 
-const Terrain& generated(int size, std::uint64_t seed) {
-  static std::map<std::pair<int, std::uint64_t>, std::unique_ptr<Terrain>> cache;
-  auto& t = cache[{size, seed}];
-  if (!t) {
-    pm::TerrainOptions o;
-    o.width = o.height = size;
-    o.seed = seed;
-    t = std::make_unique<Terrain>(pm::generate_terrain(o));
-  }
-  return *t;
-}
+const Terrain& generated(int size, std::uint64_t seed) { return tt::generated_refinable(size, seed); }
 
 // Plan positions in index space (col, row) and heights of a render mesh.
 std::vector<std::array<double, 3>> to_index(const pm::Heightfield& hf, const pm::RenderMesh& m) {

@@ -26,18 +26,7 @@ namespace {
 
 using Terrain = tt::RefinableTerrain;
 
-// Built once per process and shared by the tests.
-const Terrain& generated(int size, std::uint64_t seed) {
-  static std::map<std::pair<int, std::uint64_t>, std::unique_ptr<Terrain>> cache;
-  auto& t = cache[{size, seed}];
-  if (!t) {
-    pm::TerrainOptions o;
-    o.width = o.height = size;
-    o.seed = seed;
-    t = std::make_unique<Terrain>(pm::generate_terrain(o));
-  }
-  return *t;
-}
+const Terrain& generated(int size, std::uint64_t seed) { return tt::generated_refinable(size, seed); }
 
 // A 257 x 257 crop of N44W072 around Mount Washington (row 876, col 840 of the tile).
 const Terrain* real_crop() {

@@ -9,11 +9,15 @@
 // samples); keep it in place or behind a pointer. Cost: one ProgressiveMesh::build of h.
 #pragma once
 
+#include <cstdint>
+#include <map>
+#include <memory>
 #include <utility>
 
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/terrain_generator.hpp"
 
 namespace terralod::test {
 
@@ -26,5 +30,18 @@ struct RefinableTerrain {
   RefinableTerrain(const RefinableTerrain&) = delete;
   RefinableTerrain& operator=(const RefinableTerrain&) = delete;
 };
+
+/// The generated size x size terrain of `seed`, built once per process and shared by the tests.
+inline const RefinableTerrain& generated_refinable(int size, std::uint64_t seed) {
+  static std::map<std::pair<int, std::uint64_t>, std::unique_ptr<RefinableTerrain>> cache;
+  auto& t = cache[{size, seed}];
+  if (!t) {
+    pm::TerrainOptions o;
+    o.width = o.height = size;
+    o.seed = seed;
+    t = std::make_unique<RefinableTerrain>(pm::generate_terrain(o));
+  }
+  return *t;
+}
 
 }  // namespace terralod::test
