@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "screen_error_checker.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -22,27 +23,6 @@ using namespace terralod::pm;
 std::string tmp_path(const std::string& name) {
   fs::create_directories(TERRALOD_TEST_TMP);
   return std::string(TERRALOD_TEST_TMP) + "/pm_io_" + name;
-}
-
-/// A crop of the SRTM tile N44W072 (big-endian int16, 1201 x 1201, row 0 north), or an empty
-/// heightfield when the data folder is absent.
-Heightfield srtm_crop(int col0, int row0, int w, int h) {
-  std::ifstream in(std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt", std::ios::binary);
-  if (!in) return Heightfield();
-  std::vector<unsigned char> b(1201 * 1201 * 2);
-  if (!in.read(reinterpret_cast<char*>(b.data()), std::streamsize(b.size()))) return Heightfield();
-  Heightfield hf(w, h);
-  for (int r = 0; r < h; ++r)
-    for (int c = 0; c < w; ++c) {
-      const std::size_t i = (std::size_t(row0 + r) * 1201 + std::size_t(col0 + c)) * 2;
-      hf.at(c, r) = double(std::int16_t(std::uint16_t(b[i] << 8 | b[i + 1])));
-    }
-  // 3 arc-seconds at 44.5 N: about 66 m east-west, 92.6 m north-south.
-  hf.transform = GridTransform::north_up(/*x0=*/0.0, /*y0=*/0.0, /*dx=*/66.1, /*dy=*/92.6);
-  hf.source = "N44W072.hgt crop";
-  hf.frame = "local equirectangular from lon/lat";
-  hf.crs_wkt = "GEOGCS[\"WGS 84\"]";
-  return hf;
 }
 
 Heightfield generated(int w, int h, bool metres, std::uint64_t seed = 7) {
@@ -209,8 +189,9 @@ TEST(PmIo, HeightQuantizationIsExactOrNotUsed) {
 }
 
 TEST(PmIo, RealTileCropIsCompact) {
-  const Heightfield hf = srtm_crop(/*col0=*/720, /*row0=*/750, 257, 257);
-  if (hf.size() == 0) GTEST_SKIP() << "N44W072.hgt not found in " << TERRALOD_DATA_DIR;
+  const auto crop = terralod::test::read_hgt_crop("N44W072.hgt", 720, 750, 257);
+  if (!crop) GTEST_SKIP() << "N44W072.hgt not found in " << TERRALOD_DATA_DIR;
+  const Heightfield& hf = *crop;
   const ProgressiveMesh pm = ProgressiveMesh::build(hf);
   const auto bytes = check_round_trip(pm, "srtm257.pm");
   EXPECT_TRUE(quantized_flag(bytes));

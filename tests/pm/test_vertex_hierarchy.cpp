@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "screen_error_checker.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/pm/vertex_hierarchy.hpp"
 
@@ -18,23 +19,6 @@ namespace {
 
 using namespace terralod::pm;
 constexpr std::uint32_t kNone = HierarchyNode::kNone;
-
-/// A crop of the SRTM tile N44W072 (big-endian int16, 1201 x 1201, row 0 north), or an empty
-/// heightfield when the data folder is absent.
-Heightfield srtm_crop(int col0, int row0, int w, int h) {
-  std::ifstream in(std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt", std::ios::binary);
-  if (!in) return Heightfield();
-  std::vector<unsigned char> b(1201 * 1201 * 2);
-  if (!in.read(reinterpret_cast<char*>(b.data()), std::streamsize(b.size()))) return Heightfield();
-  Heightfield hf(w, h);
-  for (int r = 0; r < h; ++r)
-    for (int c = 0; c < w; ++c) {
-      const std::size_t i = (std::size_t(row0 + r) * 1201 + std::size_t(col0 + c)) * 2;
-      hf.at(c, r) = double(std::int16_t(std::uint16_t(b[i] << 8 | b[i + 1])));
-    }
-  hf.transform = GridTransform::north_up(/*x0=*/500000.0, /*y0=*/4900000.0, /*dx=*/66.1, /*dy=*/92.6);
-  return hf;
-}
 
 Heightfield generated(int w, int h, bool metres, std::uint64_t seed = 5) {
   TerrainOptions opt;
@@ -272,8 +256,9 @@ TEST(VertexHierarchy, GeneratedTerrainWithHoles) {
 }
 
 TEST(VertexHierarchy, RealTileCrop) {
-  const Heightfield hf = srtm_crop(/*col0=*/760, /*row0=*/800, 129, 129);
-  if (hf.size() == 0) GTEST_SKIP() << "N44W072.hgt not found in " << TERRALOD_DATA_DIR;
+  const auto crop = terralod::test::read_hgt_crop("N44W072.hgt", 760, 800, 129);
+  if (!crop) GTEST_SKIP() << "N44W072.hgt not found in " << TERRALOD_DATA_DIR;
+  const Heightfield& hf = *crop;
   const ProgressiveMesh pm = ProgressiveMesh::build(hf);
   const VertexHierarchy vh(pm);
   check_hierarchy(pm, vh);
