@@ -13,6 +13,7 @@
 #include <random>
 #include <set>
 
+#include "plane_cover_check.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/blocks/hybrid/hybrid_terrain.hpp"
@@ -73,10 +74,8 @@ double orient(const std::array<double, 3>& a, const std::array<double, 3>& b,
   return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
 }
 
-/// Exact single cover of [0,W]x[0,H] and watertightness (independent of the library): every
-/// triangle CCW; every directed edge used once; an edge without its twin lies on the domain
-/// border; summed area = domain area; no two vertices share a position; heights: TIN vertices
-/// keep their TIN height, grid nodes that are no TIN vertex keep the DEM height.
+/// Heights (TIN vertices keep their TIN height, grid nodes that are no TIN vertex keep the DEM
+/// height), then check_plane_cover: exact single cover of [0,W]x[0,H], watertight.
 std::string check_cover(const hy::HybridMesh& m, double W, double H, const pm::Heightfield& hf, int step,
                         const hy::TinMesh& tin) {
   std::map<std::pair<double, double>, std::uint32_t> at;
@@ -97,28 +96,7 @@ std::string check_cover(const hy::HybridMesh& m, double W, double H, const pm::H
       return "grid node (" + std::to_string(p[0]) + "," + std::to_string(p[1]) +
              ") has neither the DEM nor the TIN height";
   }
-  double area = 0;
-  std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
-  for (const auto& t : m.triangles) {
-    const double o = orient(m.points[t[0]], m.points[t[1]], m.points[t[2]]);
-    if (!(o > 0)) return "flipped or degenerate triangle";
-    area += o / 2;
-    for (int k = 0; k < 3; ++k)
-      if (!edges.insert({t[k], t[(k + 1) % 3]}).second) return "directed edge used twice (overlap)";
-  }
-  for (const auto& [a, b] : edges) {
-    if (edges.count({b, a})) continue;
-    const auto& p = m.points[a];
-    const auto& q = m.points[b];
-    const bool border = (p[0] == 0 && q[0] == 0) || (p[0] == W && q[0] == W) || (p[1] == 0 && q[1] == 0) ||
-                        (p[1] == H && q[1] == H);
-    if (!border)
-      return "open edge (" + std::to_string(p[0]) + "," + std::to_string(p[1]) + ")-(" +
-             std::to_string(q[0]) + "," + std::to_string(q[1]) + ") inside the domain (crack or T-junction)";
-  }
-  if (std::abs(area - W * H) > 1e-9 * W * H)
-    return "area " + std::to_string(area) + " != " + std::to_string(W * H);
-  return "";
+  return terralod::test::check_plane_cover(m.points, m.triangles, W, H);
 }
 
 /// Every level: decoded == direct (triangle for triangle); both schemes and a mixed-level

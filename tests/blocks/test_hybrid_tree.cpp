@@ -11,6 +11,7 @@
 #include <random>
 #include <set>
 
+#include "plane_cover_check.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/blocks/hybrid/hybrid_tree.hpp"
@@ -126,33 +127,9 @@ double brute_triangle_error(const pm::Heightfield& hf, P3 a, P3 b, P3 c) {
   return worst;
 }
 
-/// Exact single cover of [0,W]x[0,H] and watertightness: CCW triangles, every directed edge
-/// once, edges without twin on the domain border, area = W*H, one vertex per position.
+/// Exact single cover of [0,W]x[0,H] and watertightness (tests/support/plane_cover_check.hpp).
 std::string check_cover(const hy::HybridMesh& m, double W, double H) {
-  std::set<std::pair<double, double>> at;
-  for (const auto& p : m.points)
-    if (!at.insert({p[0], p[1]}).second) return "two vertices at one position";
-  double area = 0;
-  std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
-  for (const auto& t : m.triangles) {
-    const double o = orient(m.points[t[0]], m.points[t[1]], m.points[t[2]]);
-    if (!(o > 0)) return "flipped or degenerate triangle";
-    area += o / 2;
-    for (int k = 0; k < 3; ++k)
-      if (!edges.insert({t[k], t[(k + 1) % 3]}).second) return "directed edge used twice (overlap)";
-  }
-  for (const auto& [a, b] : edges) {
-    if (edges.count({b, a})) continue;
-    const auto& p = m.points[a];
-    const auto& q = m.points[b];
-    if (!((p[0] == 0 && q[0] == 0) || (p[0] == W && q[0] == W) || (p[1] == 0 && q[1] == 0) ||
-          (p[1] == H && q[1] == H)))
-      return "open edge (" + std::to_string(p[0]) + "," + std::to_string(p[1]) + ")-(" +
-             std::to_string(q[0]) + "," + std::to_string(q[1]) + ") inside the domain";
-  }
-  if (std::abs(area - W * H) > 1e-9 * W * H)
-    return "area " + std::to_string(area) + " != " + std::to_string(W * H);
-  return "";
+  return terralod::test::check_plane_cover(m.points, m.triangles, W, H);
 }
 
 /// Heights agree: every point of every drawn node has the union vertex's height at its position.
