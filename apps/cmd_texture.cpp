@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/pm_io.hpp"
@@ -39,38 +40,6 @@ std::vector<double> parse_list(const Args& a, const std::string& opt, std::size_
     throw UsageError("option '" + opt + "' must be " + std::to_string(n) + " comma-separated numbers, not '" +
                      a.get(opt) + "'");
   return v;
-}
-
-// The full-resolution terrain, assembled from the block PMs (each holds its samples exactly).
-pm::Heightfield read_terrain(const tb::BlockDatabase& db) {
-  const tb::DatabaseInfo& info = db.info();
-  if (info.block_size <= 0)
-    throw tb::DatabaseError(db.path(),
-                            "not a blocked database (kind '" + info.kind + "'): no terrain samples to shade");
-  const tb::BlockLayout layout = tb::partition(info.grid_width, info.grid_height, info.block_size);
-  pm::Heightfield hf(info.grid_width, info.grid_height);
-  hf.transform = info.transform;
-  hf.crs_wkt = info.crs_wkt;
-  hf.source = info.source;
-  std::vector<std::uint8_t> mask;
-  for (tb::BlockKey k : layout.keys()) {
-    const std::string item = "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
-    const pm::ProgressiveMesh p = pm::decode_pm(db.read_block(k), db.path() + ": " + item);
-    const tb::SampleRect r = layout.rect(k);
-    const pm::Heightfield& b = p.heightfield();
-    if (b.width() != r.width() || b.height() != r.height())
-      throw tb::DatabaseError(db.path(), item + ": its grid does not match the block layout");
-    for (int j = 0; j < b.height(); ++j)
-      for (int i = 0; i < b.width(); ++i) {
-        hf.at(r.col0 + i, r.row0 + j) = b.at(i, j);
-        if (b.has_holes() && !b.valid(i, j)) {
-          if (mask.empty()) mask.assign(hf.size(), 1);
-          mask[std::size_t(r.row0 + j) * hf.width() + (r.col0 + i)] = 0;
-        }
-      }
-  }
-  if (!mask.empty()) hf.set_mask(std::move(mask));
-  return hf;
 }
 
 tr::TextureConstraints constraints(const Args& a) {
@@ -167,7 +136,7 @@ int texture_shade(const Args& a, const std::string& path) {
   so.shadows = a.has("--shadows");
   const bool gpu = a.has("--gpu");
   auto t = Clock::now();
-  const pm::Heightfield hf = read_terrain(db);
+  const pm::Heightfield hf = tb::read_database_terrain(db);
   std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(),
               format_duration(ms_since(t)).c_str());
   t = Clock::now();
