@@ -1,18 +1,19 @@
-// Triangle mesh files: the writers (binary PLY, OBJ) in sample or world units, chosen by
-// extension, each written atomically. The readers are in mesh_reader.cpp.
+// Triangle mesh files: the writers (binary PLY, OBJ; glTF through gltf_writer.cpp) in sample or
+// world units, chosen by extension, each written atomically. The readers are in mesh_reader.cpp.
 #include "terralod/pm/mesh_io.hpp"
 
 #include <unistd.h>
 
 #include <algorithm>
-#include <bit>
 #include <cctype>
 #include <cerrno>
-#include <charconv>
 #include <cstdio>
 #include <cstring>
 #include <sstream>
 #include <stdexcept>
+
+#include "encode_util.hpp"
+#include "gltf_writer.hpp"
 
 namespace terralod::pm {
 
@@ -46,13 +47,7 @@ void write_file_atomically(const std::string& path, const std::string& bytes) {
   }
 }
 
-template <class T>
-void append_le(std::string& out, T v) {
-  char b[sizeof(T)];
-  std::memcpy(b, &v, sizeof(T));  // the host is little-endian (checked below)
-  out.append(b, sizeof(T));
-}
-static_assert(std::endian::native == std::endian::little, "mesh_io writes little-endian PLY by memcpy");
+using detail::append_le;
 
 std::string encode_ply(const TriangleMeshData& m, const std::vector<std::string>& comments) {
   std::string out = "ply\nformat binary_little_endian 1.0\n";
@@ -71,23 +66,17 @@ std::string encode_ply(const TriangleMeshData& m, const std::vector<std::string>
   return out;
 }
 
-void append_double(std::string& out, double v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest exact round trip
-  out.append(buf, r.ptr);
-}
-
 std::string encode_obj(const TriangleMeshData& m, const std::vector<std::string>& comments) {
   std::string out;
   for (const std::string& c : comments) out += "# " + c + "\n";
   out.reserve(out.size() + 40 * m.positions.size() + 24 * m.triangles.size());
   for (const auto& p : m.positions) {
     out += "v ";
-    append_double(out, p[0]);
+    detail::append_shortest(out, p[0]);
     out += ' ';
-    append_double(out, p[1]);
+    detail::append_shortest(out, p[1]);
     out += ' ';
-    append_double(out, p[2]);
+    detail::append_shortest(out, p[2]);
     out += '\n';
   }
   for (const auto& t : m.triangles) {
@@ -110,6 +99,10 @@ void write_data(const TriangleMeshData& m, const std::string& path,
       return write_file_atomically(path, encode_ply(m, comments));
     case MeshFormat::Obj:
       return write_file_atomically(path, encode_obj(m, comments));
+    case MeshFormat::Glb:
+    case MeshFormat::Gltf:
+      return write_file_atomically(path,
+                                   detail::encode_gltf(m, /*binary=*/fmt == MeshFormat::Glb, comments, path));
   }
 }
 
@@ -124,6 +117,8 @@ std::optional<MeshFormat> mesh_format_of(const std::string& path) {
                  [](unsigned char ch) { return char(std::tolower(ch)); });
   if (ext == "ply") return MeshFormat::Ply;
   if (ext == "obj") return MeshFormat::Obj;
+  if (ext == "glb") return MeshFormat::Glb;
+  if (ext == "gltf") return MeshFormat::Gltf;
   return std::nullopt;
 }
 

@@ -1,5 +1,6 @@
 // Tests for the PLY/OBJ mesh writers and their read-back: exact values, units, winding, errors.
-// The readers' own tests (ascii / big-endian PLY, OBJ forms) are in test_mesh_reader.cpp.
+// The readers' own tests (ascii / big-endian PLY, OBJ forms) are in test_mesh_reader.cpp, the
+// glTF writer's in test_gltf_writer.cpp.
 #include <gtest/gtest.h>
 
 #include <array>

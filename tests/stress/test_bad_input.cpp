@@ -294,7 +294,7 @@ TEST(BadInput, WriteMeshThatFailsHalfWayLeavesNothing) {
   const fs::path dir = scratch();
   const pm::ProgressiveMesh p = small_pm();
   const pm::TriangleMesh m = p.extract(1.0);
-  for (const char* name : {"full_disk.ply", "full_disk.obj"}) {
+  for (const char* name : {"full_disk.ply", "full_disk.obj", "full_disk.glb", "full_disk.gltf"}) {
     const fs::path out = dir / name;
     if (!tmp_to_dev_full(out)) GTEST_SKIP() << "/dev/full absent";
     expect_error<std::runtime_error>(

@@ -1,23 +1,32 @@
-// Triangle mesh files: writers for extracted meshes (binary PLY, OBJ) and readers for TINs
-// made elsewhere (PLY in all three encodings, Wavefront OBJ).
+// Triangle mesh files: writers for extracted meshes (binary PLY, OBJ, glTF 2.0 .glb / .gltf) and
+// readers for TINs made elsewhere (PLY in all three encodings, Wavefront OBJ).
 //
 // Usage:
 //   terralod::pm::TriangleMesh m = pm.extract(/*max_error=*/2.0);
 //   terralod::pm::write_mesh(m, pm.heightfield(), "terrain.ply", terralod::pm::Units::World);
 //   terralod::pm::write_mesh(m, pm.heightfield(), "terrain.obj", terralod::pm::Units::Samples);
+//   terralod::pm::write_mesh(m, pm.heightfield(), "terrain.glb", terralod::pm::Units::World);
 //   terralod::pm::TriangleMeshData back = terralod::pm::read_mesh("terrain.ply");  // or .obj
 //
 // Contract (writing):
 //   - The format comes from the extension, case-insensitive (mesh_format_of): ".ply" = PLY 1.0
 //     binary_little_endian with `element vertex N` (property double x, y, z) and `element face
 //     M` (property list uchar int vertex_indices); ".obj" = Wavefront OBJ text, "v x y z" with
-//     the shortest decimal that reads back to the same double, "f a b c" (1-based). Any other
-//     extension: std::runtime_error naming the path.
+//     the shortest decimal that reads back to the same double, "f a b c" (1-based); ".glb" =
+//     binary glTF 2.0; ".gltf" = glTF 2.0 JSON with the buffer inline as a base64 data URI (one
+//     file, so the write stays atomic; no sidecar .bin). Both glTF forms are laid out in
+//     pm/src/gltf_writer.hpp: one mesh, one triangle primitive with float POSITION, area-weighted
+//     unit NORMAL and uint16 (< 65535 vertices) or uint32 indices; axes mapped to glTF's Y-up
+//     frame as gltf = (x, z, -y), a rotation, so faces stay CCW seen from outside; positions
+//     stored as floats relative to the bounding-box centre, which is the node's `translation`
+//     (JSON doubles), so large world coordinates (UTM, ECEF) keep float precision relative to
+//     the mesh's own extent (about 1 mm across 20 km). Any other extension: std::runtime_error
+//     naming the path.
 //   - Units::Samples: x = column, y = row (row 0 = the file's first row), z = height in metres;
 //     triangles keep the mesh's winding (CCW in (col,row)).
 //     Units::World: (x, y) = hf.transform.to_world(col, row) in metres, z = height; when
 //     hf.transform.determinant() < 0 (north-up rasters) the winding is flipped, so that faces
-//     are CCW seen from above (+z) in the world frame.
+//     are CCW seen from above (+z) in the world frame (+Y in glTF).
 //   - Vertex order is mesh.vertices' order; triangle indices refer to it.
 //   - The file is written to path + ".tmp" and renamed onto path; on failure nothing is left
 //     at path and std::runtime_error names the file and the reason.
@@ -62,15 +71,17 @@ enum class Units : std::uint8_t {
 
 /// The mesh file formats, named by their extensions.
 enum class MeshFormat : std::uint8_t {
-  Ply,  ///< ".ply": written binary little-endian; read in all three PLY encodings
-  Obj,  ///< ".obj": Wavefront OBJ text
+  Ply,   ///< ".ply": written binary little-endian; read in all three PLY encodings
+  Obj,   ///< ".obj": Wavefront OBJ text
+  Glb,   ///< ".glb": binary glTF 2.0 (written only)
+  Gltf,  ///< ".gltf": glTF 2.0 JSON with an embedded base64 buffer (written only)
 };
 
 /// The format `path`'s extension names (case-insensitive), or std::nullopt for any other.
 std::optional<MeshFormat> mesh_format_of(const std::string& path);
 
 /// The extensions write_mesh accepts, for messages.
-inline constexpr const char* kMeshWriteExtensions = ".ply or .obj";
+inline constexpr const char* kMeshWriteExtensions = ".ply, .obj, .glb or .gltf";
 /// The extensions read_mesh accepts, for messages.
 inline constexpr const char* kMeshReadExtensions = ".ply or .obj";
 
@@ -83,10 +94,10 @@ struct TriangleMeshData {
 /// Positions and triangles of `mesh` in the given units (the data write_mesh writes).
 TriangleMeshData mesh_positions(const TriangleMesh& mesh, const Heightfield& hf, Units units);
 
-/// Writes `mesh` (whose vertices are samples of `hf`) as .ply or .obj, chosen by extension.
+/// Writes `mesh` (whose vertices are samples of `hf`) as .ply, .obj, .glb or .gltf, chosen by extension.
 void write_mesh(const TriangleMesh& mesh, const Heightfield& hf, const std::string& path, Units units);
 
-/// Writes explicit positions and triangles as .ply or .obj, chosen by extension.
+/// Writes explicit positions and triangles as .ply, .obj, .glb or .gltf, chosen by extension.
 void write_mesh(const TriangleMeshData& mesh, const std::string& path);
 
 /// Reads a .ply or .obj file, chosen by extension (see the contract above).
