@@ -59,9 +59,11 @@ CommandSpec hybrid_spec() {
   s.description =
       "The reference grid takes every K-th sample of --grid (K = --grid-step) and has --levels levels of\n"
       "detail (level l: cells of K * 2^l samples). Each --tin is a TIN in the DEM's world frame (x east,\n"
-      "y north, metres; a binary PLY as written by 'terralod tin'); several TINs are given comma-separated\n"
-      "and must not overlap. Per level the cells are classified (GC list: 0 NC, 10 CC, 11 PC), the TIN\n"
-      "boundary is convexified inside every PC cell from the finest to the coarsest level (one connectivity\n"
+      "y north, metres): a PLY (ascii, binary little- or big-endian; as written by 'terralod tin') or a\n"
+      "Wavefront OBJ ('v x y z', 'f' with a, a/b, a/b/c or a//c corners, negative indices, polygons\n"
+      "fan-triangulated); several TINs are given comma-separated and must not overlap.\n"
+      "Per level the cells are classified (GC list: 0 NC, 10 CC, 11 PC), the TIN boundary is\n"
+      "convexified inside every PC cell from the finest to the coarsest level (one connectivity\n"
       "index per boundary vertex, VC list per PC cell) and the sub-cell trees of section 5 are stored.\n"
       "The build decodes every level again and checks it against the direct convexification.\n"
       "Writes DB (must not exist): DatabaseInfo kind 'hybrid' plus the named blob 'hybrid', and the\n"
@@ -71,7 +73,7 @@ CommandSpec hybrid_spec() {
   s.options = {{"--grid", "DEM", "the reference DEM (any format 'terralod info' reads)", true},
                {"--grid-step", "K", "samples between grid nodes of the finest level, >= 1 (default 4)"},
                {"--levels", "N", "grid levels of detail, 1..10 (default 3)"},
-               {"--tin", "PLY[,PLY...]", "TIN microstructure(s) in the world frame", true},
+               {"--tin", "MESH[,MESH...]", "TIN microstructure(s) in the world frame: .ply or .obj", true},
                {"--out", "DB", "hybrid database to create (.db)", true}};
   return s;
 }
@@ -91,9 +93,7 @@ int cmd_hybrid(const Args& a) {
   std::vector<hy::TinMesh> parts;
   for (const std::string& p : tins) {
     t = Clock::now();
-    if (fs::path(p).extension() != ".ply")
-      throw std::runtime_error(p + ": the TIN must be a binary .ply file");
-    parts.push_back(hy::tin_from_world(pm::read_ply(p), dem.transform, p));
+    parts.push_back(hy::tin_from_world(pm::read_mesh(p), dem.transform, p));
     print_line(strf("read %s: %zu vertices, %zu triangles, %s", p.c_str(), parts.back().points.size(),
                     parts.back().triangles.size(), format_duration(ms_since(t)).c_str()));
   }

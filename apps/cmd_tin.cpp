@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "terrain_input.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/mesh_io.hpp"
@@ -94,13 +95,13 @@ CommandSpec tin_spec() {
       "only shrink with samples on the boundary, so that error may stay above E; it is reported).\n"
       "AREA.csv: a header line 'x,y', then one vertex per line in world coordinates (metres, the\n"
       "DEM's frame as 'terralod info' prints it), the polygon closed implicitly, simple, either\n"
-      "orientation. Output by extension: .ply or .obj; units world (default: x east, y north,\n"
+      "orientation. Output by extension: .ply, .obj, .glb or .gltf; units world (default: x east, y north,\n"
       "metres, faces counter-clockwise seen from above) or samples (x column, y row).";
   s.options = {
       {"--input", "DEM", "elevation file (SRTM .hgt, .asc, GeoTIFF, PNG heightmap, ...)", true},
       {"--polygon", "AREA.csv", "polygon in world coordinates: header 'x,y', one vertex per line", true},
       {"--max-error", "E", "largest L-infinity error allowed, metres (finite, >= 0)", true},
-      {"--out", "MESH", "mesh file to write: .ply or .obj", true},
+      {"--out", "MESH", "mesh file to write: .ply, .obj, .glb or .gltf", true},
       {"--max-points", "N", "at most N points (>= the polygon's vertex count; default: no limit)"},
       {"--units", "UNITS", "vertex coordinates: world (default) or samples"},
       {"--metric", "NAME", "error metric: continuous (true L-infinity, default) or samples"},
@@ -115,10 +116,7 @@ int cmd_tin(const Args& a) {
   const double max_error = a.get_double("--max-error", 0.0);
   if (max_error < 0.0)
     throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
-  std::string ext = fs::path(out).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if (ext != ".ply" && ext != ".obj")
-    throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
+  check_mesh_output("--out", out);
   const pm::Units units = a.get_choice("--units", {"world", "samples"}, "world") == "samples"
                               ? pm::Units::Samples
                               : pm::Units::World;

@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "cli_common.hpp"
+#include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 
 namespace terralod::cli {
@@ -39,6 +40,12 @@ std::string lower_extension(const std::string& path) {
 }
 
 bool is_pm_file(const std::string& path) { return lower_extension(path) == ".pm"; }
+
+void check_mesh_output(const std::string& option, const std::string& path) {
+  if (!pm::mesh_format_of(path))
+    throw UsageError("option '" + option + "' must name a " + std::string(pm::kMeshWriteExtensions) +
+                     " file, not '" + path + "'");
+}
 
 const char* metric_name(pm::ErrorMetric m) {
   return m == pm::ErrorMetric::Samples ? "samples" : "continuous";

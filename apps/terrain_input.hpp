@@ -1,5 +1,6 @@
 // Terrain inputs shared by the terralod tools and the terralod-fly demo: the built-in generated
-// terrain of `terralod demo`, and the read / build / read-.pm stages that print one line each.
+// terrain of `terralod demo`, the read / build / read-.pm stages that print one line each, and
+// the checks of file names by kind (.pm, mesh outputs).
 //
 // Usage:
 //   const pm::Heightfield hf = terralod::pm::generate_terrain(terralod::cli::demo_terrain_options(513));
@@ -16,6 +17,8 @@
 //     "build ...": sizes in and out, error, milliseconds); build_stage shows a ProgressBar on
 //     stderr and replaces options.progress. Errors propagate (DemError, PmFormatError: each
 //     names the file).
+//   - check_mesh_output(option, path): UsageError "option '--out' must name a .ply, .obj, .glb or
+//     .gltf file, not 'x.stl'" unless pm::mesh_format_of(path) knows the extension.
 #pragma once
 
 #include <cstdint>
@@ -38,6 +41,9 @@ pm::TerrainOptions demo_terrain_options(int size = kDemoTerrainSize, std::uint64
 std::string lower_extension(const std::string& path);
 /// True for a .pm file (any case).
 bool is_pm_file(const std::string& path);
+/// Checks that `path`, the value of `option`, names a mesh format pm::write_mesh writes
+/// (.ply, .obj, .glb or .gltf, any case); UsageError naming the option and the path otherwise.
+void check_mesh_output(const std::string& option, const std::string& path);
 /// "samples" or "continuous".
 const char* metric_name(pm::ErrorMetric metric);
 

@@ -49,6 +49,7 @@ namespace blocks = terralod::blocks;
 namespace render = terralod::render;
 using terralod::cli::Args;
 using terralod::cli::build_stage;
+using terralod::cli::check_mesh_output;
 using terralod::cli::CommandSpec;
 using terralod::cli::format_bytes;
 using terralod::cli::format_duration;
@@ -183,7 +184,10 @@ CommandSpec extract_spec() {
           "The mesh's error against the full-resolution surface is at most --max-error (the 'bound'\n"
           "printed is the guaranteed error actually reached). A DEM input is built into a progressive\n"
           "mesh in memory first (--metric, --threads and the DEM options apply to it).\n"
-          "Output by extension: .ply (binary little-endian, double x y z) or .obj (text).\n"
+          "Output by extension: .ply (binary little-endian, double x y z), .obj (text), .glb (binary\n"
+          "glTF 2.0) or .gltf (glTF JSON, buffer inline as base64). glTF is Y-up: (x, y, z) is stored\n"
+          "as (x, z, -y), float positions relative to the mesh's centre, which is the node's translation;\n"
+          "with area-weighted vertex normals.\n"
           "Units: samples = x column, y row (row 0 = the file's first row), z metres;\n"
           "       world   = x east, y north in metres from the DEM's transform (see 'terralod info'),\n"
           "                 z metres; faces counter-clockwise seen from above.\n\n") +
@@ -200,7 +204,7 @@ CommandSpec extract_spec() {
               {"--grid-level", "L",
                "with --db of a hybrid database ('terralod hybrid'): its grid level L (0 = finest)"},
               {"--scheme", "S", "with --grid-level: triangles (default) or subcells (the paper's section 5)"},
-              {"--out", "MESH", "mesh file to write: .ply or .obj", true},
+              {"--out", "MESH", "mesh file to write: .ply, .obj, .glb or .gltf", true},
               {"--units", "UNITS", "vertex coordinates: world (default) or samples"}},
              build_options()),
       dem_options());
@@ -208,15 +212,13 @@ CommandSpec extract_spec() {
 }
 
 int cmd_extract(const Args& a) {
+  const std::string input = a.get("--input"), out = a.get("--out");
+  check_mesh_output("--out", out);
   if (a.has("--grid-level")) return terralod::cli::cmd_extract_hybrid(a);  // hybrid database (cmd_hybrid.cpp)
   if (!a.has("--max-error")) throw UsageError("missing option '--max-error'");
-  const std::string input = a.get("--input"), out = a.get("--out");
   const double max_error = a.get_double("--max-error", 0.0);
   if (max_error < 0.0)
     throw UsageError("option '--max-error' must be >= 0, not '" + a.get("--max-error") + "'");
-  const std::string ext = lower_extension(out);
-  if (ext != ".ply" && ext != ".obj")
-    throw UsageError("option '--out' must name a .ply or .obj file, not '" + out + "'");
   const pm::Units units = a.get_choice("--units", {"world", "samples"}, "world") == "samples"
                               ? pm::Units::Samples
                               : pm::Units::World;
@@ -489,7 +491,7 @@ CommandSpec view_spec() {
            {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
            {"--wireframe", "", "draw the triangle edges over the surface"},
            {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
-           {"--dump-mesh", "MESH", "also write the rendered mesh: .ply or .obj, world units"},
+           {"--dump-mesh", "MESH", "also write the rendered mesh: .ply, .obj, .glb or .gltf, world units"},
            {"--stats", "FILE.json", "write statistics and timings as JSON"},
            {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
            {"--layer", "NAME[:OP[:W[:lens]]]",
@@ -546,8 +548,7 @@ int cmd_view(const Args& a) {
       throw UsageError("option '--size' needs WxH with each in 1..16384, not '" + sz + "'");
   }
   const std::string dump = a.get("--dump-mesh"), stats_path = a.get("--stats");
-  if (a.has("--dump-mesh") && lower_extension(dump) != ".ply" && lower_extension(dump) != ".obj")
-    throw UsageError("option '--dump-mesh' must name a .ply or .obj file, not '" + dump + "'");
+  if (a.has("--dump-mesh")) check_mesh_output("--dump-mesh", dump);
   const blocks::DemOptions dem = dem_options_from(a);
   const pm::BuildOptions build = build_options_from(a);
   const std::vector<std::string> layer_specs = a.get_all("--layer");

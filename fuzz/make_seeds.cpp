@@ -5,7 +5,8 @@
 // CORPUS_DIR/fuzz_block_summaries/seed_*; existing seeds are overwritten, other files are kept).
 // DEM seeds start with the selector byte of fuzz_dem_reader.cpp (0 .hgt, 1 .asc, 2 .png, 3 .tif,
 // +4 = keep voids as holes). Block-summaries seeds start with the two grid selector bytes of
-// fuzz_block_summaries.cpp.
+// fuzz_block_summaries.cpp. Mesh seeds start with the selector byte of fuzz_mesh_reader.cpp
+// (0 .ply, 1 .obj).
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
@@ -23,6 +24,7 @@
 
 #include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -288,6 +290,50 @@ void summaries_seeds(const fs::path& dir) {
   write(dir / "seed_v1", v1);
 }
 
+/// Mesh files: our binary PLY (write_mesh), an ascii PLY with an extra property and element, a
+/// big-endian PLY with float vertices, and an OBJ with every face form, each behind its
+/// selector byte.
+void mesh_seeds(const fs::path& dir, const fs::path& tmp) {
+  fs::create_directories(dir);
+  pm::TriangleMeshData m;
+  m.positions = {{0, 0, 1.5}, {30, 0, 2.25}, {30, 30, -1}, {0, 30, 0.1}};
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  const fs::path ply = tmp / "mesh.ply";
+  pm::write_mesh(m, ply.string());
+  std::ifstream in(ply, std::ios::binary);
+  Bytes le{0};
+  le.insert(le.end(), std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  write(dir / "seed_le.ply", le);
+  auto text = [](std::uint8_t selector, const std::string& s) {
+    Bytes b{selector};
+    b.insert(b.end(), s.begin(), s.end());
+    return b;
+  };
+  write(dir / "seed_ascii.ply",
+        text(0,
+             "ply\r\nformat ascii 1.0\r\ncomment seed\r\nelement vertex 4\r\nproperty double x\r\n"
+             "property double y\r\nproperty double z\r\nproperty uchar red\r\nelement face 2\r\n"
+             "property list uchar int vertex_indices\r\nelement edge 1\r\nproperty list uchar uint "
+             "vertex_pair\r\n"
+             "end_header\r\n0 0 1.5 7\r\n30 0 2.25 7\r\n30 30 -1 7\r\n0 30 0.1 7\r\n3 0 1 2\r\n3 0 2 3\r\n"
+             "2 0 1\r\n"));
+  Bytes be =
+      text(0,
+           "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1\nproperty list uchar ushort vertex_indices\nend_header\n");
+  const std::uint8_t one_be[4] = {0x3f, 0x80, 0, 0};  // 1.0f big-endian
+  for (int v = 0; v < 3; ++v)
+    for (int k = 0; k < 3; ++k)
+      for (std::uint8_t byte : one_be) be.push_back(k == v ? byte : 0);
+  for (std::uint8_t byte : {3, 0, 0, 0, 1, 0, 2}) be.push_back(byte);
+  write(dir / "seed_be.ply", be);
+  write(dir / "seed.obj",
+        text(1,
+             "# seed\nmtllib a.mtl\nv 0 0 1.5\nv 30 0 2.25\nv 30 30 -1 1\nv 0 30 0.1 0.5 0.5 0.5\n"
+             "vt 0 0\nvn 0 0 1\ng g\nf 1 2 3 4\nf 1/1 2/1 3/1\nf 1/1/1 3/1/1 4/1/1\n"
+             "f 1//1 3//1 4//1\nf -4 -3 -2\n"));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -311,6 +357,7 @@ int main(int argc, char** argv) {
     const std::string path_csv =
         "# seed\r\nx,y,z,yaw,pitch,fovy\r\n1,2,3,45,-15,60\r\n\r\n-1.5e3,+2,3.25,-370,90,179.5\n";
     write(root / "fuzz_camera_path" / "seed_flight.csv", Bytes(path_csv.begin(), path_csv.end()));
+    mesh_seeds(root / "fuzz_mesh_reader", tmp);
     fs::remove_all(tmp);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod_fuzz_seeds: %s\n", e.what());

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -134,6 +135,8 @@ TEST(cli_errors, BadOptionsExitTwoNamingTheOption) {
       {"extract --input " + dem + " --out x.ply --max-error 2m", "--max-error"},
       {"extract --input " + dem + " --out x.ply --max-error 1 --units feet", "--units"},
       {"extract --input " + dem + " --out x.stl --max-error 1", "--out"},
+      {"extract --input " + dem + " --out x.stl --max-error 1", "must name a .ply, .obj, .glb or .gltf file"},
+      {"extract --db " + dem + " --grid-level 0 --out x.stl", "--out"},
       {"info " + dem + " --bogus=1", "--bogus"},
       {"demo --size 1", "--size"},
       {"demo --sizes 65", "--sizes"},
@@ -319,6 +322,30 @@ TEST_F(cli_pipeline, ExtractSamplesAndWorldMeshesHoldTheirBound) {
     const terralod::test::MeshCheck c = terralod::test::check_mesh(hf, mesh);
     EXPECT_TRUE(c.ok(bound)) << c.describe();
   }
+}
+
+// .glb and .gltf outputs: the glTF containers by their first bytes here; their content is
+// checked by tests/pm/test_gltf_writer.cpp and by the official validator in
+// tests/apps/test_gltf_validator.cpp.
+TEST_F(cli_pipeline, ExtractWritesGlbAndGltf) {
+  ASSERT_EQ(pm_run_->status, 0) << pm_run_->err;
+  const fs::path glb = tmp_dir() / "grid.glb", gltf = tmp_dir() / "grid.GLTF";
+  for (const fs::path& out : {glb, gltf}) {
+    const CliResult r = extract(pm_file().string(), 2.0, out, "world");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::vector<std::string> l = lines_of(r.out);
+    ASSERT_EQ(l.size(), 3u) << r.out;
+    EXPECT_EQ(l[2].rfind("write " + out.string() + ": ", 0), 0u) << l[2];
+    EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  }
+  const std::string b = slurp(glb), t = slurp(gltf);
+  ASSERT_GE(b.size(), 12u);
+  EXPECT_EQ(b.substr(0, 4), "glTF");
+  std::uint32_t length = 0;
+  std::memcpy(&length, b.data() + 8, 4);
+  EXPECT_EQ(length, b.size());
+  EXPECT_EQ(t.rfind("{\"asset\":{\"version\":\"2.0\"", 0), 0u) << t.substr(0, 80);
+  EXPECT_NE(t.find("data:application/octet-stream;base64,"), std::string::npos);
 }
 
 TEST_F(cli_pipeline, ExtractFromTheDemEqualsExtractFromThePm) {

@@ -1,7 +1,7 @@
 // End-to-end test of `terralod hybrid` (which stores the hybrid approximation tree) and
-// `terralod view --db`: a small Esri ASCII grid and a TIN PLY written here; near the TIN the
-// finest hybrid level and the TIN are drawn, far away only grid nodes; the dumped mesh is
-// consistently oriented with every directed edge used once.
+// `terralod view --db`: a small Esri ASCII grid and a TIN (binary PLY, ascii PLY, OBJ) written
+// here; near the TIN the finest hybrid level and the TIN are drawn, far away only grid nodes;
+// the dumped mesh is consistently oriented with every directed edge used once.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -61,6 +61,30 @@ void write_inputs() {
       tin.triangles.push_back({a, a + 13, a + 12});
     }
   pm::write_mesh(tin, (tmp_dir() / "tin.ply").string());
+  // The same TIN as other tools write it: ascii PLY (float coordinates would round, so %.17g)
+  // and Wavefront OBJ with v//vn corners and each square as one quad (a fan of the same two
+  // triangles: (a, a+1, a+13) and (a, a+13, a+12)).
+  char buf[96];
+  std::ofstream ply(tmp_dir() / "tin_ascii.ply");
+  ply << "ply\nformat ascii 1.0\nelement vertex " << tin.positions.size()
+      << "\nproperty double x\nproperty double y\nproperty double z\nelement face " << tin.triangles.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& p : tin.positions) {
+    std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g\n", p[0], p[1], p[2]);
+    ply << buf;
+  }
+  for (const auto& t : tin.triangles) ply << "3 " << t[0] << " " << t[1] << " " << t[2] << "\n";
+  std::ofstream obj(tmp_dir() / "tin.obj");
+  obj << "# the TIN by hand\nvn 0 0 1\n";
+  for (const auto& p : tin.positions) {
+    std::snprintf(buf, sizeof buf, "v %.17g %.17g %.17g\n", p[0], p[1], p[2]);
+    obj << buf;
+  }
+  for (std::uint32_t j = 0; j < 9; ++j)
+    for (std::uint32_t i = 0; i < 11; ++i) {
+      const std::uint32_t a = j * 12 + i + 1;  // 1-based
+      obj << "f " << a << "//1 " << a + 1 << "//1 " << a + 13 << "//1 " << a + 12 << "//1\n";
+    }
 }
 
 std::size_t count_after(const std::string& text, const std::string& key) {
@@ -70,6 +94,16 @@ std::size_t count_after(const std::string& text, const std::string& key) {
     return 0;
   }
   return std::size_t(std::strtoull(text.c_str() + at + key.size(), nullptr, 10));
+}
+
+/// `terralod info DB` without its "file" line.
+std::string info_without_file(const std::string& db) {
+  const CliResult r = run_cli("info " + db);
+  EXPECT_EQ(r.status, 0) << r.err;
+  std::string out;
+  for (const std::string& l : terralod::test::lines_of(r.out))
+    if (l.find("\"file\":") == std::string::npos) out += l + "\n";
+  return out;
 }
 
 }  // namespace
@@ -111,4 +145,40 @@ TEST(CmdHybridView, TinNearGridFar) {
                                  " --out " + d + "/x.png");
   EXPECT_NE(both.status, 0);
   EXPECT_NE(both.err.find("exactly one of '--input' and '--db'"), std::string::npos) << both.err;
+}
+
+// The TIN read from an ascii PLY and from an OBJ of quads gives the database the binary PLY
+// gives (the same vertices and triangles: info's storage figures equal), and the hybrid mesh
+// extracts to glTF.
+TEST(CmdHybridView, TinFromAsciiPlyAndObj) {
+  write_inputs();
+  const std::string d = tmp_dir().string();
+  std::string reference;
+  for (const std::string tin : {"tin.ply", "tin_ascii.ply", "tin.obj"}) {
+    SCOPED_TRACE(tin);
+    const std::string db = d + "/from_" + tin + ".db";
+    fs::remove(db);
+    const CliResult b = run_cli("hybrid --grid " + d + "/dem.asc --grid-step 4 --levels 2 --tin " + d + "/" +
+                                tin + " --out " + db);
+    ASSERT_EQ(b.status, 0) << b.err << b.out;
+    EXPECT_NE(b.out.find("read " + d + "/" + tin + ": 120 vertices, 198 triangles"), std::string::npos)
+        << b.out;
+    const std::string info = info_without_file(db);
+    if (reference.empty())
+      reference = info;
+    else
+      EXPECT_EQ(info, reference);
+  }
+  const CliResult e =
+      run_cli("extract --db " + d + "/from_tin.obj.db --grid-level 0 --out " + d + "/hybrid.glb");
+  ASSERT_EQ(e.status, 0) << e.err << e.out;
+  EXPECT_EQ(terralod::test::slurp(d + "/hybrid.glb").substr(0, 4), "glTF");
+
+  // A broken TIN names the file and the line.
+  std::ofstream(d + "/broken.obj") << "v 0 0 0\nv 1 0 0\nf 1 2 3\n";
+  const CliResult bad =
+      run_cli("hybrid --grid " + d + "/dem.asc --tin " + d + "/broken.obj --out " + d + "/broken.db");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find(d + "/broken.obj: line 3: face corner '3'"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(d + "/broken.db"));
 }

@@ -1,4 +1,6 @@
-// Tests for the PLY/OBJ mesh writers and the PLY reader: exact values, units, winding, errors.
+// Tests for the PLY/OBJ mesh writers and their read-back: exact values, units, winding, errors.
+// The readers' own tests (ascii / big-endian PLY, OBJ forms) are in test_mesh_reader.cpp, the
+// glTF writer's in test_gltf_writer.cpp.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -211,12 +213,17 @@ TEST(MeshIo, ReadPlyRejectsEveryTruncationAndForeignFormats) {
     std::ofstream(cut, std::ios::binary) << whole.substr(0, len);
     EXPECT_THROW(read_ply(cut), std::runtime_error) << "prefix of " << len << " bytes";
   }
+  // Binary data under an ascii header (ascii itself is read: test_mesh_reader.cpp).
   std::string ascii = whole;
   ascii.replace(ascii.find("binary_little_endian"), 20, "ascii");
   std::ofstream(cut, std::ios::binary) << ascii;
+  EXPECT_THROW(read_ply(cut), std::runtime_error);
+  std::string foreign = whole;
+  foreign.replace(foreign.find("binary_little_endian"), 20, "binary_middle_endian");
+  std::ofstream(cut, std::ios::binary) << foreign;
   try {
     read_ply(cut);
-    ADD_FAILURE() << "ascii PLY accepted";
+    ADD_FAILURE() << "unknown PLY format accepted";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("not supported"), std::string::npos) << e.what();
   }

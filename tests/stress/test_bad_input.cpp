@@ -135,7 +135,7 @@ TEST(BadInput, NonRegularFilesAreRejectedWithoutBlocking) {
       if (s.ends_with(".pm")) {
         expect_error<pm::PmFormatError>([&] { (void)pm::read_pm(s); }, s, {"not a regular file"});
       } else if (s.ends_with(".ply")) {
-        continue;  // see DISABLED_ReadPlyRejectsNonRegularFiles below
+        continue;  // see ReadMeshRejectsNonRegularFiles below
       } else {
         expect_error<tb::DemError>([&] { (void)tb::read_dem(s); }, s, {"not a regular file"});
       }
@@ -143,18 +143,21 @@ TEST(BadInput, NonRegularFilesAreRejectedWithoutBlocking) {
   }
 }
 
-// read_ply refuses anything that exists and is not a regular file before opening it: a FIFO
-// would block it, a link to /dev/zero would feed it until memory runs out, and a folder made
-// the stream throw without the path.
-TEST(BadInput, ReadPlyRejectsNonRegularFiles) {
+// read_ply and read_obj (through read_mesh) refuse anything that exists and is not a regular
+// file before opening it: a FIFO would block them, a link to /dev/zero would feed them until
+// memory runs out, and a folder made the stream throw without the path.
+TEST(BadInput, ReadMeshRejectsNonRegularFiles) {
   const fs::path dir = scratch();
-  const fs::path folder = dir / "folder.ply", fifo = dir / "fifo.ply", dev = dir / "zero.ply";
-  fs::create_directories(folder);
-  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  fs::create_symlink("/dev/zero", dev);
-  for (const fs::path& p : {folder, fifo, dev})
-    expect_error<std::runtime_error>([&] { (void)pm::read_ply(p.string()); }, p.string(),
-                                     {"not a regular file"});
+  for (const char* ext : {".ply", ".obj"}) {
+    const fs::path folder = dir / ("folder" + std::string(ext)), fifo = dir / ("fifo" + std::string(ext)),
+                   dev = dir / ("zero" + std::string(ext));
+    fs::create_directories(folder);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    fs::create_symlink("/dev/zero", dev);
+    for (const fs::path& p : {folder, fifo, dev})
+      expect_error<std::runtime_error>([&] { (void)pm::read_mesh(p.string()); }, p.string(),
+                                       {"not a regular file"});
+  }
 }
 
 // ------------------------------------------------------------------------------------------
@@ -291,7 +294,7 @@ TEST(BadInput, WriteMeshThatFailsHalfWayLeavesNothing) {
   const fs::path dir = scratch();
   const pm::ProgressiveMesh p = small_pm();
   const pm::TriangleMesh m = p.extract(1.0);
-  for (const char* name : {"full_disk.ply", "full_disk.obj"}) {
+  for (const char* name : {"full_disk.ply", "full_disk.obj", "full_disk.glb", "full_disk.gltf"}) {
     const fs::path out = dir / name;
     if (!tmp_to_dev_full(out)) GTEST_SKIP() << "/dev/full absent";
     expect_error<std::runtime_error>(

@@ -32,6 +32,11 @@
 //   fuzz_block_summaries/v2-huge-grid-allocates-before-size-check: a 20-byte version 2 blob for
 //     a grid of 2^32 blocks made the decoder allocate every summary (600 GB) before reading a
 //     record. Fix: it first checks the blob can hold the records (>= 95 bytes each).
+//   fuzz_mesh_reader/* (found by review while writing the target, kept as seeds of the failure
+//     classes the readers guard against): an ascii PLY declaring 4e9 vertices and faces in a
+//     few bytes (refused before allocating: every ascii value takes >= 2 bytes), a big-endian
+//     PLY whose face list counts 2^32 - 1 indices (refused as truncated), and an OBJ face whose
+//     relative index -4 points before the first of 3 vertices (refused naming the line).
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -59,6 +64,8 @@ extern "C" int terralod_fuzz_block_database(const std::uint8_t* data, std::size_
 extern "C" int terralod_fuzz_tree_decoder(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_block_summaries(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
+extern "C" int terralod_fuzz_mesh_reader(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_mesh_reader_init(int* argc, char*** argv);
 
 namespace {
 
@@ -112,6 +119,13 @@ TEST(FuzzRegressions, TreeDecoder) { EXPECT_GE(replay("fuzz_tree_decoder", terra
 
 TEST(FuzzRegressions, BlockSummaries) {
   EXPECT_GE(replay("fuzz_block_summaries", terralod_fuzz_block_summaries), 3u);
+}
+
+TEST(FuzzRegressions, MeshReader) {
+  int argc = 0;
+  char** argv = nullptr;
+  terralod_fuzz_mesh_reader_init(&argc, &argv);
+  EXPECT_GE(replay("fuzz_mesh_reader", terralod_fuzz_mesh_reader), 3u);
 }
 
 TEST(FuzzRegressions, DemReader) {
