@@ -652,6 +652,28 @@ std::optional<std::vector<std::uint8_t>> BlockDatabase::read_blob(const std::str
   return d.read_one(st, item);
 }
 
+void BlockDatabase::put_georeference(const Georeference& g) {
+  Writer w;
+  w.b = encode_transform(g.crs_transform);
+  w.str(g.vertical_datum);
+  put_blob("georeference", w.b);
+}
+
+std::optional<Georeference> BlockDatabase::georeference() const {
+  const std::optional<std::vector<std::uint8_t>> b = read_blob("georeference");
+  if (!b) return std::nullopt;
+  auto bad = [&] { return DatabaseError(path(), "blob 'georeference' is malformed"); };
+  if (b->size() < 56) throw bad();
+  Georeference g;
+  g.crs_transform = decode_transform(b->data());
+  if (!transform_is_finite(g.crs_transform)) throw bad();
+  std::uint64_t n = 0;
+  for (int i = 0; i < 8; ++i) n |= std::uint64_t((*b)[48 + std::size_t(i)]) << (8 * i);
+  if (n != b->size() - 56) throw bad();
+  g.vertical_datum.assign(b->begin() + 56, b->end());
+  return g;
+}
+
 std::vector<std::string> BlockDatabase::blob_names() const {
   assert(impl_);
   Impl& d = *impl_;

@@ -26,6 +26,10 @@ pm::Heightfield read_database_terrain(const BlockDatabase& db, std::vector<pm::P
   hf.transform = info.transform;
   hf.crs_wkt = info.crs_wkt;
   hf.source = info.source;
+  if (const std::optional<Georeference> g = db.georeference()) {
+    hf.crs_transform = g->crs_transform;
+    hf.vertical_datum = g->vertical_datum;
+  }
   std::vector<std::uint8_t> mask;
   for (BlockKey k : layout.keys()) {
     const std::string item = "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";

@@ -44,8 +44,11 @@ struct Georef {
   /// Sample-centre affine map: X = a[0] + col a[1] + row a[2], Y = a[3] + col a[4] + row a[5];
   /// degrees (lon, lat) for Geographic, metres for Metric, unused for None.
   std::array<double, 6> a{};
+  /// The same map in the CRS's own units (degrees for geographic CRSs): Heightfield::crs_transform.
+  std::array<double, 6> native{};
   std::string crs_wkt;
-  std::string description;  ///< Metric: what the coordinates are; Geographic: the CRS name
+  std::string vertical_datum;  ///< Heightfield::vertical_datum
+  std::string description;     ///< Metric: what the coordinates are; Geographic: the CRS name
 };
 
 struct Raster {
@@ -124,9 +127,16 @@ void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* sr
   // GDAL's geotransform maps pixel corners; sample centres sit half a pixel in.
   std::array<double, 6> a = {gt[0] + 0.5 * gt[1] + 0.5 * gt[2], gt[1], gt[2],
                              gt[3] + 0.5 * gt[4] + 0.5 * gt[5], gt[4], gt[5]};
+  geo.native = a;
+  if (srs != nullptr && !srs->IsEmpty() && srs->IsCompound()) {
+    const char* vertical = srs->GetAttrValue("COMPD_CS|VERT_CS");
+    if (vertical == nullptr) vertical = srs->GetAttrValue("COMPOUNDCRS|VERTCRS");
+    if (vertical != nullptr) geo.vertical_datum = vertical;
+  }
   if (srs != nullptr && !srs->IsEmpty() && srs->IsGeographic()) {
     const double to_degrees = srs->GetAngularUnits(nullptr) / kDeg;  // radians per unit -> degrees
     for (double& v : a) v *= to_degrees;
+    geo.native = a;  // PROJ is given degrees for geographic CRSs
     geo.kind = Georef::Kind::Geographic;
     const char* name = srs->GetName();
     geo.description = name != nullptr ? name : "geographic CRS";
@@ -206,6 +216,8 @@ Raster read_hgt(const std::string& path) {
   const double d = 1.0 / double(n - 1);  // degrees between samples; samples sit on the tile edges
   r.geo.kind = Georef::Kind::Geographic;
   r.geo.a = {double(lon), d, 0.0, double(lat) + 1.0, 0.0, -d};
+  r.geo.native = r.geo.a;
+  r.geo.vertical_datum = "EGM96";  // SRTM heights are above the EGM96 geoid
   register_gdal();
   QuietGdal quiet;
   OGRSpatialReference wgs84;
@@ -647,6 +659,11 @@ pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& op
   }
   hf.samples() = std::move(r.z);
   hf.crs_wkt = std::move(r.geo.crs_wkt);
+  if (!hf.crs_wkt.empty() && r.geo.kind != Georef::Kind::None) {
+    const auto& n = r.geo.native;
+    hf.crs_transform = pm::GridTransform{n[0], n[1], n[2], n[3], n[4], n[5]};
+  }
+  hf.vertical_datum = std::move(r.geo.vertical_datum);
   hf.source = path;
   hf.frame = frame + r.height_note;
   return hf;

@@ -616,6 +616,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     dbo.emplace(BlockDatabase::create(path, info));
   }
   BlockDatabase& db = *dbo;
+  if (hf.crs_transform) db.put_georeference({*hf.crs_transform, hf.vertical_datum});
 
   // Blocks still to build.
   const std::vector<BlockKey> keys = layout.keys();

@@ -126,6 +126,16 @@ struct TextureTileKey {
   auto operator<=>(const TextureTileKey&) const = default;
 };
 
+/// Where the terrain lies on the Earth, for exporters that need longitude, latitude and the
+/// heights' datum (Heightfield::crs_transform, Heightfield::vertical_datum). Stored as the named
+/// blob "georeference": 48 bytes crs_transform (as the info table's transform), u64 byte length
+/// and the UTF-8 bytes of vertical_datum (little-endian).
+struct Georeference {
+  pm::GridTransform crs_transform;  ///< (col,row) -> coordinates of DatabaseInfo::crs_wkt
+  std::string vertical_datum;       ///< as the source states it; empty when unknown
+  bool operator==(const Georeference&) const = default;
+};
+
 /// The metadata, written once by create().
 struct DatabaseInfo {
   std::string kind = "blocks";          ///< "blocks" (block PMs + tree) or "hybrid"
@@ -179,6 +189,12 @@ class BlockDatabase {
   std::optional<std::vector<std::uint8_t>> read_blob(const std::string& name) const;
   /// Names of all named blobs, sorted.
   std::vector<std::string> blob_names() const;
+
+  /// The "georeference" blob (see Georeference); nullopt when the database has none (built
+  /// from a source without a CRS, or by a version before it was recorded); DatabaseError naming
+  /// the file when it is malformed.
+  void put_georeference(const Georeference& g);
+  std::optional<Georeference> georeference() const;
 
   void put_texture_tile(const std::string& layer, std::int64_t node, int level,
                         std::span<const std::uint8_t> blob);

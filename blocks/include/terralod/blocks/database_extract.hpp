@@ -48,7 +48,8 @@ struct ExtractedMesh {
 };
 
 /// The full-resolution terrain of a blocked database, assembled from its block PMs (each holds
-/// its samples exactly; voids become the mask). With `pms`, the decoded PMs in layout.keys()
+/// its samples exactly; voids become the mask; crs_wkt, crs_transform and vertical_datum from the
+/// database's info and georeference). With `pms`, the decoded PMs in layout.keys()
 /// order are kept there. DatabaseError naming the file for a database without blocks or a block
 /// whose grid does not match the layout.
 pm::Heightfield read_database_terrain(const BlockDatabase& db,

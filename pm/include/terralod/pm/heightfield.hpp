@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -86,8 +87,15 @@ class Heightfield {
   GridTransform transform;
   VoidReport voids;
   std::string crs_wkt;  ///< coordinate reference system of the source, WKT; empty if unknown
-  std::string source;   ///< file the samples came from, or a description of the generator
-  std::string frame;    ///< how the world frame was made, e.g. "local equirectangular from lon/lat"
+  /// Where the samples lie in crs_wkt: (col,row) of sample centres -> CRS coordinates (degrees
+  /// of longitude and latitude for a geographic CRS, the CRS's own linear unit for a projected
+  /// one). Empty when the source has no CRS (then the world frame is all there is).
+  std::optional<GridTransform> crs_transform;
+  /// The heights' vertical datum as the source states it ("EGM96" for SRTM .hgt, the vertical
+  /// CRS of a compound CRS, e.g. "EGM96 height"); empty when the source does not say.
+  std::string vertical_datum;
+  std::string source;  ///< file the samples came from, or a description of the generator
+  std::string frame;   ///< how the world frame was made, e.g. "local equirectangular from lon/lat"
 
  private:
   int width_ = 0, height_ = 0;
