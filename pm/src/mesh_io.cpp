@@ -2,8 +2,6 @@
 // world units, chosen by extension, each written atomically. The readers are in mesh_reader.cpp.
 #include "terralod/pm/mesh_io.hpp"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -14,6 +12,7 @@
 
 #include "encode_util.hpp"
 #include "gltf_writer.hpp"
+#include "terralod/pm/atomic_file.hpp"
 
 namespace terralod::pm {
 
@@ -24,27 +23,6 @@ MeshFormat write_format_of(const std::string& path) {
   if (const std::optional<MeshFormat> f = mesh_format_of(path)) return *f;
   throw std::runtime_error(path + ": unknown mesh format (the name must end in " +
                            std::string(kMeshWriteExtensions) + ")");
-}
-
-/// Writes `bytes` to path + ".tmp", syncs it, and renames it onto `path`.
-void write_file_atomically(const std::string& path, const std::string& bytes) {
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(errno));
-  bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  ok = std::fflush(f) == 0 && ok;
-  ok = ::fsync(::fileno(f)) == 0 && ok;
-  const int err = errno;
-  ok = std::fclose(f) == 0 && ok;
-  if (!ok) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err ? err : errno));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int e = errno;
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename " + tmp + " onto it: " + std::strerror(e));
-  }
 }
 
 using detail::append_le;

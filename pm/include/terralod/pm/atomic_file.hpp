@@ -1,0 +1,25 @@
+// write_file_atomically: a file is either its old content or its whole new content, never a
+// part, even when the process is killed while writing (what every writer here needs for resume).
+//
+// Usage:
+//   terralod::pm::write_file_atomically("out/12/2425/2958.terrain", bytes);
+//
+// Contract: writes the bytes to path + ".tmp", flushes and fsyncs it, and renames it onto
+// `path` (atomic on POSIX file systems). The folder must exist. On failure the temporary is
+// removed and std::runtime_error says "<path>: <what failed>: <system error>".
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace terralod::pm {
+
+void write_file_atomically(const std::string& path, std::span<const std::uint8_t> bytes);
+inline void write_file_atomically(const std::string& path, std::string_view bytes) {
+  write_file_atomically(
+      path, std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()));
+}
+
+}  // namespace terralod::pm
