@@ -35,6 +35,9 @@ int view_hybrid(const std::string& db_path, const std::vector<double>& c, double
 // with --layer textures per patch; c = X,Y,Z,YAW,PITCH,FOVY as parsed by view.
 int view_blocks(const Args& a, const std::vector<double>& c, double tau, int width, int height);
 
+CommandSpec export_spec();
+int cmd_export(const Args&);
+
 // Defined only when the benchmarks are built (TERRALOD_HAVE_BENCH; bench/CMakeLists.txt adds it).
 CommandSpec bench_spec();
 int cmd_bench(const Args&);

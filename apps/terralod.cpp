@@ -794,6 +794,7 @@ const std::vector<Command>& commands() {
       {terralod::cli::hybrid_spec, terralod::cli::cmd_hybrid},
       {terralod::cli::texture_spec, terralod::cli::cmd_texture},
       {terralod::cli::fly_spec, terralod::cli::cmd_fly},
+      {terralod::cli::export_spec, terralod::cli::cmd_export},
 #ifdef TERRALOD_HAVE_BENCH  // terralod bench: only when bench/ is built (it adds cmd_bench.cpp)
       {terralod::cli::bench_spec, terralod::cli::cmd_bench},
 #endif

@@ -84,6 +84,14 @@ QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::G
     hi = std::max(hi, vertices[v].height);
   }
   if (order.empty()) lo = hi = 0;
+  if (options.height_step > 0) {
+    const double step = options.height_step;
+    lo = std::floor(lo / step) * step;
+    if (hi - lo > (kMaxQ - 1) * step)
+      throw std::invalid_argument("quantized mesh: heights span " + std::to_string(hi - lo) +
+                                  " m, more than 32766 height steps of " + std::to_string(step) + " m");
+    hi = lo + kMaxQ * step;
+  }
   t.min_height = float(lo);
   t.max_height = float(hi);
   // Quantize against the heights as stored (floats), so that decoding reproduces them.
@@ -94,7 +102,11 @@ QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::G
     const pm::Geodetic& g = vertices[v];
     t.u.push_back(quantize((g.lon_deg - rect.west) / (rect.east - rect.west)));
     t.v.push_back(quantize((g.lat_deg - rect.south) / (rect.north - rect.south)));
-    t.h.push_back(hhi > hlo ? quantize((g.height - hlo) / (hhi - hlo)) : 0);
+    if (options.height_step > 0)  // on the step's lattice: the same height, the same decoded value
+      t.h.push_back(std::uint16_t(std::clamp<long>(
+          std::lround(g.height / options.height_step) - std::lround(hlo / options.height_step), 0, kMaxQ)));
+    else
+      t.h.push_back(hhi > hlo ? quantize((g.height - hlo) / (hhi - hlo)) : 0);
     // The decoded position, so that the header bounds what a client draws.
     const double lon = rect.west + (rect.east - rect.west) * t.u.back() / kMaxQ;
     const double lat = rect.south + (rect.north - rect.south) * t.v.back() / kMaxQ;
@@ -115,7 +127,10 @@ QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::G
     std::sort(t.edges[std::size_t(e)].begin(), t.edges[std::size_t(e)].end(),
               [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
   }
-  if (options.normals) {
+  if (options.normals && options.normal) {
+    t.normals.reserve(order.size());
+    for (std::uint32_t v : order) t.normals.push_back(oct_encode(options.normal(v)));
+  } else if (options.normals) {
     std::vector<pm::Ecef> n(order.size(), pm::Ecef{0, 0, 0});
     for (const auto& tri : t.triangles) {
       const pm::Ecef &a = ecef[tri[0]], &b = ecef[tri[1]], &c = ecef[tri[2]];
@@ -215,7 +230,7 @@ std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes) {
 
 std::string layer_json(const std::string& name, const GeoRect& b,
                        const std::vector<std::vector<TileRange>>& available,
-                       const std::vector<std::string>& extensions) {
+                       const std::vector<std::string>& extensions, const std::string& extra_members) {
   auto quoted = [](const std::string& s) {
     std::string q = "\"";
     for (char c : s) {
@@ -252,7 +267,9 @@ std::string layer_json(const std::string& name, const GeoRect& b,
     }
     j += z + 1 < available.size() ? "],\n" : "]\n";
   }
-  j += "  ]\n}\n";
+  j += "  ]";
+  if (!extra_members.empty()) j += ",\n  " + extra_members;
+  j += "\n}\n";
   return j;
 }
 

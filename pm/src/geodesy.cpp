@@ -56,8 +56,8 @@ Ecef geodetic_surface_normal(double lon_deg, double lat_deg) {
   return {std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat)};
 }
 
-Sphere bounding_sphere(std::span<const Ecef> points) {
-  Sphere s;
+EcefSphere bounding_sphere(std::span<const Ecef> points) {
+  EcefSphere s;
   if (points.empty()) return s;
   Ecef lo = points[0], hi = points[0];
   for (const Ecef& p : points)

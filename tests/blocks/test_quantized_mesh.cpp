@@ -55,7 +55,7 @@ TEST(Geodesy, HorizonPointHidesTheTileWheneverItIsHidden) {
     for (int j = 0; j <= 10; ++j)
       pts.push_back(
           pm::ecef_from_geodetic({-72 + 0.1 * i, 44 + 0.1 * j, 200.0 + 150.0 * ((i * 7 + j * 3) % 11)}));
-  const pm::Sphere s = pm::bounding_sphere(pts);
+  const pm::EcefSphere s = pm::bounding_sphere(pts);
   for (const pm::Ecef& p : pts)
     EXPECT_LE(std::hypot(p[0] - s.center[0], p[1] - s.center[1], p[2] - s.center[2]), s.radius * (1 + 1e-12));
   const pm::Ecef h = pm::horizon_occlusion_point(pts, s.center);

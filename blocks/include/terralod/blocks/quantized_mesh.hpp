@@ -36,6 +36,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -63,7 +64,7 @@ double level_max_geometric_error(int z);
 struct QuantizedMeshTile {
   pm::Ecef center{};
   float min_height = 0, max_height = 0;
-  pm::Sphere sphere;
+  pm::EcefSphere sphere;
   pm::Ecef horizon{};                                   ///< ellipsoid-scaled ECEF
   std::vector<std::uint16_t> u, v, h;                   ///< 0..32767 each
   std::vector<std::array<std::uint32_t, 3>> triangles;  ///< CCW in (u, v)
@@ -75,6 +76,15 @@ struct QuantizedMeshTile {
 struct QuantizedMeshOptions {
   bool normals = true;   ///< the oct-encoded normals extension
   std::string metadata;  ///< the metadata extension's JSON (empty = none)
+  /// > 0: heights are quantized on the lattice of this step (metres, a power of two for exact
+  /// floats): min_height = floor(lowest / step) * step and max_height = min_height + 32767 * step,
+  /// so that one height gives the same decoded value in every tile that uses the same step
+  /// (neighbouring tiles then share edge vertices exactly). std::invalid_argument when the
+  /// vertices span more than 32766 steps. 0: quantized over the vertices' own [min, max].
+  double height_step = 0;
+  /// When set, the unit normal (ECEF) of input vertex i, instead of the area-weighted normals of
+  /// the tile's triangles (a normal that depends on the position only matches across tiles).
+  std::function<pm::Ecef(std::size_t)> normal = {};
 };
 
 QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::Geodetic> vertices,
@@ -95,9 +105,10 @@ struct TileRange {
   int start_x = 0, start_y = 0, end_x = 0, end_y = 0;
 };
 /// layer.json (tilejson 2.1.0) for a quantized-mesh tileset in this tiling: `available[z]` lists
-/// the level's ranges; bounds in degrees; extensions as listed.
+/// the level's ranges; bounds in degrees; extensions as listed; `extra_members`, when not empty,
+/// is appended as further members of the top-level object (JSON text such as `"a": 1`).
 std::string layer_json(const std::string& name, const GeoRect& bounds,
                        const std::vector<std::vector<TileRange>>& available,
-                       const std::vector<std::string>& extensions);
+                       const std::vector<std::string>& extensions, const std::string& extra_members = "");
 
 }  // namespace terralod::blocks

@@ -6,7 +6,7 @@
 //   namespace pm = terralod::pm;
 //   pm::Ecef p = pm::ecef_from_geodetic({-71.5, 44.5, 1200.0});   // degrees, degrees, metres
 //   pm::Geodetic g = pm::geodetic_from_ecef(p);                     // back, to < 1e-9 m
-//   pm::Sphere s = pm::bounding_sphere(points);                     // contains every point
+//   pm::EcefSphere s = pm::bounding_sphere(points);                     // contains every point
 //   pm::Ecef h = pm::horizon_occlusion_point(points, s.center);     // ellipsoid-scaled frame
 //
 // Contract:
@@ -36,7 +36,7 @@ struct Geodetic {
 };
 using Ecef = std::array<double, 3>;
 
-struct Sphere {
+struct EcefSphere {
   Ecef center{};
   double radius = 0;
 };
@@ -50,7 +50,7 @@ Geodetic geodetic_from_ecef(const Ecef& p);
 /// The outward unit normal of the ellipsoid at (lon, lat).
 Ecef geodetic_surface_normal(double lon_deg, double lat_deg);
 
-Sphere bounding_sphere(std::span<const Ecef> points);
+EcefSphere bounding_sphere(std::span<const Ecef> points);
 Ecef horizon_occlusion_point(std::span<const Ecef> points, const Ecef& direction);
 
 }  // namespace terralod::pm

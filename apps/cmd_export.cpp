@@ -1,0 +1,72 @@
+// terralod export: a built terrain as a tileset for CesiumJS and the other clients of Cesium's
+// formats (blocks/terrain_export.hpp does the work).
+#include <cstdio>
+#include <string>
+
+#include "commands.hpp"
+#include "terralod/blocks/terrain_export.hpp"
+
+namespace terralod::cli {
+
+CommandSpec export_spec() {
+  CommandSpec s;
+  s.name = "export";
+  s.summary = "Export a terrain database as quantized-mesh tiles with layer.json (CesiumJS).";
+  s.description =
+      "Writes a quantized-mesh-1.0 tileset in the geographic TMS tiling CesiumJS expects (EPSG:4326,\n"
+      "two tiles at level 0, y from the south): OUT/layer.json and OUT/z/x/y.terrain (gzip; serve\n"
+      "them with 'Content-Encoding: gzip'). Load it with Cesium.CesiumTerrainProvider.fromUrl(URL).\n"
+      "Each tile is an L-infinity mesh of the terrain's samples inside it, within CesiumJS's maximum\n"
+      "geometric error for its level (6378137 * 2 pi * 0.25 / 130 / 2^z m) and at the deepest level\n"
+      "within min(that, 1 m), measured on the tile as a client decodes it; layer.json's 'terralod'\n"
+      "member gives each level's bound and measured error. Neighbouring tiles of a level share\n"
+      "their edge vertices exactly (no skirts needed). Heights are above the WGS 84 ellipsoid: the\n"
+      "input's vertical datum (EGM96 for SRTM and when the input states none) is converted through\n"
+      "PROJ; --vertical-datum overrides it. A DEM in a projected CRS is warped to longitude/latitude\n"
+      "through GDAL; a terrain without a CRS is refused. Beyond the terrain the surface is the\n"
+      "ellipsoid. A killed export run again resumes (OUT/.terralod-export journals finished tiles);\n"
+      "layer.json is written last, so an unfinished export lists no tile.";
+  s.options = {
+      {"--db", "DB", "terrain database made by 'terralod build'", true},
+      {"--out", "DIR", "output folder (created; must be empty or hold an earlier export)", true},
+      {"--format", "FORMAT", "quantized-mesh (the default and, for now, the only format)"},
+      {"--max-level", "Z", "deepest level, 0..24 (default: the first whose tiles span <= 64 samples)"},
+      {"--threads", "N", "worker threads (default: every core)"},
+      {"--vertical-datum", "NAME",
+       "the input heights' datum: egm96, egm2008, ellipsoid or a PROJ vertical CRS such as EPSG:5703\n"
+       "(default: what the input states, else egm96)"},
+  };
+  return s;
+}
+
+int cmd_export(const Args& a) {
+  a.get_choice("--format", {"quantized-mesh"}, "quantized-mesh");
+  blocks::ExportOptions o;
+  o.max_level = int(a.get_int("--max-level", -1, 0, 24));
+  o.threads = int(a.get_int("--threads", 0, 1, 1024));
+  o.vertical_datum = a.get("--vertical-datum");
+  const std::string db = a.get("--db"), out = a.get("--out");
+  ProgressBar bar("export");
+  o.progress = [&bar](const blocks::ExportProgress& p) {
+    bar.update(p.tiles_total ? double(p.tiles_done) / double(p.tiles_total) : 1.0);
+  };
+  const blocks::ExportReport r = blocks::export_quantized_mesh(db, out, o);
+  bar.finish();
+  std::printf("export %s -> %s: quantized-mesh, levels 0..%d, %zu tiles written, %zu reused, %s\n",
+              db.c_str(), out.c_str(), int(r.levels.size()) - 1, r.tiles_written, r.tiles_reused,
+              format_duration(r.seconds * 1000.0).c_str());
+  std::printf("  bounds %.9g, %.9g .. %.9g, %.9g degrees; samples: %s\n", r.bounds.west, r.bounds.south,
+              r.bounds.east, r.bounds.north, r.horizontal.c_str());
+  std::printf("  heights above the WGS 84 ellipsoid, converted from %s\n", r.vertical_datum.c_str());
+  std::printf("  level  tiles  vertices  triangles  bytes  bound(m)  max_error(m)  height_step(m)\n");
+  bool over = false;
+  for (const blocks::ExportLevel& L : r.levels) {
+    std::printf("  %5d  %5zu  %8zu  %9zu  %5zu  %8.4g  %12.4g  %14.4g\n", L.z, L.tiles, L.vertices,
+                L.triangles, L.bytes, L.bound, L.max_error, L.height_step);
+    over = over || L.max_error > L.bound;
+  }
+  if (over) std::printf("  warning: some level's measured error is above its bound (see above)\n");
+  return over ? 1 : 0;
+}
+
+}  // namespace terralod::cli

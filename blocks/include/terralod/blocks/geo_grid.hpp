@@ -1,0 +1,71 @@
+// A terrain's samples on a longitude/latitude grid with WGS 84 ellipsoidal heights: what the
+// exporters to the formats of CesiumJS and friends need (they place vertices by longitude,
+// latitude and height above the ellipsoid).
+//
+// Usage:
+//   namespace tb = terralod::blocks;
+//   pm::Heightfield hf = tb::read_database_terrain(db);          // crs_wkt, crs_transform set
+//   tb::GeoGrid g = tb::make_geo_grid(hf, /*vertical_datum=*/"", "terrain.db");
+//   double h = g.z(col, row);                                    // metres above WGS 84
+//   double lon = g.lon(col), lat = g.lat(row);                   // degrees
+//
+// Contract of make_geo_grid:
+//   - hf must carry its CRS (crs_wkt and crs_transform, as read_dem and read_database_terrain
+//     give them); otherwise GeoError naming `what` and asking for a georeferenced input.
+//   - Horizontal: a north-up grid in a geographic CRS on the WGS 84 datum is used as it is (the
+//     samples are the DEM's own). Anything else (a projected CRS, a rotated grid, another datum)
+//     is warped to EPSG:4326 through GDAL (bilinear, the source's resolution), and the warped
+//     samples are the grid's samples; voids and the area outside the source become holes.
+//   - Vertical: heights are converted from `vertical_datum` to the WGS 84 ellipsoid by adding
+//     the geoid undulation N(lon, lat) that PROJ gives for every sample:
+//       "ellipsoid" (or "wgs84")  the heights are ellipsoidal already: nothing is added;
+//       "egm96"                   EPSG:5773 (EGM96 height; grid egm96_15 from Debian's proj-data);
+//       "egm2008"                 EPSG:3855 (EGM2008 height; needs PROJ's egm08_25 grid);
+//       any other text            a PROJ vertical CRS ("EPSG:5703", ...);
+//       "" (empty)                the datum the source states (hf.vertical_datum: EGM96 for
+//                                 .hgt, the vertical CRS of a compound CRS), and EGM96 when it
+//                                 states none (SRTM, GMTED, ASTER and most global DEMs use it).
+//     GeoError when PROJ does not know the datum or lacks its grid (PROJ is never allowed to fall
+//     back silently to a no-op "ballpark" transformation).
+//   - Costs: 8 + 1 bytes per sample; PROJ evaluates N once per sample.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "terralod/pm/heightfield.hpp"
+
+namespace terralod::blocks {
+
+/// A georeferencing problem: what() = "<file>: <problem>".
+class GeoError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct GeoGrid {
+  int width = 0, height = 0;
+  double west = 0, north = 0;      ///< degrees: longitude of column 0, latitude of row 0 (north)
+  double dlon = 0, dlat = 0;       ///< degrees between columns and between rows (both > 0)
+  std::vector<double> heights;     ///< WGS 84 ellipsoidal heights, metres, row-major
+  std::vector<std::uint8_t> mask;  ///< 1 valid, 0 hole; empty when every sample is valid
+  std::string vertical_datum;      ///< what the heights were converted from, as resolved
+  std::string horizontal;          ///< "the source's own samples" or how they were warped
+
+  double lon(double col) const { return west + col * dlon; }
+  double lat(double row) const { return north - row * dlat; }
+  double z(int col, int row) const { return heights[std::size_t(row) * width + col]; }
+  bool valid(int col, int row) const { return mask.empty() || mask[std::size_t(row) * width + col] != 0; }
+};
+
+GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_datum, const std::string& what);
+
+/// The geoid undulation N (metres: ellipsoidal height = height in `vertical_datum` + N) at
+/// (lon, lat) in degrees, by the same PROJ operation make_geo_grid uses. GeoError as above.
+std::vector<double> geoid_undulations(const std::string& vertical_datum, const std::vector<double>& lon,
+                                      const std::vector<double>& lat, const std::string& what);
+
+}  // namespace terralod::blocks

@@ -1,0 +1,97 @@
+// Exports a built terrain to the tilesets CesiumJS (and Cesium for Unreal/Unity, and other
+// clients of Cesium's formats) load: quantized-mesh-1.0 tiles with a layer.json.
+//
+// Usage:
+//   namespace tb = terralod::blocks;
+//   tb::ExportReport r = tb::export_quantized_mesh("terrain.db", "tiles", {.max_level = 12});
+//   // tiles/layer.json, tiles/<z>/<x>/<y>.terrain; r.levels[z].max_error <= r.levels[z].bound
+//   // CesiumJS: terrainProvider: await Cesium.CesiumTerrainProvider.fromUrl("http://host/tiles")
+//
+// What is written (quantized_mesh.hpp has the format):
+//   - The geographic TMS tiling of EPSG:4326 (two tiles at level 0, y from the south), levels
+//     0..max_level. Level 0's two tiles always exist; at level z >= 1 the tiles that overlap the
+//     terrain (its samples plus one ring, see below). layer.json lists them in `available`, one
+//     rectangle per level, and carries a "terralod" member: per level the bound and the measured
+//     error (metres), the vertical datum, and the height step.
+//   - Tile z/x/y: an L-infinity mesh (tile_mesher.hpp) of the terrain's samples inside the tile,
+//     heights on the WGS 84 ellipsoid (geo_grid.hpp: the source's vertical datum converted
+//     through PROJ, EGM96 by default). Its bound is Cesium's level maximum geometric error
+//     (level_max_geometric_error(z), what CesiumJS assumes when it picks tiles), and at the
+//     deepest level min(that, 1 m). The measured error is the largest |mesh - sample| over the
+//     samples in the closed tile, the mesh as a client decodes it (quantized positions and
+//     heights) and interpolated linearly in (longitude, latitude), as CesiumJS's
+//     sampleTerrainMostDetailed does. When it exceeds the bound the tile is remeshed tighter
+//     (down to 1/8 of the bound); the report and layer.json give what was reached.
+//   - Neighbouring tiles of one level share their edge vertices exactly: the same quantized
+//     positions and, through one height step per level (a power of two), the same decoded
+//     heights; normals come from the terrain's gradient at the vertex, the same on both sides.
+//     So a level's tiles join without skirts (the edge lists are written; no skirt is needed).
+//   - Beyond the terrain the surface is the ellipsoid (height 0, CesiumJS's own default globe),
+//     one lattice ring outside the samples: the terrain ends in a cliff, not a slope.
+//   - Large tiles get a regular grid of forced vertices (sag_divisions) so that the flat
+//     triangles a client draws stay within the level's error of the curved Earth.
+//   - Metadata extension: {"terralod": {"max_error": measured, "bound": bound}}; oct-encoded
+//     normals extension.
+//
+// Resume: tiles are written atomically (temporary + rename) and journaled in
+// DIR/.terralod-export (the export's parameters, then one line per finished tile). A killed
+// export run again with the same database and options reuses the journaled tiles; with other
+// parameters it starts over. layer.json is removed when an export starts and written last, so
+// no tile of an unfinished export is ever listed as available. An output folder that is not
+// empty and holds no journal is refused (ExportError), so nothing of the user's is overwritten.
+//
+// Errors: ExportError naming the file or folder (unwritable folder, a terrain without a CRS,
+// an unknown vertical datum, an incomplete database); DatabaseError for corrupt databases.
+// Costs: the terrain in memory as a GeoGrid (9 bytes per sample) plus one tile's mesh per
+// thread; each level reads every sample about once per greedy pass.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "terralod/blocks/quantized_mesh.hpp"
+
+namespace terralod::blocks {
+
+class ExportError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ExportProgress {
+  int level = 0;
+  std::size_t tiles_done = 0, tiles_total = 0;  ///< over all levels
+  double seconds = 0;                           ///< since the export started
+};
+
+struct ExportOptions {
+  int max_level = -1;          ///< deepest level; -1: the first whose tiles span <= 64 samples
+  int threads = 0;             ///< 0: every core
+  std::string vertical_datum;  ///< the input heights' datum (geo_grid.hpp); "" = the source's
+  std::function<void(const ExportProgress&)> progress = {};
+};
+
+struct ExportLevel {
+  int z = 0;
+  std::size_t tiles = 0, vertices = 0, triangles = 0, bytes = 0;  ///< bytes gzipped
+  double bound = 0;        ///< metres: what each tile of the level must meet
+  double max_error = 0;    ///< metres: measured, the largest over the level's tiles
+  double height_step = 0;  ///< metres: the level's height quantum
+};
+
+struct ExportReport {
+  std::vector<ExportLevel> levels;  ///< levels[z]
+  GeoRect bounds;                   ///< the terrain's samples, degrees
+  std::size_t tiles_written = 0, tiles_reused = 0;
+  std::string vertical_datum;  ///< as resolved
+  std::string horizontal;      ///< how the samples were placed in longitude/latitude
+  double seconds = 0;
+};
+
+ExportReport export_quantized_mesh(const std::string& db_path, const std::string& out_dir,
+                                   const ExportOptions& options = {});
+
+}  // namespace terralod::blocks

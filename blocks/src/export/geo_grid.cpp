@@ -1,0 +1,247 @@
+// Longitude/latitude grids with ellipsoidal heights (see geo_grid.hpp): GDAL warps what is not
+// geographic WGS 84 already, PROJ gives the geoid undulation of every sample.
+#include "terralod/blocks/geo_grid.hpp"
+
+#include <gdal_priv.h>
+#include <gdalwarper.h>
+#include <ogr_spatialref.h>
+#include <proj.h>
+#include <proj_experimental.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+namespace terralod::blocks {
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+/// The PROJ vertical CRS of a datum name; "" for ellipsoidal heights.
+std::string vertical_crs(const std::string& datum) {
+  const std::string d = lower(datum);
+  if (d == "ellipsoid" || d == "wgs84" || d == "wgs 84") return "";
+  if (d.find("egm2008") != std::string::npos || d.find("egm08") != std::string::npos) return "EPSG:3855";
+  if (d.empty() || d.find("egm96") != std::string::npos) return "EPSG:5773";
+  return datum;
+}
+
+/// A PROJ context and the operation (lon, lat, H in the datum) -> (lon, lat, ellipsoidal h), for
+/// one thread.
+class GeoidOperation {
+ public:
+  GeoidOperation(const std::string& vertical, const std::string& what) : ctx_(proj_context_create()) {
+    proj_log_level(ctx_, PJ_LOG_NONE);  // failures are reported below, naming the file
+    const std::string src = "EPSG:4326+" + (vertical.rfind("EPSG:", 0) == 0 ? vertical.substr(5) : vertical);
+    PJ* from = proj_create(ctx_, vertical.rfind("EPSG:", 0) == 0 ? src.c_str() : vertical.c_str());
+    if (from != nullptr && proj_get_type(from) == PJ_TYPE_VERTICAL_CRS) {  // a bare vertical CRS
+      PJ* horizontal = proj_create(ctx_, "EPSG:4326");
+      PJ* compound = proj_create_compound_crs(ctx_, "source", horizontal, from);
+      proj_destroy(horizontal);
+      proj_destroy(from);
+      from = compound;
+    }
+    PJ* to = proj_create(ctx_, "EPSG:4979");
+    if (from == nullptr || to == nullptr) {
+      proj_destroy(from), proj_destroy(to);
+      fail(what, "PROJ does not know the vertical datum '" + vertical + "'");
+    }
+    PJ_OPERATION_FACTORY_CONTEXT* f = proj_create_operation_factory_context(ctx_, nullptr);
+    proj_operation_factory_context_set_grid_availability_use(
+        ctx_, f, PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID);
+    proj_operation_factory_context_set_spatial_criterion(ctx_, f,
+                                                         PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
+    PJ_OBJ_LIST* ops = proj_create_operations(ctx_, from, to, f);
+    proj_operation_factory_context_destroy(f);
+    proj_destroy(from), proj_destroy(to);
+    const int n = ops != nullptr ? proj_list_get_count(ops) : 0;
+    for (int i = 0; i < n && op_ == nullptr; ++i) {
+      PJ* op = proj_list_get(ctx_, ops, i);
+      if (op != nullptr && !proj_coordoperation_has_ballpark_transformation(ctx_, op)) {
+        op_ = proj_normalize_for_visualization(ctx_, op);  // lon, lat order
+      }
+      proj_destroy(op);
+    }
+    proj_list_destroy(ops);
+    if (op_ == nullptr)
+      fail(what, "PROJ has no geoid transformation from vertical datum '" + vertical +
+                     "' to the WGS 84 ellipsoid (is its grid installed? Debian's proj-data has EGM96's "
+                     "egm96_15.gtx; others come from https://cdn.proj.org)");
+  }
+  GeoidOperation(const GeoidOperation&) = delete;
+  GeoidOperation& operator=(const GeoidOperation&) = delete;
+  ~GeoidOperation() {
+    proj_destroy(op_);
+    proj_context_destroy(ctx_);
+  }
+
+  /// N at each (lon[i], lat[i]) into n[i].
+  void undulations(const double* lon, const double* lat, double* n, std::size_t count,
+                   const std::string& what) {
+    std::vector<double> x(lon, lon + count), y(lat, lat + count);
+    std::fill(n, n + count, 0.0);
+    proj_trans_generic(op_, PJ_FWD, x.data(), sizeof(double), count, y.data(), sizeof(double), count, n,
+                       sizeof(double), count, nullptr, 0, 0);
+    for (std::size_t i = 0; i < count; ++i)
+      if (!std::isfinite(n[i]) || n[i] == HUGE_VAL)
+        fail(what, "PROJ gave no geoid height at longitude " + std::to_string(lon[i]) + ", latitude " +
+                       std::to_string(lat[i]));
+  }
+
+ private:
+  [[noreturn]] static void fail(const std::string& what, const std::string& problem) {
+    throw GeoError(what + ": " + problem);
+  }
+  PJ_CONTEXT* ctx_;
+  PJ* op_ = nullptr;
+};
+
+void register_gdal() {
+  static std::once_flag once;
+  std::call_once(once, [] { GDALAllRegister(); });
+}
+
+bool is_wgs84_geographic(const std::string& wkt) {
+  OGRSpatialReference srs, wgs84;
+  if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE || !srs.IsGeographic()) return false;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  return srs.IsSameGeogCS(&wgs84) != 0;
+}
+
+/// hf warped to EPSG:4326 (bilinear, GDAL's choice of resolution), voids and outside as holes.
+GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
+  register_gdal();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  std::unique_ptr<GDALDataset> src(mem->Create("", hf.width(), hf.height(), 1, GDT_Float64, nullptr));
+  if (!src) throw GeoError(what + ": GDAL could not make an in-memory raster to warp");
+  const pm::GridTransform& t = *hf.crs_transform;
+  double gt[6] = {t.x0 - 0.5 * t.xc - 0.5 * t.xr, t.xc, t.xr, t.y0 - 0.5 * t.yc - 0.5 * t.yr, t.yc, t.yr};
+  src->SetGeoTransform(gt);
+  src->SetProjection(hf.crs_wkt.c_str());
+  std::vector<double> z(hf.samples());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t i = 0; i < z.size(); ++i)
+    if (!hf.valid(i)) z[i] = nan;
+  GDALRasterBand* band = src->GetRasterBand(1);
+  band->SetNoDataValue(nan);
+  if (band->RasterIO(GF_Write, 0, 0, hf.width(), hf.height(), z.data(), hf.width(), hf.height(), GDT_Float64,
+                     0, 0) != CE_None)
+    throw GeoError(what + ": GDAL could not fill the in-memory raster to warp");
+  OGRSpatialReference wgs84;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  char* dst_wkt = nullptr;
+  wgs84.exportToWkt(&dst_wkt);
+  GDALDatasetH warped = GDALAutoCreateWarpedVRT(src.get(), nullptr, dst_wkt, GRA_Bilinear, 0.0, nullptr);
+  CPLFree(dst_wkt);
+  if (warped == nullptr)
+    throw GeoError(what + ": GDAL could not warp the terrain from its CRS to longitude/latitude: " +
+                   CPLGetLastErrorMsg());
+  GeoGrid g;
+  g.width = GDALGetRasterXSize(warped);
+  g.height = GDALGetRasterYSize(warped);
+  double wt[6];
+  GDALGetGeoTransform(warped, wt);
+  g.dlon = wt[1];
+  g.dlat = -wt[5];
+  g.west = wt[0] + 0.5 * wt[1];
+  g.north = wt[3] + 0.5 * wt[5];
+  g.heights.resize(std::size_t(g.width) * g.height);
+  const CPLErr rc = GDALRasterIO(GDALGetRasterBand(warped, 1), GF_Read, 0, 0, g.width, g.height,
+                                 g.heights.data(), g.width, g.height, GDT_Float64, 0, 0);
+  GDALClose(warped);
+  if (rc != CE_None) throw GeoError(what + ": GDAL could not read the warped terrain");
+  g.mask.assign(g.heights.size(), 1);
+  bool any = false;
+  for (std::size_t i = 0; i < g.heights.size(); ++i) {
+    if (!std::isfinite(g.heights[i])) {
+      g.mask[i] = 0;
+      g.heights[i] = 0.0;
+    } else {
+      any = true;
+    }
+  }
+  if (!any) throw GeoError(what + ": no sample is left after warping to longitude/latitude");
+  g.horizontal = "warped from its CRS to EPSG:4326 by GDAL (bilinear), " + std::to_string(g.width) + " x " +
+                 std::to_string(g.height) + " samples";
+  return g;
+}
+
+}  // namespace
+
+std::vector<double> geoid_undulations(const std::string& vertical_datum, const std::vector<double>& lon,
+                                      const std::vector<double>& lat, const std::string& what) {
+  std::vector<double> n(lon.size(), 0.0);
+  const std::string v = vertical_crs(vertical_datum);
+  if (v.empty() || lon.empty()) return n;
+  const std::size_t threads =
+      std::clamp<std::size_t>(lon.size() / 65536, 1, std::max(1u, std::thread::hardware_concurrency()));
+  const std::size_t chunk = (lon.size() + threads - 1) / threads;
+  std::vector<std::exception_ptr> errors(threads);
+  std::vector<std::thread> pool;
+  for (std::size_t k = 0; k < threads; ++k)
+    pool.emplace_back([&, k] {
+      try {
+        const std::size_t a = k * chunk, b = std::min(lon.size(), a + chunk);
+        if (a >= b) return;
+        GeoidOperation op(v, what);
+        op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
+      } catch (...) {
+        errors[k] = std::current_exception();
+      }
+    });
+  for (std::thread& t : pool) t.join();
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+  return n;
+}
+
+GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_datum, const std::string& what) {
+  if (hf.crs_wkt.empty() || !hf.crs_transform)
+    throw GeoError(what +
+                   ": the terrain has no coordinate reference system, so it cannot be placed on the "
+                   "Earth; build it from a georeferenced DEM (an SRTM .hgt, a GeoTIFF with a CRS, an "
+                   ".asc with a .prj; gdal_translate -a_srs EPSG:<code> adds one)");
+  const pm::GridTransform& t = *hf.crs_transform;
+  GeoGrid g;
+  if (is_wgs84_geographic(hf.crs_wkt) && t.xr == 0.0 && t.yc == 0.0 && t.xc > 0.0 && t.yr < 0.0) {
+    g.width = hf.width();
+    g.height = hf.height();
+    g.west = t.x0;
+    g.north = t.y0;
+    g.dlon = t.xc;
+    g.dlat = -t.yr;
+    g.heights = hf.samples();
+    if (hf.has_holes()) g.mask = hf.mask();
+    g.horizontal = "the source's own samples (geographic WGS 84)";
+  } else {
+    g = warp_to_lonlat(hf, what);
+  }
+  const std::string requested = vertical_datum.empty() ? hf.vertical_datum : vertical_datum;
+  const std::string v = vertical_crs(requested);
+  g.vertical_datum = v.empty()          ? "WGS 84 ellipsoid"
+                     : v == "EPSG:5773" ? "EGM96"
+                     : v == "EPSG:3855" ? "EGM2008"
+                                        : v;
+  if (requested.empty()) g.vertical_datum += " (assumed: the source states no vertical datum)";
+  if (v.empty()) return g;
+  // N varies smoothly (PROJ interpolates a 15' grid for EGM96), but every sample gets its own.
+  std::vector<double> lon(g.heights.size()), lat(g.heights.size());
+  for (int r = 0; r < g.height; ++r)
+    for (int c = 0; c < g.width; ++c) {
+      lon[std::size_t(r) * g.width + c] = g.lon(c);
+      lat[std::size_t(r) * g.width + c] = g.lat(r);
+    }
+  const std::vector<double> n = geoid_undulations(requested.empty() ? "egm96" : requested, lon, lat, what);
+  for (std::size_t i = 0; i < n.size(); ++i)
+    if (g.mask.empty() || g.mask[i]) g.heights[i] += n[i];
+  return g;
+}
+
+}  // namespace terralod::blocks

@@ -1,0 +1,394 @@
+// L-infinity meshes of geographic tiles with shared edge vertices (see tile_mesher.hpp).
+#include "tile_mesher.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <unordered_set>
+#include <utility>
+
+#include "../delaunay.hpp"
+
+namespace terralod::blocks::detail {
+namespace {
+
+constexpr int kQ = 32767;            // largest quantized coordinate
+constexpr int kBackgroundGrid = 64;  // background points: (kBackgroundGrid + 1)^2 per tile
+constexpr double kEps = 1e-9;        // lattice steps: points on a triangle's edge count in both
+
+/// The tile's quantized frame: lattice point (c, r) sits at u = u0 + c du, v = v0 - r dv.
+struct TileFrame {
+  TileFrame(const GeoGrid& g, const GeoRect& rect)
+      : ku(kQ / (rect.east - rect.west)),
+        kv(kQ / (rect.north - rect.south)),
+        u0((g.west - rect.west) * ku),
+        du(g.dlon * ku),
+        v0((g.north - rect.south) * kv),
+        dv(g.dlat * kv) {}
+  double ku, kv, u0, du, v0, dv;
+  double u(int c) const { return u0 + c * du; }
+  double v(int r) const { return v0 - r * dv; }
+};
+
+struct UV {
+  double u, v;
+};
+
+/// Calls f(c, r, u, v) for every lattice point of the padded grid ([-1, width] x [-1, height])
+/// in the closed triangle (a, b, c) (and, within kEps lattice steps, on its edges).
+template <class F>
+void scan_lattice(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& f) {
+  const double vmin = std::min({p[0].v, p[1].v, p[2].v}), vmax = std::max({p[0].v, p[1].v, p[2].v});
+  const int r_lo = std::max(-1, int(std::ceil((fr.v0 - vmax) / fr.dv - kEps)));
+  const int r_hi = std::min(height, int(std::floor((fr.v0 - vmin) / fr.dv + kEps)));
+  for (int r = r_lo; r <= r_hi; ++r) {
+    const double v = fr.v(r);
+    double ul = std::numeric_limits<double>::infinity(), ur = -ul;
+    for (int k = 0; k < 3; ++k) {
+      const UV& a = p[k];
+      const UV& b = p[(k + 1) % 3];
+      if (a.v == b.v) {
+        if (std::abs(a.v - v) <= kEps * fr.dv) ul = std::min({ul, a.u, b.u}), ur = std::max({ur, a.u, b.u});
+        continue;
+      }
+      const double lo = std::min(a.v, b.v) - kEps * fr.dv, hi = std::max(a.v, b.v) + kEps * fr.dv;
+      if (v < lo || v > hi) continue;
+      const double t = std::clamp((v - a.v) / (b.v - a.v), 0.0, 1.0);
+      const double u = a.u + t * (b.u - a.u);
+      ul = std::min(ul, u), ur = std::max(ur, u);
+    }
+    if (ul > ur) continue;
+    const int c_lo = std::max(-1, int(std::ceil((ul - fr.u0) / fr.du - kEps)));
+    const int c_hi = std::min(width, int(std::floor((ur - fr.u0) / fr.du + kEps)));
+    for (int c = c_lo; c <= c_hi; ++c) f(c, r, fr.u(c), v);
+  }
+}
+
+/// The plane through three (u, v, h) points: h(u, v) = h0 + gx (u - u0) + gy (v - v0).
+struct Plane {
+  Plane(const UV (&p)[3], const double (&h)[3]) : u0(p[0].u), v0(p[0].v), h0(h[0]) {
+    const double au = p[1].u - p[0].u, av = p[1].v - p[0].v, bu = p[2].u - p[0].u, bv = p[2].v - p[0].v;
+    const double det = au * bv - bu * av;
+    gx = ((h[1] - h[0]) * bv - (h[2] - h[0]) * av) / det;
+    gy = ((h[2] - h[0]) * au - (h[1] - h[0]) * bu) / det;
+  }
+  double operator()(double u, double v) const { return h0 + gx * (u - u0) + gy * (v - v0); }
+  double u0, v0, h0, gx = 0, gy = 0;
+};
+
+bool in_closed_triangle(const UV (&p)[3], double u, double v) {
+  auto side = [&](const UV& a, const UV& b) { return (b.u - a.u) * (v - a.v) - (b.v - a.v) * (u - a.u); };
+  const double tol = 1e-9 * kQ;
+  return side(p[0], p[1]) >= -tol && side(p[1], p[2]) >= -tol && side(p[2], p[0]) >= -tol;
+}
+
+/// Background points of a tile: the (kBackgroundGrid + 1)^2 regular grid, less the points within
+/// one lattice step of the padded grid (the ring measures the terrain's own edge).
+std::vector<UV> background_points(const GeoGrid& g, const TileFrame& fr) {
+  const double ulo = fr.u(-2), uhi = fr.u(g.width + 1), vhi = fr.v(-2), vlo = fr.v(g.height + 1);
+  std::vector<UV> out;
+  for (int j = 0; j <= kBackgroundGrid; ++j)
+    for (int i = 0; i <= kBackgroundGrid; ++i) {
+      const UV p{double(i) * kQ / kBackgroundGrid, double(j) * kQ / kBackgroundGrid};
+      if (p.u >= ulo && p.u <= uhi && p.v >= vlo && p.v <= vhi) continue;
+      out.push_back(p);
+    }
+  return out;
+}
+
+struct EdgePoint {
+  double t, h;
+  bool forced;
+};
+
+/// The vertices of one tile edge: (quantized position along the edge, height), from both ends.
+/// vertical: the edge lies on longitude `at` from latitude a to b; else on latitude `at` from
+/// longitude a to b. A function of its arguments only (see the header).
+std::vector<std::pair<int, double>> edge_vertices(const GeoField& f, bool vertical, double at, double a,
+                                                  double b, double tol, int divisions) {
+  const GeoGrid& g = f.grid();
+  std::vector<EdgePoint> pts;
+  auto corner = [&](double s) { return vertical ? f.at(at, s) : f.at(s, at); };
+  pts.push_back({0.0, corner(a), true});
+  pts.push_back({1.0, corner(b), true});
+  for (int k = 1; k < divisions; ++k) {
+    const double s = a + (b - a) * k / divisions;
+    pts.push_back({double(k) / divisions, corner(s), true});
+  }
+  // Crossings with lattice lines (only where the padded lattice is: beyond it the field is flat).
+  const double lo = std::min(a, b), hi = std::max(a, b);
+  if (vertical) {
+    if (at >= g.lon(-1) && at <= g.lon(g.width))
+      for (int r = -1; r <= g.height; ++r) {
+        const double lat = g.lat(r);
+        if (lat > lo && lat < hi) pts.push_back({(lat - a) / (b - a), f.on_row(at, r), false});
+      }
+  } else {
+    if (at <= g.lat(-1) && at >= g.lat(g.height))
+      for (int c = -1; c <= g.width; ++c) {
+        const double lon = g.lon(c);
+        if (lon > lo && lon < hi) pts.push_back({(lon - a) / (b - a), f.on_col(c, at), false});
+      }
+  }
+  std::sort(pts.begin(), pts.end(), [](const EdgePoint& x, const EdgePoint& y) { return x.t < y.t; });
+  // Douglas-Peucker between consecutive forced points.
+  std::vector<std::uint8_t> keep(pts.size(), 0);
+  std::vector<std::pair<std::size_t, std::size_t>> stack;
+  std::size_t prev = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (!pts[i].forced) continue;
+    keep[i] = 1;
+    if (i > prev + 1) stack.push_back({prev, i});
+    prev = i;
+  }
+  while (!stack.empty()) {
+    const auto [i, j] = stack.back();
+    stack.pop_back();
+    double worst = tol;
+    std::size_t at_k = 0;
+    for (std::size_t k = i + 1; k < j; ++k) {
+      const double s = (pts[k].t - pts[i].t) / (pts[j].t - pts[i].t);
+      const double e = std::abs(pts[i].h + s * (pts[j].h - pts[i].h) - pts[k].h);
+      if (e > worst) worst = e, at_k = k;
+    }
+    if (at_k == 0) continue;
+    keep[at_k] = 1;
+    if (at_k > i + 1) stack.push_back({i, at_k});
+    if (j > at_k + 1) stack.push_back({at_k, j});
+  }
+  std::vector<std::pair<int, double>> out;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (!keep[i]) continue;
+    const int q = int(std::lround(pts[i].t * kQ));
+    if (!out.empty() && out.back().first == q) {
+      if (q == kQ) out.back().second = pts[i].h;  // the end wins its position
+      continue;
+    }
+    out.push_back({q, pts[i].h});
+  }
+  return out;
+}
+
+class TileGreedy {
+ public:
+  TileGreedy(const GeoField& f, const GeoRect& rect, const TileMeshOptions& o)
+      : f_(f),
+        g_(f.grid()),
+        rect_(rect),
+        opt_(o),
+        fr_(f.grid(), rect),
+        background_(background_points(g_, fr_)) {
+    dt_.on_new_triangle = [this](int) {
+      prio_.push_back(0), all_.push_back(0), version_.push_back(0);
+      cand_.push_back({-1, -1}), cand_h_.push_back(0);
+    };
+  }
+
+  TileMesh run() {
+    build_initial();
+    for (int t = 0; t < dt_.triangles(); ++t) rescan(t);
+    TileMesh out;
+    while (!heap_.empty()) {
+      const Item top = heap_.top();
+      if (top.version != version_[std::size_t(top.t)]) {
+        heap_.pop();
+        continue;
+      }
+      if (top.err <= opt_.max_error) break;
+      heap_.pop();
+      const int t = top.t;
+      const pm::GridPoint p = cand_[std::size_t(t)];
+      if (!vertices_.insert(key(p)).second) {  // the rounded position is a vertex already
+        ++version_[std::size_t(t)];
+        ++out.stuck;
+        continue;
+      }
+      const int at = dt_.locate(p, t);
+      if (at < 0) {
+        ++version_[std::size_t(t)];
+        ++out.stuck;
+        continue;
+      }
+      add_vertex(p, cand_h_[std::size_t(t)], at);
+      for (int d : dt_.touched) rescan(d);
+    }
+    for (int t = 0; t < dt_.triangles(); ++t) out.error = std::max(out.error, all_[std::size_t(t)]);
+    out.uv.reserve(dt_.pts.size());
+    for (const pm::GridPoint& p : dt_.pts) out.uv.push_back({p.x, p.y});
+    out.heights = h_;
+    out.triangles.resize(std::size_t(dt_.triangles()));
+    for (int t = 0; t < dt_.triangles(); ++t)
+      out.triangles[std::size_t(t)] = {std::uint32_t(dt_.tri[std::size_t(3 * t)]),
+                                       std::uint32_t(dt_.tri[std::size_t(3 * t + 1)]),
+                                       std::uint32_t(dt_.tri[std::size_t(3 * t + 2)])};
+    return out;
+  }
+
+ private:
+  static std::uint32_t key(pm::GridPoint p) { return std::uint32_t(p.x) << 16 | std::uint32_t(p.y); }
+
+  void add_vertex(pm::GridPoint p, double h, int t) {
+    vertices_.insert(key(p));
+    const int v = dt_.add_point(p);
+    h_.push_back(h);
+    dt_.begin_round();
+    dt_.insert(v, t);
+  }
+
+  /// Corners, edge vertices and the forced interior grid.
+  void build_initial() {
+    const GeoRect& r = rect_;
+    const std::array<pm::GridPoint, 4> corners = {{{0, 0}, {kQ, 0}, {kQ, kQ}, {0, kQ}}};
+    const std::array<double, 4> ch = {f_.at(r.west, r.south), f_.at(r.east, r.south), f_.at(r.east, r.north),
+                                      f_.at(r.west, r.north)};
+    for (int k = 0; k < 4; ++k) {
+      dt_.add_point(corners[std::size_t(k)]);
+      h_.push_back(ch[std::size_t(k)]);
+      vertices_.insert(key(corners[std::size_t(k)]));
+    }
+    const int t0 = dt_.new_triangle(), t1 = dt_.new_triangle();
+    dt_.set_triangle(t0, 0, 1, 2), dt_.set_triangle(t1, 0, 2, 3);
+    dt_.link(3 * t0 + 2, 3 * t1);
+    const double tol = opt_.max_error;
+    const int n = std::max(1, opt_.sag_divisions);
+    auto add = [&](pm::GridPoint p, double h) {
+      if (vertices_.count(key(p))) return;
+      add_vertex(p, h, dt_.locate(p, 0));
+    };
+    // West and east edges run south -> north, south and north edges west -> east.
+    for (const auto& [q, h] : edge_vertices(f_, true, r.west, r.south, r.north, tol, n)) add({0, q}, h);
+    for (const auto& [q, h] : edge_vertices(f_, true, r.east, r.south, r.north, tol, n)) add({kQ, q}, h);
+    for (const auto& [q, h] : edge_vertices(f_, false, r.south, r.west, r.east, tol, n)) add({q, 0}, h);
+    for (const auto& [q, h] : edge_vertices(f_, false, r.north, r.west, r.east, tol, n)) add({q, kQ}, h);
+    for (int j = 1; j < n; ++j)
+      for (int i = 1; i < n; ++i) {
+        const double lon = r.west + (r.east - r.west) * i / n, lat = r.south + (r.north - r.south) * j / n;
+        add({int(std::lround(double(i) / n * kQ)), int(std::lround(double(j) / n * kQ))}, f_.at(lon, lat));
+      }
+  }
+
+  void corners(int t, UV (&p)[3], double (&h)[3]) const {
+    for (int k = 0; k < 3; ++k) {
+      const int v = dt_.tri[std::size_t(3 * t + k)];
+      const pm::GridPoint q = dt_.pts[std::size_t(v)];
+      p[k] = {double(q.x), double(q.y)};
+      h[k] = h_[std::size_t(v)];
+    }
+  }
+
+  void rescan(int t) {
+    UV p[3];
+    double h[3];
+    corners(t, p, h);
+    const Plane plane(p, h);
+    double all = 0, best = 0;
+    pm::GridPoint cand{-1, -1};
+    double cand_h = 0;
+    auto consider = [&](double u, double v, double value) {
+      const double e = std::abs(plane(u, v) - value);
+      all = std::max(all, e);
+      if (e <= best) return;
+      const int U = int(std::lround(u)), V = int(std::lround(v));
+      if (U <= 0 || U >= kQ || V <= 0 || V >= kQ) return;
+      best = e, cand = {U, V}, cand_h = value;
+    };
+    scan_lattice(fr_, g_.width, g_.height, p, [&](int c, int r, double u, double v) {
+      const double value = f_.lattice(c, r);
+      if (value == value) consider(u, v, value);
+    });
+    const double ulo = std::min({p[0].u, p[1].u, p[2].u}), uhi = std::max({p[0].u, p[1].u, p[2].u});
+    const double vlo = std::min({p[0].v, p[1].v, p[2].v}), vhi = std::max({p[0].v, p[1].v, p[2].v});
+    for (const UV& b : background_)
+      if (b.u >= ulo && b.u <= uhi && b.v >= vlo && b.v <= vhi && in_closed_triangle(p, b.u, b.v))
+        consider(b.u, b.v, f_.background());
+    const std::size_t i = std::size_t(t);
+    all_[i] = all, prio_[i] = best, cand_[i] = cand, cand_h_[i] = cand_h;
+    ++version_[i];
+    if (cand.x >= 0) heap_.push({best, t, version_[i]});
+  }
+
+  const GeoField& f_;
+  const GeoGrid& g_;
+  GeoRect rect_;
+  TileMeshOptions opt_;
+  TileFrame fr_;
+  std::vector<UV> background_;
+  Delaunay dt_;
+  std::vector<double> h_;
+  std::unordered_set<std::uint32_t> vertices_;
+  std::vector<double> prio_, all_, cand_h_;
+  std::vector<pm::GridPoint> cand_;
+  std::vector<std::uint32_t> version_;
+  struct Item {
+    double err;
+    int t;
+    std::uint32_t version;
+    bool operator<(const Item& o) const { return err < o.err || (err == o.err && t > o.t); }
+  };
+  std::priority_queue<Item> heap_;
+};
+
+}  // namespace
+
+double GeoField::at(double lon, double lat) const {
+  const double col = (lon - g_.west) / g_.dlon, row = (g_.north - lat) / g_.dlat;
+  if (!(col >= -1.0 && col <= g_.width && row >= -1.0 && row <= g_.height)) return background_;
+  const int c = std::clamp(int(std::floor(col)), -1, g_.width - 1);
+  const int r = std::clamp(int(std::floor(row)), -1, g_.height - 1);
+  const double fx = col - c, fy = row - r;
+  const double top = value(c, r) + fx * (value(c + 1, r) - value(c, r));
+  const double bottom = value(c, r + 1) + fx * (value(c + 1, r + 1) - value(c, r + 1));
+  return top + fy * (bottom - top);
+}
+
+double GeoField::on_row(double lon, int r) const {
+  const double col = (lon - g_.west) / g_.dlon;
+  if (!(col >= -1.0 && col <= g_.width)) return background_;
+  const int c = std::clamp(int(std::floor(col)), -1, g_.width - 1);
+  const double fx = col - c;
+  return value(c, r) + fx * (value(c + 1, r) - value(c, r));
+}
+
+double GeoField::on_col(int c, double lat) const {
+  const double row = (g_.north - lat) / g_.dlat;
+  if (!(row >= -1.0 && row <= g_.height)) return background_;
+  const int r = std::clamp(int(std::floor(row)), -1, g_.height - 1);
+  const double fy = row - r;
+  return value(c, r) + fy * (value(c, r + 1) - value(c, r));
+}
+
+TileMesh mesh_tile(const GeoField& field, const GeoRect& rect, const TileMeshOptions& options) {
+  return TileGreedy(field, rect, options).run();
+}
+
+double tile_error(const GeoField& field, const GeoRect& rect, const std::vector<std::array<int, 2>>& uv,
+                  const std::vector<double>& decoded,
+                  const std::vector<std::array<std::uint32_t, 3>>& triangles, bool samples_only) {
+  const GeoGrid& g = field.grid();
+  const TileFrame fr(g, rect);
+  const std::vector<UV> background = samples_only ? std::vector<UV>{} : background_points(g, fr);
+  double worst = 0;
+  for (const auto& tri : triangles) {
+    UV p[3];
+    double h[3];
+    for (int k = 0; k < 3; ++k) {
+      p[k] = {double(uv[tri[std::size_t(k)]][0]), double(uv[tri[std::size_t(k)]][1])};
+      h[k] = decoded[tri[std::size_t(k)]];
+    }
+    const Plane plane(p, h);
+    scan_lattice(fr, g.width, g.height, p, [&](int c, int r, double u, double v) {
+      if (u < 0 || u > kQ || v < 0 || v > kQ) return;
+      const bool sample = c >= 0 && r >= 0 && c < g.width && r < g.height;
+      if (samples_only && !sample) return;
+      const double value = field.lattice(c, r);
+      if (value == value) worst = std::max(worst, std::abs(plane(u, v) - value));
+    });
+    for (const UV& b : background)
+      if (in_closed_triangle(p, b.u, b.v))
+        worst = std::max(worst, std::abs(plane(b.u, b.v) - field.background()));
+  }
+  return worst;
+}
+
+}  // namespace terralod::blocks::detail

@@ -1,0 +1,88 @@
+// Private to the exporters: the L-infinity mesh of one tile of a geographic tiling, whose edge
+// vertices are a function of the edge alone, so that neighbouring tiles of one level share them.
+//
+// The terrain is a field over longitude/latitude (GeoField): the GeoGrid's samples, padded with
+// one ring of `background` lattice points around the grid (so the terrain ends in a cliff down
+// to the background, not in a slope across the tile), bilinear between lattice points,
+// `background` beyond; holes read as background where the field is interpolated and are never
+// measured.
+//
+// A tile's mesh (mesh_tile) lives in the quantized (u, v) coordinates of quantized-mesh:
+// integers 0..32767 from west to east and south to north. It is built in three steps:
+//   1. Edges. For each edge, the field's profile along it is taken at every crossing with a
+//      lattice line, at `sag_divisions` equal steps (forced, see below) and at both ends, and
+//      simplified by Douglas-Peucker to max_error; the kept points, at their quantized positions,
+//      are the edge's vertices. The profile is computed from the edge's own coordinates only, so
+//      the two tiles that share an edge get the same vertices, heights included.
+//   2. Forced points. A regular sag_divisions x sag_divisions grid of vertices (with the edges'
+//      forced points), so that the flat triangles a client draws in Earth-centred coordinates
+//      stay close to the curved surface on large tiles.
+//   3. Greedy insertion (Garland & Heckbert's algorithm III, as build_greedy_tin) of the lattice
+//      points inside the tile, at their rounded positions and with their own heights, into a
+//      Delaunay triangulation (exact integer predicates), until every measured point is within
+//      max_error of the mesh at its true position. Measured points: the tile's valid samples, the
+//      background ring, and a 65 x 65 grid of background points away from the terrain. Points
+//      whose rounded position lies on the tile's boundary or on a vertex are measured but not
+//      inserted (their error is then whatever the mesh gives them).
+// tile_error then measures a mesh exactly as a client decodes it (quantized heights included).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "terralod/blocks/geo_grid.hpp"
+#include "terralod/blocks/quantized_mesh.hpp"
+
+namespace terralod::blocks::detail {
+
+class GeoField {
+ public:
+  GeoField(const GeoGrid& grid, double background) : g_(grid), background_(background) {}
+  const GeoGrid& grid() const { return g_; }
+  double background() const { return background_; }
+
+  /// The lattice point (c, r), c in [-1, width], r in [-1, height]: a valid sample's height; the
+  /// background on the ring; NaN for a hole (not measured).
+  double lattice(int c, int r) const {
+    if (c < 0 || r < 0 || c >= g_.width || r >= g_.height) return background_;
+    return g_.valid(c, r) ? g_.z(c, r) : std::numeric_limits<double>::quiet_NaN();
+  }
+  /// Bilinear between lattice points (holes as background), background outside the ring.
+  double at(double lon, double lat) const;
+  /// The same on lattice row r (linear between the two columns around lon) and on column c.
+  double on_row(double lon, int r) const;
+  double on_col(int c, double lat) const;
+
+ private:
+  double value(int c, int r) const {
+    const double v = lattice(c, r);
+    return v == v ? v : background_;
+  }
+  const GeoGrid& g_;
+  double background_;
+};
+
+struct TileMesh {
+  std::vector<std::array<int, 2>> uv;                   ///< quantized positions 0..32767
+  std::vector<double> heights;                          ///< metres, before height quantization
+  std::vector<std::array<std::uint32_t, 3>> triangles;  ///< CCW in (u, v)
+  double error = 0;       ///< the greedy's error at the unquantized heights (tile_error is exact)
+  std::size_t stuck = 0;  ///< triangles left above max_error with no insertable point
+};
+
+struct TileMeshOptions {
+  double max_error = 0;   ///< metres
+  int sag_divisions = 1;  ///< forced regular subdivision of the tile (1 = corners only)
+};
+
+TileMesh mesh_tile(const GeoField& field, const GeoRect& rect, const TileMeshOptions& options);
+
+/// The largest |mesh - point| over the tile's measured points (see above) at their true
+/// positions, the mesh's heights being `decoded` (what a client reads); with samples_only, over
+/// the valid samples of the GeoGrid in the closed tile only. Metres.
+double tile_error(const GeoField& field, const GeoRect& rect, const std::vector<std::array<int, 2>>& uv,
+                  const std::vector<double>& decoded,
+                  const std::vector<std::array<std::uint32_t, 3>>& triangles, bool samples_only);
+
+}  // namespace terralod::blocks::detail

@@ -1,0 +1,353 @@
+// Tests for terralod export --format quantized-mesh (blocks/terrain_export.hpp): every tile is
+// read back by the independent reader of tests/support and checked against the DEM's samples,
+// with the geoid taken from PROJ directly (not through the exporter's code).
+#include <gtest/gtest.h>
+#include <proj.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "quantized_mesh_reader.hpp"
+#include "run_command.hpp"
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/terrain_export.hpp"
+#include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/geodesy.hpp"
+
+namespace {
+
+namespace tb = terralod::blocks;
+namespace pm = terralod::pm;
+namespace tt = terralod::test;
+namespace fs = std::filesystem;
+constexpr int kQ = 32767;
+
+/// A w x h crop of N44W072.hgt from sample (c0, r0), georeferenced as read_dem does it.
+pm::Heightfield crop(int c0, int r0, int w, int h) {
+  const pm::Heightfield all = tb::read_dem(std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt");
+  pm::Heightfield hf(w, h);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) hf.at(c, r) = all.at(c0 + c, r0 + r);
+  const pm::GridTransform& t = all.transform;
+  hf.transform = pm::GridTransform{t.x0 + c0 * t.xc, t.xc, 0, t.y0 + r0 * t.yr, 0, t.yr};
+  const pm::GridTransform& g = *all.crs_transform;
+  hf.crs_transform = pm::GridTransform{g.x0 + c0 * g.xc, g.xc, 0, g.y0 + r0 * g.yr, 0, g.yr};
+  hf.crs_wkt = all.crs_wkt;
+  hf.vertical_datum = all.vertical_datum;
+  hf.source = "N44W072 crop";
+  return hf;
+}
+
+/// EGM96 undulations straight from PROJ: ellipsoidal height of orthometric height 0.
+std::vector<double> egm96(const std::vector<std::array<double, 2>>& lonlat) {
+  PJ_CONTEXT* ctx = proj_context_create();
+  PJ* raw = proj_create_crs_to_crs(ctx, "EPSG:4326+5773", "EPSG:4979", nullptr);
+  PJ* op = proj_normalize_for_visualization(ctx, raw);
+  std::vector<double> n;
+  for (const auto& p : lonlat) n.push_back(proj_trans(op, PJ_FWD, proj_coord(p[0], p[1], 0, 0)).xyz.z);
+  proj_destroy(op), proj_destroy(raw), proj_context_destroy(ctx);
+  return n;
+}
+
+struct Tileset {
+  std::vector<std::vector<tb::TileRange>> available;
+  std::vector<double> bound, max_error;
+  std::map<std::array<int, 3>, tt::DecodedTile> tiles;
+};
+
+std::vector<double> numbers_after(const std::string& text, const std::string& key) {
+  const auto at = text.find("\"" + key + "\": [");
+  EXPECT_NE(at, std::string::npos) << key;
+  std::vector<double> out;
+  if (at == std::string::npos) return out;
+  std::istringstream s(text.substr(at + key.size() + 5, text.find(']', at) - at - key.size() - 5));
+  std::string item;
+  while (std::getline(s, item, ',')) out.push_back(std::stod(item));
+  return out;
+}
+
+Tileset read_tileset(const fs::path& dir) {
+  Tileset t;
+  const std::string layer = tt::slurp(dir / "layer.json");
+  EXPECT_NE(layer.find("\"format\": \"quantized-mesh-1.0\""), std::string::npos);
+  EXPECT_NE(layer.find("\"scheme\": \"tms\""), std::string::npos);
+  EXPECT_NE(layer.find("\"projection\": \"EPSG:4326\""), std::string::npos);
+  const std::string avail = layer.substr(layer.find("\"available\""));
+  std::istringstream lines(avail.substr(avail.find('\n') + 1));
+  const std::regex range(R"(\{"startX": (\d+), "startY": (\d+), "endX": (\d+), "endY": (\d+)\})");
+  for (std::string line; std::getline(lines, line) && line.find('[') != std::string::npos;) {
+    t.available.emplace_back();
+    for (std::sregex_iterator it(line.begin(), line.end(), range), end; it != end; ++it)
+      t.available.back().push_back(
+          {std::stoi((*it)[1]), std::stoi((*it)[2]), std::stoi((*it)[3]), std::stoi((*it)[4])});
+  }
+  t.bound = numbers_after(layer, "bound");
+  t.max_error = numbers_after(layer, "max_error");
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.path().extension() != ".terrain") continue;
+    const fs::path rel = fs::relative(e.path(), dir);
+    auto it = rel.begin();
+    const int z = std::stoi(it->string()), x = std::stoi((++it)->string()),
+              y = std::stoi((++it)->stem().string());
+    const std::string bytes = tt::slurp(e.path());
+    t.tiles[{z, x, y}] = tt::decode_quantized_mesh_tile(
+        std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()));
+  }
+  return t;
+}
+
+bool available(const Tileset& t, int z, int x, int y) {
+  if (z >= int(t.available.size())) return false;
+  for (const tb::TileRange& r : t.available[std::size_t(z)])
+    if (x >= r.start_x && x <= r.end_x && y >= r.start_y && y <= r.end_y) return true;
+  return false;
+}
+
+double decoded_height(const tt::DecodedTile& d, std::size_t i) {
+  return double(d.min_height) + double(d.h[i]) / kQ * (double(d.max_height) - double(d.min_height));
+}
+
+/// The tile's height at (u, v) (real, in the tile's quantized frame) as a client interpolates it;
+/// NaN when no triangle holds the point.
+double interpolate(const tt::DecodedTile& d, double u, double v) {
+  for (const auto& tri : d.triangles) {
+    const double ax = d.u[tri[0]], ay = d.v[tri[0]], bx = d.u[tri[1]], by = d.v[tri[1]], cx = d.u[tri[2]],
+                 cy = d.v[tri[2]];
+    const double det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+    const double l1 = ((u - ax) * (cy - ay) - (cx - ax) * (v - ay)) / det;
+    const double l2 = ((bx - ax) * (v - ay) - (u - ax) * (by - ay)) / det;
+    const double l0 = 1 - l1 - l2;
+    if (l0 >= -1e-9 && l1 >= -1e-9 && l2 >= -1e-9)
+      return l0 * decoded_height(d, tri[0]) + l1 * decoded_height(d, tri[1]) + l2 * decoded_height(d, tri[2]);
+  }
+  return std::nan("");
+}
+
+class QuantizedMeshExport : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const fs::path dir = tt::process_temp_dir("terralod-export");
+    db_ = (dir / "crop.db").string();
+    hf_ = new pm::Heightfield(crop(600, 600, 161, 161));
+    tb::DatabaseBuildOptions o;
+    o.block_size = 65;
+    tb::build_database(*hf_, db_, o);
+    out_ = dir / "qm";
+    report_ = new tb::ExportReport(tb::export_quantized_mesh(db_, out_.string()));
+  }
+  static void TearDownTestSuite() {
+    delete hf_;
+    delete report_;
+  }
+  static inline std::string db_;
+  static inline fs::path out_;
+  static inline pm::Heightfield* hf_ = nullptr;
+  static inline tb::ExportReport* report_ = nullptr;
+};
+
+TEST_F(QuantizedMeshExport, LayerJsonListsExactlyTheTilesWrittenAndTheirParents) {
+  const Tileset t = read_tileset(out_);
+  ASSERT_EQ(t.available.size(), report_->levels.size());
+  ASSERT_EQ(report_->levels.size(), 13u);  // 1/1200 degree: level 12's tiles span 52.7 samples
+  ASSERT_EQ(t.bound.size(), t.available.size());
+  ASSERT_EQ(t.max_error.size(), t.available.size());
+  EXPECT_TRUE(available(t, 0, 0, 0) && available(t, 0, 1, 0));
+  std::size_t listed = 0;
+  for (std::size_t z = 0; z < t.available.size(); ++z)
+    for (const tb::TileRange& r : t.available[z])
+      for (int y = r.start_y; y <= r.end_y; ++y)
+        for (int x = r.start_x; x <= r.end_x; ++x) {
+          ++listed;
+          EXPECT_TRUE(t.tiles.count({int(z), x, y}))
+              << z << "/" << x << "/" << y << " is listed, not written";
+          if (z > 0) {
+            EXPECT_TRUE(available(t, int(z) - 1, x / 2, y / 2)) << z << "/" << x << "/" << y;
+          }
+        }
+  EXPECT_EQ(listed, t.tiles.size());
+  for (const auto& [id, d] : t.tiles) EXPECT_TRUE(available(t, id[0], id[1], id[2]));
+  // Deeper levels have several tiles: the crop crosses tile edges there.
+  EXPECT_GE(t.available.back().front().end_x - t.available.back().front().start_x, 2);
+  // Bounds shrink from level to level, and each level meets its own.
+  for (std::size_t z = 0; z < t.bound.size(); ++z) {
+    EXPECT_LE(t.max_error[z], t.bound[z]) << "level " << z;
+    if (z > 0) {
+      EXPECT_LT(t.bound[z], t.bound[z - 1]);
+    }
+  }
+  EXPECT_DOUBLE_EQ(t.bound.back(), 1.0);
+}
+
+TEST_F(QuantizedMeshExport, EveryTileCoversItsRectangleOnceWithExactEdgeLists) {
+  const Tileset t = read_tileset(out_);
+  for (const auto& [id, d] : t.tiles) {
+    SCOPED_TRACE(std::to_string(id[0]) + "/" + std::to_string(id[1]) + "/" + std::to_string(id[2]));
+    double area = 0;
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> half;
+    for (const auto& tri : d.triangles) {
+      const std::int64_t a = std::int64_t(d.u[tri[1]] - d.u[tri[0]]) * (d.v[tri[2]] - d.v[tri[0]]) -
+                             std::int64_t(d.u[tri[2]] - d.u[tri[0]]) * (d.v[tri[1]] - d.v[tri[0]]);
+      ASSERT_GT(a, 0) << "a triangle is not counter-clockwise in (u, v)";
+      area += 0.5 * double(a);
+      for (int k = 0; k < 3; ++k) ++half[{tri[std::size_t(k)], tri[std::size_t((k + 1) % 3)]}];
+    }
+    EXPECT_DOUBLE_EQ(area, double(kQ) * kQ);
+    for (const auto& [e, n] : half) {
+      EXPECT_EQ(n, 1);
+      if (half.count({e.second, e.first})) continue;  // interior: its twin runs the other way
+      const bool border = (d.u[e.first] == d.u[e.second] && (d.u[e.first] == 0 || d.u[e.first] == kQ)) ||
+                          (d.v[e.first] == d.v[e.second] && (d.v[e.first] == 0 || d.v[e.first] == kQ));
+      EXPECT_TRUE(border) << "an edge without a twin inside the tile";
+    }
+    for (int side = 0; side < 4; ++side) {
+      std::vector<std::uint32_t> want;
+      for (std::uint32_t i = 0; i < d.u.size(); ++i) {
+        const int c = side % 2 == 0 ? d.u[i] : d.v[i];
+        if (c == (side < 2 ? 0 : kQ)) want.push_back(i);
+      }
+      const std::vector<int>& along = side % 2 == 0 ? d.v : d.u;
+      std::sort(want.begin(), want.end(),
+                [&](std::uint32_t a, std::uint32_t b) { return along[a] < along[b]; });
+      EXPECT_EQ(d.edges[std::size_t(side)], want) << "edge list " << side;
+    }
+    EXPECT_EQ(d.normals.size(), d.u.size());
+    EXPECT_NE(d.metadata.find("\"max_error\""), std::string::npos);
+  }
+}
+
+TEST_F(QuantizedMeshExport, EveryTileIsWithinItsBoundAtEverySampleWithTheGeoid) {
+  const Tileset t = read_tileset(out_);
+  const pm::GridTransform& g = *hf_->crs_transform;
+  std::vector<std::array<double, 2>> lonlat;
+  for (int r = 0; r < hf_->height(); ++r)
+    for (int c = 0; c < hf_->width(); ++c) lonlat.push_back({g.x0 + c * g.xc, g.y0 + r * g.yr});
+  const std::vector<double> n = egm96(lonlat);
+  EXPECT_NEAR(n[0], -27.6, 1.5);  // EGM96 near (-71.5, 44.5): the geoid is about 28 m below WGS 84
+  std::size_t checked = 0;
+  for (const auto& [id, d] : t.tiles) {
+    const tb::GeoRect rect = tb::tile_rect({id[0], id[1], id[2]});
+    const double bound = t.bound[std::size_t(id[0])];
+    double worst = 0;
+    for (std::size_t i = 0; i < lonlat.size(); ++i) {
+      const auto [lon, lat] = lonlat[i];
+      if (lon < rect.west || lon > rect.east || lat < rect.south || lat > rect.north) continue;
+      const double u = (lon - rect.west) / (rect.east - rect.west) * kQ,
+                   v = (lat - rect.south) / (rect.north - rect.south) * kQ;
+      const double h = interpolate(d, u, v);
+      ASSERT_TRUE(std::isfinite(h)) << "no triangle over a sample";
+      worst = std::max(worst, std::abs(h - (hf_->samples()[i] + n[i])));
+      ++checked;
+    }
+    EXPECT_LE(worst, bound + 1e-6) << id[0] << "/" << id[1] << "/" << id[2];
+  }
+  EXPECT_GE(checked, std::size_t(hf_->size()) * 13);  // every sample, on every level
+}
+
+TEST_F(QuantizedMeshExport, NeighboursShareIdenticalEdgeVertices) {
+  const Tileset t = read_tileset(out_);
+  std::size_t pairs = 0;
+  for (const auto& [id, a] : t.tiles)
+    for (int dir = 0; dir < 2; ++dir) {  // east neighbour, north neighbour
+      const std::array<int, 3> other = {id[0], id[1] + (dir == 0), id[2] + (dir == 1)};
+      const auto it = t.tiles.find(other);
+      if (it == t.tiles.end()) continue;
+      const tt::DecodedTile& b = it->second;
+      const auto& ea = a.edges[dir == 0 ? 2 : 3];  // a's east (north) edge
+      const auto& eb = b.edges[dir == 0 ? 0 : 1];  // b's west (south) edge
+      ASSERT_EQ(ea.size(), eb.size()) << "edge between " << id[0] << "/" << id[1] << "/" << id[2]
+                                      << " and its " << (dir == 0 ? "east" : "north") << " neighbour";
+      for (std::size_t k = 0; k < ea.size(); ++k) {
+        EXPECT_EQ(dir == 0 ? a.v[ea[k]] : a.u[ea[k]], dir == 0 ? b.v[eb[k]] : b.u[eb[k]]);
+        EXPECT_NEAR(decoded_height(a, ea[k]), decoded_height(b, eb[k]), 1e-9);
+        EXPECT_EQ(a.normals[ea[k]], b.normals[eb[k]]);
+      }
+      ++pairs;
+    }
+  EXPECT_GE(pairs, 10u);
+}
+
+TEST_F(QuantizedMeshExport, HeaderBoundsWhatTheClientDraws) {
+  const Tileset t = read_tileset(out_);
+  for (const auto& [id, d] : t.tiles) {
+    const tb::GeoRect r = tb::tile_rect({id[0], id[1], id[2]});
+    for (std::size_t i = 0; i < d.u.size(); ++i) {
+      const pm::Ecef p =
+          pm::ecef_from_geodetic({r.west + (r.east - r.west) * d.u[i] / kQ,
+                                  r.south + (r.north - r.south) * d.v[i] / kQ, decoded_height(d, i)});
+      EXPECT_LE(std::hypot(p[0] - d.sphere[0], p[1] - d.sphere[1], p[2] - d.sphere[2]),
+                d.sphere[3] * (1 + 1e-9));
+      EXPECT_GE(decoded_height(d, i), d.min_height - 1e-9);
+      EXPECT_LE(decoded_height(d, i), d.max_height + 1e-9);
+    }
+  }
+}
+
+TEST_F(QuantizedMeshExport, AnInterruptedExportResumesToTheSameFiles) {
+  const fs::path out = tt::process_temp_dir("terralod-export") / "interrupted";
+  struct Stop {};
+  tb::ExportOptions o;
+  o.threads = 1;
+  o.progress = [](const tb::ExportProgress& p) {
+    if (p.tiles_done == 12) throw Stop{};
+  };
+  EXPECT_THROW(tb::export_quantized_mesh(db_, out.string(), o), Stop);
+  EXPECT_FALSE(fs::exists(out / "layer.json")) << "an unfinished export lists tiles as available";
+  const tb::ExportReport r = tb::export_quantized_mesh(db_, out.string());
+  EXPECT_EQ(r.tiles_reused, 12u);
+  EXPECT_EQ(r.tiles_written + r.tiles_reused, report_->tiles_written);
+  std::size_t files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(out_)) {
+    if (!e.is_regular_file() || e.path().filename() == ".terralod-export") continue;
+    const fs::path other = out / fs::relative(e.path(), out_);
+    EXPECT_EQ(tt::slurp(e.path()), tt::slurp(other)) << other;
+    ++files;
+  }
+  EXPECT_EQ(files, report_->tiles_written + 1);
+  for (const auto& e : fs::recursive_directory_iterator(out))
+    EXPECT_NE(e.path().extension(), ".tmp") << "a temporary was left: " << e.path();
+}
+
+TEST_F(QuantizedMeshExport, RefusesWhatItCannotDoNamingTheCulprit) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  // A terrain without a CRS.
+  pm::Heightfield plain = crop(0, 0, 33, 33);
+  plain.crs_wkt.clear();
+  plain.crs_transform.reset();
+  const std::string nocrs = (dir / "nocrs.db").string();
+  tb::DatabaseBuildOptions o;
+  o.block_size = 33;
+  tb::build_database(plain, nocrs, o);
+  try {
+    tb::export_quantized_mesh(nocrs, (dir / "nocrs").string());
+    ADD_FAILURE() << "exported a terrain without a CRS";
+  } catch (const tb::ExportError& e) {
+    EXPECT_NE(std::string(e.what()).find(nocrs), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("coordinate reference system"), std::string::npos) << e.what();
+  }
+  // An output folder that cannot be made (its parent is a file).
+  const fs::path file = dir / "a-file";
+  std::ofstream(file) << "x";
+  try {
+    tb::export_quantized_mesh(db_, (file / "out").string());
+    ADD_FAILURE() << "wrote under a file";
+  } catch (const tb::ExportError& e) {
+    EXPECT_NE(std::string(e.what()).find((file / "out").string()), std::string::npos) << e.what();
+  }
+  // A folder with someone else's files.
+  const fs::path theirs = dir / "theirs";
+  fs::create_directories(theirs);
+  std::ofstream(theirs / "notes.txt") << "mine";
+  EXPECT_THROW(tb::export_quantized_mesh(db_, theirs.string()), tb::ExportError);
+  EXPECT_EQ(tt::slurp(theirs / "notes.txt"), "mine");
+  // An unknown vertical datum.
+  EXPECT_THROW(tb::export_quantized_mesh(db_, (dir / "datum").string(), {.vertical_datum = "EPSG:999999"}),
+               tb::ExportError);
+}
+
+}  // namespace
