@@ -11,7 +11,7 @@ namespace terralod::cli {
 CommandSpec export_spec() {
   CommandSpec s;
   s.name = "export";
-  s.summary = "Export a terrain database as quantized-mesh tiles with layer.json (CesiumJS).";
+  s.summary = "Export a terrain database as quantized-mesh tiles (layer.json) or 3D Tiles (CesiumJS).";
   s.description =
       "Writes a quantized-mesh-1.0 tileset in the geographic TMS tiling CesiumJS expects (EPSG:4326,\n"
       "two tiles at level 0, y from the south): OUT/layer.json and OUT/z/x/y.terrain (gzip; serve\n"
@@ -25,11 +25,17 @@ CommandSpec export_spec() {
       "PROJ; --vertical-datum overrides it. A DEM in a projected CRS is warped to longitude/latitude\n"
       "through GDAL; a terrain without a CRS is refused. Beyond the terrain the surface is the\n"
       "ellipsoid. A killed export run again resumes (OUT/.terralod-export journals finished tiles);\n"
-      "layer.json is written last, so an unfinished export lists no tile.";
+      "layer.json is written last, so an unfinished export lists no tile.\n"
+      "--format 3dtiles writes the same tile meshes as 3D Tiles 1.1: OUT/tileset.json (REPLACE\n"
+      "refinement, bounding regions, each tile's geometricError its measured bound: the error at the\n"
+      "samples plus the glTF quantization and the flat triangles' sag) and OUT/z/x/y.glb (glTF 2.0,\n"
+      "ECEF relative to the tile centre, KHR_mesh_quantization); load it with\n"
+      "Cesium.Cesium3DTileset.fromUrl(URL + '/tileset.json').";
   s.options = {
       {"--db", "DB", "terrain database made by 'terralod build'", true},
       {"--out", "DIR", "output folder (created; must be empty or hold an earlier export)", true},
-      {"--format", "FORMAT", "quantized-mesh (the default and, for now, the only format)"},
+      {"--format", "FORMAT",
+       "quantized-mesh (default: layer.json + .terrain) or 3dtiles (tileset.json + .glb)"},
       {"--max-level", "Z", "deepest level, 0..24 (default: the first whose tiles span <= 64 samples)"},
       {"--threads", "N", "worker threads (default: every core)"},
       {"--vertical-datum", "NAME",
@@ -40,8 +46,9 @@ CommandSpec export_spec() {
 }
 
 int cmd_export(const Args& a) {
-  a.get_choice("--format", {"quantized-mesh"}, "quantized-mesh");
   blocks::ExportOptions o;
+  const std::string format = a.get_choice("--format", {"quantized-mesh", "3dtiles"}, "quantized-mesh");
+  o.format = format == "3dtiles" ? blocks::ExportFormat::Tiles3D : blocks::ExportFormat::QuantizedMesh;
   o.max_level = int(a.get_int("--max-level", -1, 0, 24));
   o.threads = int(a.get_int("--threads", 0, 1, 1024));
   o.vertical_datum = a.get("--vertical-datum");
@@ -50,22 +57,28 @@ int cmd_export(const Args& a) {
   o.progress = [&bar](const blocks::ExportProgress& p) {
     bar.update(p.tiles_total ? double(p.tiles_done) / double(p.tiles_total) : 1.0);
   };
-  const blocks::ExportReport r = blocks::export_quantized_mesh(db, out, o);
+  const blocks::ExportReport r = blocks::export_terrain(db, out, o);
   bar.finish();
-  std::printf("export %s -> %s: quantized-mesh, levels 0..%d, %zu tiles written, %zu reused, %s\n",
-              db.c_str(), out.c_str(), int(r.levels.size()) - 1, r.tiles_written, r.tiles_reused,
+  std::printf("export %s -> %s: %s, levels 0..%d, %zu tiles written, %zu reused, %s\n", db.c_str(),
+              out.c_str(), format.c_str(), int(r.levels.size()) - 1, r.tiles_written, r.tiles_reused,
               format_duration(r.seconds * 1000.0).c_str());
   std::printf("  bounds %.9g, %.9g .. %.9g, %.9g degrees; samples: %s\n", r.bounds.west, r.bounds.south,
               r.bounds.east, r.bounds.north, r.horizontal.c_str());
   std::printf("  heights above the WGS 84 ellipsoid, converted from %s\n", r.vertical_datum.c_str());
-  std::printf("  level  tiles  vertices  triangles  bytes  bound(m)  max_error(m)  height_step(m)\n");
+  std::printf(
+      "  level  tiles  vertices  triangles  bytes  bound(m)  max_error(m)  geometric_error(m)  "
+      "height_step(m)\n");
   bool over = false;
   for (const blocks::ExportLevel& L : r.levels) {
-    std::printf("  %5d  %5zu  %8zu  %9zu  %5zu  %8.4g  %12.4g  %14.4g\n", L.z, L.tiles, L.vertices,
-                L.triangles, L.bytes, L.bound, L.max_error, L.height_step);
+    std::printf("  %5d  %5zu  %8zu  %9zu  %5zu  %8.4g  %12.4g  %18.4g  %14.4g\n", L.z, L.tiles, L.vertices,
+                L.triangles, L.bytes, L.bound, L.max_error, L.geometric_error, L.height_step);
     over = over || L.max_error > L.bound;
   }
-  if (over) std::printf("  warning: some level's measured error is above its bound (see above)\n");
+  if (over)
+    std::printf(
+        "  warning: some level's measured error is above its bound (see above); a tile can place a vertex\n"
+        "  only on its 32768 x 32768 lattice, which is coarser than the samples on tiles much wider than\n"
+        "  the automatic --max-level gives\n");
   return over ? 1 : 0;
 }
 

@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
     o.threads = threads;
     o.max_level = max_level;
     const auto t0 = std::chrono::steady_clock::now();
-    report = tb::export_quantized_mesh(db, out.string(), o);
+    report = tb::export_terrain(db, out.string(), o);
     seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     std::printf("export run %d/%d: %.2f s\n", run + 1, runs, seconds.back());
     std::fflush(stdout);

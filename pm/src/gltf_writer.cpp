@@ -11,6 +11,7 @@
 #include <string_view>
 
 #include "encode_util.hpp"
+#include "terralod/pm/glb.hpp"
 
 namespace terralod::pm::detail {
 
@@ -198,28 +199,35 @@ std::string encode_gltf(const TriangleMeshData& mesh, bool binary, const std::ve
   std::string json = std::move(j.text);
   if (!binary) return json + "\n";
 
-  // GLB: header, JSON chunk padded with spaces, BIN chunk padded with zeros.
+  return glb_container(std::move(json), has_mesh ? std::string_view(buffer) : std::string_view(), path);
+}
+
+}  // namespace terralod::pm::detail
+
+namespace terralod::pm {
+
+std::string glb_container(std::string json, std::string_view bin, const std::string& path) {
   json.append((4 - json.size() % 4) % 4, ' ');
-  const std::size_t bin_padded = (buffer.size() + 3) / 4 * 4;
-  const std::size_t total = 12 + 8 + json.size() + (has_mesh ? 8 + bin_padded : 0);
+  const std::size_t bin_padded = (bin.size() + 3) / 4 * 4;
+  const std::size_t total = 12 + 8 + json.size() + (bin.empty() ? 0 : 8 + bin_padded);
   if (total > std::numeric_limits<std::uint32_t>::max())
     throw std::runtime_error(path + ": " + std::to_string(total) +
                              " bytes, more than a GLB file's uint32 length can hold");
   std::string out;
   out.reserve(total);
-  append_le(out, kGlbMagic);
-  append_le(out, std::uint32_t(2));
-  append_le(out, static_cast<std::uint32_t>(total));
-  append_le(out, static_cast<std::uint32_t>(json.size()));
-  append_le(out, kChunkJson);
+  detail::append_le(out, detail::kGlbMagic);
+  detail::append_le(out, std::uint32_t(2));
+  detail::append_le(out, static_cast<std::uint32_t>(total));
+  detail::append_le(out, static_cast<std::uint32_t>(json.size()));
+  detail::append_le(out, detail::kChunkJson);
   out += json;
-  if (has_mesh) {
-    append_le(out, static_cast<std::uint32_t>(bin_padded));
-    append_le(out, kChunkBin);
-    out += buffer;
-    out.append(bin_padded - buffer.size(), '\0');
+  if (!bin.empty()) {
+    detail::append_le(out, static_cast<std::uint32_t>(bin_padded));
+    detail::append_le(out, detail::kChunkBin);
+    out += bin;
+    out.append(bin_padded - bin.size(), '\0');
   }
   return out;
 }
 
-}  // namespace terralod::pm::detail
+}  // namespace terralod::pm

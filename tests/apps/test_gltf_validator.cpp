@@ -2,8 +2,11 @@
 // in tools/gltf/package-lock.json) on the .glb and .gltf files `terralod extract` writes from a
 // generated terrain: no errors and no warnings. A missing validator fails the test (it is
 // installed by scripts/install-deps.sh), and a corrupted copy checks that the validator runs.
+// `terralod export --format 3dtiles` is checked by tools/gltf/check_3dtiles.mjs: every glb
+// through the same validator, and the tileset's tree.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -135,6 +138,54 @@ TEST(GltfValidator, ReportsABrokenFile) {
   for (const Issue& i : r.issues)
     min_mismatch = min_mismatch || (i.code == "ACCESSOR_MIN_MISMATCH" && i.severity == 0);
   EXPECT_TRUE(min_mismatch) << r.raw;
+}
+
+/// A 97 x 97 Esri ASCII grid in WGS 84 longitude/latitude (1/1200 degree, across tile edges of
+/// the geographic tiling) with its .prj: a small DEM with a CRS, written once per process.
+const fs::path& geographic_dem() {
+  static const fs::path path = [] {
+    const fs::path p = tmp_dir() / "geographic.asc";
+    std::ofstream a(p);
+    a << "ncols 97\nnrows 97\nxllcenter -71.52\nyllcenter 44.47\ncellsize 0.000833333333333333\n";
+    for (int r = 0; r < 97; ++r) {
+      for (int c = 0; c < 97; ++c)
+        a << 600 + 250 * std::sin(c * 0.11) * std::cos(r * 0.07) + 3.0 * ((c * 7 + r * 13) % 5)
+          << (c < 96 ? " " : "\n");
+    }
+    std::ofstream(tmp_dir() / "geographic.prj")
+        << R"(GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],)"
+           R"(PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]])";
+    return p;
+  }();
+  return path;
+}
+
+TEST(GltfValidator, ThreeDTilesExportIsValidTileByTile) {
+  ASSERT_NO_FATAL_FAILURE(require_validator());
+  const fs::path db = tmp_dir() / "geographic.db", out = tmp_dir() / "3dtiles";
+  auto r = terralod("build --threads 1 --block-size 33 --input " + quote(geographic_dem().string()) +
+                    " --out " + quote(db.string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = terralod("export --threads 1 --format 3dtiles --db " + quote(db.string()) + " --out " +
+               quote(out.string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("3dtiles, levels 0..12"), std::string::npos) << r.out;
+  const std::string check = "node " + quote(TERRALOD_3DTILES_CHECK) + " " + quote(out.string());
+  const auto c = run_command(check);
+  EXPECT_EQ(c.status, 0) << c.out << c.err;
+  EXPECT_NE(c.out.find("\"problems\":[]"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("\"max_depth\":13"), std::string::npos) << c.out;  // root + levels 0..12
+  // The checker sees the files: one glb with a changed POSITION minimum fails it.
+  const fs::path victim = out / "12" / "2469" / "3060.glb";
+  std::string bytes = slurp(victim);
+  ASSERT_FALSE(bytes.empty()) << victim;
+  const std::size_t min = bytes.find("\"min\":[");
+  ASSERT_NE(min, std::string::npos);
+  bytes[min + 7] = bytes[min + 7] == '1' ? '2' : '1';
+  std::ofstream(victim, std::ios::binary | std::ios::trunc) << bytes;
+  const auto bad = run_command(check);
+  EXPECT_EQ(bad.status, 1) << bad.out;
+  EXPECT_NE(bad.out.find("12/2469/3060.glb"), std::string::npos) << bad.out;
 }
 
 }  // namespace

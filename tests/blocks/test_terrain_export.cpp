@@ -139,7 +139,7 @@ class QuantizedMeshExport : public ::testing::Test {
     o.block_size = 65;
     tb::build_database(*hf_, db_, o);
     out_ = dir / "qm";
-    report_ = new tb::ExportReport(tb::export_quantized_mesh(db_, out_.string()));
+    report_ = new tb::ExportReport(tb::export_terrain(db_, out_.string()));
   }
   static void TearDownTestSuite() {
     delete hf_;
@@ -296,9 +296,9 @@ TEST_F(QuantizedMeshExport, AnInterruptedExportResumesToTheSameFiles) {
   o.progress = [](const tb::ExportProgress& p) {
     if (p.tiles_done == 12) throw Stop{};
   };
-  EXPECT_THROW(tb::export_quantized_mesh(db_, out.string(), o), Stop);
+  EXPECT_THROW(tb::export_terrain(db_, out.string(), o), Stop);
   EXPECT_FALSE(fs::exists(out / "layer.json")) << "an unfinished export lists tiles as available";
-  const tb::ExportReport r = tb::export_quantized_mesh(db_, out.string());
+  const tb::ExportReport r = tb::export_terrain(db_, out.string());
   EXPECT_EQ(r.tiles_reused, 12u);
   EXPECT_EQ(r.tiles_written + r.tiles_reused, report_->tiles_written);
   std::size_t files = 0;
@@ -324,7 +324,7 @@ TEST_F(QuantizedMeshExport, RefusesWhatItCannotDoNamingTheCulprit) {
   o.block_size = 33;
   tb::build_database(plain, nocrs, o);
   try {
-    tb::export_quantized_mesh(nocrs, (dir / "nocrs").string());
+    tb::export_terrain(nocrs, (dir / "nocrs").string());
     ADD_FAILURE() << "exported a terrain without a CRS";
   } catch (const tb::ExportError& e) {
     EXPECT_NE(std::string(e.what()).find(nocrs), std::string::npos) << e.what();
@@ -334,7 +334,7 @@ TEST_F(QuantizedMeshExport, RefusesWhatItCannotDoNamingTheCulprit) {
   const fs::path file = dir / "a-file";
   std::ofstream(file) << "x";
   try {
-    tb::export_quantized_mesh(db_, (file / "out").string());
+    tb::export_terrain(db_, (file / "out").string());
     ADD_FAILURE() << "wrote under a file";
   } catch (const tb::ExportError& e) {
     EXPECT_NE(std::string(e.what()).find((file / "out").string()), std::string::npos) << e.what();
@@ -343,10 +343,10 @@ TEST_F(QuantizedMeshExport, RefusesWhatItCannotDoNamingTheCulprit) {
   const fs::path theirs = dir / "theirs";
   fs::create_directories(theirs);
   std::ofstream(theirs / "notes.txt") << "mine";
-  EXPECT_THROW(tb::export_quantized_mesh(db_, theirs.string()), tb::ExportError);
+  EXPECT_THROW(tb::export_terrain(db_, theirs.string()), tb::ExportError);
   EXPECT_EQ(tt::slurp(theirs / "notes.txt"), "mine");
   // An unknown vertical datum.
-  EXPECT_THROW(tb::export_quantized_mesh(db_, (dir / "datum").string(), {.vertical_datum = "EPSG:999999"}),
+  EXPECT_THROW(tb::export_terrain(db_, (dir / "datum").string(), {.vertical_datum = "EPSG:999999"}),
                tb::ExportError);
 }
 

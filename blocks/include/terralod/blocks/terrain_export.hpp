@@ -1,9 +1,10 @@
 // Exports a built terrain to the tilesets CesiumJS (and Cesium for Unreal/Unity, and other
-// clients of Cesium's formats) load: quantized-mesh-1.0 tiles with a layer.json.
+// clients of Cesium's formats) load: quantized-mesh-1.0 tiles with a layer.json, or 3D Tiles 1.1
+// with glTF 2.0 content.
 //
 // Usage:
 //   namespace tb = terralod::blocks;
-//   tb::ExportReport r = tb::export_quantized_mesh("terrain.db", "tiles", {.max_level = 12});
+//   tb::ExportReport r = tb::export_terrain("terrain.db", "tiles", {.max_level = 12});
 //   // tiles/layer.json, tiles/<z>/<x>/<y>.terrain; r.levels[z].max_error <= r.levels[z].bound
 //   // CesiumJS: terrainProvider: await Cesium.CesiumTerrainProvider.fromUrl("http://host/tiles")
 //
@@ -33,10 +34,21 @@
 //   - Metadata extension: {"terralod": {"max_error": measured, "bound": bound}}; oct-encoded
 //     normals extension.
 //
+// 3D Tiles (ExportFormat::Tiles3D): the same tiling and the same tile meshes, as DIR/z/x/y.glb
+// (glb_tile.hpp: decoded vertices in ECEF relative to the tile centre, KHR_mesh_quantization)
+// under DIR/tileset.json: a content-less root over the Earth, the two level-0 tiles, and below
+// every tile over the terrain its four children (REPLACE refinement draws children instead of
+// the parent, so none may be missing), to max_level. Each tile's boundingVolume is a region
+// (radians, heights of what is drawn, chord sag included) and its geometricError the tile's
+// measured bound: the error at the samples as above, plus the glTF quantization's largest vertex
+// displacement, plus the largest sag of a flat triangle below the curved surface through its
+// corners; raised where needed so that it shrinks strictly from parent to child.
+//
 // Resume: tiles are written atomically (temporary + rename) and journaled in
 // DIR/.terralod-export (the export's parameters, then one line per finished tile). A killed
 // export run again with the same database and options reuses the journaled tiles; with other
-// parameters it starts over. layer.json is removed when an export starts and written last, so
+// parameters it starts over. The index (layer.json, tileset.json) is removed when an export
+// starts and written last, so
 // no tile of an unfinished export is ever listed as available. An output folder that is not
 // empty and holds no journal is refused (ExportError), so nothing of the user's is overwritten.
 //
@@ -67,7 +79,13 @@ struct ExportProgress {
   double seconds = 0;                           ///< since the export started
 };
 
+enum class ExportFormat {
+  QuantizedMesh,  ///< layer.json + z/x/y.terrain
+  Tiles3D,        ///< tileset.json (3D Tiles 1.1) + z/x/y.glb
+};
+
 struct ExportOptions {
+  ExportFormat format = ExportFormat::QuantizedMesh;
   int max_level = -1;          ///< deepest level; -1: the first whose tiles span <= 64 samples
   int threads = 0;             ///< 0: every core
   std::string vertical_datum;  ///< the input heights' datum (geo_grid.hpp); "" = the source's
@@ -80,6 +98,9 @@ struct ExportLevel {
   double bound = 0;        ///< metres: what each tile of the level must meet
   double max_error = 0;    ///< metres: measured, the largest over the level's tiles
   double height_step = 0;  ///< metres: the level's height quantum
+  /// metres: 3D Tiles, the largest tile geometricError before it is raised to shrink from parent
+  /// to child (max_error + glTF quantization + chord sag); quantized-mesh: max_error.
+  double geometric_error = 0;
 };
 
 struct ExportReport {
@@ -91,7 +112,7 @@ struct ExportReport {
   double seconds = 0;
 };
 
-ExportReport export_quantized_mesh(const std::string& db_path, const std::string& out_dir,
-                                   const ExportOptions& options = {});
+ExportReport export_terrain(const std::string& db_path, const std::string& out_dir,
+                            const ExportOptions& options = {});
 
 }  // namespace terralod::blocks

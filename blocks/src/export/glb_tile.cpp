@@ -1,0 +1,125 @@
+// One tile as a quantized glTF binary (see glb_tile.hpp).
+#include "glb_tile.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <sstream>
+#include <vector>
+
+#include "terralod/pm/glb.hpp"
+
+namespace terralod::blocks::detail {
+namespace {
+
+constexpr int kQ = 32767;
+
+template <class T>
+void put(std::string& out, T v) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));  // little-endian hosts only (quantized_mesh.cpp asserts it)
+  out.append(b, sizeof(T));
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
+                        const std::function<pm::Ecef(std::size_t)>& normal, const std::string& path) {
+  const std::size_t n = t.u.size();
+  GlbTile out;
+  // Decoded vertices, ECEF, relative to the centre, in glTF axes.
+  std::vector<pm::Ecef> ecef(n), g(n);
+  double s = 1e-3;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double lon = rect.west + (rect.east - rect.west) * t.u[i] / kQ;
+    const double lat = rect.south + (rect.north - rect.south) * t.v[i] / kQ;
+    const double h =
+        double(t.min_height) + double(t.h[i]) / kQ * (double(t.max_height) - double(t.min_height));
+    ecef[i] = pm::ecef_from_geodetic({lon, lat, h});
+    const pm::Ecef d{ecef[i][0] - t.center[0], ecef[i][1] - t.center[1], ecef[i][2] - t.center[2]};
+    g[i] = {d[0], d[2], -d[1]};
+    for (double c : g[i]) s = std::max(s, std::abs(c));
+  }
+  std::string bin;
+  std::array<int, 3> qmin{kQ, kQ, kQ}, qmax{-kQ, -kQ, -kQ};
+  for (std::size_t i = 0; i < n; ++i) {
+    double err2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      const int q = int(std::lround(std::clamp(g[i][std::size_t(k)] / s, -1.0, 1.0) * kQ));
+      qmin[std::size_t(k)] = std::min(qmin[std::size_t(k)], q);
+      qmax[std::size_t(k)] = std::max(qmax[std::size_t(k)], q);
+      put(bin, std::int16_t(q));
+      const double e = double(q) / kQ * s - g[i][std::size_t(k)];
+      err2 += e * e;
+    }
+    put(bin, std::int16_t(0));  // stride 8
+    out.displacement = std::max(out.displacement, std::sqrt(err2));
+  }
+  const std::size_t normals_at = bin.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const pm::Ecef e = normal(i);
+    const pm::Ecef gl{e[0], e[2], -e[1]};
+    for (double c : gl) put(bin, std::int8_t(std::lround(std::clamp(c, -1.0, 1.0) * 127.0)));
+    put(bin, std::int8_t(0));  // stride 4
+  }
+  const std::size_t indices_at = bin.size();
+  const bool wide = n > 65535;
+  for (const auto& tri : t.triangles) {
+    for (std::uint32_t i : tri) {
+      if (wide)
+        put(bin, i);
+      else
+        put(bin, std::uint16_t(i));
+    }
+    for (int k = 0; k < 3; ++k) {
+      const pm::Ecef& a = ecef[tri[std::size_t(k)]];
+      const pm::Ecef& b = ecef[tri[std::size_t((k + 1) % 3)]];
+      out.longest_edge = std::max(out.longest_edge, std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]));
+    }
+  }
+  const std::size_t index_bytes = bin.size() - indices_at;
+  bin.append((4 - bin.size() % 4) % 4, '\0');
+
+  std::string j =
+      R"({"asset":{"version":"2.0","generator":"terralod export"},)"
+      R"("extensionsUsed":["KHR_mesh_quantization"],"extensionsRequired":["KHR_mesh_quantization"],)"
+      R"("scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"translation":[)";
+  j += num(t.center[0]) + "," + num(t.center[2]) + "," + num(-t.center[1]) + "],\"scale\":[" + num(s) + "," +
+       num(s) + "," + num(s) + "]}],";
+  j += R"("meshes":[{"primitives":[{"attributes":{"POSITION":0,"NORMAL":1},"indices":2,"mode":4}]}],)";
+  auto arr = [](const std::array<int, 3>& q) {
+    // The stored integers (the validator wants an integer accessor's own values), appended piece
+    // by piece: GCC 12 warns falsely on "[" + std::string.
+    std::string a = "[";
+    for (int k = 0; k < 3; ++k) {
+      a += std::to_string(q[std::size_t(k)]);
+      a += k < 2 ? "," : "]";
+    }
+    return a;
+  };
+  j += R"("accessors":[{"bufferView":0,"componentType":5122,"normalized":true,"count":)" + std::to_string(n) +
+       R"(,"type":"VEC3","min":)" + arr(qmin) + R"(,"max":)" + arr(qmax) + "},";
+  j += R"({"bufferView":1,"componentType":5120,"normalized":true,"count":)" + std::to_string(n) +
+       R"(,"type":"VEC3"},)";
+  j += R"({"bufferView":2,"componentType":)" + std::string(wide ? "5125" : "5123") + R"(,"count":)" +
+       std::to_string(3 * t.triangles.size()) + R"(,"type":"SCALAR"}],)";
+  j += R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":)" + std::to_string(normals_at) +
+       R"(,"byteStride":8,"target":34962},)";
+  j += R"({"buffer":0,"byteOffset":)" + std::to_string(normals_at) + R"(,"byteLength":)" +
+       std::to_string(indices_at - normals_at) + R"(,"byteStride":4,"target":34962},)";
+  j += R"({"buffer":0,"byteOffset":)" + std::to_string(indices_at) + R"(,"byteLength":)" +
+       std::to_string(index_bytes) + R"(,"target":34963}],)";
+  j += R"("buffers":[{"byteLength":)" + std::to_string(bin.size()) + "}]}";
+  out.bytes = pm::glb_container(std::move(j), bin, path);
+  return out;
+}
+
+}  // namespace terralod::blocks::detail

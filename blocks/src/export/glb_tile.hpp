@@ -1,0 +1,34 @@
+// Private to the exporters: one tile's mesh as a glTF 2.0 binary (.glb) for 3D Tiles content.
+//
+// Layout: positions are the tile's decoded vertices (quantized_mesh.hpp: what a quantized-mesh
+// client decodes) in Earth-centred, Earth-fixed coordinates, stored relative to the tile's
+// bounding-sphere centre in glTF's Y-up axes (x, z, -y of ECEF; 3D Tiles turns glTF's Y-up back
+// to Z-up), quantized with KHR_mesh_quantization: SHORT normalized (3 components, stride 8) with
+// the node's uniform scale s (the largest offset) and translation (the centre); normals BYTE
+// normalized (stride 4); indices UNSIGNED_SHORT (UNSIGNED_INT over 65535 vertices). One node,
+// one mesh, one primitive (triangles), no material (clients draw their default).
+//
+// Contract: tile as make_quantized_mesh returns it; normal(i) the unit ECEF normal of tile
+// vertex i. `displacement` is the largest distance, metres, between a vertex as stored (after
+// the 16-bit quantization) and the decoded vertex it stands for; `longest_edge` the longest
+// triangle edge (ECEF chord, metres), from which the exporter bounds how far a flat triangle
+// departs from the surface it interpolates.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "terralod/blocks/quantized_mesh.hpp"
+
+namespace terralod::blocks::detail {
+
+struct GlbTile {
+  std::string bytes;
+  double displacement = 0;
+  double longest_edge = 0;
+};
+
+GlbTile encode_tile_glb(const QuantizedMeshTile& tile, const GeoRect& rect,
+                        const std::function<pm::Ecef(std::size_t)>& normal, const std::string& path);
+
+}  // namespace terralod::blocks::detail

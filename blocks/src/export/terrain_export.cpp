@@ -1,0 +1,478 @@
+// terralod export: quantized-mesh and 3D Tiles tilesets (see terrain_export.hpp).
+#include "terralod/blocks/terrain_export.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <numbers>
+#include <sstream>
+
+#include "glb_tile.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/database_extract.hpp"
+#include "terralod/blocks/geo_grid.hpp"
+#include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/parallel.hpp"
+#include "tile_mesher.hpp"
+
+namespace terralod::blocks {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr int kQ = 32767;
+constexpr const char* kJournal = ".terralod-export";
+constexpr int kExportVersion = 1;  // bump when the tiles written for the same inputs change
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+/// Tiles of level z that overlap [west, east] x [south, north] with a positive area (level 0:
+/// both, as CesiumJS always asks for them).
+TileRange tiles_over(int z, const GeoRect& b) {
+  if (z == 0) return {0, 0, 1, 0};
+  const double w = 180.0 / std::ldexp(1.0, z);
+  const int nx = 2 << z, ny = 1 << z;
+  auto first = [&](double v, double origin, int n) {
+    return std::clamp(int(std::floor((v - origin) / w)), 0, n - 1);
+  };
+  auto last = [&](double v, double origin, int n) {
+    return std::clamp(int(std::ceil((v - origin) / w)) - 1, 0, n - 1);
+  };
+  return {first(b.west, -180.0, nx), first(b.south, -90.0, ny), last(b.east, -180.0, nx),
+          last(b.north, -90.0, ny)};
+}
+
+bool overlaps(const TileId& id, const GeoRect& b) {
+  const GeoRect r = tile_rect(id);
+  return r.west < b.east && b.west < r.east && r.south < b.north && b.south < r.north;
+}
+
+/// The tiles of each level. Quantized-mesh: those over the terrain (clients upsample the rest
+/// from the parent). 3D Tiles: every child of a tile over the terrain, since REPLACE refinement
+/// draws the children instead of the parent and a missing child would leave a hole.
+std::vector<std::vector<TileId>> level_tiles(ExportFormat format, int max_level, const GeoRect& terrain) {
+  std::vector<std::vector<TileId>> tiles(std::size_t(max_level) + 1);
+  tiles[0] = {{0, 0, 0}, {0, 1, 0}};
+  for (int z = 1; z <= max_level; ++z) {
+    if (format == ExportFormat::QuantizedMesh) {
+      const TileRange r = tiles_over(z, terrain);
+      for (int y = r.start_y; y <= r.end_y; ++y)
+        for (int x = r.start_x; x <= r.end_x; ++x) tiles[std::size_t(z)].push_back({z, x, y});
+    } else {
+      for (const TileId& p : tiles[std::size_t(z) - 1])
+        if (overlaps(p, terrain))
+          for (int k = 0; k < 4; ++k)
+            tiles[std::size_t(z)].push_back({z, 2 * p.x + (k & 1), 2 * p.y + (k >> 1)});
+    }
+  }
+  return tiles;
+}
+
+/// A power of two >= x (x > 0).
+double pow2_at_least(double x) { return std::ldexp(1.0, int(std::ceil(std::log2(x)))); }
+
+/// Lowest and highest value a tile's vertices can take: lattice points within one step of the
+/// tile (holes and the ring as background), and the background when the tile reaches past them.
+std::pair<double, double> tile_height_range(const detail::GeoField& f, const GeoRect& r) {
+  const GeoGrid& g = f.grid();
+  const int c0 = std::max(-1, int(std::floor((r.west - g.west) / g.dlon)) - 1);
+  const int c1 = std::min(g.width, int(std::ceil((r.east - g.west) / g.dlon)) + 1);
+  const int r0 = std::max(-1, int(std::floor((g.north - r.north) / g.dlat)) - 1);
+  const int r1 = std::min(g.height, int(std::ceil((g.north - r.south) / g.dlat)) + 1);
+  double lo = f.background(), hi = f.background();  // corners and background points
+  for (int row = r0; row <= r1; ++row)
+    for (int c = c0; c <= c1; ++c) {
+      const double v = f.lattice(c, row);
+      if (v == v) lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+  return {lo, hi};
+}
+
+/// The unit normal (ECEF) of the field at (lon, lat), from central differences `step` degrees
+/// apart: a function of the position only, so tiles that share a vertex give it one normal.
+pm::Ecef field_normal(const detail::GeoField& f, double lon, double lat, double step) {
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  const double metres = pm::kWgs84A * kDeg;
+  const double dx = 2 * step * metres * std::max(std::cos(lat * kDeg), 1e-6), dy = 2 * step * metres;
+  const double gx = (f.at(lon + step, lat) - f.at(lon - step, lat)) / dx;
+  const double gy = (f.at(lon, lat + step) - f.at(lon, lat - step)) / dy;
+  const double sl = std::sin(lon * kDeg), cl = std::cos(lon * kDeg), sp = std::sin(lat * kDeg),
+               cp = std::cos(lat * kDeg);
+  const pm::Ecef east{-sl, cl, 0}, north{-sp * cl, -sp * sl, cp}, up{cp * cl, cp * sl, sp};
+  pm::Ecef n;
+  for (int k = 0; k < 3; ++k)
+    n[std::size_t(k)] = -gx * east[std::size_t(k)] - gy * north[std::size_t(k)] + up[std::size_t(k)];
+  const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (double& v : n) v /= len;
+  return n;
+}
+
+double decoded_height(const QuantizedMeshTile& t, std::size_t v) {
+  return double(t.min_height) + double(t.h[v]) / kQ * (double(t.max_height) - double(t.min_height));
+}
+
+struct TileRecord {
+  double max_error = 0;                   ///< at the samples, the tile as a quantized-mesh client decodes it
+  double geometric_error = 0;             ///< 3D Tiles: max_error + the glTF quantization + the chord sag
+  double min_height = 0, max_height = 0;  ///< of what is drawn (3D Tiles: sag included)
+  std::size_t vertices = 0, triangles = 0, bytes = 0;
+};
+
+/// The journal: the parameters line, then "z x y max_error geometric_error min_height max_height
+/// vertices triangles bytes" per tile.
+class Journal {
+ public:
+  Journal(const std::string& dir, const std::string& parameters)
+      : path_((fs::path(dir) / kJournal).string()) {
+    std::ifstream in(path_);
+    std::string line;
+    if (in && std::getline(in, line) && line == parameters) {
+      while (std::getline(in, line)) {
+        std::istringstream s(line);
+        TileId id;
+        TileRecord r;
+        if (s >> id.z >> id.x >> id.y >> r.max_error >> r.geometric_error >> r.min_height >> r.max_height >>
+            r.vertices >> r.triangles >> r.bytes)
+          done_[{id.z, id.x, id.y}] = r;
+      }
+      resumed_ = true;
+    }
+    in.close();
+    if (!resumed_) pm::write_file_atomically(path_, parameters + "\n");
+    out_.open(path_, std::ios::app);
+    if (!out_) throw ExportError(path_ + ": cannot append to the export journal");
+  }
+  bool resumed() const { return resumed_; }
+  const TileRecord* find(const TileId& id) const {
+    auto it = done_.find({id.z, id.x, id.y});
+    return it == done_.end() ? nullptr : &it->second;
+  }
+  void add(const TileId& id, const TileRecord& r) {
+    std::lock_guard<std::mutex> lock(m_);
+    out_ << id.z << ' ' << id.x << ' ' << id.y << ' ' << num(r.max_error) << ' ' << num(r.geometric_error)
+         << ' ' << num(r.min_height) << ' ' << num(r.max_height) << ' ' << r.vertices << ' ' << r.triangles
+         << ' ' << r.bytes << '\n';
+    out_.flush();
+    if (!out_) throw ExportError(path_ + ": cannot append to the export journal");
+  }
+
+ private:
+  std::string path_;
+  std::map<std::array<int, 3>, TileRecord> done_;
+  bool resumed_ = false;
+  std::ofstream out_;
+  std::mutex m_;
+};
+
+/// Makes `dir` ready: created when missing; refused when it holds files but no journal; the
+/// tiles of an export with other parameters removed.
+void prepare_folder(const std::string& dir, const std::string& parameters) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw ExportError(dir + ": cannot create the output folder: " + ec.message());
+  const fs::path journal = fs::path(dir) / kJournal;
+  const bool ours = fs::exists(journal);
+  if (!ours && !fs::is_empty(dir))
+    throw ExportError(dir +
+                      ": the output folder is not empty and holds no terralod export; choose an empty or "
+                      "new folder");
+  // Nothing is listed until the export ends.
+  fs::remove(fs::path(dir) / "layer.json", ec);
+  fs::remove(fs::path(dir) / "tileset.json", ec);
+  if (!ours) return;
+  std::ifstream in(journal);
+  std::string first;
+  std::getline(in, first);
+  if (first == parameters) return;
+  for (const auto& e : fs::directory_iterator(dir)) {  // another export's tiles: start over
+    const std::string name = e.path().filename().string();
+    if (e.is_directory() && !name.empty() && std::all_of(name.begin(), name.end(), ::isdigit))
+      fs::remove_all(e.path());
+  }
+  fs::remove(journal);
+}
+
+/// The tile's mesh within `bound` as a client decodes it, and the error measured on that.
+QuantizedMeshTile make_tile(const detail::GeoField& field, const GeoRect& rect, const ExportLevel& L, int sag,
+                            double normal_step, double& measured) {
+  double target = L.bound * 0.9 - 0.5 * L.height_step;
+  QuantizedMeshTile tile;
+  for (int attempt = 0;; ++attempt) {
+    const detail::TileMesh mesh = detail::mesh_tile(field, rect, {std::max(0.0, target), sag});
+    std::vector<pm::Geodetic> vertices(mesh.uv.size());
+    for (std::size_t v = 0; v < vertices.size(); ++v)
+      vertices[v] = {rect.west + (rect.east - rect.west) * mesh.uv[v][0] / kQ,
+                     rect.south + (rect.north - rect.south) * mesh.uv[v][1] / kQ, mesh.heights[v]};
+    QuantizedMeshOptions qo;
+    qo.height_step = L.height_step;
+    qo.normal = [&](std::size_t v) {
+      return field_normal(field, vertices[v].lon_deg, vertices[v].lat_deg, normal_step);
+    };
+    tile = make_quantized_mesh(rect, vertices, mesh.triangles, qo);
+    std::vector<std::array<int, 2>> uv(tile.u.size());
+    std::vector<double> decoded(tile.u.size());
+    for (std::size_t v = 0; v < uv.size(); ++v) {
+      uv[v] = {tile.u[v], tile.v[v]};
+      decoded[v] = decoded_height(tile, v);
+    }
+    measured = detail::tile_error(field, rect, uv, decoded, tile.triangles, /*samples_only=*/true);
+    if (measured <= L.bound || attempt == 3) return tile;
+    target *= 0.5;
+  }
+}
+
+std::string region_json(const GeoRect& r, double lo, double hi) {
+  constexpr double k = std::numbers::pi / 180.0;
+  return "{\"region\": [" + num(r.west * k) + ", " + num(r.south * k) + ", " + num(r.east * k) + ", " +
+         num(r.north * k) + ", " + num(lo) + ", " + num(hi) + "]}";
+}
+
+/// tileset.json: a root without content over the whole Earth, the two level-0 tiles below it,
+/// each tile's children below it. geometricError: the tile's own bound (TileRecord), raised where
+/// needed so that it shrinks strictly from parent to child as 3D Tiles requires.
+std::string tileset_json(const std::vector<std::vector<TileId>>& tiles,
+                         const std::vector<std::vector<TileRecord>>& records, const std::string& datum) {
+  std::map<std::array<int, 3>, std::size_t> index;
+  for (std::size_t z = 0; z < tiles.size(); ++z)
+    for (std::size_t i = 0; i < tiles[z].size(); ++i)
+      index[{tiles[z][i].z, tiles[z][i].x, tiles[z][i].y}] = i;
+  auto find = [&](int z, int x, int y) -> const TileRecord* {
+    if (z >= int(tiles.size())) return nullptr;
+    auto it = index.find({z, x, y});
+    return it == index.end() ? nullptr : &records[std::size_t(z)][it->second];
+  };
+  std::function<std::pair<std::string, double>(int, int, int)> tile = [&](int z, int x, int y) {
+    const TileRecord& r = *find(z, x, y);
+    std::string children;
+    double child_error = 0, lo = r.min_height, hi = r.max_height;
+    for (int k = 0; k < 4; ++k) {
+      const int cx = 2 * x + (k & 1), cy = 2 * y + (k >> 1);
+      if (find(z + 1, cx, cy) == nullptr) continue;
+      const auto [text, error] = tile(z + 1, cx, cy);
+      children += (children.empty() ? "" : ", ") + text;
+      child_error = std::max(child_error, error);
+    }
+    const double error =
+        children.empty() ? r.geometric_error : std::max(r.geometric_error, child_error * (1 + 1e-6) + 1e-6);
+    std::string j = "{\"boundingVolume\": " + region_json(tile_rect({z, x, y}), lo, hi) +
+                    ", \"geometricError\": " + num(error) +
+                    ", \"refine\": \"REPLACE\", \"content\": {\"uri\": \"" + std::to_string(z) + "/" +
+                    std::to_string(x) + "/" + std::to_string(y) + ".glb\"}";
+    if (!children.empty()) j += ", \"children\": [" + children + "]";
+    return std::pair<std::string, double>{j + "}", error};
+  };
+  const auto [west, we] = tile(0, 0, 0);
+  const auto [east, ee] = tile(0, 1, 0);
+  double lo = 0, hi = 0;
+  for (const TileRecord& r : records[0]) lo = std::min(lo, r.min_height), hi = std::max(hi, r.max_height);
+  const double root = std::max(we, ee) * 2;
+  return "{\"asset\": {\"version\": \"1.1\", \"generator\": \"terralod export\"},\n \"extras\": "
+         "{\"terralod\": "
+         "{\"vertical_datum\": \"" +
+         datum + "\", \"heights\": \"WGS 84 ellipsoid\"}},\n \"geometricError\": " + num(root * 2) +
+         ",\n \"root\": {\"boundingVolume\": " + region_json({-180, -90, 180, 90}, lo, hi) +
+         ", \"geometricError\": " + num(root) + ", \"refine\": \"REPLACE\", \"children\": [\n  " + west +
+         ",\n  " + east + "]}}\n";
+}
+
+std::string json_text(std::string s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (static_cast<unsigned char>(c) >= 0x20) out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+ExportReport export_terrain(const std::string& db_path, const std::string& out_dir,
+                            const ExportOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  const bool qm = options.format == ExportFormat::QuantizedMesh;
+  const BlockDatabase db = BlockDatabase::open(db_path, BlockDatabase::Mode::ReadOnly);
+  try {
+    require_complete_build(db);
+  } catch (const std::exception& e) {
+    throw ExportError(e.what());
+  }
+  pm::Heightfield hf = read_database_terrain(db);
+  GeoGrid grid;
+  try {
+    grid = make_geo_grid(hf, options.vertical_datum, db_path);
+  } catch (const GeoError& e) {
+    throw ExportError(e.what());
+  }
+  hf = pm::Heightfield();  // the GeoGrid holds what is needed
+  const detail::GeoField field(grid, /*background=*/0.0);
+
+  ExportReport report;
+  report.vertical_datum = grid.vertical_datum;
+  report.horizontal = grid.horizontal;
+  report.bounds = {grid.lon(0), grid.lat(grid.height - 1), grid.lon(grid.width - 1), grid.lat(0)};
+  const GeoRect ringed = {grid.lon(-1), grid.lat(grid.height), grid.lon(grid.width), grid.lat(-1)};
+  int max_level = options.max_level;
+  if (max_level < 0) {
+    const double spacing = std::max(grid.dlon, grid.dlat);
+    max_level = std::clamp(int(std::ceil(std::log2(180.0 / (64.0 * spacing)))), 0, 24);
+  }
+  if (max_level > 24)
+    throw ExportError(out_dir + ": --max-level " + std::to_string(max_level) + " is above 24");
+
+  // Tiles and per-level parameters.
+  const std::vector<std::vector<TileId>> tiles = level_tiles(options.format, max_level, ringed);
+  std::vector<std::vector<TileRange>> available(tiles.size());
+  std::size_t total = 0;
+  report.levels.resize(tiles.size());
+  for (int z = 0; z <= max_level; ++z) {
+    available[std::size_t(z)] = {tiles_over(z, ringed)};
+    total += tiles[std::size_t(z)].size();
+    ExportLevel& L = report.levels[std::size_t(z)];
+    L.z = z;
+    L.bound = level_max_geometric_error(z);
+    if (z == max_level) L.bound = std::min(L.bound, 1.0);
+    // One height step per level: the widest tile range in 32766 steps, and no finer than floats
+    // hold exactly (|height| / step < 2^23).
+    std::vector<std::pair<double, double>> ranges(tiles[std::size_t(z)].size());
+    pm::parallel_for(ranges.size(), options.threads, [&](std::size_t i) {
+      ranges[i] = tile_height_range(field, tile_rect(tiles[std::size_t(z)][i]));
+    });
+    double span = 0, extent = 1;
+    for (const auto& [lo, hi] : ranges)
+      span = std::max(span, hi - lo), extent = std::max({extent, std::abs(lo), std::abs(hi)});
+    L.height_step = std::max({pow2_at_least(std::max(span, 1e-3) / (kQ - 1)),
+                              pow2_at_least(extent / 8388608.0), std::ldexp(1.0, -12)});
+  }
+
+  const DatabaseInfo& info = db.info();
+  std::ostringstream params;
+  params << "terralod-export " << kExportVersion << (qm ? " quantized-mesh" : " 3dtiles")
+         << " source=" << info.source << " grid=" << info.grid_width << "x" << info.grid_height
+         << " build=" << info.build_parameters << " levels=" << max_level << " datum=" << grid.vertical_datum
+         << " tiles=" << total;
+  std::string parameters = params.str();
+  std::replace(parameters.begin(), parameters.end(), '\n', ' ');
+  prepare_folder(out_dir, parameters);
+  Journal journal(out_dir, parameters);
+
+  std::size_t done = 0;
+  std::mutex m;
+  std::vector<std::vector<TileRecord>> records(tiles.size());
+  for (int z = 0; z <= max_level; ++z) {
+    ExportLevel& L = report.levels[std::size_t(z)];
+    const std::vector<TileId>& level = tiles[std::size_t(z)];
+    const double tile_deg = 180.0 / std::ldexp(1.0, z);
+    // Flat triangles sag below the curved surface by about R theta^2 / 8 over theta radians: the
+    // forced grid keeps that within a quarter of the bound (what a client draws is flat in ECEF).
+    const double theta = std::sqrt(8.0 * 0.25 * L.bound / pm::kWgs84A);
+    const int sag = std::max(1, int(std::ceil(tile_deg * std::numbers::pi / 180.0 / theta)));
+    const double normal_step = std::max(std::max(grid.dlon, grid.dlat), tile_deg / 256.0);
+    std::vector<TileRecord>& rec = records[std::size_t(z)];
+    rec.resize(level.size());
+    std::vector<std::uint8_t> reused(level.size(), 0);
+    pm::parallel_for(level.size(), options.threads, [&](std::size_t i) {
+      const TileId id = level[i];
+      const std::string dir = (fs::path(out_dir) / std::to_string(id.z) / std::to_string(id.x)).string();
+      const std::string file = (fs::path(dir) / (std::to_string(id.y) + (qm ? ".terrain" : ".glb"))).string();
+      if (const TileRecord* had = journal.find(id); had != nullptr && fs::exists(file)) {
+        rec[i] = *had;
+        reused[i] = 1;
+      } else {
+        const GeoRect rect = tile_rect(id);
+        TileRecord& r = rec[i];
+        QuantizedMeshTile tile = make_tile(field, rect, L, sag, normal_step, r.max_error);
+        r.min_height = std::numeric_limits<double>::infinity(), r.max_height = -r.min_height;
+        for (std::size_t v = 0; v < tile.u.size(); ++v)
+          r.min_height = std::min(r.min_height, decoded_height(tile, v)),
+          r.max_height = std::max(r.max_height, decoded_height(tile, v));
+        std::string bytes;
+        if (qm) {
+          tile.metadata =
+              "{\"terralod\":{\"max_error\":" + num(r.max_error) + ",\"bound\":" + num(L.bound) + "}}";
+          const std::vector<std::uint8_t> z = gzip(encode_quantized_mesh(tile));
+          bytes.assign(z.begin(), z.end());
+          r.geometric_error = r.max_error;
+        } else {
+          const detail::GlbTile glb = detail::encode_tile_glb(
+              tile, rect,
+              [&](std::size_t v) {
+                return field_normal(field, rect.west + (rect.east - rect.west) * tile.u[v] / kQ,
+                                    rect.south + (rect.north - rect.south) * tile.v[v] / kQ, normal_step);
+              },
+              file);
+          // A flat triangle departs from the surface through its corners by at most the
+          // sagitta of its smallest enclosing circle (radius <= longest edge / sqrt 3).
+          const double sag_depth = glb.longest_edge * glb.longest_edge / (6.0 * pm::kWgs84B);
+          r.geometric_error = r.max_error + glb.displacement + sag_depth;
+          r.min_height -= sag_depth + glb.displacement;
+          r.max_height += glb.displacement;
+          bytes = glb.bytes;
+        }
+        r.vertices = tile.u.size(), r.triangles = tile.triangles.size(), r.bytes = bytes.size();
+        std::error_code ec;
+        fs::create_directories(dir, ec);
+        if (ec) throw ExportError(dir + ": cannot create the tile folder: " + ec.message());
+        try {
+          pm::write_file_atomically(file, bytes);
+        } catch (const std::runtime_error& e) {
+          throw ExportError(e.what());
+        }
+        journal.add(id, r);
+      }
+      std::lock_guard<std::mutex> lock(m);
+      ++done;
+      if (options.progress) options.progress({z, done, total, seconds()});
+    });
+    for (std::size_t i = 0; i < level.size(); ++i) {
+      const TileRecord& r = rec[i];
+      ++L.tiles;
+      L.vertices += r.vertices, L.triangles += r.triangles, L.bytes += r.bytes;
+      L.max_error = std::max(L.max_error, r.max_error);
+      L.geometric_error = std::max(L.geometric_error, r.geometric_error);
+      (reused[i] ? report.tiles_reused : report.tiles_written) += 1;
+    }
+  }
+
+  // The index, last.
+  const std::string datum = json_text(grid.vertical_datum);
+  try {
+    if (qm) {
+      std::string extra = "\"terralod\": {\"vertical_datum\": \"" + datum + "\", \"bound\": [";
+      for (std::size_t z = 0; z < report.levels.size(); ++z)
+        extra += (z ? ", " : "") + num(report.levels[z].bound);
+      extra += "], \"max_error\": [";
+      for (std::size_t z = 0; z < report.levels.size(); ++z)
+        extra += (z ? ", " : "") + num(report.levels[z].max_error);
+      extra += "], \"height_step\": [";
+      for (std::size_t z = 0; z < report.levels.size(); ++z)
+        extra += (z ? ", " : "") + num(report.levels[z].height_step);
+      extra += "]}";
+      const std::string name = fs::path(info.source).stem().string();
+      pm::write_file_atomically((fs::path(out_dir) / "layer.json").string(),
+                                layer_json(name.empty() ? "terralod" : name, report.bounds, available,
+                                           {"octvertexnormals", "metadata"}, extra));
+    } else {
+      pm::write_file_atomically((fs::path(out_dir) / "tileset.json").string(),
+                                tileset_json(tiles, records, datum));
+    }
+  } catch (const std::runtime_error& e) {
+    throw ExportError(e.what());
+  }
+  report.seconds = seconds();
+  return report;
+}
+
+}  // namespace terralod::blocks
