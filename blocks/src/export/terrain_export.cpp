@@ -86,10 +86,11 @@ double pow2_at_least(double x) { return std::ldexp(1.0, int(std::ceil(std::log2(
 /// tile (holes and the ring as background), and the background when the tile reaches past them.
 std::pair<double, double> tile_height_range(const detail::GeoField& f, const GeoRect& r) {
   const GeoGrid& g = f.grid();
-  const int c0 = std::max(-1, int(std::floor((r.west - g.west) / g.dlon)) - 1);
-  const int c1 = std::min(g.width, int(std::ceil((r.east - g.west) / g.dlon)) + 1);
-  const int r0 = std::max(-1, int(std::floor((g.north - r.north) / g.dlat)) - 1);
-  const int r1 = std::min(g.height, int(std::ceil((g.north - r.south) / g.dlat)) + 1);
+  constexpr int pad = detail::GeoField::kPad;
+  const int c0 = std::max(-pad, int(std::floor((r.west - g.west) / g.dlon)) - 1);
+  const int c1 = std::min(g.width - 1 + pad, int(std::ceil((r.east - g.west) / g.dlon)) + 1);
+  const int r0 = std::max(-pad, int(std::floor((g.north - r.north) / g.dlat)) - 1);
+  const int r1 = std::min(g.height - 1 + pad, int(std::ceil((g.north - r.south) / g.dlat)) + 1);
   double lo = f.background(), hi = f.background();  // corners and background points
   for (int row = r0; row <= r1; ++row)
     for (int c = c0; c <= c1; ++c) {
@@ -207,10 +208,11 @@ void prepare_folder(const std::string& dir, const std::string& parameters) {
 /// The tile's mesh within `bound` as a client decodes it, and the error measured on that.
 QuantizedMeshTile make_tile(const detail::GeoField& field, const GeoRect& rect, const ExportLevel& L, int sag,
                             double normal_step, double& measured) {
-  double target = L.bound * 0.9 - 0.5 * L.height_step;
+  const double first = std::max(0.0, L.bound * 0.9 - 0.5 * L.height_step);
+  double target = first;
   QuantizedMeshTile tile;
   for (int attempt = 0;; ++attempt) {
-    const detail::TileMesh mesh = detail::mesh_tile(field, rect, {std::max(0.0, target), sag});
+    const detail::TileMesh mesh = detail::mesh_tile(field, rect, {target, first, sag});
     std::vector<pm::Geodetic> vertices(mesh.uv.size());
     for (std::size_t v = 0; v < vertices.size(); ++v)
       vertices[v] = {rect.west + (rect.east - rect.west) * mesh.uv[v][0] / kQ,
@@ -323,7 +325,9 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   report.vertical_datum = grid.vertical_datum;
   report.horizontal = grid.horizontal;
   report.bounds = {grid.lon(0), grid.lat(grid.height - 1), grid.lon(grid.width - 1), grid.lat(0)};
-  const GeoRect ringed = {grid.lon(-1), grid.lat(grid.height), grid.lon(grid.width), grid.lat(-1)};
+  constexpr int pad = detail::GeoField::kPad;  // the tiles over the terrain include its rings
+  const GeoRect ringed = {grid.lon(-pad), grid.lat(grid.height - 1 + pad), grid.lon(grid.width - 1 + pad),
+                          grid.lat(-pad)};
   int max_level = options.max_level;
   if (max_level < 0) {
     const double spacing = std::max(grid.dlon, grid.dlat);

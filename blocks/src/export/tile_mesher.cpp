@@ -35,13 +35,14 @@ struct UV {
   double u, v;
 };
 
-/// Calls f(c, r, u, v) for every lattice point of the padded grid ([-1, width] x [-1, height])
+/// Calls f(c, r, u, v) for every lattice point of the padded grid (GeoField::kPad rings)
 /// in the closed triangle (a, b, c) (and, within kEps lattice steps, on its edges).
 template <class F>
 void scan_lattice(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& f) {
   const double vmin = std::min({p[0].v, p[1].v, p[2].v}), vmax = std::max({p[0].v, p[1].v, p[2].v});
-  const int r_lo = std::max(-1, int(std::ceil((fr.v0 - vmax) / fr.dv - kEps)));
-  const int r_hi = std::min(height, int(std::floor((fr.v0 - vmin) / fr.dv + kEps)));
+  constexpr int pad = GeoField::kPad;
+  const int r_lo = std::max(-pad, int(std::ceil((fr.v0 - vmax) / fr.dv - kEps)));
+  const int r_hi = std::min(height - 1 + pad, int(std::floor((fr.v0 - vmin) / fr.dv + kEps)));
   for (int r = r_lo; r <= r_hi; ++r) {
     const double v = fr.v(r);
     double ul = std::numeric_limits<double>::infinity(), ur = -ul;
@@ -59,8 +60,8 @@ void scan_lattice(const TileFrame& fr, int width, int height, const UV (&p)[3], 
       ul = std::min(ul, u), ur = std::max(ur, u);
     }
     if (ul > ur) continue;
-    const int c_lo = std::max(-1, int(std::ceil((ul - fr.u0) / fr.du - kEps)));
-    const int c_hi = std::min(width, int(std::floor((ur - fr.u0) / fr.du + kEps)));
+    const int c_lo = std::max(-pad, int(std::ceil((ul - fr.u0) / fr.du - kEps)));
+    const int c_hi = std::min(width - 1 + pad, int(std::floor((ur - fr.u0) / fr.du + kEps)));
     for (int c = c_lo; c <= c_hi; ++c) f(c, r, fr.u(c), v);
   }
 }
@@ -84,9 +85,11 @@ bool in_closed_triangle(const UV (&p)[3], double u, double v) {
 }
 
 /// Background points of a tile: the (kBackgroundGrid + 1)^2 regular grid, less the points within
-/// one lattice step of the padded grid (the ring measures the terrain's own edge).
+/// one lattice step of the padded grid (the rings measure the terrain's own edge).
 std::vector<UV> background_points(const GeoGrid& g, const TileFrame& fr) {
-  const double ulo = fr.u(-2), uhi = fr.u(g.width + 1), vhi = fr.v(-2), vlo = fr.v(g.height + 1);
+  constexpr int pad = GeoField::kPad + 1;
+  const double ulo = fr.u(-pad), uhi = fr.u(g.width - 1 + pad), vhi = fr.v(-pad),
+               vlo = fr.v(g.height - 1 + pad);
   std::vector<UV> out;
   for (int j = 0; j <= kBackgroundGrid; ++j)
     for (int i = 0; i <= kBackgroundGrid; ++i) {
@@ -117,16 +120,17 @@ std::vector<std::pair<int, double>> edge_vertices(const GeoField& f, bool vertic
     pts.push_back({double(k) / divisions, corner(s), true});
   }
   // Crossings with lattice lines (only where the padded lattice is: beyond it the field is flat).
+  constexpr int pad = GeoField::kPad;
   const double lo = std::min(a, b), hi = std::max(a, b);
   if (vertical) {
-    if (at >= g.lon(-1) && at <= g.lon(g.width))
-      for (int r = -1; r <= g.height; ++r) {
+    if (at >= g.lon(-pad) && at <= g.lon(g.width - 1 + pad))
+      for (int r = -pad; r <= g.height - 1 + pad; ++r) {
         const double lat = g.lat(r);
         if (lat > lo && lat < hi) pts.push_back({(lat - a) / (b - a), f.on_row(at, r), false});
       }
   } else {
-    if (at <= g.lat(-1) && at >= g.lat(g.height))
-      for (int c = -1; c <= g.width; ++c) {
+    if (at <= g.lat(-pad) && at >= g.lat(g.height - 1 + pad))
+      for (int c = -pad; c <= g.width - 1 + pad; ++c) {
         const double lon = g.lon(c);
         if (lon > lo && lon < hi) pts.push_back({(lon - a) / (b - a), f.on_col(c, at), false});
       }
@@ -250,7 +254,7 @@ class TileGreedy {
     const int t0 = dt_.new_triangle(), t1 = dt_.new_triangle();
     dt_.set_triangle(t0, 0, 1, 2), dt_.set_triangle(t1, 0, 2, 3);
     dt_.link(3 * t0 + 2, 3 * t1);
-    const double tol = opt_.max_error;
+    const double tol = opt_.edge_error;
     const int n = std::max(1, opt_.sag_divisions);
     auto add = [&](pm::GridPoint p, double h) {
       if (vertices_.count(key(p))) return;
@@ -333,9 +337,10 @@ class TileGreedy {
 
 double GeoField::at(double lon, double lat) const {
   const double col = (lon - g_.west) / g_.dlon, row = (g_.north - lat) / g_.dlat;
-  if (!(col >= -1.0 && col <= g_.width && row >= -1.0 && row <= g_.height)) return background_;
-  const int c = std::clamp(int(std::floor(col)), -1, g_.width - 1);
-  const int r = std::clamp(int(std::floor(row)), -1, g_.height - 1);
+  const double lo = -kPad, chi = g_.width - 1 + kPad, rhi = g_.height - 1 + kPad;
+  if (!(col >= lo && col <= chi && row >= lo && row <= rhi)) return background_;
+  const int c = std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
+  const int r = std::clamp(int(std::floor(row)), -kPad, g_.height - 2 + kPad);
   const double fx = col - c, fy = row - r;
   const double top = value(c, r) + fx * (value(c + 1, r) - value(c, r));
   const double bottom = value(c, r + 1) + fx * (value(c + 1, r + 1) - value(c, r + 1));
@@ -344,16 +349,16 @@ double GeoField::at(double lon, double lat) const {
 
 double GeoField::on_row(double lon, int r) const {
   const double col = (lon - g_.west) / g_.dlon;
-  if (!(col >= -1.0 && col <= g_.width)) return background_;
-  const int c = std::clamp(int(std::floor(col)), -1, g_.width - 1);
+  if (!(col >= -kPad && col <= g_.width - 1 + kPad)) return background_;
+  const int c = std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
   const double fx = col - c;
   return value(c, r) + fx * (value(c + 1, r) - value(c, r));
 }
 
 double GeoField::on_col(int c, double lat) const {
   const double row = (g_.north - lat) / g_.dlat;
-  if (!(row >= -1.0 && row <= g_.height)) return background_;
-  const int r = std::clamp(int(std::floor(row)), -1, g_.height - 1);
+  if (!(row >= -kPad && row <= g_.height - 1 + kPad)) return background_;
+  const int r = std::clamp(int(std::floor(row)), -kPad, g_.height - 2 + kPad);
   const double fy = row - r;
   return value(c, r) + fy * (value(c, r + 1) - value(c, r));
 }

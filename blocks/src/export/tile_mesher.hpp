@@ -2,10 +2,10 @@
 // vertices are a function of the edge alone, so that neighbouring tiles of one level share them.
 //
 // The terrain is a field over longitude/latitude (GeoField): the GeoGrid's samples, padded with
-// one ring of `background` lattice points around the grid (so the terrain ends in a cliff down
-// to the background, not in a slope across the tile), bilinear between lattice points,
-// `background` beyond; holes read as background where the field is interpolated and are never
-// measured.
+// a ring continuing the grid's edge and a ring of `background` lattice points (so the terrain
+// ends in a cliff down to the background, not in a slope across the tile), bilinear between
+// lattice points, `background` beyond; holes read as background where the field is interpolated
+// and are never measured.
 //
 // A tile's mesh (mesh_tile) lives in the quantized (u, v) coordinates of quantized-mesh:
 // integers 0..32767 from west to east and south to north. It is built in three steps:
@@ -27,8 +27,10 @@
 // tile_error then measures a mesh exactly as a client decodes it (quantized heights included).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "terralod/blocks/geo_grid.hpp"
@@ -42,13 +44,23 @@ class GeoField {
   const GeoGrid& grid() const { return g_; }
   double background() const { return background_; }
 
-  /// The lattice point (c, r), c in [-1, width], r in [-1, height]: a valid sample's height; the
-  /// background on the ring; NaN for a hole (not measured).
+  /// Lattice rings around the grid: the first continues the grid's edge (the nearest sample's
+  /// height), the second is the background, so the terrain ends in a one-step apron and then a
+  /// cliff. Samples are then never at the top of the cliff, where a vertex's rounding to the
+  /// tile's lattice would tilt the steep triangles around it.
+  static constexpr int kPad = 2;
+
+  /// The lattice point (c, r), c in [-kPad, width - 1 + kPad], r likewise: a valid sample's height;
+  /// the nearest sample's on the first ring; the background on the second; NaN for a hole (not
+  /// measured).
   double lattice(int c, int r) const {
-    if (c < 0 || r < 0 || c >= g_.width || r >= g_.height) return background_;
-    return g_.valid(c, r) ? g_.z(c, r) : std::numeric_limits<double>::quiet_NaN();
+    const bool in = c >= 0 && r >= 0 && c < g_.width && r < g_.height;
+    if (in) return g_.valid(c, r) ? g_.z(c, r) : std::numeric_limits<double>::quiet_NaN();
+    if (c < -1 || r < -1 || c > g_.width || r > g_.height) return background_;
+    const int cc = std::clamp(c, 0, g_.width - 1), rr = std::clamp(r, 0, g_.height - 1);
+    return g_.valid(cc, rr) ? g_.z(cc, rr) : background_;
   }
-  /// Bilinear between lattice points (holes as background), background outside the ring.
+  /// Bilinear between lattice points (holes as background), background outside the rings.
   double at(double lon, double lat) const;
   /// The same on lattice row r (linear between the two columns around lon) and on column c.
   double on_row(double lon, int r) const;
@@ -72,7 +84,10 @@ struct TileMesh {
 };
 
 struct TileMeshOptions {
-  double max_error = 0;   ///< metres
+  double max_error = 0;  ///< metres, inside the tile
+  /// metres, for the Douglas-Peucker of the edges: a function of the level only, so that the two
+  /// tiles of an edge choose the same vertices even when one of them is remeshed tighter.
+  double edge_error = 0;
   int sag_divisions = 1;  ///< forced regular subdivision of the tile (1 = corners only)
 };
 

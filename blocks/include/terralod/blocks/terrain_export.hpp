@@ -11,7 +11,7 @@
 // What is written (quantized_mesh.hpp has the format):
 //   - The geographic TMS tiling of EPSG:4326 (two tiles at level 0, y from the south), levels
 //     0..max_level. Level 0's two tiles always exist; at level z >= 1 the tiles that overlap the
-//     terrain (its samples plus one ring, see below). layer.json lists them in `available`, one
+//     terrain (its samples plus two rings, see below). layer.json lists them in `available`, one
 //     rectangle per level, and carries a "terralod" member: per level the bound and the measured
 //     error (metres), the vertical datum, and the height step.
 //   - Tile z/x/y: an L-infinity mesh (tile_mesher.hpp) of the terrain's samples inside the tile,
@@ -27,8 +27,9 @@
 //     positions and, through one height step per level (a power of two), the same decoded
 //     heights; normals come from the terrain's gradient at the vertex, the same on both sides.
 //     So a level's tiles join without skirts (the edge lists are written; no skirt is needed).
-//   - Beyond the terrain the surface is the ellipsoid (height 0, CesiumJS's own default globe),
-//     one lattice ring outside the samples: the terrain ends in a cliff, not a slope.
+//   - Beyond the terrain the surface is the ellipsoid (height 0, CesiumJS's own default globe):
+//     one lattice ring continues the terrain's edge, and the next is the ellipsoid, so the terrain
+//     ends in a one-sample apron and a cliff, not a slope across the tile.
 //   - Large tiles get a regular grid of forced vertices (sag_divisions) so that the flat
 //     triangles a client draws stay within the level's error of the curved Earth.
 //   - Metadata extension: {"terralod": {"max_error": measured, "bound": bound}}; oct-encoded
