@@ -517,6 +517,25 @@ std::string DatabaseSummary::to_json() const {
   field("max_block_error", num(max_block_error));
   field("root_error", num(root_error));
   field("seconds", num(seconds));
+  if (georeference) {
+    const pm::GridTransform& t = georeference->crs_transform;
+    field(
+        "georeference",
+        "{\"crs_transform\": [" + num(t.x0) + ", " + num(t.xc) + ", " + num(t.xr) + ", " + num(t.y0) + ", " +
+            num(t.yc) + ", " + num(t.yr) + "], \"vertical_datum\": " +
+            quote(georeference->vertical_datum.empty() ? "unknown (exporters assume EGM96)"
+                                                       : georeference->vertical_datum) +
+            ", \"frame\": " +
+            quote(
+                "sample (col,row) -> CRS coordinates of the source: X = crs_transform[0] + col * [1] + row * "
+                "[2], Y = [3] + col * [4] + row * [5] (degrees for a geographic CRS); the runtime's world "
+                "frame is the metric map of the build (terralod info of the DEM prints it); "
+                "'terralod export' places samples through this map and converts heights from "
+                "vertical_datum to the WGS 84 ellipsoid") +
+            "}");
+  } else {
+    field("georeference", "null");
+  }
   field("build_parameters", build_parameters.empty() ? "null" : build_parameters, true);
   return j + "}\n";
 }
@@ -537,6 +556,7 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
   s.grid_height = info.grid_height;
   s.block_size = info.block_size;
   s.build_parameters = info.build_parameters;
+  s.georeference = db.georeference();
   s.samples = std::uint64_t(info.grid_width) * std::uint64_t(info.grid_height);
   if (info.grid_width >= 2 && info.grid_height >= 2 && is_valid_block_size(info.block_size)) {
     const BlockLayout l = partition(info.grid_width, info.grid_height, info.block_size);

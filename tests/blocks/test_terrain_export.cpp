@@ -1,7 +1,10 @@
 // Tests for terralod export --format quantized-mesh (blocks/terrain_export.hpp): every tile is
 // read back by the independent reader of tests/support and checked against the DEM's samples,
 // with the geoid taken from PROJ directly (not through the exporter's code).
+#include <gdal_priv.h>
+#include <gdalwarper.h>
 #include <gtest/gtest.h>
+#include <ogr_spatialref.h>
 #include <proj.h>
 
 #include <algorithm>
@@ -288,6 +291,17 @@ TEST_F(QuantizedMeshExport, HeaderBoundsWhatTheClientDraws) {
   }
 }
 
+TEST_F(QuantizedMeshExport, TheDatabaseRecordsWhereItLiesAndInfoReportsIt) {
+  const tb::BlockDatabase db = tb::BlockDatabase::open(db_, tb::BlockDatabase::Mode::ReadOnly);
+  const std::optional<tb::Georeference> g = db.georeference();
+  ASSERT_TRUE(g.has_value());
+  EXPECT_EQ(g->vertical_datum, "EGM96");  // an SRTM .hgt states it
+  EXPECT_EQ(g->crs_transform, *hf_->crs_transform);
+  const std::string json = tb::summarize_database(db).to_json();
+  EXPECT_NE(json.find("\"vertical_datum\": \"EGM96\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"crs_transform\": [-71.5, "), std::string::npos) << json;
+}
+
 TEST_F(QuantizedMeshExport, AnInterruptedExportResumesToTheSameFiles) {
   const fs::path out = tt::process_temp_dir("terralod-export") / "interrupted";
   struct Stop {};
@@ -348,6 +362,82 @@ TEST_F(QuantizedMeshExport, RefusesWhatItCannotDoNamingTheCulprit) {
   // An unknown vertical datum.
   EXPECT_THROW(tb::export_terrain(db_, (dir / "datum").string(), {.vertical_datum = "EPSG:999999"}),
                tb::ExportError);
+}
+
+/// hf (geographic WGS 84) warped to UTM zone 19N through GDAL and written as a GeoTIFF with that
+/// CRS: a projected DEM.
+void write_utm_geotiff(const pm::Heightfield& hf, const std::string& path) {
+  GDALAllRegister();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDataset* src = mem->Create("", hf.width(), hf.height(), 1, GDT_Float64, nullptr);
+  const pm::GridTransform& t = *hf.crs_transform;
+  double gt[6] = {t.x0 - 0.5 * t.xc, t.xc, 0, t.y0 - 0.5 * t.yr, 0, t.yr};
+  src->SetGeoTransform(gt);
+  OGRSpatialReference wgs84, utm;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  utm.importFromEPSG(32619);
+  char* wkt = nullptr;
+  wgs84.exportToWkt(&wkt);
+  src->SetProjection(wkt);
+  CPLFree(wkt);
+  std::vector<double> z(hf.samples());
+  ASSERT_EQ(src->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, hf.width(), hf.height(), z.data(), hf.width(),
+                                            hf.height(), GDT_Float64, 0, 0),
+            CE_None);
+  utm.exportToWkt(&wkt);
+  GDALDatasetH warped = GDALAutoCreateWarpedVRT(src, nullptr, wkt, GRA_Bilinear, 0.0, nullptr);
+  CPLFree(wkt);
+  ASSERT_NE(warped, nullptr);
+  GDALDatasetH out =
+      GDALCreateCopy(GDALGetDriverByName("GTiff"), path.c_str(), warped, FALSE, nullptr, nullptr, nullptr);
+  ASSERT_NE(out, nullptr);
+  GDALClose(out);
+  GDALClose(warped);
+  GDALClose(src);
+}
+
+// A DEM in a projected CRS is warped back to longitude/latitude and lands where it belongs: the
+// exported surface matches the geographic original to within the resampling of two warps, which
+// a misplacement by one sample (90 m in these mountains) would exceed many times.
+TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  const std::string tif = (dir / "utm.tif").string(), db = (dir / "utm.db").string();
+  ASSERT_NO_FATAL_FAILURE(write_utm_geotiff(*hf_, tif));
+  const pm::Heightfield utm = tb::read_dem(tif, {.fill_voids = false});
+  ASSERT_TRUE(utm.crs_transform.has_value());
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  tb::build_database(utm, db, o);
+  const fs::path out = dir / "utm-tiles";
+  const tb::ExportReport r = tb::export_terrain(db, out.string(), {.max_level = 12});
+  EXPECT_NE(r.horizontal.find("warped"), std::string::npos) << r.horizontal;
+  const Tileset t = read_tileset(out);
+  const pm::GridTransform& g = *hf_->crs_transform;
+  std::vector<std::array<double, 2>> lonlat;
+  std::vector<double> want;
+  for (int r0 = 20; r0 < hf_->height() - 20; r0 += 12)
+    for (int c0 = 20; c0 < hf_->width() - 20; c0 += 12) {
+      lonlat.push_back({g.x0 + c0 * g.xc, g.y0 + r0 * g.yr});
+      want.push_back(hf_->at(c0, r0));
+    }
+  const std::vector<double> n = egm96(lonlat);
+  std::vector<double> diff;
+  for (std::size_t i = 0; i < lonlat.size(); ++i) {
+    const auto [lon, lat] = lonlat[i];
+    for (const auto& [id, d] : t.tiles) {
+      if (id[0] != 12) continue;
+      const tb::GeoRect rect = tb::tile_rect({id[0], id[1], id[2]});
+      if (lon < rect.west || lon > rect.east || lat < rect.south || lat > rect.north) continue;
+      const double h = interpolate(d, (lon - rect.west) / (rect.east - rect.west) * kQ,
+                                   (lat - rect.south) / (rect.north - rect.south) * kQ);
+      diff.push_back(std::abs(h - (want[i] + n[i])));
+      break;
+    }
+  }
+  ASSERT_GE(diff.size(), 100u);
+  std::sort(diff.begin(), diff.end());
+  EXPECT_LT(diff[diff.size() / 2], 5.0) << "median";
+  EXPECT_LT(diff[diff.size() * 9 / 10], 25.0) << "90th percentile";
 }
 
 }  // namespace

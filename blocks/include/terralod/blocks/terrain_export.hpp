@@ -87,9 +87,9 @@ enum class ExportFormat {
 
 struct ExportOptions {
   ExportFormat format = ExportFormat::QuantizedMesh;
-  int max_level = -1;          ///< deepest level; -1: the first whose tiles span <= 64 samples
-  int threads = 0;             ///< 0: every core
-  std::string vertical_datum;  ///< the input heights' datum (geo_grid.hpp); "" = the source's
+  int max_level = -1;               ///< deepest level; -1: the first whose tiles span <= 64 samples
+  int threads = 0;                  ///< 0: every core
+  std::string vertical_datum = {};  ///< the input heights' datum (geo_grid.hpp); "" = the source's
   std::function<void(const ExportProgress&)> progress = {};
 };
 

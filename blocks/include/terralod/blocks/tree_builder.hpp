@@ -50,6 +50,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -172,6 +173,9 @@ struct DatabaseSummary {
   double root_error = 0;              ///< exact error of the root surface, metres
   double seconds = 0;                 ///< wall time of this run
   std::string build_parameters;       ///< JSON
+  /// Where the terrain lies on the Earth (absent for sources without a CRS, or databases built
+  /// before it was recorded): to_json writes it as "georeference" with the frame convention.
+  std::optional<Georeference> georeference;
   bool complete = false;
   /// One JSON object (the fields above).
   std::string to_json() const;
