@@ -29,33 +29,19 @@
 #include <unordered_map>
 #include <utility>
 
+#include "delaunay.hpp"
 #include "tin_error.hpp"
 
 namespace terralod::blocks {
 namespace {
 
+using detail::next_he;
+using detail::prev_he;
+
 using pm::GridPoint;
 using pm::orient2d;
-__extension__ typedef __int128 int128;  // GCC/Clang extension, exact for the in-circle test
-
-/// Sign of the in-circle determinant: > 0 when d lies strictly inside the circumcircle of the CCW
-/// triangle (a,b,c), 0 when the four are cocircular. Exact: the coordinates are below 2^24, so
-/// every product fits in 128 bits.
-int in_circle(GridPoint a, GridPoint b, GridPoint c, GridPoint d) {
-  const std::int64_t adx = a.x - d.x, ady = a.y - d.y, bdx = b.x - d.x, bdy = b.y - d.y, cdx = c.x - d.x,
-                     cdy = c.y - d.y;
-  const int128 al = int128(adx * adx + ady * ady), bl = int128(bdx * bdx + bdy * bdy),
-               cl = int128(cdx * cdx + cdy * cdy);
-  const int128 det = al * int128(bdx * cdy - cdx * bdy) + bl * int128(cdx * ady - adx * cdy) +
-                     cl * int128(adx * bdy - bdx * ady);
-  return (det > 0) - (det < 0);
-}
-
 /// An edge along the full-resolution grid's diagonal direction (1,1).
 bool main_diagonal(GridPoint a, GridPoint b) { return std::int64_t(b.x - a.x) * (b.y - a.y) > 0; }
-
-inline int next_he(int e) { return e % 3 == 2 ? e - 2 : e + 1; }
-inline int prev_he(int e) { return e % 3 == 0 ? e + 2 : e - 1; }
 
 /// Closed segments p-q and r-s share a point (exact).
 bool segments_touch(GridPoint p, GridPoint q, GridPoint r, GridPoint s) {
@@ -84,6 +70,19 @@ class GreedyTin {
     assert(hf.width() < (1 << 24) && hf.height() < (1 << 24));
     vid_.assign(std::size_t(bw_) * std::size_t(bh_), -1);
     inside_.assign(vid_.size(), 0);
+    dt_.on_new_triangle = [this](int) {
+      err_.push_back(0.0), serr_.push_back(0.0), cerr_.push_back(0.0), berr_.push_back(0.0);
+      cand_.push_back(GridPoint{-1, -1});
+      heap_pos_.push_back(-1);
+      stuck_.push_back(0);
+    };
+    // Cocircular ties keep the triangulation Delaunay either way; they are broken towards the
+    // (1,1) diagonal, the full-resolution surface's own. This matters for a unit cell whose 4
+    // corners are all vertices: its (1,-1) diagonal crosses the grid diagonal between two
+    // vertices, an error no insertion could remove.
+    dt_.flip_cocircular = [](GridPoint pr, GridPoint pl, GridPoint p0, GridPoint p1) {
+      return !main_diagonal(pr, pl) && main_diagonal(p0, p1);
+    };
   }
 
   /// Triangulates the CCW simple ring (ear clipping, then Lawson flips to constrained Delaunay).
@@ -123,22 +122,20 @@ class GreedyTin {
     for (const auto& t : tris)
       detail::mark_triangle(pts_[t[0]], pts_[t[1]], pts_[t[2]], bx0_, by0_, bw_, inside_);
     std::unordered_map<std::uint64_t, int> edges;
-    for (const auto& t : tris) {
-      const int id = new_triangle();
-      for (int k = 0; k < 3; ++k) tri_[3 * id + k] = t[k];
-    }
-    for (int e = 0; e < int(tri_.size()); ++e) {
-      const std::uint64_t a = std::uint32_t(tri_[e]), b = std::uint32_t(tri_[next_he(e)]);
+    for (const auto& t : tris) dt_.set_triangle(dt_.new_triangle(), t[0], t[1], t[2]);
+    for (int e = 0; e < int(dt_.tri.size()); ++e) {
+      const std::uint64_t a = std::uint32_t(dt_.tri[std::size_t(e)]),
+                          b = std::uint32_t(dt_.tri[std::size_t(next_he(e))]);
       auto it = edges.find((b << 32) | a);
       if (it != edges.end())
-        link(e, it->second), edges.erase(it);
+        dt_.link(e, it->second), edges.erase(it);
       else
         edges.emplace((a << 32) | b, e);
     }
     std::vector<int> stack;
-    for (int e = 0; e < int(tri_.size()); ++e)
-      if (half_[e] > e) stack.push_back(e);
-    legalize(stack, /*all_sides=*/true);
+    for (int e = 0; e < int(dt_.tri.size()); ++e)
+      if (dt_.half[std::size_t(e)] > e) stack.push_back(e);
+    dt_.legalize(stack, /*all_sides=*/true);
     for (int t = 0; t < triangles(); ++t) rescan(t);
   }
 
@@ -178,7 +175,7 @@ class GreedyTin {
   }
 
  private:
-  int triangles() const { return int(tri_.size() / 3); }
+  int triangles() const { return dt_.triangles(); }
 
   double progress(double first, double now) const {
     double f = pts_.size() >= opt_.max_points ? 1.0 : double(pts_.size()) / double(opt_.max_points);
@@ -194,35 +191,8 @@ class GreedyTin {
 
   int add_point(GridPoint p) {
     assert(in_box(p) && vid(p) < 0);
-    vid(p) = int(pts_.size());
-    pts_.push_back(p);
-    return int(pts_.size()) - 1;
-  }
-
-  int new_triangle() {
-    const int t = triangles();
-    tri_.insert(tri_.end(), 3, -1);
-    half_.insert(half_.end(), 3, -1);
-    err_.push_back(0.0), serr_.push_back(0.0), cerr_.push_back(0.0), berr_.push_back(0.0);
-    cand_.push_back(GridPoint{-1, -1});
-    heap_pos_.push_back(-1);
-    stuck_.push_back(0);
-    stamp_.push_back(0);
-    return t;
-  }
-
-  void link(int a, int b) {
-    half_[a] = b;
-    if (b >= 0) half_[b] = a;
-  }
-
-  void set_triangle(int t, int a, int b, int c) {
-    tri_[3 * t] = a, tri_[3 * t + 1] = b, tri_[3 * t + 2] = c;
-    touch(t);
-  }
-
-  void touch(int t) {
-    if (stamp_[t] != epoch_) stamp_[t] = epoch_, dirty_.push_back(t);
+    vid(p) = dt_.add_point(p);
+    return vid(p);
   }
 
   // --- error bookkeeping -------------------------------------------------------------------
@@ -273,7 +243,7 @@ class GreedyTin {
       }
       for (GridPoint s : {worst.s0, worst.s1}) {
         if (s.x < 0 || !insertable(s)) continue;
-        at = locate(s, t);
+        at = dt_.locate(s, t);
         if (at >= 0) return s;
       }
     }
@@ -284,99 +254,12 @@ class GreedyTin {
     return GridPoint{-1, -1};
   }
 
-  bool contains(int t, GridPoint p) const {
-    const GridPoint a = pts_[tri_[3 * t]], b = pts_[tri_[3 * t + 1]], c = pts_[tri_[3 * t + 2]];
-    return orient2d(a, b, p) >= 0 && orient2d(b, c, p) >= 0 && orient2d(c, a, p) >= 0;
-  }
-
-  /// The triangle whose closed area holds p, by a visibility walk from `start` (a brute-force
-  /// search if the walk does not end, which only non-Delaunay triangulations allow); -1 outside.
-  int locate(GridPoint p, int start) const {
-    int t = start;
-    for (int steps = 0; steps < 4096; ++steps) {
-      int out = -1;
-      for (int k = 0; k < 3 && out < 0; ++k)
-        if (orient2d(pts_[tri_[3 * t + k]], pts_[tri_[3 * t + (k + 1) % 3]], p) < 0) out = 3 * t + k;
-      if (out < 0) return t;
-      if (half_[out] < 0) break;
-      t = half_[out] / 3;
-    }
-    for (int u = 0; u < triangles(); ++u)
-      if (contains(u, p)) return u;
-    return -1;
-  }
-
   // --- triangulation updates ---------------------------------------------------------------
 
   void insert(GridPoint p, int t) {
-    ++epoch_;
-    dirty_.clear();
-    const int v = add_point(p);
-    const GridPoint P[3] = {pts_[tri_[3 * t]], pts_[tri_[3 * t + 1]], pts_[tri_[3 * t + 2]]};
-    int on_edge = -1;
-    for (int k = 0; k < 3; ++k)
-      if (orient2d(P[k], P[(k + 1) % 3], p) == 0) on_edge = 3 * t + k;
-    std::vector<int>& stack = stack_;
-    stack.clear();
-    if (on_edge < 0) {
-      // (a,b,c) -> (a,b,p), (b,c,p), (c,a,p)
-      const int a = tri_[3 * t], b = tri_[3 * t + 1], c = tri_[3 * t + 2];
-      const int h0 = half_[3 * t], h1 = half_[3 * t + 1], h2 = half_[3 * t + 2];
-      const int t1 = new_triangle(), t2 = new_triangle();
-      set_triangle(t, a, b, v), set_triangle(t1, b, c, v), set_triangle(t2, c, a, v);
-      link(3 * t, h0), link(3 * t1, h1), link(3 * t2, h2);
-      link(3 * t + 1, 3 * t1 + 2), link(3 * t1 + 1, 3 * t2 + 2), link(3 * t2 + 1, 3 * t + 2);
-      stack = {3 * t, 3 * t1, 3 * t2};
-    } else {
-      // p on edge a->b of (a,b,c): (a,p,c), (p,b,c); and of the twin (b,a,d): (b,p,d), (p,a,d).
-      const int e = on_edge, f = half_[e];
-      const int a = tri_[e], b = tri_[next_he(e)], c = tri_[prev_he(e)];
-      const int hn = half_[next_he(e)], hp = half_[prev_he(e)];
-      const int t1 = new_triangle();
-      set_triangle(t, a, v, c), set_triangle(t1, v, b, c);
-      link(3 * t + 1, 3 * t1 + 2), link(3 * t + 2, hp), link(3 * t1 + 1, hn);
-      stack = {3 * t + 2, 3 * t1 + 1};
-      if (f >= 0) {
-        const int u = f / 3, d = tri_[prev_he(f)];
-        const int ha = half_[next_he(f)], hb = half_[prev_he(f)];
-        const int u1 = new_triangle();
-        set_triangle(u, b, v, d), set_triangle(u1, v, a, d);
-        link(3 * u, 3 * t1), link(3 * u1, 3 * t);
-        link(3 * u + 1, 3 * u1 + 2), link(3 * u + 2, hb), link(3 * u1 + 1, ha);
-        stack.push_back(3 * u + 2), stack.push_back(3 * u1 + 1);
-      } else {
-        half_[3 * t] = -1, half_[3 * t1] = -1;
-      }
-    }
-    legalize(stack, /*all_sides=*/false);
-    for (int d : dirty_) rescan(d);
-  }
-
-  /// Lawson flips of the edges on `stack` (and of the edges their flips expose) until every one
-  /// is locally Delaunay; edges without a twin (the boundary) are never flipped. With
-  /// all_sides = false the stack holds edges opposite a new point, whose flips expose 2 edges.
-  void legalize(std::vector<int>& stack, bool all_sides) {
-    while (!stack.empty()) {
-      const int e = stack.back();
-      stack.pop_back();
-      const int f = half_[e];
-      if (f < 0) continue;
-      const int al = next_he(e), ar = prev_he(e), bl = prev_he(f), br = next_he(f);
-      const int p0 = tri_[ar], pr = tri_[e], pl = tri_[al], p1 = tri_[bl];
-      // Cocircular ties keep the triangulation Delaunay either way; they are broken towards the
-      // (1,1) diagonal, the full-resolution surface's own. This matters for a unit cell whose 4
-      // corners are all vertices: its (1,-1) diagonal crosses the grid diagonal between two
-      // vertices, an error no insertion could remove.
-      const int ic = in_circle(pts_[pr], pts_[pl], pts_[p0], pts_[p1]);
-      if (ic < 0 || (ic == 0 && (main_diagonal(pts_[pr], pts_[pl]) || !main_diagonal(pts_[p0], pts_[p1]))))
-        continue;
-      tri_[e] = p1, tri_[f] = p0;
-      const int hbl = half_[bl], har = half_[ar];
-      link(e, hbl), link(f, har), link(ar, bl);
-      touch(e / 3), touch(f / 3);
-      stack.push_back(e), stack.push_back(br);
-      if (all_sides) stack.push_back(al), stack.push_back(f);
-    }
+    dt_.begin_round();
+    dt_.insert(add_point(p), t);
+    for (int d : dt_.touched) rescan(d);
   }
 
   // --- indexed max-heap on err_ --------------------------------------------------------------
@@ -434,8 +317,10 @@ class GreedyTin {
   int bx0_, by0_, bw_, bh_;
   std::vector<std::int32_t> vid_;
   std::vector<std::uint8_t> inside_;  // samples of the closed domain (1), per sample of the box
-  std::vector<GridPoint> pts_;
-  std::vector<int> tri_, half_;
+  detail::Delaunay dt_;
+  std::vector<GridPoint>& pts_ = dt_.pts;
+  std::vector<int>& tri_ = dt_.tri;
+  std::vector<int>& half_ = dt_.half;
   std::vector<double> err_, serr_, cerr_, berr_;  // priority, samples, interior and boundary crossings
   std::vector<GridPoint> cand_;
   struct HeapItem {
@@ -445,9 +330,6 @@ class GreedyTin {
   std::vector<HeapItem> heap_;
   std::vector<int> heap_pos_;
   std::vector<std::uint8_t> stuck_;
-  std::vector<std::uint32_t> stamp_;
-  std::uint32_t epoch_ = 0;
-  std::vector<int> dirty_, stack_;
 };
 
 }  // namespace
