@@ -468,8 +468,11 @@ async function main() {
     else if (m.type() === 'warn' || m.type() === 'warning') result.console_warnings.push(text);
   });
   page.on('requestfailed', (r) => {
+    // net::ERR_ABORTED: CesiumJS cancelled the request (a tile no longer needed); refused
+    // requests to other hosts are reported where they are refused.
     const why = r.failure()?.errorText ?? '';
-    if (why !== 'net::ERR_ABORTED' || r.url().startsWith(origin)) fail(`request failed: ${r.url()} (${why})`);
+    if (why !== 'net::ERR_ABORTED' && !why.startsWith('net::ERR_BLOCKED_BY_CLIENT'))
+      fail(`request failed: ${r.url()} (${why})`);
   });
   await page.setRequestInterception(true);
   page.on('request', (r) => {
