@@ -95,13 +95,15 @@ function parseArgs(argv) {
   }
   if (a.size !== undefined) {
     const m = /^(\d+)x(\d+)$/.exec(a.size);
-    if (!m || +m[1] < 16 || +m[2] < 16 || +m[1] > 8192 || +m[2] > 8192) usage(`--size must be WxH, not '${a.size}'`);
+    if (!m || +m[1] < 16 || +m[2] < 16 || +m[1] > 8192 || +m[2] > 8192)
+      usage(`--size must be WxH (16 .. 8192 each), not '${a.size}'`);
     opt.width = +m[1];
     opt.height = +m[2];
   }
   if (!(opt.timeout > 0)) usage('--timeout must be > 0');
   if (!(opt.pitch < 0 && opt.pitch >= -90)) usage('--pitch must be in [-90, 0)');
-  if (opt.imagery !== 'grid' && opt.imagery !== 'none') usage(`--imagery must be grid or none, not '${opt.imagery}'`);
+  if (opt.imagery !== 'grid' && opt.imagery !== 'none')
+    usage(`--imagery must be grid or none, not '${opt.imagery}'`);
   return opt;
 }
 
@@ -205,7 +207,9 @@ const PAGE = `<!doctype html>
 <script>window.CESIUM_BASE_URL = '/cesium/';</script>
 <script src="/cesium/Cesium.js"></script>
 <link rel="stylesheet" href="/cesium/Widgets/widgets.css">
-<style>html, body, #container { margin: 0; padding: 0; width: 100%; height: 100%; overflow: hidden; background: #000; }</style>
+<style>
+  html, body, #container { margin: 0; padding: 0; width: 100%; height: 100%; overflow: hidden; background: #000; }
+</style>
 </head><body><div id="container"></div><div id="credits" style="display: none"></div></body></html>
 `;
 
@@ -284,7 +288,7 @@ function startServer() {
 async function setUpAndWait(cfg) {
   const C = window.Cesium;
   const say = (m) => window.checkProgress(m);
-  const failures = [];
+  const failures = (window.checkFailures = []);  // read again after sampling
   const provider = await C.CesiumTerrainProvider.fromUrl('/tiles/', {
     requestVertexNormals: true,
     requestMetadata: true,
@@ -326,7 +330,8 @@ async function setUpAndWait(cfg) {
   // Software WebGL draws a few frames a second, and CesiumJS spends at most 5 ms of each frame on
   // tile loading (QuadtreePrimitive._loadQueueTimeSlice, private): give it more, so that loading
   // is not paced by the frame rate. Unknown to other versions: then it is left as it is.
-  if (typeof globe._surface?._loadQueueTimeSlice === 'number') globe._surface._loadQueueTimeSlice = cfg.loadSliceMs;
+  if (typeof globe._surface?._loadQueueTimeSlice === 'number')
+    globe._surface._loadQueueTimeSlice = cfg.loadSliceMs;
   scene.backgroundColor = C.Color.fromCssColorString('#1d2633');
   widget.clock.shouldAnimate = false;
   widget.clock.currentTime = C.JulianDate.fromIso8601('2024-06-21T16:00:00Z');
@@ -336,8 +341,8 @@ async function setUpAndWait(cfg) {
   const [w, s, e, n] = cfg.view;
   const centre = C.Cartographic.fromDegrees((w + e) / 2, (s + n) / 2);
   const [sampled] = await C.sampleTerrainMostDetailed(provider, [centre.clone()], true);
-  const target = C.Cartographic.toCartesian(
-      new C.Cartographic(centre.longitude, centre.latitude, Number.isFinite(sampled.height) ? sampled.height : 0));
+  const centreHeight = Number.isFinite(sampled.height) ? sampled.height : 0;
+  const target = C.Cartesian3.fromRadians(centre.longitude, centre.latitude, centreHeight);
   const R = 6378137;
   const ew = C.Math.toRadians(e - w) * R * Math.cos(centre.latitude);
   const ns = C.Math.toRadians(n - s) * R;
@@ -347,22 +352,23 @@ async function setUpAndWait(cfg) {
   const fovx = aspect >= 1 ? fov : 2 * Math.atan(Math.tan(fov / 2) * aspect);
   const fovy = aspect >= 1 ? 2 * Math.atan(Math.tan(fov / 2) / aspect) : fov;
   const pitch = C.Math.toRadians(cfg.pitch);
-  const range = cfg.rangeFactor * Math.max(ew / (2 * Math.tan(fovx / 2)), ns * Math.sin(-pitch) / (2 * Math.tan(fovy / 2)));
+  const range = cfg.rangeFactor *
+      Math.max(ew / (2 * Math.tan(fovx / 2)), ns * Math.sin(-pitch) / (2 * Math.tan(fovy / 2)));
   camera.lookAt(target, new C.HeadingPitchRange(0, pitch, range));
   camera.lookAtTransform(C.Matrix4.IDENTITY);
   const enu = C.Transforms.eastNorthUpToFixedFrame(target);
   const elevation = C.Math.toRadians(40);
   const fromLight = new C.Cartesian3(-Math.cos(elevation) / Math.SQRT2, Math.cos(elevation) / Math.SQRT2,
                                      Math.sin(elevation));  // towards the light, east-north-up
-  const direction = C.Matrix4.multiplyByPointAsVector(enu, C.Cartesian3.negate(fromLight, new C.Cartesian3()),
-                                                      new C.Cartesian3());
-  scene.light = new C.DirectionalLight({ direction: C.Cartesian3.normalize(direction, direction), intensity: 2.2 });
+  const toLight = C.Matrix4.multiplyByPointAsVector(enu, fromLight, new C.Cartesian3());
+  const direction = C.Cartesian3.normalize(C.Cartesian3.negate(toLight, toLight), toLight);
+  scene.light = new C.DirectionalLight({ direction, intensity: 2.2 });
   say(`camera at range ${(range / 1000).toFixed(1)} km, pitch ${cfg.pitch} deg, looking at ` +
       `${C.Math.toDegrees(centre.longitude).toFixed(4)}, ${C.Math.toDegrees(centre.latitude).toFixed(4)}`);
 
   // tilesLoaded once loading has been seen, for 10 rendered frames in a row.
   let sawLoading = false;
-  let lastQueue = -1;
+  let lastQueue = 0;
   let lastSaid = 0;
   globe.tileLoadProgressEvent.addEventListener((queued) => {
     if (queued > 0) sawLoading = true;
@@ -406,7 +412,8 @@ async function sampleHeights(points) {
   const sampled = await C.sampleTerrainMostDetailed(provider, cartographics, true);
   // After sampling: with "metadataAvailability" the deeper levels are only known by then.
   const levels = cartographics.map((c) => provider.availability.computeMaximumLevelAtPosition(c));
-  return { heights: sampled.map((c) => (Number.isFinite(c.height) ? c.height : null)), levels };
+  const heights = sampled.map((c) => (Number.isFinite(c.height) ? c.height : null));
+  return { heights, levels, failures: window.checkFailures };
 }
 
 // --- main ----------------------------------------------------------------------------------------
@@ -414,14 +421,15 @@ async function sampleHeights(points) {
 async function main() {
   const { layer, points, view } = readInputs();
   if (!fs.existsSync(path.join(cesiumDir, 'Cesium.js')))
-    throw new Error(`CesiumJS is missing (${cesiumDir}): run 'npm ci --prefix ${here}' (scripts/install-deps.sh)`);
+    throw new Error(`CesiumJS is missing (${cesiumDir}): run scripts/install-deps.sh`);
   let puppeteer;
   try {
     puppeteer = (await import('puppeteer-core')).default;
   } catch (e) {
-    throw new Error(`puppeteer-core is missing: run 'npm ci --prefix ${here}' (scripts/install-deps.sh): ${e.message}`);
+    throw new Error(`puppeteer-core is missing (${e.message}): run scripts/install-deps.sh`);
   }
-  if (!fs.existsSync(opt.chromium)) throw new Error(`Chromium not found at ${opt.chromium} (apt install chromium, or --chromium PATH)`);
+  if (!fs.existsSync(opt.chromium))
+    throw new Error(`Chromium not found at ${opt.chromium} (apt install chromium, or --chromium PATH)`);
   result.view = view;
   result.layer = { format: layer.format, maxzoom: layer.maxzoom, extensions: layer.extensions };
 
@@ -522,6 +530,7 @@ async function main() {
   if (points.length) {
     log(`sampling ${points.length} heights (sampleTerrainMostDetailed)`);
     const s = await page.evaluate(sampleHeights, points);
+    for (const f of s.failures) fail(f);
     result.heights = s.heights;
     result.levels = s.levels;
     const missing = s.heights.filter((h) => h === null).length;
