@@ -100,15 +100,24 @@ void write_crop(const fs::path& asc) {
 
 // --- small JSON readers for the two files we read (layer.json, the checker's result) --------------
 
-/// The numbers of the array that follows `"key":` at or after `from` (null entries as NaN), or
-/// nothing when the key or a well-formed array is absent.
+/// The position just after `"key":` (a member's name, not a string value that happens to read the
+/// same), searching from `from`; npos when there is none.
+std::size_t after_key(const std::string& json, const std::string& key, std::size_t from = 0) {
+  const std::string quoted = "\"" + key + "\"";
+  for (std::size_t p = json.find(quoted, from); p != std::string::npos; p = json.find(quoted, p + 1)) {
+    const std::size_t colon = json.find_first_not_of(" \t\r\n", p + quoted.size());
+    if (colon != std::string::npos && json[colon] == ':') return colon + 1;
+  }
+  return std::string::npos;
+}
+
+/// The numbers of the array that is the value of member `key` (the first after `from`; null
+/// entries as NaN), or nothing when the member or a well-formed array of numbers is absent.
 std::optional<std::vector<double>> number_array(const std::string& json, const std::string& key,
                                                 std::size_t from = 0) {
-  std::size_t p = json.find("\"" + key + "\"", from);
+  std::size_t p = after_key(json, key, from);
   if (p == std::string::npos) return std::nullopt;
-  p = json.find_first_not_of(" \t\r\n", p + key.size() + 2);
-  if (p == std::string::npos || json[p] != ':') return std::nullopt;
-  p = json.find_first_not_of(" \t\r\n", p + 1);
+  p = json.find_first_not_of(" \t\r\n", p);
   if (p == std::string::npos || json[p] != '[') return std::nullopt;
   std::vector<double> v;
   ++p;
@@ -129,12 +138,17 @@ std::optional<std::vector<double>> number_array(const std::string& json, const s
   }
 }
 
-/// True when `"key": true` occurs in the JSON.
+/// True when member `key` is `true`.
 bool is_true(const std::string& json, const std::string& key) {
-  std::size_t p = json.find("\"" + key + "\"");
-  if (p == std::string::npos) return false;
-  p = json.find_first_not_of(" \t\r\n:", p + key.size() + 2);
+  const std::size_t p = json.find_first_not_of(" \t\r\n", after_key(json, key));
   return p != std::string::npos && json.compare(p, 4, "true") == 0;
+}
+
+/// layer.json's `"terralod": {"max_error": [...]}` (metres per level), or nothing.
+std::optional<std::vector<double>> layer_max_error(const std::string& layer) {
+  const std::size_t member = after_key(layer, "terralod");
+  if (member == std::string::npos) return std::nullopt;
+  return number_array(layer, "max_error", member);
 }
 
 // --- the tools ---------------------------------------------------------------------------------------
@@ -332,9 +346,7 @@ TEST(CesiumClient, LoadsTheExportedTilesetAndSamplesDemPlusEgm96) {
 
   const Tileset& ts = tileset();
   ASSERT_FALSE(ts.dir.empty());
-  const std::size_t extra = ts.layer.find("\"terralod\"");
-  ASSERT_NE(extra, std::string::npos) << "layer.json has no \"terralod\" key:\n" << ts.layer;
-  const auto max_error = number_array(ts.layer, "max_error", extra);
+  const auto max_error = layer_max_error(ts.layer);
   ASSERT_TRUE(max_error && !max_error->empty()) << "no \"terralod\": {\"max_error\": [...]}:\n" << ts.layer;
   const double bound = max_error->back();
   const int deepest = int(max_error->size()) - 1;
@@ -406,7 +418,7 @@ TEST(CesiumClient, ReportsABrokenTile) {
   const fs::path broken = tmp_dir() / "broken_tiles";
   fs::remove_all(broken);
   fs::copy(ts.dir, broken, fs::copy_options::recursive);
-  const auto max_error = number_array(ts.layer, "max_error", ts.layer.find("\"terralod\""));
+  const auto max_error = layer_max_error(ts.layer);
   ASSERT_TRUE(max_error && !max_error->empty());
   // The deepest tile under Mount Washington (crop sample 128, 128): level z has 2^z x-tiles per
   // 180 degrees, y from the south pole.

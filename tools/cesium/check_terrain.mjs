@@ -126,6 +126,7 @@ const result = {
 };
 let browser = null;
 let server = null;
+let layerJson = null;  // the tileset's layer.json, once read
 let finished = false;
 
 function fail(message) {
@@ -157,6 +158,10 @@ async function finish() {
     process.exit(0);
   }
   for (const f of result.failures) process.stderr.write(`check_terrain: FAILED: ${f}\n`);
+  if (result.failures.some((f) => f.includes('addAvailableTileRange')) && layerJson &&
+      layerJson.metadataAvailability === undefined)
+    process.stderr.write('check_terrain: the tiles carry the metadata extension but layer.json has no ' +
+                         '"metadataAvailability": CesiumJS then fails on every such tile (tools/cesium/README.md)\n');
   process.exit(1);
 }
 
@@ -420,6 +425,7 @@ async function sampleHeights(points) {
 
 async function main() {
   const { layer, points, view } = readInputs();
+  layerJson = layer;
   if (!fs.existsSync(path.join(cesiumDir, 'Cesium.js')))
     throw new Error(`CesiumJS is missing (${cesiumDir}): run scripts/install-deps.sh`);
   let puppeteer;
