@@ -7,13 +7,17 @@ packages=(
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb fonts-dejavu-core clang-format
+  chromium proj-bin
 )
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-# Node.js runs the glTF validator of the tests (tools/gltf): any node >= 18 on the PATH will do
-# (Debian 12's nodejs is 18), so the Debian packages are only installed when the commands are absent.
+# chromium: the headless browser of the CesiumJS client check (tools/cesium); proj-bin: PROJ's cs2cs,
+# which gives that test the EGM96 geoid undulation (with proj-data's egm96_15.gtx).
+# Node.js runs the glTF validator and the CesiumJS check of the tests (tools/gltf, tools/cesium): any
+# node >= 18.18 on the PATH will do (Debian 12's nodejs is 18.20), so the Debian packages are only
+# installed when the commands are absent.
 command -v node >/dev/null || missing+=(nodejs)
 command -v npm >/dev/null || missing+=(npm)
 if ((${#missing[@]})); then
@@ -30,4 +34,12 @@ gltf_tools="$(cd "$(dirname "$0")/.." && pwd)/tools/gltf"
 if [[ ! -d "$gltf_tools/node_modules" ]]; then
   echo "install-deps: npm ci in tools/gltf (glTF validator)"
   npm ci --prefix "$gltf_tools" --ignore-scripts --no-audit --no-fund >/dev/null
+fi
+
+# CesiumJS and puppeteer-core (which drives the Debian chromium; it downloads no browser) at the
+# versions pinned in tools/cesium/package-lock.json, for tests/apps/test_cesium_client.cpp.
+cesium_tools="$(cd "$(dirname "$0")/.." && pwd)/tools/cesium"
+if [[ ! -d "$cesium_tools/node_modules" ]]; then
+  echo "install-deps: npm ci in tools/cesium (CesiumJS client check)"
+  npm ci --prefix "$cesium_tools" --ignore-scripts --no-audit --no-fund >/dev/null
 fi

@@ -1,0 +1,445 @@
+// A real CesiumJS client on the quantized-mesh tileset of `terralod export`: a crop of the SRTM
+// tile N44W072 (Mount Washington) is built into a database by `terralod build`, exported with
+// `terralod export --format quantized-mesh`, and loaded in headless Chromium by CesiumJS through
+// Cesium.CesiumTerrainProvider (tools/cesium/check_terrain.mjs, versions pinned in
+// tools/cesium/package-lock.json). The globe's tiles must load without an error, the screenshot
+// must show relief, and Cesium.sampleTerrainMostDetailed at 100 DEM samples must give the DEM
+// height plus the EGM96 geoid undulation, computed independently by PROJ's cs2cs, within the
+// tileset's own deepest-level error bound (layer.json: "terralod" -> "max_error", last entry).
+//
+// Fails, never skips, when Node.js, Chromium, tools/cesium/node_modules or cs2cs are missing
+// (scripts/install-deps.sh installs them); skips only without N44W072.hgt in TERRALOD_DATA_DIR.
+// The screenshot is kept at TERRALOD_CESIUM_SCREENSHOT (build/tests/apps/cesium_screenshot.png).
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "run_command.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using terralod::test::quote;
+using terralod::test::run_command;
+using terralod::test::slurp;
+
+const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cesium"); }
+
+// --- the DEM: a crop of N44W072.hgt ---------------------------------------------------------------
+//
+// N44W072.hgt: 1201 x 1201 big-endian int16 samples, row 0 at latitude 45, column 0 at longitude
+// -72, 3 arc-seconds apart (1/1200 degree). The crop: 257 x 257 samples, top-left (column 712,
+// row 748), about 17 km x 24 km around Mount Washington (1917 m, sample column 840 row 876), so
+// longitudes -71.4067 .. -71.1933 and latitudes 44.1633 .. 44.3767; no voids. Heights are metres
+// above the EGM96 geoid (SRTM's vertical datum).
+constexpr int kTile = 1201, kCol0 = 712, kRow0 = 748, kSize = 257;
+constexpr double kStep = 1.0 / 1200.0;
+
+double lon_of(int col) { return -72.0 + (kCol0 + col) * kStep; }  // crop column -> degrees
+double lat_of(int row) { return 45.0 - (kRow0 + row) * kStep; }   // crop row -> degrees
+
+struct Dem {
+  std::vector<double> h;  // kSize x kSize, row 0 north; empty when the .hgt is absent
+  double at(int col, int row) const { return h[std::size_t(row) * kSize + col]; }
+};
+
+const Dem& dem() {
+  static const Dem d = [] {
+    Dem r;
+    const std::string bytes = slurp(fs::path(TERRALOD_DATA_DIR) / "N44W072.hgt");
+    if (bytes.size() != std::size_t(kTile) * kTile * 2) return r;
+    r.h.resize(std::size_t(kSize) * kSize);
+    for (int row = 0; row < kSize; ++row)
+      for (int col = 0; col < kSize; ++col) {
+        const std::size_t i = 2 * (std::size_t(kRow0 + row) * kTile + kCol0 + col);
+        r.h[std::size_t(row) * kSize + col] =
+            double(std::int16_t(std::uint16_t(std::uint8_t(bytes[i]) << 8 | std::uint8_t(bytes[i + 1]))));
+      }
+    return r;
+  }();
+  return d;
+}
+
+// WGS 84 geographic, for the ASCII grid's .prj.
+constexpr const char* kWgs84Wkt =
+    "GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563,"
+    "AUTHORITY[\"EPSG\",\"7030\"]],AUTHORITY[\"EPSG\",\"6326\"]],PRIMEM[\"Greenwich\",0,"
+    "AUTHORITY[\"EPSG\",\"8901\"]],UNIT[\"degree\",0.0174532925199433,AUTHORITY[\"EPSG\",\"9122\"]],"
+    "AXIS[\"Latitude\",NORTH],AXIS[\"Longitude\",EAST],AUTHORITY[\"EPSG\",\"4326\"]]";
+
+std::string fixed(double v, int digits = 12) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+/// The crop as an Esri ASCII grid with a geographic .prj (sample-centre georeferencing).
+void write_crop(const fs::path& asc) {
+  std::ofstream f(asc);
+  f << "ncols " << kSize << "\nnrows " << kSize << "\nxllcenter " << fixed(lon_of(0), 15) << "\nyllcenter "
+    << fixed(lat_of(kSize - 1), 15) << "\ncellsize " << fixed(kStep, 15) << "\nNODATA_value -32768\n";
+  for (int row = 0; row < kSize; ++row) {
+    for (int col = 0; col < kSize; ++col) f << (col ? " " : "") << dem().at(col, row);
+    f << "\n";
+  }
+  std::ofstream(fs::path(asc).replace_extension(".prj")) << kWgs84Wkt << "\n";
+}
+
+// --- small JSON readers for the two files we read (layer.json, the checker's result) --------------
+
+/// The position just after `"key":` (a member's name, not a string value that happens to read the
+/// same), searching from `from`; npos when there is none.
+std::size_t after_key(const std::string& json, const std::string& key, std::size_t from = 0) {
+  const std::string quoted = "\"" + key + "\"";
+  for (std::size_t p = json.find(quoted, from); p != std::string::npos; p = json.find(quoted, p + 1)) {
+    const std::size_t colon = json.find_first_not_of(" \t\r\n", p + quoted.size());
+    if (colon != std::string::npos && json[colon] == ':') return colon + 1;
+  }
+  return std::string::npos;
+}
+
+/// The numbers of the array that is the value of member `key` (the first after `from`; null
+/// entries as NaN), or nothing when the member or a well-formed array of numbers is absent.
+std::optional<std::vector<double>> number_array(const std::string& json, const std::string& key,
+                                                std::size_t from = 0) {
+  std::size_t p = after_key(json, key, from);
+  if (p == std::string::npos) return std::nullopt;
+  p = json.find_first_not_of(" \t\r\n", p);
+  if (p == std::string::npos || json[p] != '[') return std::nullopt;
+  std::vector<double> v;
+  ++p;
+  for (;;) {
+    p = json.find_first_not_of(" \t\r\n,", p);
+    if (p == std::string::npos) return std::nullopt;
+    if (json[p] == ']') return v;
+    if (json.compare(p, 4, "null") == 0) {
+      v.push_back(std::nan(""));
+      p += 4;
+      continue;
+    }
+    char* end = nullptr;
+    const double x = std::strtod(json.c_str() + p, &end);
+    if (end == json.c_str() + p) return std::nullopt;
+    v.push_back(x);
+    p = std::size_t(end - json.c_str());
+  }
+}
+
+/// True when member `key` is `true`.
+bool is_true(const std::string& json, const std::string& key) {
+  const std::size_t p = json.find_first_not_of(" \t\r\n", after_key(json, key));
+  return p != std::string::npos && json.compare(p, 4, "true") == 0;
+}
+
+/// layer.json's `"terralod": {"max_error": [...]}` (metres per level), or nothing.
+std::optional<std::vector<double>> layer_max_error(const std::string& layer) {
+  const std::size_t member = after_key(layer, "terralod");
+  if (member == std::string::npos) return std::nullopt;
+  return number_array(layer, "max_error", member);
+}
+
+// --- the tools ---------------------------------------------------------------------------------------
+
+/// Fails the test when a tool the check needs is missing (a failure, never a skip).
+void require_tools() {
+  const std::string hint =
+      ": run scripts/install-deps.sh (apt chromium, proj-bin, nodejs; npm ci --prefix tools/cesium)";
+  const fs::path tools = fs::path(TERRALOD_CESIUM_CHECK).parent_path();
+  ASSERT_TRUE(fs::exists(TERRALOD_NODE)) << "Node.js (" << TERRALOD_NODE << ") is missing" << hint;
+  ASSERT_TRUE(fs::exists(TERRALOD_CESIUM_CHECK)) << TERRALOD_CESIUM_CHECK << " is missing";
+  ASSERT_TRUE(fs::exists(tools / "node_modules/cesium/Build/Cesium/Cesium.js"))
+      << "CesiumJS (" << tools / "node_modules/cesium"
+      << ") is missing" << hint;
+  ASSERT_TRUE(fs::exists(tools / "node_modules/puppeteer-core/package.json"))
+      << "puppeteer-core (" << tools / "node_modules/puppeteer-core"
+      << ") is missing" << hint;
+  ASSERT_TRUE(fs::exists(TERRALOD_CHROMIUM)) << "Chromium (" << TERRALOD_CHROMIUM << ") is missing" << hint;
+  ASSERT_TRUE(fs::exists(TERRALOD_CS2CS)) << "PROJ's cs2cs (" << TERRALOD_CS2CS << ") is missing" << hint;
+}
+
+terralod::test::CommandResult terralod(const std::string& args) {
+  return run_command(quote(TERRALOD_CLI) + " " + args);
+}
+
+struct Point {
+  int col = 0, row = 0;  // crop sample
+  double lon = 0, lat = 0, dem = 0;
+  double expected = 0;  // ellipsoidal: DEM + EGM96 undulation (cs2cs)
+};
+
+/// 100 distinct DEM samples of the crop (not on its border), drawn with a fixed, printed seed
+/// (mt19937's raw output, so the same on every platform).
+std::vector<Point> sample_points() {
+  constexpr std::uint32_t kSeed = 20240621;
+  std::printf("points: seed %u\n", kSeed);
+  std::mt19937 rng(kSeed);
+  std::set<std::pair<int, int>> seen;
+  std::vector<Point> pts;
+  while (pts.size() < 100) {
+    const int col = 1 + int(rng() % (kSize - 2)), row = 1 + int(rng() % (kSize - 2));
+    if (!seen.insert({col, row}).second) continue;
+    Point p;
+    p.col = col;
+    p.row = row;
+    p.lon = lon_of(col);
+    p.lat = lat_of(row);
+    p.dem = dem().at(col, row);
+    pts.push_back(p);
+  }
+  return pts;
+}
+
+/// Fills Point::expected with PROJ: cs2cs from WGS 84 + EGM96 height (EPSG:4326+5773, input
+/// "lat lon H") to WGS 84 3D (EPSG:4979, output "lat lon h"), h = H + N. --no-ballpark: without
+/// the EGM96 grid (proj-data's egm96_15.gtx) cs2cs fails instead of leaving the height as it is.
+void add_geoid(std::vector<Point>& pts) {
+  const fs::path in = tmp_dir() / "cs2cs_in.txt";
+  {
+    std::ofstream f(in);
+    for (const Point& p : pts) f << fixed(p.lat) << " " << fixed(p.lon) << " " << fixed(p.dem, 3) << "\n";
+  }
+  const auto r = run_command(quote(TERRALOD_CS2CS) + " --no-ballpark -f %.6f EPSG:4326+5773 EPSG:4979 < " +
+                             quote(in.string()));
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  std::istringstream out(r.out);
+  for (Point& p : pts) {
+    std::string line;
+    ASSERT_TRUE(std::getline(out, line)) << "cs2cs gave fewer lines than points:\n" << r.out << r.err;
+    double lat = 0, lon = 0, h = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf %lf %lf", &lat, &lon, &h), 3) << "cs2cs: '" << line << "'\n"
+                                                                           << r.err;
+    ASSERT_NEAR(lat, p.lat, 1e-6) << line;
+    ASSERT_NEAR(lon, p.lon, 1e-6) << line;
+    // EGM96 lies 27.3 .. 27.7 m below the ellipsoid here: anything else means no geoid was applied.
+    ASSERT_TRUE(h - p.dem > -29.0 && h - p.dem < -26.0)
+        << "cs2cs gave an EGM96 undulation of " << h - p.dem << " m at " << line << "\n"
+        << r.err;
+    p.expected = h;
+  }
+}
+
+/// Runs check_terrain.mjs; returns its result JSON ("" when it wrote none).
+struct Check {
+  terralod::test::CommandResult run;
+  std::string json;
+};
+Check check_terrain(const fs::path& tiles, const fs::path& points, const fs::path& out, const fs::path& png) {
+  const std::string view = fixed(lon_of(0), 6) + "," + fixed(lat_of(kSize - 1), 6) + "," +
+                           fixed(lon_of(kSize - 1), 6) + "," + fixed(lat_of(0), 6);
+  std::string cmd = quote(TERRALOD_NODE) + " " + quote(TERRALOD_CESIUM_CHECK) + " --tiles " +
+                    quote(tiles.string()) + " --out " + quote(out.string()) + " --view " + view +
+                    " --timeout 240 --chromium " + quote(TERRALOD_CHROMIUM);
+  if (!points.empty()) cmd += " --points " + quote(points.string());
+  if (!png.empty()) cmd += " --screenshot " + quote(png.string());
+  fs::remove(out);
+  Check c;
+  c.run = run_command(cmd);
+  c.json = slurp(out);
+  return c;
+}
+
+/// The database and its exported tileset, made once per process (empty paths after a failure).
+struct Tileset {
+  fs::path dir;
+  std::string layer;  // layer.json
+};
+const Tileset& tileset() {
+  static const Tileset t = [] {
+    Tileset r;
+    const fs::path asc = tmp_dir() / "n44w072_crop.asc", db = tmp_dir() / "crop.db",
+                   dir = tmp_dir() / "tiles";
+    write_crop(asc);
+    const auto b =
+        terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
+    if (b.status != 0) {
+      ADD_FAILURE() << "terralod build failed:\n" << b.out << b.err;
+      return r;
+    }
+    // SRTM heights are EGM96: asked for explicitly, since the crop is an ASCII grid, not a .hgt.
+    const auto e = terralod("export --threads 1 --db " + quote(db.string()) +
+                            " --format quantized-mesh --vertical-datum egm96 --out " + quote(dir.string()));
+    if (e.status != 0) {
+      ADD_FAILURE() << "terralod export failed:\n" << e.out << e.err;
+      return r;
+    }
+    std::printf("%s", e.err.c_str());
+    r.dir = dir;
+    r.layer = slurp(dir / "layer.json");
+    return r;
+  }();
+  return t;
+}
+
+// --- the screenshot ---------------------------------------------------------------------------------
+
+struct Picture {
+  int width = 0, height = 0;
+  std::size_t colours = 0;       // distinct RGB values
+  double luma_stddev = 0;        // over all pixels, 0..255
+  double lower_half_stddev = 0;  // the terrain nearest the camera
+};
+
+std::optional<Picture> analyse_png(const fs::path& png, std::string& error) {
+  auto in = OIIO::ImageInput::open(png.string());
+  if (!in) {
+    error = OIIO::geterror();
+    return std::nullopt;
+  }
+  Picture p;
+  p.width = in->spec().width;
+  p.height = in->spec().height;
+  const int channels = in->spec().nchannels;
+  if (channels < 3) {
+    error = "fewer than 3 channels";
+    return std::nullopt;
+  }
+  std::vector<std::uint8_t> px(std::size_t(p.width) * p.height * channels);
+  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, px.data())) {
+    error = in->geterror();
+    return std::nullopt;
+  }
+  std::set<std::uint32_t> colours;
+  double s = 0, s2 = 0, ls = 0, ls2 = 0;
+  std::size_t lower = 0;
+  for (int y = 0; y < p.height; ++y)
+    for (int x = 0; x < p.width; ++x) {
+      const std::uint8_t* c = &px[(std::size_t(y) * p.width + x) * channels];
+      colours.insert(std::uint32_t(c[0]) << 16 | std::uint32_t(c[1]) << 8 | c[2]);
+      const double l = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+      s += l;
+      s2 += l * l;
+      if (y >= p.height / 2) {
+        ls += l;
+        ls2 += l * l;
+        ++lower;
+      }
+    }
+  const double n = double(p.width) * p.height;
+  p.colours = colours.size();
+  p.luma_stddev = std::sqrt(std::max(0.0, s2 / n - (s / n) * (s / n)));
+  p.lower_half_stddev = std::sqrt(std::max(0.0, ls2 / lower - (ls / lower) * (ls / lower)));
+  return p;
+}
+
+// --- the tests ---------------------------------------------------------------------------------------
+
+TEST(CesiumClient, LoadsTheExportedTilesetAndSamplesDemPlusEgm96) {
+  ASSERT_NO_FATAL_FAILURE(require_tools());
+  if (dem().h.empty()) GTEST_SKIP() << "N44W072.hgt not in " << TERRALOD_DATA_DIR;
+  for (double h : dem().h) ASSERT_NE(h, -32768.0) << "the crop holds a void";
+
+  std::vector<Point> pts = sample_points();
+  ASSERT_NO_FATAL_FAILURE(add_geoid(pts));
+
+  const Tileset& ts = tileset();
+  ASSERT_FALSE(ts.dir.empty());
+  const auto max_error = layer_max_error(ts.layer);
+  ASSERT_TRUE(max_error && !max_error->empty()) << "no \"terralod\": {\"max_error\": [...]}:\n" << ts.layer;
+  const double bound = max_error->back();
+  const int deepest = int(max_error->size()) - 1;
+  ASSERT_TRUE(std::isfinite(bound) && bound >= 0) << ts.layer;
+  std::printf("tileset: levels 0..%d, deepest-level max_error %.4f m\n", deepest, bound);
+
+  const fs::path points = tmp_dir() / "points.json", out = tmp_dir() / "result.json";
+  {
+    std::ofstream f(points);
+    f << "[\n";
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      f << "  {\"lon\": " << fixed(pts[i].lon) << ", \"lat\": " << fixed(pts[i].lat) << "}"
+        << (i + 1 < pts.size() ? ",\n" : "\n");
+    f << "]\n";
+  }
+  const fs::path png = TERRALOD_CESIUM_SCREENSHOT;
+  fs::remove(png);
+  const Check c = check_terrain(ts.dir, points, out, png);
+  std::printf("%s", c.run.err.c_str());
+  ASSERT_EQ(c.run.status, 0) << "check_terrain.mjs failed:\n" << c.run.out << c.run.err << "\n" << c.json;
+  EXPECT_TRUE(is_true(c.json, "ok")) << c.json;
+  EXPECT_TRUE(is_true(c.json, "tiles_loaded")) << c.json;
+
+  // Heights: every one the DEM + EGM96 within the deepest level's bound, sampled at that level.
+  // The 0.01 m margin covers float32 header heights and Cesium's interpolation arithmetic.
+  const auto heights = number_array(c.json, "heights");
+  const auto levels = number_array(c.json, "levels");
+  ASSERT_TRUE(heights && levels) << c.json;
+  ASSERT_EQ(heights->size(), pts.size()) << c.json;
+  ASSERT_EQ(levels->size(), pts.size()) << c.json;
+  double worst = 0, sum = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Point& p = pts[i];
+    const double h = (*heights)[i], d = std::abs(h - p.expected);
+    EXPECT_EQ((*levels)[i], deepest) << "point " << i << " (" << fixed(p.lon, 6) << ", " << fixed(p.lat, 6)
+                                     << ")";
+    ASSERT_TRUE(std::isfinite(h)) << "no height at point " << i;
+    EXPECT_LE(d, bound + 0.01) << "point " << i << " (" << fixed(p.lon, 6) << ", " << fixed(p.lat, 6)
+                               << ", crop sample " << p.col << "," << p.row << "): Cesium " << fixed(h, 3)
+                               << " m, DEM " << p.dem << " m + EGM96 " << fixed(p.expected - p.dem, 3)
+                               << " m = " << fixed(p.expected, 3) << " m";
+    worst = std::max(worst, d);
+    sum += d;
+  }
+  std::printf("Cesium heights against DEM + EGM96 (cs2cs): mean |diff| %.4f m, max %.4f m, bound %.4f m\n",
+              sum / double(pts.size()), worst, bound);
+
+  // The screenshot shows lit relief: many colours, contrast, and contrast in the lower half (the
+  // terrain in front of the camera; the sky is one flat colour).
+  std::string error;
+  const auto pic = analyse_png(png, error);
+  ASSERT_TRUE(pic) << png << ": " << error;
+  std::printf("screenshot %s: %d x %d, %zu colours, luma stddev %.1f (lower half %.1f)\n", png.c_str(),
+              pic->width, pic->height, pic->colours, pic->luma_stddev, pic->lower_half_stddev);
+  EXPECT_EQ(pic->width, 1024);
+  EXPECT_EQ(pic->height, 640);
+  EXPECT_GE(pic->colours, 200u);
+  EXPECT_GE(pic->luma_stddev, 5.0);
+  EXPECT_GE(pic->lower_half_stddev, 3.0);
+}
+
+// The checker must see the tiles: the same tileset with one deepest-level tile replaced by
+// garbage (still gzip, so the server sends it) must fail with a message naming the problem.
+TEST(CesiumClient, ReportsABrokenTile) {
+  ASSERT_NO_FATAL_FAILURE(require_tools());
+  if (dem().h.empty()) GTEST_SKIP() << "N44W072.hgt not in " << TERRALOD_DATA_DIR;
+  const Tileset& ts = tileset();
+  ASSERT_FALSE(ts.dir.empty());
+  const fs::path broken = tmp_dir() / "broken_tiles";
+  fs::remove_all(broken);
+  fs::copy(ts.dir, broken, fs::copy_options::recursive);
+  const auto max_error = layer_max_error(ts.layer);
+  ASSERT_TRUE(max_error && !max_error->empty());
+  // The deepest tile under Mount Washington (crop sample 128, 128): level z has 2^z x-tiles per
+  // 180 degrees, y from the south pole.
+  const int z = int(max_error->size()) - 1;
+  const double size = 180.0 / std::ldexp(1.0, z);
+  const int x = int(std::floor((lon_of(128) + 180.0) / size)),
+            y = int(std::floor((lat_of(128) + 90.0) / size));
+  const fs::path tile = broken / std::to_string(z) / std::to_string(x) / (std::to_string(y) + ".terrain");
+  ASSERT_TRUE(fs::exists(tile)) << tile;
+  const fs::path garbage = tmp_dir() / "garbage";
+  std::ofstream(garbage) << "this is not a quantized-mesh tile\n";
+  const auto g = run_command("gzip -c " + quote(garbage.string()) + " > " + quote(tile.string()));
+  ASSERT_EQ(g.status, 0) << g.err;
+  const fs::path points = tmp_dir() / "one_point.json";
+  std::ofstream(points) << "[{\"lon\": " << fixed(lon_of(128)) << ", \"lat\": " << fixed(lat_of(128))
+                        << "}]\n";
+  const Check c = check_terrain(broken, points, tmp_dir() / "broken_result.json", {});
+  std::printf("%s", c.run.err.c_str());
+  EXPECT_EQ(c.run.status, 1) << c.run.err;
+  EXPECT_NE(c.run.err.find("FAILED"), std::string::npos) << c.run.err;
+  EXPECT_FALSE(is_true(c.json, "ok")) << c.json;
+}
+
+}  // namespace
