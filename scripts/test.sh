@@ -57,7 +57,7 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # settings, the prefetch, the stalled reader, loader errors and eviction run instrumented; the
 # high, fast-turning, per-kind and kind-pair flights and the flights checked frame by frame while blocks
 # arrive (random, per stand-in kind, N44W072) take the same paths through the runtime.
-asan_exclude='RealTileFull|KauaiVoids|test_database_build|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight'
+asan_exclude='RealTileFull|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight'
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
 asan() {
   # -O1 -g1: line tables are enough for reports and compile about a third faster than -O2 -g.

@@ -61,6 +61,41 @@ std::array<std::uint8_t, 2> oct_encode(const pm::Ecef& n) {
   return {std::uint8_t(snorm(x)), std::uint8_t(snorm(y))};
 }
 
+pm::Ecef oct_decode(std::array<std::uint8_t, 2> b) {
+  double x = b[0] / 255.0 * 2.0 - 1.0, y = b[1] / 255.0 * 2.0 - 1.0;
+  const double z = 1.0 - (std::abs(x) + std::abs(y));
+  if (z < 0) {
+    const double ox = x;
+    x = (1.0 - std::abs(y)) * (ox < 0 ? -1.0 : 1.0);
+    y = (1.0 - std::abs(ox)) * (y < 0 ? -1.0 : 1.0);
+  }
+  const double l = std::sqrt(x * x + y * y + z * z);
+  return {x / l, y / l, z / l};
+}
+
+std::vector<pm::Ecef> area_weighted_normals(std::span<const pm::Ecef> p,
+                                            std::span<const std::array<std::uint32_t, 3>> triangles) {
+  std::vector<pm::Ecef> n(p.size(), pm::Ecef{0, 0, 0});
+  for (const auto& tri : triangles) {
+    const pm::Ecef &a = p[tri[0]], &b = p[tri[1]], &c = p[tri[2]];
+    const pm::Ecef e1{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const pm::Ecef f{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                     e1[0] * e2[1] - e1[1] * e2[0]};
+    for (std::uint32_t v : tri)
+      for (int k = 0; k < 3; ++k) n[v][std::size_t(k)] += f[std::size_t(k)];
+  }
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    const double len = std::sqrt(n[i][0] * n[i][0] + n[i][1] * n[i][1] + n[i][2] * n[i][2]);
+    if (len > 0) {
+      for (double& x : n[i]) x /= len;
+    } else {  // an isolated vertex: the ellipsoid's normal
+      const pm::Geodetic g = pm::geodetic_from_ecef(p[i]);
+      n[i] = pm::geodetic_surface_normal(g.lon_deg, g.lat_deg);
+    }
+  }
+  return n;
+}
+
 QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::Geodetic> vertices,
                                       std::span<const std::array<std::uint32_t, 3>> triangles,
                                       const QuantizedMeshOptions& options) {
@@ -131,27 +166,9 @@ QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::G
     t.normals.reserve(order.size());
     for (std::uint32_t v : order) t.normals.push_back(oct_encode(options.normal(v)));
   } else if (options.normals) {
-    std::vector<pm::Ecef> n(order.size(), pm::Ecef{0, 0, 0});
-    for (const auto& tri : t.triangles) {
-      const pm::Ecef &a = ecef[tri[0]], &b = ecef[tri[1]], &c = ecef[tri[2]];
-      const pm::Ecef e1{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-      const pm::Ecef f{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                       e1[0] * e2[1] - e1[1] * e2[0]};
-      for (std::uint32_t v : tri)
-        for (int k = 0; k < 3; ++k) n[v][std::size_t(k)] += f[std::size_t(k)];
-    }
+    const std::vector<pm::Ecef> n = area_weighted_normals(ecef, t.triangles);
     t.normals.reserve(order.size());
-    for (std::size_t i = 0; i < order.size(); ++i) {
-      pm::Ecef m = n[i];
-      const double len = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
-      if (len > 0) {
-        for (double& x : m) x /= len;
-      } else {  // an isolated vertex: the ellipsoid's normal
-        const pm::Geodetic& g = vertices[order[i]];
-        m = pm::geodetic_surface_normal(g.lon_deg, g.lat_deg);
-      }
-      t.normals.push_back(oct_encode(m));
-    }
+    for (const pm::Ecef& m : n) t.normals.push_back(oct_encode(m));
   }
   t.metadata = options.metadata;
   return t;

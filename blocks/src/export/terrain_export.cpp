@@ -79,6 +79,30 @@ std::vector<std::vector<TileId>> level_tiles(ExportFormat format, int max_level,
   return tiles;
 }
 
+/// Levels whose tiles' metadata extension lists the availability of their subtree
+/// (layer.json's metadataAvailability, as Cesium World Terrain does): CesiumJS records the
+/// metadata of every tile that has it, and needs metadataAvailability to have somewhere to.
+constexpr int kMetadataLevels = 10;
+
+/// `"available": [...], ` for a tile at a multiple of kMetadataLevels: for each of the next
+/// kMetadataLevels levels (to max_level), the tiles of its subtree over the terrain; "" otherwise.
+std::string subtree_availability(const TileId& id, int max_level, const GeoRect& terrain) {
+  if (id.z % kMetadataLevels != 0 || id.z >= max_level) return "";
+  std::string a = "\"available\":[";
+  for (int k = 1; k <= kMetadataLevels && id.z + k <= max_level; ++k) {
+    const TileRange all = tiles_over(id.z + k, terrain);
+    const int n = 1 << k;
+    const TileRange mine = {std::max(all.start_x, id.x * n), std::max(all.start_y, id.y * n),
+                            std::min(all.end_x, id.x * n + n - 1), std::min(all.end_y, id.y * n + n - 1)};
+    a += k > 1 ? ",[" : "[";
+    if (mine.start_x <= mine.end_x && mine.start_y <= mine.end_y)
+      a += "{\"startX\":" + std::to_string(mine.start_x) + ",\"startY\":" + std::to_string(mine.start_y) +
+           ",\"endX\":" + std::to_string(mine.end_x) + ",\"endY\":" + std::to_string(mine.end_y) + "}";
+    a += "]";
+  }
+  return a + "],";
+}
+
 /// A power of two >= x (x > 0).
 double pow2_at_least(double x) { return std::ldexp(1.0, int(std::ceil(std::log2(x)))); }
 
@@ -217,11 +241,27 @@ QuantizedMeshTile make_tile(const detail::GeoField& field, const GeoRect& rect, 
     for (std::size_t v = 0; v < vertices.size(); ++v)
       vertices[v] = {rect.west + (rect.east - rect.west) * mesh.uv[v][0] / kQ,
                      rect.south + (rect.north - rect.south) * mesh.uv[v][1] / kQ, mesh.heights[v]};
+    // Normals: on the tile's edges from the terrain's gradient, a function of the position that
+    // the neighbour computes alike; inside, the mesh's own area-weighted normals, so that large
+    // flat triangles at the foot of a steep edge are lit as what they are.
+    std::vector<pm::Ecef> ecef(vertices.size());
+    for (std::size_t v = 0; v < vertices.size(); ++v) ecef[v] = pm::ecef_from_geodetic(vertices[v]);
+    std::vector<pm::Ecef> normals = area_weighted_normals(ecef, mesh.triangles);
+    // Beyond the samples (the apron, the cliff, the ellipsoid) edge vertices get the ellipsoid's
+    // normal: a cliff's sideways normal would shade the long flat triangles at its foot.
+    const GeoGrid& g = field.grid();
+    for (std::size_t v = 0; v < vertices.size(); ++v) {
+      const auto [u, w] = mesh.uv[v];
+      if (u != 0 && w != 0 && u != kQ && w != kQ) continue;
+      const double lon = vertices[v].lon_deg, lat = vertices[v].lat_deg;
+      const bool over_samples =
+          lon >= g.lon(0) && lon <= g.lon(g.width - 1) && lat <= g.lat(0) && lat >= g.lat(g.height - 1);
+      normals[v] =
+          over_samples ? field_normal(field, lon, lat, normal_step) : pm::geodetic_surface_normal(lon, lat);
+    }
     QuantizedMeshOptions qo;
     qo.height_step = L.height_step;
-    qo.normal = [&](std::size_t v) {
-      return field_normal(field, vertices[v].lon_deg, vertices[v].lat_deg, normal_step);
-    };
+    qo.normal = [&](std::size_t v) { return normals[v]; };
     tile = make_quantized_mesh(rect, vertices, mesh.triangles, qo);
     std::vector<std::array<int, 2>> uv(tile.u.size());
     std::vector<double> decoded(tile.u.size());
@@ -383,7 +423,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
     // forced grid keeps that within a quarter of the bound (what a client draws is flat in ECEF).
     const double theta = std::sqrt(8.0 * 0.25 * L.bound / pm::kWgs84A);
     const int sag = std::max(1, int(std::ceil(tile_deg * std::numbers::pi / 180.0 / theta)));
-    const double normal_step = std::max(std::max(grid.dlon, grid.dlat), tile_deg / 256.0);
+    const double normal_step = std::max(grid.dlon, grid.dlat);  // the terrain's own gradient
     std::vector<TileRecord>& rec = records[std::size_t(z)];
     rec.resize(level.size());
     std::vector<std::uint8_t> reused(level.size(), 0);
@@ -404,19 +444,15 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
           r.max_height = std::max(r.max_height, decoded_height(tile, v));
         std::string bytes;
         if (qm) {
-          tile.metadata =
-              "{\"terralod\":{\"max_error\":" + num(r.max_error) + ",\"bound\":" + num(L.bound) + "}}";
+          tile.metadata = "{" + subtree_availability(id, max_level, ringed) +
+                          "\"terralod\":{\"max_error\":" + num(r.max_error) + ",\"bound\":" + num(L.bound) +
+                          "}}";
           const std::vector<std::uint8_t> z = gzip(encode_quantized_mesh(tile));
           bytes.assign(z.begin(), z.end());
           r.geometric_error = r.max_error;
         } else {
           const detail::GlbTile glb = detail::encode_tile_glb(
-              tile, rect,
-              [&](std::size_t v) {
-                return field_normal(field, rect.west + (rect.east - rect.west) * tile.u[v] / kQ,
-                                    rect.south + (rect.north - rect.south) * tile.v[v] / kQ, normal_step);
-              },
-              file);
+              tile, rect, [&](std::size_t v) { return oct_decode(tile.normals[v]); }, file);
           // A flat triangle departs from the surface through its corners by at most the
           // sagitta of its smallest enclosing circle (radius <= longest edge / sqrt 3).
           const double sag_depth = glb.longest_edge * glb.longest_edge / (6.0 * pm::kWgs84B);
@@ -463,7 +499,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
       extra += "], \"height_step\": [";
       for (std::size_t z = 0; z < report.levels.size(); ++z)
         extra += (z ? ", " : "") + num(report.levels[z].height_step);
-      extra += "]}";
+      extra += "]}, \"metadataAvailability\": " + std::to_string(kMetadataLevels);
       const std::string name = fs::path(info.source).stem().string();
       pm::write_file_atomically((fs::path(out_dir) / "layer.json").string(),
                                 layer_json(name.empty() ? "terralod" : name, report.bounds, available,

@@ -94,8 +94,16 @@ QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::G
 /// The tile's bytes (uncompressed; servers and files hold them gzipped).
 std::vector<std::uint8_t> encode_quantized_mesh(const QuantizedMeshTile& tile);
 
-/// Oct encoding of a unit vector into two bytes, as CesiumJS's AttributeCompression.octEncode.
+/// Oct encoding of a unit vector into two bytes, as CesiumJS's AttributeCompression.octEncode,
+/// and its decoding (octDecode), a unit vector within about 1 degree of the encoded one.
 std::array<std::uint8_t, 2> oct_encode(const pm::Ecef& unit);
+pm::Ecef oct_decode(std::array<std::uint8_t, 2> bytes);
+
+/// Per-vertex unit normals of a triangle mesh: the sum of the cross products of the triangles
+/// around each vertex (area-weighted), normalised; the ellipsoid's normal under the vertex
+/// where that sum is zero (an unused vertex). Positions and normals in ECEF.
+std::vector<pm::Ecef> area_weighted_normals(std::span<const pm::Ecef> positions,
+                                            std::span<const std::array<std::uint32_t, 3>> triangles);
 
 /// gzip (RFC 1952) of bytes, zlib level 9.
 std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes);

@@ -25,15 +25,18 @@
 //     (down to 1/8 of the bound); the report and layer.json give what was reached.
 //   - Neighbouring tiles of one level share their edge vertices exactly: the same quantized
 //     positions and, through one height step per level (a power of two), the same decoded
-//     heights; normals come from the terrain's gradient at the vertex, the same on both sides.
-//     So a level's tiles join without skirts (the edge lists are written; no skirt is needed).
+//     heights; edge vertices take their normal from the terrain's gradient at the vertex, the
+//     same on both sides (inside a tile, normals are the mesh's area-weighted ones). So a level's
+//     tiles join without skirts (the edge lists are written; no skirt is needed).
 //   - Beyond the terrain the surface is the ellipsoid (height 0, CesiumJS's own default globe):
 //     one lattice ring continues the terrain's edge, and the next is the ellipsoid, so the terrain
 //     ends in a one-sample apron and a cliff, not a slope across the tile.
 //   - Large tiles get a regular grid of forced vertices (sag_divisions) so that the flat
 //     triangles a client draws stay within the level's error of the curved Earth.
-//   - Metadata extension: {"terralod": {"max_error": measured, "bound": bound}}; oct-encoded
-//     normals extension.
+//   - Metadata extension: {"terralod": {"max_error": measured, "bound": bound}}, and on tiles of
+//     levels 0, 10, 20, ... also "available": the next 10 levels of their subtree, as Cesium World
+//     Terrain does (layer.json says "metadataAvailability": 10; CesiumJS needs it to record any
+//     tile's metadata). Oct-encoded normals extension.
 //
 // 3D Tiles (ExportFormat::Tiles3D): the same tiling and the same tile meshes, as DIR/z/x/y.glb
 // (glb_tile.hpp: decoded vertices in ECEF relative to the tile centre, KHR_mesh_quantization)
