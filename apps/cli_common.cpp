@@ -12,6 +12,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "terralod/pm/atomic_file.hpp"
+
 namespace terralod::cli {
 
 // ---------------------------------------------------------------------------------------------
@@ -213,15 +215,7 @@ std::string format_bytes(std::uint64_t bytes) {
 }
 
 void write_text_file(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  if (f && std::fclose(f) != 0) ok = false;
-  std::error_code ec;
-  if (!ok || (std::filesystem::rename(tmp, path, ec), ec)) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path + ": cannot write the file (" + (ok ? ec.message() : "write failed") + ")");
-  }
+  pm::write_file_atomically(path, text);
 }
 
 std::string strf(const char* fmt, ...) {

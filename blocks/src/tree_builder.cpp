@@ -25,6 +25,7 @@
 
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/linf_error.hpp"
+#include "terralod/pm/parallel.hpp"
 #include "terralod/pm/pm_io.hpp"
 
 namespace terralod::blocks {
@@ -192,33 +193,7 @@ std::vector<Pending> split(const Pending& p, int children_max, const BlockLayout
   return out;
 }
 
-template <class F>
-void parallel_for(std::size_t n, int threads, F&& f) {
-  if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
-  threads = int(std::min<std::size_t>(std::size_t(threads), n));
-  if (threads <= 1) {
-    for (std::size_t i = 0; i < n; ++i) f(i);
-    return;
-  }
-  std::atomic<std::size_t> next{0};
-  std::exception_ptr error;
-  std::mutex m;
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t)
-    pool.emplace_back([&] {
-      for (std::size_t i; (i = next.fetch_add(1)) < n;) {
-        try {
-          f(i);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(m);
-          if (!error) error = std::current_exception();
-          next = n;
-        }
-      }
-    });
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-}
+using pm::parallel_for;
 
 }  // namespace
 

@@ -14,14 +14,19 @@ void write_file_atomically(const std::string& path, std::span<const std::uint8_t
   const std::string tmp = path + ".tmp";
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(errno));
-  bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  ok = std::fflush(f) == 0 && ok;
-  ok = ::fsync(::fileno(f)) == 0 && ok;
-  const int err = errno;
-  ok = std::fclose(f) == 0 && ok;
-  if (!ok) {
+  // Report the first failure's errno (a full disk fails the write or flush with ENOSPC; the
+  // fsync after it would overwrite that with something less telling).
+  int err = 0;
+  auto step = [&err](bool done) {
+    if (!done && err == 0) err = errno ? errno : EIO;
+  };
+  step(std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size());
+  step(std::fflush(f) == 0);
+  step(::fsync(::fileno(f)) == 0);
+  step(std::fclose(f) == 0);
+  if (err != 0) {
     std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err ? err : errno));
+    throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err));
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     const int e = errno;

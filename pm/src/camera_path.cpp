@@ -11,6 +11,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "terralod/pm/atomic_file.hpp"
+
 namespace terralod::pm {
 
 namespace {
@@ -109,25 +111,17 @@ std::vector<Camera> read_camera_path(const std::string& path, const CameraPathOp
 }
 
 void write_camera_path(const std::vector<Camera>& path, const std::string& file) {
-  const std::string tmp = file + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw std::runtime_error(file + ": cannot write (" + std::strerror(errno) + ")");
-  bool ok = std::fputs("x,y,z,yaw,pitch,fovy\n", f) >= 0;
+  std::string text = "x,y,z,yaw,pitch,fovy\n";
   char buf[64];
   for (const Camera& c : path) {
     const double v[6] = {c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg};
-    for (int i = 0; i < 6 && ok; ++i) {
+    for (int i = 0; i < 6; ++i) {
       const auto r = std::to_chars(buf, buf + sizeof buf, v[i]);
-      ok = std::fwrite(buf, 1, std::size_t(r.ptr - buf), f) == std::size_t(r.ptr - buf) &&
-           std::fputc(i == 5 ? '\n' : ',', f) != EOF;
+      text.append(buf, r.ptr);
+      text += i == 5 ? '\n' : ',';
     }
   }
-  ok = (std::fclose(f) == 0) && ok;
-  std::error_code ec;
-  if (!ok || (std::filesystem::rename(tmp, file, ec), ec)) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(file + ": cannot write the camera path");
-  }
+  write_file_atomically(file, text);
 }
 
 }  // namespace terralod::pm

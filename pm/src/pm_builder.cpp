@@ -39,6 +39,7 @@
 #include <sys/mman.h>
 #endif
 
+#include "terralod/pm/parallel.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 
 namespace terralod::pm {
@@ -1418,13 +1419,7 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
         progress.cancelled = true;
       }
     };
-    std::vector<std::thread> pool;
-    if (threads > 1)
-      for (int t = 1; t < strips; ++t) pool.emplace_back(strip, t);
-    strip(0);
-    for (auto& th : pool) th.join();
-    if (threads == 1)
-      for (int t = 1; t < strips; ++t) strip(t);
+    parallel_for(std::size_t(strips), threads, [&](std::size_t t) { strip(int(t)); });
     for (auto& f : failure)
       if (f) std::rethrow_exception(f);
     // A strip that went further than the others would put its higher-error collapses before

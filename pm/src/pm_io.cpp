@@ -77,6 +77,8 @@
 #include <limits>
 #include <optional>
 
+#include "terralod/pm/atomic_file.hpp"
+
 namespace terralod::pm {
 
 namespace {
@@ -409,29 +411,7 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
 }
 
 void write_pm(const ProgressiveMesh& pm, const std::string& path) {
-  const std::vector<std::uint8_t> bytes = encode_pm(pm);
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(errno));
-  // Report the first failure's errno (a full disk fails the write or flush with ENOSPC; the
-  // fsync after it would overwrite that with something less telling).
-  int err = 0;
-  auto step = [&err](bool done) {
-    if (!done && err == 0) err = errno ? errno : EIO;
-  };
-  step(std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size());
-  step(std::fflush(f) == 0);
-  step(::fsync(::fileno(f)) == 0);
-  step(std::fclose(f) == 0);
-  if (err != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int e = errno;
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename " + tmp + " onto it: " + std::strerror(e));
-  }
+  write_file_atomically(path, encode_pm(pm));
 }
 
 // ======================================================================================= read
