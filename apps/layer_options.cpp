@@ -197,6 +197,20 @@ const rd::PatchTextureFrame& LayerSetup::patch_frame(const pm::View& view,
   return *f;
 }
 
+std::vector<OptionSpec> layer_option_specs() {
+  return {
+      {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
+      {"--layer", "NAME[:OP[:W[:lens]]]",
+       "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
+       /*repeatable=*/true},
+      {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
+      {"--gamma", "PIXELS2",
+       "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
+      {"--texture-memory", "MB",
+       "texture memory budget of the --layer textures, megabytes (default 537: 512 MiB)"},
+  };
+}
+
 LayerSetupOptions layer_setup_options(const Args& a) {
   LayerSetupOptions lo;
   lo.gamma_px = a.get_double("--gamma", 1.0);

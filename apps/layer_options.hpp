@@ -85,6 +85,10 @@ struct LayerSetupOptions {
 /// UsageError for a value that is not > 0.
 LayerSetupOptions layer_setup_options(const Args& a);
 
+/// The option specs that layer_setup_options reads (--texture-db, --layer, --lens, --gamma,
+/// --texture-memory), for the commands that draw texture layers (terralod view, terralod-fly).
+std::vector<OptionSpec> layer_option_specs();
+
 class LayerSetup {
  public:
   /// Opens the database read-only, reads the records of the named layers (DatabaseError when

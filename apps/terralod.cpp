@@ -481,28 +481,18 @@ CommandSpec view_spec() {
           "view-dependent selection also the vsplits and ecols of the update and its time.\n\n") +
       kDemFormats;
   s.options = concat(
-      concat(
-          {{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or --db)"},
-           {"--db", "FILE.db",
-            "instead of --input: a block database (the runtime's frame) or a 'terralod hybrid' one"},
-           {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
-           {"--out", "IMAGE.png", "PNG file to write", true},
-           {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
-           {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
-           {"--wireframe", "", "draw the triangle edges over the surface"},
-           {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
-           {"--dump-mesh", "MESH", "also write the rendered mesh: .ply, .obj, .glb or .gltf, world units"},
-           {"--stats", "FILE.json", "write statistics and timings as JSON"},
-           {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
-           {"--layer", "NAME[:OP[:W[:lens]]]",
-            "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
-            /*repeatable=*/true},
-           {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
-           {"--gamma", "PIXELS2",
-            "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
-           {"--texture-memory", "MB",
-            "--db with --layer: texture memory budget, megabytes (default 537: 512 MiB)"}},
-          build_options()),
+      concat({{"--input", "FILE", "a .pm file (from 'terralod pm') or a DEM (or --db)"},
+              {"--db", "FILE.db",
+               "instead of --input: a block database (the runtime's frame) or a 'terralod hybrid' one"},
+              {"--camera", "X,Y,Z,YAW,PITCH,FOVY", "camera position (m) and angles (degrees)", true},
+              {"--out", "IMAGE.png", "PNG file to write", true},
+              {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
+              {"--size", "WxH", "image size in pixels (default 1024x768, each 1..16384)"},
+              {"--wireframe", "", "draw the triangle edges over the surface"},
+              {"--uniform", "", "uniform extraction chosen conservatively from --tau (the old mesh)"},
+              {"--dump-mesh", "MESH", "also write the rendered mesh: .ply, .obj, .glb or .gltf, world units"},
+              {"--stats", "FILE.json", "write statistics and timings as JSON"}},
+             concat(terralod::cli::layer_option_specs(), build_options())),
       dem_options());
   return s;
 }

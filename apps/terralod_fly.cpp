@@ -127,14 +127,8 @@ CommandSpec fly_spec() {
       {"--dump-meshes", "", "headless: also write each frame's drawn mesh as PLY"},
       {"--hud", "", "headless: draw the heads-up display into the frames (without its timings)"},
       {"--wireframe", "", "draw the triangle edges over the shading (the window's X toggles it)"},
-      {"--texture-db", "FILE.db", "block database holding the texture layers of --layer (default --db)"},
-      {"--layer", "NAME[:OP[:W[:lens]]]",
-       "draw a texture layer (repeatable, in order): OP blend|add|subtract|multiply, W in [0,1]", false,
-       /*repeatable=*/true},
-      {"--lens", "X,Y,RADIUS", "highlight lens (world metres) masking the layers marked ':lens'"},
-      {"--gamma", "PIXELS2",
-       "--db with --layer: texel area on screen a patch's texture may reach (> 0, default 1)"},
-      {"--texture-memory", "MB", "texture memory budget, megabytes (default 537: 512 MiB)"}};
+  };
+  for (OptionSpec& o : layer_option_specs()) s.options.push_back(std::move(o));
   return s;
 }
 
