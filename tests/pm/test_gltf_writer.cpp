@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "run_command.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -26,14 +27,10 @@ namespace fs = std::filesystem;
 using namespace terralod::pm;
 
 std::string tmp_path(const std::string& name) {
-  fs::create_directories(TERRALOD_TEST_TMP);
-  return std::string(TERRALOD_TEST_TMP) + "/gltf_" + name;
+  return (terralod::test::process_temp_dir("gltf") / name).string();
 }
 
-std::string read_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
+std::string read_bytes(const std::string& path) { return terralod::test::slurp(path); }
 
 // ---------------------------------------------------------------------------------------------
 // A minimal JSON parser: objects, arrays, strings (with \" \\ \/ \uXXXX < 0x80), numbers

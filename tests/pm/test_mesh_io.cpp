@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "run_command.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -22,8 +23,7 @@ namespace fs = std::filesystem;
 using namespace terralod::pm;
 
 std::string tmp_path(const std::string& name) {
-  fs::create_directories(TERRALOD_TEST_TMP);
-  return std::string(TERRALOD_TEST_TMP) + "/mesh_io_" + name;
+  return (terralod::test::process_temp_dir("mesh_io") / name).string();
 }
 
 // Tiny fixture, 3 x 2 samples, heights in metres:
