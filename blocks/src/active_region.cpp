@@ -12,7 +12,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "terralod/blocks/tree_builder.hpp"
+#include "terralod/blocks/node_strategy.hpp"
 #include "terralod/pm/linf_error.hpp"
 
 namespace terralod::blocks {
