@@ -10,6 +10,12 @@
 // Fails, never skips, when Node.js, Chromium, tools/cesium/node_modules or cs2cs are missing
 // (scripts/install-deps.sh installs them); skips only without N44W072.hgt in TERRALOD_DATA_DIR.
 // The screenshot is kept at TERRALOD_CESIUM_SCREENSHOT (build/tests/apps/cesium_screenshot.png).
+//
+// The same database exported with `--format 3dtiles` (3D Tiles 1.1, glb contents, ellipsoidal
+// heights) is loaded through Cesium.Cesium3DTileset (check_terrain.mjs --3dtiles), with heights
+// from Scene.sampleHeightMostDetailed, checked against the same DEM + EGM96 within the largest
+// geometricError of the tileset's deepest tiles; its screenshot is cesium_3dtiles_screenshot.png
+// next to the other.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
@@ -144,6 +150,34 @@ bool is_true(const std::string& json, const std::string& key) {
   return p != std::string::npos && json.compare(p, 4, "true") == 0;
 }
 
+/// tileset.json's deepest content level (z of the "z/x/y.glb" URIs) and the largest geometricError
+/// of the tiles at that level, or nothing. A tile's own geometricError is the last one before its
+/// content's URI (its children follow the content).
+std::optional<std::pair<int, double>> deepest_geometric_error(const std::string& tileset) {
+  std::vector<std::pair<int, double>> tiles;  // level, geometricError
+  for (std::size_t p = after_key(tileset, "uri"); p != std::string::npos; p = after_key(tileset, "uri", p)) {
+    const std::size_t q = tileset.find('"', p);
+    if (q == std::string::npos) return std::nullopt;
+    char* end = nullptr;
+    const long level = std::strtol(tileset.c_str() + q + 1, &end, 10);
+    if (end == tileset.c_str() + q + 1 || *end != '/') return std::nullopt;
+    const std::size_t g = tileset.rfind("\"geometricError\"", q);
+    if (g == std::string::npos) return std::nullopt;
+    const std::size_t v = after_key(tileset, "geometricError", g);
+    const double e = std::strtod(tileset.c_str() + v, &end);
+    if (end == tileset.c_str() + v) return std::nullopt;
+    tiles.push_back({int(level), e});
+  }
+  if (tiles.empty()) return std::nullopt;
+  std::pair<int, double> r{-1, 0.0};
+  for (const auto& [level, e] : tiles)
+    if (level > r.first)
+      r = {level, e};
+    else if (level == r.first)
+      r.second = std::max(r.second, e);
+  return r;
+}
+
 /// layer.json's `"terralod": {"max_error": [...]}` (metres per level), or nothing.
 std::optional<std::vector<double>> layer_max_error(const std::string& layer) {
   const std::size_t member = after_key(layer, "terralod");
@@ -236,7 +270,8 @@ struct Check {
   terralod::test::CommandResult run;
   std::string json;
 };
-Check check_terrain(const fs::path& tiles, const fs::path& points, const fs::path& out, const fs::path& png) {
+Check check_terrain(const fs::path& tiles, const fs::path& points, const fs::path& out, const fs::path& png,
+                    bool tiles3d = false) {
   const std::string view = fixed(lon_of(0), 6) + "," + fixed(lat_of(kSize - 1), 6) + "," +
                            fixed(lon_of(kSize - 1), 6) + "," + fixed(lat_of(0), 6);
   std::string cmd = quote(TERRALOD_NODE) + " " + quote(TERRALOD_CESIUM_CHECK) + " --tiles " +
@@ -244,6 +279,7 @@ Check check_terrain(const fs::path& tiles, const fs::path& points, const fs::pat
                     " --timeout 240 --chromium " + quote(TERRALOD_CHROMIUM);
   if (!points.empty()) cmd += " --points " + quote(points.string());
   if (!png.empty()) cmd += " --screenshot " + quote(png.string());
+  if (tiles3d) cmd += " --3dtiles";
   fs::remove(out);
   Check c;
   c.run = run_command(cmd);
@@ -251,7 +287,38 @@ Check check_terrain(const fs::path& tiles, const fs::path& points, const fs::pat
   return c;
 }
 
-/// The database and its exported tileset, made once per process (empty paths after a failure).
+/// The database of the crop, built once per process (an empty path after a failure).
+const fs::path& database() {
+  static const fs::path d = [] {
+    const fs::path asc = tmp_dir() / "n44w072_crop.asc", db = tmp_dir() / "crop.db";
+    write_crop(asc);
+    const auto b =
+        terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
+    if (b.status != 0) {
+      ADD_FAILURE() << "terralod build failed:\n" << b.out << b.err;
+      return fs::path();
+    }
+    return db;
+  }();
+  return d;
+}
+
+/// The database exported as `format` into tmp_dir()/`name` (an empty path after a failure).
+fs::path export_database(const std::string& format, const std::string& name) {
+  if (database().empty()) return {};
+  const fs::path dir = tmp_dir() / name;
+  // SRTM heights are EGM96: asked for explicitly, since the crop is an ASCII grid, not a .hgt.
+  const auto e = terralod("export --threads 1 --db " + quote(database().string()) + " --format " + format +
+                          " --vertical-datum egm96 --out " + quote(dir.string()));
+  if (e.status != 0) {
+    ADD_FAILURE() << "terralod export --format " << format << " failed:\n" << e.out << e.err;
+    return {};
+  }
+  std::printf("%s", e.err.c_str());
+  return dir;
+}
+
+/// The database's quantized-mesh tileset, made once per process (empty paths after a failure).
 struct Tileset {
   fs::path dir;
   std::string layer;  // layer.json
@@ -259,28 +326,48 @@ struct Tileset {
 const Tileset& tileset() {
   static const Tileset t = [] {
     Tileset r;
-    const fs::path asc = tmp_dir() / "n44w072_crop.asc", db = tmp_dir() / "crop.db",
-                   dir = tmp_dir() / "tiles";
-    write_crop(asc);
-    const auto b =
-        terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
-    if (b.status != 0) {
-      ADD_FAILURE() << "terralod build failed:\n" << b.out << b.err;
-      return r;
-    }
-    // SRTM heights are EGM96: asked for explicitly, since the crop is an ASCII grid, not a .hgt.
-    const auto e = terralod("export --threads 1 --db " + quote(db.string()) +
-                            " --format quantized-mesh --vertical-datum egm96 --out " + quote(dir.string()));
-    if (e.status != 0) {
-      ADD_FAILURE() << "terralod export failed:\n" << e.out << e.err;
-      return r;
-    }
-    std::printf("%s", e.err.c_str());
-    r.dir = dir;
-    r.layer = slurp(dir / "layer.json");
+    r.dir = export_database("quantized-mesh", "tiles");
+    if (!r.dir.empty()) r.layer = slurp(r.dir / "layer.json");
     return r;
   }();
   return t;
+}
+
+/// The points as check_terrain.mjs's --points JSON.
+void write_points(const std::vector<Point>& pts, const fs::path& file) {
+  std::ofstream f(file);
+  f << "[\n";
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    f << "  {\"lon\": " << fixed(pts[i].lon) << ", \"lat\": " << fixed(pts[i].lat) << "}"
+      << (i + 1 < pts.size() ? ",\n" : "\n");
+  f << "]\n";
+}
+
+/// Every point of the checker's result has a height (sampled at level `deepest`, by the result's
+/// "levels") within `bound` of the DEM + EGM96; prints mean and max |difference|.
+void expect_heights_within(const std::string& json, const std::vector<Point>& pts, int deepest, double bound,
+                           const char* what) {
+  const auto heights = number_array(json, "heights");
+  const auto levels = number_array(json, "levels");
+  ASSERT_TRUE(heights && levels) << json;
+  ASSERT_EQ(heights->size(), pts.size()) << json;
+  ASSERT_EQ(levels->size(), pts.size()) << json;
+  double worst = 0, sum = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Point& p = pts[i];
+    const double h = (*heights)[i], d = std::abs(h - p.expected);
+    EXPECT_EQ((*levels)[i], deepest) << "point " << i << " (" << fixed(p.lon, 6) << ", " << fixed(p.lat, 6)
+                                     << ")";
+    ASSERT_TRUE(std::isfinite(h)) << "no height at point " << i;
+    EXPECT_LE(d, bound) << "point " << i << " (" << fixed(p.lon, 6) << ", " << fixed(p.lat, 6)
+                        << ", crop sample " << p.col << "," << p.row << "): Cesium " << fixed(h, 3)
+                        << " m, DEM " << p.dem << " m + EGM96 " << fixed(p.expected - p.dem, 3)
+                        << " m = " << fixed(p.expected, 3) << " m";
+    worst = std::max(worst, d);
+    sum += d;
+  }
+  std::printf("%s against DEM + EGM96 (cs2cs): mean |diff| %.4f m, max %.4f m, bound %.4f m\n", what,
+              sum / double(pts.size()), worst, bound);
 }
 
 // --- the screenshot ---------------------------------------------------------------------------------
@@ -334,6 +421,21 @@ std::optional<Picture> analyse_png(const fs::path& png, std::string& error) {
   return p;
 }
 
+/// The screenshot shows lit relief: many colours, contrast, and contrast in the lower half (the
+/// terrain in front of the camera; the sky is one flat colour).
+void expect_relief(const fs::path& png) {
+  std::string error;
+  const auto pic = analyse_png(png, error);
+  ASSERT_TRUE(pic) << png << ": " << error;
+  std::printf("screenshot %s: %d x %d, %zu colours, luma stddev %.1f (lower half %.1f)\n", png.c_str(),
+              pic->width, pic->height, pic->colours, pic->luma_stddev, pic->lower_half_stddev);
+  EXPECT_EQ(pic->width, 1024);
+  EXPECT_EQ(pic->height, 640);
+  EXPECT_GE(pic->colours, 200u);
+  EXPECT_GE(pic->luma_stddev, 5.0);
+  EXPECT_GE(pic->lower_half_stddev, 3.0);
+}
+
 // --- the tests ---------------------------------------------------------------------------------------
 
 TEST(CesiumClient, LoadsTheExportedTilesetAndSamplesDemPlusEgm96) {
@@ -354,14 +456,7 @@ TEST(CesiumClient, LoadsTheExportedTilesetAndSamplesDemPlusEgm96) {
   std::printf("tileset: levels 0..%d, deepest-level max_error %.4f m\n", deepest, bound);
 
   const fs::path points = tmp_dir() / "points.json", out = tmp_dir() / "result.json";
-  {
-    std::ofstream f(points);
-    f << "[\n";
-    for (std::size_t i = 0; i < pts.size(); ++i)
-      f << "  {\"lon\": " << fixed(pts[i].lon) << ", \"lat\": " << fixed(pts[i].lat) << "}"
-        << (i + 1 < pts.size() ? ",\n" : "\n");
-    f << "]\n";
-  }
+  write_points(pts, points);
   const fs::path png = TERRALOD_CESIUM_SCREENSHOT;
   fs::remove(png);
   const Check c = check_terrain(ts.dir, points, out, png);
@@ -372,40 +467,42 @@ TEST(CesiumClient, LoadsTheExportedTilesetAndSamplesDemPlusEgm96) {
 
   // Heights: every one the DEM + EGM96 within the deepest level's bound, sampled at that level.
   // The 0.01 m margin covers float32 header heights and Cesium's interpolation arithmetic.
-  const auto heights = number_array(c.json, "heights");
-  const auto levels = number_array(c.json, "levels");
-  ASSERT_TRUE(heights && levels) << c.json;
-  ASSERT_EQ(heights->size(), pts.size()) << c.json;
-  ASSERT_EQ(levels->size(), pts.size()) << c.json;
-  double worst = 0, sum = 0;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    const Point& p = pts[i];
-    const double h = (*heights)[i], d = std::abs(h - p.expected);
-    EXPECT_EQ((*levels)[i], deepest) << "point " << i << " (" << fixed(p.lon, 6) << ", " << fixed(p.lat, 6)
-                                     << ")";
-    ASSERT_TRUE(std::isfinite(h)) << "no height at point " << i;
-    EXPECT_LE(d, bound + 0.01) << "point " << i << " (" << fixed(p.lon, 6) << ", " << fixed(p.lat, 6)
-                               << ", crop sample " << p.col << "," << p.row << "): Cesium " << fixed(h, 3)
-                               << " m, DEM " << p.dem << " m + EGM96 " << fixed(p.expected - p.dem, 3)
-                               << " m = " << fixed(p.expected, 3) << " m";
-    worst = std::max(worst, d);
-    sum += d;
-  }
-  std::printf("Cesium heights against DEM + EGM96 (cs2cs): mean |diff| %.4f m, max %.4f m, bound %.4f m\n",
-              sum / double(pts.size()), worst, bound);
+  expect_heights_within(c.json, pts, deepest, bound + 0.01, "Cesium heights");
+  expect_relief(png);
+}
 
-  // The screenshot shows lit relief: many colours, contrast, and contrast in the lower half (the
-  // terrain in front of the camera; the sky is one flat colour).
-  std::string error;
-  const auto pic = analyse_png(png, error);
-  ASSERT_TRUE(pic) << png << ": " << error;
-  std::printf("screenshot %s: %d x %d, %zu colours, luma stddev %.1f (lower half %.1f)\n", png.c_str(),
-              pic->width, pic->height, pic->colours, pic->luma_stddev, pic->lower_half_stddev);
-  EXPECT_EQ(pic->width, 1024);
-  EXPECT_EQ(pic->height, 640);
-  EXPECT_GE(pic->colours, 200u);
-  EXPECT_GE(pic->luma_stddev, 5.0);
-  EXPECT_GE(pic->lower_half_stddev, 3.0);
+// The 3D Tiles export of the same database through Cesium.Cesium3DTileset: every tile loads,
+// Scene.sampleHeightMostDetailed reaches the deepest tiles at every point and gives the DEM +
+// EGM96 within the largest geometricError of those tiles (tileset.json). No margin: the
+// exporter's geometricError already includes glTF quantization and the sag of flat triangles.
+TEST(CesiumClient, Loads3DTilesAndSamplesDemPlusEgm96) {
+  ASSERT_NO_FATAL_FAILURE(require_tools());
+  if (dem().h.empty()) GTEST_SKIP() << "N44W072.hgt not in " << TERRALOD_DATA_DIR;
+  std::vector<Point> pts = sample_points();
+  ASSERT_NO_FATAL_FAILURE(add_geoid(pts));
+
+  const fs::path dir = export_database("3dtiles", "tiles_3d");
+  ASSERT_FALSE(dir.empty());
+  const std::string json = slurp(dir / "tileset.json");
+  const auto deepest = deepest_geometric_error(json);
+  ASSERT_TRUE(deepest) << "no tiles with z/x/y.glb content and geometricError in " << dir / "tileset.json";
+  const auto [level, bound] = *deepest;
+  ASSERT_TRUE(std::isfinite(bound) && bound > 0) << bound;
+  std::printf("3D tileset: deepest level %d, largest geometricError there %.4f m\n", level, bound);
+
+  const fs::path points = tmp_dir() / "points.json", out = tmp_dir() / "result_3dtiles.json";
+  write_points(pts, points);
+  const fs::path png = fs::path(TERRALOD_CESIUM_SCREENSHOT).parent_path() / "cesium_3dtiles_screenshot.png";
+  fs::remove(png);
+  const Check c = check_terrain(dir, points, out, png, /*tiles3d=*/true);
+  std::printf("%s", c.run.err.c_str());
+  ASSERT_EQ(c.run.status, 0) << "check_terrain.mjs --3dtiles failed:\n"
+                             << c.run.out << c.run.err << "\n"
+                             << c.json;
+  EXPECT_TRUE(is_true(c.json, "ok")) << c.json;
+  EXPECT_TRUE(is_true(c.json, "tiles_loaded")) << c.json;
+  expect_heights_within(c.json, pts, level, bound, "Cesium 3D Tiles heights");
+  expect_relief(png);
 }
 
 // The checker must see the tiles: the same tileset with one deepest-level tile replaced by

@@ -2,7 +2,9 @@
 // A real CesiumJS client for a quantized-mesh terrain tileset: serves the tileset and CesiumJS
 // from a local HTTP server on 127.0.0.1, opens it in headless Chromium through
 // Cesium.CesiumTerrainProvider, waits until the globe's tiles are loaded, saves a screenshot and
-// samples heights with Cesium.sampleTerrainMostDetailed. Run with --help for the arguments.
+// samples heights with Cesium.sampleTerrainMostDetailed. With --3dtiles it does the same for a
+// 3D Tiles 1.1 tileset (tileset.json and glb tiles) through Cesium.Cesium3DTileset, with heights
+// from Scene.sampleHeightMostDetailed. Run with --help for the arguments.
 //
 // Nothing but 127.0.0.1 is reached: no Cesium ion (no default imagery, no geocoder), every other
 // request of the page is aborted and reported, and Chromium resolves no other host name.
@@ -20,18 +22,25 @@ const started = Date.now();
 
 const HELP = `Usage: node check_terrain.mjs --tiles DIR --out RESULT.json [options]
 
-Loads a quantized-mesh terrain tileset in CesiumJS (headless Chromium) and reports what the client
-sees: whether the globe's tiles loaded, a screenshot, and terrain heights at given points.
+Loads a quantized-mesh terrain tileset (or, with --3dtiles, a 3D Tiles tileset) in CesiumJS
+(headless Chromium) and reports what the client sees: whether the tiles loaded, a screenshot, and
+heights at given points.
 
   --tiles DIR          the tileset: DIR/layer.json and DIR/z/x/y.terrain (gzip on disk, served with
                        Content-Encoding: gzip and Content-Type application/vnd.quantized-mesh)
+  --3dtiles            DIR is a 3D Tiles tileset instead: DIR/tileset.json and its glb contents
+                       (served as model/gltf-binary), loaded with Cesium.Cesium3DTileset.fromUrl
+                       over a hidden globe; heights from Scene.sampleHeightMostDetailed, "levels"
+                       the deepest level (z of the content's z/x/y.glb) served over each point
+  --sse PIXELS         with --3dtiles: the tileset's maximumScreenSpaceError (default 2)
   --out FILE           result JSON: {"ok", "tiles_loaded", "heights": [m | null, ...], "levels":
                        [deepest available level at each point], "failures": [...], ...}
   --points FILE        JSON array of {"lon": deg, "lat": deg}; their heights are sampled with
                        Cesium.sampleTerrainMostDetailed (default: no points)
   --screenshot FILE    PNG of the view once the tiles are loaded (default: none)
   --view W,S,E,N       degrees: the camera frames this rectangle, looking north and obliquely down
-                       (default: layer.json's bounds)
+                       (default: layer.json's bounds; with --3dtiles, the regions of the deepest
+                       tiles with content)
   --pitch DEG          camera pitch, negative is down (default -35)
   --size WxH           viewport in pixels (default 1024x640)
   --imagery KIND       grid (Cesium.GridImageryProvider, drawn locally) or none (the globe's base
@@ -53,13 +62,18 @@ function usage(message) {
 
 function parseArgs(argv) {
   const known = new Set(['--tiles', '--out', '--points', '--screenshot', '--view', '--pitch', '--size',
-    '--imagery', '--timeout', '--chromium']);
+    '--imagery', '--timeout', '--chromium', '--sse']);
   const a = {};
+  let tiles3d = false;
   for (let i = 0; i < argv.length; ++i) {
     const k = argv[i];
     if (k === '--help' || k === '-h') {
       process.stdout.write(HELP + '\n');
       process.exit(0);
+    }
+    if (k === '--3dtiles') {
+      tiles3d = true;
+      continue;
     }
     if (!known.has(k)) usage(`unknown argument '${k}'`);
     if (i + 1 >= argv.length) usage(`${k} needs a value`);
@@ -81,6 +95,8 @@ function parseArgs(argv) {
     view: null,
     pitch: number('pitch', -35),
     timeout: number('timeout', 120),
+    tiles3d,
+    sse: number('sse', 2),
     imagery: a.imagery ?? 'grid',
     chromium: a.chromium ?? process.env.CHROMIUM ?? '/usr/bin/chromium',
     width: 1024,
@@ -101,6 +117,8 @@ function parseArgs(argv) {
     opt.height = +m[2];
   }
   if (!(opt.timeout > 0)) usage('--timeout must be > 0');
+  if (!(opt.sse > 0)) usage('--sse must be > 0');
+  if (a.sse !== undefined && !tiles3d) usage('--sse is for --3dtiles only');
   if (!(opt.pitch < 0 && opt.pitch >= -90)) usage('--pitch must be in [-90, 0)');
   if (opt.imagery !== 'grid' && opt.imagery !== 'none')
     usage(`--imagery must be grid or none, not '${opt.imagery}'`);
@@ -122,11 +140,12 @@ const result = {
   levels: [],
   failures: [],
   console_warnings: [],
-  requests: { terrain: {}, terrain_bytes: 0, not_found: [], blocked: [] },
+  requests: { terrain: {}, terrain_bytes: 0, glb: {}, glb_bytes: 0, not_found: [], blocked: [] },
 };
 let browser = null;
 let server = null;
 let layerJson = null;  // the tileset's layer.json, once read
+const servedGlb = new Set();  // with --3dtiles: the glb contents served, as "z/x/y.glb"
 let finished = false;
 
 function fail(message) {
@@ -172,13 +191,65 @@ const watchdog = setTimeout(() => {
 
 // --- inputs --------------------------------------------------------------------------------------
 
-function readInputs() {
-  const layerPath = path.join(opt.tiles, 'layer.json');
-  let layer;
+/// The tiles of a 3D Tiles tileset.json with content: {uri, level (z of z/x/y.glb, else the depth
+/// in the tree), region (radians and metres) or null}.
+function contentTiles(tileset) {
+  const tiles = [];
+  const walk = (tile, depth) => {
+    const uri = tile.content?.uri ?? tile.content?.url;
+    if (uri) {
+      const m = /^(\d+)\/\d+\/\d+\.glb$/.exec(uri);
+      const r = tile.boundingVolume?.region;
+      tiles.push({ uri, level: m ? Number(m[1]) : depth,
+                   region: Array.isArray(r) && r.length === 6 && r.every(Number.isFinite) ? r : null });
+    }
+    for (const c of tile.children ?? []) walk(c, depth + 1);
+  };
+  if (!tileset?.root) throw new Error('tileset.json has no "root"');
+  walk(tileset.root, 0);
+  return tiles;
+}
+
+function readTileset() {
+  const tilesetPath = path.join(opt.tiles, 'tileset.json');
+  let tileset;
   try {
-    layer = JSON.parse(fs.readFileSync(layerPath, 'utf8'));
+    tileset = JSON.parse(fs.readFileSync(tilesetPath, 'utf8'));
   } catch (e) {
-    throw new Error(`cannot read the tileset's ${layerPath}: ${e.message}`);
+    throw new Error(`cannot read the tileset's ${tilesetPath}: ${e.message}`);
+  }
+  const tiles = contentTiles(tileset);
+  if (!tiles.length) throw new Error(`${tilesetPath}: no tile has content`);
+  const deepest = Math.max(...tiles.map((t) => t.level));
+  // The deepest tiles' regions, in degrees, and their heights: the default view and its height.
+  const d = 180 / Math.PI;
+  const box = [Infinity, Infinity, -Infinity, -Infinity, Infinity, -Infinity];
+  for (const t of tiles) {
+    if (t.level !== deepest || !t.region) continue;
+    const [w, s, e, n, lo, hi] = t.region;
+    box[0] = Math.min(box[0], w * d);
+    box[1] = Math.min(box[1], s * d);
+    box[2] = Math.max(box[2], e * d);
+    box[3] = Math.max(box[3], n * d);
+    box[4] = Math.min(box[4], lo);
+    box[5] = Math.max(box[5], hi);
+  }
+  return { tileset, tiles, deepest, bounds: box.slice(0, 4).every(Number.isFinite) ? box.slice(0, 4) : null,
+           heights: box.slice(4) };
+}
+
+function readInputs() {
+  let layer = null;
+  let tiles3d = null;
+  if (opt.tiles3d) {
+    tiles3d = readTileset();
+  } else {
+    const layerPath = path.join(opt.tiles, 'layer.json');
+    try {
+      layer = JSON.parse(fs.readFileSync(layerPath, 'utf8'));
+    } catch (e) {
+      throw new Error(`cannot read the tileset's ${layerPath}: ${e.message}`);
+    }
   }
   let points = [];
   if (opt.points) {
@@ -194,13 +265,16 @@ function readInputs() {
     });
   }
   let view = opt.view;
-  if (!view) {
+  if (!view && tiles3d) {
+    if (!tiles3d.bounds) throw new Error('no --view given and the deepest tiles of tileset.json have no regions');
+    view = tiles3d.bounds;
+  } else if (!view) {
     const b = layer.bounds;
     if (!Array.isArray(b) || b.length !== 4 || !b.every(Number.isFinite))
       throw new Error('no --view given and layer.json has no usable "bounds"');
     view = b;
   }
-  return { layer, points, view };
+  return { layer, tiles3d, points, view };
 }
 
 // --- the HTTP server -----------------------------------------------------------------------------
@@ -256,7 +330,8 @@ function startServer() {
       if (p === '/favicon.ico') return send(204, {}, '');
       let file = null;
       let headers = {};
-      const terrain = /^\/tiles\/(\d+)\/(\d+)\/(\d+)\.terrain$/.exec(p);
+      const terrain = opt.tiles3d ? null : /^\/tiles\/(\d+)\/(\d+)\/(\d+)\.terrain$/.exec(p);
+      const glb = opt.tiles3d ? /^\/tiles\/((\d+)\/\d+\/\d+\.glb)$/.exec(p) : null;
       if (terrain) {
         file = fileBelow(opt.tiles, p.slice('/tiles'.length));
         headers = { 'Content-Type': 'application/vnd.quantized-mesh', 'Content-Encoding': 'gzip' };
@@ -267,7 +342,10 @@ function startServer() {
       }
       if (!file) return notFound();
       fs.readFile(file, (err, data) => {
-        if (err) return notFound(terrain ? 'a tile that layer.json says is available' : '');
+        if (err) {
+          return notFound(terrain ? 'a tile that layer.json says is available'
+                                  : glb ? 'a tile content that tileset.json lists' : '');
+        }
         if (terrain) {
           const z = terrain[1];
           result.requests.terrain[z] = (result.requests.terrain[z] ?? 0) + 1;
@@ -278,6 +356,11 @@ function startServer() {
           }
         } else {
           headers['Content-Type'] = MIME[path.extname(file).toLowerCase()] ?? 'application/octet-stream';
+          if (glb) {
+            result.requests.glb[glb[2]] = (result.requests.glb[glb[2]] ?? 0) + 1;
+            result.requests.glb_bytes += data.length;
+            servedGlb.add(glb[1]);
+          }
         }
         headers['Cache-Control'] = 'no-store';
         send(200, headers, req.method === 'HEAD' ? undefined : data);
@@ -290,19 +373,26 @@ function startServer() {
 
 // --- the page's work (runs in the browser; `cfg` is plain data) ----------------------------------
 
+// Quantized-mesh terrain (cfg.tiles3d false): a CesiumTerrainProvider on the globe. 3D Tiles
+// (cfg.tiles3d true): a Cesium3DTileset and no globe at all, so that every height picked comes from
+// the tileset.
 async function setUpAndWait(cfg) {
   const C = window.Cesium;
   const say = (m) => window.checkProgress(m);
   const failures = (window.checkFailures = []);  // read again after sampling
-  const provider = await C.CesiumTerrainProvider.fromUrl('/tiles/', {
-    requestVertexNormals: true,
-    requestMetadata: true,
-  });
-  provider.errorEvent.addEventListener((e) => failures.push(`terrain provider: ${e.message}`));
-  say(`CesiumJS ${C.VERSION}: terrain provider ready (normals: ${provider.hasVertexNormals}, ` +
-      `metadata: ${provider.hasMetadata})`);
+  let provider = null;
+  let tileset = null;
+  if (!cfg.tiles3d) {
+    provider = await C.CesiumTerrainProvider.fromUrl('/tiles/', {
+      requestVertexNormals: true,
+      requestMetadata: true,
+    });
+    provider.errorEvent.addEventListener((e) => failures.push(`terrain provider: ${e.message}`));
+    say(`CesiumJS ${C.VERSION}: terrain provider ready (normals: ${provider.hasVertexNormals}, ` +
+        `metadata: ${provider.hasMetadata})`);
+  }
 
-  const baseLayer = cfg.imagery === 'grid'
+  const baseLayer = cfg.imagery === 'grid' && !cfg.tiles3d
     ? new C.ImageryLayer(new C.GridImageryProvider({
       cells: 4,
       color: C.Color.fromCssColorString('#f4f1e8').withAlpha(0.55),
@@ -312,7 +402,7 @@ async function setUpAndWait(cfg) {
     }))
     : false;
   const widget = new C.CesiumWidget('container', {
-    terrainProvider: provider,
+    ...(cfg.tiles3d ? { globe: false } : { terrainProvider: provider }),
     baseLayer,
     skyBox: false,
     skyAtmosphere: false,
@@ -325,18 +415,48 @@ async function setUpAndWait(cfg) {
   window.checkWidget = widget;
   window.checkProvider = provider;
   const scene = widget.scene;
-  const globe = scene.globe;
+  const globe = scene.globe;  // undefined with 3D Tiles
   scene.renderError.addEventListener((_s, e) => failures.push(`render error: ${e?.message ?? e}`));
-  globe.baseColor = C.Color.fromCssColorString('#9c9478');
-  globe.showGroundAtmosphere = false;
-  globe.enableLighting = true;
-  globe.dynamicAtmosphereLighting = false;
+  if (globe) {
+    globe.baseColor = C.Color.fromCssColorString('#9c9478');
+    globe.showGroundAtmosphere = false;
+    globe.enableLighting = true;
+    globe.dynamicAtmosphereLighting = false;
+    // Software WebGL draws a few frames a second, and CesiumJS spends at most 5 ms of each frame on
+    // tile loading (QuadtreePrimitive._loadQueueTimeSlice, private): give it more, so that loading
+    // is not paced by the frame rate. Unknown to other versions: then it is left as it is.
+    if (typeof globe._surface?._loadQueueTimeSlice === 'number')
+      globe._surface._loadQueueTimeSlice = cfg.loadSliceMs;
+  }
+  if (cfg.tiles3d) {
+    // Made after the widget: a tileset's models size their environment map from the WebGL
+    // context's limits, which are unknown (0) before the first context exists.
+    tileset = await C.Cesium3DTileset.fromUrl('/tiles/tileset.json', {
+      maximumScreenSpaceError: cfg.sse,
+      // No shortcut in the refinement: what is drawn and picked is what the tree says.
+      skipLevelOfDetail: false,
+      foveatedScreenSpaceError: false,
+      dynamicScreenSpaceError: false,
+      // No sky to reflect, and costly in software WebGL.
+      environmentMapOptions: { enabled: false },
+    });
+    tileset.tileFailed.addEventListener((e) => failures.push(`tile failed: ${e.url}: ${e.message}`));
+    // The tiles have no material: shade them like the terrain, the ground colour lit by the one
+    // directional light through the tiles' normals (the default PBR material is flat grey here).
+    tileset.customShader = new C.CustomShader({
+      lightingModel: C.LightingModel.UNLIT,
+      fragmentShaderText: `
+        void fragmentMain(FragmentInput fsInput, inout czm_modelMaterial material) {
+          float lit = max(dot(normalize(fsInput.attributes.normalEC), czm_lightDirectionEC), 0.0);
+          material.diffuse = vec3(0.45, 0.42, 0.33) * (0.15 + 0.85 * lit);
+        }`,
+    });
+    window.checkTileset = tileset;
+    scene.primitives.add(tileset);
+    say(`CesiumJS ${C.VERSION}: 3D tileset ready (asset ${tileset.asset?.version}, ` +
+        `maximumScreenSpaceError ${tileset.maximumScreenSpaceError})`);
+  }
   scene.fog.enabled = false;
-  // Software WebGL draws a few frames a second, and CesiumJS spends at most 5 ms of each frame on
-  // tile loading (QuadtreePrimitive._loadQueueTimeSlice, private): give it more, so that loading
-  // is not paced by the frame rate. Unknown to other versions: then it is left as it is.
-  if (typeof globe._surface?._loadQueueTimeSlice === 'number')
-    globe._surface._loadQueueTimeSlice = cfg.loadSliceMs;
   scene.backgroundColor = C.Color.fromCssColorString('#1d2633');
   widget.clock.shouldAnimate = false;
   widget.clock.currentTime = C.JulianDate.fromIso8601('2024-06-21T16:00:00Z');
@@ -345,8 +465,11 @@ async function setUpAndWait(cfg) {
   // range that fits the rectangle; the light from the north-west, 40 degrees above the horizon.
   const [w, s, e, n] = cfg.view;
   const centre = C.Cartographic.fromDegrees((w + e) / 2, (s + n) / 2);
-  const [sampled] = await C.sampleTerrainMostDetailed(provider, [centre.clone()], true);
-  const centreHeight = Number.isFinite(sampled.height) ? sampled.height : 0;
+  let centreHeight = cfg.centreHeight ?? 0;
+  if (provider) {
+    const [sampled] = await C.sampleTerrainMostDetailed(provider, [centre.clone()], true);
+    centreHeight = Number.isFinite(sampled.height) ? sampled.height : 0;
+  }
   const target = C.Cartesian3.fromRadians(centre.longitude, centre.latitude, centreHeight);
   const R = 6378137;
   const ew = C.Math.toRadians(e - w) * R * Math.cos(centre.latitude);
@@ -371,14 +494,23 @@ async function setUpAndWait(cfg) {
   say(`camera at range ${(range / 1000).toFixed(1)} km, pitch ${cfg.pitch} deg, looking at ` +
       `${C.Math.toDegrees(centre.longitude).toFixed(4)}, ${C.Math.toDegrees(centre.latitude).toFixed(4)}`);
 
-  // tilesLoaded once loading has been seen, for 10 rendered frames in a row.
+  // tilesLoaded (the globe's, or the tileset's) once loading has been seen, for 10 rendered frames
+  // in a row.
   let sawLoading = false;
   let lastQueue = 0;
   let lastSaid = 0;
-  globe.tileLoadProgressEvent.addEventListener((queued) => {
-    if (queued > 0) sawLoading = true;
-    lastQueue = queued;
-  });
+  if (tileset) {
+    tileset.loadProgress.addEventListener((pending, processing) => {
+      if (pending + processing > 0) sawLoading = true;
+      lastQueue = pending + processing;
+    });
+  } else {
+    globe.tileLoadProgressEvent.addEventListener((queued) => {
+      if (queued > 0) sawLoading = true;
+      lastQueue = queued;
+    });
+  }
+  const tilesLoaded = () => (tileset ? tileset.tilesLoaded : globe.tilesLoaded);
   let frames = 0;
   const loaded = await new Promise((resolve) => {
     let stable = 0;
@@ -394,7 +526,7 @@ async function setUpAndWait(cfg) {
         resolve(false);
         return;
       }
-      stable = globe.tilesLoaded && sawLoading ? stable + 1 : 0;
+      stable = tilesLoaded() && sawLoading ? stable + 1 : 0;
       const now = performance.now();
       if (now - lastSaid > 2000) {
         lastSaid = now;
@@ -408,6 +540,29 @@ async function setUpAndWait(cfg) {
     });
   });
   return { loaded, frames, failures, cesium_version: C.VERSION, camera_range_m: range };
+}
+
+/// Heights of the 3D tileset at the points: Scene.sampleHeightMostDetailed loads the tileset's
+/// leaves along a vertical ray at each point (whatever the camera sees) and picks the first
+/// surface from 9 km above the ellipsoid down; there is no globe to hit.
+async function sampleTilesetHeights(points) {
+  const C = window.Cesium;
+  const scene = window.checkWidget.scene;
+  if (!scene.sampleHeightSupported) {
+    window.checkFailures.push('scene.sampleHeightSupported is false (no depth texture in this WebGL)');
+    return { heights: points.map(() => null), failures: window.checkFailures };
+  }
+  const cartographics = points.map((p) => C.Cartographic.fromDegrees(p.lon, p.lat));
+  // A leaf that fails to load never lets the pick complete: stop at the first failure instead.
+  let poll;
+  const failed = new Promise((resolve) => {
+    poll = setInterval(() => window.checkFailures.length && resolve(null), 100);
+  });
+  const sampled = await Promise.race([scene.sampleHeightMostDetailed(cartographics), failed]);
+  clearInterval(poll);
+  if (!sampled) return { heights: points.map(() => null), failures: window.checkFailures };
+  const heights = sampled.map((c) => (c && Number.isFinite(c.height) ? c.height : null));
+  return { heights, failures: window.checkFailures };
 }
 
 async function sampleHeights(points) {
@@ -424,7 +579,7 @@ async function sampleHeights(points) {
 // --- main ----------------------------------------------------------------------------------------
 
 async function main() {
-  const { layer, points, view } = readInputs();
+  const { layer, tiles3d, points, view } = readInputs();
   layerJson = layer;
   if (!fs.existsSync(path.join(cesiumDir, 'Cesium.js')))
     throw new Error(`CesiumJS is missing (${cesiumDir}): run scripts/install-deps.sh`);
@@ -437,7 +592,11 @@ async function main() {
   if (!fs.existsSync(opt.chromium))
     throw new Error(`Chromium not found at ${opt.chromium} (apt install chromium, or --chromium PATH)`);
   result.view = view;
-  result.layer = { format: layer.format, maxzoom: layer.maxzoom, extensions: layer.extensions };
+  if (layer) result.layer = { format: layer.format, maxzoom: layer.maxzoom, extensions: layer.extensions };
+  if (tiles3d) {
+    result.tileset = { version: tiles3d.tileset.asset?.version, contents: tiles3d.tiles.length,
+                       deepest_level: tiles3d.deepest };
+  }
 
   server = await startServer();
   const origin = `http://127.0.0.1:${server.address().port}`;
@@ -508,11 +667,14 @@ async function main() {
   if (!hasCesium) throw new Error('Cesium.js did not load in the page');
 
   const remainingMs = () => opt.timeout * 1000 - (Date.now() - started);
-  log(`page loaded; waiting for the globe's tiles`);
+  const what = tiles3d ? "the 3D tileset's tiles" : "the globe's tiles";
+  log(`page loaded; waiting for ${what}`);
   const loaded = await page.evaluate(setUpAndWait, {
     view, pitch: opt.pitch, imagery: opt.imagery, width: opt.width, height: opt.height,
     loadSliceMs: 50, rangeFactor: 1.8,
     waitMs: Math.max(1000, remainingMs() - 5000),
+    tiles3d: !!tiles3d, sse: opt.sse,
+    centreHeight: tiles3d ? (tiles3d.heights[0] + tiles3d.heights[1]) / 2 : null,
   });
   for (const f of loaded.failures) fail(f);
   result.cesium_version = loaded.cesium_version;
@@ -520,12 +682,12 @@ async function main() {
   result.tiles_loaded = loaded.loaded;
   result.camera_range_m = loaded.camera_range_m;
   if (!loaded.loaded) {
-    fail(loaded.failures.length ? 'the globe did not finish loading (see the failures before)'
-                                : `timeout: the globe's tiles were not loaded after ${loaded.frames} frames`);
+    fail(loaded.failures.length ? `${what} did not finish loading (see the failures before)`
+                                : `timeout: ${what} were not loaded after ${loaded.frames} frames`);
     return;
   }
-  log(`tiles loaded after ${loaded.frames} frames; terrain tiles served per level: ` +
-      JSON.stringify(result.requests.terrain));
+  log(`tiles loaded after ${loaded.frames} frames; ${tiles3d ? 'glb' : 'terrain'} tiles served per level: ` +
+      JSON.stringify(tiles3d ? result.requests.glb : result.requests.terrain));
 
   if (opt.screenshot) {
     fs.mkdirSync(path.dirname(opt.screenshot), { recursive: true });
@@ -533,7 +695,27 @@ async function main() {
     result.screenshot = opt.screenshot;
     log(`screenshot ${opt.screenshot}`);
   }
-  if (points.length) {
+  if (points.length && tiles3d) {
+    log(`sampling ${points.length} heights (scene.sampleHeightMostDetailed)`);
+    const s = await page.evaluate(sampleTilesetHeights, points);
+    for (const f of s.failures) fail(f);
+    result.heights = s.heights;
+    // The deepest level whose content over each point (by its region) was served: picking the
+    // leaves needs them loaded.
+    result.levels = points.map((p) => {
+      const lon = (p.lon * Math.PI) / 180, lat = (p.lat * Math.PI) / 180;
+      let level = null;
+      for (const t of tiles3d.tiles) {
+        const r = t.region;
+        if (r && servedGlb.has(t.uri) && lon >= r[0] && lon <= r[2] && lat >= r[1] && lat <= r[3])
+          level = Math.max(level ?? -1, t.level);
+      }
+      return level;
+    });
+    log(`glb tiles served per level after sampling: ${JSON.stringify(result.requests.glb)}`);
+    const missing = s.heights.filter((h) => h === null).length;
+    if (missing) fail(`sampleHeightMostDetailed gave no height at ${missing} of ${points.length} points`);
+  } else if (points.length) {
     log(`sampling ${points.length} heights (sampleTerrainMostDetailed)`);
     const s = await page.evaluate(sampleHeights, points);
     for (const f of s.failures) fail(f);
