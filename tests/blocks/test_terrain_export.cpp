@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -300,6 +301,70 @@ TEST_F(QuantizedMeshExport, TheDatabaseRecordsWhereItLiesAndInfoReportsIt) {
   const std::string json = tb::summarize_database(db).to_json();
   EXPECT_NE(json.find("\"vertical_datum\": \"EGM96\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"crs_transform\": [-71.5, "), std::string::npos) << json;
+}
+
+/// The vertices of a glb tile written by the 3D Tiles export, decoded as a client does: SHORT
+/// normalized positions (stride 8) times the node's scale plus its translation, glTF axes back
+/// to ECEF ((x, y, z)_ECEF = (x, -z, y)_glTF).
+std::vector<pm::Ecef> glb_vertices(const fs::path& file) {
+  const std::string b = tt::slurp(file);
+  EXPECT_GE(b.size(), 28u) << file;
+  std::uint32_t json_len = 0;
+  std::memcpy(&json_len, b.data() + 12, 4);
+  const std::string json = b.substr(20, json_len);
+  const std::size_t bin = 20 + json_len + 8;
+  auto numbers = [&](const std::string& key) {
+    std::vector<double> v;
+    const auto at = json.find("\"" + key + "\":[");
+    EXPECT_NE(at, std::string::npos) << key;
+    std::istringstream s(json.substr(at + key.size() + 4, json.find(']', at) - at - key.size() - 4));
+    for (std::string item; std::getline(s, item, ',');) v.push_back(std::stod(item));
+    return v;
+  };
+  const std::vector<double> t = numbers("translation"), sc = numbers("scale");
+  const auto count_at = json.find("\"count\":");
+  const std::size_t n = std::stoul(json.substr(count_at + 8));
+  std::vector<pm::Ecef> out;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::int16_t q[3];
+    std::memcpy(q, b.data() + bin + 8 * i, 6);
+    double g[3];
+    for (int k = 0; k < 3; ++k)
+      g[k] = t[std::size_t(k)] + std::max(q[k] / 32767.0, -1.0) * sc[std::size_t(k)];
+    out.push_back({g[0], -g[2], g[1]});
+  }
+  return out;
+}
+
+// 3D Tiles: neighbouring glb tiles quantize on one lattice per level, so every vertex on a shared
+// edge is at the same point in both (no crack a client could see through).
+TEST_F(QuantizedMeshExport, ThreeDTilesNeighboursStoreSharedVerticesAtOnePoint) {
+  const fs::path out = tt::process_temp_dir("terralod-export") / "3dtiles";
+  const tb::ExportReport r = tb::export_terrain(db_, out.string(), {.format = tb::ExportFormat::Tiles3D});
+  ASSERT_EQ(r.levels.size(), 13u);
+  std::size_t pairs = 0, shared = 0;
+  for (const auto& e : fs::directory_iterator(out / "12"))
+    for (const auto& f : fs::directory_iterator(e.path())) {
+      const int x = std::stoi(e.path().filename().string()), y = std::stoi(f.path().stem().string());
+      const fs::path east = out / "12" / std::to_string(x + 1) / (std::to_string(y) + ".glb");
+      if (!fs::exists(east)) continue;
+      const double edge = tb::tile_rect({12, x, y}).east;
+      const std::vector<pm::Ecef> a = glb_vertices(f.path()), b = glb_vertices(east);
+      std::size_t on_edge = 0;
+      for (const pm::Ecef& p : a) {
+        if (std::abs(pm::geodetic_from_ecef(p).lon_deg - edge) > 1e-6) continue;
+        ++on_edge;
+        double nearest = 1e300;
+        for (const pm::Ecef& o : b)
+          nearest = std::min(nearest, std::hypot(p[0] - o[0], p[1] - o[1], p[2] - o[2]));
+        EXPECT_LT(nearest, 1e-6) << f.path() << ": an edge vertex has no twin in " << east;
+      }
+      EXPECT_GE(on_edge, 2u) << f.path();
+      shared += on_edge;
+      ++pairs;
+    }
+  EXPECT_GE(pairs, 3u);
+  EXPECT_GT(shared, pairs * 2);
 }
 
 TEST_F(QuantizedMeshExport, AnInterruptedExportResumesToTheSameFiles) {

@@ -32,32 +32,35 @@ std::string num(double v) {
 }  // namespace
 
 GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
-                        const std::function<pm::Ecef(std::size_t)>& normal, const std::string& path) {
+                        const std::function<pm::Ecef(std::size_t)>& normal, double s,
+                        const std::string& path) {
   const std::size_t n = t.u.size();
   GlbTile out;
-  // Decoded vertices, ECEF, relative to the centre, in glTF axes.
+  // The translation: the rectangle's centre on the ellipsoid, in glTF axes, on the level's lattice.
+  const double q = s / kQ;
+  const pm::Ecef c =
+      pm::ecef_from_geodetic({0.5 * (rect.west + rect.east), 0.5 * (rect.south + rect.north), 0.0});
+  const pm::Ecef T{std::round(c[0] / q) * q, std::round(c[2] / q) * q, std::round(-c[1] / q) * q};
+  // Decoded vertices, ECEF, relative to T, in glTF axes.
   std::vector<pm::Ecef> ecef(n), g(n);
-  double s = 1e-3;
   for (std::size_t i = 0; i < n; ++i) {
     const double lon = rect.west + (rect.east - rect.west) * t.u[i] / kQ;
     const double lat = rect.south + (rect.north - rect.south) * t.v[i] / kQ;
     const double h =
         double(t.min_height) + double(t.h[i]) / kQ * (double(t.max_height) - double(t.min_height));
     ecef[i] = pm::ecef_from_geodetic({lon, lat, h});
-    const pm::Ecef d{ecef[i][0] - t.center[0], ecef[i][1] - t.center[1], ecef[i][2] - t.center[2]};
-    g[i] = {d[0], d[2], -d[1]};
-    for (double c : g[i]) s = std::max(s, std::abs(c));
+    g[i] = {ecef[i][0] - T[0], ecef[i][2] - T[1], -ecef[i][1] - T[2]};
   }
   std::string bin;
   std::array<int, 3> qmin{kQ, kQ, kQ}, qmax{-kQ, -kQ, -kQ};
   for (std::size_t i = 0; i < n; ++i) {
     double err2 = 0;
     for (int k = 0; k < 3; ++k) {
-      const int q = int(std::lround(std::clamp(g[i][std::size_t(k)] / s, -1.0, 1.0) * kQ));
-      qmin[std::size_t(k)] = std::min(qmin[std::size_t(k)], q);
-      qmax[std::size_t(k)] = std::max(qmax[std::size_t(k)], q);
-      put(bin, std::int16_t(q));
-      const double e = double(q) / kQ * s - g[i][std::size_t(k)];
+      const int qi = int(std::clamp<long>(std::lround(g[i][std::size_t(k)] / q), -kQ, kQ));
+      qmin[std::size_t(k)] = std::min(qmin[std::size_t(k)], qi);
+      qmax[std::size_t(k)] = std::max(qmax[std::size_t(k)], qi);
+      put(bin, std::int16_t(qi));
+      const double e = double(qi) * q - g[i][std::size_t(k)];
       err2 += e * e;
     }
     put(bin, std::int16_t(0));  // stride 8
@@ -92,8 +95,8 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
       R"({"asset":{"version":"2.0","generator":"terralod export"},)"
       R"("extensionsUsed":["KHR_mesh_quantization"],"extensionsRequired":["KHR_mesh_quantization"],)"
       R"("scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"translation":[)";
-  j += num(t.center[0]) + "," + num(t.center[2]) + "," + num(-t.center[1]) + "],\"scale\":[" + num(s) + "," +
-       num(s) + "," + num(s) + "]}],";
+  j += num(T[0]) + "," + num(T[1]) + "," + num(T[2]) + "],\"scale\":[" + num(s) + "," + num(s) + "," +
+       num(s) + "]}],";
   j += R"("meshes":[{"primitives":[{"attributes":{"POSITION":0,"NORMAL":1},"indices":2,"mode":4}]}],)";
   auto arr = [](const std::array<int, 3>& q) {
     // The stored integers (the validator wants an integer accessor's own values), appended piece

@@ -4,15 +4,20 @@
 // client decodes) in Earth-centred, Earth-fixed coordinates, stored relative to the tile's
 // bounding-sphere centre in glTF's Y-up axes (x, z, -y of ECEF; 3D Tiles turns glTF's Y-up back
 // to Z-up), quantized with KHR_mesh_quantization: SHORT normalized (3 components, stride 8) with
-// the node's uniform scale s (the largest offset) and translation (the centre); normals BYTE
+// the node's uniform scale s and translation T; normals BYTE
 // normalized (stride 4); indices UNSIGNED_SHORT (UNSIGNED_INT over 65535 vertices). One node,
 // one mesh, one primitive (triangles), no material (clients draw their default).
 //
+// Every tile of a level quantizes on one lattice: s is the level's `scale` (a power of two at
+// least the largest distance of a vertex from its tile's centre) and T is the tile's rectangle
+// centre (ECEF, height 0) rounded to a multiple of s / 32767, so a vertex that two neighbours
+// share is stored at the same lattice point by both: no crack opens between them.
+//
 // Contract: tile as make_quantized_mesh returns it; normal(i) the unit ECEF normal of tile
-// vertex i. `displacement` is the largest distance, metres, between a vertex as stored (after
-// the 16-bit quantization) and the decoded vertex it stands for; `longest_edge` the longest
-// triangle edge (ECEF chord, metres), from which the exporter bounds how far a flat triangle
-// departs from the surface it interpolates.
+// vertex i; offsets beyond `scale` are clamped (and show in `displacement`). `displacement` is the largest
+// distance, metres, between a vertex as stored (after the 16-bit quantization) and the decoded vertex it
+// stands for; `longest_edge` the longest triangle edge (ECEF chord, metres), from which the exporter bounds
+// how far a flat triangle departs from the surface it interpolates.
 #pragma once
 
 #include <functional>
@@ -29,6 +34,7 @@ struct GlbTile {
 };
 
 GlbTile encode_tile_glb(const QuantizedMeshTile& tile, const GeoRect& rect,
-                        const std::function<pm::Ecef(std::size_t)>& normal, const std::string& path);
+                        const std::function<pm::Ecef(std::size_t)>& normal, double scale,
+                        const std::string& path);
 
 }  // namespace terralod::blocks::detail

@@ -103,6 +103,22 @@ std::string subtree_availability(const TileId& id, int max_level, const GeoRect&
   return a + "],";
 }
 
+/// The largest distance from the rectangle's centre (ECEF, height 0) to a point of the rectangle
+/// at a height in [lo, hi], over its corners, edge midpoints and centre (the extremes of a patch
+/// of the ellipsoid lie on its boundary).
+double farthest_from_centre(const GeoRect& r, double lo, double hi) {
+  const double cx = 0.5 * (r.west + r.east), cy = 0.5 * (r.south + r.north);
+  const pm::Ecef c = pm::ecef_from_geodetic({cx, cy, 0.0});
+  double far = 0;
+  for (double lon : {r.west, cx, r.east})
+    for (double lat : {r.south, cy, r.north})
+      for (double h : {lo, hi}) {
+        const pm::Ecef p = pm::ecef_from_geodetic({lon, lat, h});
+        far = std::max(far, std::hypot(p[0] - c[0], p[1] - c[1], p[2] - c[2]));
+      }
+  return far;
+}
+
 /// A power of two >= x (x > 0).
 double pow2_at_least(double x) { return std::ldexp(1.0, int(std::ceil(std::log2(x)))); }
 
@@ -379,6 +395,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   // Tiles and per-level parameters.
   const std::vector<std::vector<TileId>> tiles = level_tiles(options.format, max_level, ringed);
   std::vector<std::vector<TileRange>> available(tiles.size());
+  std::vector<double> glb_scale(tiles.size(), 0.0);  // 3D Tiles: each level's quantization lattice
   std::size_t total = 0;
   report.levels.resize(tiles.size());
   for (int z = 0; z <= max_level; ++z) {
@@ -399,6 +416,13 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
       span = std::max(span, hi - lo), extent = std::max({extent, std::abs(lo), std::abs(hi)});
     L.height_step = std::max({pow2_at_least(std::max(span, 1e-3) / (kQ - 1)),
                               pow2_at_least(extent / 8388608.0), std::ldexp(1.0, -12)});
+    if (!qm) {
+      double far = 1.0;
+      for (std::size_t i = 0; i < ranges.size(); ++i)
+        far = std::max(far, farthest_from_centre(tile_rect(tiles[std::size_t(z)][i]), ranges[i].first,
+                                                 ranges[i].second));
+      glb_scale[std::size_t(z)] = pow2_at_least(far * 1.01 + 1.0);
+    }
   }
 
   const DatabaseInfo& info = db.info();
@@ -452,7 +476,8 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
           r.geometric_error = r.max_error;
         } else {
           const detail::GlbTile glb = detail::encode_tile_glb(
-              tile, rect, [&](std::size_t v) { return oct_decode(tile.normals[v]); }, file);
+              tile, rect, [&](std::size_t v) { return oct_decode(tile.normals[v]); },
+              glb_scale[std::size_t(z)], file);
           // A flat triangle departs from the surface through its corners by at most the
           // sagitta of its smallest enclosing circle (radius <= longest edge / sqrt 3).
           const double sag_depth = glb.longest_edge * glb.longest_edge / (6.0 * pm::kWgs84B);
