@@ -32,7 +32,7 @@ std::string num(double v) {
 }  // namespace
 
 GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
-                        const std::function<pm::Ecef(std::size_t)>& normal, double s,
+                        const std::function<pm::Ecef(std::size_t)>& normal, double s, double skirt,
                         const std::string& path) {
   const std::size_t n = t.u.size();
   GlbTile out;
@@ -41,19 +41,38 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
   const pm::Ecef c =
       pm::ecef_from_geodetic({0.5 * (rect.west + rect.east), 0.5 * (rect.south + rect.north), 0.0});
   const pm::Ecef T{std::round(c[0] / q) * q, std::round(c[2] / q) * q, std::round(-c[1] / q) * q};
-  // Decoded vertices, ECEF, relative to T, in glTF axes.
-  std::vector<pm::Ecef> ecef(n), g(n);
+  // Decoded vertices, ECEF, relative to T, in glTF axes; then the skirt: a copy of every edge
+  // vertex `skirt` metres lower (source[i] = the vertex it copies).
+  std::vector<pm::Geodetic> geo(n);
+  std::vector<std::uint32_t> source(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double lon = rect.west + (rect.east - rect.west) * t.u[i] / kQ;
-    const double lat = rect.south + (rect.north - rect.south) * t.v[i] / kQ;
-    const double h =
-        double(t.min_height) + double(t.h[i]) / kQ * (double(t.max_height) - double(t.min_height));
-    ecef[i] = pm::ecef_from_geodetic({lon, lat, h});
+    geo[i] = {rect.west + (rect.east - rect.west) * t.u[i] / kQ,
+              rect.south + (rect.north - rect.south) * t.v[i] / kQ,
+              double(t.min_height) + double(t.h[i]) / kQ * (double(t.max_height) - double(t.min_height))};
+    source[i] = std::uint32_t(i);
+  }
+  std::vector<std::array<std::uint32_t, 3>> triangles = t.triangles;
+  for (const auto& edge : t.edges) {
+    for (std::size_t k = 0; k < edge.size(); ++k) {
+      geo.push_back({geo[edge[k]].lon_deg, geo[edge[k]].lat_deg, geo[edge[k]].height - skirt});
+      source.push_back(edge[k]);
+      if (k == 0) continue;
+      const std::uint32_t a = edge[k - 1], b = edge[k], a2 = std::uint32_t(geo.size() - 2),
+                          b2 = std::uint32_t(geo.size() - 1);
+      // Both faces: whichever side a client looks through a crack from, it sees the skirt.
+      triangles.push_back({a, b, b2}), triangles.push_back({a, b2, a2});
+      triangles.push_back({a, b2, b}), triangles.push_back({a, a2, b2});
+    }
+  }
+  const std::size_t all = geo.size();
+  std::vector<pm::Ecef> ecef(all), g(all);
+  for (std::size_t i = 0; i < all; ++i) {
+    ecef[i] = pm::ecef_from_geodetic(geo[i]);
     g[i] = {ecef[i][0] - T[0], ecef[i][2] - T[1], -ecef[i][1] - T[2]};
   }
   std::string bin;
   std::array<int, 3> qmin{kQ, kQ, kQ}, qmax{-kQ, -kQ, -kQ};
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < all; ++i) {
     double err2 = 0;
     for (int k = 0; k < 3; ++k) {
       const int qi = int(std::clamp<long>(std::lround(g[i][std::size_t(k)] / q), -kQ, kQ));
@@ -67,22 +86,23 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
     out.displacement = std::max(out.displacement, std::sqrt(err2));
   }
   const std::size_t normals_at = bin.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const pm::Ecef e = normal(i);
+  for (std::size_t i = 0; i < all; ++i) {
+    const pm::Ecef e = normal(source[i]);
     const pm::Ecef gl{e[0], e[2], -e[1]};
     for (double c : gl) put(bin, std::int8_t(std::lround(std::clamp(c, -1.0, 1.0) * 127.0)));
     put(bin, std::int8_t(0));  // stride 4
   }
   const std::size_t indices_at = bin.size();
-  const bool wide = n > 65535;
-  for (const auto& tri : t.triangles) {
+  const bool wide = all > 65535;
+  for (std::size_t ti = 0; ti < triangles.size(); ++ti) {
+    const auto& tri = triangles[ti];
     for (std::uint32_t i : tri) {
       if (wide)
         put(bin, i);
       else
         put(bin, std::uint16_t(i));
     }
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < 3 && ti < t.triangles.size(); ++k) {  // the surface's own triangles
       const pm::Ecef& a = ecef[tri[std::size_t(k)]];
       const pm::Ecef& b = ecef[tri[std::size_t((k + 1) % 3)]];
       out.longest_edge = std::max(out.longest_edge, std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]));
@@ -108,12 +128,12 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
     }
     return a;
   };
-  j += R"("accessors":[{"bufferView":0,"componentType":5122,"normalized":true,"count":)" + std::to_string(n) +
-       R"(,"type":"VEC3","min":)" + arr(qmin) + R"(,"max":)" + arr(qmax) + "},";
-  j += R"({"bufferView":1,"componentType":5120,"normalized":true,"count":)" + std::to_string(n) +
+  j += R"("accessors":[{"bufferView":0,"componentType":5122,"normalized":true,"count":)" +
+       std::to_string(all) + R"(,"type":"VEC3","min":)" + arr(qmin) + R"(,"max":)" + arr(qmax) + "},";
+  j += R"({"bufferView":1,"componentType":5120,"normalized":true,"count":)" + std::to_string(all) +
        R"(,"type":"VEC3"},)";
   j += R"({"bufferView":2,"componentType":)" + std::string(wide ? "5125" : "5123") + R"(,"count":)" +
-       std::to_string(3 * t.triangles.size()) + R"(,"type":"SCALAR"}],)";
+       std::to_string(3 * triangles.size()) + R"(,"type":"SCALAR"}],)";
   j += R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":)" + std::to_string(normals_at) +
        R"(,"byteStride":8,"target":34962},)";
   j += R"({"buffer":0,"byteOffset":)" + std::to_string(normals_at) + R"(,"byteLength":)" +

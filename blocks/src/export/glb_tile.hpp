@@ -6,7 +6,10 @@
 // to Z-up), quantized with KHR_mesh_quantization: SHORT normalized (3 components, stride 8) with
 // the node's uniform scale s and translation T; normals BYTE
 // normalized (stride 4); indices UNSIGNED_SHORT (UNSIGNED_INT over 65535 vertices). One node,
-// one mesh, one primitive (triangles), no material (clients draw their default).
+// one mesh, one primitive (triangles), no material (clients draw their default). Skirts: every
+// edge vertex is repeated `skirt` metres lower and joined to its edge by triangles facing both
+// ways, so where a client draws neighbours of different levels (REPLACE refinement) no crack
+// shows between their edges (the vertex count includes the skirt's).
 //
 // Every tile of a level quantizes on one lattice: s is the level's `scale` (a power of two at
 // least the largest distance of a vertex from its tile's centre) and T is the tile's rectangle
@@ -34,7 +37,7 @@ struct GlbTile {
 };
 
 GlbTile encode_tile_glb(const QuantizedMeshTile& tile, const GeoRect& rect,
-                        const std::function<pm::Ecef(std::size_t)>& normal, double scale,
+                        const std::function<pm::Ecef(std::size_t)>& normal, double scale, double skirt,
                         const std::string& path);
 
 }  // namespace terralod::blocks::detail

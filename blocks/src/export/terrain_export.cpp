@@ -448,6 +448,10 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
     const double theta = std::sqrt(8.0 * 0.25 * L.bound / pm::kWgs84A);
     const int sag = std::max(1, int(std::ceil(tile_deg * std::numbers::pi / 180.0 / theta)));
     const double normal_step = std::max(grid.dlon, grid.dlat);  // the terrain's own gradient
+    // 3D Tiles skirts: neighbours of different levels differ at their shared edge by at most the
+    // sum of their errors (each within its level's bound plus the sag, at most 1/4 of it), which
+    // the coarser tile's skirt covers.
+    const double skirt = 3.0 * L.bound;
     std::vector<TileRecord>& rec = records[std::size_t(z)];
     rec.resize(level.size());
     std::vector<std::uint8_t> reused(level.size(), 0);
@@ -477,12 +481,12 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
         } else {
           const detail::GlbTile glb = detail::encode_tile_glb(
               tile, rect, [&](std::size_t v) { return oct_decode(tile.normals[v]); },
-              glb_scale[std::size_t(z)], file);
+              glb_scale[std::size_t(z)], skirt, file);
           // A flat triangle departs from the surface through its corners by at most the
           // sagitta of its smallest enclosing circle (radius <= longest edge / sqrt 3).
           const double sag_depth = glb.longest_edge * glb.longest_edge / (6.0 * pm::kWgs84B);
           r.geometric_error = r.max_error + glb.displacement + sag_depth;
-          r.min_height -= sag_depth + glb.displacement;
+          r.min_height -= std::max(sag_depth, skirt) + glb.displacement;
           r.max_height += glb.displacement;
           bytes = glb.bytes;
         }

@@ -46,7 +46,9 @@
 // (radians, heights of what is drawn, chord sag included) and its geometricError the tile's
 // measured bound: the error at the samples as above, plus the glTF quantization's largest vertex
 // displacement, plus the largest sag of a flat triangle below the curved surface through its
-// corners; raised where needed so that it shrinks strictly from parent to child.
+// corners; raised where needed so that it shrinks strictly from parent to child. All tiles of a
+// level quantize on one lattice (shared vertices land on one point) and carry skirts 3 x the
+// level bound deep, so neighbours of different levels show no crack.
 //
 // Resume: tiles are written atomically (temporary + rename) and journaled in
 // DIR/.terralod-export (the export's parameters, then one line per finished tile). A killed
