@@ -38,56 +38,52 @@ std::string vertical_crs(const std::string& datum) {
 class GeoidOperation {
  public:
   GeoidOperation(const std::string& vertical, const std::string& what) : ctx_(proj_context_create()) {
-    proj_log_level(ctx_, PJ_LOG_NONE);  // failures are reported below, naming the file
+    PJ_CONTEXT* ctx = ctx_.get();
+    proj_log_level(ctx, PJ_LOG_NONE);  // failures are reported below, naming the file
     const std::string src = "EPSG:4326+" + (vertical.rfind("EPSG:", 0) == 0 ? vertical.substr(5) : vertical);
-    PJ* from = proj_create(ctx_, vertical.rfind("EPSG:", 0) == 0 ? src.c_str() : vertical.c_str());
+    PJ* from = proj_create(ctx, vertical.rfind("EPSG:", 0) == 0 ? src.c_str() : vertical.c_str());
     if (from != nullptr && proj_get_type(from) == PJ_TYPE_VERTICAL_CRS) {  // a bare vertical CRS
-      PJ* horizontal = proj_create(ctx_, "EPSG:4326");
-      PJ* compound = proj_create_compound_crs(ctx_, "source", horizontal, from);
+      PJ* horizontal = proj_create(ctx, "EPSG:4326");
+      PJ* compound = proj_create_compound_crs(ctx, "source", horizontal, from);
       proj_destroy(horizontal);
       proj_destroy(from);
       from = compound;
     }
-    PJ* to = proj_create(ctx_, "EPSG:4979");
+    PJ* to = proj_create(ctx, "EPSG:4979");
     if (from == nullptr || to == nullptr) {
       proj_destroy(from), proj_destroy(to);
       fail(what, "PROJ does not know the vertical datum '" + vertical + "'");
     }
-    PJ_OPERATION_FACTORY_CONTEXT* f = proj_create_operation_factory_context(ctx_, nullptr);
+    PJ_OPERATION_FACTORY_CONTEXT* f = proj_create_operation_factory_context(ctx, nullptr);
     proj_operation_factory_context_set_grid_availability_use(
-        ctx_, f, PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID);
-    proj_operation_factory_context_set_spatial_criterion(ctx_, f,
-                                                         PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
-    PJ_OBJ_LIST* ops = proj_create_operations(ctx_, from, to, f);
+        ctx, f, PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID);
+    proj_operation_factory_context_set_spatial_criterion(ctx, f, PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
+    PJ_OBJ_LIST* ops = proj_create_operations(ctx, from, to, f);
     proj_operation_factory_context_destroy(f);
     proj_destroy(from), proj_destroy(to);
     const int n = ops != nullptr ? proj_list_get_count(ops) : 0;
-    for (int i = 0; i < n && op_ == nullptr; ++i) {
-      PJ* op = proj_list_get(ctx_, ops, i);
-      if (op != nullptr && !proj_coordoperation_has_ballpark_transformation(ctx_, op)) {
-        op_ = proj_normalize_for_visualization(ctx_, op);  // lon, lat order
+    for (int i = 0; i < n && !op_; ++i) {
+      PJ* op = proj_list_get(ctx, ops, i);
+      if (op != nullptr && !proj_coordoperation_has_ballpark_transformation(ctx, op)) {
+        op_.reset(proj_normalize_for_visualization(ctx, op));  // lon, lat order
       }
       proj_destroy(op);
     }
     proj_list_destroy(ops);
-    if (op_ == nullptr)
+    if (!op_)
       fail(what, "PROJ has no geoid transformation from vertical datum '" + vertical +
                      "' to the WGS 84 ellipsoid (is its grid installed? Debian's proj-data has EGM96's "
                      "egm96_15.gtx; others come from https://cdn.proj.org)");
   }
   GeoidOperation(const GeoidOperation&) = delete;
   GeoidOperation& operator=(const GeoidOperation&) = delete;
-  ~GeoidOperation() {
-    proj_destroy(op_);
-    proj_context_destroy(ctx_);
-  }
 
   /// N at each (lon[i], lat[i]) into n[i].
   void undulations(const double* lon, const double* lat, double* n, std::size_t count,
                    const std::string& what) {
     std::vector<double> x(lon, lon + count), y(lat, lat + count);
     std::fill(n, n + count, 0.0);
-    proj_trans_generic(op_, PJ_FWD, x.data(), sizeof(double), count, y.data(), sizeof(double), count, n,
+    proj_trans_generic(op_.get(), PJ_FWD, x.data(), sizeof(double), count, y.data(), sizeof(double), count, n,
                        sizeof(double), count, nullptr, 0, 0);
     for (std::size_t i = 0; i < count; ++i)
       if (!std::isfinite(n[i]) || n[i] == HUGE_VAL)
@@ -99,8 +95,16 @@ class GeoidOperation {
   [[noreturn]] static void fail(const std::string& what, const std::string& problem) {
     throw GeoError(what + ": " + problem);
   }
-  PJ_CONTEXT* ctx_;
-  PJ* op_ = nullptr;
+  // Owned, so that a constructor that throws (an unknown datum, a missing grid) releases the
+  // context and its proj.db connection too; op_ is destroyed first.
+  struct ContextDeleter {
+    void operator()(PJ_CONTEXT* c) const { proj_context_destroy(c); }
+  };
+  struct PjDeleter {
+    void operator()(PJ* p) const { proj_destroy(p); }
+  };
+  std::unique_ptr<PJ_CONTEXT, ContextDeleter> ctx_;
+  std::unique_ptr<PJ, PjDeleter> op_;
 };
 
 void register_gdal() {
