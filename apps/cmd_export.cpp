@@ -30,7 +30,9 @@ CommandSpec export_spec() {
       "refinement, bounding regions, each tile's geometricError its measured bound: the error at the\n"
       "samples plus the glTF quantization and the flat triangles' sag) and OUT/z/x/y.glb (glTF 2.0,\n"
       "ECEF relative to the tile centre, KHR_mesh_quantization); load it with\n"
-      "Cesium.Cesium3DTileset.fromUrl(URL + '/tileset.json').";
+      "Cesium.Cesium3DTileset.fromUrl(URL + '/tileset.json'). --meshopt compresses the glb content\n"
+      "losslessly with EXT_meshopt_compression (CesiumJS, three.js and Babylon.js decode it; the\n"
+      "extension is required by each file, so a client without it cannot draw the tiles).";
   s.options = {
       {"--db", "DB", "terrain database made by 'terralod build'", true},
       {"--out", "DIR", "output folder (created; must be empty or hold an earlier export)", true},
@@ -38,6 +40,7 @@ CommandSpec export_spec() {
        "quantized-mesh (default: layer.json + .terrain) or 3dtiles (tileset.json + .glb)"},
       {"--max-level", "Z", "deepest level, 0..24 (default: the first whose tiles span <= 64 samples)"},
       {"--threads", "N", "worker threads (default: every core)"},
+      {"--meshopt", "", "3dtiles only: compress the glb content with EXT_meshopt_compression"},
       {"--vertical-datum", "NAME",
        "the input heights' datum: egm96, egm2008, ellipsoid or a PROJ vertical CRS such as EPSG:5703\n"
        "(default: what the input states, else egm96)"},
@@ -52,6 +55,7 @@ int cmd_export(const Args& a) {
   o.max_level = int(a.get_int("--max-level", -1, 0, 24));
   o.threads = int(a.get_int("--threads", 0, 1, 1024));
   o.vertical_datum = a.get("--vertical-datum");
+  o.meshopt = a.has("--meshopt");
   const std::string db = a.get("--db"), out = a.get("--out");
   ProgressBar bar("export");
   o.progress = [&bar](const blocks::ExportProgress& p) {

@@ -3,7 +3,7 @@
 set -euo pipefail
 packages=(
   build-essential cmake pkg-config zlib1g-dev
-  libopenmesh-dev libgdal-dev libproj-dev proj-data libopenimageio-dev libsqlite3-dev
+  libopenmesh-dev libgdal-dev libproj-dev proj-data libmeshoptimizer-dev libopenimageio-dev libsqlite3-dev
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb fonts-dejavu-core clang-format

@@ -11,11 +11,11 @@
 // (scripts/install-deps.sh installs them); skips only without N44W072.hgt in TERRALOD_DATA_DIR.
 // The screenshot is kept at TERRALOD_CESIUM_SCREENSHOT (build/tests/apps/cesium_screenshot.png).
 //
-// The same database exported with `--format 3dtiles` (3D Tiles 1.1, glb contents, ellipsoidal
-// heights) is loaded through Cesium.Cesium3DTileset (check_terrain.mjs --3dtiles), with heights
-// from Scene.sampleHeightMostDetailed, checked against the same DEM + EGM96 within the largest
-// geometricError of the tileset's deepest tiles; its screenshot is cesium_3dtiles_screenshot.png
-// next to the other.
+// The same database exported with `--format 3dtiles --meshopt` (3D Tiles 1.1, glb contents
+// compressed with EXT_meshopt_compression, ellipsoidal heights) is loaded through Cesium.Cesium3DTileset
+// (check_terrain.mjs --3dtiles), with heights from Scene.sampleHeightMostDetailed, checked against the same
+// DEM + EGM96 within the largest geometricError of the tileset's deepest tiles; its screenshot is
+// cesium_3dtiles_screenshot.png next to the other.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
@@ -303,13 +303,15 @@ const fs::path& database() {
   return d;
 }
 
-/// The database exported as `format` into tmp_dir()/`name` (an empty path after a failure).
-fs::path export_database(const std::string& format, const std::string& name) {
+/// The database exported as `format` (plus `options`) into tmp_dir()/`name` (an empty path after a
+/// failure).
+fs::path export_database(const std::string& format, const std::string& name,
+                         const std::string& options = "") {
   if (database().empty()) return {};
   const fs::path dir = tmp_dir() / name;
   // SRTM heights are EGM96: asked for explicitly, since the crop is an ASCII grid, not a .hgt.
   const auto e = terralod("export --threads 1 --db " + quote(database().string()) + " --format " + format +
-                          " --vertical-datum egm96 --out " + quote(dir.string()));
+                          " --vertical-datum egm96 " + options + " --out " + quote(dir.string()));
   if (e.status != 0) {
     ADD_FAILURE() << "terralod export --format " << format << " failed:\n" << e.out << e.err;
     return {};
@@ -481,7 +483,10 @@ TEST(CesiumClient, Loads3DTilesAndSamplesDemPlusEgm96) {
   std::vector<Point> pts = sample_points();
   ASSERT_NO_FATAL_FAILURE(add_geoid(pts));
 
-  const fs::path dir = export_database("3dtiles", "tiles_3d");
+  // Compressed with EXT_meshopt_compression: CesiumJS decodes it, and test_gltf_validator shows the
+  // decoded tiles equal the uncompressed export's (same vertices, same triangles), so this one
+  // browser run checks both forms.
+  const fs::path dir = export_database("3dtiles", "tiles_3d", "--meshopt");
   ASSERT_FALSE(dir.empty());
   const std::string json = slurp(dir / "tileset.json");
   const auto deepest = deepest_geometric_error(json);

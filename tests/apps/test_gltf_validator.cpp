@@ -188,4 +188,49 @@ TEST(GltfValidator, ThreeDTilesExportIsValidTileByTile) {
   EXPECT_NE(bad.out.find("12/2469/3060.glb"), std::string::npos) << bad.out;
 }
 
+// --meshopt: every glb is EXT_meshopt_compression, valid as it is and, decoded by meshoptimizer's
+// own decoder, valid in full and equal to the uncompressed export's tile (the same vertex bytes,
+// the same triangles in the same order and winding): lossless. A changed compressed byte is seen.
+TEST(GltfValidator, MeshoptExportDecodesToTheUncompressedTiles) {
+  ASSERT_NO_FATAL_FAILURE(require_validator());
+  const fs::path db = tmp_dir() / "geographic_meshopt.db", plain = tmp_dir() / "3dtiles_plain",
+                 packed = tmp_dir() / "3dtiles_meshopt";
+  auto r = terralod("build --threads 1 --block-size 33 --input " + quote(geographic_dem().string()) +
+                    " --out " + quote(db.string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const auto& [dir, flag] : {std::pair{plain, ""}, std::pair{packed, " --meshopt"}}) {
+    fs::remove_all(dir);
+    r = terralod("export --threads 1 --format 3dtiles" + std::string(flag) + " --db " + quote(db.string()) +
+                 " --out " + quote(dir.string()));
+    ASSERT_EQ(r.status, 0) << r.out << r.err;
+  }
+  // The same tree, regions and geometricErrors: the compression changes no vertex.
+  EXPECT_EQ(slurp(packed / "tileset.json"), slurp(plain / "tileset.json"));
+  const std::string check = "node " + quote(TERRALOD_3DTILES_CHECK) + " " + quote(packed.string()) +
+                            " --same-as " + quote(plain.string());
+  const auto c = run_command(check);
+  EXPECT_EQ(c.status, 0) << c.out << c.err;
+  EXPECT_NE(c.out.find("\"problems\":[]"), std::string::npos) << c.out;
+  const std::size_t glb = c.out.find("\"glb\":"), meshopt = c.out.find("\"meshopt\":");
+  ASSERT_TRUE(glb != std::string::npos && meshopt != std::string::npos) << c.out;
+  const long n = std::strtol(c.out.c_str() + glb + 6, nullptr, 10);
+  EXPECT_GT(n, 50) << c.out;
+  EXPECT_EQ(std::strtol(c.out.c_str() + meshopt + 10, nullptr, 10), n) << c.out;  // every glb compressed
+  EXPECT_LT(fs::file_size(packed / "12" / "2469" / "3060.glb"),
+            fs::file_size(plain / "12" / "2469" / "3060.glb"));
+  // One byte of a compressed vertex stream changed: the decoded tile differs (or does not decode).
+  const fs::path victim = packed / "12" / "2469" / "3060.glb";
+  std::string bytes = slurp(victim);
+  ASSERT_GT(bytes.size(), 200u) << victim;
+  const std::size_t json_length = std::size_t(static_cast<unsigned char>(bytes[12])) |
+                                  std::size_t(static_cast<unsigned char>(bytes[13])) << 8;
+  const std::size_t at = 20 + json_length + 8 + 40;  // 40 bytes into the BIN chunk: the positions
+  ASSERT_LT(at, bytes.size());
+  bytes[at] = char(bytes[at] ^ 0x5a);
+  std::ofstream(victim, std::ios::binary | std::ios::trunc) << bytes;
+  const auto bad = run_command(check);
+  EXPECT_EQ(bad.status, 1) << bad.out;
+  EXPECT_NE(bad.out.find("12/2469/3060.glb"), std::string::npos) << bad.out;
+}
+
 }  // namespace

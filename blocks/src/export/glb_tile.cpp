@@ -1,11 +1,14 @@
 // One tile as a quantized glTF binary (see glb_tile.hpp).
 #include "glb_tile.hpp"
 
+#include <meshoptimizer.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "terralod/pm/glb.hpp"
@@ -33,7 +36,7 @@ std::string num(double v) {
 
 GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
                         const std::function<pm::Ecef(std::size_t)>& normal, double s, double skirt,
-                        const std::string& path) {
+                        bool meshopt, const std::string& path) {
   const std::size_t n = t.u.size();
   GlbTile out;
   // The translation: the rectangle's centre on the ellipsoid, in glTF axes, on the level's lattice.
@@ -64,12 +67,32 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
       triangles.push_back({a, b2, b}), triangles.push_back({a, a2, b2});
     }
   }
-  const std::size_t all = geo.size();
-  std::vector<pm::Ecef> ecef(all), g(all);
-  for (std::size_t i = 0; i < all; ++i) {
-    ecef[i] = pm::ecef_from_geodetic(geo[i]);
-    g[i] = {ecef[i][0] - T[0], ecef[i][2] - T[1], -ecef[i][1] - T[2]};
+  std::vector<pm::Ecef> ecef(geo.size());
+  for (std::size_t i = 0; i < geo.size(); ++i) ecef[i] = pm::ecef_from_geodetic(geo[i]);
+  for (const auto& tri : t.triangles)  // the surface's own triangles
+    for (int k = 0; k < 3; ++k) {
+      const pm::Ecef& a = ecef[tri[std::size_t(k)]];
+      const pm::Ecef& b = ecef[tri[std::size_t((k + 1) % 3)]];
+      out.longest_edge = std::max(out.longest_edge, std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]));
+    }
+  // Triangles in vertex-cache order and vertices in first-use order: what a GPU draws fastest, and
+  // what EXT_meshopt_compression's codecs compress best. A vertex no triangle uses is dropped.
+  std::vector<std::uint32_t> index(3 * triangles.size());
+  for (std::size_t ti = 0; ti < triangles.size(); ++ti)
+    for (int k = 0; k < 3; ++k) index[3 * ti + std::size_t(k)] = triangles[ti][std::size_t(k)];
+  meshopt_optimizeVertexCache(index.data(), index.data(), index.size(), geo.size());
+  std::vector<std::uint32_t> remap(geo.size());
+  const std::size_t all =
+      meshopt_optimizeVertexFetchRemap(remap.data(), index.data(), index.size(), geo.size());
+  meshopt_remapIndexBuffer(index.data(), index.data(), index.size(), remap.data());
+  std::vector<pm::Ecef> g(all);
+  std::vector<std::uint32_t> from(all);
+  for (std::size_t i = 0; i < geo.size(); ++i) {
+    if (remap[i] == ~0u) continue;
+    g[remap[i]] = {ecef[i][0] - T[0], ecef[i][2] - T[1], -ecef[i][1] - T[2]};
+    from[remap[i]] = source[i];
   }
+
   std::string bin;
   std::array<int, 3> qmin{kQ, kQ, kQ}, qmax{-kQ, -kQ, -kQ};
   for (std::size_t i = 0; i < all; ++i) {
@@ -87,34 +110,58 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
   }
   const std::size_t normals_at = bin.size();
   for (std::size_t i = 0; i < all; ++i) {
-    const pm::Ecef e = normal(source[i]);
+    const pm::Ecef e = normal(from[i]);
     const pm::Ecef gl{e[0], e[2], -e[1]};
     for (double c : gl) put(bin, std::int8_t(std::lround(std::clamp(c, -1.0, 1.0) * 127.0)));
     put(bin, std::int8_t(0));  // stride 4
   }
   const std::size_t indices_at = bin.size();
   const bool wide = all > 65535;
-  for (std::size_t ti = 0; ti < triangles.size(); ++ti) {
-    const auto& tri = triangles[ti];
-    for (std::uint32_t i : tri) {
-      if (wide)
-        put(bin, i);
-      else
-        put(bin, std::uint16_t(i));
-    }
-    for (int k = 0; k < 3 && ti < t.triangles.size(); ++k) {  // the surface's own triangles
-      const pm::Ecef& a = ecef[tri[std::size_t(k)]];
-      const pm::Ecef& b = ecef[tri[std::size_t((k + 1) % 3)]];
-      out.longest_edge = std::max(out.longest_edge, std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]));
-    }
+  for (std::uint32_t i : index) {
+    if (wide)
+      put(bin, i);
+    else
+      put(bin, std::uint16_t(i));
   }
   const std::size_t index_bytes = bin.size() - indices_at;
   bin.append((4 - bin.size() % 4) % 4, '\0');
 
-  std::string j =
-      R"({"asset":{"version":"2.0","generator":"terralod export"},)"
-      R"("extensionsUsed":["KHR_mesh_quantization"],"extensionsRequired":["KHR_mesh_quantization"],)"
-      R"("scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"translation":[)";
+  // The three buffer views: (offset, length, stride) in `bin`; with meshopt, `bin` becomes the
+  // fallback (buffer 1, no data) and each view also points at its compressed bytes in buffer 0.
+  struct View {
+    std::size_t at, length, stride, count;
+    const char* mode;
+    int target;
+  };
+  const View views[3] = {{0, normals_at, 8, all, "ATTRIBUTES", 34962},
+                         {normals_at, indices_at - normals_at, 4, all, "ATTRIBUTES", 34962},
+                         {indices_at, index_bytes, wide ? 4u : 2u, index.size(), "TRIANGLES", 34963}};
+  std::string packed;
+  std::size_t packed_at[3] = {0, 0, 0}, packed_length[3] = {0, 0, 0};
+  if (meshopt) {
+    for (int k = 0; k < 3; ++k) {
+      const View& v = views[k];
+      std::vector<unsigned char> code;
+      if (v.target == 34962) {
+        code.resize(meshopt_encodeVertexBufferBound(v.count, v.stride));
+        code.resize(
+            meshopt_encodeVertexBuffer(code.data(), code.size(), bin.data() + v.at, v.count, v.stride));
+      } else {
+        code.resize(meshopt_encodeIndexBufferBound(index.size(), all));
+        code.resize(meshopt_encodeIndexBuffer(code.data(), code.size(), index.data(), index.size()));
+      }
+      if (code.empty()) throw std::runtime_error(path + ": meshopt could not encode a buffer view");
+      packed_at[k] = packed.size(), packed_length[k] = code.size();
+      packed.append(reinterpret_cast<const char*>(code.data()), code.size());
+      packed.append((4 - packed.size() % 4) % 4, '\0');
+    }
+  }
+
+  const std::string extensions =
+      meshopt ? R"(["KHR_mesh_quantization","EXT_meshopt_compression"])" : R"(["KHR_mesh_quantization"])";
+  std::string j = R"({"asset":{"version":"2.0","generator":"terralod export"},"extensionsUsed":)" +
+                  extensions + R"(,"extensionsRequired":)" + extensions +
+                  R"(,"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"translation":[)";
   j += num(T[0]) + "," + num(T[1]) + "," + num(T[2]) + "],\"scale\":[" + num(s) + "," + num(s) + "," +
        num(s) + "]}],";
   j += R"("meshes":[{"primitives":[{"attributes":{"POSITION":0,"NORMAL":1},"indices":2,"mode":4}]}],)";
@@ -133,14 +180,26 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
   j += R"({"bufferView":1,"componentType":5120,"normalized":true,"count":)" + std::to_string(all) +
        R"(,"type":"VEC3"},)";
   j += R"({"bufferView":2,"componentType":)" + std::string(wide ? "5125" : "5123") + R"(,"count":)" +
-       std::to_string(3 * triangles.size()) + R"(,"type":"SCALAR"}],)";
-  j += R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":)" + std::to_string(normals_at) +
-       R"(,"byteStride":8,"target":34962},)";
-  j += R"({"buffer":0,"byteOffset":)" + std::to_string(normals_at) + R"(,"byteLength":)" +
-       std::to_string(indices_at - normals_at) + R"(,"byteStride":4,"target":34962},)";
-  j += R"({"buffer":0,"byteOffset":)" + std::to_string(indices_at) + R"(,"byteLength":)" +
-       std::to_string(index_bytes) + R"(,"target":34963}],)";
-  j += R"("buffers":[{"byteLength":)" + std::to_string(bin.size()) + "}]}";
+       std::to_string(index.size()) + R"(,"type":"SCALAR"}],"bufferViews":[)";
+  for (int k = 0; k < 3; ++k) {
+    const View& v = views[k];
+    j += std::string(k ? "," : "") + R"({"buffer":)" + (meshopt ? "1" : "0") + R"(,"byteOffset":)" +
+         std::to_string(v.at) + R"(,"byteLength":)" + std::to_string(v.length);
+    if (v.target == 34962) j += R"(,"byteStride":)" + std::to_string(v.stride);
+    j += R"(,"target":)" + std::to_string(v.target);
+    if (meshopt)
+      j += R"(,"extensions":{"EXT_meshopt_compression":{"buffer":0,"byteOffset":)" +
+           std::to_string(packed_at[k]) + R"(,"byteLength":)" + std::to_string(packed_length[k]) +
+           R"(,"byteStride":)" + std::to_string(v.stride) + R"(,"count":)" + std::to_string(v.count) +
+           R"(,"mode":")" + v.mode + "\"}}";
+    j += "}";
+  }
+  if (meshopt)
+    j += R"(],"buffers":[{"byteLength":)" + std::to_string(packed.size()) + R"(},{"byteLength":)" +
+         std::to_string(bin.size()) + R"(,"extensions":{"EXT_meshopt_compression":{"fallback":true}}}]})";
+  else
+    j += R"(],"buffers":[{"byteLength":)" + std::to_string(bin.size()) + "}]}";
+  if (meshopt) bin = std::move(packed);
   out.bytes = pm::glb_container(std::move(j), bin, path);
   return out;
 }

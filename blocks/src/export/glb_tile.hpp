@@ -6,7 +6,11 @@
 // to Z-up), quantized with KHR_mesh_quantization: SHORT normalized (3 components, stride 8) with
 // the node's uniform scale s and translation T; normals BYTE
 // normalized (stride 4); indices UNSIGNED_SHORT (UNSIGNED_INT over 65535 vertices). One node,
-// one mesh, one primitive (triangles), no material (clients draw their default). Skirts: every
+// one mesh, one primitive (triangles), no material (clients draw their default). Triangles are in
+// vertex-cache order and vertices in first-use order (meshoptimizer). `meshopt`: the three buffer
+// views are also EXT_meshopt_compression encoded (attributes codec for positions and normals,
+// triangle codec for indices, no filter) in buffer 0, and the uncompressed layout above is the
+// extension's fallback buffer 1, which holds no data: the extension is required. Skirts: every
 // edge vertex is repeated `skirt` metres lower and joined to its edge by triangles facing both
 // ways, so where a client draws neighbours of different levels (REPLACE refinement) no crack
 // shows between their edges (the vertex count includes the skirt's).
@@ -38,6 +42,6 @@ struct GlbTile {
 
 GlbTile encode_tile_glb(const QuantizedMeshTile& tile, const GeoRect& rect,
                         const std::function<pm::Ecef(std::size_t)>& normal, double scale, double skirt,
-                        const std::string& path);
+                        bool meshopt, const std::string& path);
 
 }  // namespace terralod::blocks::detail

@@ -361,6 +361,8 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   const auto t0 = std::chrono::steady_clock::now();
   auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
   const bool qm = options.format == ExportFormat::QuantizedMesh;
+  if (qm && options.meshopt)
+    throw ExportError(out_dir + ": meshopt compression applies to 3D Tiles content, not to quantized-mesh");
   const BlockDatabase db = BlockDatabase::open(db_path, BlockDatabase::Mode::ReadOnly);
   try {
     require_complete_build(db);
@@ -427,7 +429,10 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
 
   const DatabaseInfo& info = db.info();
   std::ostringstream params;
-  params << "terralod-export " << kExportVersion << (qm ? " quantized-mesh" : " 3dtiles")
+  params << "terralod-export " << kExportVersion
+         << (qm                ? " quantized-mesh"
+             : options.meshopt ? " 3dtiles-meshopt"
+                               : " 3dtiles")
          << " source=" << info.source << " grid=" << info.grid_width << "x" << info.grid_height
          << " build=" << info.build_parameters << " levels=" << max_level << " datum=" << grid.vertical_datum
          << " tiles=" << total;
@@ -481,7 +486,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
         } else {
           const detail::GlbTile glb = detail::encode_tile_glb(
               tile, rect, [&](std::size_t v) { return oct_decode(tile.normals[v]); },
-              glb_scale[std::size_t(z)], skirt, file);
+              glb_scale[std::size_t(z)], skirt, options.meshopt, file);
           // A flat triangle departs from the surface through its corners by at most the
           // sagitta of its smallest enclosing circle (radius <= longest edge / sqrt 3).
           const double sag_depth = glb.longest_edge * glb.longest_edge / (6.0 * pm::kWgs84B);

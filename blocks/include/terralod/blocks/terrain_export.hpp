@@ -48,7 +48,8 @@
 // displacement, plus the largest sag of a flat triangle below the curved surface through its
 // corners; raised where needed so that it shrinks strictly from parent to child. All tiles of a
 // level quantize on one lattice (shared vertices land on one point) and carry skirts 3 x the
-// level bound deep, so neighbours of different levels show no crack.
+// level bound deep, so neighbours of different levels show no crack. `meshopt` compresses the
+// content losslessly (EXT_meshopt_compression).
 //
 // Resume: tiles are written atomically (temporary + rename) and journaled in
 // DIR/.terralod-export (the export's parameters, then one line per finished tile). A killed
@@ -95,6 +96,10 @@ struct ExportOptions {
   int max_level = -1;               ///< deepest level; -1: the first whose tiles span <= 64 samples
   int threads = 0;                  ///< 0: every core
   std::string vertical_datum = {};  ///< the input heights' datum (geo_grid.hpp); "" = the source's
+  /// Tiles3D only: glb content compressed with EXT_meshopt_compression (required by each file;
+  /// CesiumJS, three.js and Babylon.js decode it). The decoded tile is the uncompressed one, bit
+  /// for bit, so bounds and geometricErrors are unchanged. With QuantizedMesh: ExportError.
+  bool meshopt = false;
   std::function<void(const ExportProgress&)> progress = {};
 };
 
