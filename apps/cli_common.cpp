@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdarg>
@@ -135,6 +136,29 @@ long long Args::get_int(const std::string& name, long long fallback, long long l
     throw UsageError("option '" + name + "' needs an integer in [" + std::to_string(lo) + ", " +
                      std::to_string(hi) + "], not '" + s + "'");
   return v;
+}
+
+std::pair<long long, long long> Args::get_size(const std::string& name,
+                                               std::pair<long long, long long> fallback, long long lo,
+                                               long long hi) const {
+  auto it = values_.find(name);
+  if (it == values_.end()) return fallback;
+  const std::string& s = it->second;
+  const std::size_t x = s.find_first_of("xX");
+  long long v[2] = {0, 0};
+  bool ok = x != std::string::npos && x > 0 && x + 1 < s.size();
+  for (int k = 0; ok && k < 2; ++k) {
+    const std::string part = k == 0 ? s.substr(0, x) : s.substr(x + 1);
+    char* end = nullptr;
+    errno = 0;
+    v[k] = std::strtoll(part.c_str(), &end, 10);
+    ok = std::isdigit(static_cast<unsigned char>(part[0])) && *end == '\0' && errno != ERANGE && v[k] >= lo &&
+         v[k] <= hi;
+  }
+  if (!ok)
+    throw UsageError("option '" + name + "' needs WxH with W and H integers in [" + std::to_string(lo) +
+                     ", " + std::to_string(hi) + "], not '" + s + "'");
+  return {v[0], v[1]};
 }
 
 std::string Args::get_choice(const std::string& name, const std::vector<std::string>& choices,

@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace terralod::cli {
@@ -56,6 +57,10 @@ class Args {
   double get_double(const std::string& name, double fallback) const;
   /// An integer in [lo, hi] (UsageError naming the option otherwise), or `fallback`.
   long long get_int(const std::string& name, long long fallback, long long lo, long long hi) const;
+  /// "WxH" with W and H integers in [lo, hi] (UsageError naming the option otherwise), or
+  /// `fallback`.
+  std::pair<long long, long long> get_size(const std::string& name, std::pair<long long, long long> fallback,
+                                           long long lo, long long hi) const;
   /// One of `choices` (UsageError listing them otherwise), or `fallback`.
   std::string get_choice(const std::string& name, const std::vector<std::string>& choices,
                          const std::string& fallback) const;

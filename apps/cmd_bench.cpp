@@ -71,15 +71,8 @@ int cmd_bench(const Args& a) {
   bench::LodBenchmarkOptions o =
       a.has("--short") ? bench::short_benchmark_options() : bench::LodBenchmarkOptions{};
   o.frames = int(a.get_int("--frames", o.frames, 2, 1000000));
-  if (a.has("--size")) {
-    const std::string v = a.get("--size");
-    int w = 0, h = 0;
-    char x = 0, extra = 0;
-    if (std::sscanf(v.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 16 ||
-        h < 16 || w > 16384 || h > 16384)
-      throw UsageError("option '--size' wants WxH with 16 <= W, H <= 16384, not '" + v + "'");
-    o.width_px = w, o.height_px = h;
-  }
+  const auto [w, h] = a.get_size("--size", {o.width_px, o.height_px}, 16, 16384);
+  o.width_px = int(w), o.height_px = int(h);
   if (a.has("--taus")) o.taus = parse_taus(a.get("--taus"));
   const std::string dem = (fs::path(a.get("--data", bench::default_data_dir())) / "N44W072.hgt").string();
   if (a.has("--strategies")) {

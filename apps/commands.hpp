@@ -38,6 +38,9 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
 CommandSpec export_spec();
 int cmd_export(const Args&);
 
+CommandSpec testdem_spec();
+int cmd_testdem(const Args&);
+
 // Defined only when the benchmarks are built (TERRALOD_HAVE_BENCH; bench/CMakeLists.txt adds it).
 CommandSpec bench_spec();
 int cmd_bench(const Args&);

@@ -22,6 +22,7 @@
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/dem_writer.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/heightfield.hpp"
@@ -785,6 +786,7 @@ const std::vector<Command>& commands() {
       {terralod::cli::texture_spec, terralod::cli::cmd_texture},
       {terralod::cli::fly_spec, terralod::cli::cmd_fly},
       {terralod::cli::export_spec, terralod::cli::cmd_export},
+      {terralod::cli::testdem_spec, terralod::cli::cmd_testdem},
 #ifdef TERRALOD_HAVE_BENCH  // terralod bench: only when bench/ is built (it adds cmd_bench.cpp)
       {terralod::cli::bench_spec, terralod::cli::cmd_bench},
 #endif

@@ -525,13 +525,8 @@ std::optional<LayerSetup> layer_setup(const Args& a) {
 }
 
 std::pair<int, int> parse_size(const Args& a) {
-  const std::string s = a.get("--size", "1280x720");
-  int w = 0, h = 0;
-  char x = 0, extra = 0;
-  if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 1 ||
-      h < 1 || w > 16384 || h > 16384)
-    throw UsageError("--size must be WxH with each in 1..16384, not '" + s + "'");
-  return {w, h};
+  const auto [w, h] = a.get_size("--size", {1280, 720}, 1, 16384);
+  return {int(w), int(h)};
 }
 
 pm::RefinementOptions refinement_options(const Args& a) {

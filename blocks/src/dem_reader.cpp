@@ -21,6 +21,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "gdal_support.hpp"
 #include "void_fill.hpp"
 
 namespace terralod::blocks {
@@ -92,10 +93,7 @@ void check_dimensions(const std::string& path, long long w, long long h) {
 // ---------------------------------------------------------------------------------------------
 // GDAL plumbing: registration once, errors captured instead of printed.
 
-void register_gdal() {
-  static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
-}
+using detail::register_gdal;
 
 /// Silences GDAL's error printing for the current thread while alive.
 class QuietGdal {
@@ -716,47 +714,6 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
     throw DemError(path, "unknown format");
   } catch (const fs::filesystem_error& e) {
     throw DemError(path, e.what());
-  }
-}
-
-void write_geotiff(const pm::Heightfield& hf, const std::string& path) {
-  register_gdal();
-  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
-  if (!drv) throw DemError(path, "GDAL has no GTiff driver");
-  const std::string tmp = path + ".tmp.tif";
-  char** opts = nullptr;
-  opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
-  opts = CSLSetNameValue(opts, "TILED", "YES");
-  opts = CSLSetNameValue(opts, "BIGTIFF", "IF_SAFER");
-  GDALDataset* ds = drv->Create(tmp.c_str(), hf.width(), hf.height(), 1, GDT_Float32, opts);
-  CSLDestroy(opts);
-  if (!ds) throw DemError(path, "cannot create the GeoTIFF (" + std::string(CPLGetLastErrorMsg()) + ")");
-  const pm::GridTransform& t = hf.transform;
-  // Sample centres are at integer (col, row); GDAL's geotransform maps pixel corners.
-  double gt[6] = {t.x0 - 0.5 * (t.xc + t.xr), t.xc, t.xr, t.y0 - 0.5 * (t.yc + t.yr), t.yc, t.yr};
-  bool ok = ds->SetGeoTransform(gt) == CE_None;
-  GDALRasterBand* band = ds->GetRasterBand(1);
-  ok = ok && band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN()) == CE_None;
-  std::vector<float> row(std::size_t(hf.width()));
-  for (int r = 0; ok && r < hf.height(); ++r) {
-    for (int c = 0; c < hf.width(); ++c) {
-      const std::size_t i = std::size_t(r) * std::size_t(hf.width()) + std::size_t(c);
-      row[std::size_t(c)] = hf.valid(i) ? float(hf[i]) : std::numeric_limits<float>::quiet_NaN();
-    }
-    ok = band->RasterIO(GF_Write, 0, r, hf.width(), 1, row.data(), hf.width(), 1, GDT_Float32, 0, 0) ==
-         CE_None;
-  }
-  const std::string err = ok ? "" : CPLGetLastErrorMsg();
-  GDALClose(ds);
-  std::error_code ec;
-  if (!ok) {
-    std::filesystem::remove(tmp, ec);
-    throw DemError(path, "cannot write the GeoTIFF (" + err + ")");
-  }
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw DemError(path, "cannot rename " + tmp + " onto it");
   }
 }
 

@@ -84,4 +84,42 @@ Heightfield generate_terrain(const TerrainOptions& o) {
   return hf;
 }
 
+FractalField::FractalField(const Options& o) : o_(o) {
+  if (o.width < 1 || o.height < 1) throw std::invalid_argument("FractalField: width and height must be >= 1");
+  if (!(o.spacing > 0.0)) throw std::invalid_argument("FractalField: spacing must be > 0");
+  if (!(o.relief >= 0.0)) throw std::invalid_argument("FractalField: relief must be >= 0");
+  if (!(o.roughness > 0.0 && o.roughness < 1.0))
+    throw std::invalid_argument("FractalField: roughness must be in (0,1)");
+  if (!(o.height_quantum >= 0.0)) throw std::invalid_argument("FractalField: height_quantum must be >= 0");
+  top_shift_ = 1;
+  while ((std::int64_t(1) << top_shift_) * 2 < std::max(o.width, o.height) && top_shift_ < 40) ++top_shift_;
+  octaves_ = top_shift_;  // wavelengths 2^top .. 2^1
+  double sum = 0.0, amp = 1.0;
+  for (int k = 0; k < octaves_; ++k, amp *= o.roughness) sum += amp;
+  norm_ = 1.0 / sum;
+}
+
+double FractalField::at(std::int64_t col, std::int64_t row) const {
+  double z = 0.0, amp = 1.0;
+  for (int k = 0; k < octaves_; ++k, amp *= o_.roughness) {
+    const int shift = top_shift_ - k;
+    const std::int64_t i = col >> shift, j = row >> shift;
+    const double size = double(std::int64_t(1) << shift);
+    const double fx = double(col - (i << shift)) / size, fy = double(row - (j << shift)) / size;
+    const double sx = fx * fx * fx * (fx * (fx * 6.0 - 15.0) + 10.0),
+                 sy = fy * fy * fy * (fy * (fy * 6.0 - 15.0) + 10.0);
+    const std::uint64_t seed = mix(o_.seed + std::uint64_t(k));
+    const double a = noise(seed, int(i), int(j)), b = noise(seed, int(i + 1), int(j)),
+                 c = noise(seed, int(i), int(j + 1)), d = noise(seed, int(i + 1), int(j + 1));
+    z += amp * ((a + (b - a) * sx) + ((c + (d - c) * sx) - (a + (b - a) * sx)) * sy);
+  }
+  double h = 0.5 * o_.relief * (1.0 + z * norm_);
+  if (o_.height_quantum > 0.0) h = std::floor(h / o_.height_quantum + 0.5) * o_.height_quantum;
+  return h;
+}
+
+GridTransform FractalField::transform() const {
+  return GridTransform::north_up(0.0, double(o_.height - 1) * o_.spacing, o_.spacing, o_.spacing);
+}
+
 }  // namespace terralod::pm

@@ -16,6 +16,8 @@
 #include <mutex>
 #include <thread>
 
+#include "../gdal_support.hpp"
+
 namespace terralod::blocks {
 namespace {
 
@@ -107,10 +109,7 @@ class GeoidOperation {
   std::unique_ptr<PJ, PjDeleter> op_;
 };
 
-void register_gdal() {
-  static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
-}
+using detail::register_gdal;
 
 bool is_wgs84_geographic(const std::string& wkt) {
   OGRSpatialReference srs, wgs84;

@@ -123,11 +123,4 @@ class DemError : public std::runtime_error {
 /// when options hold an invalid value (non-finite or zero scale, spacing <= 0).
 pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {});
 
-/// Writes hf as a single-band Float32 GeoTIFF (GDAL, deflate, tiled; written to a temporary
-/// renamed onto `path`): the geotransform of hf.transform shifted to pixel corners, no CRS
-/// (read_dem then keeps the coordinates as metres), invalid samples as nodata (NaN). Heights
-/// round to float: exact for whole metres and for 1/16 m below 2^19 m. DemError naming the
-/// file on failure.
-void write_geotiff(const pm::Heightfield& hf, const std::string& path);
-
 }  // namespace terralod::blocks
