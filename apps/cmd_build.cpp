@@ -9,6 +9,7 @@
 #include <string>
 #include <thread>
 
+#include "build_mpi.hpp"
 #include "commands.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -34,7 +35,12 @@ CommandSpec build_spec() {
       "or two-triangle, of at most --standin-points samples (default 64) at their true heights,\n"
       "with its exact error; they are stored as the 'block_summaries' blob (format version 2).\n"
       "Running the same command again after an interruption resumes it; an existing database\n"
-      "built with other options is an error. 'terralod info DB' prints the summary as JSON.";
+      "built with other options is an error. 'terralod info DB' prints the summary as JSON.\n"
+      "Under MPI ('mpirun -np N terralod build ...', when terralod was built with MPI) every rank\n"
+      "reads the input and builds blocks on --threads threads; rank 0 hands the blocks out, writes\n"
+      "the database (only rank 0 touches it: no shared folder is needed beyond the input) and\n"
+      "shows the progress. The database is the same as a single-process build's, byte for byte; a\n"
+      "killed rank ends the job and the same command resumes it.";
   s.options = {
       {"--input", "DEM", "elevation file (SRTM .hgt, .asc, GeoTIFF, PNG heightmap, ...)", true},
       {"--out", "DB", "database file to create or resume (.db)", true},
@@ -84,11 +90,16 @@ int cmd_build(const Args& a) {
   blocks::DemOptions dem;
   dem.fill_voids = !a.has("--keep-voids");
 
-  auto t = std::chrono::steady_clock::now();
-  const pm::Heightfield hf = blocks::read_dem(input, dem);
-  std::printf("read  %s: %d x %d samples, %s\n", input.c_str(), hf.width(), hf.height(),
-              format_duration(ms_since(t)).c_str());
-  std::fflush(stdout);
+  const int ranks = launched_ranks();
+  auto read = [&] {
+    const auto t = std::chrono::steady_clock::now();
+    pm::Heightfield hf = blocks::read_dem(input, dem);
+    if (launched_rank() == 0)  // under MPI every rank reads; rank 0 speaks
+      std::printf("read  %s: %d x %d samples, %s\n", input.c_str(), hf.width(), hf.height(),
+                  format_duration(ms_since(t)).c_str());
+    std::fflush(stdout);
+    return hf;
+  };
 
   // Progress with an estimate of the time left: a redrawn line on a terminal, else every 10 %.
   const bool tty = isatty(fileno(stderr)) != 0;
@@ -111,31 +122,43 @@ int cmd_build(const Args& a) {
     }
     std::fflush(stderr);
   };
-  t = std::chrono::steady_clock::now();
-  const blocks::DatabaseSummary s = blocks::build_database(hf, out, opt);
-  if (tty) std::fputs("\r\033[K", stderr);
-  const auto& n = s.nodes_per_strategy;
-  std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s\n", out.c_str(),
-              s.blocks, s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
-              format_duration(ms_since(t)).c_str());
-  std::printf(
-      "tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, hybrid %zu, pm_block %zu; root error "
-      "%.2f m, largest block base error %.2f m\n",
-      s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
-      n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::Hybrid)],
-      n[std::size_t(blocks::Strategy::PmBlock)], s.root_error, s.max_block_error);
-  const std::string standins = s.standin.empty() ? std::string("none (the blocks have voids)")
-                               : s.standin == "two-triangle"
-                                   ? s.standin
-                                   : strf("%s of <= %zu points", s.standin.c_str(), opt.standin.max_points);
-  std::printf("stand-ins %s: mean error %.2f m (two triangles: %.2f m), %s of block summaries\n",
-              standins.c_str(), s.mean_standin_error, s.mean_tm_error,
-              format_bytes(s.summaries_bytes).c_str());
-  std::printf(
-      "size  %llu samples, %llu block PM vertices, %s of blocks + %s of tree = %.2f bytes/vertex, total %s\n",
-      static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
-      format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
-      format_duration(ms_since(t0)).c_str());
+  const auto t = std::chrono::steady_clock::now();
+  auto report = [&](const blocks::DatabaseSummary& s, int ranks_used) {
+    if (tty) std::fputs("\r\033[K", stderr);
+    const auto& n = s.nodes_per_strategy;
+    std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s%s\n", out.c_str(),
+                s.blocks, s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
+                format_duration(ms_since(t)).c_str(),
+                ranks_used > 1 ? strf(", %d MPI ranks", ranks_used).c_str() : "");
+    std::printf(
+        "tree  %zu nodes, depth %d: grid %zu, tin %zu, nonregular %zu, hybrid %zu, pm_block %zu; root error "
+        "%.2f m, largest block base error %.2f m\n",
+        s.nodes, s.tree_depth, n[std::size_t(blocks::Strategy::Grid)], n[std::size_t(blocks::Strategy::Tin)],
+        n[std::size_t(blocks::Strategy::NonRegularGrid)], n[std::size_t(blocks::Strategy::Hybrid)],
+        n[std::size_t(blocks::Strategy::PmBlock)], s.root_error, s.max_block_error);
+    const std::string standins = s.standin.empty() ? std::string("none (the blocks have voids)")
+                                 : s.standin == "two-triangle"
+                                     ? s.standin
+                                     : strf("%s of <= %zu points", s.standin.c_str(), opt.standin.max_points);
+    std::printf("stand-ins %s: mean error %.2f m (two triangles: %.2f m), %s of block summaries\n",
+                standins.c_str(), s.mean_standin_error, s.mean_tm_error,
+                format_bytes(s.summaries_bytes).c_str());
+    std::printf(
+        "size  %llu samples, %llu block PM vertices, %s of blocks + %s of tree = %.2f bytes/vertex, total "
+        "%s\n",
+        static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
+        format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
+        format_duration(ms_since(t0)).c_str());
+  };
+  if (ranks > 1) {
+#ifdef TERRALOD_HAVE_MPI
+    return build_with_mpi(read, out, opt, report);
+#else
+    throw UsageError("started by mpirun with " + std::to_string(ranks) +
+                     " ranks, but this terralod was built without MPI (install libopenmpi-dev and rebuild)");
+#endif
+  }
+  report(blocks::build_database(read(), out, opt), 1);
   return 0;
 }
 

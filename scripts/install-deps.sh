@@ -8,13 +8,15 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb fonts-dejavu-core clang-format
   chromium proj-bin
+  openmpi-bin libopenmpi-dev
 )
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 # chromium: the headless browser of the CesiumJS client check (tools/cesium); proj-bin: PROJ's cs2cs,
-# which gives that test the EGM96 geoid undulation (with proj-data's egm96_15.gtx).
+# which gives that test the EGM96 geoid undulation (with proj-data's egm96_15.gtx). Open MPI: the
+# distributed 'mpirun -np N terralod build' and its tests.
 # Node.js runs the glTF validator and the CesiumJS check of the tests (tools/gltf, tools/cesium): any
 # node >= 18.18 on the PATH will do (Debian 12's nodejs is 18.20), so the Debian packages are only
 # installed when the commands are absent.

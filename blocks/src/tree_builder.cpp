@@ -570,6 +570,16 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
   return s;
 }
 
+std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
+                                           const DatabaseBuildOptions& opt) {
+  const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
+  if (!layout.contains(key))
+    throw BuildError("block (" + std::to_string(key.col) + "," + std::to_string(key.row) +
+                     ") is not a block of a " + std::to_string(hf.width()) + " x " +
+                     std::to_string(hf.height()) + " terrain in blocks of " + std::to_string(opt.block_size));
+  return pm::encode_pm(build_block_pm(hf, layout.rect(key), opt.metric));
+}
+
 DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path,
                                const DatabaseBuildOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -628,6 +638,21 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   };
   StandinOptions standin = opt.standin;
   standin.metric = opt.metric;
+  // What is written for a block, from its PM and the PM's encoding (local or delivered).
+  auto make_done = [&standin](BlockKey key, const pm::ProgressiveMesh& pm, std::vector<std::uint8_t> blob) {
+    Done d;
+    d.key = key;
+    d.blob = std::move(blob);
+    d.record.error = base_mesh_error(pm);
+    d.record.vertices = pm.full_vertex_count();
+    d.record.bytes = d.blob.size();
+    try {
+      d.summary = summarize_block(pm, d.key, standin);
+    } catch (const std::invalid_argument&) {
+      // voids: no stand-in, and so no "block_summaries" blob
+    }
+    return d;
+  };
   std::map<BlockKey, std::optional<BlockSummary>> summaries;
   std::mutex m;
   std::condition_variable cv;
@@ -635,38 +660,54 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   std::atomic<bool> cancel{false};
   std::exception_ptr worker_error;
   std::atomic<std::size_t> next{0};
+  auto claim = [&]() -> std::optional<BlockKey> {
+    if (cancel) return std::nullopt;
+    const std::size_t i = next.fetch_add(1);
+    return i < todo.size() ? std::optional<BlockKey>(todo[i]) : std::nullopt;
+  };
+  auto push = [&](Done d) {
+    std::lock_guard<std::mutex> lock(m);
+    queue.push_back(std::move(d));
+    cv.notify_all();
+  };
+  auto fail = [&] {
+    std::lock_guard<std::mutex> lock(m);
+    if (!worker_error) worker_error = std::current_exception();
+    cancel = true;
+  };
   int threads = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
   threads = int(std::min<std::size_t>(std::size_t(threads), std::max<std::size_t>(1, todo.size())));
   std::size_t finished_workers = 0;
   std::vector<std::thread> pool;
-  for (int t = 0; t < threads && !todo.empty(); ++t)
-    pool.emplace_back([&] {
+  auto run_worker = [&](const std::function<void()>& work) {
+    pool.emplace_back([&, work] {
       try {
-        for (std::size_t i; !cancel && (i = next.fetch_add(1)) < todo.size();) {
-          const pm::ProgressiveMesh pm = build_block_pm(hf, layout.rect(todo[i]), opt.metric);
-          Done d;
-          d.key = todo[i];
-          d.blob = pm::encode_pm(pm);
-          d.record.error = base_mesh_error(pm);
-          d.record.vertices = pm.full_vertex_count();
-          d.record.bytes = d.blob.size();
-          try {
-            d.summary = summarize_block(pm, d.key, standin);
-          } catch (const std::invalid_argument&) {
-            // voids: no stand-in, and so no "block_summaries" blob
-          }
-          std::lock_guard<std::mutex> lock(m);
-          queue.push_back(std::move(d));
-          cv.notify_all();
-        }
+        work();
       } catch (...) {
-        std::lock_guard<std::mutex> lock(m);
-        if (!worker_error) worker_error = std::current_exception();
-        cancel = true;
+        fail();
       }
       std::lock_guard<std::mutex> lock(m);
       ++finished_workers;
       cv.notify_all();
+    });
+  };
+  for (int t = 0; t < threads && !todo.empty(); ++t)
+    run_worker([&] {
+      for (std::optional<BlockKey> k; (k = claim());) {
+        const pm::ProgressiveMesh pm = build_block_pm(hf, layout.rect(*k), opt.metric);
+        push(make_done(*k, pm, pm::encode_pm(pm)));
+      }
+    });
+  // Remote builders run even with nothing to build: they must tell their builders so.
+  for (const RemoteBuilder& remote : opt.remote_builders)
+    run_worker([&, remote] {
+      remote(claim, [&](BuiltBlock b) {
+        const std::string where = path + ": block (" + std::to_string(b.key.col) + "," +
+                                  std::to_string(b.key.row) + ") from a remote builder";
+        if (!layout.contains(b.key)) throw BuildError(where + " is not a block of this terrain");
+        const pm::ProgressiveMesh pm = pm::decode_pm(b.pm, where);
+        push(make_done(b.key, pm, std::move(b.pm)));
+      });
     });
   auto stop_workers = [&] {
     cancel = true;

@@ -48,6 +48,7 @@ struct BlockLayout {
   /// All blocks, sorted by (col, row) like BlockDatabase::blocks().
   std::vector<BlockKey> keys() const;
   std::size_t count() const { return std::size_t(blocks_x) * std::size_t(blocks_y); }
+  bool contains(BlockKey k) const { return k.col >= 0 && k.row >= 0 && k.col < blocks_x && k.row < blocks_y; }
 };
 
 /// True for 3, 5, 9, 17, ... (2^k + 1, k >= 1).

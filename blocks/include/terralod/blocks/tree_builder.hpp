@@ -75,6 +75,22 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
                              const TreeBuildOptions& options, std::span<const double> block_errors = {},
                              const std::function<void(double)>& progress = {});
 
+/// A block built away from the database's writer (another process, another machine): its key
+/// and its PM encoded by pm::encode_pm, as build_block_blob makes it.
+struct BuiltBlock {
+  BlockKey key;
+  std::vector<std::uint8_t> pm;
+};
+
+/// Builds blocks beside build_database's own threads, for instance on the other ranks of an MPI
+/// job (apps/build_mpi.cpp). build_database runs it on a thread of its own once it knows the
+/// blocks still to build; it calls claim() for the next block to build (nullopt when none is
+/// left, or when the build is being stopped) and deliver() with every block built, on any of
+/// its threads and in any order, and returns when every block it claimed has been delivered.
+/// An exception it throws stops the build (BuildError's rules: the blocks written so far stay).
+using RemoteBuilder = std::function<void(const std::function<std::optional<BlockKey>()>& claim,
+                                         const std::function<void(BuiltBlock)>& deliver)>;
+
 /// The build parameters as the JSON text stored in DatabaseInfo::build_parameters.
 struct DatabaseBuildOptions {
   int block_size = 257;  ///< 2^k + 1
@@ -107,7 +123,16 @@ struct DatabaseBuildOptions {
   std::function<void(double fraction, double seconds_left)> progress;
   /// Testing aid: stop (throw BuildError) after writing this many blocks in this run; 0 = never.
   std::size_t stop_after_blocks = 0;
+  /// Builders beside the local threads (see RemoteBuilder); the blocks they deliver are written
+  /// exactly as the local ones, so the database is the same whoever built which block.
+  std::vector<RemoteBuilder> remote_builders = {};
 };
+
+/// The encoded PM of block `key` of hf cut into opt.block_size blocks, exactly what
+/// build_database writes for it (deterministic: any process on any machine makes the same bytes
+/// from the same samples and options).
+std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
+                                           const DatabaseBuildOptions& opt);
 
 /// A build that cannot proceed: what() = "<file>: <problem>".
 class BuildError : public std::runtime_error {

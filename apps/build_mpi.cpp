@@ -1,0 +1,149 @@
+// terralod build under MPI (see build_mpi.hpp).
+#include "build_mpi.hpp"
+
+#include <mpi.h>
+
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace terralod::cli {
+namespace {
+
+// Protocol, per worker thread ("slot") s of rank r >= 1, on tag s + 1 between r and 0:
+//   r -> 0  READY (one byte)        then, after each block,  r -> 0  key + encoded PM
+//   0 -> r  key (two int32: col, row) of the next block to build, or an empty message: stop.
+// Rank 0 serves every slot from one thread (RemoteBuilder), receiving from any rank.
+constexpr int kReady = 0x52;
+
+/// A message from (source, tag), waiting without spinning: Open MPI's blocking receive polls,
+/// which would take a core from the builders on an oversubscribed machine.
+std::vector<char> receive(int source, int tag, int* from = nullptr, int* tag_out = nullptr) {
+  MPI_Message msg;
+  MPI_Status st;
+  for (int flag = 0;;) {
+    MPI_Improbe(source, tag, MPI_COMM_WORLD, &flag, &msg, &st);
+    if (flag) break;
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  int n = 0;
+  MPI_Get_count(&st, MPI_BYTE, &n);
+  std::vector<char> bytes(static_cast<std::size_t>(n));
+  MPI_Mrecv(bytes.data(), n, MPI_BYTE, &msg, MPI_STATUS_IGNORE);
+  if (from) *from = st.MPI_SOURCE;
+  if (tag_out) *tag_out = st.MPI_TAG;
+  return bytes;
+}
+
+void send(int dest, int tag, const void* data, std::size_t n) {
+  MPI_Send(data, int(n), MPI_BYTE, dest, tag, MPI_COMM_WORLD);
+}
+
+[[noreturn]] void abort_job(int rank, const std::string& what) {
+  std::fprintf(stderr, "terralod build (rank %d): %s\n", rank, what.c_str());
+  std::fflush(stderr);
+  MPI_Abort(MPI_COMM_WORLD, 1);
+  std::exit(1);
+}
+
+/// Rank 0's side: serves every slot of every other rank. slots[r] = threads of rank r.
+blocks::RemoteBuilder serve_ranks(std::vector<int> slots) {
+  return [slots](const std::function<std::optional<blocks::BlockKey>()>& claim,
+                 const std::function<void(blocks::BuiltBlock)>& deliver) {
+    int open = 0;
+    for (int s : slots) open += s;
+    while (open > 0) {
+      int from = 0, tag = 0;
+      std::vector<char> m = receive(MPI_ANY_SOURCE, MPI_ANY_TAG, &from, &tag);
+      if (!(m.size() == 1 && m[0] == kReady)) {
+        if (m.size() < 8)
+          throw blocks::BuildError("a message of " + std::to_string(m.size()) + " bytes from rank " +
+                                   std::to_string(from) + " is not a block");
+        blocks::BuiltBlock b;
+        std::int32_t key[2];
+        std::memcpy(key, m.data(), 8);
+        b.key = {key[0], key[1]};
+        b.pm.assign(m.begin() + 8, m.end());
+        deliver(std::move(b));
+      }
+      if (const std::optional<blocks::BlockKey> k = claim()) {
+        const std::int32_t key[2] = {k->col, k->row};
+        send(from, tag, key, sizeof key);
+      } else {
+        send(from, tag, nullptr, 0);
+        --open;
+      }
+    }
+  };
+}
+
+/// A rank >= 1: `threads` slots, each asking rank 0 for a block, building it and sending it back.
+void work_for_rank0(const pm::Heightfield& hf, const blocks::DatabaseBuildOptions& opt, int threads,
+                    int rank) {
+  std::vector<std::thread> pool;
+  for (int s = 0; s < threads; ++s)
+    pool.emplace_back([&, s] {
+      try {
+        const int tag = s + 1;
+        const char ready = char(kReady);
+        send(0, tag, &ready, 1);
+        for (;;) {
+          const std::vector<char> m = receive(0, tag);
+          if (m.empty()) break;
+          std::int32_t key[2];
+          std::memcpy(key, m.data(), 8);
+          const std::vector<std::uint8_t> blob = blocks::build_block_blob(hf, {key[0], key[1]}, opt);
+          std::vector<char> out(8 + blob.size());
+          std::memcpy(out.data(), key, 8);
+          std::memcpy(out.data() + 8, blob.data(), blob.size());
+          send(0, tag, out.data(), out.size());
+        }
+      } catch (const std::exception& e) {
+        abort_job(rank, e.what());
+      }
+    });
+  for (auto& t : pool) t.join();
+}
+
+}  // namespace
+
+int build_with_mpi(const std::function<pm::Heightfield()>& read, const std::string& out,
+                   blocks::DatabaseBuildOptions opt,
+                   const std::function<void(const blocks::DatabaseSummary&, int ranks)>& report) {
+  int provided = 0;
+  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_MULTIPLE, &provided);
+  int rank = 0, size = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &size);
+  if (provided < MPI_THREAD_MULTIPLE)
+    abort_job(rank, "the MPI library gives no MPI_THREAD_MULTIPLE, which the build's threads need");
+  const int threads = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  try {
+    const pm::Heightfield hf = read();
+    // Every rank says how many threads it builds with; rank 0 hands out one block per thread.
+    std::vector<int> slots(std::size_t(size), 0);
+    MPI_Gather(&threads, 1, MPI_INT, slots.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (rank == 0) {
+      slots[0] = 0;
+      opt.remote_builders.push_back(serve_ranks(slots));
+      const blocks::DatabaseSummary s = blocks::build_database(hf, out, opt);
+      report(s, size);
+    } else {
+      // Progress and the summary are rank 0's.
+      opt.progress = nullptr;
+      work_for_rank0(hf, opt, threads, rank);
+    }
+  } catch (const std::exception& e) {
+    abort_job(rank, e.what());
+  }
+  MPI_Finalize();
+  return 0;
+}
+
+}  // namespace terralod::cli
