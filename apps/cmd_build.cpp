@@ -42,7 +42,9 @@ CommandSpec build_spec() {
       "shows the progress. The database is the same as a single-process build's, byte for byte; a\n"
       "killed rank ends the job and the same command resumes it.";
   s.options = {
-      {"--input", "DEM", "elevation file (SRTM .hgt, .asc, GeoTIFF, PNG heightmap, ...)", true},
+      {"--input", "DEM",
+       "elevation file (.hgt, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one mosaic", true,
+       true},
       {"--out", "DB", "database file to create or resume (.db)", true},
       {"--block-size", "N", "samples per block side, 2^k + 1 (default 257)"},
       {"--threads", "N", "blocks built in parallel, 0 = all cores (default 0)"},
@@ -60,7 +62,7 @@ CommandSpec build_spec() {
 
 int cmd_build(const Args& a) {
   const auto t0 = std::chrono::steady_clock::now();
-  const std::string input = a.get("--input"), out = a.get("--out");
+  const std::string out = a.get("--out");
   blocks::DatabaseBuildOptions opt;
   opt.block_size = int(a.get_int("--block-size", 257, 3, 1 << 20));
   if (!blocks::is_valid_block_size(opt.block_size))
@@ -93,9 +95,11 @@ int cmd_build(const Args& a) {
   const int ranks = launched_ranks();
   auto read = [&] {
     const auto t = std::chrono::steady_clock::now();
-    pm::Heightfield hf = blocks::read_dem(input, dem);
+    const blocks::DemInputs inputs(a.get_all("--input"));
+    pm::Heightfield hf = blocks::read_dem(inputs.path(), dem);
+    hf.source = inputs.description();
     if (launched_rank() == 0)  // under MPI every rank reads; rank 0 speaks
-      std::printf("read  %s: %d x %d samples, %s\n", input.c_str(), hf.width(), hf.height(),
+      std::printf("read  %s: %d x %d samples, %s\n", inputs.description().c_str(), hf.width(), hf.height(),
                   format_duration(ms_since(t)).c_str());
     std::fflush(stdout);
     return hf;

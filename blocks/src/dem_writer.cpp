@@ -114,7 +114,11 @@ void GeoTiffWriter::commit() {
 }
 
 void write_geotiff(const pm::Heightfield& hf, const std::string& path) {
-  GeoTiffWriter w(path, hf.width(), hf.height(), hf.transform, hf.crs_wkt);
+  // In its CRS when the heightfield knows where its samples lie in it; else the metric frame
+  // without a CRS (read back as metres).
+  GeoTiffWriter w = hf.crs_transform
+                        ? GeoTiffWriter(path, hf.width(), hf.height(), *hf.crs_transform, hf.crs_wkt)
+                        : GeoTiffWriter(path, hf.width(), hf.height(), hf.transform);
   std::vector<float> row(std::size_t(hf.width()));
   for (int r = 0; r < hf.height(); ++r) {
     for (int c = 0; c < hf.width(); ++c) {

@@ -326,6 +326,42 @@ TEST(DatabaseBuild, BadInputNamesTheFile) {
     EXPECT_NE(std::string(e.what()).find("one.asc"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(fs::exists(out));
+  // An empty folder, and a mosaic with a missing tile, are refused naming them.
+  fs::create_directories(dir + "/database_build_no_tiles");
+  expect_error(dir + "/database_build_no_tiles", "a folder without elevation files");
+}
+
+// --input FOLDER and repeated --input: the tiles are built as one terrain, the database says so.
+TEST(DatabaseBuild, CliBuildsAFolderOrAListOfTilesAsOneMosaic) {
+  const std::string dir = std::string(TERRALOD_TEST_TMP) + "/database_build_tiles";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const pm::Heightfield hf = terrain(65, 65, 7);
+  write_asc(dir + "/source.asc", hf);
+  ASSERT_EQ(run_terralod({"testdem", "--mirror", dir + "/source.asc", "--tiles", "2x1", "--out", dir + "/m"})
+                .status,
+            0);
+  const std::string folder = tmp("tiles_folder.db"), listed = tmp("tiles_listed.db");
+  ChildRun r = run_terralod({"build", "--input", dir + "/m", "--out", folder, "--block-size", "33"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run_terralod({"build", "--input", dir + "/m/tile_0_0.tif", "--input", dir + "/m/tile_0_1.tif", "--out",
+                    listed, "--block-size", "33"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const std::string& path : {folder, listed}) {
+    const tb::BlockDatabase db = tb::BlockDatabase::open(path);
+    EXPECT_EQ(db.info().grid_width, 129);  // 2 x 64 + 1: the tiles share their edge column
+    EXPECT_EQ(db.info().grid_height, 65);
+    EXPECT_NE(db.info().source.find("mosaic of 2 files: tile_0_0.tif, tile_0_1.tif"), std::string::npos)
+        << db.info().source;
+  }
+  // The same samples (the build parameters carry their CRC-32); the blocks differ only by the
+  // source text each PM records.
+  EXPECT_EQ(tb::BlockDatabase::open(folder).info().build_parameters,
+            tb::BlockDatabase::open(listed).info().build_parameters);
+  EXPECT_EQ(run_terralod({"build", "--input", dir + "/m/tile_0_0.tif", "--input", dir + "/m/none.tif",
+                          "--out", tmp("tiles_missing.db")})
+                .status,
+            1);
 }
 
 }  // namespace

@@ -10,8 +10,10 @@
 #include <vector>
 
 #include "run_command.hpp"
+#include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/dem_writer.hpp"
+#include "terralod/blocks/tree_builder.hpp"
 
 namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
@@ -27,7 +29,8 @@ tb::DemOptions keep_voids() {
   return o;
 }
 
-// A small geographic source with voids, two of them on its east and south edges.
+// A small geographic source with voids, two of them reaching its east and south edges (so that
+// in a mirror mosaic they cross the tile borders).
 pm::Heightfield geographic_source() {
   pm::Heightfield hf(37, 25);
   for (int r = 0; r < hf.height(); ++r)
@@ -35,9 +38,10 @@ pm::Heightfield geographic_source() {
       hf.at(c, r) = 100.0 + 3.0 * c - 2.0 * r + 0.25 * ((c * 7 + r * 3) % 5);
   hf.crs_wkt =
       R"(GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4326"]])";
-  hf.transform = pm::GridTransform::north_up(7.0, 46.0, 1.0 / 36.0, 1.0 / 24.0);
+  hf.crs_transform = pm::GridTransform::north_up(7.0, 46.0, 1.0 / 36.0, 1.0 / 24.0);  // degrees
   std::vector<std::uint8_t> mask(hf.size(), 1);
-  for (auto [c, r] : {std::pair{36, 10}, std::pair{12, 24}, std::pair{5, 5}})
+  for (auto [c, r] :
+       {std::pair{35, 10}, std::pair{36, 10}, std::pair{12, 23}, std::pair{12, 24}, std::pair{5, 5}})
     mask[std::size_t(r) * std::size_t(hf.width()) + std::size_t(c)] = 0;
   hf.set_mask(std::move(mask));
   return hf;
@@ -142,4 +146,55 @@ TEST(GeoTiffWriter, UncommittedLeavesNothingAndErrorsNameTheFile) {
   }
   EXPECT_THROW(tb::write_mirror_mosaic((tmp() / "missing.tif").string(), 2, 2, (tmp() / "m2").string()),
                tb::DemError);
+}
+
+// `terralod build --input FOLDER` (or the tiles as repeated --input): the tiles are read as one
+// mosaic, voids that cross their borders are filled on the mosaic, and the database is the one
+// built from the same mosaic in a single file.
+TEST(DemInputs, TilesWithVoidsAcrossTheirBordersBuildAsTheMosaicInOneFile) {
+  const fs::path source = tmp() / "inputs_source.tif", dir = tmp() / "inputs_mosaic", one = tmp() / "one.tif";
+  tb::write_geotiff(geographic_source(), source.string());
+  const tb::MosaicReport m = tb::write_mirror_mosaic(source.string(), 3, 2, dir.string());
+  tb::write_geotiff(tb::read_dem(m.vrt, keep_voids()), one.string());  // voids as NaN
+
+  const tb::DemInputs folder({dir.string()});
+  EXPECT_EQ(folder.files(), 6u);  // the tiles, not mosaic.vrt
+  EXPECT_NE(folder.description().find("mosaic of 6 files"), std::string::npos) << folder.description();
+  std::vector<std::string> tiles;
+  for (int j = 0; j < 2; ++j)
+    for (int i = 0; i < 3; ++i)
+      tiles.push_back((dir / ("tile_" + std::to_string(j) + "_" + std::to_string(i) + ".tif")).string());
+  const tb::DemInputs listed(tiles), single({one.string()});
+  EXPECT_EQ(single.path(), one.string());
+
+  tb::DatabaseBuildOptions opt;
+  opt.block_size = 17;
+  opt.threads = 2;
+  opt.tree.levels = {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin};
+  std::vector<fs::path> dbs;
+  for (const tb::DemInputs* in : {&single, &folder, &listed}) {
+    pm::Heightfield hf = tb::read_dem(in->path());
+    EXPECT_GE(hf.voids.filled, 8u);  // the voids, crossing the borders, are filled
+    hf.source = "mosaic";            // the same source text, so that only the samples could differ
+    dbs.push_back(tmp() / ("inputs_" + std::to_string(dbs.size()) + ".db"));
+    tb::build_database(hf, dbs.back().string(), opt);
+  }
+  const tb::BlockDatabase want = tb::BlockDatabase::open(dbs[0].string());
+  for (std::size_t k = 1; k < dbs.size(); ++k) {
+    const tb::BlockDatabase got = tb::BlockDatabase::open(dbs[k].string());
+    ASSERT_EQ(got.blocks(), want.blocks());
+    for (tb::BlockKey b : want.blocks()) EXPECT_EQ(got.read_block(b), want.read_block(b));
+    for (const std::string& blob : want.blob_names())
+      EXPECT_EQ(got.read_blob(blob), want.read_blob(blob)) << blob;
+    EXPECT_EQ(got.info(), want.info());
+  }
+  // Errors name the folder or file.
+  fs::create_directories(tmp() / "empty");
+  try {
+    tb::DemInputs none({(tmp() / "empty").string()});
+    FAIL() << "an empty folder was accepted";
+  } catch (const tb::DemError& e) {
+    EXPECT_NE(std::string(e.what()).find("empty"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(tb::DemInputs({tiles[0], (tmp() / "missing.tif").string()}), tb::DemError);
 }

@@ -82,6 +82,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "terralod/pm/heightfield.hpp"
 
@@ -122,5 +123,32 @@ class DemError : public std::runtime_error {
 /// the world frame and void handling). Throws DemError on bad data; std::invalid_argument
 /// when options hold an invalid value (non-finite or zero scale, spacing <= 0).
 pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {});
+
+/// The inputs of `terralod build --input` as one raster for read_dem: a single file as it is;
+/// several files, or a folder (its raster files: .tif .tiff .hgt .asc .img .dem .bil .flt, sorted
+/// by name; not .vrt, which a folder of tiles often holds over them), as one VRT mosaic of them (GDALBuildVRT) in GDAL's in-memory file system,
+/// which lives as long as this object. The files must share one CRS and resolution; where they
+/// overlap, later names win. Voids are read (and filled) on the mosaic, not file by file, so
+/// a void that crosses a file boundary is filled as if the mosaic were one file.
+/// DemError naming the file or folder: a missing path, an empty folder, files GDAL cannot
+/// mosaic (another CRS, another resolution, not a raster).
+class DemInputs {
+ public:
+  explicit DemInputs(const std::vector<std::string>& inputs);
+  ~DemInputs();
+  DemInputs(const DemInputs&) = delete;
+  DemInputs& operator=(const DemInputs&) = delete;
+  /// What read_dem reads: the one input, or the in-memory VRT.
+  const std::string& path() const { return path_; }
+  /// The input as the database records it (Heightfield::source): the file, or
+  /// "mosaic of N files: first, second, ... (in FOLDER)".
+  const std::string& description() const { return description_; }
+  std::size_t files() const { return files_; }
+
+ private:
+  std::string path_, description_;
+  std::size_t files_ = 0;
+  bool owned_ = false;
+};
 
 }  // namespace terralod::blocks

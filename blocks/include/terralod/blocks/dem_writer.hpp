@@ -61,7 +61,8 @@ class GeoTiffWriter {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Writes hf as a GeoTIFF (see the contract): hf.crs_wkt is written as its CRS when set.
+/// Writes hf as a GeoTIFF (see the contract): with hf.crs_transform, in its CRS (hf.crs_wkt) with
+/// that transform, so read_dem gives back the same frame; without, hf.transform and no CRS.
 void write_geotiff(const pm::Heightfield& hf, const std::string& path);
 
 /// Writes every sample of `field` to `path` in strips of 256 rows computed by `threads` threads
