@@ -1,0 +1,501 @@
+// The block-database build (tree_builder.hpp: build_database, summarize_database): partition,
+// per-block PMs on local threads and remote builders, crash-consistent resumable writes, then the
+// approximation tree above the blocks (build_tree) and the stand-ins, written last.
+#include <sqlite3.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <exception>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/parallel.hpp"
+#include "terralod/pm/pm_io.hpp"
+
+namespace terralod::blocks {
+
+using pm::parallel_for;
+
+// ---------------------------------------------------------------------------------------------
+// Database build
+
+namespace {
+
+const char* metric_name(pm::ErrorMetric m) {
+  return m == pm::ErrorMetric::Samples ? "samples" : "continuous";
+}
+
+std::uint32_t samples_crc(const pm::Heightfield& hf) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  const auto& z = hf.samples();
+  crc = crc32_z(crc, reinterpret_cast<const Bytef*>(z.data()), z.size() * sizeof(double));
+  const auto& m = hf.mask();
+  if (!m.empty()) crc = crc32_z(crc, m.data(), m.size());
+  return std::uint32_t(crc);
+}
+
+std::string build_parameters_json(const pm::Heightfield& hf, const DatabaseBuildOptions& o) {
+  std::string levels;
+  for (StrategyChoice c : o.tree.levels)
+    levels += std::string(levels.empty() ? "" : ",") + strategy_choice_name(c);
+  char buf[512];
+  std::snprintf(
+      buf, sizeof buf,
+      "{\"block_size\": %d, \"metric\": \"%s\", \"strategy\": \"%s\", \"patch\": %d, \"max_points\": %zu, "
+      "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 "}",
+      o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, hf.width(),
+      hf.height(), samples_crc(hf));
+  return buf;
+}
+
+/// True when `path` is an SQLite file with no application id and no schema object: what a
+/// create() killed before its first commit leaves (block_database.hpp). Such a file holds
+/// nothing, so the build may replace it.
+bool is_interrupted_create(const std::string& path) {
+  sqlite3* db = nullptr;
+  bool empty = false;
+  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_stmt* st = nullptr;
+    std::int64_t app_id = -1, objects = -1;
+    if (sqlite3_prepare_v2(db, "PRAGMA application_id", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW)
+      app_id = sqlite3_column_int64(st, 0);
+    sqlite3_finalize(st);
+    st = nullptr;
+    if (sqlite3_prepare_v2(db, "SELECT count(*) FROM sqlite_schema", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW)
+      objects = sqlite3_column_int64(st, 0);
+    sqlite3_finalize(st);
+    empty = app_id == 0 && objects == 0;
+  }
+  sqlite3_close(db);
+  return empty;
+}
+
+std::string block_meta_key(BlockKey k) {
+  return "block/" + std::to_string(k.col) + "," + std::to_string(k.row);
+}
+
+struct BlockRecord {
+  double error = 0;
+  std::uint64_t vertices = 0, bytes = 0;
+};
+
+std::optional<BlockRecord> read_block_record(const BlockDatabase& db, BlockKey k) {
+  const auto v = db.get_meta(block_meta_key(k));
+  if (!v) return std::nullopt;
+  BlockRecord r;
+  std::istringstream in(*v);
+  in.imbue(std::locale::classic());
+  if (!(in >> r.error >> r.vertices >> r.bytes))
+    throw DatabaseError(db.path(), "block (" + std::to_string(k.col) + "," + std::to_string(k.row) +
+                                       "): malformed build record '" + *v + "'");
+  return r;
+}
+
+std::string format_record(const BlockRecord& r) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.17g %" PRIu64 " %" PRIu64, r.error, r.vertices, r.bytes);
+  return buf;
+}
+
+}  // namespace
+
+std::string DatabaseSummary::to_json() const {
+  std::string j = "{\n";
+  auto quote = [](const std::string& s) {
+    std::string q = "\"";
+    for (char c : s) {
+      if (c == '"' || c == '\\')
+        q += '\\', q += c;
+      else if (static_cast<unsigned char>(c) < 0x20) {
+        char b[8];
+        std::snprintf(b, sizeof b, "\\u%04x", c);
+        q += b;
+      } else
+        q += c;
+    }
+    return q + "\"";
+  };
+  auto num = [](double v) {
+    if (!std::isfinite(v)) return std::string("null");
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(b);
+  };
+  auto field = [&](const std::string& k, const std::string& v, bool last = false) {
+    j += "  " + quote(k) + ": " + v + (last ? "\n" : ",\n");
+  };
+  field("file", quote(path));
+  field("kind", quote("blocks"));
+  field("source", quote(source));
+  field("complete", complete ? "true" : "false");
+  field("grid",
+        "{\"width\": " + std::to_string(grid_width) + ", \"height\": " + std::to_string(grid_height) + "}");
+  field("block_size", std::to_string(block_size));
+  field("blocks_grid", "{\"x\": " + std::to_string(blocks_x) + ", \"y\": " + std::to_string(blocks_y) + "}");
+  field("blocks", std::to_string(blocks));
+  field("blocks_built", std::to_string(blocks_built));
+  std::string per = "{";
+  for (int s = 0; s < kStrategyCount; ++s)
+    per += std::string(s ? ", " : "") + quote(strategy_name(Strategy(s))) + ": " +
+           std::to_string(nodes_per_strategy[std::size_t(s)]);
+  field("nodes", std::to_string(nodes));
+  field("nodes_per_strategy", per + "}");
+  field("tree_depth", std::to_string(tree_depth));
+  field("samples", std::to_string(samples));
+  field("pm_vertices", std::to_string(pm_vertices));
+  field("block_bytes", std::to_string(block_bytes));
+  field("tree_bytes", std::to_string(tree_bytes));
+  field("summaries_bytes", std::to_string(summaries_bytes));
+  field("standin", quote(standin));
+  field("mean_standin_error", num(mean_standin_error));
+  field("mean_tm_error", num(mean_tm_error));
+  field("bytes_per_vertex", num(bytes_per_vertex));
+  field("max_block_error", num(max_block_error));
+  field("root_error", num(root_error));
+  field("seconds", num(seconds));
+  if (georeference) {
+    const pm::GridTransform& t = georeference->crs_transform;
+    field(
+        "georeference",
+        "{\"crs_transform\": [" + num(t.x0) + ", " + num(t.xc) + ", " + num(t.xr) + ", " + num(t.y0) + ", " +
+            num(t.yc) + ", " + num(t.yr) + "], \"vertical_datum\": " +
+            quote(georeference->vertical_datum.empty() ? "unknown (exporters assume EGM96)"
+                                                       : georeference->vertical_datum) +
+            ", \"frame\": " +
+            quote(
+                "sample (col,row) -> CRS coordinates of the source: X = crs_transform[0] + col * [1] + row * "
+                "[2], Y = [3] + col * [4] + row * [5] (degrees for a geographic CRS); the runtime's world "
+                "frame is the metric map of the build (terralod info of the DEM prints it); "
+                "'terralod export' places samples through this map and converts heights from "
+                "vertical_datum to the WGS 84 ellipsoid") +
+            "}");
+  } else {
+    field("georeference", "null");
+  }
+  field("build_parameters", build_parameters.empty() ? "null" : build_parameters, true);
+  return j + "}\n";
+}
+
+void require_complete_build(const BlockDatabase& db) {
+  if (db.get_meta("build_complete").value_or("") != "1")
+    throw BuildError(
+        db.path() +
+        ": the build is not complete (run 'terralod build' again with the same options to finish it)");
+}
+
+DatabaseSummary summarize_database(const BlockDatabase& db) {
+  DatabaseSummary s;
+  const DatabaseInfo& info = db.info();
+  s.path = db.path();
+  s.source = info.source;
+  s.grid_width = info.grid_width;
+  s.grid_height = info.grid_height;
+  s.block_size = info.block_size;
+  s.build_parameters = info.build_parameters;
+  s.georeference = db.georeference();
+  s.samples = std::uint64_t(info.grid_width) * std::uint64_t(info.grid_height);
+  if (info.grid_width >= 2 && info.grid_height >= 2 && is_valid_block_size(info.block_size)) {
+    const BlockLayout l = partition(info.grid_width, info.grid_height, info.block_size);
+    s.blocks_x = l.blocks_x;
+    s.blocks_y = l.blocks_y;
+  }
+  for (BlockKey k : db.blocks()) {
+    ++s.blocks;
+    if (const auto r = read_block_record(db, k)) {
+      s.pm_vertices += r->vertices;
+      s.block_bytes += r->bytes;
+      s.max_block_error = std::max(s.max_block_error, r->error);
+    }
+  }
+  if (const auto t = db.read_blob("tree")) {
+    const ApproximationTree tree = decode_tree(*t, db.path() + ": tree");
+    s.tree_bytes = t->size();
+    s.nodes = tree.size();
+    s.nodes_per_strategy = tree.count_by_strategy();
+    s.tree_depth = tree.depth();
+    if (tree.size()) s.root_error = tree.root().error;
+  }
+  if (const auto b = db.read_blob(kBlockSummariesBlob); b && s.blocks_x > 0) {
+    const BlockGrid grid = BlockGrid::from_info(info);
+    const std::vector<BlockSummary> sums = decode_block_summaries(grid, *b, db.path());
+    s.summaries_bytes = b->size();
+    s.standin = sums.empty() ? "" : standin_kind_name(sums[0].standin);
+    for (const BlockSummary& x : sums) {
+      s.mean_standin_error += x.standin_error / double(sums.size());
+      s.mean_tm_error += x.tm_error / double(sums.size());
+    }
+  }
+  s.bytes_per_vertex = s.samples ? double(s.block_bytes + s.tree_bytes) / double(s.samples) : 0.0;
+  if (const auto sec = db.get_meta("build_seconds")) s.seconds = std::atof(sec->c_str());
+  s.complete = db.get_meta("build_complete").value_or("") == "1";
+  return s;
+}
+
+std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
+                                           const DatabaseBuildOptions& opt) {
+  const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
+  if (!layout.contains(key))
+    throw BuildError("block (" + std::to_string(key.col) + "," + std::to_string(key.row) +
+                     ") is not a block of a " + std::to_string(hf.width()) + " x " +
+                     std::to_string(hf.height()) + " terrain in blocks of " + std::to_string(opt.block_size));
+  return pm::encode_pm(build_block_pm(hf, layout.rect(key), opt.metric));
+}
+
+DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path,
+                               const DatabaseBuildOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string source = hf.source.empty() ? std::string("(in memory)") : hf.source;
+  if (hf.width() < 2 || hf.height() < 2)
+    throw BuildError(source + ": a " + std::to_string(hf.width()) + " x " + std::to_string(hf.height()) +
+                     " grid is too small to build a terrain (at least 2 x 2 samples)");
+  bool any_valid = !hf.has_holes();
+  for (std::size_t i = 0; !any_valid && i < hf.size(); ++i) any_valid = hf.valid(i);
+  if (!any_valid) throw BuildError(source + ": every sample is void; there is no terrain to build");
+  if (!is_valid_block_size(opt.block_size))
+    throw BuildError(path + ": block size must be 2^k + 1 (3, 5, 9, ..., 257, ...), not " +
+                     std::to_string(opt.block_size));
+  const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
+
+  DatabaseInfo info;
+  info.grid_width = hf.width();
+  info.grid_height = hf.height();
+  info.transform = hf.transform;
+  info.crs_wkt = hf.crs_wkt;
+  info.block_size = opt.block_size;
+  info.build_parameters = build_parameters_json(hf, opt);
+  info.source = hf.source;
+
+  std::optional<BlockDatabase> dbo;
+  if (std::filesystem::exists(path) && is_interrupted_create(path)) {
+    // A create() that was killed: nothing to resume, start again.
+    for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
+  }
+  if (std::filesystem::exists(path)) {
+    dbo.emplace(BlockDatabase::open(path, BlockDatabase::Mode::ReadWrite));
+    const DatabaseInfo& have = dbo->info();
+    if (have.build_parameters != info.build_parameters || have.grid_width != info.grid_width ||
+        have.grid_height != info.grid_height || have.kind != info.kind)
+      throw BuildError(path + ": exists and was built with other parameters or input (stored " +
+                       have.build_parameters + ", requested " + info.build_parameters +
+                       "); use the same options and input to resume, or remove it");
+  } else {
+    dbo.emplace(BlockDatabase::create(path, info));
+  }
+  BlockDatabase& db = *dbo;
+  if (hf.crs_transform) db.put_georeference({*hf.crs_transform, hf.vertical_datum});
+
+  // Blocks still to build.
+  const std::vector<BlockKey> keys = layout.keys();
+  std::vector<BlockKey> todo;
+  for (BlockKey k : keys)
+    if (!db.has_block(k) || !read_block_record(db, k)) todo.push_back(k);
+  const std::size_t already = keys.size() - todo.size();
+
+  struct Done {
+    BlockKey key;
+    std::vector<std::uint8_t> blob;
+    BlockRecord record;
+    std::optional<BlockSummary> summary;  // none when the block has voids
+  };
+  StandinOptions standin = opt.standin;
+  standin.metric = opt.metric;
+  // What is written for a block, from its PM and the PM's encoding (local or delivered).
+  auto make_done = [&standin](BlockKey key, const pm::ProgressiveMesh& pm, std::vector<std::uint8_t> blob) {
+    Done d;
+    d.key = key;
+    d.blob = std::move(blob);
+    d.record.error = base_mesh_error(pm);
+    d.record.vertices = pm.full_vertex_count();
+    d.record.bytes = d.blob.size();
+    try {
+      d.summary = summarize_block(pm, d.key, standin);
+    } catch (const std::invalid_argument&) {
+      // voids: no stand-in, and so no "block_summaries" blob
+    }
+    return d;
+  };
+  std::map<BlockKey, std::optional<BlockSummary>> summaries;
+  std::mutex m;
+  std::condition_variable cv;
+  std::deque<Done> queue;
+  std::atomic<bool> cancel{false};
+  std::exception_ptr worker_error;
+  std::atomic<std::size_t> next{0};
+  auto claim = [&]() -> std::optional<BlockKey> {
+    if (cancel) return std::nullopt;
+    const std::size_t i = next.fetch_add(1);
+    return i < todo.size() ? std::optional<BlockKey>(todo[i]) : std::nullopt;
+  };
+  auto push = [&](Done d) {
+    std::lock_guard<std::mutex> lock(m);
+    queue.push_back(std::move(d));
+    cv.notify_all();
+  };
+  auto fail = [&] {
+    std::lock_guard<std::mutex> lock(m);
+    if (!worker_error) worker_error = std::current_exception();
+    cancel = true;
+  };
+  int threads = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  threads = int(std::min<std::size_t>(std::size_t(threads), std::max<std::size_t>(1, todo.size())));
+  std::size_t finished_workers = 0;
+  std::vector<std::thread> pool;
+  auto run_worker = [&](const std::function<void()>& work) {
+    pool.emplace_back([&, work] {
+      try {
+        work();
+      } catch (...) {
+        fail();
+      }
+      std::lock_guard<std::mutex> lock(m);
+      ++finished_workers;
+      cv.notify_all();
+    });
+  };
+  for (int t = 0; t < threads && !todo.empty(); ++t)
+    run_worker([&] {
+      for (std::optional<BlockKey> k; (k = claim());) {
+        const pm::ProgressiveMesh pm = build_block_pm(hf, layout.rect(*k), opt.metric);
+        push(make_done(*k, pm, pm::encode_pm(pm)));
+      }
+    });
+  // Remote builders run even with nothing to build: they must tell their builders so.
+  for (const RemoteBuilder& remote : opt.remote_builders)
+    run_worker([&, remote] {
+      remote(claim, [&](BuiltBlock b) {
+        const std::string where = path + ": block (" + std::to_string(b.key.col) + "," +
+                                  std::to_string(b.key.row) + ") from a remote builder";
+        if (!layout.contains(b.key)) throw BuildError(where + " is not a block of this terrain");
+        const pm::ProgressiveMesh pm = pm::decode_pm(b.pm, where);
+        push(make_done(b.key, pm, std::move(b.pm)));
+      });
+    });
+  auto stop_workers = [&] {
+    cancel = true;
+    for (auto& t : pool)
+      if (t.joinable()) t.join();
+  };
+
+  std::size_t written = 0;
+  const auto tb = std::chrono::steady_clock::now();
+  try {
+    if (opt.progress && !keys.empty()) opt.progress(double(already) / double(keys.size()), -1.0);
+    while (written < todo.size()) {
+      Done d;
+      {
+        std::unique_lock<std::mutex> lock(m);
+        cv.wait(lock, [&] { return !queue.empty() || finished_workers == pool.size() || worker_error; });
+        if (worker_error) break;
+        if (queue.empty()) break;
+        d = std::move(queue.front());
+        queue.pop_front();
+      }
+      {
+        BlockDatabase::Transaction tx(db);
+        db.put_block(d.key, d.blob);
+        db.set_meta(block_meta_key(d.key), format_record(d.record));
+        tx.commit();
+      }
+      summaries.emplace(d.key, std::move(d.summary));
+      ++written;
+      if (opt.progress) {
+        const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
+        opt.progress(double(already + written) / double(keys.size()),
+                     el / double(written) * double(todo.size() - written));
+      }
+      if (opt.stop_after_blocks && written >= opt.stop_after_blocks && written < todo.size()) {
+        stop_workers();
+        throw BuildError(path + ": build stopped after " + std::to_string(written) +
+                         " blocks (stop_after_blocks)");
+      }
+    }
+  } catch (...) {
+    stop_workers();
+    throw;
+  }
+  stop_workers();
+  if (worker_error) std::rethrow_exception(worker_error);
+  if (written != todo.size()) throw BuildError(path + ": internal error: not every block was built");
+
+  // The tree above the blocks, written with the completion mark in one transaction.
+  std::vector<double> errors(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto r = read_block_record(db, keys[i]);
+    if (!r)
+      throw DatabaseError(path, "block (" + std::to_string(keys[i].col) + "," + std::to_string(keys[i].row) +
+                                    "): no build record");
+    errors[i] = r->error;
+  }
+  TreeBuildOptions topt = opt.tree;
+  topt.pm_leaves = true;
+  topt.metric = opt.metric;
+  topt.threads = threads;
+  const ApproximationTree tree = build_tree(hf, layout, topt, errors);
+  const std::vector<std::uint8_t> tree_bytes = encode_tree(tree);
+
+  // Block summaries with their stand-ins: the blocks built now were summarized by the workers;
+  // resumed blocks are read back and summarized here.
+  std::vector<BlockKey> resumed;
+  for (BlockKey k : keys)
+    if (!summaries.count(k)) resumed.push_back(k);
+  std::vector<std::optional<BlockSummary>> resumed_sums(resumed.size());
+  std::mutex db_mutex;
+  parallel_for(resumed.size(), threads, [&](std::size_t i) {
+    const BlockKey k = resumed[i];
+    std::vector<std::uint8_t> blob;
+    {
+      std::lock_guard<std::mutex> lock(db_mutex);
+      blob = db.read_block(k);
+    }
+    const pm::ProgressiveMesh pm =
+        pm::decode_pm(blob, path + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")");
+    try {
+      resumed_sums[i] = summarize_block(pm, k, standin);
+    } catch (const std::invalid_argument&) {
+      // voids, as above: no blob
+    }
+  });
+  for (std::size_t i = 0; i < resumed.size(); ++i) summaries.emplace(resumed[i], std::move(resumed_sums[i]));
+  const BlockGrid bgrid(hf.width(), hf.height(), opt.block_size, hf.transform);
+  std::vector<BlockSummary> sums(bgrid.block_count());
+  bool complete_sums = true;
+  for (const auto& [k, sum] : summaries) {
+    if (!sum)
+      complete_sums = false;
+    else
+      sums[bgrid.index(k)] = *sum;
+  }
+  const std::vector<std::uint8_t> sum_bytes =
+      complete_sums ? encode_block_summaries(bgrid, sums) : std::vector<std::uint8_t>{};
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  {
+    BlockDatabase::Transaction tx(db);
+    db.put_blob("tree", tree_bytes);
+    if (complete_sums) db.put_blob(kBlockSummariesBlob, sum_bytes);
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.6f", seconds);
+    db.set_meta("build_seconds", buf);
+    db.set_meta("build_complete", "1");
+    tx.commit();
+  }
+  DatabaseSummary s = summarize_database(db);
+  s.blocks_built = written;
+  s.seconds = seconds;
+  return s;
+}
+
+}  // namespace terralod::blocks
