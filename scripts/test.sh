@@ -50,7 +50,8 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # unwinder doubles the cost of every allocation (and makes llvmpipe's shader compiler
 # minutes slower), so it is used for the tests that decode corrupt images only.
 # Also left to the normal pass: the end-to-end tests that drive the command-line tools over
-# whole pipelines (kill-and-resume builds, flights, the benchmark, texture CLI runs, and
+# whole pipelines (kill-and-resume builds, the MPI builds under mpirun (Open MPI's own
+# allocations at MPI_Finalize would read as leaks), flights, the benchmark, texture CLI runs, and
 # every tool on broken databases and camera paths): they spend minutes under ASan in code the
 # unit tests above already run instrumented. Keeps the CI run within its 30 minutes on 2 cores.
 # Of the runtime's flights (test_terrain_runtime), the low flight, the memory budget, the live
@@ -61,9 +62,9 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # geomorph flight runs) and the scripted-flight guarantee (the random-pose one runs). The GPU vs
 # CPU geomorph timing is a measurement, meaningless under ASan; the draw paths it times run in the
 # other render tests.
-asan_exclude='RealTileFull|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu'
+asan_exclude='RealTileFull|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu'
 # The test executables excluded whole are not built (nor what only they need, such as terralod-fly).
-asan_unbuilt='^(test_cesium_client|test_gltf_validator|test_database_build|test_bench|test_fly.*|test_texture_store|test_cmd_.*|test_bad_input_tools)$'
+asan_unbuilt='^(test_cesium_client|test_gltf_validator|test_database_build|test_build_mpi|test_bench|test_fly.*|test_texture_store|test_cmd_.*|test_bad_input_tools)$'
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
 asan() {
   # -O1 -g1: line tables are enough for reports and compile about a third faster than -O2 -g.
