@@ -95,10 +95,11 @@ asan() {
 # database's own connection), and the runtime with its loader thread, which also prepares each
 # arriving block's refinement (test_terrain_runtime's TerrainRuntimeLoading: a stalled reader,
 # errors, eviction and reloads, random flights while blocks arrive; about 1.5 minutes under TSan
-# on 2 cores, half of it building their database).
+# on 2 cores, half of it building their database), and build_database's writer beside its
+# workers and a remote builder's threads (test_remote_builder, what the MPI build runs).
 # Only their executables are built.
-tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime)
-tsan_regex='Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
+tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime test_remote_builder)
+tsan_regex='RemoteBuilder|Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
 tsan() {
   # -O1 -g1 as for ASan: line tables for the reports, a faster compile than -O2 -g.
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=None -DTERRALOD_BUILD_BENCH=OFF \
