@@ -1,6 +1,5 @@
 // Several DEM files, or a folder of them, as one raster (see DemInputs in dem_reader.hpp).
 #include <gdal_priv.h>
-#include <gdal_utils.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -58,27 +57,11 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
   }
   for (const std::string& f : files)
     if (!fs::exists(f)) throw DemError(f, "no such file");
-  detail::register_gdal();
   static std::atomic<int> serial{0};
   path_ = "/vsimem/terralod_inputs_" + std::to_string(::getpid()) + "_" + std::to_string(serial++) + ".vrt";
-  std::vector<const char*> list;
-  for (const std::string& f : files) list.push_back(f.c_str());
-  CPLErrorReset();
-  int usage_error = 0;
-  GDALDatasetH vrt =
-      GDALBuildVRT(path_.c_str(), int(list.size()), nullptr, list.data(), nullptr, &usage_error);
-  const std::string gdal = CPLGetLastErrorMsg();
-  if (vrt) GDALClose(vrt);
-  if (!vrt || CPLGetLastErrorType() >= CE_Failure) {
-    VSIUnlink(path_.c_str());
+  if (const std::string why = detail::build_vrt(path_, files); !why.empty())
     throw DemError(folder.empty() ? files[0] : folder, "cannot mosaic the " + std::to_string(files.size()) +
-                                                           " inputs into one raster (" + gdal + ")");
-  }
-  // GDALBuildVRT skips, with a warning, files of another CRS or band count: refuse instead.
-  if (!gdal.empty() && gdal.find("Skipping") != std::string::npos) {
-    VSIUnlink(path_.c_str());
-    throw DemError(folder.empty() ? files[0] : folder, "the inputs do not form one mosaic: " + gdal);
-  }
+                                                           " inputs into one raster (" + why + ")");
   owned_ = true;
   description_ = "mosaic of " + std::to_string(files.size()) + " files: ";
   for (std::size_t i = 0; i < files.size() && i < 4; ++i)

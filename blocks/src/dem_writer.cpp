@@ -2,7 +2,6 @@
 #include "terralod/blocks/dem_writer.hpp"
 
 #include <gdal_priv.h>
-#include <gdal_utils.h>
 
 #include <algorithm>
 #include <atomic>
@@ -199,17 +198,9 @@ MosaicReport write_mirror_mosaic(const std::string& source, int tiles_x, int til
   report.width = std::int64_t(tiles_x) * (w - 1) + 1;
   report.height = std::int64_t(tiles_y) * (h - 1) + 1;
   report.tiles = tiles_x * tiles_y;
-  std::vector<const char*> list;
-  for (const std::string& n : names) list.push_back(n.c_str());
   const std::string tmp = report.vrt + ".tmp.vrt";
-  CPLErrorReset();
-  int usage_error = 0;
-  GDALDatasetH vrt = GDALBuildVRT(tmp.c_str(), int(list.size()), nullptr, list.data(), nullptr, &usage_error);
-  if (vrt) GDALClose(vrt);
-  if (!vrt || CPLGetLastErrorType() >= CE_Failure) {
-    fs::remove(tmp, ec);
-    throw DemError(report.vrt, "cannot build the VRT (" + std::string(CPLGetLastErrorMsg()) + ")");
-  }
+  if (const std::string why = detail::build_vrt(tmp, names); !why.empty())
+    throw DemError(report.vrt, "cannot build the VRT (" + why + ")");
   fs::rename(tmp, report.vrt, ec);
   if (ec) throw DemError(report.vrt, "cannot rename " + tmp + " onto it");
   return report;

@@ -2,14 +2,37 @@
 #pragma once
 
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 
 #include <mutex>
+#include <string>
+#include <vector>
 
 namespace terralod::blocks::detail {
 
 inline void register_gdal() {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
+}
+
+/// Writes `dest` (a file or a /vsimem path) as a VRT mosaic of `files` (GDALBuildVRT, later
+/// files win where they overlap). Returns "" on success, else GDAL's reason, with nothing left
+/// at `dest`; a file GDALBuildVRT would skip with a warning (another CRS or band count) is a
+/// failure, not a hole in the mosaic.
+inline std::string build_vrt(const std::string& dest, const std::vector<std::string>& files) {
+  register_gdal();
+  std::vector<const char*> list;
+  for (const std::string& f : files) list.push_back(f.c_str());
+  CPLErrorReset();
+  int usage_error = 0;
+  GDALDatasetH vrt =
+      GDALBuildVRT(dest.c_str(), int(list.size()), nullptr, list.data(), nullptr, &usage_error);
+  std::string gdal = CPLGetLastErrorMsg();
+  if (vrt) GDALClose(vrt);
+  const bool skipped = gdal.find("Skipping") != std::string::npos;
+  if (vrt && CPLGetLastErrorType() < CE_Failure && !skipped) return "";
+  VSIUnlink(dest.c_str());
+  return gdal.empty() ? std::string("GDALBuildVRT failed") : gdal;
 }
 
 }  // namespace terralod::blocks::detail
