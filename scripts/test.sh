@@ -61,8 +61,10 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # curved prefetch flight (the straight one runs), the per-frame geomorph change (the real-terrain
 # geomorph flight runs) and the scripted-flight guarantee (the random-pose one runs). The GPU vs
 # CPU geomorph timing is a measurement, meaningless under ASan; the draw paths it times run in the
-# other render tests.
-asan_exclude='RealTileFull|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu'
+# other render tests. So are the boxes-against-spheres triangle count (the guarantee tests refine
+# with both bounding volumes) and the serial build of a large grid without strips (every small PM
+# of the unit tests is a serial build).
+asan_exclude='RealTileFull|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu|SelectiveRefinement.BoxesNeedFewerTrianglesThanSpheres|ProgressiveMesh.WithoutParallelStripsNoColumnStaysAtFullResolution'
 # The test executables excluded whole are not built (nor what only they need, such as terralod-fly).
 asan_unbuilt='^(test_cesium_client|test_gltf_validator|test_database_build|test_build_mpi|test_bench|test_fly.*|test_texture_store|test_cmd_.*|test_bad_input_tools)$'
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'

@@ -43,8 +43,10 @@ struct Terrain {
   std::string db;
 };
 
-Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> levels,
-                      const std::string& name) {
+enum class Sharing { ThisProcess, ReadOnlyAcrossProcesses };
+
+Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> levels, const std::string& name,
+                      Sharing sharing = Sharing::ThisProcess) {
   Terrain r;
   tp::TerrainOptions to;
   to.width = width;
@@ -54,13 +56,21 @@ Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> lev
   to.relief = 1200.0;
   to.quantize_to_metres = true;
   r.hf = tp::generate_terrain(to);
-  // One database per process: ctest runs the tests of this file in parallel processes.
-  r.db = (tt::process_temp_dir("runtime") / name).string();
-  tb::DatabaseBuildOptions o;
-  o.block_size = 65;
-  o.threads = 2;
-  o.tree.levels = std::move(levels);
-  tb::build_database(r.hf, r.db, o);
+  const auto build = [&](const std::filesystem::path& p) {
+    tb::DatabaseBuildOptions o;
+    o.block_size = 65;
+    o.threads = 2;
+    o.tree.levels = levels;
+    tb::build_database(r.hf, p.string(), o);
+  };
+  // A database the tests only read is built once for all the processes of this executable
+  // (ctest runs each test as one); one a test changes is its process's own.
+  if (sharing == Sharing::ReadOnlyAcrossProcesses) {
+    r.db = tt::shared_file(name, build).string();
+  } else {
+    r.db = (tt::process_temp_dir("runtime") / name).string();
+    build(r.db);
+  }
   return r;
 }
 
@@ -68,7 +78,7 @@ const Terrain& terrain() {
   static const Terrain t = build_terrain(513, 513,
                                          {tb::StrategyChoice::Grid, tb::StrategyChoice::Tin,
                                           tb::StrategyChoice::NonRegularGrid, tb::StrategyChoice::Auto},
-                                         "runtime_513.db");
+                                         "runtime_513.db", Sharing::ReadOnlyAcrossProcesses);
   return t;
 }
 
@@ -480,11 +490,12 @@ const PrefetchTerrain& prefetch_terrain() {
     to.relief = 200.0;
     to.quantize_to_metres = true;
     r.ter.hf = tp::generate_terrain(to);
-    r.ter.db = (tt::process_temp_dir("runtime") / "runtime_prefetch.db").string();
-    tb::DatabaseBuildOptions o;
-    o.block_size = 33;  // 12 x 12 blocks of 960 m
-    o.threads = 2;
-    tb::build_database(r.ter.hf, r.ter.db, o);
+    r.ter.db = tt::shared_file("runtime_prefetch.db", [&](const std::filesystem::path& p) {
+                 tb::DatabaseBuildOptions o;
+                 o.block_size = 33;  // 12 x 12 blocks of 960 m
+                 o.threads = 2;
+                 tb::build_database(r.ter.hf, p.string(), o);
+               }).string();
     r.blobs = blobs_of(r.ter.db);
     return r;
   }();

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -86,6 +87,39 @@ TempDir::~TempDir() {
 }
 
 TempDir::TempDir(TempDir&& other) noexcept : path_(std::move(other.path_)) { other.path_.clear(); }
+
+fs::path shared_file(const std::string& name, const std::function<void(const fs::path&)>& build) {
+  const fs::path exe = fs::read_symlink("/proc/self/exe");
+  const std::string stem = "shared-" + exe.filename().string() + "-";
+  const std::string key = std::to_string(fs::file_size(exe)) + "-" +
+                          std::to_string(fs::last_write_time(exe).time_since_epoch().count());
+  const fs::path dir = test_tmp_root() / (stem + key);
+  const fs::path target = dir / name;
+  if (fs::exists(target)) return target;
+  fs::create_directories(dir);
+  // Folders of this executable's older builds: nothing of theirs is read any more.
+  for (const fs::directory_entry& e : fs::directory_iterator(test_tmp_root())) {
+    const std::string n = e.path().filename().string();
+    std::error_code ec;
+    if (n.rfind(stem, 0) == 0 && n != stem + key) fs::remove_all(e.path(), ec);
+  }
+  const fs::path mine = dir / unique_name("building-" + name);
+  try {
+    build(mine);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(mine, ec);
+    throw;
+  }
+  // link() fails when another process placed its (identical) file first; either way the file at
+  // `target` is complete, because it only ever appears there whole.
+  if (::link(mine.c_str(), target.c_str()) != 0 && errno != EEXIST)
+    throw std::system_error(errno, std::generic_category(),
+                            "cannot link " + mine.string() + " to " + target.string());
+  std::error_code ec;
+  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) fs::remove(mine.string() + suffix, ec);
+  return target;
+}
 
 const fs::path& process_temp_dir(const std::string& prefix) {
   static const TempDir dir(prefix);

@@ -21,12 +21,19 @@
 //              process), empty; the destructor removes it and everything in it. Movable, not
 //              copyable. A process-wide one for tests that share files across test cases:
 //              process_temp_dir(prefix) (created on first use, removed at exit).
+//   shared_file(name, build)  a file shared by every process of this test executable (ctest runs
+//              each test case as a process of its own): the first process to ask builds it with
+//              build(path) at a private path and hard-links it into place; the others reuse it.
+//              For deterministic fixtures that are expensive to make (a block database) and only
+//              read by the tests. Keyed by the executable's name, size and modification time, so
+//              a rebuilt executable never reads what an older build wrote (older keys are removed).
 //   quote(s)   s as one single-quoted /bin/sh word (embedded quotes escaped).
 //   slurp(p)   the bytes of file p ("" when it cannot be read).
 //   lines_of(s) s split at '\n' (no trailing empty line).
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -63,6 +70,12 @@ class TempDir {
 /// A folder of this process's own shared by all its tests, removed when the process exits
 /// normally (a function-local static TempDir). The prefix of the first call names it.
 const std::filesystem::path& process_temp_dir(const std::string& prefix);
+
+/// TERRALOD_TEST_TMP/shared-<executable>-<key>/<name>, built by `build` unless another process of
+/// the same executable already made it. `build` must write exactly the file it is given (it may
+/// also leave nothing else behind) and must be deterministic: which process wins does not matter.
+std::filesystem::path shared_file(const std::string& name,
+                                  const std::function<void(const std::filesystem::path&)>& build);
 
 std::string quote(const std::string& s);
 std::string slurp(const std::filesystem::path& p);
