@@ -8,13 +8,12 @@
 #include <chrono>
 
 #include "terralod/pm/pm_io.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace terralod::blocks {
 
 namespace {
-double ms_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-}
+using pm::ms_since;
 std::string block_name(BlockKey k) {
   return "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
 }

@@ -13,14 +13,13 @@
 #include <string>
 
 #include "gl_api.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace terralod::render {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
+using pm::ms_since;
 
 // Attribute locations. Static buffers: x, y, nx, ny, nz interleaved (20 bytes per vertex) and
 // z0, z1 interleaved (8 bytes), so that new target heights rewrite only the second.

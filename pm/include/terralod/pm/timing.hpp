@@ -1,0 +1,42 @@
+// Timing and order statistics shared by the tools, the runtime's reports and the benchmarks:
+// milliseconds since a steady-clock time point, and nearest-rank quantiles of a sample.
+//
+// Usage:
+//   const auto t0 = std::chrono::steady_clock::now();
+//   work();
+//   times.push_back(terralod::pm::ms_since(t0));
+//   std::printf("median %.2f ms, p95 %.2f ms\n", terralod::pm::median(times),
+//               terralod::pm::quantile(times, 0.95));
+//
+// Contract:
+//   ms_since(t)     milliseconds from t to now on the steady clock (>= 0).
+//   quantile(v, q)  the nearest-rank q-quantile of v, q in [0, 1]: the smallest element x of v
+//                   such that at least q * v.size() elements are <= x (q = 0 gives the minimum,
+//                   q = 1 the maximum). v is taken by value and sorted: O(n log n). An empty v
+//                   gives 0 (a report over no frames shows zeros rather than failing).
+//   median(v)       quantile(v, 0.5): the lower middle element for an even count.
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstddef>
+#include <utility>
+#include <vector>
+
+namespace terralod::pm {
+
+inline double ms_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
+inline double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t k = std::size_t(std::ceil(q * double(v.size())));
+  return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
+}
+
+inline double median(std::vector<double> v) { return quantile(std::move(v), 0.5); }
+
+}  // namespace terralod::pm
