@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gdal_support.hpp"
+#include "terralod/pm/atomic_file.hpp"
 #include "terralod/pm/parallel.hpp"
 
 namespace terralod::blocks {
@@ -104,11 +105,7 @@ void GeoTiffWriter::commit() {
     fs::remove(m.tmp, ec);
     m.fail("cannot finish the GeoTIFF");
   }
-  fs::rename(m.tmp, m.path, ec);
-  if (ec) {
-    fs::remove(m.tmp, ec);
-    throw DemError(m.path, "cannot rename " + m.tmp + " onto it");
-  }
+  pm::rename_into_place(m.tmp, m.path);
   m.committed = true;
 }
 
@@ -201,8 +198,7 @@ MosaicReport write_mirror_mosaic(const std::string& source, int tiles_x, int til
   const std::string tmp = report.vrt + ".tmp.vrt";
   if (const std::string why = detail::build_vrt(tmp, names); !why.empty())
     throw DemError(report.vrt, "cannot build the VRT (" + why + ")");
-  fs::rename(tmp, report.vrt, ec);
-  if (ec) throw DemError(report.vrt, "cannot rename " + tmp + " onto it");
+  pm::rename_into_place(tmp, report.vrt);
   return report;
 }
 

@@ -1,4 +1,4 @@
-// write_file_atomically (see atomic_file.hpp).
+// write_file_atomically and rename_into_place (see atomic_file.hpp).
 #include "terralod/pm/atomic_file.hpp"
 
 #include <unistd.h>
@@ -28,6 +28,10 @@ void write_file_atomically(const std::string& path, std::span<const std::uint8_t
     std::remove(tmp.c_str());
     throw std::runtime_error(path + ": cannot write " + tmp + ": " + std::strerror(err));
   }
+  rename_into_place(tmp, path);
+}
+
+void rename_into_place(const std::string& tmp, const std::string& path) {
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     const int e = errno;
     std::remove(tmp.c_str());

@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "terralod/pm/atomic_file.hpp"
+
 namespace terralod::render {
 
 void write_png(const Image& img, const std::string& path) {
@@ -28,9 +30,7 @@ void write_png(const Image& img, const std::string& path) {
     fail(out->geterror());
   }
   if (!out->close()) fail(out->geterror());
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) fail(ec.message());
+  pm::rename_into_place(tmp, path);
 }
 
 Image read_image(const std::string& path) {

@@ -14,6 +14,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "terralod/pm/atomic_file.hpp"
+
 namespace terralod::render {
 namespace {
 
@@ -44,11 +46,7 @@ void finish_convert(bool ok, const std::string& source, const std::string& tmp, 
     if (why.empty()) why = log.str();
     throw std::runtime_error(source + ": cannot build the image pyramid " + out + ": " + why);
   }
-  std::filesystem::rename(tmp, out, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(out + ": cannot rename the written pyramid into place: " + ec.message());
-  }
+  pm::rename_into_place(tmp, out);
 }
 
 }  // namespace

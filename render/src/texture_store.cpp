@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "terralod/blocks/approximation_tree.hpp"
+#include "terralod/pm/atomic_file.hpp"
 
 namespace terralod::render {
 namespace {
@@ -380,12 +381,12 @@ void write_layer_image(const RgbaImage& img, const std::string& path) {
   bool ok = out && out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::UINT8, img.rgba.data());
   std::string why = ok ? "" : (out ? out->geterror() : OIIO::geterror());
   if (out) ok = out->close() && ok;
-  std::error_code ec;
-  if (ok) std::filesystem::rename(tmp, path, ec);
-  if (!ok || ec) {
+  if (!ok) {
+    std::error_code ec;
     std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path + ": cannot write the image: " + (why.empty() ? ec.message() : why));
+    throw std::runtime_error(path + ": cannot write the image: " + why);
   }
+  pm::rename_into_place(tmp, path);
 }
 
 TextureLoader database_tile_loader(std::string db_path, std::string layer,
