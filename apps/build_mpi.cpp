@@ -13,6 +13,8 @@
 #include <thread>
 #include <vector>
 
+#include "terralod/pm/parallel.hpp"
+
 namespace terralod::cli {
 namespace {
 
@@ -123,7 +125,7 @@ int build_with_mpi(const std::function<pm::Heightfield()>& read, const std::stri
   MPI_Comm_size(MPI_COMM_WORLD, &size);
   if (provided < MPI_THREAD_MULTIPLE)
     abort_job(rank, "the MPI library gives no MPI_THREAD_MULTIPLE, which the build's threads need");
-  const int threads = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = terralod::pm::thread_count(opt.threads);
   try {
     const pm::Heightfield hf = read();
     // Every rank says how many threads it builds with; rank 0 hands out one block per thread.

@@ -350,7 +350,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     if (!worker_error) worker_error = std::current_exception();
     cancel = true;
   };
-  int threads = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  int threads = pm::thread_count(opt.threads);
   threads = int(std::min<std::size_t>(std::size_t(threads), std::max<std::size_t>(1, todo.size())));
   std::size_t finished_workers = 0;
   std::vector<std::thread> pool;

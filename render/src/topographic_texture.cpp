@@ -14,10 +14,10 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "shading_common.hpp"
+#include "terralod/pm/parallel.hpp"
 
 namespace terralod::render {
 
@@ -279,19 +279,8 @@ FloatRaster shade_terrain(const pm::Heightfield& hf, const ShadingOptions& o, co
     }
   };
 
-  int threads = o.threads > 0 ? o.threads : int(std::max(1u, std::thread::hardware_concurrency()));
-  threads = std::min(threads, oh);
-  if (threads <= 1) {
-    for (int j = 0; j < oh; ++j) shade_row(j);
-  } else {
-    // Interleaved rows balance the shadow cost, which varies with the relief.
-    std::vector<std::thread> pool;
-    for (int t = 0; t < threads; ++t)
-      pool.emplace_back([&, t] {
-        for (int j = t; j < oh; j += threads) shade_row(j);
-      });
-    for (auto& th : pool) th.join();
-  }
+  // Rows handed out one at a time balance the shadow cost, which varies with the relief.
+  pm::parallel_for(std::size_t(oh), o.threads, [&](std::size_t j) { shade_row(int(j)); });
   return out;
 }
 

@@ -14,9 +14,9 @@
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <thread>
 
 #include "../gdal_support.hpp"
+#include "terralod/pm/parallel.hpp"
 
 namespace terralod::blocks {
 namespace {
@@ -184,24 +184,15 @@ std::vector<double> geoid_undulations(const std::string& vertical_datum, const s
   const std::string v = vertical_crs(vertical_datum);
   if (v.empty() || lon.empty()) return n;
   const std::size_t threads =
-      std::clamp<std::size_t>(lon.size() / 65536, 1, std::max(1u, std::thread::hardware_concurrency()));
+      std::clamp<std::size_t>(lon.size() / 65536, 1, std::size_t(pm::thread_count(0)));
   const std::size_t chunk = (lon.size() + threads - 1) / threads;
-  std::vector<std::exception_ptr> errors(threads);
-  std::vector<std::thread> pool;
-  for (std::size_t k = 0; k < threads; ++k)
-    pool.emplace_back([&, k] {
-      try {
-        const std::size_t a = k * chunk, b = std::min(lon.size(), a + chunk);
-        if (a >= b) return;
-        GeoidOperation op(v, what);
-        op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
-      } catch (...) {
-        errors[k] = std::current_exception();
-      }
-    });
-  for (std::thread& t : pool) t.join();
-  for (const std::exception_ptr& e : errors)
-    if (e) std::rethrow_exception(e);
+  // One PROJ operation per chunk: PJ objects are not shared between threads.
+  pm::parallel_for(threads, int(threads), [&](std::size_t k) {
+    const std::size_t a = k * chunk, b = std::min(lon.size(), a + chunk);
+    if (a >= b) return;
+    GeoidOperation op(v, what);
+    op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
+  });
   return n;
 }
 

@@ -76,8 +76,8 @@
 // height O(texels * radius) (separable min/max). Memory: the output (4 bytes per texel) plus,
 // for RelativeHeight with a radius R > 0, the row-wise min and max of the texel columns over
 // the region's rows widened by R (8 bytes each).
-// Parallel: rows are split into bands over `threads` std::threads; the result does not depend
-// on the number of threads.
+// Parallel: rows are handed out one at a time to `threads` threads (pm::parallel_for); the result does not
+// depend on the number of threads.
 #pragma once
 
 #include <string>
