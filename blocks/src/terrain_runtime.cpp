@@ -195,16 +195,16 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   time_ = time_s;
   ++frame_;
   const RuntimeFrameStats prev = stats_;
-  stats_ = RuntimeFrameStats{};
+  // The frame's statistics start from zero but for the cumulative counters (and the peak).
+  stats_ = RuntimeFrameStats{.frame = frame_,
+                             .time_s = time_s,
+                             .nodes_resident = tree_.size(),
+                             .evicted_total = prev.evicted_total,
+                             .dropped_total = prev.dropped_total,
+                             .prefetch_hits_total = prev.prefetch_hits_total,
+                             .prefetch_misses_total = prev.prefetch_misses_total,
+                             .peak_resident_bytes = prev.peak_resident_bytes};
   RuntimeFrameStats& s = stats_;
-  s.frame = frame_;
-  s.time_s = time_s;
-  s.evicted_total = prev.evicted_total;
-  s.dropped_total = prev.dropped_total;
-  s.prefetch_hits_total = prev.prefetch_hits_total;
-  s.prefetch_misses_total = prev.prefetch_misses_total;
-  s.peak_resident_bytes = prev.peak_resident_bytes;
-  s.nodes_resident = tree_.size();
 
   // Budget mode: tau follows the triangle count of the last frame.
   if (opt_.target_triangles > 0 && prev.triangles > 0) {
