@@ -12,6 +12,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "little_endian.hpp"
 #include "terralod/blocks/node_strategy.hpp"
 #include "terralod/pm/linf_error.hpp"
 
@@ -194,30 +195,13 @@ namespace {
 constexpr std::uint32_t kMagic = 0x53424C54u;  // "TLBS"
 constexpr std::size_t kRecordV1 = 7 * 8 + 8;
 
-void put_u16(std::vector<std::uint8_t>& o, std::uint32_t v) {
-  o.push_back(std::uint8_t(v));
-  o.push_back(std::uint8_t(v >> 8));
-}
-void put_u32(std::vector<std::uint8_t>& o, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) o.push_back(std::uint8_t(v >> (8 * i)));
-}
-void put_f64(std::vector<std::uint8_t>& o, double d) {
-  std::uint64_t v;
-  std::memcpy(&v, &d, 8);
-  for (int i = 0; i < 8; ++i) o.push_back(std::uint8_t(v >> (8 * i)));
-}
-std::uint32_t get_u16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
-std::uint32_t get_u32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
-         std::uint32_t(p[3]) << 24;
-}
-double get_f64(const std::uint8_t* p) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v |= std::uint64_t(p[i]) << (8 * i);
-  double d;
-  std::memcpy(&d, &v, 8);
-  return d;
-}
+using detail::get_f64;
+using detail::get_u16;
+using detail::get_u32;
+using detail::put_f64;
+using detail::put_u16;
+using detail::put_u32;
+
 std::uint32_t crc(const std::uint8_t* p, std::size_t n) {
   return std::uint32_t(::crc32(::crc32(0L, Z_NULL, 0), p, uInt(n)));
 }

@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "little_endian.hpp"
+
 namespace terralod::blocks {
 
 const char* strategy_name(Strategy s) {
@@ -92,9 +94,7 @@ constexpr char kMagic[8] = {'T', 'L', 'O', 'D', 'T', 'R', 'E', 'E'};
 struct Writer {
   std::vector<std::uint8_t> out;
   void u8(std::uint8_t v) { out.push_back(v); }
-  void u32(std::uint32_t v) {
-    for (int i = 0; i < 4; ++i) out.push_back(std::uint8_t(v >> (8 * i)));
-  }
+  void u32(std::uint32_t v) { detail::put_u32(out, v); }
   void var(std::uint64_t v) {
     while (v >= 0x80) {
       out.push_back(std::uint8_t(v | 0x80));
@@ -102,11 +102,7 @@ struct Writer {
     }
     out.push_back(std::uint8_t(v));
   }
-  void f64(double d) {
-    std::uint64_t b;
-    std::memcpy(&b, &d, 8);
-    for (int i = 0; i < 8; ++i) out.push_back(std::uint8_t(b >> (8 * i)));
-  }
+  void f64(double d) { detail::put_f64(out, d); }
 };
 
 struct Reader {
@@ -126,8 +122,8 @@ struct Reader {
   }
   std::uint32_t u32() {
     need(4);
-    std::uint32_t v = 0;
-    for (int i = 0; i < 4; ++i) v |= std::uint32_t(in[pos++]) << (8 * i);
+    const std::uint32_t v = detail::get_u32(in.data() + pos);
+    pos += 4;
     return v;
   }
   std::uint64_t var() {
@@ -151,11 +147,9 @@ struct Reader {
   }
   double f64() {
     need(8);
-    std::uint64_t b = 0;
-    for (int i = 0; i < 8; ++i) b |= std::uint64_t(in[pos++]) << (8 * i);
-    double d;
-    std::memcpy(&d, &b, 8);
-    return d;
+    const double v = detail::get_f64(in.data() + pos);
+    pos += 8;
+    return v;
   }
 };
 
@@ -254,8 +248,7 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
   if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0)
     r.fail("not an approximation tree (bad magic)");
   {
-    std::uint32_t stored = 0;
-    for (int i = 0; i < 4; ++i) stored |= std::uint32_t(bytes[bytes.size() - 4 + i]) << (8 * i);
+    const std::uint32_t stored = detail::get_u32(bytes.data() + bytes.size() - 4);
     const std::uint32_t crc = std::uint32_t(crc32(0L, bytes.data(), uInt(bytes.size() - 4)));
     if (crc != stored) r.fail("checksum mismatch");
   }

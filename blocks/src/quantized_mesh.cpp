@@ -12,6 +12,8 @@
 #include <limits>
 #include <numbers>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
 
 namespace terralod::blocks {
 namespace {
@@ -39,6 +41,12 @@ std::uint16_t quantize(double t) { return std::uint16_t(std::lround(std::clamp(t
 
 double snorm(double v) { return std::round((std::clamp(v, -1.0, 1.0) * 0.5 + 0.5) * 255.0); }
 
+// The octahedral wrap between the lower half of the octahedron and the outer triangles of the
+// unit square, the same map both ways: (x, y) -> ((1 - |y|) sign x, (1 - |x|) sign y), sign 0 = +.
+std::pair<double, double> octahedral_wrap(double x, double y) {
+  return {(1.0 - std::abs(y)) * (x < 0 ? -1.0 : 1.0), (1.0 - std::abs(x)) * (y < 0 ? -1.0 : 1.0)};
+}
+
 }  // namespace
 
 GeoRect tile_rect(TileId id) {
@@ -53,22 +61,14 @@ double level_max_geometric_error(int z) {
 std::array<std::uint8_t, 2> oct_encode(const pm::Ecef& n) {
   const double l1 = std::abs(n[0]) + std::abs(n[1]) + std::abs(n[2]);
   double x = n[0] / l1, y = n[1] / l1;
-  if (n[2] < 0) {
-    const double ox = x, oy = y;
-    x = (1.0 - std::abs(oy)) * (ox < 0 ? -1.0 : 1.0);
-    y = (1.0 - std::abs(ox)) * (oy < 0 ? -1.0 : 1.0);
-  }
+  if (n[2] < 0) std::tie(x, y) = octahedral_wrap(x, y);
   return {std::uint8_t(snorm(x)), std::uint8_t(snorm(y))};
 }
 
 pm::Ecef oct_decode(std::array<std::uint8_t, 2> b) {
   double x = b[0] / 255.0 * 2.0 - 1.0, y = b[1] / 255.0 * 2.0 - 1.0;
   const double z = 1.0 - (std::abs(x) + std::abs(y));
-  if (z < 0) {
-    const double ox = x;
-    x = (1.0 - std::abs(y)) * (ox < 0 ? -1.0 : 1.0);
-    y = (1.0 - std::abs(ox)) * (y < 0 ? -1.0 : 1.0);
-  }
+  if (z < 0) std::tie(x, y) = octahedral_wrap(x, y);
   const double l = std::sqrt(x * x + y * y + z * z);
   return {x / l, y / l, z / l};
 }

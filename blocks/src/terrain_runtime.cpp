@@ -1,27 +1,34 @@
-// The per-frame terrain runtime: tree selection with PM blocks below, residency by priority
-// within a memory budget, stitched seams between patches of any kind, geomorphs clamped to the
-// bound, and the bound of the mesh as drawn (see terrain_runtime.hpp for the argument).
+// The per-frame terrain runtime: opening a database (tree, stand-ins, memory estimates, the
+// loader), its options, and the frame itself, update(): tree selection with PM blocks below,
+// residency by priority within a memory budget, the refinements with their swap-in blends, the
+// frame's patches, then stitched seams, geomorphs clamped to the bound and the bound of the mesh
+// as drawn (see terrain_runtime.hpp for the argument; terrain_runtime_internal.hpp lists the
+// files that hold each step).
 #include "terralod/blocks/terrain_runtime.hpp"
 
 #include <time.h>
 
 #include <algorithm>
-#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <numbers>
 #include <stdexcept>
-#include <thread>
-#include <unordered_map>
 
-#include "terralod/blocks/seam_stitch.hpp"
+#include "grid_triangle.hpp"
+#include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 
 namespace terralod::blocks {
 
 namespace {
+
+using detail::Barycentric;
+using detail::barycentric;
+using detail::outside_box;
+using detail::plane_height;
+using detail::refinement_options;
+using detail::Tri3;
 
 double thread_cpu_ms() {
   timespec ts{};
@@ -46,52 +53,18 @@ void check_options(const RuntimeOptions& o) {
     throw std::invalid_argument("RuntimeOptions: need 0 <= region.n_min <= region.n_max");
 }
 
-// The share of tau every patch is selected at: half, since the stitch can at most double the
-// error of a border face (terrain_runtime.hpp, "The bound"), less a relative 1e-9 so that the
-// rounding of the separately computed bounds (~1e-15) can never carry a frame over tau.
-constexpr double kSelectShare = 0.5 * (1.0 - 1e-9);
-
-// PM blocks, like coarse nodes, are selected at kSelectShare of tau.
-pm::RefinementOptions refinement_options(const RuntimeOptions& o, double tau) {
-  pm::RefinementOptions r;
-  r.tolerance_px = kSelectShare * tau;
-  r.morph_seconds = o.morph_seconds;
-  r.morph_mode = pm::MorphMode::Vertical;  // plan positions stay on the samples: seams hold
-  return r;
-}
-
-bool on_border(const SampleRect& d, int col, int row) {
-  return col == d.col0 || col == d.col1 || row == d.row0 || row == d.row1;
-}
-
-// Height at (c, r) of the plane through three (col, row, z) points.
-double plane_height(const std::array<double, 3>& a, const std::array<double, 3>& b,
-                    const std::array<double, 3>& e, double c, double r) {
-  const double det = (b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0]);
-  const double l1 = ((c - a[0]) * (e[1] - a[1]) - (r - a[1]) * (e[0] - a[0])) / det;
-  const double l2 = ((b[0] - a[0]) * (r - a[1]) - (b[1] - a[1]) * (c - a[0])) / det;
-  return (1 - l1 - l2) * a[2] + l1 * b[2] + l2 * e[2];
-}
-
-using Tri3 = std::array<std::array<double, 3>, 3>;
-
 // Height at (c, r) of the first triangle of `tris` (whole-grid (col, row, z)) containing it;
 // the least-outside one absorbs rounding. NaN when `tris` is empty.
 double surface_height(const std::vector<Tri3>& tris, double c, double r) {
   double best = std::numeric_limits<double>::quiet_NaN(), best_in = -1e300;
   for (const Tri3& t : tris) {
-    const auto &a = t[0], &b = t[1], &e = t[2];
-    if (c < std::min({a[0], b[0], e[0]}) || c > std::max({a[0], b[0], e[0]}) ||
-        r < std::min({a[1], b[1], e[1]}) || r > std::max({a[1], b[1], e[1]}))
-      continue;
-    const double det = (b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0]);
-    if (det == 0) continue;
-    const double l1 = ((c - a[0]) * (e[1] - a[1]) - (r - a[1]) * (e[0] - a[0])) / det;
-    const double l2 = ((b[0] - a[0]) * (r - a[1]) - (b[1] - a[1]) * (c - a[0])) / det;
-    const double l0 = 1 - l1 - l2, in = std::min({l0, l1, l2});
+    if (outside_box(t, c, r)) continue;
+    const Barycentric w = barycentric(t, c, r);
+    if (w.det == 0) continue;
+    const double in = std::min({w.l0, w.l1, w.l2});
     if (in > best_in) {
       best_in = in;
-      best = l0 * a[2] + l1 * b[2] + l2 * e[2];
+      best = plane_height(t, w);
       if (in >= 0) break;
     }
   }
@@ -99,53 +72,6 @@ double surface_height(const std::vector<Tri3>& tris, double c, double r) {
 }
 
 }  // namespace
-
-// A resident block: its data and its refinement, kept while resident.
-struct TerrainRuntime::Block {
-  std::shared_ptr<const LoadedBlock> data;
-  std::unique_ptr<pm::SelectiveRefinement> sel;
-  std::uint64_t last_used = 0;   // frame it was last wanted
-  std::uint64_t last_drawn = 0;  // frame it was last drawn (0: never)
-  pm::RenderMesh rm;             // the refinement's displayed mesh, cached while it does not change
-  bool rm_valid = false;
-  bool blending = false;  // swap-in blend from `old` running
-  double blend_t0 = 0;
-  std::vector<Tri3> old;  // whole-grid triangles drawn over the block before it arrived
-  std::unordered_map<std::uint32_t, double> old_z;  // old surface at local samples
-};
-
-// One selected node's mesh this frame (whole-grid samples).
-struct TerrainRuntime::Patch {
-  std::int64_t node = 0;
-  StitchPatch sp;  // domain, vertices (col,row), triangles
-  std::vector<double> rest_z, display_z;
-  std::vector<double> tri_error;             // logical error per triangle, metres
-  double bound_px = 0;                       // own bound of the unstitched triangles at rest
-  const pm::Heightfield* heights = nullptr;  // PM blocks: the block's samples (block-local)
-  pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
-  double zlo = 0, zhi = 0;  // height range of the terrain's samples in the domain
-};
-
-// A drawn triangle that is evaluated on its own (stitched, or with a moving corner).
-struct TerrainRuntime::Eval {
-  std::uint32_t tri;
-  double error;                // e_T (a stitched piece: its source's error plus the inserted corners' delta)
-  double source_error;         // the error of the triangle it was cut from (itself when not stitched)
-  std::array<double, 3> base;  // the source's true plane at the three corners
-  std::size_t patch;
-};
-
-// Buffers of assemble(), kept from frame to frame so that a frame allocates nothing new.
-struct TerrainRuntime::Scratch {
-  std::vector<std::size_t> original_vertices;
-  std::vector<StitchPatch> sps;
-  std::unordered_map<std::uint64_t, std::uint32_t> border;
-  std::vector<double> rest, display, allowed;
-  std::vector<std::vector<std::uint32_t>> gidx;
-  std::vector<Eval> eval;
-  std::vector<std::uint8_t> moving;
-  std::vector<std::uint32_t> piece;
-};
 
 TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions& options,
                                BlockSourceFactory blocks)
@@ -246,8 +172,6 @@ void TerrainRuntime::fit_clip_planes(pm::Camera& cam) const {
   cam.far_m = std::max(cam.near_m * 2.0, 1.01 * dmax + 1.0);
 }
 
-bool TerrainRuntime::loading() const { return loader_->pending() > 0; }
-
 RuntimeFrameStats TerrainRuntime::update_until_loaded(const pm::View& view, double time_s, double timeout_s) {
   const RuntimeFrameStats first = update(view, time_s);
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
@@ -261,197 +185,6 @@ RuntimeFrameStats TerrainRuntime::update_until_loaded(const pm::View& view, doub
   }
 }
 
-void TerrainRuntime::wait_for_loader(double timeout_s) const {
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  const std::size_t before = loader_->pending();
-  while (loader_->pending() > 0 && loader_->pending() >= before && std::chrono::steady_clock::now() < until)
-    std::this_thread::sleep_for(std::chrono::microseconds(500));
-}
-
-std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {
-  return std::size_t(double(block_vertices_[grid_.index(k)]) * bytes_per_vertex_);
-}
-
-std::size_t TerrainRuntime::fixed_bytes() const {
-  return tree_bytes_ + summary_bytes_ + mesh_.memory_bytes() +
-         4 * (height_index_.start.capacity() + height_index_.tris.capacity());
-}
-
-// Selection (header, step 2). Returns false when the subtree needs a block that is not resident.
-bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Selection& sel,
-                           double parent_px) {
-  const TreeNode& n = tree_.node(id);
-  ++stats_.nodes_visited;
-  if (view.outside(n.bbox)) {
-    ++stats_.nodes_culled;
-    return true;
-  }
-  const double limit = kSelectShare * tau;
-  if (n.strategy == Strategy::PmBlock) {
-    // The stand-in, when it meets tau / 2: the whole box first, then triangle by triangle.
-    const BlockSummary& sum = sums_[grid_.index(*n.block)];
-    if (!sum.triangles.empty() && (view.vertical_error_px(n.bbox, sum.standin_error) <= limit ||
-                                   standin_bound_px(grid_, *n.block, sum, view) <= limit)) {
-      sel.standins.push_back(id);
-      return true;
-    }
-    sel.needed.push_back({id, parent_px});
-    if (!blocks_.count(*n.block)) return false;
-    sel.pms.push_back(id);
-    return true;
-  }
-  const double b = view.vertical_error_px(n.bbox, n.error);
-  if (n.leaf() || b <= limit) {
-    sel.coarse.push_back(id);
-    return true;
-  }
-  const std::size_t c0 = sel.coarse.size(), p0 = sel.pms.size(), s0 = sel.standins.size();
-  bool complete = true;
-  for (std::int64_t c : n.children) complete = visit(view, tau, c, sel, b) && complete;
-  if (!complete) {  // a needed block is missing: this node, resident, is drawn for its subtree
-    sel.coarse.resize(c0);
-    sel.pms.resize(p0);
-    sel.standins.resize(s0);
-    sel.coarse.push_back(id);
-    ++stats_.fallback_nodes;
-  }
-  return true;
-}
-
-void TerrainRuntime::make_room(std::size_t bytes, const std::set<BlockKey>& keep) {
-  std::size_t resident = fixed_bytes();
-  for (const auto& [k, b] : blocks_) resident += b->data->memory_bytes;
-  while (resident + bytes > opt_.budget_bytes) {
-    auto victim = blocks_.end();
-    for (auto it = blocks_.begin(); it != blocks_.end(); ++it) {
-      if (keep.count(it->first)) continue;
-      if (victim == blocks_.end() || it->second->last_used < victim->second->last_used) victim = it;
-    }
-    if (victim == blocks_.end()) return;
-    resident -= victim->second->data->memory_bytes;
-    blocks_.erase(victim);
-    ++stats_.blocks_evicted;
-  }
-}
-
-void TerrainRuntime::take_loads() {
-  std::vector<LoadResult> results = loader_->take_results();
-  if (results.empty()) return;
-  std::set<BlockKey> keep;
-  for (const auto& [k, b] : blocks_)
-    if (b->last_drawn == frame_ - 1 || b->last_used == frame_ - 1) keep.insert(k);
-  for (LoadResult& r : results) {
-    if (!r.block) throw std::runtime_error(r.error);
-    const BlockKey k = r.key;
-    const std::uint64_t nv = r.block->pm.full_vertex_count();
-    if (nv > 0)
-      bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
-    make_room(r.block->memory_bytes, keep);
-    std::size_t resident = fixed_bytes();
-    for (const auto& [kk, b] : blocks_) resident += b->data->memory_bytes;
-    if (resident + r.block->memory_bytes > opt_.budget_bytes) {
-      ++stats_.dropped_total;
-      continue;
-    }
-    auto b = std::make_unique<Block>();
-    b->data = std::move(r.block);
-    b->sel = r.selection
-                 ? std::move(r.selection)
-                 : std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
-    b->last_used = frame_;
-    blocks_[k] = std::move(b);
-    keep.insert(k);
-  }
-}
-
-void TerrainRuntime::queue_loads(const pm::View& view,
-                                 const std::vector<std::pair<std::int64_t, double>>& needed) {
-  // Requests in priority order (lower first): needed blocks by screen error, then the active
-  // region around the eye, then the regions around the predicted path. The queue stops where
-  // the estimated memory would pass the budget.
-  std::vector<BlockLoader::Request> req;
-  std::set<BlockKey> seen;
-  std::size_t planned = fixed_bytes();
-  for (const auto& [k, b] : blocks_)
-    if (b->last_used == frame_) planned += b->data->memory_bytes, seen.insert(k);
-  auto want = [&](BlockKey k, double priority) {
-    if (!seen.insert(k).second) return true;
-    const auto it = blocks_.find(k);
-    const std::size_t bytes = it != blocks_.end() ? it->second->data->memory_bytes : estimate_bytes(k);
-    if (planned + bytes > opt_.budget_bytes) return false;
-    planned += bytes;
-    if (it != blocks_.end())
-      it->second->last_used = frame_;  // keep what the policy wants
-    else
-      req.push_back({k, priority});
-    return true;
-  };
-  std::vector<std::pair<double, BlockKey>> order;
-  for (const auto& [id, px] : needed) order.push_back({-px, *tree_.node(id).block});
-  std::sort(order.begin(), order.end());
-  bool room = true;
-  for (std::size_t i = 0; i < order.size() && room; ++i)
-    room = want(order[i].second, double(i) / double(order.size() + 1));
-  const pm::Vec3 eye = view.eye();
-  const double scale = 1.0 / (grid_.block_extent_m() * double(2 * opt_.region.n_max + 3));
-  auto dist = [&](BlockKey k) {
-    const pm::Box b = block_box(grid_, k, sums_[grid_.index(k)]);
-    const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}),
-                 dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
-    return std::min(0.99, std::hypot(dx, dy) * scale);
-  };
-  // The inner blocks of the active region around `centre`, nearest the eye first, at
-  // priorities base + spread * distance (distance scaled into [0, 0.99]).
-  auto want_region = [&](const pm::Vec3& centre, double base, double spread) {
-    const ActiveRegion r = active_region(grid_, sums_, centre, opt_.region);
-    std::vector<std::pair<double, BlockKey>> around;
-    for (BlockKey k : r.inner) around.push_back({dist(k), k});
-    std::sort(around.begin(), around.end());
-    for (std::size_t i = 0; i < around.size() && room; ++i)
-      room = want(around[i].second, base + spread * around[i].first);
-  };
-  if (room) want_region(eye, 1.0, 1.0);
-  if (room && opt_.prefetch) {
-    // Along the predicted path, nearest in time first: the blocks the view from there will need
-    // (the camera moved to the predicted point, turned along the motion, same lens), then the
-    // region around that point.
-    pm::Vec3 prev = eye;
-    for (const PredictedPoint& pt : predictor_.predict(opt_.prefetch_horizon_s, opt_.prefetch_step_s)) {
-      if (pt.dt == 0 || !room) continue;
-      pm::Camera c = view.camera();
-      c.x = pt.position.x, c.y = pt.position.y, c.z = pt.position.z;
-      const double dx = pt.position.x - prev.x, dy = pt.position.y - prev.y;
-      if (std::hypot(dx, dy) > 1e-6) c.yaw_deg = std::atan2(dx, dy) * 180.0 / std::numbers::pi;
-      prev = pt.position;
-      std::vector<std::pair<double, BlockKey>> ahead;
-      needed_at(pm::View(c), tau_, 0, std::numeric_limits<double>::infinity(), ahead);
-      std::sort(ahead.begin(), ahead.end());
-      for (std::size_t i = 0; i < ahead.size() && room; ++i) room = want(ahead[i].second, 2.0 + pt.dt);
-      if (room)
-        want_region(pt.position, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s, 0.25 * opt_.prefetch_step_s);
-    }
-  }
-  loader_->set_queue(std::move(req));
-}
-
-// The PM blocks a view would need (the selection's rules, with the stand-in tried by its whole
-// box only: a cheap, conservative test for prefetching), largest screen error first.
-void TerrainRuntime::needed_at(const pm::View& view, double tau, std::int64_t id, double parent_px,
-                               std::vector<std::pair<double, BlockKey>>& out) const {
-  const TreeNode& n = tree_.node(id);
-  if (view.outside(n.bbox)) return;
-  const double limit = kSelectShare * tau;
-  if (n.strategy == Strategy::PmBlock) {
-    const BlockSummary& sum = sums_[grid_.index(*n.block)];
-    if (!sum.triangles.empty() && view.vertical_error_px(n.bbox, sum.standin_error) <= limit) return;
-    out.push_back({-parent_px, *n.block});
-    return;
-  }
-  const double b = view.vertical_error_px(n.bbox, n.error);
-  if (n.leaf() || b <= limit) return;
-  for (std::int64_t c : n.children) needed_at(view, tau, c, b, out);
-}
-
 const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double time_s) {
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = thread_cpu_ms();
@@ -462,16 +195,16 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   time_ = time_s;
   ++frame_;
   const RuntimeFrameStats prev = stats_;
-  stats_ = RuntimeFrameStats{};
+  // The frame's statistics start from zero but for the cumulative counters (and the peak).
+  stats_ = RuntimeFrameStats{.frame = frame_,
+                             .time_s = time_s,
+                             .nodes_resident = tree_.size(),
+                             .evicted_total = prev.evicted_total,
+                             .dropped_total = prev.dropped_total,
+                             .prefetch_hits_total = prev.prefetch_hits_total,
+                             .prefetch_misses_total = prev.prefetch_misses_total,
+                             .peak_resident_bytes = prev.peak_resident_bytes};
   RuntimeFrameStats& s = stats_;
-  s.frame = frame_;
-  s.time_s = time_s;
-  s.evicted_total = prev.evicted_total;
-  s.dropped_total = prev.dropped_total;
-  s.prefetch_hits_total = prev.prefetch_hits_total;
-  s.prefetch_misses_total = prev.prefetch_misses_total;
-  s.peak_resident_bytes = prev.peak_resident_bytes;
-  s.nodes_resident = tree_.size();
 
   // Budget mode: tau follows the triangle count of the last frame.
   if (opt_.target_triangles > 0 && prev.triangles > 0) {
@@ -714,295 +447,6 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   s.update_cpu_ms = thread_cpu_ms() - cpu0;
   return stats_;
-}
-
-void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t count, RuntimeFrameStats& s) {
-  std::vector<Patch>& patches = patches_;
-  Scratch& x = *scratch_;
-  // The stitch runs on the patches' own StitchPatches (moved out and back: no copies).
-  x.original_vertices.resize(count);
-  x.sps.resize(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    x.original_vertices[i] = patches[i].sp.vertices.size();
-    x.sps[i] = std::move(patches[i].sp);
-  }
-  const StitchResult sr = stitch_seams(x.sps);
-  for (std::size_t i = 0; i < count; ++i) patches[i].sp = std::move(x.sps[i]);
-  const std::vector<std::size_t>& original_vertices = x.original_vertices;
-
-  // One vertex per terrain sample: border samples through a map (first patch in node order
-  // gives the displayed height), interior samples are their patch's own.
-  std::unordered_map<std::uint64_t, std::uint32_t>& border = x.border;
-  border.clear();
-  mesh_.positions.clear();
-  mesh_.samples.clear();
-  mesh_.triangles.clear();
-  mesh_.triangle_node.clear();
-  std::vector<double>&rest = x.rest, &display = x.display;  // per drawn vertex
-  rest.clear();
-  display.clear();
-  if (x.gidx.size() < count) x.gidx.resize(count);
-  std::vector<std::vector<std::uint32_t>>& gidx = x.gidx;
-  const std::uint64_t W = std::uint64_t(grid_.grid_width());
-  for (std::size_t i = 0; i < count; ++i) {
-    Patch& p = patches[i];
-    const SampleRect& d = p.sp.domain;
-    gidx[i].resize(p.sp.vertices.size());
-    for (std::size_t v = 0; v < original_vertices[i]; ++v) {
-      const pm::GridPoint g = p.sp.vertices[v];
-      const std::uint64_t sample = std::uint64_t(g.y) * W + std::uint64_t(g.x);
-      std::uint32_t gi;
-      if (on_border(d, g.x, g.y)) {
-        const auto [it, fresh] = border.try_emplace(sample, std::uint32_t(mesh_.samples.size()));
-        gi = it->second;
-        if (!fresh) {
-          gidx[i][v] = gi;
-          continue;
-        }
-      } else {
-        gi = std::uint32_t(mesh_.samples.size());
-      }
-      mesh_.samples.push_back(sample);
-      rest.push_back(p.rest_z[v]);
-      display.push_back(p.display_z[v]);
-      gidx[i][v] = gi;
-    }
-  }
-  // Inserted vertices are another patch's border vertices: already in the map.
-  for (std::size_t i = 0; i < count; ++i) {
-    Patch& p = patches[i];
-    for (std::size_t v = original_vertices[i]; v < p.sp.vertices.size(); ++v) {
-      const pm::GridPoint g = p.sp.vertices[v];
-      const auto it = border.find(std::uint64_t(g.y) * W + std::uint64_t(g.x));
-      assert(it != border.end());
-      gidx[i][v] = it->second;
-    }
-  }
-
-  // Triangles, each with its logical error and whether it must be evaluated on its own.
-  std::vector<Eval>& eval = x.eval;
-  eval.clear();
-  const std::size_t nv = mesh_.samples.size();
-  std::vector<std::uint8_t>& moving = x.moving;
-  moving.assign(nv, 0);
-  for (std::size_t v = 0; v < nv; ++v) moving[v] = display[v] != rest[v];
-  double bound = 0;
-  std::vector<std::uint32_t>& piece = x.piece;  // per triangle: its index in new_triangles + 1, or 0
-  for (std::size_t i = 0; i < count; ++i) {
-    Patch& p = patches[i];
-    const std::size_t T = p.sp.triangles.size();
-    piece.assign(T, 0);
-    for (std::size_t k = 0; k < sr.new_triangles[i].size(); ++k)
-      piece[sr.new_triangles[i][k]] = std::uint32_t(k + 1);
-    s.seam_triangles += sr.new_triangles[i].size();
-    bool own_needed = false;
-    for (std::size_t t = 0; t < T; ++t) {
-      const auto& tl = p.sp.triangles[t];
-      const std::array<std::uint32_t, 3> tg{gidx[i][tl[0]], gidx[i][tl[1]], gidx[i][tl[2]]};
-      const std::uint32_t ti = std::uint32_t(mesh_.triangles.size());
-      mesh_.triangles.push_back(tg);
-      mesh_.triangle_node.push_back(p.node);
-      double e = 0;
-      if (piece[t]) {
-        // Stitched piece: the source's error plus the largest difference between an inserted
-        // corner's true height and the source plane there.
-        const auto& src = sr.new_triangle_source_corners[i][piece[t] - 1];
-        e = p.tri_error[sr.new_triangle_sources[i][piece[t] - 1]];
-        std::array<std::array<double, 3>, 3> q;
-        for (int c = 0; c < 3; ++c) {
-          const pm::GridPoint g = p.sp.vertices[src[std::size_t(c)]];
-          q[std::size_t(c)] = {double(g.x), double(g.y), p.rest_z[src[std::size_t(c)]]};
-        }
-        double delta = 0;
-        std::array<double, 3> base;
-        for (int c = 0; c < 3; ++c) {
-          const std::uint32_t lv = tl[std::size_t(c)];
-          const pm::GridPoint g = p.sp.vertices[lv];
-          base[std::size_t(c)] = plane_height(q[0], q[1], q[2], g.x, g.y);
-          if (lv >= original_vertices[i])
-            delta = std::max(delta, std::abs(rest[tg[std::size_t(c)]] - base[std::size_t(c)]));
-        }
-        eval.push_back({ti, e + delta, e, base, i});
-      } else {
-        e = p.tri_error[t];
-        if (moving[tg[0]] || moving[tg[1]] || moving[tg[2]]) {
-          eval.push_back({ti, e, e, {rest[tg[0]], rest[tg[1]], rest[tg[2]]}, i});
-        } else {
-          own_needed = true;
-        }
-      }
-    }
-    if (own_needed) bound = std::max(bound, p.bound_px);
-  }
-
-  // The prism of a drawn triangle: at each corner k the heights that a vertical segment from
-  // the displayed surface to a sample under the triangle can reach there: the displayed height,
-  // and base_k +- e0 (the samples lie within e0, the source's error, of the source's true plane,
-  // whose height at the corner is base_k), clipped to the patch's sample range. Interpolated
-  // over the triangle, these intervals hold every such segment; for a stitched piece the prism
-  // lies inside its source's, as SelectiveRefinement's face prisms do (same construction).
-  struct Prism {
-    double x[3], y[3], lo[3], hi[3];
-  };
-  const double K = view.focal_px() * view.vertical_factor(), near = view.camera().near_m;
-  auto prism_of = [&](const Eval& ev) {
-    const auto& t = mesh_.triangles[ev.tri];
-    const Patch& p = patches[ev.patch];
-    Prism q;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t v = t[std::size_t(k)];
-      const std::uint64_t sm = mesh_.samples[v];
-      const pm::Vec3 w = grid_.world(int(sm % W), int(sm / W), 0.0);
-      q.x[k] = w.x, q.y[k] = w.y;
-      q.lo[k] = std::min(display[v], std::max(ev.base[std::size_t(k)] - ev.source_error, p.zlo));
-      q.hi[k] = std::max(display[v], std::min(ev.base[std::size_t(k)] + ev.source_error, p.zhi));
-    }
-    return q;
-  };
-  auto outside = [&](const Prism& q) {
-    for (const pm::Plane& pl : view.planes()) {
-      double top = -1e300;
-      for (int k = 0; k < 3; ++k)
-        top = std::max(
-            top, pl.n.x * q.x[k] + pl.n.y * q.y[k] + std::max(pl.n.z * q.lo[k], pl.n.z * q.hi[k]) + pl.d);
-      if (top < 0.0) return true;
-    }
-    return false;
-  };
-  const pm::Vec3 fwd = view.forward();
-  const double eye_depth = pm::dot(view.eye(), fwd);
-  auto min_depth = [&](const Prism& q) {
-    double d = 1e300;
-    for (int k = 0; k < 3; ++k)
-      d = std::min(d,
-                   fwd.x * q.x[k] + fwd.y * q.y[k] + std::min(fwd.z * q.lo[k], fwd.z * q.hi[k]) - eye_depth);
-    return std::max(d, near);
-  };
-  // Clamp the offsets: each moving vertex stays within what every triangle around it allows.
-  std::vector<double>& allowed = x.allowed;
-  allowed.assign(nv, std::numeric_limits<double>::infinity());
-  bool any_moving = false;
-  for (std::size_t v = 0; v < nv; ++v) any_moving = any_moving || moving[v];
-  if (any_moving) {
-    for (const Eval& ev : eval) {
-      const auto& t = mesh_.triangles[ev.tri];
-      if (!moving[t[0]] && !moving[t[1]] && !moving[t[2]]) continue;
-      const Prism q = prism_of(ev);
-      if (outside(q)) continue;
-      const double m = std::max(0.0, tau * min_depth(q) / K - ev.error);
-      for (std::uint32_t v : t) allowed[v] = std::min(allowed[v], m);
-    }
-    // Unstitched, unmoving-cornered triangles of a patch were not evaluated, but a moving vertex
-    // only belongs to evaluated triangles (every triangle with a moving corner is in eval).
-    for (std::size_t v = 0; v < nv; ++v) {
-      if (!moving[v]) continue;
-      ++s.moving_vertices;
-      const double o = display[v] - rest[v];
-      if (std::abs(o) > allowed[v]) {
-        display[v] = rest[v] + std::copysign(allowed[v] * (1 - 1e-9), o);  // margin for rounding
-        ++s.clamped_vertices;
-      }
-    }
-  }
-  // The bound of the evaluated triangles as drawn.
-  for (const Eval& ev : eval) {
-    const auto& t = mesh_.triangles[ev.tri];
-    double m = 0;
-    for (std::uint32_t v : t) m = std::max(m, std::abs(display[v] - rest[v]));
-    const Prism q = prism_of(ev);
-    if (outside(q)) continue;
-    bound = std::max(bound, (ev.error + m) * K / min_depth(q));
-  }
-  s.bound_px = bound;
-
-  mesh_.positions.resize(nv);
-  for (std::size_t v = 0; v < nv; ++v) {
-    const std::uint64_t sm = mesh_.samples[v];
-    mesh_.positions[v] = grid_.world(int(sm % W), int(sm / W), display[v]);
-  }
-  s.triangles = mesh_.triangles.size();
-  s.vertices = nv;
-}
-
-double TerrainRuntime::max_height_at(double x, double y) const {
-  auto [c, r] = grid_.to_grid(x, y);
-  c = std::clamp(c, 0.0, double(grid_.grid_width() - 1));
-  r = std::clamp(r, 0.0, double(grid_.grid_height() - 1));
-  const TreeNode* n = &tree_.root();
-  for (bool deeper = true; deeper;) {
-    deeper = false;
-    for (std::int64_t k : n->children) {
-      const SampleRect& d = tree_.node(k).domain;
-      if (c >= d.col0 && c <= d.col1 && r >= d.row0 && r <= d.row1) {
-        n = &tree_.node(k);
-        deeper = true;
-        break;
-      }
-    }
-  }
-  return n->bbox.hi.z;
-}
-
-double TerrainRuntime::drawn_height(double x, double y) const {
-  // A bucket grid over the drawn triangles' sample-space boxes, built on the first call after
-  // an update: a query then tests the triangles of one bucket (ray marches call it often).
-  HeightIndex& ix = height_index_;
-  const std::uint64_t W = std::uint64_t(grid_.grid_width());
-  auto corners = [&](std::size_t f, std::array<double, 3> q[3]) {
-    const auto& t = mesh_.triangles[f];
-    for (int k = 0; k < 3; ++k) {
-      const std::uint64_t sm = mesh_.samples[t[std::size_t(k)]];
-      q[k] = {double(sm % W), double(sm / W), mesh_.positions[t[std::size_t(k)]].z};
-    }
-  };
-  if (ix.frame != frame_) {
-    ix.frame = frame_;
-    const int side = std::clamp(int(std::sqrt(double(mesh_.triangles.size()) / 4.0)), 1, 256);
-    ix.nx = ix.ny = side;
-    ix.cell_w = double(std::max(grid_.grid_width() - 1, 1)) / side;
-    ix.cell_h = double(std::max(grid_.grid_height() - 1, 1)) / side;
-    ix.start.assign(std::size_t(side) * side + 1, 0);
-    std::vector<std::array<int, 4>> span(mesh_.triangles.size());
-    for (std::size_t f = 0; f < mesh_.triangles.size(); ++f) {
-      std::array<double, 3> q[3];
-      corners(f, q);
-      auto cell = [&](double v, double w, int n) { return std::clamp(int(std::floor(v / w)), 0, n - 1); };
-      span[f] = {cell(std::min({q[0][0], q[1][0], q[2][0]}), ix.cell_w, side),
-                 cell(std::max({q[0][0], q[1][0], q[2][0]}), ix.cell_w, side),
-                 cell(std::min({q[0][1], q[1][1], q[2][1]}), ix.cell_h, side),
-                 cell(std::max({q[0][1], q[1][1], q[2][1]}), ix.cell_h, side)};
-      for (int j = span[f][2]; j <= span[f][3]; ++j)
-        for (int i = span[f][0]; i <= span[f][1]; ++i) ++ix.start[std::size_t(j) * side + i + 1];
-    }
-    for (std::size_t k = 1; k < ix.start.size(); ++k) ix.start[k] += ix.start[k - 1];
-    ix.tris.resize(ix.start.back());
-    std::vector<std::uint32_t> fill(ix.start.begin(), ix.start.end() - 1);
-    for (std::size_t f = 0; f < mesh_.triangles.size(); ++f)
-      for (int j = span[f][2]; j <= span[f][3]; ++j)
-        for (int i = span[f][0]; i <= span[f][1]; ++i)
-          ix.tris[fill[std::size_t(j) * side + i]++] = std::uint32_t(f);
-  }
-  const auto [c, r] = grid_.to_grid(x, y);
-  if (!(c >= 0 && r >= 0 && c <= grid_.grid_width() - 1 && r <= grid_.grid_height() - 1))
-    return std::numeric_limits<double>::quiet_NaN();
-  const int i = std::clamp(int(std::floor(c / ix.cell_w)), 0, ix.nx - 1);
-  const int j = std::clamp(int(std::floor(r / ix.cell_h)), 0, ix.ny - 1);
-  const std::size_t bucket = std::size_t(j) * ix.nx + i;
-  for (std::uint32_t k = ix.start[bucket]; k < ix.start[bucket + 1]; ++k) {
-    std::array<double, 3> q[3];
-    corners(ix.tris[k], q);
-    if (c < std::min({q[0][0], q[1][0], q[2][0]}) || c > std::max({q[0][0], q[1][0], q[2][0]}) ||
-        r < std::min({q[0][1], q[1][1], q[2][1]}) || r > std::max({q[0][1], q[1][1], q[2][1]}))
-      continue;
-    const auto &a = q[0], &b = q[1], &e = q[2];
-    const double det = (b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0]);
-    if (det == 0) continue;
-    const double l1 = ((c - a[0]) * (e[1] - a[1]) - (r - a[1]) * (e[0] - a[0])) / det;
-    const double l2 = ((b[0] - a[0]) * (r - a[1]) - (b[1] - a[1]) * (c - a[0])) / det;
-    if (l1 >= -1e-12 && l2 >= -1e-12 && 1 - l1 - l2 >= -1e-12)
-      return (1 - l1 - l2) * a[2] + l1 * b[2] + l2 * e[2];
-  }
-  return std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace terralod::blocks

@@ -62,18 +62,23 @@ class GridStrategy final : public NodeStrategy {
   int p_;
 };
 
-class TinStrategy final : public NodeStrategy {
+// The strategies whose surface is chosen greedily by error within a budget of s points (TIN,
+// non-regular grid): binary splits, and the options of a point budget with no error target.
+class PointBudgetStrategy : public NodeStrategy {
  public:
-  TinStrategy(std::size_t s, pm::ErrorMetric m) : s_(s), metric_(m) { assert(s >= 4); }
-  Strategy kind() const override { return Strategy::Tin; }
+  PointBudgetStrategy(std::size_t s, pm::ErrorMetric m) : s_(s), metric_(m) { assert(s >= 4); }
   int max_children() const override { return 2; }
   std::size_t max_points() const override { return s_; }
-  NodeSurface approximate(const pm::Heightfield& hf, SampleRect d) const override {
-    TinOptions o;
+
+ protected:
+  /// TinOptions or NonRegularGridOptions: at most s points, error as small as they allow.
+  template <class Options>
+  Options budget() const {
+    Options o;
     o.max_error = 0.0;
     o.max_points = s_;
     o.metric = metric_;
-    return surface_from_tin(hf, build_greedy_tin(hf, d, o));
+    return o;
   }
 
  private:
@@ -81,24 +86,23 @@ class TinStrategy final : public NodeStrategy {
   pm::ErrorMetric metric_;
 };
 
-class NonRegularStrategy final : public NodeStrategy {
+class TinStrategy final : public PointBudgetStrategy {
  public:
-  NonRegularStrategy(std::size_t s, pm::ErrorMetric m) : s_(s), metric_(m) { assert(s >= 4); }
-  Strategy kind() const override { return Strategy::NonRegularGrid; }
-  int max_children() const override { return 2; }
-  std::size_t max_points() const override { return s_; }
+  using PointBudgetStrategy::PointBudgetStrategy;
+  Strategy kind() const override { return Strategy::Tin; }
   NodeSurface approximate(const pm::Heightfield& hf, SampleRect d) const override {
-    NonRegularGridOptions o;
-    o.max_error = 0.0;
-    o.max_points = s_;
-    o.metric = metric_;
-    const NonRegularGrid g = build_nonregular_grid(hf, d, o);
+    return surface_from_tin(hf, build_greedy_tin(hf, d, budget<TinOptions>()));
+  }
+};
+
+class NonRegularStrategy final : public PointBudgetStrategy {
+ public:
+  using PointBudgetStrategy::PointBudgetStrategy;
+  Strategy kind() const override { return Strategy::NonRegularGrid; }
+  NodeSurface approximate(const pm::Heightfield& hf, SampleRect d) const override {
+    const NonRegularGrid g = build_nonregular_grid(hf, d, budget<NonRegularGridOptions>());
     return surface_from_grid(hf, g.cols, g.rows);
   }
-
- private:
-  std::size_t s_;
-  pm::ErrorMetric metric_;
 };
 
 /// Largest power of two strictly below n (n >= 2).

@@ -5,8 +5,9 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <array>
+#include <bit>
 #include <cstdio>
-#include <cstring>
 #include <random>
 
 #include "block_fixture.hpp"
@@ -37,17 +38,16 @@ pm::TriangleMesh as_mesh(const tb::BlockSummary& s, int width) {
   return m;
 }
 
-void put_u32(std::vector<std::uint8_t>& o, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) o.push_back(std::uint8_t(v >> (8 * i)));
-}
-void put_f64(std::vector<std::uint8_t>& o, double d) {
-  std::uint64_t v;
-  std::memcpy(&v, &d, 8);
-  for (int i = 0; i < 8; ++i) o.push_back(std::uint8_t(v >> (8 * i)));
+// Appends v's bytes as this (little-endian) host stores them: the documented little-endian
+// layout written without the library's byte writer, which shifts byte by byte.
+static_assert(std::endian::native == std::endian::little, "the hand-written blobs copy the host's bytes");
+template <class T>
+void append_le(std::vector<std::uint8_t>& o, T v) {
+  for (std::uint8_t byte : std::bit_cast<std::array<std::uint8_t, sizeof(T)>>(v)) o.push_back(byte);
 }
 void reseal(std::vector<std::uint8_t>& b) {  // recompute the CRC trailer after an edit
   b.resize(b.size() - 4);
-  put_u32(b, std::uint32_t(::crc32(::crc32(0L, Z_NULL, 0), b.data(), uInt(b.size()))));
+  append_le(b, std::uint32_t(::crc32(::crc32(0L, Z_NULL, 0), b.data(), uInt(b.size()))));
 }
 
 std::string decode_error(const tb::BlockGrid& g, const std::vector<std::uint8_t>& b) {
@@ -186,16 +186,13 @@ TEST(Standin, Version1BlobDecodesAsTwoTriangleStandins) {
   // 7 zero bytes.
   const tb::BlockGrid g(5, 3, 3, pm::GridTransform::identity());
   std::vector<std::uint8_t> b;
-  put_u32(b, 0x53424C54u);
-  put_u32(b, 1);
-  put_u32(b, 2);
-  put_u32(b, 1);
+  for (std::uint32_t v : {0x53424C54u, 1u, 2u, 1u}) append_le(b, v);  // magic, version, cols, rows
   for (int i = 0; i < 2; ++i) {
-    for (double d : {1.0 + i, 2.0, 3.0, 4.0, 0.5, 9.0, 2.5 * (i + 1)}) put_f64(b, d);
+    for (double d : {1.0 + i, 2.0, 3.0, 4.0, 0.5, 9.0, 2.5 * (i + 1)}) append_le(b, d);
     b.push_back(std::uint8_t(i));
     b.insert(b.end(), 7, 0);
   }
-  put_u32(b, 0);
+  append_le(b, std::uint32_t(0));  // the CRC, by reseal
   reseal(b);
   const std::vector<tb::BlockSummary> s = tb::decode_block_summaries(g, b, "old.db");
   ASSERT_EQ(s.size(), 2u);

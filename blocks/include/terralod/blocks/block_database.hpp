@@ -72,7 +72,7 @@
 //     build_parameters  TEXT     JSON of the build options
 //     source            TEXT     input file name
 //     info_crc32        INTEGER  CRC-32 of the canonical encoding of the fields above (see
-//                                block_database.cpp, encode_info); checked by open()
+//                                block_database_encoding.cpp, info_crc); checked by open()
 //   blocks         one row per block PM (pm::encode_pm bytes):
 //     col INTEGER, row INTEGER  block index, PRIMARY KEY (col, row)
 //     size INTEGER              byte length of data
@@ -99,7 +99,7 @@
 namespace terralod::blocks {
 
 namespace detail {
-struct BlockDatabaseImpl;  // the SQLite connection and its cached statements (block_database.cpp)
+struct BlockDatabaseImpl;  // the SQLite connection and its cached statements (block_database_connection.hpp)
 }
 
 /// Bad or unreadable database content. what() = "<path>: <problem>".

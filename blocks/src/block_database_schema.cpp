@@ -1,0 +1,281 @@
+// The block database's file: its schema (format version 1), identifying a file as a terralod
+// database on open(), reading the info row, and create() and open() themselves. The on-disk
+// format (tables and columns) is documented in terralod/blocks/block_database.hpp.
+//
+// Hostile files (fuzzing, issue 9): open() only accepts a file whose five tables are real
+// tables (not views that could run arbitrary queries) with the expected columns (the
+// connection's own defences are in block_database_connection.cpp).
+#include "block_database_schema.hpp"
+
+#include <fcntl.h>
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <array>
+#include <cassert>
+#include <cerrno>
+#include <climits>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <system_error>
+#include <utility>
+
+#include "block_database_connection.hpp"
+#include "block_database_encoding.hpp"
+#include "terralod/blocks/block_database.hpp"
+
+namespace terralod::blocks {
+
+namespace {
+
+namespace fs = std::filesystem;
+using detail::BlockDatabaseImpl;
+using detail::connect;
+using detail::encode_transform;
+using detail::info_crc;
+using detail::OneOff;
+using detail::read_info;
+using detail::transform_is_finite;
+
+constexpr std::int64_t kApplicationId = 0x544C4F44;  // "TLOD"
+
+// The schema of format version 1 (see the header for the meaning of each column).
+constexpr const char* kSchema = R"sql(
+CREATE TABLE info (
+  id INTEGER PRIMARY KEY CHECK (id = 1),
+  format_version INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  grid_width INTEGER NOT NULL,
+  grid_height INTEGER NOT NULL,
+  transform BLOB NOT NULL,
+  crs_wkt TEXT NOT NULL,
+  block_size INTEGER NOT NULL,
+  build_parameters TEXT NOT NULL,
+  source TEXT NOT NULL,
+  info_crc32 INTEGER NOT NULL
+);
+CREATE TABLE blocks (
+  col INTEGER NOT NULL, row INTEGER NOT NULL,
+  size INTEGER NOT NULL, crc32 INTEGER NOT NULL, data BLOB NOT NULL,
+  PRIMARY KEY (col, row)
+);
+CREATE TABLE blobs (
+  name TEXT NOT NULL PRIMARY KEY,
+  size INTEGER NOT NULL, crc32 INTEGER NOT NULL, data BLOB NOT NULL
+);
+CREATE TABLE texture_tiles (
+  layer TEXT NOT NULL, node INTEGER NOT NULL, level INTEGER NOT NULL,
+  size INTEGER NOT NULL, crc32 INTEGER NOT NULL, data BLOB NOT NULL,
+  PRIMARY KEY (layer, node, level)
+);
+CREATE TABLE meta (
+  key TEXT NOT NULL PRIMARY KEY,
+  value TEXT NOT NULL
+);
+)sql";
+
+// Each table with the columns open() requires (a query that must prepare).
+constexpr std::array<std::pair<const char*, const char*>, 5> kTables = {{
+    {"info",
+     "SELECT id, format_version, kind, grid_width, grid_height, transform, crs_wkt, block_size, "
+     "build_parameters, source, info_crc32 FROM info"},
+    {"blocks", "SELECT col, row, size, crc32, data FROM blocks"},
+    {"blobs", "SELECT name, size, crc32, data FROM blobs"},
+    {"texture_tiles", "SELECT layer, node, level, size, crc32, data FROM texture_tiles"},
+    {"meta", "SELECT key, value FROM meta"},
+}};
+
+}  // namespace
+
+void detail::read_info(BlockDatabaseImpl& d, DatabaseInfo& info, int& format_version) {
+  const std::string what = "info";
+  OneOff st(d, kTables[0].second, "cannot read the info table");
+  // kTables[0] has no WHERE: take the row with id = 1 and reject any other row.
+  bool found = false;
+  for (int rc; (rc = sqlite3_step(st)) != SQLITE_DONE;) {
+    if (rc != SQLITE_ROW) d.check(rc, "cannot read the info table");
+    if (found || d.integer(st, 0, what) != 1) d.fail("corrupt info table (more than one row)");
+    found = true;
+    const std::int64_t version = d.integer(st, 1, what);
+    if (version > BlockDatabase::kFormatVersion)
+      d.fail("format version " + std::to_string(version) + " is newer than this terralod reads (" +
+             std::to_string(BlockDatabase::kFormatVersion) + "); use a newer terralod");
+    if (version < 1) d.fail("corrupt info table (format version " + std::to_string(version) + ")");
+    format_version = int(version);
+    info.kind = d.text(st, 2, what);
+    const auto dim = [&](int col, const char* name) {
+      const std::int64_t v = d.integer(st, col, what);
+      if (v < 0 || v > INT_MAX)
+        d.fail(std::string("corrupt info table (") + name + " " + std::to_string(v) + ")");
+      return int(v);
+    };
+    info.grid_width = dim(3, "grid_width");
+    info.grid_height = dim(4, "grid_height");
+    if (sqlite3_column_type(st, 5) != SQLITE_BLOB || sqlite3_column_bytes(st, 5) != int(kTransformBytes))
+      d.fail("corrupt info table (the transform is not 48 bytes)");
+    info.transform = decode_transform(static_cast<const std::uint8_t*>(sqlite3_column_blob(st, 5)));
+    if (!transform_is_finite(info.transform)) d.fail("corrupt info table (the transform is not finite)");
+    info.crs_wkt = d.text(st, 6, what);
+    info.block_size = dim(7, "block_size");
+    info.build_parameters = d.text(st, 8, what);
+    info.source = d.text(st, 9, what);
+    const std::int64_t crc = d.integer(st, 10, what);
+    if (crc != std::int64_t(info_crc(format_version, info))) d.fail("info: checksum mismatch");
+  }
+  if (!found) d.fail("corrupt info table (no row)");
+}
+
+namespace {
+
+/// Identifies the file as a terralod database of a readable version with the expected schema.
+void check_identity(BlockDatabaseImpl& d) {
+  std::int64_t app_id = 0, objects = 0;
+  {
+    OneOff st(d, "PRAGMA application_id", "not a terralod database");
+    const int rc = sqlite3_step(st);
+    if (rc != SQLITE_ROW) {
+      const int ext = sqlite3_extended_errcode(d.db);
+      if ((ext & 0xff) == SQLITE_NOTADB) d.fail("not a SQLite database (not a terralod database)");
+      // A terralod database is in WAL mode from its first commit on and never has a hot rollback
+      // journal, except when create() was killed while switching the new file to WAL mode (a
+      // ReadOnly connection cannot roll it back; a ReadWrite one would, leaving an empty file).
+      if (ext == SQLITE_READONLY_ROLLBACK) d.fail("not a terralod database (interrupted create?)");
+      d.check(rc, "cannot read the database header");
+    }
+    app_id = sqlite3_column_int64(st, 0);
+  }
+  {
+    OneOff st(d, "SELECT count(*) FROM sqlite_schema", "cannot read the schema");
+    const int rc = sqlite3_step(st);
+    if (rc != SQLITE_ROW) d.check(rc, "cannot read the schema");
+    objects = sqlite3_column_int64(st, 0);
+  }
+  if (app_id == 0 && objects == 0) d.fail("not a terralod database (interrupted create?)");
+  if (app_id != kApplicationId) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "application_id 0x%08llx", static_cast<unsigned long long>(app_id));
+    d.fail(std::string("not a terralod database (") + (app_id == 0 ? "an SQLite file of another kind" : buf) +
+           ")");
+  }
+  // Tables must be real tables: a view could run any query on every read.
+  for (const auto& [name, sql] : kTables) {
+    OneOff st(d, "SELECT type FROM sqlite_schema WHERE name = ?1", "cannot read the schema");
+    sqlite3_bind_text(st, 1, name, -1, SQLITE_STATIC);
+    const int rc = sqlite3_step(st);
+    if (rc != SQLITE_ROW && rc != SQLITE_DONE) d.check(rc, "cannot read the schema");
+    if (rc == SQLITE_DONE) d.fail(std::string("schema mismatch: no table '") + name + "'");
+    const auto* type = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+    if (!type || std::strcmp(type, "table") != 0)
+      d.fail(std::string("schema mismatch: '") + name + "' is not a table");
+  }
+  for (const auto& [name, sql] : kTables) {
+    sqlite3_stmt* s = nullptr;
+    if (sqlite3_prepare_v2(d.db, sql, -1, &s, nullptr) != SQLITE_OK) {
+      const std::string msg = sqlite3_errmsg(d.db);
+      sqlite3_finalize(s);
+      d.fail(std::string("schema mismatch in table '") + name + "' (" + msg + ")");
+    }
+    sqlite3_finalize(s);
+  }
+  read_info(d, d.info, d.format_version);
+}
+
+void remove_quietly(const std::string& p) {
+  std::error_code ec;
+  fs::remove(p, ec);
+}
+
+}  // namespace
+
+BlockDatabase::BlockDatabase(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+BlockDatabase::BlockDatabase(BlockDatabase&&) noexcept = default;
+BlockDatabase& BlockDatabase::operator=(BlockDatabase&&) noexcept = default;
+BlockDatabase::~BlockDatabase() = default;
+
+BlockDatabase BlockDatabase::create(const std::string& path, const DatabaseInfo& info) {
+  assert(info.grid_width >= 0 && info.grid_height >= 0 && info.block_size >= 0);
+  if (!transform_is_finite(info.transform))
+    throw DatabaseError(path, "cannot create: the grid transform is not finite");
+  // Claim the name atomically: an existing file (or link) is never touched.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    const int err = errno;
+    if (err == EEXIST) throw DatabaseError(path, "already exists (create() makes a new database only)");
+    throw DatabaseError(path, std::string("cannot create (") + std::strerror(err) + ")");
+  }
+  ::close(fd);
+  // We own the name now; journal files left by a database that was deleted (or by a killed
+  // create()) are stale and would otherwise be replayed into the new file.
+  remove_quietly(path + "-wal");
+  remove_quietly(path + "-shm");
+  remove_quietly(path + "-journal");
+  try {
+    auto impl = connect(path, Mode::ReadWrite);
+    Impl& d = *impl;
+    {
+      OneOff st(d, "PRAGMA journal_mode = WAL", "cannot switch to WAL mode");
+      if (sqlite3_step(st) != SQLITE_ROW) d.check(sqlite3_errcode(d.db), "cannot switch to WAL mode");
+      const auto* m = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+      if (!m || std::strcmp(m, "wal") != 0)
+        d.fail("cannot switch to WAL mode (the file system may not support it)");
+    }
+    // Schema, identity and info in one transaction: a kill before COMMIT leaves an empty file.
+    d.exec("BEGIN IMMEDIATE", "cannot create the schema");
+    d.exec(kSchema, "cannot create the schema");
+    d.exec(("PRAGMA application_id = " + std::to_string(kApplicationId) +
+            "; PRAGMA user_version = " + std::to_string(kFormatVersion))
+               .c_str(),
+           "cannot create the schema");
+    {
+      OneOff st(d,
+                "INSERT INTO info(id, format_version, kind, grid_width, grid_height, transform, crs_wkt, "
+                "block_size, build_parameters, source, info_crc32) VALUES (1, ?1, ?2, ?3, ?4, ?5, ?6, ?7, "
+                "?8, ?9, ?10)",
+                "cannot write the info");
+      const std::vector<std::uint8_t> t = encode_transform(info.transform);
+      sqlite3_bind_int(st, 1, kFormatVersion);
+      d.bind_text(st, 2, info.kind, "info");
+      sqlite3_bind_int(st, 3, info.grid_width);
+      sqlite3_bind_int(st, 4, info.grid_height);
+      sqlite3_bind_blob(st, 5, t.data(), int(t.size()), SQLITE_STATIC);
+      d.bind_text(st, 6, info.crs_wkt, "info");
+      sqlite3_bind_int(st, 7, info.block_size);
+      d.bind_text(st, 8, info.build_parameters, "info");
+      d.bind_text(st, 9, info.source, "info");
+      sqlite3_bind_int64(st, 10, std::int64_t(info_crc(kFormatVersion, info)));
+      d.step_write(st, "info");
+    }
+    d.exec("COMMIT", "cannot create the schema");
+    d.info = info;
+    d.format_version = kFormatVersion;
+    return BlockDatabase(std::move(impl));
+  } catch (...) {
+    remove_quietly(path);
+    remove_quietly(path + "-wal");
+    remove_quietly(path + "-shm");
+    throw;
+  }
+}
+
+BlockDatabase BlockDatabase::open(const std::string& path, Mode mode) {
+  std::error_code ec;
+  const fs::file_status s = fs::status(path, ec);
+  if (!fs::exists(s)) throw DatabaseError(path, "no such file");
+  if (fs::is_directory(s)) throw DatabaseError(path, "is a directory, not a database");
+  auto impl = connect(path, mode);
+  check_identity(*impl);
+  if (mode == Mode::ReadWrite) {
+    // Persistent in the file already; reasserted in case another tool changed it.
+    OneOff st(*impl, "PRAGMA journal_mode = WAL", "cannot switch to WAL mode");
+    if (sqlite3_step(st) != SQLITE_ROW) impl->check(sqlite3_errcode(impl->db), "cannot switch to WAL mode");
+  }
+  return BlockDatabase(std::move(impl));
+}
+
+const std::string& BlockDatabase::path() const { return impl_->path; }
+const DatabaseInfo& BlockDatabase::info() const { return impl_->info; }
+BlockDatabase::Mode BlockDatabase::mode() const { return impl_->mode; }
+int BlockDatabase::format_version() const { return impl_->format_version; }
+
+}  // namespace terralod::blocks

@@ -1,0 +1,154 @@
+// Step 3 of the terrain runtime's frame (terrain_runtime.hpp): residency. Loads taken from the
+// background loader, the loader's queue by priority (needed blocks, the active region around
+// the eye, then along the predicted flight path) within the memory budget, eviction of the
+// least recently used blocks, and the memory estimates behind them.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <thread>
+
+#include "terrain_runtime_internal.hpp"
+#include "terralod/blocks/terrain_runtime.hpp"
+
+namespace terralod::blocks {
+
+using detail::refinement_options;
+
+bool TerrainRuntime::loading() const { return loader_->pending() > 0; }
+
+void TerrainRuntime::wait_for_loader(double timeout_s) const {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  const std::size_t before = loader_->pending();
+  while (loader_->pending() > 0 && loader_->pending() >= before && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+}
+
+std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {
+  return std::size_t(double(block_vertices_[grid_.index(k)]) * bytes_per_vertex_);
+}
+
+std::size_t TerrainRuntime::fixed_bytes() const {
+  return tree_bytes_ + summary_bytes_ + mesh_.memory_bytes() +
+         4 * (height_index_.start.capacity() + height_index_.tris.capacity());
+}
+
+void TerrainRuntime::make_room(std::size_t bytes, const std::set<BlockKey>& keep) {
+  std::size_t resident = fixed_bytes();
+  for (const auto& [k, b] : blocks_) resident += b->data->memory_bytes;
+  while (resident + bytes > opt_.budget_bytes) {
+    auto victim = blocks_.end();
+    for (auto it = blocks_.begin(); it != blocks_.end(); ++it) {
+      if (keep.count(it->first)) continue;
+      if (victim == blocks_.end() || it->second->last_used < victim->second->last_used) victim = it;
+    }
+    if (victim == blocks_.end()) return;
+    resident -= victim->second->data->memory_bytes;
+    blocks_.erase(victim);
+    ++stats_.blocks_evicted;
+  }
+}
+
+void TerrainRuntime::take_loads() {
+  std::vector<LoadResult> results = loader_->take_results();
+  if (results.empty()) return;
+  std::set<BlockKey> keep;
+  for (const auto& [k, b] : blocks_)
+    if (b->last_drawn == frame_ - 1 || b->last_used == frame_ - 1) keep.insert(k);
+  for (LoadResult& r : results) {
+    if (!r.block) throw std::runtime_error(r.error);
+    const BlockKey k = r.key;
+    const std::uint64_t nv = r.block->pm.full_vertex_count();
+    if (nv > 0)
+      bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
+    make_room(r.block->memory_bytes, keep);
+    std::size_t resident = fixed_bytes();
+    for (const auto& [kk, b] : blocks_) resident += b->data->memory_bytes;
+    if (resident + r.block->memory_bytes > opt_.budget_bytes) {
+      ++stats_.dropped_total;
+      continue;
+    }
+    auto b = std::make_unique<Block>();
+    b->data = std::move(r.block);
+    b->sel = r.selection
+                 ? std::move(r.selection)
+                 : std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
+    b->last_used = frame_;
+    blocks_[k] = std::move(b);
+    keep.insert(k);
+  }
+}
+
+void TerrainRuntime::queue_loads(const pm::View& view,
+                                 const std::vector<std::pair<std::int64_t, double>>& needed) {
+  // Requests in priority order (lower first): needed blocks by screen error, then the active
+  // region around the eye, then the regions around the predicted path. The queue stops where
+  // the estimated memory would pass the budget.
+  std::vector<BlockLoader::Request> req;
+  std::set<BlockKey> seen;
+  std::size_t planned = fixed_bytes();
+  for (const auto& [k, b] : blocks_)
+    if (b->last_used == frame_) planned += b->data->memory_bytes, seen.insert(k);
+  auto want = [&](BlockKey k, double priority) {
+    if (!seen.insert(k).second) return true;
+    const auto it = blocks_.find(k);
+    const std::size_t bytes = it != blocks_.end() ? it->second->data->memory_bytes : estimate_bytes(k);
+    if (planned + bytes > opt_.budget_bytes) return false;
+    planned += bytes;
+    if (it != blocks_.end())
+      it->second->last_used = frame_;  // keep what the policy wants
+    else
+      req.push_back({k, priority});
+    return true;
+  };
+  std::vector<std::pair<double, BlockKey>> order;
+  for (const auto& [id, px] : needed) order.push_back({-px, *tree_.node(id).block});
+  std::sort(order.begin(), order.end());
+  bool room = true;
+  for (std::size_t i = 0; i < order.size() && room; ++i)
+    room = want(order[i].second, double(i) / double(order.size() + 1));
+  const pm::Vec3 eye = view.eye();
+  const double scale = 1.0 / (grid_.block_extent_m() * double(2 * opt_.region.n_max + 3));
+  auto dist = [&](BlockKey k) {
+    const pm::Box b = block_box(grid_, k, sums_[grid_.index(k)]);
+    const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}),
+                 dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
+    return std::min(0.99, std::hypot(dx, dy) * scale);
+  };
+  // The inner blocks of the active region around `centre`, nearest the eye first, at
+  // priorities base + spread * distance (distance scaled into [0, 0.99]).
+  auto want_region = [&](const pm::Vec3& centre, double base, double spread) {
+    const ActiveRegion r = active_region(grid_, sums_, centre, opt_.region);
+    std::vector<std::pair<double, BlockKey>> around;
+    for (BlockKey k : r.inner) around.push_back({dist(k), k});
+    std::sort(around.begin(), around.end());
+    for (std::size_t i = 0; i < around.size() && room; ++i)
+      room = want(around[i].second, base + spread * around[i].first);
+  };
+  if (room) want_region(eye, 1.0, 1.0);
+  if (room && opt_.prefetch) {
+    // Along the predicted path, nearest in time first: the blocks the view from there will need
+    // (the camera moved to the predicted point, turned along the motion, same lens), then the
+    // region around that point.
+    pm::Vec3 prev = eye;
+    for (const PredictedPoint& pt : predictor_.predict(opt_.prefetch_horizon_s, opt_.prefetch_step_s)) {
+      if (pt.dt == 0 || !room) continue;
+      pm::Camera c = view.camera();
+      c.x = pt.position.x, c.y = pt.position.y, c.z = pt.position.z;
+      const double dx = pt.position.x - prev.x, dy = pt.position.y - prev.y;
+      if (std::hypot(dx, dy) > 1e-6) c.yaw_deg = std::atan2(dx, dy) * 180.0 / std::numbers::pi;
+      prev = pt.position;
+      std::vector<std::pair<double, BlockKey>> ahead;
+      needed_at(pm::View(c), tau_, 0, std::numeric_limits<double>::infinity(), ahead);
+      std::sort(ahead.begin(), ahead.end());
+      for (std::size_t i = 0; i < ahead.size() && room; ++i) room = want(ahead[i].second, 2.0 + pt.dt);
+      if (room)
+        want_region(pt.position, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s, 0.25 * opt_.prefetch_step_s);
+    }
+  }
+  loader_->set_queue(std::move(req));
+}
+
+}  // namespace terralod::blocks
