@@ -48,6 +48,11 @@ std::string CommandSpec::usage() const {
   return u;
 }
 
+std::vector<OptionSpec> concat(std::vector<OptionSpec> a, const std::vector<OptionSpec>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Argument parsing
 
@@ -172,6 +177,24 @@ std::string Args::get_choice(const std::string& name, const std::vector<std::str
   throw UsageError("option '" + name + "' must be " + list + ", not '" + it->second + "'");
 }
 
+std::pair<int, int> image_size_option(const Args& a, std::pair<int, int> fallback) {
+  auto [width, height] = fallback;
+  if (a.has("--size")) {
+    const std::string sz = a.get("--size");
+    int consumed = 0;
+    if (std::sscanf(sz.c_str(), "%dx%d%n", &width, &height, &consumed) != 2 || consumed != int(sz.size()) ||
+        width < 1 || height < 1 || width > 16384 || height > 16384)
+      throw UsageError("option '--size' needs WxH with each in 1..16384, not '" + sz + "'");
+  }
+  return {width, height};
+}
+
+double tau_option(const Args& a) {
+  const double tau = a.get_double("--tau", 1.0);
+  if (!(tau > 0)) throw UsageError("option '--tau' must be > 0 pixels, not '" + a.get("--tau") + "'");
+  return tau;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Progress bar
 
@@ -220,6 +243,21 @@ void ProgressBar::finish() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Output
+
+void print_line(const std::string& s) {
+  std::fputs((s + "\n").c_str(), stdout);
+  std::fflush(stdout);
+}
+
+void check_output_folder(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (!parent.empty() && !std::filesystem::is_directory(parent, ec))
+    throw std::runtime_error(path + ": cannot write, folder '" + parent.string() + "' does not exist");
+}
+
+// ---------------------------------------------------------------------------------------------
 // Formatting
 
 double ms_since(std::chrono::steady_clock::time_point start) {
@@ -240,6 +278,11 @@ std::string format_bytes(std::uint64_t bytes) {
 
 void write_text_file(const std::string& path, const std::string& text) {
   pm::write_file_atomically(path, text);
+}
+
+void write_statistics(const std::string& path, const JsonWriter& j) {
+  write_text_file(path, j.str());
+  print_line(strf("write %s: statistics", path.c_str()));
 }
 
 std::string strf(const char* fmt, ...) {

@@ -1,5 +1,6 @@
 // Command-line plumbing shared by the terralod tools: option parsing, usage text, progress
-// bar, human-readable sizes and times, and a tiny JSON writer. No terrain algorithm lives here.
+// bar, stage lines, human-readable sizes and times, and a tiny JSON writer. No terrain
+// algorithm lives here.
 #pragma once
 
 #include <chrono>
@@ -43,6 +44,9 @@ struct CommandSpec {
   std::string usage() const;
 };
 
+/// `a` followed by `b` (option groups shared by several commands, in --help order).
+std::vector<OptionSpec> concat(std::vector<OptionSpec> a, const std::vector<OptionSpec>& b);
+
 /// Parsed arguments of one subcommand. `--name value` and `--name=value` are accepted; `--`
 /// ends the options; `-h`/`--help` sets help. Throws UsageError naming the offending option.
 class Args {
@@ -76,6 +80,13 @@ class Args {
   std::vector<std::string> positionals_;
 };
 
+/// --size WxH of an image or viewport, W and H in 1..16384 (UsageError "option '--size' needs WxH
+/// with each in 1..16384, not '...'" otherwise), or `fallback` when not given.
+std::pair<int, int> image_size_option(const Args& a, std::pair<int, int> fallback);
+/// --tau PIXELS, the screen-space error tolerance: > 0 (UsageError naming the value otherwise),
+/// default 1.
+double tau_option(const Args& a);
+
 /// Progress bar for BuildOptions::progress: on a TTY redraws one line with '\r' at most ten
 /// times a second; otherwise prints "label: 10%" lines every 10 %. Thread-safe.
 class ProgressBar {
@@ -99,9 +110,21 @@ class ProgressBar {
   std::mutex mutex_;
 };
 
+/// Prints one stage line: `s` and a newline to stdout, flushed at once (it shows before the
+/// next, possibly long, stage starts).
+void print_line(const std::string& s);
+
+/// Fails early (before a long build) when the folder of the output `path` does not exist:
+/// std::runtime_error "<path>: cannot write, folder '<folder>' does not exist".
+void check_output_folder(const std::string& path);
+
 /// Writes `text` to path + ".tmp", then renames it onto path (never half-written);
 /// std::runtime_error "<path>: cannot write ..." on failure.
 void write_text_file(const std::string& path, const std::string& text);
+
+class JsonWriter;
+/// Writes the JSON of --stats to `path` (write_text_file) and prints "write PATH: statistics".
+void write_statistics(const std::string& path, const JsonWriter& j);
 
 /// Milliseconds since `start`.
 double ms_since(std::chrono::steady_clock::time_point start);

@@ -11,6 +11,7 @@
 
 #include "build_mpi.hpp"
 #include "commands.hpp"
+#include "dem_options.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 
@@ -71,9 +72,7 @@ int cmd_build(const Args& a) {
   opt.threads = int(a.get_int("--threads", 0, 0, 1024));
   opt.tree.patch = int(a.get_int("--patch", 4, 1, 255));
   opt.tree.max_points = std::size_t(a.get_int("--max-points", 25, 4, 1 << 20));
-  opt.metric = a.get_choice("--metric", {"continuous", "samples"}, "continuous") == "samples"
-                   ? pm::ErrorMetric::Samples
-                   : pm::ErrorMetric::Continuous;
+  opt.metric = metric_from(a);
   opt.tree.levels.clear();
   {
     std::stringstream ss(a.get("--strategy", "grid"));

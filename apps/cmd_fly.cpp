@@ -30,11 +30,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-void say(const std::string& s) {
-  std::fputs((s + "\n").c_str(), stdout);
-  std::fflush(stdout);
-}
-
 struct PathRow {
   double x, y, z, yaw, pitch, fovy;
 };
@@ -110,16 +105,8 @@ CommandSpec fly_spec() {
 int cmd_fly(const Args& a) {
   const auto t_start = Clock::now();
   const std::string db_path = a.get("--db"), path_csv = a.get("--path"), out = a.get("--out");
-  int width = 1280, height = 720;
-  if (a.has("--size")) {
-    const std::string sz = a.get("--size");
-    int consumed = 0;
-    if (std::sscanf(sz.c_str(), "%dx%d%n", &width, &height, &consumed) != 2 || consumed != int(sz.size()) ||
-        width < 1 || height < 1 || width > 16384 || height > 16384)
-      throw UsageError("option '--size' needs WxH with each in 1..16384, not '" + sz + "'");
-  }
-  const double tau = a.get_double("--tau", 1.0);
-  if (!(tau > 0)) throw UsageError("option '--tau' must be > 0 pixels, not '" + a.get("--tau") + "'");
+  const auto [width, height] = image_size_option(a, {1280, 720});
+  const double tau = tau_option(a);
   const double speed = a.get_double("--speed-factor", 1.0);
   if (!(speed >= 0))
     throw UsageError("option '--speed-factor' must be >= 0, not '" + a.get("--speed-factor") + "'");
@@ -136,7 +123,8 @@ int cmd_fly(const Args& a) {
   const bool dump = a.has("--dump-meshes");
 
   const std::vector<PathRow> path = read_path(path_csv);
-  say(strf("read  %s: %zu frames (%.1f s at 60 fps)", path_csv.c_str(), path.size(), path.size() / 60.0));
+  print_line(
+      strf("read  %s: %zu frames (%.1f s at 60 fps)", path_csv.c_str(), path.size(), path.size() / 60.0));
   std::error_code ec;
   fs::create_directories(out, ec);
   if (!fs::is_directory(out)) throw std::runtime_error(out + ": cannot create the output folder");
@@ -151,9 +139,9 @@ int cmd_fly(const Args& a) {
   opt.prefetch = !a.has("--no-prefetch");
   blocks::TerrainRuntime rt(db_path, opt);
   const blocks::BlockGrid& grid = rt.grid();
-  say(strf("open  %s: %d x %d samples, %d x %d blocks of %d, tree of %zu nodes, in %s", db_path.c_str(),
-           grid.grid_width(), grid.grid_height(), grid.cols(), grid.rows(), grid.block_size(),
-           rt.tree().size(), format_duration(ms_since(t)).c_str()));
+  print_line(strf("open  %s: %d x %d samples, %d x %d blocks of %d, tree of %zu nodes, in %s",
+                  db_path.c_str(), grid.grid_width(), grid.grid_height(), grid.cols(), grid.rows(),
+                  grid.block_size(), rt.tree().size(), format_duration(ms_since(t)).c_str()));
 
   FlightLog log(out, /*drawing=*/false);  // frames.csv appears only when the whole flight succeeded
   std::vector<double> ms, cpu, sel_ms, res_ms, ref_ms, seam_ms;
@@ -203,27 +191,27 @@ int cmd_fly(const Args& a) {
   bar.finish();
   log.commit();
   const blocks::RuntimeFrameStats& last = rt.stats();
-  say(
+  print_line(
       strf("fly   %zu frames in %s (speed factor %g%s): update median %.2f ms, p99 %.2f ms, worst %.2f ms; "
            "CPU median %.2f ms, p99 %.2f ms",
            path.size(), format_duration(ms_since(t_fly)).c_str(), speed,
            opt.prefetch ? ", prefetch" : ", no prefetch", percentile(ms, 0.5), percentile(ms, 0.99),
            percentile(ms, 1.0), percentile(cpu, 0.5), percentile(cpu, 0.99)));
-  say(strf(
+  print_line(strf(
       "steps median: selection %.3f ms, loader queue %.3f ms, refinement %.3f ms, seams and bound %.3f ms",
       percentile(sel_ms, 0.5), percentile(res_ms, 0.5), percentile(ref_ms, 0.5), percentile(seam_ms, 0.5)));
-  say(strf(
+  print_line(strf(
       "load  %zu prefetch misses of %zu blocks needed, %s read, peak resident %s (budget %s), %zu evicted",
       last.prefetch_misses_total, last.prefetch_hits_total + last.prefetch_misses_total,
       format_bytes(last.bytes_read_total).c_str(), format_bytes(last.peak_resident_bytes).c_str(),
       format_bytes(opt.budget_bytes).c_str(), last.evicted_total));
-  say(
+  print_line(
       strf("bound %zu of %zu frames had nothing missing; in those the drawn bound was <= tau in %zu (largest "
            "bound / "
            "tau %.3f)",
            complete, path.size(), complete - over_tau, worst_complete));
-  say(strf("write %s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "",
-           format_duration(ms_since(t_start)).c_str()));
+  print_line(strf("write %s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "",
+                  format_duration(ms_since(t_start)).c_str()));
   return 0;
 }
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/hybrid/hybrid_terrain.hpp"
@@ -21,11 +22,6 @@ namespace {
 namespace fs = std::filesystem;
 namespace hy = blocks::hybrid;
 using Clock = std::chrono::steady_clock;
-
-void print_line(const std::string& s) {
-  std::fputs((s + "\n").c_str(), stdout);
-  std::fflush(stdout);
-}
 
 std::vector<std::string> split_list(const std::string& s) {
   std::vector<std::string> out;
@@ -199,10 +195,7 @@ int cmd_extract_hybrid(const Args& a) {
       path.c_str(), level, scheme.c_str(), m.triangles.size(), m.grid_triangles, m.tin_triangles,
       m.convexification_triangles, m.corner_triangles, m.split_edges, m.points.size(),
       format_duration(ms_since(t)).c_str()));
-  t = Clock::now();
-  pm::write_mesh(hy::to_world(m, db.info().transform), out);
-  print_line(strf("write %s: %s, world units, %s", out.c_str(), format_bytes(fs::file_size(out)).c_str(),
-                  format_duration(ms_since(t)).c_str()));
+  write_mesh_stage(hy::to_world(m, db.info().transform), out);
   return 0;
 }
 

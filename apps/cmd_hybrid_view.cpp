@@ -17,18 +17,15 @@
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/terrain_renderer.hpp"
+#include "view_camera.hpp"
 
 namespace terralod::cli {
 
-int view_hybrid(const std::string& path, const std::vector<double>& c, double tau, int width, int height,
-                const std::string& out, const std::string& dump, bool wireframe) {
+int view_hybrid(const std::string& path, const pm::Camera& camera, double tau, const std::string& out,
+                const std::string& dump, bool wireframe) {
   namespace hy = blocks::hybrid;
   namespace fs = std::filesystem;
   using Clock = std::chrono::steady_clock;
-  auto say = [](const std::string& s) {
-    std::fputs((s + "\n").c_str(), stdout);
-    std::fflush(stdout);
-  };
   auto t = Clock::now();
   const blocks::BlockDatabase db = blocks::BlockDatabase::open(path);
   if (db.info().kind != "hybrid")
@@ -42,28 +39,18 @@ int view_hybrid(const std::string& path, const std::vector<double>& c, double ta
   const hy::HybridTerrain h = hy::HybridTerrain::decode(*hblob, path);
   const hy::HybridTree tree =
       hy::HybridTree::attach(h, blocks::decode_tree(*tblob, path + ": hybrid_tree"), path);
-  say(strf("read %s: hybrid tree of %zu nodes over %d x %d coarsest cells, %s", path.c_str(),
-           tree.tree().size(), tree.cells_x(), tree.cells_y(), format_duration(ms_since(t)).c_str()));
+  print_line(strf("read %s: hybrid tree of %zu nodes over %d x %d coarsest cells, %s", path.c_str(),
+                  tree.tree().size(), tree.cells_x(), tree.cells_y(), format_duration(ms_since(t)).c_str()));
 
   // Clip planes from the root's box, as for 'view --input'.
   const pm::Box& box = tree.tree().root().bbox;
   const glm::dvec3 lo(box.lo.x, box.lo.y, box.lo.z), hi(box.hi.x, box.hi.y, box.hi.z);
-  render::Camera cam;
-  cam.x = c[0], cam.y = c[1], cam.z = c[2];
-  cam.yaw_deg = c[3];
-  cam.pitch_deg = c[4];
-  cam.fovy_deg = c[5];
-  cam.width_px = width;
-  cam.height_px = height;
-  cam.near_m =
-      std::clamp(0.5 * render::distance_to_box(terralod::render::camera_position(cam), lo, hi), 0.05, 1000.0);
-  cam.far_m =
-      std::max(cam.near_m * 2.0,
-               1.01 * render::max_distance_to_box(terralod::render::camera_position(cam), lo, hi) + 1.0);
-  pm::Camera pc{c[0], c[1], c[2], c[3], c[4], c[5], width, height, cam.near_m, cam.far_m};
+  render::Camera cam = camera;
+  fit_clip_to_box(cam, lo, hi);
+  const int width = cam.width_px, height = cam.height_px;
 
   t = Clock::now();
-  const hy::HybridSelection s = tree.select(pm::View(pc), {.alpha_px = tau});
+  const hy::HybridSelection s = tree.select(pm::View(cam), {.alpha_px = tau});
   const double select_ms = ms_since(t);
   std::vector<std::size_t> per_level(std::size_t(h.levels()) + 2, 0);
   for (int l : s.cell_level) ++per_level[std::size_t(l + 2)];
@@ -71,14 +58,14 @@ int view_hybrid(const std::string& path, const std::vector<double>& c, double ta
   for (int l = 0; l < h.levels(); ++l)
     levels += strf(", hybrid level %d %zu", l, per_level[std::size_t(l + 2)]);
   levels += strf(", culled %zu", per_level[0]);
-  say(
+  print_line(
       strf("select tau=%g px: %zu visited, %zu culled, %zu selected; drawn %zu nodes (%zu hybrid, %zu grid; "
            "%zu grid "
            "nodes refined and %zu culled cells added to keep TINs whole), %s",
            tau, s.selection.visited, s.selection.culled, s.selection.selected.size(), s.nodes.size(),
            s.hybrid_nodes, s.grid_nodes, s.forced, s.added, format_duration(select_ms).c_str()));
-  say(strf("coarsest cells: %s", levels.c_str()));
-  say(
+  print_line(strf("coarsest cells: %s", levels.c_str()));
+  print_line(
       strf("mesh: %zu triangles (%zu TIN, %zu from grid nodes, %zu split at T-junctions), %zu vertices; node "
            "error "
            "<= %.3f m, bound %.3g px (tau %g)",
@@ -100,12 +87,12 @@ int view_hybrid(const std::string& path, const std::vector<double>& c, double ta
   const render::FrameStats frame = renderer.draw(cam, {{id, 0.0f}});
   const render::Image img = renderer.read_color();
   render::write_png(img, out);
-  say(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height, ctx->info().renderer.c_str(),
-           format_duration(frame.draw_ms).c_str(), out.c_str(), format_bytes(fs::file_size(out)).c_str(),
-           format_duration(ms_since(t)).c_str()));
+  print_line(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height,
+                  ctx->info().renderer.c_str(), format_duration(frame.draw_ms).c_str(), out.c_str(),
+                  format_bytes(fs::file_size(out)).c_str(), format_duration(ms_since(t)).c_str()));
   if (!dump.empty()) {
     pm::write_mesh(world, dump);
-    say(strf("write %s: %s, world units", dump.c_str(), format_bytes(fs::file_size(dump)).c_str()));
+    print_line(strf("write %s: %s, world units", dump.c_str(), format_bytes(fs::file_size(dump)).c_str()));
   }
   return 0;
 }

@@ -5,13 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "commands.hpp"
+#include "dem_options.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
@@ -19,13 +19,6 @@
 
 namespace terralod::cli {
 namespace {
-
-namespace fs = std::filesystem;
-
-void print_line(const std::string& s) {
-  std::fputs((s + "\n").c_str(), stdout);
-  std::fflush(stdout);
-}
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r\n"), e = s.find_last_not_of(" \t\r\n");
@@ -122,14 +115,9 @@ int cmd_tin(const Args& a) {
                               : pm::Units::World;
   blocks::TinOptions opt;
   opt.max_error = max_error;
-  opt.metric = a.get_choice("--metric", {"continuous", "samples"}, "continuous") == "samples"
-                   ? pm::ErrorMetric::Samples
-                   : pm::ErrorMetric::Continuous;
+  opt.metric = metric_from(a);
   if (a.has("--max-points")) opt.max_points = std::size_t(a.get_int("--max-points", 0, 3, 1LL << 40));
-  const fs::path parent = fs::path(out).parent_path();
-  std::error_code ec;
-  if (!parent.empty() && !fs::is_directory(parent, ec))
-    throw std::runtime_error(out + ": cannot write, folder '" + parent.string() + "' does not exist");
+  check_output_folder(out);
 
   const std::vector<std::array<double, 2>> world = read_polygon_csv(poly_path);
   if (opt.max_points < world.size())

@@ -21,18 +21,15 @@
 #include "terralod/render/layered_renderer.hpp"
 #include "terralod/render/terrain_renderer.hpp"
 #include "terralod/render/texture_store.hpp"
+#include "view_camera.hpp"
 
 namespace terralod::cli {
 
-int view_blocks(const Args& a, const std::vector<double>& c, double tau, int width, int height) {
+int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
   namespace fs = std::filesystem;
   namespace tb = terralod::blocks;
   namespace rd = terralod::render;
   using Clock = std::chrono::steady_clock;
-  auto say = [](const std::string& s) {
-    std::fputs((s + "\n").c_str(), stdout);
-    std::fflush(stdout);
-  };
   const std::string path = a.get("--db"), out = a.get("--out"), dump = a.get("--dump-mesh");
   const std::string stats_path = a.get("--stats");
   const std::vector<std::string> specs = a.get_all("--layer");
@@ -44,26 +41,27 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
   tb::TerrainRuntime rt(path, ro);
   const double open_ms = ms_since(t);
   const tb::BlockGrid& g = rt.grid();
-  say(strf("read %s: %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, %s", path.c_str(),
-           g.grid_width(), g.grid_height(), g.cols(), g.rows(), g.block_size(), rt.tree().size(),
-           format_duration(open_ms).c_str()));
+  print_line(strf("read %s: %d x %d samples in %d x %d blocks of %d, tree of %zu nodes, %s", path.c_str(),
+                  g.grid_width(), g.grid_height(), g.cols(), g.rows(), g.block_size(), rt.tree().size(),
+                  format_duration(open_ms).c_str()));
 
   // The camera, with the clip planes of the terrain's box (the selection's frustum is the
   // picture's, so the bound is true of the picture).
-  pm::Camera pc{c[0], c[1], c[2], c[3], c[4], c[5], width, height};
+  pm::Camera pc = camera;
+  const int width = camera.width_px, height = camera.height_px;
   rt.fit_clip_planes(pc);
   const pm::View view(pc);
   t = Clock::now();
   const tb::RuntimeFrameStats first = rt.update_until_loaded(view, 0.0);
   const double select_ms = ms_since(t);
   const tb::RuntimeFrameStats& s = rt.stats();
-  say(strf(
+  print_line(strf(
       "select tau=%g px: %zu nodes visited, %zu culled; drawn %zu PM blocks, %zu stand-ins, %zu coarse "
       "nodes, "
       "%zu ancestors for missing blocks; %zu blocks read (%s) in %s",
       tau, s.nodes_visited, s.nodes_culled, s.pm_blocks, s.standin_blocks, s.coarse_nodes, s.fallback_nodes,
       s.blocks_resident, format_bytes(s.bytes_read_total).c_str(), format_duration(select_ms).c_str()));
-  say(
+  print_line(
       strf("mesh: %zu triangles (%zu stitched at seams), bound %.4g px (tau %g)%s; update %s (first, loads "
            "excluded: %s)",
            s.triangles, s.seam_triangles, s.bound_px, tau,
@@ -104,9 +102,10 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
     draw_ms = r.draw(cam, layers->styles(), layers->lens(), items).draw_ms;
     img = r.read_color();
     texture_bytes = layers->resident_bytes(), texture_patches = f.stats.wanted, gamma_used = f.stats.gamma_px;
-    say(strf("textures: %zu patches in %zu groups, gamma %g px^2%s, %s resident (budget %s)", texture_patches,
-             f.groups.size(), gamma_used, gamma_used > layers->gamma_px() ? " (raised for the budget)" : "",
-             format_bytes(texture_bytes).c_str(), format_bytes(layers->budget_bytes()).c_str()));
+    print_line(strf("textures: %zu patches in %zu groups, gamma %g px^2%s, %s resident (budget %s)",
+                    texture_patches, f.groups.size(), gamma_used,
+                    gamma_used > layers->gamma_px() ? " (raised for the budget)" : "",
+                    format_bytes(texture_bytes).c_str(), format_bytes(layers->budget_bytes()).c_str()));
   } else {
     rd::RendererOptions o;
     o.wireframe = a.has("--wireframe");
@@ -116,12 +115,12 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
     img = r.read_color();
   }
   rd::write_png(img, out);
-  say(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height, ctx->info().renderer.c_str(),
-           format_duration(draw_ms).c_str(), out.c_str(), format_bytes(fs::file_size(out)).c_str(),
-           format_duration(ms_since(t)).c_str()));
+  print_line(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height,
+                  ctx->info().renderer.c_str(), format_duration(draw_ms).c_str(), out.c_str(),
+                  format_bytes(fs::file_size(out)).c_str(), format_duration(ms_since(t)).c_str()));
   if (!dump.empty()) {
     pm::write_mesh(rd::world_mesh(dm), dump);
-    say(strf("write %s: %s, world units", dump.c_str(), format_bytes(fs::file_size(dump)).c_str()));
+    print_line(strf("write %s: %s, world units", dump.c_str(), format_bytes(fs::file_size(dump)).c_str()));
   }
   if (!stats_path.empty()) {
     JsonWriter j;
@@ -129,20 +128,7 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
     j.field("db", path);
     j.field("output", out);
     j.field("selection", "runtime");
-    j.begin_object("camera");
-    for (const auto& [k, v] : {std::pair{"x", pc.x},
-                               {"y", pc.y},
-                               {"z", pc.z},
-                               {"yaw", pc.yaw_deg},
-                               {"pitch", pc.pitch_deg},
-                               {"fovy", pc.fovy_deg},
-                               {"near", pc.near_m},
-                               {"far", pc.far_m}})
-      j.field(k, v);
-    j.end_object();
-    j.field("width", width);
-    j.field("height", height);
-    j.field("tau", tau);
+    write_view_json(j, pc, tau);
     j.field("bound_px", s.bound_px);
     j.field("missing_in_view", std::uint64_t(s.missing_in_view));
     j.field("triangles", std::uint64_t(s.triangles));
@@ -166,8 +152,7 @@ int view_blocks(const Args& a, const std::vector<double>& c, double tau, int wid
     j.field("draw", draw_ms);
     j.end_object();
     j.end_object();
-    write_text_file(stats_path, j.str());
-    say(strf("write %s: statistics", stats_path.c_str()));
+    write_statistics(stats_path, j);
   }
   return 0;
 }

@@ -1,0 +1,38 @@
+// The option groups of the terralod commands that read a DEM and build its progressive mesh
+// (pm, extract, info, view): their --help rows, the DEM formats paragraph, and their parsing.
+//
+// Usage:
+//   s.options = concat(concat({{"--input", "DEM", "elevation model to read", true}}, build_option_specs()),
+//                      dem_option_specs());
+//   const blocks::DemOptions dem = dem_options_from(a);  // --keep-voids, --vertical-scale, --spacing
+//   const pm::BuildOptions build = build_options_from(a);  // --metric, --threads
+//
+// Contract: dem_options_from throws UsageError for --vertical-scale 0 or --spacing <= 0;
+// build_options_from for a --metric other than continuous or samples (metric_from, which
+// 'terralod build' and 'terralod tin' share), or --threads outside 0..1024 (0 = all cores).
+#pragma once
+
+#include <vector>
+
+#include "cli_common.hpp"
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/pm/progressive_mesh.hpp"
+
+namespace terralod::cli {
+
+/// The paragraph that closes the --help of every command reading a DEM.
+extern const char* const kDemFormats;
+
+/// --keep-voids, --vertical-scale S, --spacing M.
+std::vector<OptionSpec> dem_option_specs();
+/// --metric NAME, --threads N.
+std::vector<OptionSpec> build_option_specs();
+
+/// --metric: continuous (the default) or samples (UsageError listing them otherwise).
+pm::ErrorMetric metric_from(const Args& a);
+/// The DEM reading options given by dem_option_specs().
+blocks::DemOptions dem_options_from(const Args& a);
+/// The build options given by build_option_specs().
+pm::BuildOptions build_options_from(const Args& a);
+
+}  // namespace terralod::cli

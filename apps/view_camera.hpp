@@ -1,0 +1,40 @@
+// The camera of 'terralod view' (of --input and of both kinds of --db): --camera, --tau and --size
+// parsed into one pm::Camera, the clip planes that enclose a terrain's bounding box, and the
+// camera as --stats writes it.
+//
+// Usage:
+//   ViewCamera v = view_camera_options(a);   // --camera X,Y,Z,YAW,PITCH,FOVY --tau T --size WxH
+//   fit_clip_to_box(v.camera, lo, hi);       // the terrain's box, world metres
+//
+// Contract: the conventions of render/camera.hpp (world metres, x east, y north, z up; yaw
+// clockwise from north, pitch above the horizon). Bad values are UsageErrors naming the option.
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include "cli_common.hpp"
+#include "terralod/pm/view.hpp"
+
+namespace terralod::cli {
+
+/// What 'terralod view' is asked to see.
+struct ViewCamera {
+  pm::Camera camera;  ///< --camera and --size; near_m and far_m are pm::Camera's defaults
+  double tau = 1.0;   ///< --tau, pixels
+};
+
+/// Parses --camera (six comma-separated finite numbers, PITCH in [-90, 90], FOVY in (0, 180)),
+/// then --tau (tau_option) and --size (image_size_option, default 1024x768): the first bad one
+/// in that order is the UsageError.
+ViewCamera view_camera_options(const Args& a);
+
+/// Sets the clip planes of `c` around the box [lo, hi] (world metres): near at half the distance
+/// from the eye to the box, clamped to [0.05, 1000] m (reverse-Z keeps depth precise even so
+/// close), far just beyond the box's farthest point and at least twice near.
+void fit_clip_to_box(pm::Camera& c, const glm::dvec3& lo, const glm::dvec3& hi);
+
+/// The fields of --stats about what was asked: "camera" {x, y, z, yaw, pitch, fovy, near, far},
+/// then "width", "height" (pixels) and "tau".
+void write_view_json(JsonWriter& j, const pm::Camera& c, double tau);
+
+}  // namespace terralod::cli
