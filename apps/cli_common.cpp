@@ -260,10 +260,6 @@ void check_output_folder(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Formatting
 
-double ms_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
-
 std::string format_duration(double ms) {
   if (ms < 1000.0) return strf("%.0f ms", ms);
   return strf("%.1f s", ms / 1000.0);

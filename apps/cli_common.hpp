@@ -14,6 +14,8 @@
 #include <utility>
 #include <vector>
 
+#include "terralod/pm/timing.hpp"
+
 namespace terralod::cli {
 
 /// A bad command line (unknown option, missing or malformed value): exit code 2.
@@ -126,8 +128,8 @@ class JsonWriter;
 /// Writes the JSON of --stats to `path` (write_text_file) and prints "write PATH: statistics".
 void write_statistics(const std::string& path, const JsonWriter& j);
 
-/// Milliseconds since `start`.
-double ms_since(std::chrono::steady_clock::time_point start);
+/// Milliseconds since `start` (terralod/pm/timing.hpp).
+using terralod::pm::ms_since;
 /// "12 ms" below a second, "16.9 s" above.
 std::string format_duration(double ms);
 /// "512 bytes", "12.3 kB", "7.1 MB", "1.2 GB" (powers of 1000).

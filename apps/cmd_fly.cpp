@@ -22,6 +22,7 @@
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace terralod::cli {
 
@@ -40,14 +41,6 @@ std::vector<PathRow> read_path(const std::string& path) {
   for (const pm::Camera& c : pm::read_camera_path(path))
     rows.push_back({c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg});
   return rows;
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t i =
-      std::min(v.size() - 1, std::size_t(std::ceil(q * double(v.size()))) - (q > 0 ? 1 : 0));
-  return v[i];
 }
 
 }  // namespace
@@ -195,11 +188,12 @@ int cmd_fly(const Args& a) {
       strf("fly   %zu frames in %s (speed factor %g%s): update median %.2f ms, p99 %.2f ms, worst %.2f ms; "
            "CPU median %.2f ms, p99 %.2f ms",
            path.size(), format_duration(ms_since(t_fly)).c_str(), speed,
-           opt.prefetch ? ", prefetch" : ", no prefetch", percentile(ms, 0.5), percentile(ms, 0.99),
-           percentile(ms, 1.0), percentile(cpu, 0.5), percentile(cpu, 0.99)));
+           opt.prefetch ? ", prefetch" : ", no prefetch", pm::quantile(ms, 0.5), pm::quantile(ms, 0.99),
+           pm::quantile(ms, 1.0), pm::quantile(cpu, 0.5), pm::quantile(cpu, 0.99)));
   print_line(strf(
       "steps median: selection %.3f ms, loader queue %.3f ms, refinement %.3f ms, seams and bound %.3f ms",
-      percentile(sel_ms, 0.5), percentile(res_ms, 0.5), percentile(ref_ms, 0.5), percentile(seam_ms, 0.5)));
+      pm::quantile(sel_ms, 0.5), pm::quantile(res_ms, 0.5), pm::quantile(ref_ms, 0.5),
+      pm::quantile(seam_ms, 0.5)));
   print_line(strf(
       "load  %zu prefetch misses of %zu blocks needed, %s read, peak resident %s (budget %s), %zu evicted",
       last.prefetch_misses_total, last.prefetch_hits_total + last.prefetch_misses_total,

@@ -20,6 +20,7 @@
 #include "fly_pipeline.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/timing.hpp"
 #include "terralod/render/draw_mesh.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/hud.hpp"
@@ -54,12 +55,6 @@ std::vector<pm::Camera> default_flight(const LodSource& t, int frames, int w, in
     path.push_back(c);
   }
   return path;
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, std::size_t(q * double(v.size())))];
 }
 
 }  // namespace
@@ -137,17 +132,17 @@ int run_headless(const Args& a) {
   std::printf(
       "headless: frame (update + upload + draw) median %.2f ms, p99 %.2f ms; update median %.3f ms, p99 %.3f "
       "ms (thread CPU: median %.3f ms, p99 %.3f ms); triangles median %.0f, max %.0f\n",
-      percentile(frame_ms, 0.5), percentile(frame_ms, 0.99), percentile(update_ms, 0.5),
-      percentile(update_ms, 0.99), percentile(update_cpu_ms, 0.5), percentile(update_cpu_ms, 0.99),
-      percentile(triangles, 0.5), percentile(triangles, 1.0));
+      pm::quantile(frame_ms, 0.5), pm::quantile(frame_ms, 0.99), pm::quantile(update_ms, 0.5),
+      pm::quantile(update_ms, 0.99), pm::quantile(update_cpu_ms, 0.5), pm::quantile(update_cpu_ms, 0.99),
+      pm::quantile(triangles, 0.5), pm::quantile(triangles, 1.0));
   if (!resident.empty())
     std::printf("headless: blocks resident median %.0f, max %.0f; waited %s for block loads in all\n",
-                percentile(resident, 0.5), percentile(resident, 1.0), format_duration(wait_ms).c_str());
+                pm::quantile(resident, 0.5), pm::quantile(resident, 1.0), format_duration(wait_ms).c_str());
   // The last line: the guarantee as measured on this run, and the update's cost.
   std::printf(
       "headless: guarantee: %zu of %lld frames had nothing missing, and in those the drawn mesh was within "
       "%.3f x tau (bound / tau <= 1 is the promise); update thread CPU median %.3f ms, p99 %.3f ms\n",
-      complete, frames, worst_bound, percentile(update_cpu_ms, 0.5), percentile(update_cpu_ms, 0.99));
+      complete, frames, worst_bound, pm::quantile(update_cpu_ms, 0.5), pm::quantile(update_cpu_ms, 0.99));
   return 0;
 }
 
