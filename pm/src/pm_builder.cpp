@@ -7,7 +7,8 @@
 // 1-ring changed (w and u's old
 // neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
 // move. A popped candidate is re-validated (the link condition may have changed through a
-// neighbour) and re-evaluated when it became illegal.
+// neighbour) and re-evaluated when it became illegal. The grid border rules are
+// grid_border.hpp's, shared with ModLInfT.
 //
 // Cost: one evaluation of u -> w rasterises the new 1-ring of w (about 3 N / m samples when
 // the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
@@ -40,6 +41,7 @@
 #endif
 
 #include "huge_vector.hpp"
+#include "terralod/pm/grid_border.hpp"
 #include "terralod/pm/parallel.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "triangle_cache.hpp"
@@ -63,7 +65,7 @@ using Mesh = OpenMesh::TriMesh_ArrayKernelT<MeshTraits>;
 class Builder {
  public:
   Builder(const Heightfield& hf, const BuildOptions& opt)
-      : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()) {}
+      : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()), border_{W_, H_} {}
 
   // Shared progress of all builders of one build; only the reporting builder calls back.
   struct Progress {
@@ -698,16 +700,6 @@ class Builder {
     return ok && common == (wings[0] != UINT32_MAX) + (wings[1] != UINT32_MAX);
   }
 
-  bool is_corner(GridPoint p) const { return (p.x == 0 || p.x == W_ - 1) && (p.y == 0 || p.y == H_ - 1); }
-  // 0 none, 1 x = 0, 2 x = W-1, 3 y = 0, 4 y = H-1
-  int border_line(GridPoint p) const {
-    if (p.x == 0) return 1;
-    if (p.x == W_ - 1) return 2;
-    if (p.y == 0) return 3;
-    if (p.y == H_ - 1) return 4;
-    return 0;
-  }
-
   // Plan-view legality of u -> w: every face around u that does not contain w stays CCW.
   bool geometry_ok(Mesh::VertexHandle vu, std::uint32_t w) const {
     const GridPoint pw = point(w);
@@ -772,7 +764,7 @@ class Builder {
     VertexState& su = vs_[u];
     const GridPoint pu = point(u);
     su.dirty = 0;
-    if (is_corner(pu) || su.locked || rings_[u].n == 0) {
+    if (border_.corner(pu) || su.locked || rings_[u].n == 0) {
       heap_.remove(u);
       return;
     }
@@ -823,12 +815,12 @@ class Builder {
     cand_.clear();
     if (boundary) {
       // Only along its own grid border line, and only when both boundary neighbours are on it
-      // (otherwise u is on the boundary of a hole, which must keep its shape). The vertex's
-      // outgoing halfedge is its boundary one: ringv_[0] is the next boundary vertex and
-      // ringv_[n-1] the previous one.
-      const int line = border_line(pu);
+      // (otherwise u is on the boundary of a hole, which must keep its shape; grid_border.hpp).
+      // The vertex's outgoing halfedge is its boundary one: ringv_[0] is the next boundary
+      // vertex and ringv_[n-1] the previous one.
+      const BorderLine line = border_.line(pu);
       const std::uint32_t next = ringv_[0], prev = ringv_[n - 1];
-      if (line != 0 && border_line_contains(line, point(next)) && border_line_contains(line, point(prev))) {
+      if (line != BorderLine::None && border_.on(line, point(next)) && border_.on(line, point(prev))) {
         cand_.push_back({next, 0, 0, 0});
         cand_.push_back({prev, 0, 0, n - 1});
       }
@@ -982,24 +974,11 @@ class Builder {
     return std::uint32_t(std::min<std::uint64_t>(dx * dx + dy * dy, UINT32_MAX));
   }
 
-  bool border_line_contains(int line, GridPoint p) const {
-    switch (line) {
-      case 1:
-        return p.x == 0;
-      case 2:
-        return p.x == W_ - 1;
-      case 3:
-        return p.y == 0;
-      case 4:
-        return p.y == H_ - 1;
-    }
-    return false;
-  }
-
   const Heightfield& hf_;
   const BuildOptions& opt_;
   LInfError err_;
   int W_, H_;
+  GridBorder border_;
   Mesh mesh_;
   // What the loop reads of a vertex besides OpenMesh's record and its ring, in two arrays:
   // where it is (read for every ring vertex of an evaluated vertex: a dense 16-byte record),
