@@ -32,54 +32,43 @@ double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
   const Heightfield& hf = *hf_;
   const double zp = hf.at(p.x, p.y), zq = hf.at(q.x, q.y);
   double worst = 0.0;
-  // Crossings with the vertical grid lines x = i (and samples on the segment).
-  // With the segment oriented so that D = qx - px > 0, the crossing at x = i has
-  // y = (py*D + (i-px)*(qy-py)) / D; heights are compared multiplied by D (exact for integers).
+  // The crossings of a segment a -> b (heights za, zb) with one family of grid lines, D > 0
+  // steps apart along it (and the samples on it): at step t = 1 .. D-1 it crosses a line
+  // between the line's samples i and i + 1 (indices along the line), at i + r / D, where
+  // i D + r = i0 D + t di with 0 <= r < D is tracked exactly. height(t, i, k) is the height of
+  // sample i + k (k = 0, 1) of the t-th line. Heights are compared multiplied by D (exact for
+  // integers).
+  auto crossings = [&](std::int64_t D, std::int64_t i0, std::int64_t di, double za, double zb,
+                       auto&& height) {
+    if (D <= 0) return;
+    const std::int64_t qs = floor_div(di, D), rs = di - qs * D;
+    std::int64_t i = i0, r = 0;
+    for (std::int64_t t = 1; t < D; ++t) {
+      i += qs, r += rs;
+      if (r >= D) r -= D, ++i;
+      double orig = height(t, i, 0) * double(D - r);
+      if (r) orig += height(t, i, 1) * double(r);
+      const double lin = za * double(D - t) + zb * double(t);
+      worst = std::max(worst, std::abs(lin - orig) / double(D));
+    }
+  };
+  // Vertical lines x = a.x + t, their samples indexed by row (a.x <= b.x).
   auto vertical = [&](GridPoint a, GridPoint b, double za, double zb) {
-    const std::int64_t D = b.x - a.x;
-    if (D <= 0) return;
-    const std::int64_t dy = b.y - a.y, qs = floor_div(dy, D), rs = dy - qs * D;
-    std::int64_t j = a.y, r = 0;  // Y = a.y * D + t * dy = j * D + r with 0 <= r < D
-    for (std::int64_t t = 1; t < D; ++t) {
-      j += qs, r += rs;
-      if (r >= D) r -= D, ++j;
-      const int i = int(a.x + t);
-      double orig = hf.at(i, int(j)) * double(D - r);
-      if (r) orig += hf.at(i, int(j) + 1) * double(r);
-      const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
-    }
+    crossings(b.x - a.x, a.y, b.y - a.y, za, zb,
+              [&](std::int64_t t, std::int64_t j, int k) { return hf.at(int(a.x + t), int(j) + k); });
   };
+  // Horizontal lines y = a.y + t, their samples indexed by column (a.y <= b.y).
   auto horizontal = [&](GridPoint a, GridPoint b, double za, double zb) {
-    const std::int64_t D = b.y - a.y;
-    if (D <= 0) return;
-    const std::int64_t dx = b.x - a.x, qs = floor_div(dx, D), rs = dx - qs * D;
-    std::int64_t i = a.x, r = 0;
-    for (std::int64_t t = 1; t < D; ++t) {
-      i += qs, r += rs;
-      if (r >= D) r -= D, ++i;
-      const int j = int(a.y + t);
-      double orig = hf.at(int(i), j) * double(D - r);
-      if (r) orig += hf.at(int(i) + 1, j) * double(r);
-      const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
-    }
+    crossings(b.y - a.y, a.x, b.x - a.x, za, zb,
+              [&](std::int64_t t, std::int64_t i, int k) { return hf.at(int(i) + k, int(a.y + t)); });
   };
-  // Diagonal lines x - y = k, the cells' diagonals from (i,j) to (i+1,j+1).
+  // Diagonal lines x - y = a.x - a.y + t, the cells' diagonals from (i,j) to (i+1,j+1), their
+  // samples indexed by column.
   auto diagonal = [&](GridPoint a, GridPoint b, double za, double zb) {
-    const std::int64_t u0 = a.x - a.y, D = std::int64_t(b.x - b.y) - u0;
-    if (D <= 0) return;
-    const std::int64_t dx = b.x - a.x, qs = floor_div(dx, D), rs = dx - qs * D;
-    std::int64_t i = a.x, r = 0;
-    for (std::int64_t t = 1; t < D; ++t) {
-      i += qs, r += rs;
-      if (r >= D) r -= D, ++i;
-      const std::int64_t k = u0 + t;
-      double orig = hf.at(int(i), int(i - k)) * double(D - r);
-      if (r) orig += hf.at(int(i) + 1, int(i + 1 - k)) * double(r);
-      const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
-    }
+    const std::int64_t u0 = a.x - a.y;
+    crossings(
+        std::int64_t(b.x - b.y) - u0, a.x, b.x - a.x, za, zb,
+        [&](std::int64_t t, std::int64_t i, int k) { return hf.at(int(i) + k, int(i + k - (u0 + t))); });
   };
   if (q.x >= p.x)
     vertical(p, q, zp, zq);
