@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <utility>
 
+#include "terralod/pm/grid_triangle.hpp"
+
 namespace terralod::blocks::detail {
 namespace {
 
@@ -16,75 +18,37 @@ inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
   return (a % b != 0 && a < 0) ? q - 1 : q;
 }
 
-/// Exact span [xl, xr] of the closed triangle with edge functions A x + B y + C >= 0 on row y
-/// (empty when xl > xr). The bound -Cy/A is a quotient of integers below 2^31, so its double is
-/// correctly rounded and floor/ceil of the double equal floor/ceil of the exact quotient.
-inline void row_span(const std::int64_t A[3], const std::int64_t B[3], const std::int64_t C[3], int y,
-                     std::int64_t& xl, std::int64_t& xr) {
-  for (int k = 0; k < 3; ++k) {
-    const std::int64_t Cy = B[k] * y + C[k];  // A x + Cy >= 0 inside
-    if (A[k] > 0)
-      xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
-    else if (A[k] < 0)
-      xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
-    else if (Cy < 0)
-      xr = xl - 1;
-  }
-}
-
-/// Edge functions of the CCW-ordered triangle (a,b,c) (b and c swapped when clockwise); returns
-/// twice its area.
-inline std::int64_t edge_functions(pm::GridPoint& a, pm::GridPoint& b, pm::GridPoint& c, std::int64_t A[3],
-                                   std::int64_t B[3], std::int64_t C[3]) {
-  std::int64_t area2 = pm::orient2d(a, b, c);
-  assert(area2 != 0);
-  if (area2 < 0) std::swap(b, c), area2 = -area2;
-  const pm::GridPoint P[3] = {a, b, c};
-  for (int k = 0; k < 3; ++k) {
-    const pm::GridPoint s = P[(k + 1) % 3], e = P[(k + 2) % 3];
-    A[k] = -(std::int64_t(e.y) - s.y);
-    B[k] = std::int64_t(e.x) - s.x;
-    C[k] = -(A[k] * s.x + B[k] * s.y);
-  }
-  return area2;
+/// The non-degenerate triangle (a,b,c), made counter-clockwise (b and c swapped when clockwise).
+inline pm::GridTriangle ccw_triangle(pm::GridPoint& a, pm::GridPoint& b, pm::GridPoint& c) {
+  const pm::GridTriangle t = pm::GridTriangle::ccw(a, b, c);
+  assert(t.area2 != 0);
+  return t;
 }
 
 }  // namespace
 
 void mark_triangle(pm::GridPoint a, pm::GridPoint b, pm::GridPoint c, int x0, int y0, int width,
                    std::vector<std::uint8_t>& mask) {
-  std::int64_t A[3], B[3], C[3];
-  edge_functions(a, b, c, A, B, C);
-  const int xmin = std::min({a.x, b.x, c.x}), xmax = std::max({a.x, b.x, c.x});
-  for (int y = std::min({a.y, b.y, c.y}); y <= std::max({a.y, b.y, c.y}); ++y) {
-    std::int64_t xl = xmin, xr = xmax;
-    row_span(A, B, C, y, xl, xr);
+  ccw_triangle(a, b, c).for_each_span([&](int y, std::int64_t xl, std::int64_t xr) {
     for (std::int64_t x = xl; x <= xr; ++x) mask[std::size_t(y - y0) * width + std::size_t(x - x0)] = 1;
-  }
+  });
 }
 
 SampleScan scan_triangle(const pm::Heightfield& hf, pm::GridPoint a, pm::GridPoint b, pm::GridPoint c) {
-  // Same edge functions and evaluation order as LInfError::samples_in_triangle, so that the
-  // values are bit-identical.
-  std::int64_t A[3], B[3], C[3];
-  const std::int64_t area2 = edge_functions(a, b, c, A, B, C);
+  // The rasterisation and plane of LInfError::samples_in_triangle (grid_triangle.hpp), so that
+  // the values are bit-identical.
+  const pm::GridTriangle t = ccw_triangle(a, b, c);
   const double Z[3] = {hf.at(a.x, a.y), hf.at(b.x, b.y), hf.at(c.x, c.y)};
-  const double sx = double(A[0]) * Z[0] + double(A[1]) * Z[1] + double(A[2]) * Z[2];
-  const double W = double(area2);
-  const int y0 = std::min({a.y, b.y, c.y}), y1 = std::max({a.y, b.y, c.y});
-  const int xmin = std::min({a.x, b.x, c.x}), xmax = std::max({a.x, b.x, c.x});
+  const double sx = t.plane_x(Z);
+  const double W = double(t.area2);
   const int width = hf.width();
   const double* z0 = hf.samples().data();
   const std::uint8_t* m0 = hf.has_holes() ? hf.mask().data() : nullptr;
   double best = 0.0;      // largest |numerator| of a candidate sample
   double best_any = 0.0;  // largest |numerator| of any valid sample (corners included)
   int bx = -1, by = -1;
-  for (int y = y0; y <= y1; ++y) {
-    std::int64_t xl = xmin, xr = xmax;
-    row_span(A, B, C, y, xl, xr);
-    if (xl > xr) continue;
-    const double sy =
-        double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
+  t.for_each_span([&](int y, std::int64_t xl, std::int64_t xr) {
+    const double sy = t.plane_y(Z, y);
     const std::size_t row = std::size_t(y) * width;
     const double* zr = z0 + row;
     double rmax = -1.0;  // this row's largest |numerator| and where
@@ -103,11 +67,11 @@ SampleScan scan_triangle(const pm::Heightfield& hf, pm::GridPoint a, pm::GridPoi
       }
     }
     best_any = std::max(best_any, rmax);
-    if (rmax <= best) continue;
+    if (rmax <= best) return;
     const pm::GridPoint p{int(rx), y};
     if (!(p == a || p == b || p == c)) {
       best = rmax, bx = int(rx), by = y;
-      continue;
+      return;
     }
     // The row's maximum is a corner (rounding noise only): find the best non-corner sample.
     for (std::int64_t x = xl; x <= xr; ++x) {
@@ -116,7 +80,7 @@ SampleScan scan_triangle(const pm::Heightfield& hf, pm::GridPoint a, pm::GridPoi
       const double d = std::abs((sx * double(x) + sy) - W * zr[x]);
       if (d > best) best = d, bx = int(x), by = y;
     }
-  }
+  });
   return SampleScan{best_any / W, pm::GridPoint{bx, by}};
 }
 

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <utility>
 
+#include "terralod/pm/grid_triangle.hpp"
+
 namespace terralod::pm {
 namespace {
 
@@ -32,54 +34,43 @@ double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
   const Heightfield& hf = *hf_;
   const double zp = hf.at(p.x, p.y), zq = hf.at(q.x, q.y);
   double worst = 0.0;
-  // Crossings with the vertical grid lines x = i (and samples on the segment).
-  // With the segment oriented so that D = qx - px > 0, the crossing at x = i has
-  // y = (py*D + (i-px)*(qy-py)) / D; heights are compared multiplied by D (exact for integers).
+  // The crossings of a segment a -> b (heights za, zb) with one family of grid lines, D > 0
+  // steps apart along it (and the samples on it): at step t = 1 .. D-1 it crosses a line
+  // between the line's samples i and i + 1 (indices along the line), at i + r / D, where
+  // i D + r = i0 D + t di with 0 <= r < D is tracked exactly. height(t, i, k) is the height of
+  // sample i + k (k = 0, 1) of the t-th line. Heights are compared multiplied by D (exact for
+  // integers).
+  auto crossings = [&](std::int64_t D, std::int64_t i0, std::int64_t di, double za, double zb,
+                       auto&& height) {
+    if (D <= 0) return;
+    const std::int64_t qs = floor_div(di, D), rs = di - qs * D;
+    std::int64_t i = i0, r = 0;
+    for (std::int64_t t = 1; t < D; ++t) {
+      i += qs, r += rs;
+      if (r >= D) r -= D, ++i;
+      double orig = height(t, i, 0) * double(D - r);
+      if (r) orig += height(t, i, 1) * double(r);
+      const double lin = za * double(D - t) + zb * double(t);
+      worst = std::max(worst, std::abs(lin - orig) / double(D));
+    }
+  };
+  // Vertical lines x = a.x + t, their samples indexed by row (a.x <= b.x).
   auto vertical = [&](GridPoint a, GridPoint b, double za, double zb) {
-    const std::int64_t D = b.x - a.x;
-    if (D <= 0) return;
-    const std::int64_t dy = b.y - a.y, qs = floor_div(dy, D), rs = dy - qs * D;
-    std::int64_t j = a.y, r = 0;  // Y = a.y * D + t * dy = j * D + r with 0 <= r < D
-    for (std::int64_t t = 1; t < D; ++t) {
-      j += qs, r += rs;
-      if (r >= D) r -= D, ++j;
-      const int i = int(a.x + t);
-      double orig = hf.at(i, int(j)) * double(D - r);
-      if (r) orig += hf.at(i, int(j) + 1) * double(r);
-      const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
-    }
+    crossings(b.x - a.x, a.y, b.y - a.y, za, zb,
+              [&](std::int64_t t, std::int64_t j, int k) { return hf.at(int(a.x + t), int(j) + k); });
   };
+  // Horizontal lines y = a.y + t, their samples indexed by column (a.y <= b.y).
   auto horizontal = [&](GridPoint a, GridPoint b, double za, double zb) {
-    const std::int64_t D = b.y - a.y;
-    if (D <= 0) return;
-    const std::int64_t dx = b.x - a.x, qs = floor_div(dx, D), rs = dx - qs * D;
-    std::int64_t i = a.x, r = 0;
-    for (std::int64_t t = 1; t < D; ++t) {
-      i += qs, r += rs;
-      if (r >= D) r -= D, ++i;
-      const int j = int(a.y + t);
-      double orig = hf.at(int(i), j) * double(D - r);
-      if (r) orig += hf.at(int(i) + 1, j) * double(r);
-      const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
-    }
+    crossings(b.y - a.y, a.x, b.x - a.x, za, zb,
+              [&](std::int64_t t, std::int64_t i, int k) { return hf.at(int(i) + k, int(a.y + t)); });
   };
-  // Diagonal lines x - y = k, the cells' diagonals from (i,j) to (i+1,j+1).
+  // Diagonal lines x - y = a.x - a.y + t, the cells' diagonals from (i,j) to (i+1,j+1), their
+  // samples indexed by column.
   auto diagonal = [&](GridPoint a, GridPoint b, double za, double zb) {
-    const std::int64_t u0 = a.x - a.y, D = std::int64_t(b.x - b.y) - u0;
-    if (D <= 0) return;
-    const std::int64_t dx = b.x - a.x, qs = floor_div(dx, D), rs = dx - qs * D;
-    std::int64_t i = a.x, r = 0;
-    for (std::int64_t t = 1; t < D; ++t) {
-      i += qs, r += rs;
-      if (r >= D) r -= D, ++i;
-      const std::int64_t k = u0 + t;
-      double orig = hf.at(int(i), int(i - k)) * double(D - r);
-      if (r) orig += hf.at(int(i) + 1, int(i + 1 - k)) * double(r);
-      const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
-    }
+    const std::int64_t u0 = a.x - a.y;
+    crossings(
+        std::int64_t(b.x - b.y) - u0, a.x, b.x - a.x, za, zb,
+        [&](std::int64_t t, std::int64_t i, int k) { return hf.at(int(i) + k, int(i + k - (u0 + t))); });
   };
   if (q.x >= p.x)
     vertical(p, q, zp, zq);
@@ -100,44 +91,17 @@ double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
 
 double LInfError::samples_in_triangle(GridPoint a, GridPoint b, GridPoint c, double cutoff) const {
   const Heightfield& hf = *hf_;
-  std::int64_t area2 = orient2d(a, b, c);
-  if (area2 < 0) std::swap(b, c), area2 = -area2;
-  const double za = hf.at(a.x, a.y), zb = hf.at(b.x, b.y), zc = hf.at(c.x, c.y);
-  // Edge functions E_k(x,y) = A_k x + B_k y + C_k, each >= 0 inside; E_a is opposite corner a.
-  // Barycentric weight of corner k is E_k / area2.
-  const GridPoint P[3] = {a, b, c};
-  std::int64_t A[3], B[3], C[3];
-  for (int k = 0; k < 3; ++k) {
-    GridPoint s = P[(k + 1) % 3], e = P[(k + 2) % 3];
-    A[k] = -(std::int64_t(e.y) - s.y);
-    B[k] = std::int64_t(e.x) - s.x;
-    C[k] = -(A[k] * s.x + B[k] * s.y);
-  }
-  const double Z[3] = {za, zb, zc};
-  const double sx = double(A[0]) * Z[0] + double(A[1]) * Z[1] + double(A[2]) * Z[2];
-  const double W = double(area2);
-  const int y0 = std::min({a.y, b.y, c.y}), y1 = std::max({a.y, b.y, c.y});
+  // The samples inside, row by row, and the plane through the corners as numerators over
+  // W = area2 (barycentric weights E_k / area2 from the edge functions; grid_triangle.hpp).
+  const GridTriangle t = GridTriangle::ccw(a, b, c);
+  const double Z[3] = {hf.at(a.x, a.y), hf.at(b.x, b.y), hf.at(c.x, c.y)};
+  const double sx = t.plane_x(Z);
+  const double W = double(t.area2);
   const int width = hf.width();
   const double* zrow0 = hf.samples().data();
   double hi = 0.0, lo = 0.0;  // max and min of numerator(x) - W z, numerator space
-  // Row spans from the edge functions. The bound -Cy/A is a quotient of integers below 2^31,
-  // so its double is correctly rounded and, being at least 1/|A| away from any integer it is
-  // not equal to, floor/ceil of the double equal floor/ceil of the exact quotient.
-  const int xmin = std::min({a.x, b.x, c.x}), xmax = std::max({a.x, b.x, c.x});
-  for (int y = y0; y <= y1; ++y) {
-    std::int64_t xl = xmin, xr = xmax;
-    for (int k = 0; k < 3; ++k) {
-      const std::int64_t Cy = B[k] * y + C[k];  // A x + Cy >= 0
-      if (A[k] > 0)
-        xl = std::max(xl, std::int64_t(std::ceil(double(-Cy) / double(A[k]))));
-      else if (A[k] < 0)
-        xr = std::min(xr, std::int64_t(std::floor(double(Cy) / double(-A[k]))));
-      else if (Cy < 0)
-        xr = xl - 1;
-    }
-    if (xl > xr) continue;
-    const double sy =
-        double(B[0] * y + C[0]) * Z[0] + double(B[1] * y + C[1]) * Z[1] + double(B[2] * y + C[2]) * Z[2];
+  t.for_each_span([&](int y, std::int64_t xl, std::int64_t xr) {
+    const double sy = t.plane_y(Z, y);
     const double* zr = zrow0 + std::size_t(y) * width;
     double rhi = hi, rlo = lo;
     for (std::int64_t x = xl; x <= xr; ++x) {
@@ -149,8 +113,8 @@ double LInfError::samples_in_triangle(GridPoint a, GridPoint b, GridPoint c, dou
     // Compare the value that is returned, not its numerator against cutoff * W: the product
     // can round below the numerator while the quotient rounds back to exactly the cutoff, and
     // a caller would then take a partial scan for an exact error.
-    if (std::max(hi, -lo) / W > cutoff) break;
-  }
+    return !(std::max(hi, -lo) / W > cutoff);
+  });
   return std::max(hi, -lo) / W;
 }
 

@@ -1,69 +1,61 @@
-// The PM construction loop: greedy L-infinity half-edge collapses on an OpenMesh triangle mesh.
+// The PM construction: greedy L-infinity half-edge collapses on a triangle mesh of the grid
+// (Builder), run on vertical strips in parallel and then on their join (ProgressiveMesh::build).
 //
 // Paper: seeds/view-dependent-pm-dynamic-loading.txt, section 2, Eq. 1. Each live vertex u
 // keeps its best legal collapse u -> w (smallest error, then shortest edge) in an indexed
-// queue (VertexHeap: a 4-ary heap over buckets), or a lower bound of it (then u is dirty and
-// measured when the bound reaches the top). After collapsing u -> w, only vertices whose
-// 1-ring changed (w and u's old
-// neighbours) are re-evaluated; the rest of the mesh is untouched because vertices never
-// move. A popped candidate is re-validated (the link condition may have changed through a
-// neighbour) and re-evaluated when it became illegal.
+// queue (vertex_heap.hpp: a 4-ary heap over buckets), or a lower bound of it (then u is dirty
+// and measured when the bound reaches the top). After collapsing u -> w, only vertices whose
+// 1-ring changed (w and u's old neighbours) are re-evaluated; the rest of the mesh is
+// untouched because vertices never move. A popped candidate is re-validated (the link
+// condition may have changed through a neighbour) and re-evaluated when it became illegal.
+// Legal: no new face flips in plan view, the link condition holds, and the border rules of
+// grid_border.hpp (shared with ModLInfT) let u move.
 //
 // Cost: one evaluation of u -> w rasterises the new 1-ring of w (about 3 N / m samples when
 // the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
-// candidate so far, and the error of each large triangle (256 cells and more) is cached in a
-// small direct-mapped table keyed by its corners, since re-evaluating a vertex after one
-// neighbour changed meets mostly the same triangles again; long spokes likewise in a 512 KiB
-// table. Vertices are numbered in tiles with Z-order inside (number_vertices), so that the
-// data a collapse touches lies close together, and the live elements are compacted as the mesh
-// shrinks (compact). Memory: OpenMesh connectivity (~180 bytes per vertex), every vertex's
-// ring of halfedges (64 bytes, see Ring), queue entry, position and state (44 bytes per
-// vertex), edge errors (8 bytes per edge); the large arrays (OpenMesh's included) on
-// transparent huge pages where the OS allows it. Peak for the full N44W072 tile (two strips at
-// once): 760 MB.
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+// candidate so far, and large triangles and long spokes are measured through small
+// direct-mapped caches (cached_linf_error.hpp), since re-evaluating a vertex after one
+// neighbour changed meets mostly the same ones again. Vertices are numbered in tile_order.hpp's
+// order, so that the data a collapse touches lies close together, and the live elements are
+// compacted as the mesh shrinks (compact). The mesh and its operations are collapse_mesh.hpp's.
+// Memory: OpenMesh connectivity (~180 bytes per vertex), every vertex's ring of halfedges (64
+// bytes, CollapseMesh::Ring), queue entry, position and state (44 bytes per vertex), edge
+// errors (8 bytes per edge); the large arrays (OpenMesh's included) on transparent huge pages
+// where the OS allows it. Peak for the full N44W072 tile (two strips at once): 760 MB.
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <bit>
 #include <cassert>
 #include <cmath>
 #include <cstdlib>
-#include <memory>
-#include <new>
+#include <exception>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
 
+#include "cached_linf_error.hpp"
+#include "collapse_mesh.hpp"
 #include "huge_vector.hpp"
+#include "terralod/pm/grid_border.hpp"
 #include "terralod/pm/parallel.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
-#include "triangle_cache.hpp"
+#include "tile_order.hpp"
 #include "vertex_heap.hpp"
 
 namespace terralod::pm {
 namespace {
 
+using detail::CachedLInfError;
+using detail::CollapseMesh;
 using detail::HugeVector;
-using detail::TriangleCache;
+using detail::Mesh;
 using detail::VertexHeap;
-
-struct MeshTraits : OpenMesh::DefaultTraits {
-  VertexAttributes(OpenMesh::Attributes::Status);
-  EdgeAttributes(OpenMesh::Attributes::Status);
-  FaceAttributes(OpenMesh::Attributes::Status);
-  HalfedgeAttributes(OpenMesh::Attributes::PrevHalfedge);
-};
-using Mesh = OpenMesh::TriMesh_ArrayKernelT<MeshTraits>;
 
 class Builder {
  public:
   Builder(const Heightfield& hf, const BuildOptions& opt)
-      : hf_(hf), opt_(opt), err_(hf, opt.metric), W_(hf.width()), H_(hf.height()) {}
+      : hf_(hf), opt_(opt), error_(hf, opt.metric), W_(hf.width()), H_(hf.height()), border_{W_, H_} {}
 
   // Shared progress of all builders of one build; only the reporting builder calls back.
   struct Progress {
@@ -87,9 +79,9 @@ class Builder {
         if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
           continue;
         for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[ids[k][c]]));
-        if (!add_face(tri).is_valid()) {
+        if (!mesh_.add_triangle(tri).is_valid()) {
           // Cells in tile order always extend the connected fans of their corners (see
-          // number_vertices), so only a grid with holes can drop a face.
+          // tile_order.hpp), so only a grid with holes can drop a face.
           if (!hf_.has_holes())
             throw std::logic_error("progressive mesh: the full-resolution grid is not manifold");
           dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
@@ -112,7 +104,7 @@ class Builder {
     }
     HugeVector<std::uint32_t>().swap(id_of_);  // needed no more
     edge_err_.assign(mesh_.n_edges(), 0.0);    // edges of the full-resolution grid lie on it
-    init_rings();
+    mesh_.init_rings();
   }
 
   // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips.
@@ -124,17 +116,17 @@ class Builder {
     std::vector<Mesh::VertexHandle> tri(3);
     for (const auto& f : faces) {
       for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));  // all columns: the sample
-      if (!add_face(tri).is_valid())
+      if (!mesh_.add_triangle(tri).is_valid())
         throw std::logic_error("progressive mesh: joined strips are not manifold");
     }
     HugeVector<std::uint32_t>().swap(id_of_);
     edge_err_.assign(mesh_.n_edges(), 0.0);
-    init_rings();
-    if (err_.metric() == ErrorMetric::Continuous)
+    mesh_.init_rings();
+    if (error_.exact().metric() == ErrorMetric::Continuous)
       for (auto e : mesh_.edges()) {
         const auto h = mesh_.halfedge_handle(e, 0);
-        edge_err_[e.idx()] = err_.segment(point(std::uint32_t(mesh_.from_vertex_handle(h).idx())),
-                                          point(std::uint32_t(mesh_.to_vertex_handle(h).idx())));
+        edge_err_[e.idx()] = error_.exact().segment(point(std::uint32_t(mesh_.from_vertex_handle(h).idx())),
+                                                    point(std::uint32_t(mesh_.to_vertex_handle(h).idx())));
       }
   }
 
@@ -151,7 +143,7 @@ class Builder {
            bool report) {
     std::size_t live = live_vertices();
     for (std::uint32_t v = 0; v < n_ids_; ++v)
-      if (rings_[v].n > 0 && !grid_bound(v)) evaluate(v, /*exact=*/false);
+      if (mesh_.ring(v).n > 0 && !grid_bound(v)) evaluate(v, /*exact=*/false);
     std::size_t since_report = 0;
     while (!heap_.empty() && live > stop_live) {
       const std::uint32_t u = heap_.top();
@@ -179,22 +171,22 @@ class Builder {
       neighbours_.clear();
       moved_.clear();
       Mesh::HalfedgeHandle h;
-      for_each_ring(u, [&](Mesh::HalfedgeHandle g) {
+      mesh_.for_each_ring(u, [&](Mesh::HalfedgeHandle g) {
         const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(g).idx());
         if (x == w) h = g;
         neighbours_.push_back(x);
         moved_.push_back(g);
       });
       assert(h.is_valid() && geometry_ok(vu, w));
-      if (!link_ok(h, neighbours_)) {
+      if (!mesh_.link_ok(h, neighbours_)) {
         evaluate(u, /*exact=*/true);  // a change around w made the candidate illegal
         continue;
       }
-      collapse(h, moved_);
+      mesh_.collapse_halfedge(h, moved_);
       heap_.remove(u);
       --live;
       ++collapsed_;
-      if (err_.metric() == ErrorMetric::Continuous) update_edge_errors(w);
+      if (error_.exact().metric() == ErrorMetric::Continuous) update_edge_errors(w);
       collapses.push_back(
           Collapse{sample_at(point(u)), sample_at(point(w)), std::ceil(e / quantum) * quantum});
       // The neighbours are measured now, while their rings are in cache, and as far as the
@@ -204,7 +196,7 @@ class Builder {
       // the top. Instructions on the 241 x 241 crop: 3.82 G -> 3.52 G (cutoff 0: 3.88 G,
       // twice the largest child key: 4.37 G).
       for (std::uint32_t n : neighbours_) prefetch_vertex(n);
-      for (std::uint32_t n : neighbours_) prefetch_ring(n);
+      for (std::uint32_t n : neighbours_) mesh_.prefetch_ring(n);
       for (std::uint32_t n : neighbours_) prefetch_ring_data(n);
       for (std::uint32_t n : neighbours_) evaluate(n, /*exact=*/true, heap_.children_max_error());
       if (collapsed_ * kCompactAt >= n_ids_) compact();
@@ -228,40 +220,12 @@ class Builder {
     return std::uint32_t(p.y) * std::uint32_t(W_) + std::uint32_t(p.x);
   }
 
-  // Vertex numbering for locality. The collapse order is global by error, so every collapse
-  // works at a random place of the mesh; what it touches there (the rings of u and its
-  // neighbours: halfedges, edge errors, positions, heights, heap positions) should lie in a few
-  // cache lines and one page. Vertex ids therefore follow tiles of kTile x kTile samples, the
-  // tiles row by row and Z-order (Morton) inside a tile, over the columns [x0, x1]; samples
-  // outside them, or not in `used` when given, get no id, so that every per-vertex array
-  // (OpenMesh's included) holds only the vertices this builder works on. Cells are created in
-  // the same order, so a ring's halfedges are close too. In this order a cell's left, upper and
-  // upper-left neighbours always come before it, so each new face extends connected fans at
-  // its corners and OpenMesh accepts every face of a hole-free grid. The numbering depends on
-  // the grid (and `used`) only, so the PM stays a function of the heightfield; leaving samples
-  // out keeps the order of the others, and with it every tie-break by vertex id.
-  static constexpr int kTile = 64;
+  // Vertex ids follow tile_order() over the columns [x0, x1]; samples outside them, or not in
+  // `used` when given, get no id, so that every per-vertex array (OpenMesh's included) holds
+  // only the vertices this builder works on. Cells are created in the same order, so a ring's
+  // halfedges are close too.
   void number_vertices(int x0, int x1, const std::vector<std::uint8_t>* used = nullptr) {
-    std::vector<std::uint32_t> sample_of;  // vertex id -> sample index
-    sample_of.reserve(used ? std::size_t(std::count(used->begin(), used->end(), 1))
-                           : std::size_t(x1 + 1 - x0) * std::size_t(H_));
-    std::vector<std::uint32_t> z_order(std::size_t(kTile) * kTile);  // Morton code -> dx + kTile * dy
-    for (std::uint32_t m = 0; m < z_order.size(); ++m) {
-      std::uint32_t dx = 0, dy = 0;
-      for (int b = 0; 2 * b < 32 && (m >> (2 * b)) != 0; ++b)
-        dx |= ((m >> (2 * b)) & 1u) << b, dy |= ((m >> (2 * b + 1)) & 1u) << b;
-      z_order[m] = dx + kTile * dy;
-    }
-    for (int ty = 0; ty < H_; ty += kTile)
-      for (int tx = x0; tx <= x1; tx += kTile) {
-        const int tw = std::min(kTile, x1 + 1 - tx), th = std::min(kTile, H_ - ty);
-        for (std::uint32_t c : z_order) {  // a partial tile skips the codes outside it
-          const int dx = int(c % kTile), dy = int(c / kTile);
-          if (dx >= tw || dy >= th) continue;
-          const std::uint32_t s = std::uint32_t(std::size_t(ty + dy) * W_ + tx + dx);
-          if (!used || (*used)[s]) sample_of.push_back(s);
-        }
-      }
+    const std::vector<std::uint32_t> sample_of = detail::tile_order(x0, x1, W_, H_, used);
     n_ids_ = std::uint32_t(sample_of.size());
     id_x0_ = x0, id_cols_ = std::size_t(x1 + 1 - x0);
     id_of_.assign(id_cols_ * std::size_t(H_), UINT32_MAX);
@@ -277,125 +241,17 @@ class Builder {
                 sizeof(VertexState) / sizeof(std::uint32_t));
   }
 
-  // Reserves the mesh and adds all vertices. OpenMesh's element and property arrays are the
-  // largest, most randomly accessed memory of the build (the halfedges alone ~100 bytes per
-  // vertex): they are advised to use transparent huge pages before their pages are touched
-  // (reserve() only allocates), so that ring walks at random places do not also miss the TLB.
   void reserve_mesh(std::size_t n_edges, std::size_t n_faces) {
-    const std::size_t nv = n_ids_;
-    mesh_.reserve(nv, n_edges, n_faces);
-    const auto v0 = mesh_.add_vertex(Mesh::Point(0, 0, 0));
-    advise_huge(&mesh_.vertex(v0), nv * sizeof(Mesh::Vertex));
-    advise_huge(&mesh_.point(v0), nv * sizeof(Mesh::Point));
-    advise_huge(&mesh_.status(v0), nv * sizeof(OpenMesh::Attributes::StatusInfo));
-    for (std::size_t i = 1; i < nv; ++i) mesh_.add_vertex(Mesh::Point(0, 0, 0));
-    reserved_edges_ = n_edges, reserved_faces_ = n_faces;
-    // Only triangles of 256 cells and more pass through the cache, and they are few: 66k
-    // lookups (22k hits) in a whole N44W072 build, against 15 M measurements of smaller
-    // ones. 2^16 slots (1.5 MiB, cache-resident) hold them, on any grid; the 2^22 slots
-    // used before cost 96 MiB of page faults per builder for nothing.
-    cache_.reset(16);
+    mesh_.init_vertices(n_ids_, n_edges, n_faces);
+    error_.reset();
   }
 
-  // mesh_.add_face of a triangle; the edge and face arrays are advised once the first face
-  // made them reachable (the pages of their first 2 MiB are not advised, the rest is still
-  // untouched).
-  Mesh::FaceHandle add_face(const std::vector<Mesh::VertexHandle>& tri) {
-    const auto f = add_triangle(tri.data());
-    if (f.is_valid() && mesh_.n_faces() == 1) {
-      const auto e0 = Mesh::EdgeHandle(0);
-      advise_huge(&mesh_.edge(e0), reserved_edges_ * sizeof(Mesh::Edge));
-      advise_huge(&mesh_.status(e0), reserved_edges_ * sizeof(OpenMesh::Attributes::StatusInfo));
-      advise_huge(&mesh_.face(f), reserved_faces_ * sizeof(Mesh::Face));
-      advise_huge(&mesh_.status(f), reserved_faces_ * sizeof(OpenMesh::Attributes::StatusInfo));
-    }
-    return f;
-  }
-
-  // PolyConnectivity::add_face for a triangle, step for step the same algorithm (so the same
-  // edges, in the same order, the same links and outgoing halfedges: the PM does not change),
-  // written against the kernel's inline accessors. OpenMesh's goes through library calls that
-  // check every handle, and creating the grid's 1.4 M faces per strip through it took a tenth
-  // of the strip's build. The cases that change nothing here and go to OpenMesh instead: a
-  // face that would make a vertex or an edge non-manifold (OpenMesh reports it and refuses),
-  // and one whose existing edges first need a patch of faces re-linked around a vertex.
-  Mesh::FaceHandle add_triangle(const Mesh::VertexHandle* v) {
-    Mesh::HalfedgeHandle he[3];
-    bool is_new[3], adjust[3] = {false, false, false};
-    for (int i = 0; i < 3; ++i) {
-      const Mesh::VertexHandle from = v[i], to = v[(i + 1) % 3];
-      const auto out = mesh_.halfedge_handle(from);
-      if (out.is_valid() && !mesh_.is_boundary(out)) return mesh_.add_face(v, 3);  // not a boundary vertex
-      he[i] = find_halfedge(from, to);
-      is_new[i] = !he[i].is_valid();
-      if (!is_new[i] && !mesh_.is_boundary(he[i])) return mesh_.add_face(v, 3);  // the edge has two faces
-    }
-    for (int i = 0; i < 3; ++i) {
-      const int ii = (i + 1) % 3;
-      if (!is_new[i] && !is_new[ii] && mesh_.next_halfedge_handle(he[i]) != he[ii])
-        return mesh_.add_face(v, 3);
-    }
-    for (int i = 0; i < 3; ++i)
-      if (is_new[i]) he[i] = mesh_.new_edge(v[i], v[(i + 1) % 3]);
-    const auto fh = mesh_.new_face();
-    mesh_.set_halfedge_handle(fh, he[2]);
-    std::pair<Mesh::HalfedgeHandle, Mesh::HalfedgeHandle> links[9];
-    int n_links = 0;
-    for (int i = 0; i < 3; ++i) {
-      const int ii = (i + 1) % 3;
-      const Mesh::VertexHandle vh = v[ii];
-      const auto inner_prev = he[i], inner_next = he[ii];
-      if (is_new[i] || is_new[ii]) {
-        const auto outer_prev = mesh_.opposite_halfedge_handle(inner_next);
-        const auto outer_next = mesh_.opposite_halfedge_handle(inner_prev);
-        if (is_new[i] && !is_new[ii]) {
-          links[n_links++] = {mesh_.prev_halfedge_handle(inner_next), outer_next};
-          mesh_.set_halfedge_handle(vh, outer_next);
-        } else if (!is_new[i]) {
-          const auto boundary_next = mesh_.next_halfedge_handle(inner_prev);
-          links[n_links++] = {outer_prev, boundary_next};
-          mesh_.set_halfedge_handle(vh, boundary_next);
-        } else if (!mesh_.halfedge_handle(vh).is_valid()) {
-          mesh_.set_halfedge_handle(vh, outer_next);
-          links[n_links++] = {outer_prev, outer_next};
-        } else {
-          const auto boundary_next = mesh_.halfedge_handle(vh);
-          links[n_links++] = {mesh_.prev_halfedge_handle(boundary_next), outer_next};
-          links[n_links++] = {outer_prev, boundary_next};
-        }
-        links[n_links++] = {inner_prev, inner_next};
-      } else {
-        adjust[ii] = mesh_.halfedge_handle(vh) == inner_next;
-      }
-      mesh_.set_face_handle(he[i], fh);
-    }
-    for (int i = 0; i < n_links; ++i) mesh_.set_next_halfedge_handle(links[i].first, links[i].second);
-    for (int i = 0; i < 3; ++i)
-      if (adjust[i]) adjust_outgoing(v[i]);
-    return fh;
-  }
-
-  static void advise_huge([[maybe_unused]] const void* p, [[maybe_unused]] std::size_t bytes) {
-#ifdef MADV_HUGEPAGE
-    constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
-    const std::uintptr_t begin = (std::uintptr_t(p) + kHuge - 1) & ~(kHuge - 1);
-    const std::uintptr_t end = (std::uintptr_t(p) + bytes) & ~(kHuge - 1);
-    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);  // advice only
-#endif
-  }
-
-  // After a collapse, the neighbours' rings are read one after the other by evaluate(); these
-  // two start the loads of all of them at once: the halfedges of the rings, then what
-  // evaluate() reads through them (ring vertices' records, the crossing errors of ring edges).
-  void prefetch_ring(std::uint32_t v) const {
-    const Ring& r = rings_[v];
-    const std::uint32_t n = std::min(r.n, kRingCap);
-    for (std::uint32_t i = 0; i < n; ++i)
-      __builtin_prefetch(&mesh_.halfedge(Mesh::HalfedgeHandle(int(r.h[i]))));
-  }
+  // After a collapse, the neighbours' rings are read one after the other by evaluate(); this
+  // starts, after CollapseMesh::prefetch_ring, the loads of what evaluate() reads through them
+  // (ring vertices' records, the crossing errors of ring edges).
   void prefetch_ring_data(std::uint32_t v) const {
-    const Ring& r = rings_[v];
-    const std::uint32_t n = std::min(r.n, kRingCap);
+    const CollapseMesh::Ring& r = mesh_.ring(v);
+    const std::uint32_t n = std::min(r.n, CollapseMesh::kRingCap);
     for (std::uint32_t i = 0; i < n; ++i) {
       const auto h = Mesh::HalfedgeHandle(int(r.h[i]));
       __builtin_prefetch(&sites_[std::uint32_t(mesh_.to_vertex_handle(h).idx())]);
@@ -404,75 +260,28 @@ class Builder {
   }
 
   // Collapses leave their deleted vertices, edges and faces in every array, so the live data
-  // of a region thins out: a ring spreads over more cache lines, and the memory the loop reads
-  // at random stays as large as at the start while the mesh shrinks. Once 1/kCompactAt of the
-  // vertices are deleted, compact() moves the live elements down in place, keeping their
-  // order: every tie-break by vertex id, every ring's order and the heap's order stay, so the
-  // PM is the same as without it (the caches are keyed by sample, not by id). Each pass costs
-  // a sequential sweep of the arrays; every quarter of the vertices (rather than every half)
-  // measured 0.96x the build time (full tile, 14 alternating pairs).
+  // of a region thins out (CollapseMesh::compact). Once 1/kCompactAt of the vertices are
+  // deleted, compact() moves the live elements down in place, keeping their order: every
+  // tie-break by vertex id, every ring's order and the heap's order stay, so the PM is the same
+  // as without it (the caches are keyed by sample, not by id). Each pass costs a sequential
+  // sweep of the arrays; every quarter of the vertices (rather than every half) measured 0.96x
+  // the build time (full tile, 14 alternating pairs).
   static constexpr std::size_t kCompactAt = 4;
   void compact() {
-    const std::uint32_t nv = std::uint32_t(mesh_.n_vertices()), ne = std::uint32_t(mesh_.n_edges()),
-                        nf = std::uint32_t(mesh_.n_faces());
-    // Old -> new ids, UINT32_MAX: deleted. Kept between calls: fresh pages cost page faults.
-    auto &vmap = vmap_, &emap = emap_, &fmap = fmap_;
-    vmap.resize(nv), emap.resize(ne), fmap.resize(nf);
-    std::uint32_t lv = 0, le = 0, lf = 0;
-    for (std::uint32_t v = 0; v < nv; ++v)
-      vmap[v] = mesh_.status(Mesh::VertexHandle(int(v))).deleted() ? UINT32_MAX : lv++;
-    for (std::uint32_t e = 0; e < ne; ++e)
-      emap[e] = mesh_.status(Mesh::EdgeHandle(int(e))).deleted() ? UINT32_MAX : le++;
-    for (std::uint32_t f = 0; f < nf; ++f)
-      fmap[f] = mesh_.status(Mesh::FaceHandle(int(f))).deleted() ? UINT32_MAX : lf++;
-    const auto mh = [&](Mesh::HalfedgeHandle h) {  // a live halfedge's new id
-      if (!h.is_valid()) return h;
-      const std::uint32_t i = std::uint32_t(h.idx());
-      return Mesh::HalfedgeHandle(int(2 * emap[i >> 1] + (i & 1)));
-    };
-    // Element k moves to map[k] <= k, in increasing k, so nothing is overwritten before it is read.
-    for (std::uint32_t v = 0; v < nv; ++v) {
-      if (vmap[v] == UINT32_MAX) continue;
-      const auto vh = Mesh::VertexHandle(int(v)), vj = Mesh::VertexHandle(int(vmap[v]));
-      mesh_.set_halfedge_handle(vj, mh(mesh_.halfedge_handle(vh)));
-      mesh_.status(vj) = mesh_.status(vh);
-      VertexState& sv = vs_[vmap[v]];
-      sv = vs_[v];
-      sites_[vmap[v]] = sites_[v];
-      if (sv.target != UINT32_MAX) sv.target = vmap[sv.target];  // a deleted target is never used again
-      Ring& r = rings_[vmap[v]];
-      r = rings_[v];
-      for (std::uint32_t i = 0; i < std::min(r.n, kRingCap); ++i)
-        r.h[i] = std::uint32_t(mh(Mesh::HalfedgeHandle(int(r.h[i]))).idx());
-    }
-    // A halfedge's prev is set by set_next_halfedge_handle of its predecessor, and never read
-    // from a moved record (it may not have been written yet).
-    for (std::uint32_t e = 0; e < ne; ++e) {
-      if (emap[e] == UINT32_MAX) continue;
-      for (std::uint32_t k = 0; k < 2; ++k) {
-        const auto h = Mesh::HalfedgeHandle(int(2 * e + k)), hj = Mesh::HalfedgeHandle(int(2 * emap[e] + k));
-        const auto to = mesh_.to_vertex_handle(h);
-        const auto next = mesh_.next_halfedge_handle(h);
-        const auto f = mesh_.face_handle(h);
-        mesh_.set_vertex_handle(hj, Mesh::VertexHandle(int(vmap[std::uint32_t(to.idx())])));
-        mesh_.set_face_handle(hj, f.is_valid() ? Mesh::FaceHandle(int(fmap[std::uint32_t(f.idx())])) : f);
-        mesh_.set_next_halfedge_handle(hj, mh(next));
-      }
-      mesh_.status(Mesh::EdgeHandle(int(emap[e]))) = mesh_.status(Mesh::EdgeHandle(int(e)));
-      edge_err_[emap[e]] = edge_err_[e];
-    }
-    for (std::uint32_t f = 0; f < nf; ++f) {
-      if (fmap[f] == UINT32_MAX) continue;
-      const auto fh = Mesh::FaceHandle(int(f)), fj = Mesh::FaceHandle(int(fmap[f]));
-      mesh_.set_halfedge_handle(fj, mh(mesh_.halfedge_handle(fh)));
-      mesh_.status(fj) = mesh_.status(fh);
-    }
-    mesh_.resize(lv, le, lf);
+    mesh_.compact(
+        [&](std::uint32_t v, std::uint32_t to) {
+          VertexState& sv = vs_[to];
+          sv = vs_[v];
+          sites_[to] = sites_[v];
+          if (sv.target != UINT32_MAX)
+            sv.target = mesh_.new_vertex_id(sv.target);  // a deleted target is never used again
+        },
+        [&](std::uint32_t e, std::uint32_t to) { edge_err_[to] = edge_err_[e]; });
+    const std::uint32_t lv = std::uint32_t(mesh_.n_vertices());
     vs_.resize(lv);
     sites_.resize(lv);
-    rings_.resize(lv);
-    edge_err_.resize(le);
-    heap_.renumber(vmap);
+    edge_err_.resize(mesh_.n_edges());
+    heap_.renumber(mesh_.new_vertex_ids());
     n_ids_ = lv;
     collapsed_ = 0;
   }
@@ -480,160 +289,14 @@ class Builder {
   // Starts loading the per-vertex data that evaluate(v) and the heap read first.
   void prefetch_vertex(std::uint32_t v) const {
     if (v == UINT32_MAX) return;
-    __builtin_prefetch(&rings_[v]);
+    __builtin_prefetch(&mesh_.ring(v));
     __builtin_prefetch(&vs_[v]);
     __builtin_prefetch(&sites_[v]);
   }
 
-  // Every vertex's outgoing halfedges, in the order for_each_outgoing visits them, in one
-  // cache line. Walking a ring through OpenMesh is a chain of dependent loads (each halfedge
-  // names the next), one cache miss after another at a random place of the mesh: from the
-  // record, the CPU issues all of the ring's loads at once. Only a collapse changes rings,
-  // and only those of w and of the two wing vertices (see collapse): the other neighbours of
-  // u keep their halfedges, now pointing at w, in the same order. Degrees above kRingCap
-  // (1 in 2000 evaluations on N44W072) are walked through OpenMesh.
-  static constexpr std::uint32_t kRingCap = 15;
-  struct alignas(64) Ring {
-    std::uint32_t h[kRingCap];
-    std::uint32_t n;  // the degree; the halfedges are stored when n <= kRingCap
-  };
-  static_assert(sizeof(Ring) == 64);
-  void refresh_ring(std::uint32_t v) {
-    Ring& r = rings_[v];
-    std::uint32_t n = 0;
-    for_each_outgoing(Mesh::VertexHandle(int(v)), [&](Mesh::HalfedgeHandle h) {
-      if (n < kRingCap) r.h[n] = std::uint32_t(h.idx());
-      ++n;
-    });
-    r.n = n;
-  }
-  void init_rings() {
-    rings_.resize(n_ids_);
-    for (std::uint32_t v = 0; v < n_ids_; ++v) refresh_ring(v);
-  }
-  // for_each_outgoing(v, f) from v's record.
-  template <class F>
-  void for_each_ring(std::uint32_t v, F&& f) const {
-    const Ring& r = rings_[v];
-    if (r.n > kRingCap) return for_each_outgoing(Mesh::VertexHandle(int(v)), f);
-    assert(ring_matches(v));
-    for (std::uint32_t i = 0; i < r.n; ++i) f(Mesh::HalfedgeHandle(int(r.h[i])));
-  }
-  bool ring_matches(std::uint32_t v) const {
-    const Ring& r = rings_[v];
-    std::uint32_t n = 0;
-    bool same = true;
-    for_each_outgoing(Mesh::VertexHandle(int(v)), [&](Mesh::HalfedgeHandle h) {
-      if (n < kRingCap && r.h[n] != std::uint32_t(h.idx())) same = false;
-      ++n;
-    });
-    return same && n == r.n;
-  }
-
-  // Outgoing halfedges of v, calling f(h) for each. Hand-written with the kernel's inline
-  // accessors: OpenMesh's circulators validate every handle through a library call.
-  template <class F>
-  void for_each_outgoing(Mesh::VertexHandle v, F&& f) const {
-    const auto start = mesh_.halfedge_handle(v);
-    if (!start.is_valid()) return;
-    auto h = start;
-    do {
-      f(h);
-      h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
-    } while (h != start);
-  }
-
-  // The collapse of halfedge h (u -> w), written against OpenMesh's kernel so that it runs
-  // without the library's calls and handle checks (a tenth of the build went there). It leaves
-  // exactly the connectivity PolyConnectivity::collapse leaves: the same elements deleted, the
-  // same outgoing halfedge at every vertex (a vertex keeps a boundary one when it has one), so
-  // ring walks, and with them every tie-break, see the mesh they saw before. Two faces beside
-  // the edge fold into loops of two halfedges; each loop keeps the edge (w, wing) and deletes
-  // the edge (u, wing), so the stored crossing error of every edge that survives still
-  // describes its segment, except for u's other edges, which now start at w.
-  // outgoing_u: u's outgoing halfedges (the caller has just walked u's ring).
-  void collapse(Mesh::HalfedgeHandle h, const std::vector<Mesh::HalfedgeHandle>& outgoing_u) {
-    const auto hn = mesh_.next_halfedge_handle(h), hp = mesh_.prev_halfedge_handle(h);
-    const auto o = mesh_.opposite_halfedge_handle(h);
-    const auto on = mesh_.next_halfedge_handle(o), op = mesh_.prev_halfedge_handle(o);
-    const auto fh = mesh_.face_handle(h), fo = mesh_.face_handle(o);
-    const auto vw = mesh_.to_vertex_handle(h), vu = mesh_.to_vertex_handle(o);
-    const auto wing_h = fh.is_valid() ? mesh_.to_vertex_handle(hn) : Mesh::VertexHandle();
-    const auto wing_o = fo.is_valid() ? mesh_.to_vertex_handle(on) : Mesh::VertexHandle();
-    // adjust_outgoing() looks for a boundary halfedge and finds none around an interior
-    // vertex; the collapse of an interior edge makes no vertex a boundary one, so the walks
-    // are skipped for the vertices that are interior now (a boundary vertex's outgoing
-    // halfedge is a boundary one).
-    const auto if_interior = [&](Mesh::VertexHandle v) {
-      return v.is_valid() && !mesh_.is_boundary(mesh_.halfedge_handle(v)) ? v : Mesh::VertexHandle();
-    };
-    const Interior interior = {if_interior(vw), if_interior(wing_h), if_interior(wing_o)};
-    for (const auto g : outgoing_u) mesh_.set_vertex_handle(mesh_.opposite_halfedge_handle(g), vw);
-    mesh_.set_next_halfedge_handle(hp, hn);
-    mesh_.set_next_halfedge_handle(op, on);
-    if (fh.is_valid()) mesh_.set_halfedge_handle(fh, hn);
-    if (fo.is_valid()) mesh_.set_halfedge_handle(fo, on);
-    if (mesh_.halfedge_handle(vw) == o) mesh_.set_halfedge_handle(vw, hn);
-    if (!is_interior(vw, interior)) adjust_outgoing(vw);
-    mesh_.set_isolated(vu);
-    mesh_.status(mesh_.edge_handle(h)).set_deleted(true);
-    mesh_.status(vu).set_deleted(true);
-    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(hn)) == hn)
-      collapse_loop(mesh_.next_halfedge_handle(hn), interior);
-    if (mesh_.next_halfedge_handle(mesh_.next_halfedge_handle(on)) == on) collapse_loop(on, interior);
-    // The rings that changed (see Ring).
-    rings_[std::uint32_t(vu.idx())].n = 0;
-    refresh_ring(std::uint32_t(vw.idx()));
-    if (wing_h.is_valid()) refresh_ring(std::uint32_t(wing_h.idx()));
-    if (wing_o.is_valid()) refresh_ring(std::uint32_t(wing_o.idx()));
-  }
-
-  // collapse(): w and the wings, each where it is an interior vertex, else invalid.
-  using Interior = std::array<Mesh::VertexHandle, 3>;
-  static bool is_interior(Mesh::VertexHandle v, const Interior& interior) {
-    return v.is_valid() && (v == interior[0] || v == interior[1] || v == interior[2]);
-  }
-
-  // Removes the loop of two halfedges h0, next(h0) that a collapse left: h0's edge goes, and
-  // next(h0) takes the place of h0's opposite in the face on the other side.
-  void collapse_loop(Mesh::HalfedgeHandle h0, const Interior& interior) {
-    const auto h1 = mesh_.next_halfedge_handle(h0);
-    const auto o0 = mesh_.opposite_halfedge_handle(h0), o1 = mesh_.opposite_halfedge_handle(h1);
-    const auto v0 = mesh_.to_vertex_handle(h0), v1 = mesh_.to_vertex_handle(h1);
-    const auto fh = mesh_.face_handle(h0), fo = mesh_.face_handle(o0);
-    assert(mesh_.next_halfedge_handle(h1) == h0 && h1 != o0);
-    mesh_.set_next_halfedge_handle(h1, mesh_.next_halfedge_handle(o0));
-    mesh_.set_next_halfedge_handle(mesh_.prev_halfedge_handle(o0), h1);
-    mesh_.set_face_handle(h1, fo);
-    mesh_.set_halfedge_handle(v0, h1);
-    if (!is_interior(v0, interior)) adjust_outgoing(v0);
-    mesh_.set_halfedge_handle(v1, o1);
-    if (!is_interior(v1, interior)) adjust_outgoing(v1);
-    if (fo.is_valid() && mesh_.halfedge_handle(fo) == o0) mesh_.set_halfedge_handle(fo, h1);
-    if (fh.is_valid()) {
-      mesh_.set_halfedge_handle(fh, Mesh::HalfedgeHandle());
-      mesh_.status(fh).set_deleted(true);
-    }
-    mesh_.status(mesh_.edge_handle(h0)).set_deleted(true);
-  }
-
-  // Makes v's outgoing halfedge its first boundary one in clockwise order from the current
-  // one, if it has any (OpenMesh's convention, which boundary tests rely on).
-  void adjust_outgoing(Mesh::VertexHandle v) {
-    const auto start = mesh_.halfedge_handle(v);
-    if (!start.is_valid()) return;
-    auto h = start;
-    do {
-      if (mesh_.is_boundary(h)) {
-        mesh_.set_halfedge_handle(v, h);
-        return;
-      }
-      h = mesh_.next_halfedge_handle(mesh_.opposite_halfedge_handle(h));
-    } while (h != start);
-  }
-
   // Crossing errors of the edges u's collapse into w moved to w (moved_: u's outgoing
-  // halfedges before the collapse); the others around w kept their segments (see collapse).
+  // halfedges before the collapse); the others around w kept their segments (see
+  // CollapseMesh::collapse_halfedge).
   void update_edge_errors(std::uint32_t w) {
     for (const auto g : moved_) {
       const auto e = mesh_.edge_handle(g);
@@ -642,77 +305,16 @@ class Builder {
     }
   }
 
-  // Crossing error of the segment (w, x), through a small direct-mapped cache: the same spokes
-  // are measured again whenever a vertex is re-evaluated. The table (512 KiB) stays in cache.
-  // Keyed by sample index, which compact() does not change; measured from the endpoint with
-  // the smaller vertex id, an order compact() keeps.
+  // Crossing error of the segment (w, x), measured from the endpoint with the smaller vertex id.
   double spoke_error(std::uint32_t w, std::uint32_t x, double cutoff) {
-    const GridPoint pa = point(std::min(w, x)), pb = point(std::max(w, x));
-    // A short segment crosses few grid lines: measuring it costs less than a cache miss.
-    if (std::abs(pa.x - pb.x) + std::abs(pa.y - pb.y) <= kShortSpoke) return err_.segment(pa, pb, cutoff);
-    const std::uint32_t a = sample_at(pa), b = sample_at(pb);
-    SpokeSlot& s =
-        spokes_[(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b) * 0xC2B2AE3D27D4EB4Full) >> 49];
-    if (s.a == a && s.b == b) {
-      if (s.value >= 0) return s.value;        // exact
-      if (-s.value > cutoff) return -s.value;  // a lower bound above the cutoff
-    }
-    const double e = err_.segment(pa, pb, cutoff);
-    s = SpokeSlot{a, b, e <= cutoff ? e : -e};  // lower bounds (> cutoff >= 0) stored negated
-    return e;
-  }
-
-  Mesh::HalfedgeHandle find_halfedge(Mesh::VertexHandle from, Mesh::VertexHandle to) const {
-    Mesh::HalfedgeHandle found;
-    for_each_outgoing(from, [&](Mesh::HalfedgeHandle h) {
-      if (mesh_.to_vertex_handle(h) == to) found = h;
-    });
-    return found;
-  }
-
-  // Topological legality of collapsing halfedge h (u -> w), the link condition of Dey et al.
-  // as OpenMesh's is_collapse_ok checks it, without its per-call allocations: the common
-  // neighbours of u and w are exactly the opposite vertices of the faces beside the edge, and
-  // an interior edge may not join two boundary vertices.
-  // ring_u: the heads of u's outgoing halfedges.
-  bool link_ok(Mesh::HalfedgeHandle h, const std::vector<std::uint32_t>& ring_u) const {
-    const auto vu = mesh_.from_vertex_handle(h), vw = mesh_.to_vertex_handle(h);
-    const auto o = mesh_.opposite_halfedge_handle(h);
-    const bool edge_boundary = mesh_.is_boundary(h) || mesh_.is_boundary(o);
-    if (!edge_boundary && mesh_.is_boundary(vu) && mesh_.is_boundary(vw)) return false;
-    std::uint32_t wings[2] = {UINT32_MAX, UINT32_MAX};
-    if (!mesh_.is_boundary(h))
-      wings[0] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(h)).idx());
-    if (!mesh_.is_boundary(o))
-      wings[1] = std::uint32_t(mesh_.to_vertex_handle(mesh_.next_halfedge_handle(o)).idx());
-    if (wings[0] == wings[1]) return false;
-    // Common neighbours by comparing the two (short) rings: no per-vertex marks to miss in cache.
-    int common = 0;
-    bool ok = true;
-    for_each_ring(std::uint32_t(vw.idx()), [&](Mesh::HalfedgeHandle g) {
-      const std::uint32_t x = std::uint32_t(mesh_.to_vertex_handle(g).idx());
-      if (std::find(ring_u.begin(), ring_u.end(), x) == ring_u.end()) return;
-      if (x != wings[0] && x != wings[1]) ok = false;
-      ++common;
-    });
-    return ok && common == (wings[0] != UINT32_MAX) + (wings[1] != UINT32_MAX);
-  }
-
-  bool is_corner(GridPoint p) const { return (p.x == 0 || p.x == W_ - 1) && (p.y == 0 || p.y == H_ - 1); }
-  // 0 none, 1 x = 0, 2 x = W-1, 3 y = 0, 4 y = H-1
-  int border_line(GridPoint p) const {
-    if (p.x == 0) return 1;
-    if (p.x == W_ - 1) return 2;
-    if (p.y == 0) return 3;
-    if (p.y == H_ - 1) return 4;
-    return 0;
+    return error_.segment(point(std::min(w, x)), point(std::max(w, x)), cutoff);
   }
 
   // Plan-view legality of u -> w: every face around u that does not contain w stays CCW.
   bool geometry_ok(Mesh::VertexHandle vu, std::uint32_t w) const {
     const GridPoint pw = point(w);
     bool ok = true;
-    for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) {
+    mesh_.for_each_outgoing(vu, [&](Mesh::HalfedgeHandle h) {
       if (mesh_.is_boundary(h)) return;
       const auto hn = mesh_.next_halfedge_handle(h);
       const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
@@ -723,17 +325,7 @@ class Builder {
   }
 
   double cached_triangle(std::uint32_t a, std::uint32_t b, std::uint32_t c, double cutoff) {
-    const GridPoint pa = point(a), pb = point(b), pc = point(c);
-    const std::int64_t area2 = orient2d(pa, pb, pc);
-    if (area2 < 512) return err_.samples_in_triangle(pa, pb, pc, cutoff);
-    std::uint32_t s[3] = {sample_at(pa), sample_at(pb), sample_at(pc)};  // see spoke_error
-    std::sort(s, s + 3);
-    double value;
-    bool exact;
-    if (cache_.find(s[0], s[1], s[2], value, exact) && (exact || value > cutoff)) return value;
-    value = err_.samples_in_triangle(pa, pb, pc, cutoff);
-    cache_.store(s[0], s[1], s[2], value, value <= cutoff);
-    return value;
+    return error_.samples_in_triangle(point(a), point(b), point(c), cutoff);
   }
 
   // evaluate(v, exact = false) for a vertex inside the hole-free grid of init_grid, from the
@@ -772,14 +364,14 @@ class Builder {
     VertexState& su = vs_[u];
     const GridPoint pu = point(u);
     su.dirty = 0;
-    if (is_corner(pu) || su.locked || rings_[u].n == 0) {
+    if (border_.corner(pu) || su.locked || mesh_.ring(u).n == 0) {
       heap_.remove(u);
       return;
     }
     // One walk around u: its ring vertices in order (ringv_[k] = head of the k-th outgoing
     // halfedge), their positions relative to u and heights, and the faces (u, ringv_[k],
     // ringv_[k-1]) that exist, with the crossing error of their edge opposite u.
-    const bool continuous = err_.metric() == ErrorMetric::Continuous;
+    const bool continuous = error_.exact().metric() == ErrorMetric::Continuous;
     ringv_.clear();
     ringh_.clear();
     ring_.clear();
@@ -787,7 +379,7 @@ class Builder {
     bool boundary = false;
     {
       std::uint32_t k = 0;
-      for_each_ring(u, [&](Mesh::HalfedgeHandle h) {
+      mesh_.for_each_ring(u, [&](Mesh::HalfedgeHandle h) {
         const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
         ringv_.push_back(a);
         ringh_.push_back(h);
@@ -823,12 +415,12 @@ class Builder {
     cand_.clear();
     if (boundary) {
       // Only along its own grid border line, and only when both boundary neighbours are on it
-      // (otherwise u is on the boundary of a hole, which must keep its shape). The vertex's
-      // outgoing halfedge is its boundary one: ringv_[0] is the next boundary vertex and
-      // ringv_[n-1] the previous one.
-      const int line = border_line(pu);
+      // (otherwise u is on the boundary of a hole, which must keep its shape; grid_border.hpp).
+      // The vertex's outgoing halfedge is its boundary one: ringv_[0] is the next boundary
+      // vertex and ringv_[n-1] the previous one.
+      const BorderLine line = border_.line(pu);
       const std::uint32_t next = ringv_[0], prev = ringv_[n - 1];
-      if (line != 0 && border_line_contains(line, point(next)) && border_line_contains(line, point(prev))) {
+      if (line != BorderLine::None && border_.on(line, point(next)) && border_.on(line, point(prev))) {
         cand_.push_back({next, 0, 0, 0});
         cand_.push_back({prev, 0, 0, n - 1});
       }
@@ -945,7 +537,7 @@ class Builder {
       }
       if (!(e < best || (e == best && c.tie < best_tie))) continue;
       // The topological test is the dearest, so it runs only for a candidate that would win.
-      if (!link_ok(ringh_[c.k], ringv_)) continue;
+      if (!mesh_.link_ok(ringh_[c.k], ringv_)) continue;
       best = e, best_tie = c.tie, best_w = c.w;
     }
     if (best_w == UINT32_MAX && partial_w != UINT32_MAX) {
@@ -982,25 +574,12 @@ class Builder {
     return std::uint32_t(std::min<std::uint64_t>(dx * dx + dy * dy, UINT32_MAX));
   }
 
-  bool border_line_contains(int line, GridPoint p) const {
-    switch (line) {
-      case 1:
-        return p.x == 0;
-      case 2:
-        return p.x == W_ - 1;
-      case 3:
-        return p.y == 0;
-      case 4:
-        return p.y == H_ - 1;
-    }
-    return false;
-  }
-
   const Heightfield& hf_;
   const BuildOptions& opt_;
-  LInfError err_;
+  CachedLInfError error_;
   int W_, H_;
-  Mesh mesh_;
+  GridBorder border_;
+  CollapseMesh mesh_;
   // What the loop reads of a vertex besides OpenMesh's record and its ring, in two arrays:
   // where it is (read for every ring vertex of an evaluated vertex: a dense 16-byte record),
   // and its state (read and written for the evaluated vertex and by the heap).
@@ -1020,7 +599,6 @@ class Builder {
   static_assert(sizeof(VertexState) == 12);
   HugeVector<VertexState> vs_;  // by vertex id (see number_vertices)
   VertexHeap heap_;
-  TriangleCache cache_;
   struct Candidate {
     std::uint32_t w;
     double lower;
@@ -1036,25 +614,15 @@ class Builder {
   std::vector<std::uint32_t> neighbours_, ringv_;
   std::vector<Mesh::HalfedgeHandle> moved_;  // u's outgoing halfedges before its collapse
   std::vector<Mesh::HalfedgeHandle> ringh_;  // evaluate(): u's outgoing halfedges, by ring index
-  HugeVector<Ring> rings_;                   // by vertex id
   // While the mesh is made: vertex id of sample (i, j) at id_of_[id_index(i, j)], over the
   // builder's columns only.
   HugeVector<std::uint32_t> id_of_;
   int id_x0_ = 0;
   std::size_t id_cols_ = 0;
   std::size_t id_index(int i, int j) const { return std::size_t(j) * id_cols_ + std::size_t(i - id_x0_); }
-  HugeVector<std::uint32_t> vmap_, emap_, fmap_;  // compact()'s maps
   std::uint32_t n_ids_ = 0;          // vertex ids are 0 .. n_ids_ - 1 (see number_vertices, compact)
   int grid_x0_ = -1, grid_x1_ = -1;  // init_grid's columns when the grid has no holes
   std::size_t collapsed_ = 0;        // collapses since the last compact()
-
-  std::size_t reserved_edges_ = 0, reserved_faces_ = 0;
-  struct SpokeSlot {
-    std::uint32_t a = UINT32_MAX, b = 0;
-    double value = 0;  // exact error when >= 0, else minus a lower bound
-  };
-  std::vector<SpokeSlot> spokes_ = std::vector<SpokeSlot>(1 << 15);  // 512 KiB: stays in L2
-  static constexpr int kShortSpoke = 6;
   std::vector<Candidate> cand_;
 
   struct RingFace {        // the face (u, a, b) of u's ring

@@ -1,6 +1,7 @@
-// Private to the PM builder (pm_builder.cpp): the direct-mapped cache of triangle errors.
+// Private to the PM builder (cached_linf_error.hpp): the direct-mapped cache of triangle errors.
 #pragma once
 
+#include <cassert>
 #include <cstddef>
 #include <cstdint>
 

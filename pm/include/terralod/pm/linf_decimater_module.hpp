@@ -15,8 +15,9 @@
 //
 // This is the standard, slow route (OpenMesh re-measures every candidate of every vertex
 // whose ring changed, with no caching). ProgressiveMesh::build runs the same kernel and the
-// same legality rules in its own loop and records the collapse sequence; use it unless you
-// need OpenMesh's decimater framework (other modules, observers, your own mesh type).
+// same legality rules (the border rules are grid_border.hpp's, shared) in its own loop and
+// records the collapse sequence; use it unless you need OpenMesh's decimater framework (other
+// modules, observers, your own mesh type).
 //
 // Contract:
 //   - Every vertex with a face has x = column and y = row as exact integers, at a valid sample
@@ -45,6 +46,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "terralod/pm/grid_border.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/linf_error.hpp"
 
@@ -99,23 +101,19 @@ class ModLInfT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   float collapse_priority(const CollapseInfo& ci) override {
     MeshT& m = Base::mesh();
     const GridPoint p0 = grid_point(ci.p0), p1 = grid_point(ci.p1);
-    const int W = hf_->width(), H = hf_->height();
-    // Grid corners never move; a border vertex stays on its border line.
-    const bool on_x0 = p0.x == 0, on_x1 = p0.x == W - 1, on_y0 = p0.y == 0, on_y1 = p0.y == H - 1;
-    if ((on_x0 || on_x1) && (on_y0 || on_y1)) return float(Base::ILLEGAL_COLLAPSE);
-    const bool on_border = on_x0 || on_x1 || on_y0 || on_y1;
-    if (on_border) {
-      if ((on_x0 && p1.x != 0) || (on_x1 && p1.x != W - 1) || (on_y0 && p1.y != 0) ||
-          (on_y1 && p1.y != H - 1))
-        return float(Base::ILLEGAL_COLLAPSE);
+    // Grid corners never move; a border vertex stays on its border line (grid_border.hpp).
+    const GridBorder border{hf_->width(), hf_->height()};
+    if (border.corner(p0)) return float(Base::ILLEGAL_COLLAPSE);
+    const BorderLine line = border.line(p0);
+    if (line != BorderLine::None) {
+      if (!border.on(line, p1)) return float(Base::ILLEGAL_COLLAPSE);
       // Along the border, v0 -> v1 must be a boundary edge and v0's other boundary neighbour
       // must be on the same line too (otherwise a hole touches the border here).
       if (!m.is_boundary(m.edge_handle(ci.v0v1))) return float(Base::ILLEGAL_COLLAPSE);
       for (auto h : m.voh_range(ci.v0)) {
         const auto o = m.opposite_halfedge_handle(h);
         if (!m.is_boundary(h) && !m.is_boundary(o)) continue;
-        const GridPoint q = grid_point(m.point(m.to_vertex_handle(h)));
-        if ((on_x0 && q.x != 0) || (on_x1 && q.x != W - 1) || (on_y0 && q.y != 0) || (on_y1 && q.y != H - 1))
+        if (!border.on(line, grid_point(m.point(m.to_vertex_handle(h)))))
           return float(Base::ILLEGAL_COLLAPSE);
       }
     } else if (m.is_boundary(ci.v0)) {
