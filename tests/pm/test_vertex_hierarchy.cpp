@@ -268,7 +268,7 @@ TEST(VertexHierarchy, RealTileCrop) {
               vh.root_count(), vh.node_count(), max_depth, pm.max_error());
 }
 
-TEST(VertexHierarchy, BuildIsLinearAndFast) {
+TEST(VertexHierarchy, BuildsAFullSizeTileHierarchy) {
   // A synthetic PM on a 1201 x 1201 grid (the size of an SRTM tile): collapse every column
   // onto its left neighbour level by level along each row, then the same down column 0.
   // from_parts accepts it (it checks liveness, not geometry), and it has a full-size
@@ -293,7 +293,8 @@ TEST(VertexHierarchy, BuildIsLinearAndFast) {
   std::printf("hierarchy of %zu vertices, %zu nodes: %.3f s\n", pm.full_vertex_count(), vh.node_count(),
               seconds);
   EXPECT_EQ(vh.node_count(), pm.base_vertex_count() + 2 * cs.size());
-  EXPECT_LT(seconds, 2.0);  // ~0.1-0.2 s on one core; generous for loaded or sanitizer runs
+  // The time is printed, not asserted (~0.1-0.2 s on one core): a limit on a shared 2-core CI
+  // machine fails for the machine's load, not for the code.
   // Spot-check saturation and spheres along the chain of the last sample of row 0.
   const std::uint32_t leaf = vh.leaf_of(std::uint32_t(N - 2));
   for (std::uint32_t a = vh.node(leaf).parent; a != kNone; a = vh.node(a).parent) {
