@@ -1,6 +1,9 @@
-// terralod texture add|shade|export: texture layers of a block database (an image, or a shading
-// texture computed from the full-resolution terrain), stored as pyramid and texture-tree tiles.
+// terralod texture add|shade|thematic|export: texture layers of a block database (an image, a
+// shading texture or a thematic texture computed from the full-resolution terrain), stored as
+// pyramid and texture-tree tiles.
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -8,6 +11,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/partition.hpp"
@@ -16,6 +20,7 @@
 #include "terralod/render/gpu_shading.hpp"
 #include "terralod/render/image_pyramid.hpp"
 #include "terralod/render/texture_store.hpp"
+#include "terralod/render/thematic_texture.hpp"
 #include "terralod/render/topographic_texture.hpp"
 
 namespace terralod::cli {
@@ -170,6 +175,97 @@ int texture_shade(const Args& a, const std::string& path) {
   return 0;
 }
 
+// "V:RRGGBB[AA],V:RRGGBB[AA],...": the stops of a colour ramp, values strictly increasing.
+std::vector<tr::ColorRamp::Stop> parse_ramp(const std::string& text) {
+  const auto bad = [&](const std::string& why) {
+    return UsageError("option '--ramp': " + why + " in '" + text +
+                      "' (expected V:RRGGBB[AA],V:RRGGBB[AA],...)");
+  };
+  std::vector<tr::ColorRamp::Stop> stops;
+  std::stringstream ss(text);
+  for (std::string item; std::getline(ss, item, ',');) {
+    const std::size_t colon = item.find(':');
+    if (colon == std::string::npos) throw bad("a stop without ':'");
+    const std::string v = item.substr(0, colon), hex = item.substr(colon + 1);
+    char* end = nullptr;
+    const double value = std::strtod(v.c_str(), &end);
+    if (v.empty() || *end != '\0' || !std::isfinite(value)) throw bad("'" + v + "' is not a number");
+    if ((hex.size() != 6 && hex.size() != 8) ||
+        hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+      throw bad("'" + hex + "' is not a colour RRGGBB or RRGGBBAA");
+    tr::Rgba c{0, 0, 0, 255};
+    for (std::size_t k = 0; k < hex.size() / 2; ++k)
+      c[k] = std::uint8_t(std::stoul(hex.substr(2 * k, 2), nullptr, 16));
+    if (!stops.empty() && !(float(value) > stops.back().value)) throw bad("values not strictly increasing");
+    stops.push_back({float(value), c});
+  }
+  if (stops.empty()) throw bad("no stops");
+  return stops;
+}
+
+// The default ramps: slope white (flat) to dark red (45 degrees and steeper); aspect around the
+// compass (north red, east yellow, south green, west blue, north red again); elevation green
+// over the terrain's own range through brown to white.
+std::vector<tr::ColorRamp::Stop> default_ramp(tr::TerrainAttribute attribute, const pm::Heightfield& hf) {
+  switch (attribute) {
+    case tr::TerrainAttribute::SlopeDegrees:
+      return {{0.0f, {255, 255, 255, 255}}, {45.0f, {160, 0, 0, 255}}};
+    case tr::TerrainAttribute::AspectDegrees:
+      return {{0.0f, {220, 40, 40, 255}},
+              {90.0f, {230, 210, 40, 255}},
+              {180.0f, {40, 170, 60, 255}},
+              {270.0f, {50, 80, 220, 255}},
+              {360.0f, {220, 40, 40, 255}}};
+    case tr::TerrainAttribute::Elevation: {
+      const auto [lo, hi] = height_range(hf);
+      const float a = float(lo), b = float(hi) > a ? float(hi) : a + 1.0f;  // a flat terrain: one colour
+      return {{a, {40, 120, 50, 255}}, {a + 0.5f * (b - a), {150, 110, 60, 255}}, {b, {250, 250, 250, 255}}};
+    }
+  }
+  return {};
+}
+
+int texture_thematic(const Args& a, const std::string& path) {
+  auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
+  require_complete_blocks(db);
+  const std::string name = a.get_choice("--attribute", {"slope", "aspect", "elevation"}, "slope");
+  const tr::TerrainAttribute attribute = name == "slope"    ? tr::TerrainAttribute::SlopeDegrees
+                                         : name == "aspect" ? tr::TerrainAttribute::AspectDegrees
+                                                            : tr::TerrainAttribute::Elevation;
+  const bool bands = a.has("--bands");
+  std::vector<tr::ColorRamp::Stop> stops;  // the given ramp, checked before any work
+  if (a.has("--ramp")) stops = parse_ramp(a.get("--ramp"));
+  auto t = Clock::now();
+  const pm::Heightfield hf = tb::read_database_terrain(db);
+  std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(),
+              format_duration(ms_since(t)).c_str());
+  t = Clock::now();
+  const tr::ColorRamp ramp(stops.empty() ? default_ramp(attribute, hf) : stops,
+                           bands ? tr::ColorRamp::Mode::Step : tr::ColorRamp::Mode::Linear);
+  const tr::RgbaImage img = tr::apply_mapper(tr::terrain_attribute(hf, attribute), ramp);
+  std::printf("thematic %s, %zu %s: %d x %d texels, %s\n", name.c_str(), ramp.stops().size(),
+              bands ? "bands" : "ramp stops", img.width, img.height, format_duration(ms_since(t)).c_str());
+  tr::LayerRecord rec;
+  rec.name = a.get("--layer");
+  rec.kind = "thematic";
+  rec.source = "terralod texture thematic";
+  rec.constraints = constraints(a);
+  rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
+  std::string json_stops;
+  for (const tr::ColorRamp::Stop& st : ramp.stops())
+    json_stops += strf("%s[%.9g, %d, %d, %d, %d]", json_stops.empty() ? "" : ", ", double(st.value),
+                       st.color[0], st.color[1], st.color[2], st.color[3]);
+  rec.parameters = strf("{\"attribute\": \"%s\", \"mode\": \"%s\", \"stops\": [%s]}", name.c_str(),
+                        bands ? "bands" : "linear", json_stops.c_str());
+  const std::string pyr = pyramid_file(path, rec.name);
+  const RemoveFile remove_pyramid{pyr};
+  tr::PyramidOptions po;
+  po.max_texture_size = rec.constraints.max_texture_size;
+  tr::ImagePyramid::convert(img, pyr, po);
+  store(db, rec, pyr);
+  return 0;
+}
+
 int texture_export(const Args& a, const std::string& path) {
   if (!a.has("--out")) throw UsageError("'texture export' needs --out FILE.tif|FILE.png");
   const auto db = tb::BlockDatabase::open(path);
@@ -191,9 +287,10 @@ int texture_export(const Args& a, const std::string& path) {
 CommandSpec texture_spec() {
   CommandSpec s;
   s.name = "texture";
-  s.positionals = "add|shade|export DB";
+  s.positionals = "add|shade|thematic|export DB";
   s.min_positionals = s.max_positionals = 2;
-  s.summary = "Add, compute (topographic shading) or export texture layers of a block database.";
+  s.summary =
+      "Add, compute (topographic shading, thematic maps) or export texture layers of a block database.";
   s.description =
       "A texture layer is an image pyramid (levels halving down to --max-texture-size) plus a\n"
       "texture tree mirroring the database's approximation tree: each node gets the sub-image of\n"
@@ -206,6 +303,12 @@ CommandSpec texture_spec() {
       "          of the full-resolution terrain, one texel per DEM sample (azimuth clockwise from\n"
       "          north, altitude above the horizon, default 315,45; lambert without shadows is the\n"
       "          conventional GIS hillshade); --gpu renders it offscreen through OSMesa.\n"
+      "  thematic --layer NAME [--attribute slope|aspect|elevation] [--ramp V:RRGGBB,...] [--bands]:\n"
+      "          a thematic texture, one texel per DEM sample: slope (degrees), aspect (degrees\n"
+      "          clockwise from north, facing downhill; flat ground transparent) or elevation\n"
+      "          (metres) through a colour ramp (linear between stops, or constant bands with\n"
+      "          --bands; below the first band transparent). Default ramps: slope white to red\n"
+      "          at 45 deg, aspect around the compass, elevation green-brown-white over the range.\n"
       "  export  --layer NAME [--level K] --out FILE.tif|FILE.png: pyramid level K (0 = full size).";
   s.options = {
       {"--layer", "NAME", "texture layer name", true},
@@ -215,8 +318,11 @@ CommandSpec texture_spec() {
       {"--shadows", "", "shade: cast shadows against the full-resolution terrain"},
       {"--method", "M", "shade: lambert (default), phong, multidirectional or relative"},
       {"--gpu", "", "shade: compute on the GPU (OSMesa offscreen)"},
-      {"--max-texture-size", "N", "add/shade: renderer texture limit, pixels (default 1024)"},
-      {"--power-of-two", "", "add/shade: texture-tree patches of power-of-two sizes"},
+      {"--attribute", "A", "thematic: slope (default), aspect or elevation"},
+      {"--ramp", "STOPS", "thematic: colour stops V:RRGGBB[AA],... (values increasing)"},
+      {"--bands", "", "thematic: constant colour bands between the stops"},
+      {"--max-texture-size", "N", "add/shade/thematic: renderer texture limit, pixels (default 1024)"},
+      {"--power-of-two", "", "add/shade/thematic: texture-tree patches of power-of-two sizes"},
       {"--level", "K", "export: pyramid level (default 0)"},
       {"--out", "FILE", "export: output .tif or .png"},
   };
@@ -227,8 +333,9 @@ int cmd_texture(const Args& a) {
   const std::string verb = a.positionals()[0], path = a.positionals()[1];
   if (verb == "add") return texture_add(a, path);
   if (verb == "shade") return texture_shade(a, path);
+  if (verb == "thematic") return texture_thematic(a, path);
   if (verb == "export") return texture_export(a, path);
-  throw UsageError("unknown action '" + verb + "' (add, shade or export)");
+  throw UsageError("unknown action '" + verb + "' (add, shade, thematic or export)");
 }
 
 }  // namespace terralod::cli

@@ -3,6 +3,8 @@
 // on-demand loading from the database, and `terralod texture add|shade|export` end to end.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -14,6 +16,7 @@
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/texture_store.hpp"
+#include "terralod/render/thematic_texture.hpp"
 #include "terralod/render/topographic_texture.hpp"
 
 namespace {
@@ -157,15 +160,15 @@ int run(const std::string& args, std::string* out = nullptr) {
   return r.status;
 }
 
-TEST(TextureCli, ShadeAddAndExportEndToEnd) {
-  // A generated 65 x 65 terrain as an ESRI ASCII grid, built with 33-sample blocks.
+/// A generated 65 x 65 terrain as an ESRI ASCII grid (30 m cells) at `asc`, built with 33-sample
+/// blocks into the database `db` by the command-line tool.
+void build_cli_database(const fs::path& asc, const fs::path& db) {
   pm::TerrainOptions to;
   to.width = to.height = 65;
   to.seed = 11;
   to.relief = 600;
   to.quantize_to_metres = true;
   const pm::Heightfield gen = pm::generate_terrain(to);
-  const fs::path asc = tmp_dir() / "dem.asc", dbp = tmp_dir() / "cli.db";
   {
     std::ofstream f(asc);
     f << "ncols 65\nnrows 65\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
@@ -173,8 +176,14 @@ TEST(TextureCli, ShadeAddAndExportEndToEnd) {
       for (int c = 0; c < 65; ++c) f << gen.at(c, r) << (c + 1 < 65 ? " " : "\n");
     }
   }
-  ASSERT_EQ(
-      run("build --input " + quote(asc.string()) + " --out " + quote(dbp.string()) + " --block-size 33"), 0);
+  ASSERT_EQ(run("build --input " + quote(asc.string()) + " --out " + quote(db.string()) + " --block-size 33"),
+            0);
+}
+
+TEST(TextureCli, ShadeAddAndExportEndToEnd) {
+  const fs::path asc = tmp_dir() / "dem.asc", dbp = tmp_dir() / "cli.db";
+  build_cli_database(asc, dbp);
+  if (HasFatalFailure()) return;
   std::string text;
   ASSERT_EQ(run("texture shade " + quote(dbp.string()) + " --layer hill --light 315,45 --max-texture-size 32",
                 &text),
@@ -212,6 +221,66 @@ TEST(TextureCli, ShadeAddAndExportEndToEnd) {
   EXPECT_EQ(run("texture add " + quote(dbp.string()) + " --layer o2 --image " + quote(img.string()) +
                 " --georef 1,2,3"),
             2);
+}
+// terralod texture thematic: a slope layer through a given ramp is the library's slope through
+// that ramp, texel for texel; elevation bands are checked against the DEM's heights by hand;
+// the default aspect ramp has its five compass stops; bad ramps and attributes are usage errors.
+TEST(TextureCli, ThematicLayersEndToEnd) {
+  const fs::path asc = tmp_dir() / "dem_thematic.asc", dbp = tmp_dir() / "thematic.db";
+  build_cli_database(asc, dbp);
+  if (HasFatalFailure()) return;
+  const pm::Heightfield hf = tb::read_dem(asc.string());
+  std::string text;
+  ASSERT_EQ(run("texture thematic " + quote(dbp.string()) +
+                    " --layer slope --attribute slope --ramp 0:000000,90:ff0000 --max-texture-size 32",
+                &text),
+            0);
+  EXPECT_NE(text.find("thematic slope, 2 ramp stops: 65 x 65 texels"), std::string::npos) << text;
+  const fs::path slope_png = tmp_dir() / "slope.png";
+  ASSERT_EQ(
+      run("texture export " + quote(dbp.string()) + " --layer slope --out " + quote(slope_png.string())), 0);
+  const ColorRamp ramp({{0.0f, {0, 0, 0, 255}}, {90.0f, {255, 0, 0, 255}}});
+  EXPECT_EQ(ImagePyramid(slope_png.string(), PyramidOptions{256, 64, 8}).read({0, 0, 0, 65, 65}),
+            apply_mapper(terrain_attribute(hf, TerrainAttribute::SlopeDegrees), ramp));
+
+  // Two bands split at the middle height: blue below, green at and above.
+  double lo = 1e300, hi = -1e300;
+  for (int r = 0; r < 65; ++r)
+    for (int c = 0; c < 65; ++c) lo = std::min(lo, hf.at(c, r)), hi = std::max(hi, hf.at(c, r));
+  ASSERT_GE(lo, 0.0) << "the first band starts at 0 m";
+  const double split = std::round((lo + hi) / 2);
+  ASSERT_EQ(run("texture thematic " + quote(dbp.string()) +
+                " --layer bands --attribute elevation --bands --ramp 0:0000ff," + std::to_string(int(split)) +
+                ":00ff00,100000:000000"),
+            0);
+  const fs::path bands_png = tmp_dir() / "bands.png";
+  ASSERT_EQ(
+      run("texture export " + quote(dbp.string()) + " --layer bands --out " + quote(bands_png.string())), 0);
+  const RgbaImage bands =
+      ImagePyramid(bands_png.string(), PyramidOptions{256, 64, 8}).read({0, 0, 0, 65, 65});
+  int below = 0, above = 0;
+  for (int r = 0; r < 65; ++r)
+    for (int c = 0; c < 65; ++c) {
+      const std::uint8_t* px = &bands.rgba[4 * (std::size_t(r) * 65 + std::size_t(c))];
+      const bool high = hf.at(c, r) >= split;
+      (high ? above : below)++;
+      ASSERT_EQ(px[0], 0) << c << "," << r;
+      ASSERT_EQ(px[1], high ? 255 : 0) << c << "," << r << " at " << hf.at(c, r) << " m";
+      ASSERT_EQ(px[2], high ? 0 : 255) << c << "," << r << " at " << hf.at(c, r) << " m";
+      ASSERT_EQ(px[3], 255);
+    }
+  std::printf("elevation bands: %d texels below %.0f m, %d above\n", below, split, above);
+  EXPECT_GT(below, 0);
+  EXPECT_GT(above, 0);
+
+  ASSERT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer aspect --attribute aspect", &text), 0);
+  EXPECT_NE(text.find("thematic aspect, 5 ramp stops"), std::string::npos) << text;
+
+  EXPECT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer x --ramp 5:ff0000,1:00ff00", &text), 2);
+  EXPECT_NE(text.find("not strictly increasing"), std::string::npos) << text;
+  EXPECT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer x --ramp 0:zz0000", &text), 2);
+  EXPECT_NE(text.find("'zz0000' is not a colour"), std::string::npos) << text;
+  EXPECT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer x --attribute height", &text), 2);
 }
 #endif
 
