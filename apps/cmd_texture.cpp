@@ -124,6 +124,20 @@ int texture_add(const Args& a, const std::string& path) {
   return 0;
 }
 
+// A layer computed from the terrain, one texel per DEM sample: `rec` gets its name and
+// constraints from the options; the pyramid goes through a temporary file beside the database.
+void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRecord& rec,
+                    const tr::RgbaImage& img, const Args& a) {
+  rec.name = a.get("--layer");
+  rec.constraints = constraints(a);
+  const std::string pyr = pyramid_file(path, rec.name);
+  const RemoveFile remove_pyramid{pyr};
+  tr::PyramidOptions po;
+  po.max_texture_size = rec.constraints.max_texture_size;
+  tr::ImagePyramid::convert(img, pyr, po);
+  store(db, rec, pyr);
+}
+
 int texture_shade(const Args& a, const std::string& path) {
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
   require_complete_blocks(db);
@@ -158,20 +172,13 @@ int texture_shade(const Args& a, const std::string& path) {
               so.azimuth_deg, so.altitude_deg, so.shadows ? "on" : "off", img.width, img.height,
               where.c_str(), format_duration(ms_since(t)).c_str());
   tr::LayerRecord rec;
-  rec.name = a.get("--layer");
   rec.kind = "shading";
   rec.source = "terralod texture shade";
-  rec.constraints = constraints(a);
   rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
   rec.parameters = strf(
       "{\"method\": \"%s\", \"azimuth_deg\": %.17g, \"altitude_deg\": %.17g, \"shadows\": %s, \"gpu\": %s}",
       method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "true" : "false", gpu ? "true" : "false");
-  const std::string pyr = pyramid_file(path, rec.name);
-  const RemoveFile remove_pyramid{pyr};
-  tr::PyramidOptions po;
-  po.max_texture_size = rec.constraints.max_texture_size;
-  tr::ImagePyramid::convert(img, pyr, po);
-  store(db, rec, pyr);
+  store_computed(db, path, rec, img, a);
   return 0;
 }
 
@@ -246,10 +253,8 @@ int texture_thematic(const Args& a, const std::string& path) {
   std::printf("thematic %s, %zu %s: %d x %d texels, %s\n", name.c_str(), ramp.stops().size(),
               bands ? "bands" : "ramp stops", img.width, img.height, format_duration(ms_since(t)).c_str());
   tr::LayerRecord rec;
-  rec.name = a.get("--layer");
   rec.kind = "thematic";
   rec.source = "terralod texture thematic";
-  rec.constraints = constraints(a);
   rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
   std::string json_stops;
   for (const tr::ColorRamp::Stop& st : ramp.stops())
@@ -257,12 +262,7 @@ int texture_thematic(const Args& a, const std::string& path) {
                        st.color[0], st.color[1], st.color[2], st.color[3]);
   rec.parameters = strf("{\"attribute\": \"%s\", \"mode\": \"%s\", \"stops\": [%s]}", name.c_str(),
                         bands ? "bands" : "linear", json_stops.c_str());
-  const std::string pyr = pyramid_file(path, rec.name);
-  const RemoveFile remove_pyramid{pyr};
-  tr::PyramidOptions po;
-  po.max_texture_size = rec.constraints.max_texture_size;
-  tr::ImagePyramid::convert(img, pyr, po);
-  store(db, rec, pyr);
+  store_computed(db, path, rec, img, a);
   return 0;
 }
 
