@@ -40,18 +40,13 @@
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
-
-#ifndef TERRALOD_DATA_DIR
-#define TERRALOD_DATA_DIR ""
-#endif
-#ifndef TERRALOD_BENCH_DIR
-#define TERRALOD_BENCH_DIR ""
-#endif
+#include "timing.hpp"
 
 namespace {
 
 namespace pm = terralod::pm;
-using Clock = std::chrono::steady_clock;
+using terralod::bench::Clock;
+using terralod::bench::ms_since;
 
 constexpr std::array<double, 7> kErrors = {0.5, 1, 2, 5, 10, 20, 50};
 constexpr double kTriangleRatioTarget = 1.10;
@@ -70,10 +65,6 @@ const Reference kCropReference = {
 const Reference kFullReference = {{2255284, 1842121, 1263624, 542793, 236856, 96296, 29146},
                                   {8516, 6948, 4825, 1923, 936, 470, 236},
                                   std::nullopt};
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());

@@ -27,19 +27,12 @@
 #include "terralod/render/gpu_shading.hpp"
 #include "terralod/render/rgba_image.hpp"
 #include "terralod/render/topographic_texture.hpp"
-
-#ifndef TERRALOD_DATA_DIR
-#define TERRALOD_DATA_DIR ""
-#endif
+#include "timing.hpp"
 
 namespace {
 
 namespace tr = terralod::render;
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
+using namespace terralod::bench;
 
 void usage(std::FILE* f) {
   std::fprintf(f,

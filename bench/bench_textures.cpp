@@ -33,26 +33,13 @@
 #include "terralod/render/texture_cache.hpp"
 #include "terralod/render/texture_tree.hpp"
 #include "terralod/render/topographic_texture.hpp"
-
-#ifndef TERRALOD_DATA_DIR
-#define TERRALOD_DATA_DIR ""
-#endif
+#include "timing.hpp"
 
 namespace {
 
 namespace pm = terralod::pm;
 namespace tr = terralod::render;
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-double percentile(std::vector<double> v, double p) {
-  std::sort(v.begin(), v.end());
-  const std::size_t rank = std::size_t(std::ceil(p / 100.0 * double(v.size())));
-  return v[std::min(v.size() - 1, rank == 0 ? 0 : rank - 1)];
-}
+using namespace terralod::bench;
 
 // Quadtree domains over the grid down to leaves of <= leaf samples per side.
 void split(const pm::Heightfield& hf, std::vector<tr::PatchDomain>& out, std::int64_t parent,
@@ -183,8 +170,8 @@ int main(int argc, char** argv) {
         resident_max = std::max(resident_max, st.resident_bytes);
       }
       const tr::TextureCacheStats st = cache.stats();
-      std::printf("%8.1f %9.0f %9.0f %12.0f %12.0f %12.0f %12zu %7zu %9zu\n", gamma, percentile(patches, 50),
-                  percentile(textures, 50), percentile(upload, 50), percentile(upload, 99),
+      std::printf("%8.1f %9.0f %9.0f %12.0f %12.0f %12.0f %12zu %7zu %9zu\n", gamma, median(patches),
+                  median(textures), median(upload), quantile(upload, 0.99),
                   *std::max_element(upload.begin(), upload.end()), resident_max, st.loads, st.evictions);
     }
     std::error_code ec;

@@ -40,36 +40,15 @@
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 #include "terralod/pm/view.hpp"
-
-#ifndef TERRALOD_DATA_DIR
-#define TERRALOD_DATA_DIR ""
-#endif
+#include "timing.hpp"
 
 namespace {
 
 namespace pm = terralod::pm;
-using Clock = std::chrono::steady_clock;
+using namespace terralod::bench;
 
 constexpr std::array<double, 5> kTaus = {0.5, 1, 2, 4, 8};
 constexpr double kTargetMedianMs = 1.0, kTargetP99Ms = 4.0;
-
-/// CPU time of the calling thread, milliseconds.
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-/// Nearest-rank percentile (p in [0, 100]) of a non-empty sample.
-double percentile(std::vector<double> v, double p) {
-  std::sort(v.begin(), v.end());
-  const std::size_t rank = std::size_t(std::ceil(p / 100.0 * double(v.size())));
-  return v[std::min(v.size() - 1, rank == 0 ? 0 : rank - 1)];
-}
 
 /// Top-left w x h samples of `hf`, same transform.
 pm::Heightfield crop(const pm::Heightfield& hf, int w, int h) {
@@ -105,18 +84,16 @@ std::vector<pm::Camera> flight(const pm::Heightfield& hf, int frames) {
   std::vector<pm::Camera> cams;
   for (int i = 0; i < frames; ++i) {
     const double yaw = 45.0 + 30.0 * double(i) / std::max(1, frames - 1);
-    pm::Camera c;
-    c.x = x;
-    c.y = y;
-    c.z = ground(hf, x, y) + 150.0;
-    c.yaw_deg = yaw;
-    c.pitch_deg = -15.0;
-    c.fovy_deg = 60.0;
-    c.width_px = 1280;
-    c.height_px = 720;
-    c.near_m = 1.0;
-    c.far_m = 1.0e6;
-    cams.push_back(c);
+    cams.push_back(pm::Camera{.x = x,
+                              .y = y,
+                              .z = ground(hf, x, y) + 150.0,
+                              .yaw_deg = yaw,
+                              .pitch_deg = -15.0,
+                              .fovy_deg = 60.0,
+                              .width_px = 1280,
+                              .height_px = 720,
+                              .near_m = 1.0,
+                              .far_m = 1.0e6});
     x += step * std::sin(yaw * kDeg);
     y += step * std::cos(yaw * kDeg);
   }
@@ -273,14 +250,14 @@ int main(int argc, char** argv) {
         vs.push_back(double(s.vsplits));
         ec.push_back(double(s.ecols));
       }
-      row.triangles_median = percentile(tris, 50);
-      row.update_median = percentile(ms, 50);
-      row.update_p99 = percentile(ms, 99);
-      row.cpu_median = percentile(cpu, 50);
-      row.cpu_p99 = percentile(cpu, 99);
-      row.update_max = percentile(ms, 100);
-      row.vsplits_median = percentile(vs, 50);
-      row.ecols_median = percentile(ec, 50);
+      row.triangles_median = median(tris);
+      row.update_median = median(ms);
+      row.update_p99 = quantile(ms, 0.99);
+      row.cpu_median = median(cpu);
+      row.cpu_p99 = quantile(cpu, 0.99);
+      row.update_max = quantile(ms, 1.0);
+      row.vsplits_median = median(vs);
+      row.ecols_median = median(ec);
       rows.push_back(row);
     }
 

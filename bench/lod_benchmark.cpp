@@ -36,27 +36,16 @@
 #include "terralod/render/draw_mesh.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/terrain_renderer.hpp"
+#include "timing.hpp"
 
 namespace terralod::bench {
 namespace {
 
 namespace tb = terralod::blocks;
 namespace tt = terralod::test;
-using Clock = std::chrono::steady_clock;
 using Tri = std::array<std::uint32_t, 3>;
 
 constexpr double kFps = 60.0;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-/// CPU time of the calling thread, ms (not advanced while the thread waits for a core).
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
 
 /// Wall and thread CPU time of a section.
 struct Stopwatch {
@@ -73,14 +62,6 @@ std::string fmt(const char* f, double a) {
   std::snprintf(buf, sizeof buf, f, a);
   return buf;
 }
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t k = std::size_t(std::ceil(q * double(v.size())));
-  return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
-}
-double median(const std::vector<double>& v) { return quantile(v, 0.5); }
 
 /// What one LOD update produced.
 struct Frame {
@@ -621,27 +602,19 @@ std::vector<TargetCheck> check_targets(const LodBenchmarkResult& r) {
   std::vector<TargetCheck> out;
   const StrategyRow *pm1 = r.find("pm_blocks", 1.0), *ch1 = r.find("chunked_lod", 1.0),
                     *tin1 = r.find("tin", 1.0);
-  {
-    TargetCheck c{"tau = 1 px: PM blocks draw <= 0.5 x the chunked-LOD triangles", false,
-                  "tau = 1 px not run"};
-    if (pm1 && ch1) {
-      const double q = pm1->triangles_median / std::max(1.0, ch1->triangles_median);
-      c.pass = q <= 0.5;
-      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", ch1->triangles_median) + " = " +
+  // At tau = 1 px, PM blocks' median triangles over `other`'s are at most `limit`.
+  const auto triangle_ratio = [&](const char* what, const StrategyRow* other, double limit) {
+    TargetCheck c{what, false, "tau = 1 px not run"};
+    if (pm1 && other) {
+      const double q = pm1->triangles_median / std::max(1.0, other->triangles_median);
+      c.pass = q <= limit;
+      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", other->triangles_median) + " = " +
                  fmt("%.3f", q);
     }
-    out.push_back(c);
-  }
-  {
-    TargetCheck c{"tau = 1 px: PM blocks draw <= 1.2 x the TIN triangles", false, "tau = 1 px not run"};
-    if (pm1 && tin1) {
-      const double q = pm1->triangles_median / std::max(1.0, tin1->triangles_median);
-      c.pass = q <= 1.2;
-      c.detail = fmt("%.0f", pm1->triangles_median) + " / " + fmt("%.0f", tin1->triangles_median) + " = " +
-                 fmt("%.3f", q);
-    }
-    out.push_back(c);
-  }
+    return c;
+  };
+  out.push_back(triangle_ratio("tau = 1 px: PM blocks draw <= 0.5 x the chunked-LOD triangles", ch1, 0.5));
+  out.push_back(triangle_ratio("tau = 1 px: PM blocks draw <= 1.2 x the TIN triangles", tin1, 1.2));
   {
     // Thread CPU time: on a shared machine the wall clock also counts the time the thread waits
     // for a core (preemption), which is not LOD work; the wall-clock numbers are in the table.

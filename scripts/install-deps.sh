@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages terralod needs, only those that are missing.
+#
+# Usage: bash scripts/install-deps.sh [PACKAGE...]   (PACKAGE: more that a caller needs, e.g. fuzz.sh's clang)
 set -euo pipefail
 packages=(
   build-essential cmake pkg-config zlib1g-dev
@@ -9,6 +11,7 @@ packages=(
   xvfb fonts-dejavu-core clang-format
   chromium proj-bin
   openmpi-bin libopenmpi-dev
+  "$@"
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -21,6 +21,19 @@ void check(const Camera& c) {
 
 double aspect(const Camera& c) { return double(c.width_px) / double(c.height_px); }
 
+/// The perspective projection of `c` with clip z = a z_e + b (the depth convention's part) and
+/// w = -z_e.
+glm::dmat4 perspective(const Camera& c, double a, double b) {
+  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg);
+  glm::dmat4 p(0.0);
+  p[0][0] = t / aspect(c);
+  p[1][1] = t;
+  p[2][2] = a;
+  p[2][3] = -1.0;
+  p[3][2] = b;
+  return p;
+}
+
 }  // namespace
 
 glm::dvec3 camera_forward(const Camera& c) {
@@ -47,27 +60,15 @@ glm::dmat4 view_matrix(const Camera& c) {
 
 glm::dmat4 projection_matrix(const Camera& c) {
   check(c);
-  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg), n = c.near_m, f = c.far_m;
-  glm::dmat4 p(0.0);
-  p[0][0] = t / aspect(c);
-  p[1][1] = t;
-  p[2][2] = (f + n) / (n - f);
-  p[2][3] = -1.0;
-  p[3][2] = 2.0 * f * n / (n - f);
-  return p;
+  const double n = c.near_m, f = c.far_m;
+  return perspective(c, (f + n) / (n - f), 2.0 * f * n / (n - f));
 }
 
 glm::dmat4 reverse_z_projection_matrix(const Camera& c) {
   check(c);
   // clip z = A z_e + B, w = -z_e; depth = z/w: 1 at z_e = -near, 0 at z_e = -far.
-  const double t = 1.0 / std::tan(0.5 * c.fovy_deg * kDeg), n = c.near_m, f = c.far_m;
-  glm::dmat4 p(0.0);
-  p[0][0] = t / aspect(c);
-  p[1][1] = t;
-  p[2][2] = n / (f - n);
-  p[2][3] = -1.0;
-  p[3][2] = n * f / (f - n);
-  return p;
+  const double n = c.near_m, f = c.far_m;
+  return perspective(c, n / (f - n), n * f / (f - n));
 }
 
 double focal_length_pixels(const Camera& c) {

@@ -1,4 +1,5 @@
-// Loads the renderer's OpenGL entry points from a context (see gl_api.hpp for why).
+// Loads the renderer's OpenGL entry points from a context (see gl_api.hpp for why), and the GL
+// steps the renderers share: error checks, shader programs, the offscreen target.
 #include "gl_api.hpp"
 
 #include <cstdint>
@@ -28,6 +29,56 @@ void check_gl(const GlApi& gl, const char* what) {
     codes += buf;
   }
   throw RenderError(std::string(what) + ": GL error " + codes);
+}
+
+namespace {
+
+/// When `object`'s `status` (GL_COMPILE_STATUS of a shader, GL_LINK_STATUS of a program) is
+/// false: deletes it and throws RenderError(failure + its info log + after).
+void check_status(GLuint object, GLenum status, PFNGLGETSHADERIVPROC get_iv,
+                  PFNGLGETSHADERINFOLOGPROC get_log, PFNGLDELETESHADERPROC destroy,
+                  const std::string& failure, const std::string& after) {
+  GLint ok = 0;
+  get_iv(object, status, &ok);
+  if (ok) return;
+  char log[4096] = {};
+  get_log(object, sizeof log, nullptr, log);
+  destroy(object);
+  throw RenderError(failure + log + after);
+}
+
+GLuint compile_shader(const GlApi& gl, GLenum type, const std::string& source, const std::string& who) {
+  const GLuint s = gl.CreateShader(type);
+  const char* text = source.c_str();
+  gl.ShaderSource(s, 1, &text, nullptr);
+  gl.CompileShader(s);
+  const char* stage = type == GL_VERTEX_SHADER ? "vertex" : "fragment";
+  check_status(s, GL_COMPILE_STATUS, gl.GetShaderiv, gl.GetShaderInfoLog, gl.DeleteShader,
+               who + ": the " + stage + " shader does not compile: ", "\n" + source);
+  return s;
+}
+
+}  // namespace
+
+GLuint build_program(const GlApi& gl, const std::string& vertex, const std::string& fragment,
+                     const std::string& who) {
+  const GLuint vs = compile_shader(gl, GL_VERTEX_SHADER, vertex, who);
+  GLuint fs = 0;
+  try {
+    fs = compile_shader(gl, GL_FRAGMENT_SHADER, fragment, who);
+  } catch (...) {
+    gl.DeleteShader(vs);
+    throw;
+  }
+  const GLuint program = gl.CreateProgram();
+  gl.AttachShader(program, vs);
+  gl.AttachShader(program, fs);
+  gl.LinkProgram(program);
+  gl.DeleteShader(vs);
+  gl.DeleteShader(fs);
+  check_status(program, GL_LINK_STATUS, gl.GetProgramiv, gl.GetProgramInfoLog, gl.DeleteProgram,
+               who + ": the shaders do not link: ", "");
+  return program;
 }
 
 void OffscreenTarget::ensure(const GlApi& gl, int w, int h, const char* who) {

@@ -1,4 +1,5 @@
-// The table of OpenGL entry points terralod's renderer uses, loaded from the current context.
+// The table of OpenGL entry points terralod's renderer uses, loaded from the current context,
+// and the few GL steps every renderer shares: error checks, shader programs, the offscreen target.
 //
 // Why a loader of our own: libOSMesa and GLVND's libGL both export gl* symbols, and a process
 // that links both resolves them to whichever comes first. Loading every entry point through
@@ -110,6 +111,13 @@ struct GlApi {
 
 /// Throws RenderError("<what>: GL error 0x0502 ...") when glGetError reports errors.
 void check_gl(const GlApi& gl, const char* what);
+
+/// Compiles GLSL `vertex` and `fragment` source and links them into a program (the shader
+/// objects are deleted; the program is the caller's). On failure nothing stays allocated and
+/// RenderError says "<who>: the vertex|fragment shader does not compile: <log>" followed by the
+/// source, or "<who>: the shaders do not link: <log>".
+GLuint build_program(const GlApi& gl, const std::string& vertex, const std::string& fragment,
+                     const std::string& who);
 
 /// The offscreen framebuffer both renderers draw into: RGBA8 colour and 32-bit float depth
 /// renderbuffers, reallocated when the size changes. `who` names the renderer in errors.

@@ -213,48 +213,6 @@ void main() {
 }
 )";
 
-GLuint compile(const detail::GlApi& gl, GLenum type, const std::string& src, const char* name) {
-  const GLuint s = gl.CreateShader(type);
-  const char* p = src.c_str();
-  gl.ShaderSource(s, 1, &p, nullptr);
-  gl.CompileShader(s);
-  GLint ok = 0;
-  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
-    gl.DeleteShader(s);
-    throw RenderError(std::string("gpu shading: the ") + name + " shader does not compile: " + log);
-  }
-  return s;
-}
-
-GLuint link(const detail::GlApi& gl, const std::string& fragment, const char* name) {
-  const GLuint vs = compile(gl, GL_VERTEX_SHADER, kVertex, "vertex");
-  GLuint fs = 0;
-  try {
-    fs = compile(gl, GL_FRAGMENT_SHADER, fragment, name);
-  } catch (...) {
-    gl.DeleteShader(vs);
-    throw;
-  }
-  const GLuint prog = gl.CreateProgram();
-  gl.AttachShader(prog, vs);
-  gl.AttachShader(prog, fs);
-  gl.LinkProgram(prog);
-  gl.DeleteShader(vs);
-  gl.DeleteShader(fs);
-  GLint ok = 0;
-  gl.GetProgramiv(prog, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    gl.GetProgramInfoLog(prog, sizeof log, nullptr, log);
-    gl.DeleteProgram(prog);
-    throw RenderError(std::string("gpu shading: the ") + name + " program does not link: " + log);
-  }
-  return prog;
-}
-
 // Every GL object of one call, deleted on every exit path.
 struct Objects {
   const detail::GlApi& gl;
@@ -288,6 +246,17 @@ GLuint float_texture(const detail::GlApi& gl, GLint internal, GLenum format, int
   gl.PixelStorei(GL_UNPACK_ALIGNMENT, 4);
   gl.TexImage2D(GL_TEXTURE_2D, 0, internal, w, h, 0, format, GL_FLOAT, data);
   return t;
+}
+
+/// Puts the quad of texels [x0, x0 + w] x [y0, y0 + h] into `vbo` and the orthographic
+/// projection onto it into the uniform at `loc_proj` (the program in use).
+void set_quad(const detail::GlApi& gl, GLuint vbo, GLint loc_proj, int x0, int y0, int w, int h) {
+  const float fx0 = float(x0), fy0 = float(y0), fx1 = float(x0 + w), fy1 = float(y0 + h);
+  const float quad[8] = {fx0, fy0, fx1, fy0, fx0, fy1, fx1, fy1};
+  gl.BindBuffer(GL_ARRAY_BUFFER, vbo);
+  gl.BufferSubData(GL_ARRAY_BUFFER, 0, sizeof quad, quad);
+  const glm::mat4 proj = glm::ortho(fx0, fx1, fy0, fy1, -1.0f, 1.0f);
+  gl.UniformMatrix4fv(loc_proj, 1, GL_FALSE, glm::value_ptr(proj));
 }
 
 }  // namespace
@@ -338,7 +307,7 @@ FloatRaster shade_terrain_gpu(const pm::Heightfield& hf, const ShadingOptions& o
     }
 
   Objects obj(gl);
-  obj.shade = link(gl, std::string(kCommon) + kShade, "shading");
+  obj.shade = detail::build_program(gl, kVertex, std::string(kCommon) + kShade, "gpu shading (shading)");
   gl.GenVertexArrays(1, &obj.vao);
   gl.BindVertexArray(obj.vao);
   gl.GenBuffers(1, &obj.vbo);
@@ -363,7 +332,8 @@ FloatRaster shade_terrain_gpu(const pm::Heightfield& hf, const ShadingOptions& o
   const bool relative = o.method == ShadingMethod::RelativeHeight;
   if (relative && o.relative_radius > 0) {
     // Pass 1: row-wise min/max over the whole grid into an RG32F texture, tile by tile.
-    obj.rowmm = link(gl, std::string(kCommon) + kRowMinMax, "row min/max");
+    obj.rowmm =
+        detail::build_program(gl, kVertex, std::string(kCommon) + kRowMinMax, "gpu shading (row min/max)");
     gl.ActiveTexture(GL_TEXTURE1);
     obj.tex_mm = float_texture(gl, GL_RG32F, GL_RG, W, H, nullptr);
     gl.ActiveTexture(GL_TEXTURE0);
@@ -380,12 +350,7 @@ FloatRaster shade_terrain_gpu(const pm::Heightfield& hf, const ShadingOptions& o
       for (int x0 = 0; x0 < W; x0 += tile) {
         const int w = std::min(tile, W - x0), h = std::min(tile, H - y0);
         // Render into the texture's sub-rectangle: the viewport is offset, fragments know it.
-        const float fx0 = float(x0), fy0 = float(y0), fx1 = float(x0 + w), fy1 = float(y0 + h);
-        const float quad[8] = {fx0, fy0, fx1, fy0, fx0, fy1, fx1, fy1};
-        gl.BindBuffer(GL_ARRAY_BUFFER, obj.vbo);
-        gl.BufferSubData(GL_ARRAY_BUFFER, 0, sizeof quad, quad);
-        const glm::mat4 proj = glm::ortho(fx0, fx1, fy0, fy1, -1.0f, 1.0f);
-        gl.UniformMatrix4fv(gl.GetUniformLocation(obj.rowmm, "u_proj"), 1, GL_FALSE, glm::value_ptr(proj));
+        set_quad(gl, obj.vbo, gl.GetUniformLocation(obj.rowmm, "u_proj"), x0, y0, w, h);
         gl.Uniform2f(loc_tile, 0.0f, 0.0f);  // the viewport is offset: gl_FragCoord is absolute
         gl.Viewport(x0, y0, w, h);
         gl.DrawArrays(GL_TRIANGLE_STRIP, 0, 4);
@@ -457,13 +422,8 @@ FloatRaster shade_terrain_gpu(const pm::Heightfield& hf, const ShadingOptions& o
   for (int j0 = 0; j0 < oh; j0 += th)
     for (int i0 = 0; i0 < ow; i0 += tw) {
       const int w = std::min(tw, ow - i0), h = std::min(th, oh - j0);
-      const float fx0 = float(i0), fy0 = float(j0), fx1 = float(i0 + w), fy1 = float(j0 + h);
-      const float quad[8] = {fx0, fy0, fx1, fy0, fx0, fy1, fx1, fy1};
-      gl.BindBuffer(GL_ARRAY_BUFFER, obj.vbo);
-      gl.BufferSubData(GL_ARRAY_BUFFER, 0, sizeof quad, quad);
-      const glm::mat4 proj = glm::ortho(fx0, fx1, fy0, fy1, -1.0f, 1.0f);
-      gl.UniformMatrix4fv(loc_proj, 1, GL_FALSE, glm::value_ptr(proj));
-      gl.Uniform2f(loc_tile, fx0, fy0);
+      set_quad(gl, obj.vbo, loc_proj, i0, j0, w, h);
+      gl.Uniform2f(loc_tile, float(i0), float(j0));
       gl.Viewport(0, 0, w, h);
       gl.DrawArrays(GL_TRIANGLE_STRIP, 0, 4);
       gl.ReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, buf.data());

@@ -67,21 +67,6 @@ out vec4 color;
 void main() { color = texture(tex, uv); }
 )";
 
-unsigned compile(const detail::GlApi& gl, GLenum type, const char* src) {
-  const unsigned s = gl.CreateShader(type);
-  gl.ShaderSource(s, 1, &src, nullptr);
-  gl.CompileShader(s);
-  GLint ok = 0;
-  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {};
-    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
-    gl.DeleteShader(s);
-    throw RenderError(std::string("hud: shader: ") + log);
-  }
-  return s;
-}
-
 }  // namespace
 
 Hud::Hud(GlContext& context, const HudOptions& options)
@@ -94,16 +79,7 @@ Hud::Hud(GlContext& context, const HudOptions& options)
   }
   ctx_.make_current();
   const detail::GlApi& gl = ctx_.api();
-  const unsigned vs = compile(gl, GL_VERTEX_SHADER, kVertex), fs = compile(gl, GL_FRAGMENT_SHADER, kFragment);
-  gl_->program = gl.CreateProgram();
-  gl.AttachShader(gl_->program, vs);
-  gl.AttachShader(gl_->program, fs);
-  gl.LinkProgram(gl_->program);
-  gl.DeleteShader(vs);
-  gl.DeleteShader(fs);
-  GLint ok = 0;
-  gl.GetProgramiv(gl_->program, GL_LINK_STATUS, &ok);
-  if (!ok) throw RenderError("hud: cannot link the overlay program");
+  gl_->program = detail::build_program(gl, kVertex, kFragment, "hud");
   gl_->u_rect = gl.GetUniformLocation(gl_->program, "rect");
   gl_->u_tex = gl.GetUniformLocation(gl_->program, "tex");
   gl.GenVertexArrays(1, &gl_->vao);

@@ -105,23 +105,6 @@ struct Program {
   int lens_unit = -1;
 };
 
-GLuint compile(const detail::GlApi& gl, GLenum type, const std::string& source) {
-  const GLuint s = gl.CreateShader(type);
-  const char* src = source.c_str();
-  gl.ShaderSource(s, 1, &src, nullptr);
-  gl.CompileShader(s);
-  GLint ok = 0;
-  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[4096] = {};
-    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
-    gl.DeleteShader(s);
-    throw RenderError(std::string("layered renderer: a generated shader does not compile: ") + log + "\n" +
-                      source);
-  }
-  return s;
-}
-
 struct GpuMesh {
   GLuint vao = 0, vbo = 0, ibo = 0;
   glm::dvec3 origin{0.0};
@@ -329,28 +312,7 @@ struct LayeredRenderer::Impl {
     fs += "}\n";
     (void)stack;
 
-    const GLuint vs = compile(gl, GL_VERTEX_SHADER, kVertexShader);
-    GLuint f = 0;
-    try {
-      f = compile(gl, GL_FRAGMENT_SHADER, fs);
-    } catch (...) {
-      gl.DeleteShader(vs);
-      throw;
-    }
-    p.id = gl.CreateProgram();
-    gl.AttachShader(p.id, vs);
-    gl.AttachShader(p.id, f);
-    gl.LinkProgram(p.id);
-    gl.DeleteShader(vs);
-    gl.DeleteShader(f);
-    GLint ok = 0;
-    gl.GetProgramiv(p.id, GL_LINK_STATUS, &ok);
-    if (!ok) {
-      char log[4096] = {};
-      gl.GetProgramInfoLog(p.id, sizeof log, nullptr, log);
-      gl.DeleteProgram(p.id);
-      throw RenderError(std::string("layered renderer: generated shaders do not link: ") + log);
-    }
+    p.id = detail::build_program(gl, kVertexShader, fs, "layered renderer (generated program)");
     gl.UseProgram(p.id);
     p.u_mvp = gl.GetUniformLocation(p.id, "u_mvp");
     p.u_base = gl.GetUniformLocation(p.id, "u_base");

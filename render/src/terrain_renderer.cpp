@@ -72,21 +72,6 @@ void main() {
 }
 )";
 
-GLuint compile(const detail::GlApi& gl, GLenum type, const char* source, const char* name) {
-  const GLuint s = gl.CreateShader(type);
-  gl.ShaderSource(s, 1, &source, nullptr);
-  gl.CompileShader(s);
-  GLint ok = 0;
-  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[4096] = {};
-    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
-    gl.DeleteShader(s);
-    throw RenderError(std::string("renderer: the ") + name + " shader does not compile: " + log);
-  }
-  return s;
-}
-
 void check_indices(std::span<const std::uint32_t> indices, std::size_t vertices) {
   if (indices.size() % 3 != 0)
     throw std::invalid_argument("TerrainRenderer: " + std::to_string(indices.size()) +
@@ -142,29 +127,7 @@ struct TerrainRenderer::Impl {
   }
 
   void build_program() {
-    const GLuint vs = compile(gl, GL_VERTEX_SHADER, kVertexShader, "vertex");
-    GLuint fs = 0;
-    try {
-      fs = compile(gl, GL_FRAGMENT_SHADER, kFragmentShader, "fragment");
-    } catch (...) {
-      gl.DeleteShader(vs);
-      throw;
-    }
-    program = gl.CreateProgram();
-    gl.AttachShader(program, vs);
-    gl.AttachShader(program, fs);
-    gl.LinkProgram(program);
-    gl.DeleteShader(vs);
-    gl.DeleteShader(fs);
-    GLint ok = 0;
-    gl.GetProgramiv(program, GL_LINK_STATUS, &ok);
-    if (!ok) {
-      char log[4096] = {};
-      gl.GetProgramInfoLog(program, sizeof log, nullptr, log);
-      gl.DeleteProgram(program);
-      program = 0;
-      throw RenderError(std::string("renderer: the shaders do not link: ") + log);
-    }
+    program = detail::build_program(gl, kVertexShader, kFragmentShader, "renderer");
     u_mvp = gl.GetUniformLocation(program, "u_mvp");
     u_alpha = gl.GetUniformLocation(program, "u_alpha");
     u_ramp = gl.GetUniformLocation(program, "u_ramp");

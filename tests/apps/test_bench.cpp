@@ -27,9 +27,7 @@ using terralod::test::slurp;
 /// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
 const fs::path& tmp_dir() { return terralod::test::process_temp_dir("bench"); }
 
-CliResult terralod(const std::string& args) {
-  return terralod::test::run_command(terralod::test::quote(TERRALOD_CLI) + " " + args);
-}
+CliResult terralod(const std::string& args) { return terralod::test::run_tool(TERRALOD_CLI, args); }
 
 std::vector<std::string> split(const std::string& s, char sep) {
   std::vector<std::string> out;

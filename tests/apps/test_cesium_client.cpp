@@ -205,7 +205,7 @@ void require_tools() {
 }
 
 terralod::test::CommandResult terralod(const std::string& args) {
-  return run_command(quote(TERRALOD_CLI) + " " + args);
+  return terralod::test::run_tool(TERRALOD_CLI, args);
 }
 
 struct Point {

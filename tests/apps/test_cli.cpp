@@ -36,9 +36,7 @@ using terralod::test::slurp;
 const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cli"); }
 
 /// Runs `terralod <args>` (args already shell-quoted where needed), capturing both streams.
-CliResult terralod(const std::string& args) {
-  return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args);
-}
+CliResult terralod(const std::string& args) { return terralod::test::run_tool(TERRALOD_CLI, args); }
 
 /// The number after `"key": ` (first occurrence) in a JSON text; NaN when absent.
 double json_number(const std::string& json, const std::string& key) {

@@ -34,9 +34,7 @@ namespace tt = terralod::test;
 
 const fs::path& tmp_dir() { return tt::process_temp_dir("cmd-fly"); }
 
-tt::CommandResult terralod(const std::string& args) {
-  return tt::run_command(tt::quote(TERRALOD_CLI) + " " + args);
-}
+tt::CommandResult terralod(const std::string& args) { return tt::run_tool(TERRALOD_CLI, args); }
 
 // The terrain: 65 x 65 generated samples (whole metres), cellsize 30, lower-left corner (0, 0):
 // sample centres x = 15 + 30 col, y = 15 + 30 (64 - row); built in blocks of 17 samples, so

@@ -27,9 +27,7 @@ const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cmd-hybrid-
 
 using CliResult = terralod::test::CommandResult;
 
-CliResult run_cli(const std::string& args) {
-  return terralod::test::run_command(terralod::test::quote(TERRALOD_CLI) + " " + args);
-}
+CliResult run_cli(const std::string& args) { return terralod::test::run_tool(TERRALOD_CLI, args); }
 
 // 65 x 65 samples, cellsize 10, lower-left corner (1000, 2000): x = 1005 + 10 col,
 // y = 2005 + 10 (64 - row). Grid step 4, 2 levels: 8 x 8 coarsest cells of 8 samples.

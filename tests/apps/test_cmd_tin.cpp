@@ -18,18 +18,14 @@
 namespace {
 
 namespace fs = std::filesystem;
-namespace pm = terralod::pm;
 
 using CliResult = terralod::test::CommandResult;
 using terralod::test::quote;
-using terralod::test::slurp;
 
 /// A folder of this process's own, removed when the process ends (tests/support/run_command.hpp).
 const fs::path& tmp_dir() { return terralod::test::process_temp_dir("cmd-tin"); }
 
-CliResult terralod(const std::string& args) {
-  return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args);
-}
+CliResult terralod(const std::string& args) { return terralod::test::run_tool(TERRALOD_CLI, args); }
 
 // A 21 x 17 Esri ASCII grid, cellsize 10, lower-left corner (1000, 2000): sample centres are
 //   x = 1005 + 10 col,   y = 2005 + 10 (16 - row) = 2165 - 10 row.
@@ -86,7 +82,7 @@ TEST(CmdTin, BumpIsTheFourthPoint) {
       terralod(args(dem, poly, out, "--max-error 0 --max-points 4 --metric samples --units samples"));
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("3 polygon vertices, 4 points, 3 triangles"), std::string::npos) << r.out;
-  const pm::TriangleMeshData m = pm::read_ply(out.string());
+  const terralod::pm::TriangleMeshData m = terralod::pm::read_ply(out.string());
   ASSERT_EQ(m.positions.size(), 4u);
   EXPECT_EQ(m.triangles.size(), 3u);
   std::map<std::array<int, 2>, double> z;
@@ -140,7 +136,7 @@ TEST(CmdTin, MaxPointsIsRespected) {
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("3 points, 1 triangles"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--max-points 3 reached"), std::string::npos) << r.out;
-  EXPECT_EQ(pm::read_ply(out.string()).positions.size(), 3u);
+  EXPECT_EQ(terralod::pm::read_ply(out.string()).positions.size(), 3u);
   const CliResult low = terralod(args(dem, poly, out, "--max-error 0 --max-points 2"));
   EXPECT_EQ(low.status, 2) << low.err;
 }

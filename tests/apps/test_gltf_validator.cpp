@@ -83,7 +83,7 @@ void require_validator() {
 }
 
 terralod::test::CommandResult terralod(const std::string& args) {
-  return run_command(quote(TERRALOD_CLI) + " " + args);
+  return terralod::test::run_tool(TERRALOD_CLI, args);
 }
 
 /// A generated terrain (30 m spacing, no CRS) written once per process.

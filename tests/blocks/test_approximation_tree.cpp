@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "mesh_checker.hpp"
+#include "printed_seed.hpp"
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -322,14 +323,7 @@ TEST(ApproximationTree, HybridStrategyRefinesWhereTheGridIsWorst) {
 // Hybrid levels above PM blocks (the runtime's configuration): every hybrid node keeps the
 // contract, including those whose block touches the node's border.
 TEST(ApproximationTree, HybridAbovePmBlocks) {
-  pm::TerrainOptions to;
-  to.width = 385;
-  to.height = 385;
-  to.seed = 16;
-  to.spacing = 30.0;
-  to.relief = 1200.0;
-  to.quantize_to_metres = true;
-  const pm::Heightfield hf = pm::generate_terrain(to);
+  const pm::Heightfield hf = terrain(385, 385, /*seed=*/16);  // 30 m spacing, 1200 m relief
   const tb::BlockLayout l = tb::partition(385, 385, 65);
   tb::TreeBuildOptions opt;
   opt.levels = {tb::StrategyChoice::Hybrid};
@@ -347,9 +341,7 @@ TEST(TreeFormat, CorruptionTruncationAndVersion) {
   opt.pm_leaves = false;
   opt.leaf_error = 20.0;
   const std::vector<std::uint8_t> bytes = tb::encode_tree(tb::build_tree(hf, tb::partition(33, 33, 33), opt));
-  const std::uint32_t seed = 12345;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(12345);
   for (int trial = 0; trial < 200; ++trial) {
     std::vector<std::uint8_t> b = bytes;
     b[rng() % b.size()] ^= std::uint8_t(1u << (rng() % 8));

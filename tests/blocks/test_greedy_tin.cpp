@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "mesh_checker.hpp"
+#include "printed_seed.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/linf_error.hpp"
@@ -174,9 +175,7 @@ TEST(GreedyTin, RidgeIsExactWithColumnsOneToThree) {
 
 // White noise: every sample is a candidate, many cocircular ties; checks Delaunay, cover and error.
 TEST(GreedyTin, RandomSetsAreDelaunayAndExact) {
-  const unsigned seed = 20240611;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(20240611);
   for (int trial = 0; trial < 6; ++trial) {
     const int w = 9 + int(rng() % 30), h = 9 + int(rng() % 30);
     pm::Heightfield hf(w, h);
@@ -359,9 +358,7 @@ TEST(GreedyTinPolygon, TriangleOnAPlane) {
 
 // A star-shaped, strongly non-convex polygon on white noise, max_points respected.
 TEST(GreedyTinPolygon, StarOnNoise) {
-  const unsigned seed = 77;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(77);
   pm::Heightfield hf(41, 41);
   for (double& z : hf.samples()) z = double(rng() % 100);
   std::vector<std::array<double, 2>> poly;

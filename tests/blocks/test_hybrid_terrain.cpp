@@ -17,57 +17,13 @@
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/blocks/hybrid/hybrid_terrain.hpp"
+#include "tin_fixture.hpp"
 
 namespace hy = terralod::blocks::hybrid;
 namespace pm = terralod::pm;
+namespace tt = terralod::test;
 
 namespace {
-
-pm::Heightfield make_grid(int w, int h) {
-  pm::Heightfield hf(w, h);
-  for (int r = 0; r < h; ++r)
-    for (int c = 0; c < w; ++c) hf.at(c, r) = 10.0 + 0.5 * c + 0.25 * r + ((c * 7 + r * 3) % 5);
-  hf.source = "generated grid";
-  return hf;
-}
-
-double tin_height(double c, double r) { return 50.0 + 0.3 * c - 0.2 * r; }
-
-/// A TIN of a polygon that is star-shaped around `centre`: a fan of triangles from the centre.
-/// The polygon is given with the TIN on its left (positive orientation in (col,row)).
-hy::TinMesh fan_tin(const std::vector<std::array<double, 2>>& poly, std::array<double, 2> centre) {
-  hy::TinMesh t;
-  t.source = "test TIN";
-  t.points.push_back({centre[0], centre[1], tin_height(centre[0], centre[1])});
-  for (const auto& p : poly) t.points.push_back({p[0], p[1], tin_height(p[0], p[1])});
-  const std::uint32_t n = std::uint32_t(poly.size());
-  for (std::uint32_t i = 0; i < n; ++i) {
-    t.triangles.push_back({0, 1 + i, 1 + (i + 1) % n});
-    const auto& a = t.points[0];
-    const auto& b = t.points[1 + i];
-    const auto& c = t.points[1 + (i + 1) % n];
-    EXPECT_GT((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]), 0) << "fixture not star-shaped";
-  }
-  return t;
-}
-
-/// A rows x cols block of unit-spaced TIN vertices triangulated on both diagonals' one side.
-hy::TinMesh grid_tin(double c0, double r0, int cols, int rows, double step) {
-  hy::TinMesh t;
-  t.source = "grid TIN";
-  for (int j = 0; j <= rows; ++j)
-    for (int i = 0; i <= cols; ++i) {
-      const double c = c0 + i * step, r = r0 + j * step;
-      t.points.push_back({c, r, tin_height(c, r)});
-    }
-  auto id = [&](int i, int j) { return std::uint32_t(j * (cols + 1) + i); };
-  for (int j = 0; j < rows; ++j)
-    for (int i = 0; i < cols; ++i) {
-      t.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
-      t.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
-    }
-  return t;
-}
 
 double orient(const std::array<double, 3>& a, const std::array<double, 3>& b,
               const std::array<double, 3>& c) {
@@ -92,11 +48,11 @@ std::string check_cover(const hy::HybridMesh& m, double W, double H, const pm::H
   for (const auto& p : m.points) {
     const double c = p[0] / step, r = p[1] / step;
     if (c == std::floor(c) && r == std::floor(r) && !tin_pos.count({p[0], p[1]}) &&
-        p[2] != hf.at(int(p[0]), int(p[1])) && std::abs(p[2] - tin_height(p[0], p[1])) > 1e-9)
+        p[2] != hf.at(int(p[0]), int(p[1])) && std::abs(p[2] - tt::tin_height(p[0], p[1])) > 1e-9)
       return "grid node (" + std::to_string(p[0]) + "," + std::to_string(p[1]) +
              ") has neither the DEM nor the TIN height";
   }
-  return terralod::test::check_plane_cover(m.points, m.triangles, W, H);
+  return tt::check_plane_cover(m.points, m.triangles, W, H);
 }
 
 /// Every level: decoded == direct (triangle for triangle); both schemes and a mixed-level
@@ -150,8 +106,8 @@ std::vector<std::array<double, 2>> notch_polygon() {
 }  // namespace
 
 TEST(HybridTerrain, Fig6CavityConnectivity) {
-  const auto hf = make_grid(17, 17);
-  const auto tin = fan_tin(notch_polygon(), {6, 10});
+  const auto hf = tt::bumpy_grid(17, 17);
+  const auto tin = tt::fan_tin(notch_polygon(), {6, 10});
   const auto h = hy::HybridTerrain::build(hf, tin, {.grid_step = 4, .levels = 2});
   // Find v20 = (5,6) in the TB array.
   std::int64_t t20 = -1;
@@ -182,7 +138,7 @@ TEST(HybridTerrain, Fig6CavityConnectivity) {
 TEST(HybridTerrain, RandomStarTinsAllLevels) {
   // Smooth random star-shaped TINs (radius = sum of three random sinusoids) on a 65 x 65 grid,
   // grid step 4, three levels (cells of 4, 8 and 16 samples).
-  const auto hf = make_grid(65, 65);
+  const auto hf = tt::bumpy_grid(65, 65);
   int built = 0;
   for (unsigned seed : {1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
@@ -199,7 +155,7 @@ TEST(HybridTerrain, RandomStarTinsAllLevels) {
       poly.push_back(
           {std::round((32.3 + r * std::cos(a)) * 16) / 16, std::round((31.7 + r * std::sin(a)) * 16) / 16});
     }
-    const auto tin = fan_tin(poly, {32.3, 31.7});
+    const auto tin = tt::fan_tin(poly, {32.3, 31.7});
     try {
       const auto h = hy::HybridTerrain::build(hf, tin, {.grid_step = 4, .levels = 3});
       ++built;
@@ -217,8 +173,8 @@ TEST(HybridTerrain, RandomStarTinsAllLevels) {
 TEST(HybridTerrain, BoundaryThroughGridCornersAndCoveredCells) {
   // A TIN whose vertices lie on grid lines: its boundary runs along cell borders and passes
   // through grid corners; it covers whole cells (CC) at every level.
-  const auto hf = make_grid(33, 33);
-  const auto tin = grid_tin(4, 4, 8, 8, 2);  // [4,20] x [4,20]
+  const auto hf = tt::bumpy_grid(33, 33);
+  const auto tin = tt::grid_tin(4, 4, 8, 8, 2);  // [4,20] x [4,20]
   const auto h = hy::HybridTerrain::build(hf, tin, {.grid_step = 4, .levels = 3});
   EXPECT_EQ(h.level(0).gc[2 * 8 + 2], hy::CellClass::CC);  // [8,12]^2
   EXPECT_EQ(h.level(0).gc[1 * 8 + 1], hy::CellClass::CC);  // [4,8]^2: covered, corners on the boundary
@@ -231,8 +187,8 @@ TEST(HybridTerrain, TouchingCellBordersAtOnePoint) {
   //            (10,8)
   //   (7,10)          (13,10)
   //            (10,12)
-  const auto hf = make_grid(33, 33);
-  const auto diamond = fan_tin({{10, 8}, {13, 10}, {10, 12}, {7, 10}}, {10, 10});
+  const auto hf = tt::bumpy_grid(33, 33);
+  const auto diamond = tt::fan_tin({{10, 8}, {13, 10}, {10, 12}, {7, 10}}, {10, 10});
   const auto h = hy::HybridTerrain::build(hf, diamond, {.grid_step = 4, .levels = 2});
   // The cell above the top vertex only touches the TIN: no TIN inside, hence NC, and the
   // extraction splits its bottom edge at the TIN vertex.
@@ -240,7 +196,7 @@ TEST(HybridTerrain, TouchingCellBordersAtOnePoint) {
   EXPECT_EQ(h.level(0).gc[2 * 8 + 2], hy::CellClass::PC);
   check_model(h, hf, diamond);
   // An uncovered notch whose tip touches a grid line from the uncovered side.
-  const auto notch = fan_tin({{2, 6}, {8, 6}, {9, 8}, {10, 6}, {14, 6}, {14, 14}, {2, 14}}, {9, 11});
+  const auto notch = tt::fan_tin({{2, 6}, {8, 6}, {9, 8}, {10, 6}, {14, 6}, {14, 14}, {2, 14}}, {9, 11});
   const auto h2 = hy::HybridTerrain::build(hf, notch, {.grid_step = 4, .levels = 2});
   check_model(h2, hf, notch);
 }
@@ -248,8 +204,8 @@ TEST(HybridTerrain, TouchingCellBordersAtOnePoint) {
 TEST(HybridTerrain, SeveralSectionsInOneCell) {
   // A thin strip [1,31] x [9.5,11.5] crosses every cell of its row: two sections per cell, one
   // above and one below, each with its own uncovered region and corners.
-  const auto hf = make_grid(33, 33);
-  const auto strip = grid_tin(1, 9.5, 15, 1, 2);
+  const auto hf = tt::bumpy_grid(33, 33);
+  const auto strip = tt::grid_tin(1, 9.5, 15, 1, 2);
   const auto h = hy::HybridTerrain::build(hf, strip, {.grid_step = 4, .levels = 3});
   const auto& vc = h.level(0).vc;
   const auto it = std::find_if(vc.begin(), vc.end(), [](const hy::PcCell& p) { return p.cell == 2 * 8 + 3; });
@@ -260,28 +216,29 @@ TEST(HybridTerrain, SeveralSectionsInOneCell) {
 }
 
 TEST(HybridTerrain, ClearErrors) {
-  const auto hf = make_grid(33, 33);
+  const auto hf = tt::bumpy_grid(33, 33);
   // Inside one coarsest cell (16 samples): refused with a hint.
   try {
-    hy::HybridTerrain::build(hf, fan_tin({{2, 2}, {6, 2}, {6, 6}, {2, 6}}, {4, 4}),
+    hy::HybridTerrain::build(hf, tt::fan_tin({{2, 2}, {6, 2}, {6, 6}, {2, 6}}, {4, 4}),
                              {.grid_step = 4, .levels = 3});
     ADD_FAILURE() << "no error";
   } catch (const hy::HybridError& e) {
     EXPECT_NE(std::string(e.what()).find("inside one coarsest grid cell"), std::string::npos) << e.what();
   }
   // Outside the domain.
-  EXPECT_THROW(hy::HybridTerrain::build(hf, fan_tin({{20, 20}, {40, 20}, {40, 30}, {20, 30}}, {30, 25})),
+  EXPECT_THROW(hy::HybridTerrain::build(hf, tt::fan_tin({{20, 20}, {40, 20}, {40, 30}, {20, 30}}, {30, 25})),
                hy::HybridError);
   // Two overlapping TINs.
-  const auto a = grid_tin(4, 4, 4, 4, 2), b = grid_tin(6, 6, 4, 4, 2);
+  const auto a = tt::grid_tin(4, 4, 4, 4, 2), b = tt::grid_tin(6, 6, 4, 4, 2);
   EXPECT_THROW(hy::HybridTerrain::build(hf, hy::merge_tins({a, b})), hy::HybridError);
   // A grid too small for the levels.
-  EXPECT_THROW(hy::HybridTerrain::build(make_grid(9, 9), a, {.grid_step = 4, .levels = 3}), hy::HybridError);
+  EXPECT_THROW(hy::HybridTerrain::build(tt::bumpy_grid(9, 9), a, {.grid_step = 4, .levels = 3}),
+               hy::HybridError);
 }
 
 TEST(HybridTerrain, BlobRoundTripAndCorruption) {
-  const auto hf = make_grid(33, 33);
-  const auto tin = fan_tin(notch_polygon(), {6, 10});
+  const auto hf = tt::bumpy_grid(33, 33);
+  const auto tin = tt::fan_tin(notch_polygon(), {6, 10});
   const auto h = hy::HybridTerrain::build(hf, tin, {.grid_step = 4, .levels = 2});
   const auto blob = h.encode();
   const auto back = hy::HybridTerrain::decode(blob, "mem");
@@ -308,8 +265,8 @@ TEST(HybridTerrain, BlobRoundTripAndCorruption) {
 }
 
 TEST(HybridTerrain, StorageReportCounts) {
-  const auto hf = make_grid(33, 33);
-  const auto tin = fan_tin(notch_polygon(), {6, 10});
+  const auto hf = tt::bumpy_grid(33, 33);
+  const auto tin = tt::fan_tin(notch_polygon(), {6, 10});
   const auto h = hy::HybridTerrain::build(hf, tin, {.grid_step = 4, .levels = 2});
   const auto r = h.storage_report();
   ASSERT_EQ(r.levels.size(), 2u);
@@ -332,30 +289,13 @@ TEST(HybridTerrain, StorageReportCounts) {
 TEST(HybridTerrain, RealValleyN44W072) {
   const std::string dem_path = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
   if (!std::ifstream(dem_path)) GTEST_SKIP() << dem_path << " is absent";
-  const pm::Heightfield full = terralod::blocks::read_dem(dem_path);
-  const int c0 = 384, r0 = 336, w = 209, hgt = 369;
-  pm::Heightfield crop(w, hgt);
-  for (int r = 0; r < hgt; ++r)
-    for (int c = 0; c < w; ++c) crop.at(c, r) = full.at(c0 + c, r0 + r);
-  crop.source = "N44W072 crop";
   // The polygon: world metres -> (col,row) of the crop.
   std::ifstream csv(std::string(TERRALOD_EXAMPLES_DIR) + "/hybrid/valley_N44W072.csv");
   ASSERT_TRUE(csv) << "examples/hybrid/valley_N44W072.csv missing";
-  std::vector<std::array<double, 2>> poly;
-  for (std::string line; std::getline(csv, line);) {
-    if (line.empty() || line[0] == '#' || line[0] == 'x') continue;
-    const double x = std::stod(line.substr(0, line.find(','))),
-                 y = std::stod(line.substr(line.find(',') + 1));
-    poly.push_back(
-        {(x - full.transform.x0) / full.transform.xc - c0, (y - full.transform.y0) / full.transform.yr - r0});
-  }
-  ASSERT_EQ(poly.size(), 34u);
-  const auto surf = terralod::blocks::build_greedy_tin(crop, poly, {.max_error = 5.0});
-  hy::TinMesh tin;
-  tin.source = "valley TIN";
-  for (const auto& p : surf.points) tin.points.push_back({double(p[0]), double(p[1]), crop.at(p[0], p[1])});
-  tin.triangles = surf.triangles;
-  const auto h = hy::HybridTerrain::build(crop, tin, {.grid_step = 4, .levels = 3});
+  const tt::Valley valley = tt::valley_of(terralod::blocks::read_dem(dem_path), csv);
+  const pm::Heightfield& crop = valley.crop;
+  ASSERT_EQ(valley.polygon.size(), 34u);
+  const auto h = hy::HybridTerrain::build(crop, tt::valley_tin(valley), {.grid_step = 4, .levels = 3});
   const auto r = h.storage_report();
   for (const auto& l : r.levels) {
     std::printf(

@@ -12,13 +12,16 @@
 #include <set>
 
 #include "plane_cover_check.hpp"
+#include "printed_seed.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/blocks/hybrid/hybrid_tree.hpp"
+#include "tin_fixture.hpp"
 
 namespace hy = terralod::blocks::hybrid;
 namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
+namespace tt = terralod::test;
 
 namespace {
 
@@ -26,42 +29,22 @@ using P3 = std::array<double, 3>;
 
 // 97 x 97 samples, 10 m spacing, north-up (row 0 at y = 960): a bumpy plane.
 pm::Heightfield make_grid() {
-  pm::Heightfield hf(97, 97);
-  for (int r = 0; r < 97; ++r)
-    for (int c = 0; c < 97; ++c) hf.at(c, r) = 10.0 + 0.5 * c + 0.25 * r + ((c * 7 + r * 3) % 5);
+  pm::Heightfield hf = tt::bumpy_grid(97, 97);
   hf.transform = pm::GridTransform::north_up(0.0, 960.0, 10.0, 10.0);
-  hf.source = "generated grid";
   return hf;
 }
-
-double tin_height(double c, double r) { return 50.0 + 0.3 * c - 0.2 * r; }
 
 // Two TINs (grid step 4, 3 levels: coarsest cells of 16 samples, 6 x 6 of them):
 //   A: a 20 x 14 block of 2.5-sample squares at (21.5, 19.25): cells (1..4, 1..3), boundary
 //      off the grid lines;
 //   B: an octagon fan around (81, 81), radius 9: the four cells around (80, 80).
 hy::TinMesh make_tin() {
-  hy::TinMesh a;
-  const int cols = 20, rows = 14;
-  for (int j = 0; j <= rows; ++j)
-    for (int i = 0; i <= cols; ++i) {
-      const double c = 21.5 + i * 2.5, r = 19.25 + j * 2.5;
-      a.points.push_back({c, r, tin_height(c, r)});
-    }
-  auto id = [&](int i, int j) { return std::uint32_t(j * (cols + 1) + i); };
-  for (int j = 0; j < rows; ++j)
-    for (int i = 0; i < cols; ++i) {
-      a.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
-      a.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
-    }
-  hy::TinMesh b;
-  b.points.push_back({81, 81, tin_height(81, 81)});
+  std::vector<std::array<double, 2>> octagon;
   for (int k = 0; k < 8; ++k) {
-    const double t = k * M_PI / 4 + 0.1, c = 81 + 9 * std::cos(t), r = 81 + 9 * std::sin(t);
-    b.points.push_back({c, r, tin_height(c, r)});
+    const double t = k * M_PI / 4 + 0.1;
+    octagon.push_back({81 + 9 * std::cos(t), 81 + 9 * std::sin(t)});
   }
-  for (std::uint32_t k = 0; k < 8; ++k) b.triangles.push_back({0, 1 + k, 1 + (k + 1) % 8});
-  hy::TinMesh m = hy::merge_tins({a, b});
+  hy::TinMesh m = hy::merge_tins({tt::grid_tin(21.5, 19.25, 20, 14, 2.5), tt::fan_tin(octagon, {81, 81})});
   m.source = "test TINs";
   return m;
 }
@@ -129,7 +112,7 @@ double brute_triangle_error(const pm::Heightfield& hf, P3 a, P3 b, P3 c) {
 
 /// Exact single cover of [0,W]x[0,H] and watertightness (tests/support/plane_cover_check.hpp).
 std::string check_cover(const hy::HybridMesh& m, double W, double H) {
-  return terralod::test::check_plane_cover(m.points, m.triangles, W, H);
+  return tt::check_plane_cover(m.points, m.triangles, W, H);
 }
 
 /// Heights agree: every point of every drawn node has the union vertex's height at its position.
@@ -161,19 +144,17 @@ std::multiset<std::array<std::pair<double, double>, 3>> canon(const hy::HybridMe
 pm::Camera camera_at(const pm::Heightfield& hf, double col, double row, double dist, double yaw,
                      double pitch) {
   const auto [x, y] = hf.transform.to_world(col, row);
-  pm::Camera cam;
   const double p = pitch * M_PI / 180, w = yaw * M_PI / 180;
-  cam.x = x - dist * std::cos(p) * std::sin(w);
-  cam.y = y - dist * std::cos(p) * std::cos(w);
-  cam.z = 60.0 + dist * std::sin(p);
-  cam.yaw_deg = yaw;
-  cam.pitch_deg = -pitch;
-  cam.fovy_deg = 50;
-  cam.width_px = 800;
-  cam.height_px = 600;
-  cam.near_m = 0.5;
-  cam.far_m = 1e7;
-  return cam;
+  return pm::Camera{.x = x - dist * std::cos(p) * std::sin(w),
+                    .y = y - dist * std::cos(p) * std::cos(w),
+                    .z = 60.0 + dist * std::sin(p),
+                    .yaw_deg = yaw,
+                    .pitch_deg = -pitch,
+                    .fovy_deg = 50,
+                    .width_px = 800,
+                    .height_px = 600,
+                    .near_m = 0.5,
+                    .far_m = 1e7};
 }
 
 }  // namespace
@@ -210,9 +191,7 @@ TEST(HybridTree, NodeErrorsEqualBruteForce) {
 // drawn nodes agree on every shared height. All-hybrid mixes equal extract_mixed exactly.
 TEST(HybridTree, RandomSelectionsAreWatertight) {
   const Fixture& f = fixture();
-  const unsigned seed = 20261122;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(20261122);
   std::uniform_real_distribution<double> u(0, 1);
   const double W = f.h.domain_width(), H = f.h.domain_height();
   std::size_t mixed = 0, forced = 0, with_tin = 0, with_grid_and_hybrid = 0;
@@ -256,9 +235,7 @@ TEST(HybridTree, RandomSelectionsAreWatertight) {
 // of a coarsest cell that is not drawn (no TIN triangle of a culled cell is missing).
 TEST(HybridTree, CulledSelectionsOpenOnlyAtUndrawnCells) {
   const Fixture& f = fixture();
-  const unsigned seed = 977;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(977);
   std::uniform_real_distribution<double> u(0, 1);
   const double W = f.h.domain_width(), H = f.h.domain_height(), cs = f.tree.cell_size();
   std::size_t culled_some = 0, added = 0;
@@ -376,28 +353,12 @@ TEST(HybridTree, BlobRoundTrip) {
 TEST(HybridTree, RealValleyN44W072) {
   const std::string dem_path = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
   if (!std::ifstream(dem_path)) GTEST_SKIP() << dem_path << " is absent";
-  const pm::Heightfield full = tb::read_dem(dem_path);
-  const int c0 = 384, r0 = 336, w = 209, hgt = 369;
-  pm::Heightfield crop(w, hgt);
-  for (int r = 0; r < hgt; ++r)
-    for (int c = 0; c < w; ++c) crop.at(c, r) = full.at(c0 + c, r0 + r);
-  crop.transform = pm::GridTransform::north_up(0, 0, 30, 30);
-  crop.source = "N44W072 crop";
   std::ifstream csv(std::string(TERRALOD_EXAMPLES_DIR) + "/hybrid/valley_N44W072.csv");
   ASSERT_TRUE(csv);
-  std::vector<std::array<double, 2>> poly;
-  for (std::string line; std::getline(csv, line);) {
-    if (line.empty() || line[0] == '#' || line[0] == 'x') continue;
-    const double x = std::stod(line.substr(0, line.find(','))),
-                 y = std::stod(line.substr(line.find(',') + 1));
-    poly.push_back(
-        {(x - full.transform.x0) / full.transform.xc - c0, (y - full.transform.y0) / full.transform.yr - r0});
-  }
-  const auto surf = tb::build_greedy_tin(crop, poly, {.max_error = 5.0});
-  hy::TinMesh tin;
-  for (const auto& p : surf.points) tin.points.push_back({double(p[0]), double(p[1]), crop.at(p[0], p[1])});
-  tin.triangles = surf.triangles;
-  const auto h = hy::HybridTerrain::build(crop, tin, {.grid_step = 4, .levels = 3});
+  tt::Valley valley = tt::valley_of(tb::read_dem(dem_path), csv);
+  valley.crop.transform = pm::GridTransform::north_up(0, 0, 30, 30);
+  const pm::Heightfield& crop = valley.crop;
+  const auto h = hy::HybridTerrain::build(crop, tt::valley_tin(valley), {.grid_step = 4, .levels = 3});
   const hy::HybridTree t = hy::HybridTree::build(h, crop);
   const double W = h.domain_width(), H = h.domain_height();
   // Looking along the valley from its northern end, 500 m above it.

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "mesh_checker.hpp"
+#include "printed_seed.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/seam_stitch.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -106,18 +107,12 @@ TEST(SeamStitch, CornerTriangleAndPatchesOfDifferentSizes) {
 // watertight, every split triangle is within 2 e of its block's error e (the fan-split bound
 // of seam_stitch.hpp) and the unsplit ones within e.
 TEST(SeamStitch, BlocksAtDifferentErrorsStayWithinTwiceTheirError) {
-  pm::TerrainOptions o;
-  o.width = 97;
-  o.height = 81;
-  o.seed = 21;
-  o.quantize_to_metres = true;
-  const pm::Heightfield hf = pm::generate_terrain(o);
+  const pm::Heightfield hf =
+      pm::generate_terrain({.width = 97, .height = 81, .seed = 21, .quantize_to_metres = true});
   const tb::BlockLayout l = tb::partition(97, 81, 17);
   std::vector<pm::ProgressiveMesh> pms;
   for (tb::BlockKey k : l.keys()) pms.push_back(tb::build_block_pm(hf, l.rect(k)));
-  const std::uint32_t seed = 77;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(77);
   std::size_t splits = 0;
   for (int trial = 0; trial < 6; ++trial) {
     std::vector<double> e(pms.size());

@@ -43,19 +43,24 @@ struct Terrain {
   std::string db;
 };
 
+/// A generated terrain, 30 m between samples, heights in whole metres (like SRTM).
+tp::Heightfield generated(int width, int height, std::uint64_t seed, double relief) {
+  tp::TerrainOptions to;
+  to.width = width;
+  to.height = height;
+  to.seed = seed;
+  to.spacing = 30.0;
+  to.relief = relief;
+  to.quantize_to_metres = true;
+  return tp::generate_terrain(to);
+}
+
 enum class Sharing { ThisProcess, ReadOnlyAcrossProcesses };
 
 Terrain build_terrain(int width, int height, std::vector<tb::StrategyChoice> levels, const std::string& name,
                       Sharing sharing = Sharing::ThisProcess) {
   Terrain r;
-  tp::TerrainOptions to;
-  to.width = width;
-  to.height = height;
-  to.seed = 16;
-  to.spacing = 30.0;
-  to.relief = 1200.0;
-  to.quantize_to_metres = true;
-  r.hf = tp::generate_terrain(to);
+  r.hf = generated(width, height, /*seed=*/16, /*relief=*/1200.0);
   const auto build = [&](const std::filesystem::path& p) {
     tb::DatabaseBuildOptions o;
     o.block_size = 65;
@@ -483,13 +488,7 @@ terralod::test::BlockedTerrain blobs_of(const std::string& db_path) {
 const PrefetchTerrain& prefetch_terrain() {
   static const PrefetchTerrain t = [] {
     PrefetchTerrain r;
-    tp::TerrainOptions to;
-    to.width = to.height = 385;
-    to.seed = 21;
-    to.spacing = 30.0;
-    to.relief = 200.0;
-    to.quantize_to_metres = true;
-    r.ter.hf = tp::generate_terrain(to);
+    r.ter.hf = generated(385, 385, /*seed=*/21, /*relief=*/200.0);
     r.ter.db = tt::shared_file("runtime_prefetch.db", [&](const std::filesystem::path& p) {
                  tb::DatabaseBuildOptions o;
                  o.block_size = 33;  // 12 x 12 blocks of 960 m
@@ -834,13 +833,7 @@ TEST(TerrainRuntimeLoading, StandInsOfEveryKindBesidePmBlocksWhileBlocksArrive) 
   for (const tb::StandinKind kind :
        {tb::StandinKind::Tin, tb::StandinKind::Grid, tb::StandinKind::NonRegularGrid}) {
     Terrain ter;
-    tp::TerrainOptions to;
-    to.width = to.height = 257;
-    to.seed = 5;
-    to.spacing = 30.0;
-    to.relief = 400.0;
-    to.quantize_to_metres = true;
-    ter.hf = tp::generate_terrain(to);
+    ter.hf = generated(257, 257, /*seed=*/5, /*relief=*/400.0);
     ter.db = (tt::process_temp_dir("runtime") /
               (std::string("runtime_standin_") + tb::standin_kind_name(kind) + ".db"))
                  .string();

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <random>
 
+#include "printed_seed.hpp"
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -167,9 +168,7 @@ class Selection : public ::testing::TestWithParam<bool> {};
 
 TEST_P(Selection, InvariantsOverRandomCameras) {
   const Fixture f = make_tree(GetParam());
-  const std::uint32_t seed = 2024;
-  std::printf("seed %u\n", seed);
-  std::mt19937 rng(seed);
+  std::mt19937 rng = terralod::test::printed_seed_rng(2024);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   const double extent = 128 * 30.0;
   std::size_t total_culled = 0, total_selected = 0;

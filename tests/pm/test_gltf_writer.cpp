@@ -20,6 +20,7 @@
 #include "run_command.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "tiny_mesh_fixture.hpp"
 
 namespace {
 
@@ -403,28 +404,21 @@ double up_cross(const Decoded& d, const std::array<std::uint32_t, 3>& t) {
   return uz * vx - ux * vz;  // Y component of (u x v)
 }
 
-// Tiny fixture, 3 x 2 samples, heights in metres (as in test_mesh_io.cpp):
+// The tiny 3 x 2 fixture of tiny_mesh_fixture.hpp:
 //
 //   row 0:  s0 = 10.5   s1 = 11.25   s2 = 12
 //   row 1:  s3 = 0.1    s4 = -3      s5 = 1e-7
 //
-// Mesh: vertices {s0, s1, s4, s3}, triangles (0,1,2) and (0,2,3), CCW in (col,row).
-// North-up transform x = 500000 + 30 col, y = 4900000 - 90 row (UTM-sized, determinant < 0,
+// Mesh: vertices {s0, s1, s4, s3}, triangles (0,1,2) and (0,2,3), CCW in (col,row), with a
+// north-up transform x = 500000 + 30 col, y = 4900000 - 90 row (UTM-sized, determinant < 0,
 // so the world writer flips to (0,2,1), (0,3,2)). World positions:
 //   v0 (500000, 4900000, 10.5)   v1 (500030, 4900000, 11.25)
 //   v2 (500030, 4899910, -3)     v3 (500000, 4899910, 0.1)
 // glTF (x, z, -y): v0 (500000, 10.5, -4900000) ... ; bounding box x [500000, 500030],
 // y [-3, 11.25], z [-4900000, -4899910]; centre (500015, 4.125, -4899955) = the translation.
-struct Fixture {
-  Heightfield hf{3, 2};
-  TriangleMesh mesh;
+struct Fixture : terralod::test::TinyMeshFixture {
   Fixture() {
-    const double z[6] = {10.5, 11.25, 12.0, 0.1, -3.0, 1e-7};
-    for (std::size_t i = 0; i < 6; ++i) hf[i] = z[i];
     hf.transform = GridTransform::north_up(/*x0=*/500000.0, /*y0=*/4900000.0, /*dx=*/30.0, /*dy=*/90.0);
-    mesh.vertices = {0, 1, 4, 3};
-    mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
-    mesh.error_bound = 0.75;
   }
 };
 

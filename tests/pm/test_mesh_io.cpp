@@ -16,6 +16,7 @@
 #include "run_command.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "tiny_mesh_fixture.hpp"
 
 namespace {
 
@@ -26,24 +27,8 @@ std::string tmp_path(const std::string& name) {
   return (terralod::test::process_temp_dir("mesh_io") / name).string();
 }
 
-// Tiny fixture, 3 x 2 samples, heights in metres:
-//
-//   row 0:  s0 = 10.5   s1 = 11.25   s2 = 12
-//   row 1:  s3 = 0.1    s4 = -3      s5 = 1e-7
-//
-// Mesh: vertices {s0, s1, s4, s3} (indices 0..3), triangles (0,1,2) and (0,2,3), both CCW in
-// (col,row): orient2d((0,0),(1,0),(1,1)) = +1 and orient2d((0,0),(1,1),(0,1)) = +1.
-struct Fixture {
-  Heightfield hf{3, 2};
-  TriangleMesh mesh;
-  Fixture() {
-    const double z[6] = {10.5, 11.25, 12.0, 0.1, -3.0, 1e-7};
-    for (std::size_t i = 0; i < 6; ++i) hf[i] = z[i];
-    mesh.vertices = {0, 1, 4, 3};
-    mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
-    mesh.error_bound = 0.75;
-  }
-};
+// The tiny 3 x 2 fixture drawn in tiny_mesh_fixture.hpp.
+using Fixture = terralod::test::TinyMeshFixture;
 
 double signed_area_xy(const TriangleMeshData& m, const std::array<std::uint32_t, 3>& t) {
   const auto& a = m.positions[t[0]];

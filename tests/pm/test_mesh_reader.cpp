@@ -50,6 +50,24 @@ void expect_error(const std::string& path, const std::vector<std::string>& parts
     EXPECT_NE(msg.find(p), std::string::npos) << "'" << p << "' not in: " << msg;
 }
 
+/// Writes `bytes` to `path`, then expect_error(path, parts).
+void expect_file_error(const std::string& path, const std::string& bytes,
+                       const std::vector<std::string>& parts) {
+  write_file(path, bytes);
+  expect_error(path, parts);
+}
+
+/// `s` with its first occurrence of `what` replaced by `with` (std::out_of_range when absent).
+std::string replaced(std::string s, const std::string& what, const std::string& with) {
+  return s.replace(s.find(what), what.size(), with);
+}
+
+/// `s` with the byte `from_end` bytes before its end set to `value`.
+std::string with_byte(std::string s, std::size_t from_end, char value) {
+  s[s.size() - from_end] = value;
+  return s;
+}
+
 std::string g17(double v) {
   char buf[40];
   std::snprintf(buf, sizeof buf, "%.17g", v);
@@ -271,8 +289,7 @@ TEST(MeshReader, MalformedAsciiPly) {
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.parts.front());
-    write_file(path, c.text);
-    expect_error(path, c.parts);
+    expect_file_error(path, c.text, c.parts);
   }
   fs::remove(path);
 }
@@ -286,54 +303,33 @@ TEST(MeshReader, MalformedBigEndianPly) {
     const std::string msg = read_error(path);
     EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << len << ": " << msg;
   }
-  write_file(path, good.substr(0, good.size() - 5));
-  expect_error(path, {"truncated", "element face record 3"});
+  expect_file_error(path, good.substr(0, good.size() - 5), {"truncated", "element face record 3"});
   // The last index of the last face, big-endian: 9 instead of 4.
-  std::string bad = good;
-  bad[bad.size() - 1] = 9;
-  write_file(path, bad);
-  expect_error(path, {"face 3 refers to vertex 9 of 5"});
-  // The last face's count: 4 corners.
-  bad = good;
-  bad[bad.size() - 13] = 4;
-  write_file(path, bad);
-  expect_error(path, {"truncated", "element face record 3"});
-  bad[bad.size() - 13] = 2;
-  write_file(path, bad);
-  expect_error(path, {"element face record 3 has 2 vertices"});
+  expect_file_error(path, with_byte(good, 1, 9), {"face 3 refers to vertex 9 of 5"});
+  // The last face's count: 4 corners, then 2.
+  expect_file_error(path, with_byte(good, 13, 4), {"truncated", "element face record 3"});
+  expect_file_error(path, with_byte(good, 13, 2), {"element face record 3 has 2 vertices"});
   // Counts far beyond the file are refused before allocating.
-  bad = good;
-  bad.replace(bad.find("element face 4"), 14, "element face 3000000000");
-  write_file(path, bad);
-  expect_error(path, {"truncated: element face needs at least 3000000000 x 1 bytes"});
+  expect_file_error(path, replaced(good, "element face 4", "element face 3000000000"),
+                    {"truncated: element face needs at least 3000000000 x 1 bytes"});
   // A byte too many: the little-endian reading of a big-endian file would not notice, the
   // size check does.
-  write_file(path, good + "x");
-  expect_error(path, {"1 unexpected bytes after the last element"});
+  expect_file_error(path, good + "x", {"1 unexpected bytes after the last element"});
   fs::remove(path);
 }
 
 TEST(MeshReader, MalformedLittleEndianPly) {
   const std::string good = binary_ply(fixture(), /*big_endian=*/false);
   const std::string path = tmp_path("bad_le.ply");
-  write_file(path, good.substr(0, good.size() - 1));
-  expect_error(path, {"truncated", "element face record 3"});
-  std::string bad = good;
-  bad[bad.size() - 4] = 9;  // the low byte of the last index
-  write_file(path, bad);
-  expect_error(path, {"face 3 refers to vertex 9 of 5"});
-  bad = good;
-  bad.replace(bad.find("element vertex 5"), 16, "element vertex 4000000000");
-  write_file(path, bad);
-  expect_error(path, {"truncated: element vertex needs at least 4000000000 x 28 bytes"});
-  bad = good;
-  bad.replace(bad.find("list uint8 uint32"), 17, "list uint8 float");
-  write_file(path, bad);
-  expect_error(path, {"face indices must have an integer type"});
-  bad = good;
-  bad.replace(bad.find("property float64 z"), 18, "property float64 w");
-  write_file(path, bad);
-  expect_error(path, {"vertex element lacks x, y or z"});
+  expect_file_error(path, good.substr(0, good.size() - 1), {"truncated", "element face record 3"});
+  // The low byte of the last index.
+  expect_file_error(path, with_byte(good, 4, 9), {"face 3 refers to vertex 9 of 5"});
+  expect_file_error(path, replaced(good, "element vertex 5", "element vertex 4000000000"),
+                    {"truncated: element vertex needs at least 4000000000 x 28 bytes"});
+  expect_file_error(path, replaced(good, "list uint8 uint32", "list uint8 float"),
+                    {"face indices must have an integer type"});
+  expect_file_error(path, replaced(good, "property float64 z", "property float64 w"),
+                    {"vertex element lacks x, y or z"});
   fs::remove(path);
 }
 
@@ -366,8 +362,7 @@ TEST(MeshReader, MalformedObj) {
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.parts.back());
-    write_file(path, c.text);
-    expect_error(path, c.parts);
+    expect_file_error(path, c.text, c.parts);
   }
   expect_error(tmp_path("missing.obj"), {"cannot open"});
   fs::remove(path);

@@ -26,12 +26,7 @@ std::string tmp_path(const std::string& name) {
 }
 
 Heightfield generated(int w, int h, bool metres, std::uint64_t seed = 7) {
-  TerrainOptions opt;
-  opt.width = w;
-  opt.height = h;
-  opt.seed = seed;
-  opt.quantize_to_metres = metres;
-  Heightfield hf = generate_terrain(opt);
+  Heightfield hf = generate_terrain({.width = w, .height = h, .seed = seed, .quantize_to_metres = metres});
   hf.source = "generated " + std::to_string(w) + "x" + std::to_string(h);
   hf.frame = "test frame";
   return hf;

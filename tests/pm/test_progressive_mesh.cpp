@@ -36,6 +36,15 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+/// ProgressiveMesh::build(hf, options), printing "  <what>: build <ms> ms".
+pm::ProgressiveMesh timed_build(const pm::Heightfield& hf, const std::string& what,
+                                const pm::BuildOptions& options = {}) {
+  const auto t0 = std::chrono::steady_clock::now();
+  pm::ProgressiveMesh p = pm::ProgressiveMesh::build(hf, options);
+  std::printf("  %s: build %.0f ms\n", what.c_str(), ms_since(t0));
+  return p;
+}
+
 // A W x H heightfield from rows listed north (row 0) first.
 pm::Heightfield grid(int W, int H, const std::vector<double>& z) {
   pm::Heightfield hf(W, H);
@@ -775,9 +784,7 @@ TEST_P(GeneratedTerrain, EveryExtractionWithinBoundCoversOnceAndIsWatertight) {
               (unsigned long long)tc.seed);
   pm::BuildOptions o;
   o.metric = tc.metric;
-  const auto t0 = std::chrono::steady_clock::now();
-  const pm::ProgressiveMesh p = pm::ProgressiveMesh::build(hf, o);
-  std::printf("  %s: build %.0f ms\n", tc.name, ms_since(t0));
+  const pm::ProgressiveMesh p = timed_build(hf, tc.name, o);
   verify_pm(hf, p, tc.name);
   if (tc.holes) {
     EXPECT_LT(p.full_vertex_count(), hf.size());
@@ -862,38 +869,36 @@ TEST(ProgressiveMeshRealTile, WhiteMountainsCrop257) {
   const auto raw = read_hgt("N44W072.hgt");
   if (!raw) GTEST_SKIP() << "N44W072.hgt not in " << TERRALOD_DATA_DIR;
   const pm::Heightfield hf = crop(*raw, 712, 750, 257, 257, Voids::Fill);
-  const auto t0 = std::chrono::steady_clock::now();
-  const pm::ProgressiveMesh p = pm::ProgressiveMesh::build(hf);
-  std::printf("  N44W072 crop 257: build %.0f ms\n", ms_since(t0));
+  const pm::ProgressiveMesh p = timed_build(hf, "N44W072 crop 257");
   verify_pm(hf, p, "N44W072 crop 257");
 }
 
-// 257 x 257 of Kauai's coast, where the tile's voids are (rows 900.., cols 300..).
-TEST(ProgressiveMeshRealTile, KauaiVoidsFilledCrop257) {
+// 257 x 257 of Kauai's coast, where the tile's voids are (rows 900.., cols 300..): filled from
+// their neighbours, or kept as holes, which the PM leaves out.
+void verify_kauai_crop(Voids mode) {
   const auto raw = read_hgt("N22W160.hgt");
   if (!raw) GTEST_SKIP() << "N22W160.hgt not in " << TERRALOD_DATA_DIR;
   std::size_t voids = 0;
-  const pm::Heightfield hf = crop(*raw, 300, 900, 257, 257, Voids::Fill, &voids);
-  EXPECT_GT(voids, 500u) << "the crop should contain voids";
-  EXPECT_FALSE(hf.has_holes());
-  const auto t0 = std::chrono::steady_clock::now();
-  const pm::ProgressiveMesh p = pm::ProgressiveMesh::build(hf);
-  std::printf("  N22W160 crop 257, %zu voids filled: build %.0f ms\n", voids, ms_since(t0));
-  verify_pm(hf, p, "N22W160 crop 257 filled");
+  const pm::Heightfield hf = crop(*raw, 300, 900, 257, 257, mode, &voids);
+  const bool holes = mode == Voids::Holes;
+  if (holes) {
+    ASSERT_TRUE(hf.has_holes());
+  } else {
+    EXPECT_GT(voids, 500u) << "the crop should contain voids";
+    EXPECT_FALSE(hf.has_holes());
+  }
+  const std::string what =
+      "N22W160 crop 257, " + std::to_string(voids) + (holes ? " voids as holes" : " voids filled");
+  const pm::ProgressiveMesh p = timed_build(hf, what);
+  verify_pm(hf, p, holes ? "N22W160 crop 257 holes" : "N22W160 crop 257 filled");
+  if (holes) {
+    EXPECT_LE(p.full_vertex_count(), hf.size() - voids);
+  }
 }
 
-TEST(ProgressiveMeshRealTile, KauaiVoidsAsHolesCrop257) {
-  const auto raw = read_hgt("N22W160.hgt");
-  if (!raw) GTEST_SKIP() << "N22W160.hgt not in " << TERRALOD_DATA_DIR;
-  std::size_t voids = 0;
-  const pm::Heightfield hf = crop(*raw, 300, 900, 257, 257, Voids::Holes, &voids);
-  ASSERT_TRUE(hf.has_holes());
-  const auto t0 = std::chrono::steady_clock::now();
-  const pm::ProgressiveMesh p = pm::ProgressiveMesh::build(hf);
-  std::printf("  N22W160 crop 257, %zu voids as holes: build %.0f ms\n", voids, ms_since(t0));
-  verify_pm(hf, p, "N22W160 crop 257 holes");
-  EXPECT_LE(p.full_vertex_count(), hf.size() - voids);
-}
+TEST(ProgressiveMeshRealTile, KauaiVoidsFilledCrop257) { verify_kauai_crop(Voids::Fill); }
+
+TEST(ProgressiveMeshRealTile, KauaiVoidsAsHolesCrop257) { verify_kauai_crop(Voids::Holes); }
 
 // The whole 1201 x 1201 White Mountains tile (about a minute: build plus seven checks).
 TEST(ProgressiveMeshRealTile, RealTileFullN44W072) {

@@ -21,12 +21,7 @@ using namespace terralod::pm;
 constexpr std::uint32_t kNone = HierarchyNode::kNone;
 
 Heightfield generated(int w, int h, bool metres, std::uint64_t seed = 5) {
-  TerrainOptions opt;
-  opt.width = w;
-  opt.height = h;
-  opt.seed = seed;
-  opt.quantize_to_metres = metres;
-  return generate_terrain(opt);
+  return generate_terrain({.width = w, .height = h, .seed = seed, .quantize_to_metres = metres});
 }
 
 void punch_holes(Heightfield& hf) {

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "gl_fixture.hpp"
+#include "square_camera.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/image.hpp"
@@ -30,20 +31,6 @@ DrawMesh flat_square() {
   d.normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
   d.indices = {0, 1, 2, 0, 2, 3};
   return d;
-}
-
-// Looking straight down from 32 m above the centre, 90 degree field, 64 x 64 pixels:
-// K = 32 px per unit tangent, so pixel (i, j) shows world (i + 0.5, 63.5 - j): one pixel per
-// metre exactly.
-Camera down_camera() {
-  Camera c;
-  c.x = 32.0, c.y = 32.0, c.z = 32.0;
-  c.pitch_deg = -90.0;
-  c.fovy_deg = 90.0;
-  c.width_px = c.height_px = 64;
-  c.near_m = 1.0;
-  c.far_m = 1000.0;
-  return c;
 }
 
 // An 8 x 8 texture over the square (8 m texels) with a pattern per layer.
@@ -96,7 +83,7 @@ TEST_F(Gl, OnePassAndMultiPassMatchTheCpuReference) {
     LayeredItem item{m, {}};
     for (int i = 0; i < 4; ++i) item.layers.push_back({r.upload_texture(pattern(i)), kSquare});
     EXPECT_EQ(r.passes_for(st, lens, false), multi ? 1 + 4 : 1);
-    const LayeredFrameStats s = r.draw(down_camera(), st, lens, {item});
+    const LayeredFrameStats s = r.draw(terralod::test::square_down_camera(), st, lens, {item});
     EXPECT_EQ(s.passes, multi ? 5 : 1);
     EXPECT_EQ(s.triangles, 2u);
     frames[multi] = r.read_color();
@@ -125,13 +112,13 @@ TEST_F(Gl, MovingTheLensUploadsNothingAndMovesTheHighlight) {
   st[1].mask = MaskSource::Lens;  // white only under the lens
   const LayeredItem item{m, {{r.upload_texture(grey), kSquare}, {r.upload_texture(white), kSquare}}};
   Lens lens{true, GeoRect{0, 0, 16, 16}};  // south-west corner: bottom-left of the image
-  const LayeredFrameStats first = r.draw(down_camera(), st, lens, {item});
+  const LayeredFrameStats first = r.draw(terralod::test::square_down_camera(), st, lens, {item});
   EXPECT_EQ(first.textures_uploaded, 3u);  // two layers + the lens, uploaded before the frame
   EXPECT_EQ(first.bytes_uploaded, 2u * 64 * 64 * 4 + 32 * 32 * 4);
   const Image a = r.read_color();
   const std::size_t total = r.textures_uploaded_total();
   lens.rect = GeoRect{48, 48, 64, 64};  // north-east corner
-  const LayeredFrameStats second = r.draw(down_camera(), st, lens, {item});
+  const LayeredFrameStats second = r.draw(terralod::test::square_down_camera(), st, lens, {item});
   EXPECT_EQ(second.textures_uploaded, 0u);
   EXPECT_EQ(second.bytes_uploaded, 0u);
   EXPECT_EQ(r.textures_uploaded_total(), total);
@@ -157,7 +144,7 @@ TEST_F(Gl, SequencesMixTwoKeyFrames) {
   const TextureId k0 = r.upload_texture(grey(100)), k1 = r.upload_texture(grey(200));
   std::vector<LayerStyle> st(1);
   for (float f : {0.0f, 0.25f, 0.5f, 1.0f}) {
-    r.draw(down_camera(), st, Lens{}, {LayeredItem{m, {{k0, kSquare, k1, f}}}});
+    r.draw(terralod::test::square_down_camera(), st, Lens{}, {LayeredItem{m, {{k0, kSquare, k1, f}}}});
     EXPECT_NEAR(r.read_color().pixel(32, 32)[0], 100 + 100 * f, 1.0) << "mix " << f;
   }
 }
@@ -172,10 +159,10 @@ TEST_F(Gl, TopographicLayerDrawsInDecalModeWithoutLighting) {
   for (std::size_t i = 0; i < grey.rgba.size(); ++i) grey.rgba[i] = (i % 4 == 3) ? 255 : 200;
   const LayeredItem item{m, {LayerBinding(r.upload_texture(grey), kSquare)}};
   std::vector<LayerStyle> st(1);
-  r.draw(down_camera(), st, Lens{}, {item});
+  r.draw(terralod::test::square_down_camera(), st, Lens{}, {item});
   EXPECT_NEAR(r.read_color().pixel(32, 32)[0], 162, 1);
   st[0].topographic = true;
-  r.draw(down_camera(), st, Lens{}, {item});
+  r.draw(terralod::test::square_down_camera(), st, Lens{}, {item});
   EXPECT_EQ(r.read_color().pixel(32, 32)[0], 200);
   // Multi-pass gives the same: the lighting pass is skipped in decal mode, applied otherwise.
   st[0].topographic = false;
@@ -187,10 +174,11 @@ TEST_F(Gl, TopographicLayerDrawsInDecalModeWithoutLighting) {
   const MeshId m2 = r2.upload(flat_square());
   const TextureId g2 = r2.upload_texture(grey);
   const LayeredItem item2{m2, {LayerBinding(g2, kSquare), LayerBinding(g2, kSquare)}};
-  EXPECT_EQ(r2.draw(down_camera(), st, Lens{}, {item2}).passes, 4);  // base, 2 layers, light
+  EXPECT_EQ(r2.draw(terralod::test::square_down_camera(), st, Lens{}, {item2}).passes,
+            4);  // base, 2 layers, light
   EXPECT_NEAR(r2.read_color().pixel(32, 32)[0], 162, 2);
   st[0].topographic = true;
-  EXPECT_EQ(r2.draw(down_camera(), st, Lens{}, {item2}).passes, 3);
+  EXPECT_EQ(r2.draw(terralod::test::square_down_camera(), st, Lens{}, {item2}).passes, 3);
   EXPECT_EQ(r2.read_color().pixel(32, 32)[0], 200);
 }
 
@@ -201,12 +189,13 @@ TEST_F(Gl, TexturesForKeysAreEvictedLeastRecentlyUsedOverTheBudget) {
   const MeshId m = r.upload(flat_square());
   std::vector<LayerStyle> st(1);
   const TextureId a = r.texture_for({0, 1}, pattern(1));
-  r.draw(down_camera(), st, Lens{}, {LayeredItem{m, {{a, kSquare}}}});
+  r.draw(terralod::test::square_down_camera(), st, Lens{}, {LayeredItem{m, {{a, kSquare}}}});
   const TextureId b = r.texture_for({0, 2}, pattern(2));
   EXPECT_EQ(r.texture_for({0, 1}, pattern(1)), a);  // resident: no upload
-  r.draw(down_camera(), st, Lens{}, {LayeredItem{m, {{b, kSquare}}}});
+  r.draw(terralod::test::square_down_camera(), st, Lens{}, {LayeredItem{m, {{b, kSquare}}}});
   const TextureId c = r.texture_for({0, 3}, pattern(3));
-  const LayeredFrameStats s = r.draw(down_camera(), st, Lens{}, {LayeredItem{m, {{c, kSquare}}}});
+  const LayeredFrameStats s =
+      r.draw(terralod::test::square_down_camera(), st, Lens{}, {LayeredItem{m, {{c, kSquare}}}});
   EXPECT_EQ(s.textures_uploaded, 1u);
   EXPECT_EQ(s.texture_bytes, 2u * 256);
   EXPECT_TRUE(r.has_texture({0, 3}));

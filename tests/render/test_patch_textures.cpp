@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gl_fixture.hpp"
+#include "square_camera.hpp"
 #include "terralod/pm/view.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/layered_renderer.hpp"
@@ -122,19 +123,9 @@ DrawMesh quad_mesh(std::vector<std::int64_t>& triangle_node) {
   return d;
 }
 
-// Straight down from 32 m over the centre, 90 degrees, 64 x 64 pixels: pixel (i, j) shows
-// world (i + 0.5, 63.5 - j), one pixel per metre, so a level-0 texel covers 1 pixel^2 and a
-// level-1 texel 4 (gamma at the nearest point of a box is at least that).
-pm::Camera down() {
-  pm::Camera c;
-  c.x = c.y = c.z = 32.0;
-  c.pitch_deg = -90.0;
-  c.fovy_deg = 90.0;
-  c.width_px = c.height_px = 64;
-  c.near_m = 1.0;
-  c.far_m = 1000.0;
-  return c;
-}
+// The tests below look at the square straight down (square_camera.hpp), one pixel per metre, so a
+// level-0 texel covers 1 pixel^2 and a level-1 texel 4 (gamma at the nearest point of a box is at
+// least that).
 
 // Every triangle exactly once, the groups' ranges tiling the order.
 void expect_grouped(const PatchTextureFrame& f, std::size_t triangles) {
@@ -155,7 +146,7 @@ TEST(PatchTextures, GammaChoosesTheCoarsestPatchWhoseTexelFitsAndGroupsTheTriang
   Loader loader;
   std::vector<std::int64_t> nodes;
   quad_mesh(nodes);
-  const pm::View view(down());
+  const pm::View view(terralod::test::square_down_camera());
   for (const auto& [gamma, want_root] : {std::pair{100.0, true}, std::pair{1.5, false}}) {
     PatchTextures pt({loader.tree}, loader.fn(), {gamma, std::size_t(1) << 20, 1});
     pt.frame(view, nodes, {true});
@@ -187,7 +178,7 @@ TEST(PatchTextures, TheParentIsBoundWhileAPatchLoads) {
   Loader loader;
   std::vector<std::int64_t> nodes;
   quad_mesh(nodes);
-  const pm::View view(down());
+  const pm::View view(terralod::test::square_down_camera());
   PatchTextures pt({loader.tree}, loader.fn(), {1.5, std::size_t(1) << 20, 1});
   const OpenAtExit open_at_exit{loader};
   // Nothing resident yet: the wanted patches and their ancestors are requested, nothing bound.
@@ -218,7 +209,7 @@ TEST(PatchTextures, TheBudgetRaisesGammaAndHoldsTheResidentBytes) {
   Loader loader;
   std::vector<std::int64_t> nodes;
   quad_mesh(nodes);
-  const pm::View view(down());
+  const pm::View view(terralod::test::square_down_camera());
   const std::size_t patch = 32 * 32 * 4;
   PatchTextures pt({loader.tree}, loader.fn(), {1.5, 2 * patch, 1});
   EXPECT_EQ(pt.max_patch_bytes(0), patch);
@@ -231,7 +222,7 @@ TEST(PatchTextures, TheBudgetRaisesGammaAndHoldsTheResidentBytes) {
   }
   // The eye inside the boxes (on the ground, looking along it): every texel's gamma is
   // unbounded, so doubling gamma cannot help; the children give way to the root.
-  pm::Camera low = down();
+  pm::Camera low = terralod::test::square_down_camera();
   low.x = 16, low.y = 16, low.z = 0, low.pitch_deg = 0;
   const PatchTextureFrame& f = pt.frame(pm::View(low), nodes, {true});
   EXPECT_EQ(f.stats.wanted, 1u);
@@ -250,7 +241,7 @@ TEST(PatchTextures, DisabledLayersAndForeignNodesBindNothing) {
   quad_mesh(nodes);
   nodes[3] = -1;
   nodes[5] = 99;  // not in the tree
-  const pm::View view(down());
+  const pm::View view(terralod::test::square_down_camera());
   PatchTextures pt({loader.tree, loader.tree}, loader.fn(), {1.5, std::size_t(1) << 20, 1});
   pt.frame(view, nodes, {true, false});
   pt.cache().wait_idle(10000);
@@ -284,7 +275,7 @@ TEST_F(Gl, EveryPatchIsDrawnWhereItBelongs) {
   Loader loader;
   std::vector<std::int64_t> nodes;
   const DrawMesh mesh = quad_mesh(nodes);
-  const pm::Camera cam = down();
+  const pm::Camera cam = terralod::test::square_down_camera();
   const pm::View view(cam);
   for (const auto& [gamma, level] : {std::pair{1.5, 0}, std::pair{100.0, 1}}) {
     PatchTextures pt({loader.tree}, loader.fn(), {gamma, std::size_t(1) << 20, 1});

@@ -95,16 +95,16 @@ struct Plane {
 
 /// A camera south of the 512 m square, looking north and down at it; the top of the image is sky.
 Camera plane_camera() {
-  Camera cam;
-  cam.x = kX0 + 256.0, cam.y = kY0 - 150.0, cam.z = 420.0;
-  cam.yaw_deg = 10.0;
-  cam.pitch_deg = -18.0;
-  cam.fovy_deg = 50.0;
-  cam.near_m = 1.0;
-  cam.far_m = 5000.0;
-  cam.width_px = 320;
-  cam.height_px = 240;
-  return cam;
+  return Camera{.x = kX0 + 256.0,
+                .y = kY0 - 150.0,
+                .z = 420.0,
+                .yaw_deg = 10.0,
+                .pitch_deg = -18.0,
+                .fovy_deg = 50.0,
+                .width_px = 320,
+                .height_px = 240,
+                .near_m = 1.0,
+                .far_m = 5000.0};
 }
 
 /// A rough generated terrain (relief 300 m, 30 m spacing) at a UTM-sized origin.
@@ -120,17 +120,17 @@ pm::Heightfield rough_terrain(int n, std::uint64_t seed = 7) {
 
 /// A camera above the south-west corner of an n x n, 30 m terrain, looking north-east and down.
 Camera terrain_camera(int n, int width = 320, int height = 240) {
-  Camera cam;
   const double L = (n - 1) * 30.0;
-  cam.x = kX0 - 0.15 * L, cam.y = kY0 - 0.15 * L, cam.z = 0.45 * L + 400.0;
-  cam.yaw_deg = 45.0;
-  cam.pitch_deg = -28.0;
-  cam.fovy_deg = 55.0;
-  cam.near_m = 5.0;
-  cam.far_m = 4.0 * L + 2000.0;
-  cam.width_px = width;
-  cam.height_px = height;
-  return cam;
+  return Camera{.x = kX0 - 0.15 * L,
+                .y = kY0 - 0.15 * L,
+                .z = 0.45 * L + 400.0,
+                .yaw_deg = 45.0,
+                .pitch_deg = -28.0,
+                .fovy_deg = 55.0,
+                .width_px = width,
+                .height_px = height,
+                .near_m = 5.0,
+                .far_m = 4.0 * L + 2000.0};
 }
 
 /// Fraction of pixels that are not the sky colour.
@@ -227,15 +227,16 @@ TEST(Camera, ViewMatrixPutsTheCameraAtTheOriginLookingDownMinusZ) {
 }
 
 TEST(Camera, ProjectionAndPixelRaysAgree) {
-  Camera c;
-  c.x = kX0, c.y = kY0, c.z = 500.0;
-  c.yaw_deg = 200.0;
-  c.pitch_deg = -40.0;
-  c.fovy_deg = 45.0;
-  c.width_px = 640;
-  c.height_px = 360;
-  c.near_m = 2.0;
-  c.far_m = 3000.0;
+  const Camera c{.x = kX0,
+                 .y = kY0,
+                 .z = 500.0,
+                 .yaw_deg = 200.0,
+                 .pitch_deg = -40.0,
+                 .fovy_deg = 45.0,
+                 .width_px = 640,
+                 .height_px = 360,
+                 .near_m = 2.0,
+                 .far_m = 3000.0};
   const glm::dmat4 pv = render::projection_matrix(c) * render::view_matrix(c);
   const glm::dmat4 rpv = render::reverse_z_projection_matrix(c) * render::view_matrix(c);
   // The centre ray is the view direction.

@@ -153,8 +153,8 @@ using terralod::test::quote;
 
 /// Runs `terralod <args>` headless; `out` gets stdout and stderr interleaved.
 int run(const std::string& args, std::string* out = nullptr) {
-  const terralod::test::CommandResult r = terralod::test::run_command(
-      quote(TERRALOD_CLI) + " " + args, {.merge_stderr = true, .no_display = true});
+  const terralod::test::CommandResult r =
+      terralod::test::run_tool(TERRALOD_CLI, args, {.merge_stderr = true, .no_display = true});
   if (out) *out = r.err;
   if (r.status != 0) std::fprintf(stderr, "terralod %s:\n%s\n", args.c_str(), r.err.c_str());
   return r.status;

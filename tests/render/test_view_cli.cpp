@@ -39,7 +39,7 @@ const fs::path& tmp_dir() { return terralod::test::process_temp_dir("view-cli");
 
 /// Runs `terralod <args>` (already quoted) with no X display, capturing both streams.
 CliResult terralod(const std::string& args) {
-  return terralod::test::run_command(quote(TERRALOD_CLI) + " " + args, {.no_display = true});
+  return terralod::test::run_tool(TERRALOD_CLI, args, {.no_display = true});
 }
 
 /// The number after "key": in a JSON text (NaN when absent).

@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "build_threads.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
@@ -46,13 +47,6 @@ namespace {
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 namespace tb = terralod::blocks;
-
-/// Build options with a fixed thread count (the PM never depends on it; the time does).
-pm::BuildOptions threads(int n) {
-  pm::BuildOptions o;
-  o.threads = n;
-  return o;
-}
 
 /// A fresh scratch folder for the current test (per process: ctest runs tests in parallel).
 fs::path scratch() {
@@ -88,7 +82,7 @@ pm::ProgressiveMesh small_pm() {
   o.width = 17, o.height = 13, o.seed = 3, o.quantize_to_metres = true;
   pm::Heightfield hf = pm::generate_terrain(o);
   hf.source = "generated 17x13";
-  return pm::ProgressiveMesh::build(hf, threads(1));
+  return pm::ProgressiveMesh::build(hf, terralod::test::build_threads(1));
 }
 
 /// Runs f and fails unless it throws E whose what() starts with "<path>: " and contains every

@@ -56,7 +56,7 @@ double height(double c, double r) {
 const fs::path& dir() { return tt::process_temp_dir("bad-input-tools"); }
 
 tt::CommandResult terralod(const std::string& args) {
-  return tt::run_command(quote(TERRALOD_CLI) + " " + args, {.no_display = true});
+  return tt::run_tool(TERRALOD_CLI, args, {.no_display = true});
 }
 
 struct Inputs {

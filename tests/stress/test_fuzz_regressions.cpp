@@ -51,6 +51,7 @@
 #include <string>
 #include <vector>
 
+#include "build_threads.hpp"
 #include "fuzz_support.hpp"
 #include "terralod/blocks/active_region.hpp"
 #include "terralod/pm/pm_io.hpp"
@@ -71,13 +72,6 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
-
-/// Build options with a fixed thread count (the PM never depends on it; the time does).
-pm::BuildOptions threads(int n) {
-  pm::BuildOptions o;
-  o.threads = n;
-  return o;
-}
 
 std::vector<std::uint8_t> read_all(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -141,7 +135,7 @@ TEST(FuzzRegressions, DemReader) {
 pm::ProgressiveMesh small_pm() {
   pm::TerrainOptions o;
   o.width = 9, o.height = 9, o.seed = 5, o.quantize_to_metres = true;
-  return pm::ProgressiveMesh::build(pm::generate_terrain(o), threads(1));
+  return pm::ProgressiveMesh::build(pm::generate_terrain(o), terralod::test::build_threads(1));
 }
 
 /// Encoded PM with the grid transform's six doubles (offset 28, see pm_io.cpp) replaced and

@@ -39,15 +39,6 @@ namespace pm = terralod::pm;
 namespace rd = terralod::render;
 namespace tt = terralod::test;
 
-struct Terrain {
-  std::string name;
-  pm::Heightfield hf;
-  pm::ProgressiveMesh pm;
-  pm::CollapseDag dag;
-  explicit Terrain(std::string n, pm::Heightfield h)
-      : name(std::move(n)), hf(std::move(h)), pm(pm::ProgressiveMesh::build(hf)), dag(pm) {}
-};
-
 pm::Heightfield fractal(int size, double spacing, double x0, double y0, double relief) {
   pm::TerrainOptions o;
   o.width = o.height = size;
@@ -57,6 +48,15 @@ pm::Heightfield fractal(int size, double spacing, double x0, double y0, double r
   hf.transform = pm::GridTransform::north_up(x0, y0, spacing, spacing);
   return hf;
 }
+
+struct Terrain {
+  std::string name;
+  pm::Heightfield hf;
+  pm::ProgressiveMesh pm;
+  pm::CollapseDag dag;
+  explicit Terrain(std::string n, pm::Heightfield h)
+      : name(std::move(n)), hf(std::move(h)), pm(pm::ProgressiveMesh::build(hf)), dag(pm) {}
+};
 
 const std::vector<std::unique_ptr<Terrain>>& terrains() {
   static const std::vector<std::unique_ptr<Terrain>> t = [] {

@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "build_threads.hpp"
 #include "mesh_checker.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/pm/heightfield.hpp"
@@ -42,16 +43,7 @@ namespace {
 namespace fs = std::filesystem;
 namespace pm = terralod::pm;
 namespace tb = terralod::blocks;
-using terralod::test::check_mesh;
-using terralod::test::CheckOptions;
-using terralod::test::MeshCheck;
-
-/// Build options with a fixed thread count (the PM never depends on it; the time does).
-pm::BuildOptions threads(int n) {
-  pm::BuildOptions o;
-  o.threads = n;
-  return o;
-}
+namespace tt = terralod::test;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -188,7 +180,7 @@ PipelineResult run_pipeline(const pm::Heightfield& hf, const std::string& label,
   std::sort(errors.begin(), errors.end());
   errors.erase(std::unique(errors.begin(), errors.end()), errors.end());
 
-  CheckOptions co;
+  tt::CheckOptions co;
   co.excluded_faces = p.dropped_faces();
   const bool continuous = o.metric == pm::ErrorMetric::Continuous;
   std::size_t previous = SIZE_MAX;
@@ -199,7 +191,7 @@ PipelineResult run_pipeline(const pm::Heightfield& hf, const std::string& label,
     EXPECT_LE(m.error_bound, E);
     EXPECT_LE(m.triangles.size(), previous) << "triangle count grew with E";
     previous = m.triangles.size();
-    const MeshCheck c = check_mesh(hf, m, co);
+    const tt::MeshCheck c = tt::check_mesh(hf, m, co);
     EXPECT_TRUE(c.topology_ok()) << c.describe();
     EXPECT_TRUE(c.ok(m.error_bound, continuous)) << "error above the reported bound " << m.error_bound << "\n"
                                                  << c.describe();
@@ -287,7 +279,7 @@ TEST_P(StressFrames, PipelineHoldsAndWorldPositionsAreExact) {
   // The error bound is vertical: it does not depend on the frame.
   pm::Heightfield unit = hf;
   unit.transform = pm::GridTransform::identity();
-  const pm::ProgressiveMesh q = pm::ProgressiveMesh::build(unit, threads(1));
+  const pm::ProgressiveMesh q = pm::ProgressiveMesh::build(unit, tt::build_threads(1));
   EXPECT_EQ(q.collapses(), r.pm.collapses()) << "the collapse sequence depends on the world frame";
 }
 
@@ -669,7 +661,7 @@ TEST(StressParallel, StripBuildOnCliffsAndPlateaus) {
   PipelineOptions o;
   o.threads = 2;
   const PipelineResult a = run_pipeline(hf, "strips_cliffs", o);
-  const pm::ProgressiveMesh b = pm::ProgressiveMesh::build(hf, threads(2));
+  const pm::ProgressiveMesh b = pm::ProgressiveMesh::build(hf, tt::build_threads(2));
   EXPECT_TRUE(a.pm == b) << "the strip build is not deterministic";
 }
 

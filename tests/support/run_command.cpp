@@ -74,6 +74,10 @@ CommandResult run_command(const std::string& command_line, const RunOptions& opt
   return r;
 }
 
+CommandResult run_tool(const std::string& executable, const std::string& args, const RunOptions& options) {
+  return run_command(quote(executable) + " " + args, options);
+}
+
 TempDir::TempDir(const std::string& prefix) : path_(test_tmp_root() / unique_name(prefix)) {
   std::error_code ec;
   fs::remove_all(path_, ec);  // a leftover of a killed process with a recycled pid

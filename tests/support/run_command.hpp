@@ -17,6 +17,7 @@
 //     The streams are captured in files named after this process's id and a per-process counter
 //     in TERRALOD_TEST_TMP, removed before returning: tests of one executable that ctest runs as
 //     parallel processes never share a capture file. Thread-safe.
+//   run_tool(exe, args, options)  run_command of the executable `exe` (quoted here) and `args`.
 //   TempDir(prefix)  creates TERRALOD_TEST_TMP/<prefix>-<pid>-<n> (n counts the TempDirs of this
 //              process), empty; the destructor removes it and everything in it. Movable, not
 //              copyable. A process-wide one for tests that share files across test cases:
@@ -50,6 +51,11 @@ struct RunOptions {
 };
 
 CommandResult run_command(const std::string& command_line, const RunOptions& options = {});
+
+/// run_command(quote(executable) + " " + args, options): one of the built tools (TERRALOD_CLI,
+/// TERRALOD_FLY) with its arguments, already shell-quoted where needed.
+CommandResult run_tool(const std::string& executable, const std::string& args,
+                       const RunOptions& options = {});
 
 class TempDir {
  public:
