@@ -17,6 +17,7 @@
 #include "terralod/pm/height_query.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace terralod::fly {
 
@@ -25,12 +26,7 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-// CPU time of the calling thread, milliseconds (the update's own cost on a loaded machine).
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using pm::thread_cpu_ms;
 
 // Bilinear ground of a heightfield, the terrain's low point where it has only holes.
 double ground_of(const pm::Heightfield& hf, double x, double y, double fallback) {

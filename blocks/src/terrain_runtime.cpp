@@ -18,6 +18,7 @@
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace terralod::blocks {
 
@@ -30,11 +31,7 @@ using detail::plane_height;
 using detail::refinement_options;
 using detail::Tri3;
 
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using pm::thread_cpu_ms;
 
 void check_options(const RuntimeOptions& o) {
   if (!(o.tolerance_px > 0) || !std::isfinite(o.tolerance_px))

@@ -24,9 +24,19 @@
 #include <type_traits>
 #include <utility>
 
-#include "terralod/pm/linf_error.hpp"
-
 namespace terralod::pm {
+
+/// A sample of the grid by its (column, row) index.
+struct GridPoint {
+  int x = 0;  ///< column
+  int y = 0;  ///< row
+  bool operator==(const GridPoint&) const = default;
+};
+
+/// Twice the signed area of (a,b,c) in (col,row) index space; > 0 for the mesh's orientation.
+inline std::int64_t orient2d(GridPoint a, GridPoint b, GridPoint c) {
+  return std::int64_t(b.x - a.x) * (c.y - a.y) - std::int64_t(b.y - a.y) * (c.x - a.x);
+}
 
 struct GridTriangle {
   /// Edge k, opposite corner k: E_k(x, y) = A[k] x + B[k] y + C[k], >= 0 inside the triangle;

@@ -25,6 +25,7 @@
 
 #include <cstdint>
 
+#include "terralod/pm/grid_triangle.hpp"  // GridPoint, orient2d
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::pm {
@@ -33,17 +34,6 @@ enum class ErrorMetric : std::uint8_t {
   Samples = 0,     ///< max over the original samples inside the triangle
   Continuous = 1,  ///< true L-infinity distance of the two piecewise-linear surfaces
 };
-
-struct GridPoint {
-  int x = 0;  ///< column
-  int y = 0;  ///< row
-  bool operator==(const GridPoint&) const = default;
-};
-
-/// Twice the signed area of (a,b,c) in (col,row) index space; > 0 for the mesh's orientation.
-inline std::int64_t orient2d(GridPoint a, GridPoint b, GridPoint c) {
-  return std::int64_t(b.x - a.x) * (c.y - a.y) - std::int64_t(b.y - a.y) * (c.x - a.x);
-}
 
 class LInfError {
  public:

@@ -1,5 +1,6 @@
 // Timing and order statistics shared by the tools, the runtime's reports and the benchmarks:
-// milliseconds since a steady-clock time point, and nearest-rank quantiles of a sample.
+// milliseconds since a steady-clock time point, the calling thread's CPU time, and nearest-rank
+// quantiles of a sample.
 //
 // Usage:
 //   const auto t0 = std::chrono::steady_clock::now();
@@ -10,12 +11,17 @@
 //
 // Contract:
 //   ms_since(t)     milliseconds from t to now on the steady clock (>= 0).
+//   thread_cpu_ms() the calling thread's CPU time in milliseconds (POSIX CLOCK_THREAD_CPUTIME_ID):
+//                   not advanced while the thread waits for a core, so differences measure its
+//                   own cost on a loaded machine.
 //   quantile(v, q)  the nearest-rank q-quantile of v, q in [0, 1]: the smallest element x of v
 //                   such that at least q * v.size() elements are <= x (q = 0 gives the minimum,
 //                   q = 1 the maximum). v is taken by value and sorted: O(n log n). An empty v
 //                   gives 0 (a report over no frames shows zeros rather than failing).
 //   median(v)       quantile(v, 0.5): the lower middle element for an even count.
 #pragma once
+
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -28,6 +34,12 @@ namespace terralod::pm {
 
 inline double ms_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
+inline double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
 inline double quantile(std::vector<double> v, double q) {
