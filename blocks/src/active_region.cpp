@@ -8,12 +8,11 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 
-#include "little_endian.hpp"
 #include "terralod/blocks/node_strategy.hpp"
+#include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/linf_error.hpp"
 
 namespace terralod::blocks {
@@ -195,12 +194,10 @@ namespace {
 constexpr std::uint32_t kMagic = 0x53424C54u;  // "TLBS"
 constexpr std::size_t kRecordV1 = 7 * 8 + 8;
 
-using detail::get_f64;
-using detail::get_u16;
-using detail::get_u32;
-using detail::put_f64;
-using detail::put_u16;
-using detail::put_u32;
+using pm::load_f32;
+using pm::load_f64;
+using pm::load_u16;
+using pm::load_u32;
 
 std::uint32_t crc(const std::uint8_t* p, std::size_t n) {
   return std::uint32_t(::crc32(::crc32(0L, Z_NULL, 0), p, uInt(n)));
@@ -243,41 +240,39 @@ std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::spa
   if (grid.block_size() > 65537)
     throw std::invalid_argument("block_summaries: stand-in coordinates need block_size <= 65537, not " +
                                 std::to_string(grid.block_size()));
-  std::vector<std::uint8_t> o;
-  o.reserve(16 + s.size() * 600 + 4);
-  put_u32(o, kMagic);
-  put_u32(o, kBlockSummariesVersion);
-  put_u32(o, std::uint32_t(grid.cols()));
-  put_u32(o, std::uint32_t(grid.rows()));
+  pm::ByteWriter o;
+  o.bytes.reserve(16 + s.size() * 600 + 4);
+  o.u32(kMagic);
+  o.u32(kBlockSummariesVersion);
+  o.u32(std::uint32_t(grid.cols()));
+  o.u32(std::uint32_t(grid.rows()));
   for (const BlockSummary& b : s) {
     assert(b.points.size() >= 4 && !b.triangles.empty());
     if (b.points.size() > 65535 || b.triangles.size() > 65535)
       throw std::invalid_argument("block_summaries: a stand-in has more than 65535 points or triangles");
-    for (double d : {b.zmin, b.zmax, b.tm_error, b.standin_error}) put_f64(o, d);
-    o.push_back(std::uint8_t(b.standin));
-    o.push_back(b.base_is_tm ? 1 : 0);
-    put_u16(o, std::uint32_t(b.points.size()));
-    put_u16(o, std::uint32_t(b.triangles.size()));
-    put_u16(o, 0);
+    for (double d : {b.zmin, b.zmax, b.tm_error, b.standin_error}) o.f64(d);
+    o.u8(std::uint8_t(b.standin));
+    o.u8(b.base_is_tm ? 1 : 0);
+    o.u16(std::uint16_t(b.points.size()));
+    o.u16(std::uint16_t(b.triangles.size()));
+    o.u16(0);
     for (const StandinPoint& p : b.points) {
-      put_u16(o, std::uint32_t(p.col));
-      put_u16(o, std::uint32_t(p.row));
-      put_f64(o, p.z);
+      o.u16(std::uint16_t(p.col));
+      o.u16(std::uint16_t(p.row));
+      o.f64(p.z);
     }
     const bool small = b.points.size() <= 256;
     for (const auto& t : b.triangles)
-      for (std::uint32_t v : t) small ? o.push_back(std::uint8_t(v)) : put_u16(o, v);
+      for (std::uint32_t v : t) small ? o.u8(std::uint8_t(v)) : o.u16(std::uint16_t(v));
     assert(b.triangle_errors.size() == b.triangles.size());
     for (double e : b.triangle_errors) {
       const float f = static_cast<float>(e);
       assert(double(f) == e);  // rounded up to a float when computed
-      std::uint32_t u;
-      std::memcpy(&u, &f, 4);
-      put_u32(o, u);
+      o.f32(f);
     }
   }
-  put_u32(o, crc(o.data(), o.size()));
-  return o;
+  o.u32(crc(o.bytes.data(), o.bytes.size()));
+  return std::move(o.bytes);
 }
 
 std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
@@ -286,13 +281,13 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
   };
   if (bytes.size() < 20) fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
-  if (get_u32(bytes.data()) != kMagic) fail("bad magic");
-  const std::uint32_t version = get_u32(bytes.data() + 4);
+  if (load_u32(bytes.data()) != kMagic) fail("bad magic");
+  const std::uint32_t version = load_u32(bytes.data() + 4);
   if (version != 1 && version != 2) fail("unsupported version " + std::to_string(version));
-  if (get_u32(bytes.data() + 8) != std::uint32_t(grid.cols()) ||
-      get_u32(bytes.data() + 12) != std::uint32_t(grid.rows()))
-    fail("block grid " + std::to_string(get_u32(bytes.data() + 8)) + " x " +
-         std::to_string(get_u32(bytes.data() + 12)) + " does not match the database's " +
+  if (load_u32(bytes.data() + 8) != std::uint32_t(grid.cols()) ||
+      load_u32(bytes.data() + 12) != std::uint32_t(grid.rows()))
+    fail("block grid " + std::to_string(load_u32(bytes.data() + 8)) + " x " +
+         std::to_string(load_u32(bytes.data() + 12)) + " does not match the database's " +
          std::to_string(grid.cols()) + " x " + std::to_string(grid.rows()));
   if (version == 1 && bytes.size() != 16 + grid.block_count() * kRecordV1 + 4)
     fail("size " + std::to_string(bytes.size()) + " bytes, expected " +
@@ -301,7 +296,7 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
   if (version == 2 && (bytes.size() - 20) / 95 < grid.block_count())
     fail("size " + std::to_string(bytes.size()) + " bytes, too small for " +
          std::to_string(grid.block_count()) + " block records");
-  if (crc(bytes.data(), bytes.size() - 4) != get_u32(bytes.data() + bytes.size() - 4))
+  if (crc(bytes.data(), bytes.size() - 4) != load_u32(bytes.data() + bytes.size() - 4))
     fail("checksum mismatch");
   std::vector<BlockSummary> out(grid.block_count());
   const std::uint8_t* p = bytes.data() + 16;
@@ -312,13 +307,13 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     const int w = d.width(), h = d.height();
     auto bad = [&](const std::string& what) { fail("block record " + std::to_string(i) + ": " + what); };
     if (version == 1) {
-      b.z00 = get_f64(p);
-      b.z10 = get_f64(p + 8);
-      b.z01 = get_f64(p + 16);
-      b.z11 = get_f64(p + 24);
-      b.zmin = get_f64(p + 32);
-      b.zmax = get_f64(p + 40);
-      b.tm_error = get_f64(p + 48);
+      b.z00 = load_f64(p);
+      b.z10 = load_f64(p + 8);
+      b.z01 = load_f64(p + 16);
+      b.z11 = load_f64(p + 24);
+      b.zmin = load_f64(p + 32);
+      b.zmax = load_f64(p + 40);
+      b.tm_error = load_f64(p + 48);
       b.base_is_tm = p[56] != 0;
       if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) ||
           !std::isfinite(b.zmax - b.zmin + b.tm_error + b.z00 + b.z10 + b.z01 + b.z11))
@@ -331,13 +326,13 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
       continue;
     }
     if (end - p < 40) bad("truncated");
-    b.zmin = get_f64(p);
-    b.zmax = get_f64(p + 8);
-    b.tm_error = get_f64(p + 16);
-    b.standin_error = get_f64(p + 24);
+    b.zmin = load_f64(p);
+    b.zmax = load_f64(p + 8);
+    b.tm_error = load_f64(p + 16);
+    b.standin_error = load_f64(p + 24);
     const std::uint8_t kind = p[32], flags = p[33];
-    const std::uint32_t n = get_u16(p + 34), m = get_u16(p + 36);
-    if (kind > 3 || flags > 1 || get_u16(p + 38) != 0) bad("bad kind or flags");
+    const std::uint32_t n = load_u16(p + 34), m = load_u16(p + 36);
+    if (kind > 3 || flags > 1 || load_u16(p + 38) != 0) bad("bad kind or flags");
     if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) || !(b.standin_error >= 0) ||
         !std::isfinite(b.zmax - b.zmin + b.tm_error + b.standin_error))
       bad("inconsistent heights or errors");
@@ -350,9 +345,9 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     unsigned corners = 0;
     b.points.resize(n);
     for (StandinPoint& q : b.points) {
-      q.col = int(get_u16(p));
-      q.row = int(get_u16(p + 2));
-      q.z = get_f64(p + 4);
+      q.col = int(load_u16(p));
+      q.row = int(load_u16(p + 2));
+      q.z = load_f64(p + 4);
       if (q.col >= w || q.row >= h || !(q.z >= b.zmin && q.z <= b.zmax))
         bad("stand-in point outside the block");
       const bool c0 = q.col == 0, c1 = q.col == w - 1, r0 = q.row == 0, r1 = q.row == h - 1;
@@ -367,7 +362,7 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     std::int64_t area2 = 0;
     for (auto& t : b.triangles) {
       for (std::uint32_t& v : t) {
-        v = isize == 1 ? p[0] : get_u16(p);
+        v = isize == 1 ? p[0] : load_u16(p);
         p += isize;
         if (v >= n) bad("stand-in triangle index out of range");
       }
@@ -381,10 +376,7 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     b.triangle_errors.resize(m);
     double emax = 0;
     for (double& e : b.triangle_errors) {
-      const std::uint32_t u = get_u32(p);
-      float f;
-      std::memcpy(&f, &u, 4);
-      e = double(f);
+      e = double(load_f32(p));
       p += 4;
       if (!(e >= 0) || !std::isfinite(e)) bad("bad stand-in triangle error");
       emax = std::max(emax, e);

@@ -11,7 +11,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "little_endian.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::blocks {
 
@@ -89,115 +89,92 @@ int ApproximationTree::depth() const {
 // ---------------------------------------------------------------------------------------------
 namespace {
 
-constexpr char kMagic[8] = {'T', 'L', 'O', 'D', 'T', 'R', 'E', 'E'};
+constexpr std::uint8_t kMagic[8] = {'T', 'L', 'O', 'D', 'T', 'R', 'E', 'E'};
 
-struct Writer {
-  std::vector<std::uint8_t> out;
-  void u8(std::uint8_t v) { out.push_back(v); }
-  void u32(std::uint32_t v) { detail::put_u32(out, v); }
-  void var(std::uint64_t v) {
-    while (v >= 0x80) {
-      out.push_back(std::uint8_t(v | 0x80));
-      v >>= 7;
-    }
-    out.push_back(std::uint8_t(v));
+[[noreturn]] void fail_at(const std::string& name, const std::string& what, std::size_t pos) {
+  throw TreeFormatError(name + ": " + what + " (at byte " + std::to_string(pos) + ")");
+}
+
+/// The words of a failed read in the blob's errors.
+const char* read_failure(pm::ByteReadFailure::Kind kind) {
+  switch (kind) {
+    case pm::ByteReadFailure::Kind::Truncated:
+    case pm::ByteReadFailure::Kind::VarintTruncated:
+      return "truncated";
+    case pm::ByteReadFailure::Kind::VarintTooLong:
+      return "varint overflow";
+    case pm::ByteReadFailure::Kind::VarintNotShortest:
+      return "non-canonical varint";
   }
-  void f64(double d) { detail::put_f64(out, d); }
-};
+  return "unreadable";
+}
 
-struct Reader {
-  std::span<const std::uint8_t> in;
-  std::size_t pos = 0;
+/// The blob's reads: varints only in their shortest form (so that decoding is one-to-one), and
+/// every error names the blob and the byte it was found at.
+struct Reader : pm::ByteReader {
   const std::string& name;
-  [[noreturn]] void fail(const std::string& what) const {
-    throw TreeFormatError(name + ": " + what + " (at byte " + std::to_string(pos) + ")");
-  }
-  std::size_t left() const { return in.size() - pos; }
-  void need(std::size_t n) const {
-    if (left() < n) fail("truncated");
-  }
-  std::uint8_t u8() {
-    need(1);
-    return in[pos++];
-  }
-  std::uint32_t u32() {
-    need(4);
-    const std::uint32_t v = detail::get_u32(in.data() + pos);
-    pos += 4;
-    return v;
-  }
-  std::uint64_t var() {
-    std::uint64_t v = 0;
-    for (int shift = 0; shift < 70; shift += 7) {
-      const std::uint8_t b = u8();
-      if (shift == 63 && b > 1) fail("varint overflow");
-      v |= std::uint64_t(b & 0x7f) << shift;
-      if (!(b & 0x80)) {
-        if (b == 0 && shift > 0) fail("non-canonical varint");  // so that decoding is one-to-one
-        return v;
-      }
-    }
-    fail("varint too long");
-  }
+  Reader(std::span<const std::uint8_t> bytes, const std::string& blob_name)
+      : pm::ByteReader(
+            bytes,
+            [&blob_name](const pm::ByteReadFailure& f) {
+              fail_at(blob_name, read_failure(f.kind), f.position);
+            },
+            pm::VarintForm::Shortest),
+        name(blob_name) {}
+  [[noreturn]] void fail(const std::string& what) const { fail_at(name, what, position()); }
   /// A varint that must be <= limit.
   std::uint64_t var(std::uint64_t limit, const char* what) {
-    const std::uint64_t v = var();
+    const std::uint64_t v = varint();
     if (v > limit) fail(std::string("bad ") + what + " " + std::to_string(v));
     return v;
   }
-  double f64() {
-    need(8);
-    const double v = detail::get_f64(in.data() + pos);
-    pos += 8;
-    return v;
-  }
 };
 
-void write_node(Writer& w, const TreeNode& n) {
-  w.var(std::uint64_t(n.parent + 1));
+void write_node(pm::ByteWriter& w, const TreeNode& n) {
+  w.varint(std::uint64_t(n.parent + 1));
   w.u8(std::uint8_t(n.strategy));
-  w.var(std::uint64_t(n.level));
-  w.var(std::uint64_t(n.domain.col0));
-  w.var(std::uint64_t(n.domain.row0));
-  w.var(std::uint64_t(n.domain.col1 - n.domain.col0));
-  w.var(std::uint64_t(n.domain.row1 - n.domain.row0));
+  w.varint(std::uint64_t(n.level));
+  w.varint(std::uint64_t(n.domain.col0));
+  w.varint(std::uint64_t(n.domain.row0));
+  w.varint(std::uint64_t(n.domain.col1 - n.domain.col0));
+  w.varint(std::uint64_t(n.domain.row1 - n.domain.row0));
   w.f64(n.error);
   for (double v : {n.bbox.lo.x, n.bbox.lo.y, n.bbox.lo.z, n.bbox.hi.x, n.bbox.hi.y, n.bbox.hi.z}) w.f64(v);
   w.f64(n.texel_m);
-  w.var(n.children.size());
-  for (std::int64_t c : n.children) w.var(std::uint64_t(c));
+  w.varint(n.children.size());
+  for (std::int64_t c : n.children) w.varint(std::uint64_t(c));
   const NodeSurface& s = n.surface;
   switch (n.strategy) {
     case Strategy::PmBlock:
       assert(n.block && n.block->col >= 0 && n.block->row >= 0);
-      w.var(std::uint64_t(n.block->col));
-      w.var(std::uint64_t(n.block->row));
+      w.varint(std::uint64_t(n.block->col));
+      w.varint(std::uint64_t(n.block->row));
       break;
     case Strategy::Grid:
     case Strategy::NonRegularGrid:
       assert(s.points.size() == s.cols.size() * s.rows.size());
-      w.var(s.cols.size());
-      w.var(s.rows.size());
-      for (int c : s.cols) w.var(std::uint64_t(c - n.domain.col0));
-      for (int r : s.rows) w.var(std::uint64_t(r - n.domain.row0));
+      w.varint(s.cols.size());
+      w.varint(s.rows.size());
+      for (int c : s.cols) w.varint(std::uint64_t(c - n.domain.col0));
+      for (int r : s.rows) w.varint(std::uint64_t(r - n.domain.row0));
       for (const auto& p : s.points) w.f64(p[2]);
       break;
     case Strategy::Tin:
     case Strategy::Hybrid:
-      w.var(s.points.size());
+      w.varint(s.points.size());
       for (const auto& p : s.points) {
         if (n.strategy == Strategy::Hybrid) {
           w.f64(p[0]);
           w.f64(p[1]);
         } else {
-          w.var(std::uint64_t(int(p[0]) - n.domain.col0));
-          w.var(std::uint64_t(int(p[1]) - n.domain.row0));
+          w.varint(std::uint64_t(int(p[0]) - n.domain.col0));
+          w.varint(std::uint64_t(int(p[1]) - n.domain.row0));
         }
         w.f64(p[2]);
       }
-      w.var(s.triangles.size());
+      w.varint(s.triangles.size());
       for (const auto& t : s.triangles)
-        for (std::uint32_t v : t) w.var(v);
+        for (std::uint32_t v : t) w.varint(v);
       break;
   }
 }
@@ -216,44 +193,43 @@ void triangulate_grid(NodeSurface& s) {
 }
 
 std::size_t encoded_node_bytes(const TreeNode& node) {
-  Writer w;
+  pm::ByteWriter w;
   write_node(w, node);
-  return w.out.size();
+  return w.bytes.size();
 }
 
 std::vector<std::uint8_t> encode_tree(const ApproximationTree& tree) {
-  Writer w;
-  w.out.reserve(4096);  // (also keeps GCC 12's -Wstringop-overflow false positive away in sanitizer builds)
-  w.out.insert(w.out.end(), kMagic, kMagic + 8);
+  pm::ByteWriter w;
+  w.bytes.reserve(4096);  // (also keeps GCC 12's -Wstringop-overflow false positive away in sanitizer builds)
+  w.raw(kMagic);
   w.u32(kTreeFormatVersion);
   const auto& p = tree.parameters();
-  w.var(p.max_points);
-  w.var(std::uint64_t(p.max_children));
-  w.var(std::uint64_t(p.patch));
+  w.varint(p.max_points);
+  w.varint(std::uint64_t(p.max_children));
+  w.varint(std::uint64_t(p.patch));
   w.u8(std::uint8_t(p.metric));
   for (double v :
        {p.transform.x0, p.transform.xc, p.transform.xr, p.transform.y0, p.transform.yc, p.transform.yr})
     w.f64(v);
-  w.var(std::uint64_t(p.grid_width));
-  w.var(std::uint64_t(p.grid_height));
-  w.var(tree.size());
+  w.varint(std::uint64_t(p.grid_width));
+  w.varint(std::uint64_t(p.grid_height));
+  w.varint(tree.size());
   for (const TreeNode& n : tree.nodes()) write_node(w, n);
-  const std::uint32_t crc = std::uint32_t(crc32(0L, w.out.data(), uInt(w.out.size())));
+  const std::uint32_t crc = std::uint32_t(crc32(0L, w.bytes.data(), uInt(w.bytes.size())));
   w.u32(crc);
-  return std::move(w.out);
+  return std::move(w.bytes);
 }
 
 ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::string& name) {
-  Reader r{bytes, 0, name};
   if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0)
-    r.fail("not an approximation tree (bad magic)");
+    fail_at(name, "not an approximation tree (bad magic)", 0);
   {
-    const std::uint32_t stored = detail::get_u32(bytes.data() + bytes.size() - 4);
+    const std::uint32_t stored = pm::load_u32(bytes.data() + bytes.size() - 4);
     const std::uint32_t crc = std::uint32_t(crc32(0L, bytes.data(), uInt(bytes.size() - 4)));
-    if (crc != stored) r.fail("checksum mismatch");
+    if (crc != stored) fail_at(name, "checksum mismatch", 0);
   }
-  r.in = bytes.first(bytes.size() - 4);
-  r.pos = 8;
+  Reader r(bytes.first(bytes.size() - 4), name);
+  r.raw(8);  // the magic
   const std::uint32_t version = r.u32();
   if (version != kTreeFormatVersion)
     r.fail("unsupported tree format version " + std::to_string(version) + " (this build reads " +

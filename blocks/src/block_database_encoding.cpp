@@ -7,16 +7,20 @@
 
 #include <cmath>
 
-#include "little_endian.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::blocks::detail {
 
 namespace {
 
 // A string: u64 byte length + its UTF-8 bytes.
-void put_string(std::vector<std::uint8_t>& b, const std::string& s) {
-  put_u64(b, s.size());
-  b.insert(b.end(), s.begin(), s.end());
+void put_string(pm::ByteWriter& b, const std::string& s) {
+  b.u64(s.size());
+  b.raw(s.data(), s.size());
+}
+
+void put_transform(pm::ByteWriter& b, const pm::GridTransform& t) {
+  for (double v : {t.x0, t.xc, t.xr, t.y0, t.yc, t.yr}) b.f64(v);
 }
 
 }  // namespace
@@ -27,14 +31,14 @@ std::uint32_t crc32_of(const void* data, std::size_t size) {
 }
 
 std::vector<std::uint8_t> encode_transform(const pm::GridTransform& t) {
-  std::vector<std::uint8_t> b;
-  for (double v : {t.x0, t.xc, t.xr, t.y0, t.yc, t.yr}) put_f64(b, v);
-  return b;
+  pm::ByteWriter b;
+  put_transform(b, t);
+  return std::move(b.bytes);
 }
 
 pm::GridTransform decode_transform(const std::uint8_t* p) {
   double v[6];
-  for (int k = 0; k < 6; ++k) v[k] = get_f64(p + 8 * k);
+  for (int k = 0; k < 6; ++k) v[k] = pm::load_f64(p + 8 * k);
   return pm::GridTransform{v[0], v[1], v[2], v[3], v[4], v[5]};
 }
 
@@ -49,24 +53,24 @@ bool transform_is_finite(const pm::GridTransform& t) {
 //   i32 grid_height, 48 bytes transform (as the transform column), crs_wkt, i32 block_size,
 //   build_parameters, source (strings as for kind).
 std::uint32_t info_crc(int format_version, const DatabaseInfo& info) {
-  std::vector<std::uint8_t> b;
-  put_u32(b, std::uint32_t(format_version));
+  pm::ByteWriter b;
+  b.u32(std::uint32_t(format_version));
   put_string(b, info.kind);
-  put_u32(b, std::uint32_t(info.grid_width));
-  put_u32(b, std::uint32_t(info.grid_height));
-  const auto t = encode_transform(info.transform);
-  b.insert(b.end(), t.begin(), t.end());
+  b.i32(info.grid_width);
+  b.i32(info.grid_height);
+  put_transform(b, info.transform);
   put_string(b, info.crs_wkt);
-  put_u32(b, std::uint32_t(info.block_size));
+  b.i32(info.block_size);
   put_string(b, info.build_parameters);
   put_string(b, info.source);
-  return crc32_of(b.data(), b.size());
+  return crc32_of(b.bytes.data(), b.bytes.size());
 }
 
 std::vector<std::uint8_t> encode_georeference(const Georeference& g) {
-  std::vector<std::uint8_t> b = encode_transform(g.crs_transform);
+  pm::ByteWriter b;
+  put_transform(b, g.crs_transform);
   put_string(b, g.vertical_datum);
-  return b;
+  return std::move(b.bytes);
 }
 
 Georeference decode_georeference(std::span<const std::uint8_t> bytes, const std::string& path) {
@@ -75,7 +79,7 @@ Georeference decode_georeference(std::span<const std::uint8_t> bytes, const std:
   Georeference g;
   g.crs_transform = decode_transform(bytes.data());
   if (!transform_is_finite(g.crs_transform)) throw bad();
-  if (get_u64(bytes.data() + kTransformBytes) != bytes.size() - kTransformBytes - 8) throw bad();
+  if (pm::load_u64(bytes.data() + kTransformBytes) != bytes.size() - kTransformBytes - 8) throw bad();
   g.vertical_datum.assign(bytes.begin() + kTransformBytes + 8, bytes.end());
   return g;
 }

@@ -4,38 +4,21 @@
 #include <zlib.h>
 
 #include <algorithm>
-#include <bit>
 #include <cassert>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <tuple>
 #include <utility>
 
+#include "terralod/pm/byte_io.hpp"
+
 namespace terralod::blocks {
 namespace {
 
 constexpr int kMaxQ = 32767;
-
-struct Writer {
-  std::vector<std::uint8_t> out;
-  template <class T>
-  void put(T v) {
-    std::uint8_t b[sizeof(T)];
-    std::memcpy(b, &v, sizeof(T));  // little-endian host (checked below)
-    out.insert(out.end(), b, b + sizeof(T));
-  }
-  void pad_to(std::size_t a) {
-    while (out.size() % a != 0) out.push_back(0);
-  }
-};
-static_assert(std::endian::native == std::endian::little,
-              "the encoders write the host's bytes: little-endian only");
-
-std::uint16_t zigzag(int d) { return std::uint16_t((d << 1) ^ (d >> 31)); }
 
 std::uint16_t quantize(double t) { return std::uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * kMaxQ)); }
 
@@ -177,30 +160,30 @@ QuantizedMeshTile make_quantized_mesh(const GeoRect& rect, std::span<const pm::G
 std::vector<std::uint8_t> encode_quantized_mesh(const QuantizedMeshTile& t) {
   const std::size_t n = t.u.size();
   assert(t.v.size() == n && t.h.size() == n && (t.normals.empty() || t.normals.size() == n));
-  Writer w;
-  for (double c : t.center) w.put(c);
-  w.put(t.min_height);
-  w.put(t.max_height);
-  for (double c : t.sphere.center) w.put(c);
-  w.put(t.sphere.radius);
-  for (double c : t.horizon) w.put(c);
-  w.put(std::uint32_t(n));
+  pm::ByteWriter w;
+  for (double c : t.center) w.f64(c);
+  w.f32(t.min_height);
+  w.f32(t.max_height);
+  for (double c : t.sphere.center) w.f64(c);
+  w.f64(t.sphere.radius);
+  for (double c : t.horizon) w.f64(c);
+  w.u32(std::uint32_t(n));
   for (const auto* a : {&t.u, &t.v, &t.h}) {
     int prev = 0;
     for (std::uint16_t x : *a) {
-      w.put(zigzag(int(x) - prev));
+      w.u16(std::uint16_t(pm::zigzag(int(x) - prev)));
       prev = x;
     }
   }
   const bool wide = n > 65536;
   auto put_index = [&](std::uint32_t i) {
     if (wide)
-      w.put(i);
+      w.u32(i);
     else
-      w.put(std::uint16_t(i));
+      w.u16(std::uint16_t(i));
   };
   w.pad_to(wide ? 4 : 2);
-  w.put(std::uint32_t(t.triangles.size()));
+  w.u32(std::uint32_t(t.triangles.size()));
   std::uint32_t highest = 0;
   for (const auto& tri : t.triangles)
     for (std::uint32_t i : tri) {
@@ -209,24 +192,24 @@ std::vector<std::uint8_t> encode_quantized_mesh(const QuantizedMeshTile& t) {
       if (i == highest) ++highest;
     }
   for (const auto& e : t.edges) {
-    w.put(std::uint32_t(e.size()));
+    w.u32(std::uint32_t(e.size()));
     for (std::uint32_t i : e) put_index(i);
   }
   if (!t.normals.empty()) {
-    w.put(std::uint8_t(1));
-    w.put(std::uint32_t(2 * n));
+    w.u8(1);
+    w.u32(std::uint32_t(2 * n));
     for (const auto& o : t.normals) {
-      w.put(o[0]);
-      w.put(o[1]);
+      w.u8(o[0]);
+      w.u8(o[1]);
     }
   }
   if (!t.metadata.empty()) {
-    w.put(std::uint8_t(4));
-    w.put(std::uint32_t(4 + t.metadata.size()));
-    w.put(std::uint32_t(t.metadata.size()));
-    w.out.insert(w.out.end(), t.metadata.begin(), t.metadata.end());
+    w.u8(4);
+    w.u32(std::uint32_t(4 + t.metadata.size()));
+    w.u32(std::uint32_t(t.metadata.size()));
+    w.raw(t.metadata.data(), t.metadata.size());
   }
-  return std::move(w.out);
+  return std::move(w.bytes);
 }
 
 std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes) {

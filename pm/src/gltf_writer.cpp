@@ -10,7 +10,8 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "encode_util.hpp"
+#include "shortest_decimal.hpp"
+#include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/glb.hpp"
 
 namespace terralod::pm::detail {
@@ -74,15 +75,14 @@ std::string json_string(const std::string& s) {
   return out;
 }
 
-std::string base64(const std::string& bytes) {
+std::string base64(std::span<const std::uint8_t> bytes) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
   out.reserve((bytes.size() + 2) / 3 * 4);
   for (std::size_t i = 0; i < bytes.size(); i += 3) {
     const std::size_t n = std::min<std::size_t>(3, bytes.size() - i);
     std::uint32_t v = 0;
-    for (std::size_t k = 0; k < 3; ++k)
-      v = (v << 8) | (k < n ? static_cast<unsigned char>(bytes[i + k]) : 0u);
+    for (std::size_t k = 0; k < 3; ++k) v = (v << 8) | (k < n ? bytes[i + k] : 0u);
     for (std::size_t k = 0; k < 4; ++k) out += k <= n ? kAlphabet[(v >> (18 - 6 * k)) & 63u] : '=';
   }
   return out;
@@ -117,11 +117,11 @@ std::string encode_gltf(const TriangleMeshData& mesh, bool binary, const std::ve
   }
   const Vec3 centre{0.5 * lo[0] + 0.5 * hi[0], 0.5 * lo[1] + 0.5 * hi[1], 0.5 * lo[2] + 0.5 * hi[2]};
 
-  std::string buffer;
+  ByteWriter buffer;
   std::array<float, 3> fmin{}, fmax{};
   const bool short_indices = n <= kMaxShortVertices;
   if (has_mesh) {
-    buffer.reserve(buffer_bytes);
+    buffer.bytes.reserve(buffer_bytes);
     fmin.fill(std::numeric_limits<float>::infinity());
     fmax.fill(-std::numeric_limits<float>::infinity());
     for (const Vec3& p : mesh.positions) {
@@ -130,7 +130,7 @@ std::string encode_gltf(const TriangleMeshData& mesh, bool binary, const std::ve
         const auto f = static_cast<float>(g[k] - centre[k]);
         fmin[k] = std::min(fmin[k], f);
         fmax[k] = std::max(fmax[k], f);
-        append_le(buffer, f);
+        buffer.f32(f);
       }
     }
     // Area-weighted normals: each triangle adds its cross product (twice its area times its
@@ -151,14 +151,14 @@ std::string encode_gltf(const TriangleMeshData& mesh, bool binary, const std::ve
       const double len = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
       const Vec3 unit =
           len > 0 && std::isfinite(len) ? Vec3{g[0] / len, g[1] / len, g[2] / len} : Vec3{0, 1, 0};
-      for (int k = 0; k < 3; ++k) append_le(buffer, static_cast<float>(unit[k]));
+      for (int k = 0; k < 3; ++k) buffer.f32(static_cast<float>(unit[k]));
     }
     for (const auto& tri : mesh.triangles)
       for (const std::uint32_t i : tri) {
         if (short_indices)
-          append_le(buffer, static_cast<std::uint16_t>(i));
+          buffer.u16(static_cast<std::uint16_t>(i));
         else
-          append_le(buffer, i);
+          buffer.u32(i);
       }
   }
 
@@ -192,14 +192,14 @@ std::string encode_gltf(const TriangleMeshData& mesh, bool binary, const std::ve
       << kArrayBuffer << "},";
     j << R"({"buffer":0,"byteOffset":)" << 2 * vec3_bytes << R"(,"byteLength":)" << index_bytes
       << R"(,"target":)" << kElementArrayBuffer << "}]";
-    j << R"(,"buffers":[{"byteLength":)" << std::uint64_t(buffer.size());
-    if (!binary) j << R"(,"uri":"data:application/octet-stream;base64,)" << base64(buffer) << "\"";
+    j << R"(,"buffers":[{"byteLength":)" << std::uint64_t(buffer.bytes.size());
+    if (!binary) j << R"(,"uri":"data:application/octet-stream;base64,)" << base64(buffer.bytes) << "\"";
     j << "}]}";
   }
   std::string json = std::move(j.text);
   if (!binary) return json + "\n";
 
-  return glb_container(std::move(json), has_mesh ? std::string_view(buffer) : std::string_view(), path);
+  return glb_container(std::move(json), has_mesh ? buffer.chars() : std::string_view(), path);
 }
 
 }  // namespace terralod::pm::detail
@@ -213,17 +213,21 @@ std::string glb_container(std::string json, std::string_view bin, const std::str
   if (total > std::numeric_limits<std::uint32_t>::max())
     throw std::runtime_error(path + ": " + std::to_string(total) +
                              " bytes, more than a GLB file's uint32 length can hold");
+  ByteWriter head;  // the file header and the JSON chunk's
+  head.u32(detail::kGlbMagic);
+  head.u32(2);
+  head.u32(static_cast<std::uint32_t>(total));
+  head.u32(static_cast<std::uint32_t>(json.size()));
+  head.u32(detail::kChunkJson);
   std::string out;
   out.reserve(total);
-  detail::append_le(out, detail::kGlbMagic);
-  detail::append_le(out, std::uint32_t(2));
-  detail::append_le(out, static_cast<std::uint32_t>(total));
-  detail::append_le(out, static_cast<std::uint32_t>(json.size()));
-  detail::append_le(out, detail::kChunkJson);
+  out += head.chars();
   out += json;
   if (!bin.empty()) {
-    detail::append_le(out, static_cast<std::uint32_t>(bin_padded));
-    detail::append_le(out, detail::kChunkBin);
+    ByteWriter chunk;  // the BIN chunk's header
+    chunk.u32(static_cast<std::uint32_t>(bin_padded));
+    chunk.u32(detail::kChunkBin);
+    out += chunk.chars();
     out += bin;
     out.append(bin_padded - bin.size(), '\0');
   }

@@ -10,9 +10,10 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "encode_util.hpp"
 #include "gltf_writer.hpp"
+#include "shortest_decimal.hpp"
 #include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::pm {
 
@@ -25,23 +26,23 @@ MeshFormat write_format_of(const std::string& path) {
                            std::string(kMeshWriteExtensions) + ")");
 }
 
-using detail::append_le;
-
-std::string encode_ply(const TriangleMeshData& m, const std::vector<std::string>& comments) {
-  std::string out = "ply\nformat binary_little_endian 1.0\n";
-  for (const std::string& c : comments) out += "comment " + c + "\n";
-  out += "element vertex " + std::to_string(m.positions.size()) +
-         "\nproperty double x\nproperty double y\nproperty double z\n"
-         "element face " +
-         std::to_string(m.triangles.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
-  out.reserve(out.size() + 24 * m.positions.size() + 13 * m.triangles.size());
+std::vector<std::uint8_t> encode_ply(const TriangleMeshData& m, const std::vector<std::string>& comments) {
+  std::string header = "ply\nformat binary_little_endian 1.0\n";
+  for (const std::string& c : comments) header += "comment " + c + "\n";
+  header += "element vertex " + std::to_string(m.positions.size()) +
+            "\nproperty double x\nproperty double y\nproperty double z\n"
+            "element face " +
+            std::to_string(m.triangles.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
+  ByteWriter out;
+  out.bytes.reserve(header.size() + 24 * m.positions.size() + 13 * m.triangles.size());
+  out.raw(header.data(), header.size());
   for (const auto& p : m.positions)
-    for (double v : p) append_le(out, v);
+    for (double v : p) out.f64(v);
   for (const auto& t : m.triangles) {
-    out.push_back(char(3));
-    for (std::uint32_t v : t) append_le(out, std::int32_t(v));
+    out.u8(3);
+    for (std::uint32_t v : t) out.i32(std::int32_t(v));
   }
-  return out;
+  return std::move(out.bytes);
 }
 
 std::string encode_obj(const TriangleMeshData& m, const std::vector<std::string>& comments) {

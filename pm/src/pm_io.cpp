@@ -78,6 +78,7 @@
 #include <optional>
 
 #include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::pm {
 
@@ -92,39 +93,17 @@ constexpr std::uint32_t kMaxString = 16u << 20;
 // the slack covers the zlib header and tiny streams.
 constexpr std::uint64_t kMaxInflateRatio = 1032, kInflateSlack = 1024;
 
-std::uint64_t zigzag(std::int64_t v) { return (std::uint64_t(v) << 1) ^ std::uint64_t(v >> 63); }
-std::int64_t unzigzag(std::uint64_t v) { return std::int64_t(v >> 1) ^ -std::int64_t(v & 1); }
-
 // ---------------------------------------------------------------------------------- writing
 
-struct Bytes {
-  std::vector<std::uint8_t> b;
-  void u8(std::uint8_t v) { b.push_back(v); }
-  void u32(std::uint32_t v) {
-    for (int i = 0; i < 4; ++i) b.push_back(std::uint8_t(v >> (8 * i)));
-  }
-  void u64(std::uint64_t v) {
-    for (int i = 0; i < 8; ++i) b.push_back(std::uint8_t(v >> (8 * i)));
-  }
-  void i32(std::int32_t v) { u32(std::uint32_t(v)); }
-  void f64(double v) { u64(std::bit_cast<std::uint64_t>(v)); }
-  void varint(std::uint64_t v) {
-    while (v >= 0x80) {
-      b.push_back(std::uint8_t(v | 0x80));
-      v >>= 7;
-    }
-    b.push_back(std::uint8_t(v));
-  }
-  void svarint(std::int64_t v) { varint(zigzag(v)); }
-  void str(const std::string& s) {
-    u32(std::uint32_t(s.size()));
-    b.insert(b.end(), s.begin(), s.end());
-  }
-};
+/// A string: u32 byte length, then the bytes (the caller has checked the length limit).
+void put_string(ByteWriter& out, const std::string& s) {
+  out.u32(std::uint32_t(s.size()));
+  out.raw(s.data(), s.size());
+}
 
 /// Deflates `raw` (level 6: level 9 costs 10x the time on the V stream for 3 % less) and
 /// appends the section. Returns false when zlib fails (then the section is stored).
-void put_section(Bytes& out, const std::vector<std::uint8_t>& raw, int strategy = Z_DEFAULT_STRATEGY) {
+void put_section(ByteWriter& out, const std::vector<std::uint8_t>& raw, int strategy = Z_DEFAULT_STRATEGY) {
   std::vector<std::uint8_t> z(compressBound(uLong(raw.size())));
   uLongf zlen = 0;
   bool ok = false;
@@ -142,10 +121,7 @@ void put_section(Bytes& out, const std::vector<std::uint8_t>& raw, int strategy 
   out.u8(use_z ? kCodecZlib : kCodecStored);
   out.u64(raw.size());
   out.u64(use_z ? zlen : raw.size());
-  if (use_z)
-    out.b.insert(out.b.end(), z.begin(), z.begin() + std::ptrdiff_t(zlen));
-  else
-    out.b.insert(out.b.end(), raw.begin(), raw.end());
+  out.raw(use_z ? std::span<const std::uint8_t>(z.data(), zlen) : std::span<const std::uint8_t>(raw));
 }
 
 /// Exponent e such that every sample is k * 2^e with k an integer, |k| < 2^31; nullopt when
@@ -196,79 +172,55 @@ bool finite_over_grid(const GridTransform& t, std::uint64_t W, std::uint64_t H) 
   throw PmFormatError(name + ": " + what);
 }
 
-/// Bounds-checked cursor over a byte range; every read names what it was reading.
-struct Cursor {
-  const std::uint8_t* p;
-  std::size_t n;
-  std::size_t pos = 0;
-  const std::string* name;
+/// The message of a failed read, naming what was being read.
+[[noreturn]] void fail_read(const std::string& name, const ByteReadFailure& f) {
+  if (f.kind == ByteReadFailure::Kind::Truncated)
+    fail(name, "truncated: expected " + std::to_string(f.wanted) + " bytes of " + f.what + ", found " +
+                   std::to_string(f.left));
+  if (f.kind == ByteReadFailure::Kind::VarintTruncated)
+    fail(name, std::string("truncated: ") + f.what + " ends inside a number");
+  // VarintTooLong (the readers accept every form of a varint, VarintForm::Any).
+  fail(name, std::string("corrupt ") + f.what + ": a number does not fit in 64 bits");
+}
 
-  std::size_t left() const { return n - pos; }
-  void need(std::uint64_t bytes, const char* what) const {
-    if (bytes > left())
-      fail(*name, "truncated: expected " + std::to_string(bytes) + " bytes of " + what + ", found " +
-                      std::to_string(left()));
-  }
-  std::uint64_t le(int bytes, const char* what) {
-    need(std::uint64_t(bytes), what);
-    std::uint64_t v = 0;
-    for (int i = 0; i < bytes; ++i) v |= std::uint64_t(p[pos + std::size_t(i)]) << (8 * i);
-    pos += std::size_t(bytes);
-    return v;
-  }
-  std::uint8_t u8(const char* what) { return std::uint8_t(le(1, what)); }
-  std::uint32_t u32(const char* what) { return std::uint32_t(le(4, what)); }
-  std::uint64_t u64(const char* what) { return le(8, what); }
-  std::int32_t i32(const char* what) { return std::int32_t(u32(what)); }
-  double f64(const char* what) { return std::bit_cast<double>(u64(what)); }
-  std::uint64_t varint(const char* what) {
-    std::uint64_t v = 0;
-    for (int shift = 0; shift < 64; shift += 7) {
-      if (pos >= n) fail(*name, std::string("truncated: ") + what + " ends inside a number");
-      const std::uint8_t byte = p[pos++];
-      if (shift == 63 && byte > 1) break;
-      v |= std::uint64_t(byte & 0x7f) << shift;
-      if (!(byte & 0x80)) return v;
-    }
-    fail(*name, std::string("corrupt ") + what + ": a number does not fit in 64 bits");
-  }
-  std::int64_t svarint(const char* what) { return unzigzag(varint(what)); }
-  std::string str(const char* what) {
-    const std::uint32_t len = u32(what);
-    if (len > kMaxString)
-      fail(*name, std::string(what) + " is " + std::to_string(len) + " bytes long (limit 16 MiB)");
-    need(len, what);
-    std::string s(reinterpret_cast<const char*>(p + pos), len);
-    pos += len;
-    return s;
-  }
-};
+/// Bounds-checked reads over `bytes`; every read names what it was reading.
+ByteReader reader(std::span<const std::uint8_t> bytes, const std::string& name) {
+  return ByteReader(bytes, [&name](const ByteReadFailure& f) { fail_read(name, f); });
+}
+
+/// A string: u32 byte length (<= 16 MiB), then the bytes.
+std::string get_string(ByteReader& c, const std::string& name, const char* what) {
+  const std::uint32_t len = c.u32(what);
+  if (len > kMaxString)
+    fail(name, std::string(what) + " is " + std::to_string(len) + " bytes long (limit 16 MiB)");
+  const std::span<const std::uint8_t> s = c.raw(len, what);
+  return std::string(reinterpret_cast<const char*>(s.data()), s.size());
+}
 
 /// Reads one section and inflates it. `max_raw` caps the raw size the caller can accept.
-std::vector<std::uint8_t> get_section(Cursor& c, const char* what, std::uint64_t max_raw) {
+std::vector<std::uint8_t> get_section(ByteReader& c, const std::string& name, const char* what,
+                                      std::uint64_t max_raw) {
   const std::uint8_t codec = c.u8(what);
   const std::uint64_t raw = c.u64(what), stored = c.u64(what);
   if (codec != kCodecStored && codec != kCodecZlib)
-    fail(*c.name, std::string("unknown compression ") + std::to_string(codec) + " for " + what);
-  c.need(stored, what);
+    fail(name, std::string("unknown compression ") + std::to_string(codec) + " for " + what);
+  const std::span<const std::uint8_t> src = c.raw(stored, what);
   if (raw > max_raw)
-    fail(*c.name, std::string("corrupt ") + what + ": " + std::to_string(raw) +
-                      " bytes is more than the grid can need (" + std::to_string(max_raw) + ")");
+    fail(name, std::string("corrupt ") + what + ": " + std::to_string(raw) +
+                   " bytes is more than the grid can need (" + std::to_string(max_raw) + ")");
   if (codec == kCodecStored ? stored != raw : raw > stored * kMaxInflateRatio + kInflateSlack)
-    fail(*c.name, std::string("corrupt ") + what + ": " + std::to_string(stored) +
-                      " stored bytes cannot hold " + std::to_string(raw) + " bytes");
+    fail(name, std::string("corrupt ") + what + ": " + std::to_string(stored) + " stored bytes cannot hold " +
+                   std::to_string(raw) + " bytes");
   std::vector<std::uint8_t> out(raw);
-  const std::uint8_t* src = c.p + c.pos;
   if (codec == kCodecStored) {
-    std::copy(src, src + raw, out.begin());
+    std::copy(src.begin(), src.end(), out.begin());
   } else {
     uLongf len = uLongf(raw);
-    const int rc = uncompress(out.data(), &len, src, uLong(stored));
+    const int rc = uncompress(out.data(), &len, src.data(), uLong(stored));
     if (rc != Z_OK || len != raw)
-      fail(*c.name, std::string("corrupt ") + what + ": it does not inflate to the " + std::to_string(raw) +
-                        " bytes the file promises");
+      fail(name, std::string("corrupt ") + what + ": it does not inflate to the " + std::to_string(raw) +
+                     " bytes the file promises");
   }
-  c.pos += std::size_t(stored);
   return out;
 }
 
@@ -310,9 +262,9 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
   if (hf.has_holes()) flags |= kFlagMask;
   if (eh) flags |= kFlagQuantized;
 
-  Bytes out;
-  out.b.reserve(1024);
-  out.b.insert(out.b.end(), std::begin(kMagic), std::end(kMagic));
+  ByteWriter out;
+  out.bytes.reserve(1024);
+  out.raw(kMagic);
   out.u32(kPmFormatVersion);
   out.u64(0);  // file size, patched below
   out.u32(std::uint32_t(W));
@@ -330,28 +282,28 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
   for (const std::string* s : {&hf.source, &hf.frame, &hf.crs_wkt}) {
     if (s->size() > kMaxString)
       throw std::invalid_argument("encode_pm: heightfield string longer than 16 MiB");
-    out.str(*s);
+    put_string(out, *s);
   }
 
   // H: heights.
   {
-    Bytes raw;
+    ByteWriter raw;
     if (eh) {
       std::vector<std::int64_t> up(W), cur(W);
-      raw.b.reserve(n + n / 4);
+      raw.bytes.reserve(n + n / 4);
       for (std::size_t row = 0, i = 0; row < H; ++row, up.swap(cur))
         for (std::size_t col = 0; col < W; ++col, ++i) {
           cur[col] = std::int64_t(std::ldexp(hf[i], -*eh));
           raw.svarint(cur[col] - predict(up.data(), cur.data(), col, row));
         }
     } else {
-      raw.b.resize(8 * n);
+      raw.bytes.resize(8 * n);
       for (std::size_t i = 0; i < n; ++i) {
         const auto bits = std::bit_cast<std::uint64_t>(hf[i]);
-        for (std::size_t b = 0; b < 8; ++b) raw.b[b * n + i] = std::uint8_t(bits >> (8 * b));
+        for (std::size_t b = 0; b < 8; ++b) raw.bytes[b * n + i] = std::uint8_t(bits >> (8 * b));
       }
     }
-    put_section(out, raw.b, Z_FILTERED);  // residuals are small numbers: favour Huffman
+    put_section(out, raw.bytes, Z_FILTERED);  // residuals are small numbers: favour Huffman
   }
   // M: mask bits.
   if (hf.has_holes()) {
@@ -362,10 +314,10 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
   }
   // U, V, E: collapses.
   {
-    Bytes u, v, e;
-    u.b.reserve(3 * cs.size());
-    v.b.reserve(2 * cs.size());
-    e.b.reserve(2 * cs.size());
+    ByteWriter u, v, e;
+    u.bytes.reserve(3 * cs.size());
+    v.bytes.reserve(2 * cs.size());
+    e.bytes.reserve(2 * cs.size());
     std::int64_t prev_u = 0, prev_k = 0;
     for (std::size_t j = 0; j < cs.size(); ++j) {
       const Collapse& c = cs[j];
@@ -389,25 +341,24 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
       e.svarint(k - prev_k);
       prev_k = k;
     }
-    put_section(out, u.b);
-    put_section(out, v.b);
-    put_section(out, e.b);
+    put_section(out, u.bytes);
+    put_section(out, v.bytes);
+    put_section(out, e.bytes);
   }
   // F: dropped faces.
   {
-    Bytes f;
+    ByteWriter f;
     std::uint32_t prev = 0;
     for (std::uint32_t face : pm.dropped_faces()) {
       f.varint(face - prev);
       prev = face;
     }
-    put_section(out, f.b);
+    put_section(out, f.bytes);
   }
 
-  const std::uint64_t total = out.b.size() + 4;
-  for (int i = 0; i < 8; ++i) out.b[12 + std::size_t(i)] = std::uint8_t(total >> (8 * i));
-  out.u32(std::uint32_t(crc32(0L, out.b.data(), uInt(out.b.size()))));
-  return std::move(out.b);
+  out.u64_at(12, out.bytes.size() + 4);
+  out.u32(std::uint32_t(crc32(0L, out.bytes.data(), uInt(out.bytes.size()))));
+  return std::move(out.bytes);
 }
 
 void write_pm(const ProgressiveMesh& pm, const std::string& path) {
@@ -417,7 +368,6 @@ void write_pm(const ProgressiveMesh& pm, const std::string& path) {
 // ======================================================================================= read
 
 ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string& name) {
-  Cursor c{bytes.data(), bytes.size(), 0, &name};
   if (bytes.size() < sizeof kMagic) {
     if (bytes.empty() || !std::equal(bytes.begin(), bytes.end(), kMagic))
       fail(name, "not a terralod PM file (bad magic)");
@@ -425,12 +375,12 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
   }
   if (!std::equal(std::begin(kMagic), std::end(kMagic), bytes.begin()))
     fail(name, "not a terralod PM file (bad magic)");
-  c.pos = sizeof kMagic;
-  const std::uint32_t version = c.u32("header");
+  ByteReader head = reader(bytes.subspan(sizeof kMagic), name);
+  const std::uint32_t version = head.u32("header");
   if (version != kPmFormatVersion)
     fail(name, "format version " + std::to_string(version) + " is not supported (this build reads version " +
                    std::to_string(kPmFormatVersion) + ")");
-  const std::uint64_t file_size = c.u64("header");
+  const std::uint64_t file_size = head.u64("header");
   if (file_size > bytes.size())
     fail(name, "truncated: expected " + std::to_string(file_size) +
                    " bytes (the size in the header), found " + std::to_string(bytes.size()));
@@ -441,9 +391,7 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
   if (file_size < kFixedHeader + 12 + 4)
     fail(name, "truncated: " + std::to_string(file_size) + " bytes cannot hold a PM header");
   const std::size_t body = bytes.size() - 4;
-  const std::uint32_t stored_crc = std::uint32_t(bytes[body]) | std::uint32_t(bytes[body + 1]) << 8 |
-                                   std::uint32_t(bytes[body + 2]) << 16 |
-                                   std::uint32_t(bytes[body + 3]) << 24;
+  const std::uint32_t stored_crc = load_u32(bytes.data() + body);
   // zlib's crc32 takes uInt lengths; feed it in chunks.
   uLong crc = crc32(0L, Z_NULL, 0);
   for (std::size_t off = 0; off < body;) {
@@ -452,7 +400,8 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
     off += len;
   }
   if (std::uint32_t(crc) != stored_crc) fail(name, "checksum mismatch (the file is corrupt)");
-  c.n = body;  // sections must end before the checksum
+  // The rest of the header and the sections, which must end before the checksum.
+  ByteReader c = reader(bytes.first(body).subspan(head.position() + sizeof kMagic), name);
 
   const std::uint32_t W = c.u32("header"), H = c.u32("header");
   if (W < 2 || H < 2 || std::uint64_t(W) * H > kMaxPmSamples)
@@ -479,45 +428,43 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
   const std::uint32_t C = c.u32("header"), D = c.u32("header");
   if (C > n) fail(name, std::to_string(C) + " collapses is more than the " + std::to_string(n) + " samples");
   if (D > face_slots) fail(name, std::to_string(D) + " dropped faces is more than the grid has");
-  std::string source = c.str("source name"), frame = c.str("frame description"), crs = c.str("CRS");
+  std::string source = get_string(c, name, "source name"), frame = get_string(c, name, "frame description"),
+              crs = get_string(c, name, "CRS");
 
   // H: heights. Each quantized value takes at least one byte, each raw one 8.
   const bool quantized = flags & kFlagQuantized;
-  const std::vector<std::uint8_t> hraw = get_section(c, "height data", quantized ? 10 * n : 8 * n);
+  const std::vector<std::uint8_t> hraw = get_section(c, name, "height data", quantized ? 10 * n : 8 * n);
   if (quantized ? hraw.size() < n : hraw.size() != 8 * n)
     fail(name, "truncated: expected " + std::string(quantized ? "at least " : "") +
                    std::to_string(quantized ? n : 8 * n) + " bytes of height data, found " +
                    std::to_string(hraw.size()));
   Heightfield hf{int(W), int(H)};
-  {
-    Cursor h{hraw.data(), hraw.size(), 0, &name};
-    if (quantized) {
-      std::vector<std::int64_t> up(W), cur(W);
-      constexpr std::int64_t kLim = std::int64_t(1) << 31;
-      for (std::size_t row = 0, i = 0; row < H; ++row, up.swap(cur))
-        for (std::size_t col = 0; col < W; ++col, ++i) {
-          const std::int64_t r = h.svarint("height data");
-          const std::int64_t p = predict(up.data(), cur.data(), col, row);  // |p| < 3 * 2^31
-          if (r <= -4 * kLim || r >= 4 * kLim || p + r <= -kLim || p + r >= kLim)
-            fail(name, "corrupt height data: sample " + std::to_string(i) + " is out of range");
-          cur[col] = p + r;
-          hf[i] = std::ldexp(double(cur[col]), eh);
-          if (!std::isfinite(hf[i]))
-            fail(name, "corrupt height data: sample " + std::to_string(i) + " is not finite");
-        }
-    } else {
-      for (std::size_t i = 0; i < n; ++i) {
-        std::uint64_t bits = 0;
-        for (std::size_t b = 0; b < 8; ++b) bits |= std::uint64_t(hraw[b * n + i]) << (8 * b);
-        hf[i] = std::bit_cast<double>(bits);
+  if (quantized) {
+    ByteReader h = reader(hraw, name);
+    std::vector<std::int64_t> up(W), cur(W);
+    constexpr std::int64_t kLim = std::int64_t(1) << 31;
+    for (std::size_t row = 0, i = 0; row < H; ++row, up.swap(cur))
+      for (std::size_t col = 0; col < W; ++col, ++i) {
+        const std::int64_t r = h.svarint("height data");
+        const std::int64_t p = predict(up.data(), cur.data(), col, row);  // |p| < 3 * 2^31
+        if (r <= -4 * kLim || r >= 4 * kLim || p + r <= -kLim || p + r >= kLim)
+          fail(name, "corrupt height data: sample " + std::to_string(i) + " is out of range");
+        cur[col] = p + r;
+        hf[i] = std::ldexp(double(cur[col]), eh);
+        if (!std::isfinite(hf[i]))
+          fail(name, "corrupt height data: sample " + std::to_string(i) + " is not finite");
       }
-      h.pos = h.n;
-    }
     if (h.left() != 0) fail(name, "corrupt height data: " + std::to_string(h.left()) + " bytes left over");
+  } else {  // byte planes: exactly 8 n bytes, checked above
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint64_t bits = 0;
+      for (std::size_t b = 0; b < 8; ++b) bits |= std::uint64_t(hraw[b * n + i]) << (8 * b);
+      hf[i] = std::bit_cast<double>(bits);
+    }
   }
   // M: mask.
   if (flags & kFlagMask) {
-    const std::vector<std::uint8_t> bits = get_section(c, "void mask", (n + 7) / 8);
+    const std::vector<std::uint8_t> bits = get_section(c, name, "void mask", (n + 7) / 8);
     if (bits.size() != (n + 7) / 8)
       fail(name, "truncated: expected " + std::to_string((n + 7) / 8) + " bytes of void mask, found " +
                      std::to_string(bits.size()));
@@ -537,16 +484,15 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
   hf.crs_wkt = std::move(crs);
 
   // U, V, E: collapses. Every stream holds at least one byte per number.
-  const std::vector<std::uint8_t> us = get_section(c, "collapse vertex data", 10 * std::uint64_t(C));
-  const std::vector<std::uint8_t> vs = get_section(c, "collapse target data", 21 * std::uint64_t(C));
-  const std::vector<std::uint8_t> es = get_section(c, "collapse error data", 10 * std::uint64_t(C));
+  const std::vector<std::uint8_t> us = get_section(c, name, "collapse vertex data", 10 * std::uint64_t(C));
+  const std::vector<std::uint8_t> vs = get_section(c, name, "collapse target data", 21 * std::uint64_t(C));
+  const std::vector<std::uint8_t> es = get_section(c, name, "collapse error data", 10 * std::uint64_t(C));
   if (us.size() < C || vs.size() < C || es.size() < C)
     fail(name, "truncated: expected at least " + std::to_string(3 * std::uint64_t(C)) +
                    " bytes of collapse data, found " + std::to_string(us.size() + vs.size() + es.size()));
   std::vector<Collapse> collapses(C);
   {
-    Cursor cu{us.data(), us.size(), 0, &name}, cv{vs.data(), vs.size(), 0, &name},
-        ce{es.data(), es.size(), 0, &name};
+    ByteReader cu = reader(us, name), cv = reader(vs, name), ce = reader(es, name);
     std::int64_t u = 0, k = 0;
     constexpr std::int64_t kMaxK = std::int64_t(1) << 53;
     for (std::uint32_t j = 0; j < C; ++j) {
@@ -581,13 +527,13 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
     if (cu.left() || cv.left() || ce.left()) fail(name, "corrupt collapse data: bytes left over");
   }
   // F: dropped faces.
-  const std::vector<std::uint8_t> fs = get_section(c, "dropped face data", 10 * std::uint64_t(D));
+  const std::vector<std::uint8_t> fs = get_section(c, name, "dropped face data", 10 * std::uint64_t(D));
   if (fs.size() < D)
     fail(name, "truncated: expected at least " + std::to_string(D) + " bytes of dropped face data, found " +
                    std::to_string(fs.size()));
   std::vector<std::uint32_t> dropped(D);
   {
-    Cursor cf{fs.data(), fs.size(), 0, &name};
+    ByteReader cf = reader(fs, name);
     std::uint64_t f = 0;
     for (std::uint32_t j = 0; j < D; ++j) {
       const std::uint64_t d = cf.varint("dropped face data");

@@ -16,20 +16,13 @@
 
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::render {
 namespace {
 
 constexpr std::uint32_t kTileVersion = 1;
 const std::string kMetaPrefix = "texture_layer:";
-
-void put_u32(std::vector<std::uint8_t>& b, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) b.push_back(std::uint8_t(v >> (8 * i)));
-}
-std::uint32_t get_u32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
-         std::uint32_t(p[3]) << 24;
-}
 
 std::string json_string(const std::string& s) {
   std::string o = "\"";
@@ -226,10 +219,12 @@ GeoRect grid_georef(const pm::GridTransform& t, int width, int height) {
 
 std::vector<std::uint8_t> encode_texture_tile(const RgbaImage& img) {
   assert(img.width >= 1 && img.height >= 1 && img.rgba.size() == std::size_t(img.width) * img.height * 4);
-  std::vector<std::uint8_t> out{'T', 'L', 'T', 'X'};
-  put_u32(out, kTileVersion);
-  put_u32(out, std::uint32_t(img.width));
-  put_u32(out, std::uint32_t(img.height));
+  pm::ByteWriter header;
+  header.raw("TLTX", 4);
+  header.u32(kTileVersion);
+  header.u32(std::uint32_t(img.width));
+  header.u32(std::uint32_t(img.height));
+  std::vector<std::uint8_t> out = std::move(header.bytes);
   uLongf z = compressBound(uLong(img.rgba.size()));
   const std::size_t head = out.size();
   out.resize(head + z);
@@ -242,7 +237,8 @@ std::vector<std::uint8_t> encode_texture_tile(const RgbaImage& img) {
 RgbaImage decode_texture_tile(std::span<const std::uint8_t> b, const std::string& name) {
   if (b.size() < 16 || std::memcmp(b.data(), "TLTX", 4) != 0)
     throw std::runtime_error(name + ": not a texture tile (bad magic)");
-  const std::uint32_t version = get_u32(b.data() + 4), w = get_u32(b.data() + 8), h = get_u32(b.data() + 12);
+  const std::uint32_t version = pm::load_u32(b.data() + 4), w = pm::load_u32(b.data() + 8),
+                      h = pm::load_u32(b.data() + 12);
   if (version != kTileVersion)
     throw std::runtime_error(name + ": texture tile format version " + std::to_string(version));
   if (w < 1 || h < 1 || w > 65536 || h > 65536)

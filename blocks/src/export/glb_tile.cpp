@@ -6,24 +6,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <vector>
 
+#include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/glb.hpp"
 
 namespace terralod::blocks::detail {
 namespace {
 
 constexpr int kQ = 32767;
-
-template <class T>
-void put(std::string& out, T v) {
-  char b[sizeof(T)];
-  std::memcpy(b, &v, sizeof(T));  // little-endian hosts only (quantized_mesh.cpp asserts it)
-  out.append(b, sizeof(T));
-}
 
 std::string num(double v) {
   std::ostringstream s;
@@ -93,7 +87,7 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
     from[remap[i]] = source[i];
   }
 
-  std::string bin;
+  pm::ByteWriter bin;
   std::array<int, 3> qmin{kQ, kQ, kQ}, qmax{-kQ, -kQ, -kQ};
   for (std::size_t i = 0; i < all; ++i) {
     double err2 = 0;
@@ -101,30 +95,30 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
       const int qi = int(std::clamp<long>(std::lround(g[i][std::size_t(k)] / q), -kQ, kQ));
       qmin[std::size_t(k)] = std::min(qmin[std::size_t(k)], qi);
       qmax[std::size_t(k)] = std::max(qmax[std::size_t(k)], qi);
-      put(bin, std::int16_t(qi));
+      bin.i16(std::int16_t(qi));
       const double e = double(qi) * q - g[i][std::size_t(k)];
       err2 += e * e;
     }
-    put(bin, std::int16_t(0));  // stride 8
+    bin.i16(0);  // stride 8
     out.displacement = std::max(out.displacement, std::sqrt(err2));
   }
-  const std::size_t normals_at = bin.size();
+  const std::size_t normals_at = bin.bytes.size();
   for (std::size_t i = 0; i < all; ++i) {
     const pm::Ecef e = normal(from[i]);
     const pm::Ecef gl{e[0], e[2], -e[1]};
-    for (double c : gl) put(bin, std::int8_t(std::lround(std::clamp(c, -1.0, 1.0) * 127.0)));
-    put(bin, std::int8_t(0));  // stride 4
+    for (double c : gl) bin.i8(std::int8_t(std::lround(std::clamp(c, -1.0, 1.0) * 127.0)));
+    bin.i8(0);  // stride 4
   }
-  const std::size_t indices_at = bin.size();
+  const std::size_t indices_at = bin.bytes.size();
   const bool wide = all > 65535;
   for (std::uint32_t i : index) {
     if (wide)
-      put(bin, i);
+      bin.u32(i);
     else
-      put(bin, std::uint16_t(i));
+      bin.u16(std::uint16_t(i));
   }
-  const std::size_t index_bytes = bin.size() - indices_at;
-  bin.append((4 - bin.size() % 4) % 4, '\0');
+  const std::size_t index_bytes = bin.bytes.size() - indices_at;
+  bin.pad_to(4);
 
   // The three buffer views: (offset, length, stride) in `bin`; with meshopt, `bin` becomes the
   // fallback (buffer 1, no data) and each view also points at its compressed bytes in buffer 0.
@@ -145,7 +139,7 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
       if (v.target == 34962) {
         code.resize(meshopt_encodeVertexBufferBound(v.count, v.stride));
         code.resize(
-            meshopt_encodeVertexBuffer(code.data(), code.size(), bin.data() + v.at, v.count, v.stride));
+            meshopt_encodeVertexBuffer(code.data(), code.size(), bin.bytes.data() + v.at, v.count, v.stride));
       } else {
         code.resize(meshopt_encodeIndexBufferBound(index.size(), all));
         code.resize(meshopt_encodeIndexBuffer(code.data(), code.size(), index.data(), index.size()));
@@ -196,11 +190,11 @@ GlbTile encode_tile_glb(const QuantizedMeshTile& t, const GeoRect& rect,
   }
   if (meshopt)
     j += R"(],"buffers":[{"byteLength":)" + std::to_string(packed.size()) + R"(},{"byteLength":)" +
-         std::to_string(bin.size()) + R"(,"extensions":{"EXT_meshopt_compression":{"fallback":true}}}]})";
+         std::to_string(bin.bytes.size()) +
+         R"(,"extensions":{"EXT_meshopt_compression":{"fallback":true}}}]})";
   else
-    j += R"(],"buffers":[{"byteLength":)" + std::to_string(bin.size()) + "}]}";
-  if (meshopt) bin = std::move(packed);
-  out.bytes = pm::glb_container(std::move(j), bin, path);
+    j += R"(],"buffers":[{"byteLength":)" + std::to_string(bin.bytes.size()) + "}]}";
+  out.bytes = pm::glb_container(std::move(j), meshopt ? std::string_view(packed) : bin.chars(), path);
   return out;
 }
 
