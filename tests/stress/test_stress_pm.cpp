@@ -29,14 +29,15 @@
 #include <vector>
 
 #include "build_threads.hpp"
+#include "dag_hierarchy_check.hpp"
 #include "mesh_checker.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
-#include "terralod/pm/vertex_hierarchy.hpp"
 
 namespace {
 
@@ -120,18 +121,14 @@ void check_world_mesh(const pm::Heightfield& hf, const pm::TriangleMesh& m, cons
   }
 }
 
+// The hierarchy the runtime builds on load (the collapse DAG), with boxes and with spheres:
+// saturated errors, nested volumes holding their created faces, corners and borders kept.
 void check_hierarchy(const pm::ProgressiveMesh& p, const std::string& label) {
-  const pm::VertexHierarchy vh(p);
-  ASSERT_EQ(vh.node_count(), p.base_vertex_count() + 2 * p.vsplit_count()) << label;
-  ASSERT_EQ(vh.root_count(), p.base_vertex_count()) << label;
-  std::size_t bad = 0;
-  for (std::uint32_t i = 0; i < vh.node_count(); ++i) {
-    const pm::HierarchyNode& n = vh.node(i);
-    if (!std::isfinite(n.error) || !(n.error >= 0.0) || !std::isfinite(n.radius) || !(n.radius >= 0.0)) ++bad;
-    if (!n.is_root() && vh.node(n.parent).error < n.error) ++bad;
-    if (n.is_leaf() && n.error != 0.0) ++bad;
+  for (pm::VolumeKind kind : {pm::VolumeKind::Box, pm::VolumeKind::Sphere}) {
+    const pm::CollapseDag dag(p, {kind});
+    EXPECT_EQ(terralod::test::dag_hierarchy_violation(dag), "")
+        << label << (kind == pm::VolumeKind::Box ? " (boxes)" : " (spheres)");
   }
-  EXPECT_EQ(bad, 0u) << label << ": hierarchy nodes with a non-finite or non-monotone error or radius";
 }
 
 /// Equality bit for bit (operator== compares heights with ==, so a NaN under the mask, where
