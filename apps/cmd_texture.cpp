@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -22,6 +24,7 @@
 #include "terralod/render/texture_store.hpp"
 #include "terralod/render/thematic_texture.hpp"
 #include "terralod/render/topographic_texture.hpp"
+#include "texture_rules.hpp"
 
 namespace terralod::cli {
 namespace {
@@ -125,17 +128,26 @@ int texture_add(const Args& a, const std::string& path) {
 }
 
 // A layer computed from the terrain, one texel per DEM sample: `rec` gets its name and
-// constraints from the options; the pyramid goes through a temporary file beside the database.
-void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRecord& rec,
-                    const tr::RgbaImage& img, const Args& a) {
+// constraints from the options; the pyramid goes through a temporary file beside the database,
+// written by `write_pyramid(file, options)`.
+void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRecord& rec, const Args& a,
+                    const std::function<void(const std::string&, const tr::PyramidOptions&)>& write_pyramid) {
   rec.name = a.get("--layer");
   rec.constraints = constraints(a);
   const std::string pyr = pyramid_file(path, rec.name);
   const RemoveFile remove_pyramid{pyr};
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
-  tr::ImagePyramid::convert(img, pyr, po);
+  write_pyramid(pyr, po);
   store(db, rec, pyr);
+}
+
+// The same for one full-size image; coarser levels are box-filtered from it.
+void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRecord& rec,
+                    const tr::RgbaImage& img, const Args& a) {
+  store_computed(db, path, rec, a, [&](const std::string& pyr, const tr::PyramidOptions& po) {
+    tr::ImagePyramid::convert(img, pyr, po);
+  });
 }
 
 int texture_shade(const Args& a, const std::string& path) {
@@ -182,86 +194,87 @@ int texture_shade(const Args& a, const std::string& path) {
   return 0;
 }
 
-// "V:RRGGBB[AA],V:RRGGBB[AA],...": the stops of a colour ramp, values strictly increasing.
-std::vector<tr::ColorRamp::Stop> parse_ramp(const std::string& text) {
-  const auto bad = [&](const std::string& why) {
-    return UsageError("option '--ramp': " + why + " in '" + text +
-                      "' (expected V:RRGGBB[AA],V:RRGGBB[AA],...)");
-  };
-  std::vector<tr::ColorRamp::Stop> stops;
-  std::stringstream ss(text);
-  for (std::string item; std::getline(ss, item, ',');) {
-    const std::size_t colon = item.find(':');
-    if (colon == std::string::npos) throw bad("a stop without ':'");
-    const std::string v = item.substr(0, colon), hex = item.substr(colon + 1);
-    char* end = nullptr;
-    const double value = std::strtod(v.c_str(), &end);
-    if (v.empty() || *end != '\0' || !std::isfinite(value)) throw bad("'" + v + "' is not a number");
-    if ((hex.size() != 6 && hex.size() != 8) ||
-        hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
-      throw bad("'" + hex + "' is not a colour RRGGBB or RRGGBBAA");
-    tr::Rgba c{0, 0, 0, 255};
-    for (std::size_t k = 0; k < hex.size() / 2; ++k)
-      c[k] = std::uint8_t(std::stoul(hex.substr(2 * k, 2), nullptr, 16));
-    if (!stops.empty() && !(float(value) > stops.back().value)) throw bad("values not strictly increasing");
-    stops.push_back({float(value), c});
-  }
-  if (stops.empty()) throw bad("no stops");
-  return stops;
+tr::TerrainAttribute thematic_attribute(const Args& a, std::string* name) {
+  *name = a.get_choice("--attribute", {"slope", "aspect", "elevation"}, "slope");
+  return *name == "slope"    ? tr::TerrainAttribute::SlopeDegrees
+         : *name == "aspect" ? tr::TerrainAttribute::AspectDegrees
+                             : tr::TerrainAttribute::Elevation;
 }
 
-// The default ramps: slope white (flat) to dark red (45 degrees and steeper); aspect around the
-// compass (north red, east yellow, south green, west blue, north red again); elevation green
-// over the terrain's own range through brown to white.
-std::vector<tr::ColorRamp::Stop> default_ramp(tr::TerrainAttribute attribute, const pm::Heightfield& hf) {
-  switch (attribute) {
-    case tr::TerrainAttribute::SlopeDegrees:
-      return {{0.0f, {255, 255, 255, 255}}, {45.0f, {160, 0, 0, 255}}};
-    case tr::TerrainAttribute::AspectDegrees:
-      return {{0.0f, {220, 40, 40, 255}},
-              {90.0f, {230, 210, 40, 255}},
-              {180.0f, {40, 170, 60, 255}},
-              {270.0f, {50, 80, 220, 255}},
-              {360.0f, {220, 40, 40, 255}}};
-    case tr::TerrainAttribute::Elevation: {
-      const auto [lo, hi] = height_range(hf);
-      const float a = float(lo), b = float(hi) > a ? float(hi) : a + 1.0f;  // a flat terrain: one colour
-      return {{a, {40, 120, 50, 255}}, {a + 0.5f * (b - a), {150, 110, 60, 255}}, {b, {250, 250, 250, 255}}};
+// --rules: every pyramid level drawn by the design rule from the attribute generalised over
+// 2^k x 2^k blocks (render_pyramid_levels), instead of box-filtering the colours of level 0.
+// Texel size of level k = 2^k x the mean of the x and y sample spacing: symmetric in the two
+// axes (a threshold means the same whichever way the grid is turned), the spacing itself on
+// square cells, and the mean side of a texel on rectangular ones (x alone would call a
+// 30 x 90 m texel 30 m).
+void store_thematic_rules(tb::BlockDatabase& db, const std::string& path, const Args& a,
+                          const ThematicRules& rules, tr::TerrainAttribute attribute, const std::string& name,
+                          const pm::Heightfield& hf, tr::LayerRecord& rec) {
+  auto t = Clock::now();
+  const BuiltRule built = build_rule(rules, attribute, hf);
+  const double sample_m = 0.5 * (hf.transform.spacing_x() + hf.transform.spacing_y());
+  const tr::FloatRaster values = tr::terrain_attribute(hf, attribute);
+  std::printf("thematic %s, %zu rules from %s, generalise %s, sample %.4g m: %d x %d values, %s\n",
+              name.c_str(), rules.looks.size(), rules.path.c_str(), rules.generalise.c_str(), sample_m,
+              values.width, values.height, format_duration(ms_since(t)).c_str());
+  std::vector<std::size_t> level_rules;
+  store_computed(db, path, rec, a, [&](const std::string& pyr, const tr::PyramidOptions& po) {
+    t = Clock::now();
+    const std::vector<tr::RgbaImage> levels =
+        tr::render_pyramid_levels(built.rule, values, sample_m, po.max_texture_size);
+    for (std::size_t k = 0; k < levels.size(); ++k) {
+      const double texel_m = double(1u << k) * sample_m;
+      level_rules.push_back(built.look_for(texel_m));
+      std::printf("level %zu: %d x %d texels of %.4g m, rule %zu (%s)\n", k, levels[k].width,
+                  levels[k].height, texel_m, level_rules.back(),
+                  level_rules.back() + 1 == rules.looks.size()
+                      ? "far"
+                      : strf("max_texel_m %.4g", rules.looks[level_rules.back()].max_texel_m).c_str());
     }
-  }
-  return {};
+    tr::ImagePyramid::write_levels(levels, pyr, po);
+    std::printf("pyramid of %zu rendered levels -> tiled MIP-mapped TIFF, %s\n", levels.size(),
+                format_duration(ms_since(t)).c_str());
+    rec.parameters = rules_parameters(rules, built, name, sample_m, level_rules);
+  });
 }
 
 int texture_thematic(const Args& a, const std::string& path) {
+  std::optional<ThematicRules> rules;  // checked before the database is opened: a bad file changes nothing
+  if (a.has("--rules")) {
+    for (const char* o : {"--ramp", "--bands"})
+      if (a.has(o))
+        throw UsageError(std::string("options '--rules' and '") + o +
+                         "' cannot be combined: each rule of the file has its own \"ramp\" and \"bands\"");
+    std::string name;
+    rules = read_thematic_rules(a.get("--rules"), thematic_attribute(a, &name));
+  }
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
   require_complete_blocks(db);
-  const std::string name = a.get_choice("--attribute", {"slope", "aspect", "elevation"}, "slope");
-  const tr::TerrainAttribute attribute = name == "slope"    ? tr::TerrainAttribute::SlopeDegrees
-                                         : name == "aspect" ? tr::TerrainAttribute::AspectDegrees
-                                                            : tr::TerrainAttribute::Elevation;
+  std::string name;
+  const tr::TerrainAttribute attribute = thematic_attribute(a, &name);
   const bool bands = a.has("--bands");
   std::vector<tr::ColorRamp::Stop> stops;  // the given ramp, checked before any work
-  if (a.has("--ramp")) stops = parse_ramp(a.get("--ramp"));
+  if (a.has("--ramp")) stops = parse_ramp(a.get("--ramp"), "option '--ramp'");
   auto t = Clock::now();
   const pm::Heightfield hf = tb::read_database_terrain(db);
   std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(),
               format_duration(ms_since(t)).c_str());
+  tr::LayerRecord rec;
+  rec.kind = "thematic";
+  rec.source = "terralod texture thematic";
+  rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
+  if (rules) {
+    store_thematic_rules(db, path, a, *rules, attribute, name, hf, rec);
+    return 0;
+  }
   t = Clock::now();
   const tr::ColorRamp ramp(stops.empty() ? default_ramp(attribute, hf) : stops,
                            bands ? tr::ColorRamp::Mode::Step : tr::ColorRamp::Mode::Linear);
   const tr::RgbaImage img = tr::apply_mapper(tr::terrain_attribute(hf, attribute), ramp);
   std::printf("thematic %s, %zu %s: %d x %d texels, %s\n", name.c_str(), ramp.stops().size(),
               bands ? "bands" : "ramp stops", img.width, img.height, format_duration(ms_since(t)).c_str());
-  tr::LayerRecord rec;
-  rec.kind = "thematic";
-  rec.source = "terralod texture thematic";
-  rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
-  std::string json_stops;
-  for (const tr::ColorRamp::Stop& st : ramp.stops())
-    json_stops += strf("%s[%.9g, %d, %d, %d, %d]", json_stops.empty() ? "" : ", ", double(st.value),
-                       st.color[0], st.color[1], st.color[2], st.color[3]);
   rec.parameters = strf("{\"attribute\": \"%s\", \"mode\": \"%s\", \"stops\": [%s]}", name.c_str(),
-                        bands ? "bands" : "linear", json_stops.c_str());
+                        bands ? "bands" : "linear", stops_json(ramp).c_str());
   store_computed(db, path, rec, img, a);
   return 0;
 }
@@ -309,6 +322,12 @@ CommandSpec texture_spec() {
       "          (metres) through a colour ramp (linear between stops, or constant bands with\n"
       "          --bands; below the first band transparent). Default ramps: slope white to red\n"
       "          at 45 deg, aspect around the compass, elevation green-brown-white over the range.\n"
+      "          --rules FILE.json instead of --ramp/--bands: design rules by level of detail.\n"
+      "          Level k is drawn from the attribute generalised over 2^k x 2^k samples (nearest,\n"
+      "          majority or mean; default mean, nearest for aspect), by the first rule whose\n"
+      "          max_texel_m is >= its texel size (2^k x the mean x/y sample spacing, metres), else\n"
+      "          by the last rule: {\"generalise\": \"mean\", \"rules\": [{\"max_texel_m\": 60,\n"
+      "          \"ramp\": \"0:ffffff,45:a00000\", \"bands\": true}, {\"ramp\": \"0:ffffff,45:606060\"}]}.\n"
       "  export  --layer NAME [--level K] --out FILE.tif|FILE.png: pyramid level K (0 = full size).";
   s.options = {
       {"--layer", "NAME", "texture layer name", true},
@@ -321,6 +340,7 @@ CommandSpec texture_spec() {
       {"--attribute", "A", "thematic: slope (default), aspect or elevation"},
       {"--ramp", "STOPS", "thematic: colour stops V:RRGGBB[AA],... (values increasing)"},
       {"--bands", "", "thematic: constant colour bands between the stops"},
+      {"--rules", "FILE", "thematic: JSON design rules by level of detail (not with --ramp/--bands)"},
       {"--max-texture-size", "N", "add/shade/thematic: renderer texture limit, pixels (default 1024)"},
       {"--power-of-two", "", "add/shade/thematic: texture-tree patches of power-of-two sizes"},
       {"--level", "K", "export: pyramid level (default 0)"},

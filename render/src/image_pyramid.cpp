@@ -105,6 +105,63 @@ void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path,
   finish_convert(ok, "(pixels in memory)", tmp, out_path, log);
 }
 
+void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,
+                                const PyramidOptions& options) {
+  assert(options.tile_size >= 1 && (options.tile_size & (options.tile_size - 1)) == 0);
+  if (levels.empty() || levels[0].width < 1 || levels[0].height < 1)
+    throw std::invalid_argument(out_path + ": write_levels needs level 0 of at least 1 x 1 pixels");
+  const std::vector<LevelSize> want =
+      pyramid_levels(levels[0].width, levels[0].height, options.max_texture_size);
+  for (std::size_t k = 0; k < std::max(want.size(), levels.size()); ++k) {
+    const auto size = [](int w, int h) { return std::to_string(w) + " x " + std::to_string(h); };
+    if (k >= levels.size() || k >= want.size())
+      throw std::invalid_argument(out_path + ": write_levels got " + std::to_string(levels.size()) +
+                                  " levels; a pyramid over " + size(levels[0].width, levels[0].height) +
+                                  " down to " + std::to_string(options.max_texture_size) + " pixels has " +
+                                  std::to_string(want.size()) + " (level " + std::to_string(k) +
+                                  (k >= levels.size() ? " is missing)" : " is one too many)"));
+    const RgbaImage& l = levels[k];
+    assert(l.rgba.size() == std::size_t(std::max(l.width, 0)) * std::size_t(std::max(l.height, 0)) * 4);
+    if (l.width != want[k].width || l.height != want[k].height)
+      throw std::invalid_argument(out_path + ": write_levels level " + std::to_string(k) + " is " +
+                                  size(l.width, l.height) + " pixels, the pyramid needs " +
+                                  size(want[k].width, want[k].height));
+  }
+  const std::string tmp = out_path + ".tmp";
+  const auto fail = [&](const std::string& why) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(out_path + ": cannot write the image pyramid: " + why);
+  };
+  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tiff");
+  if (!out) fail(OIIO::geterror());
+  // OIIO's TIFF writer stores MIP levels as further directories (AppendSubimage), which its
+  // reader presents as MIP levels of a file marked "textureformat" (what make_texture does).
+  const bool mip = out->supports("mipmap");
+  if (levels.size() > 1 && !mip && !out->supports("multiimage"))
+    fail("the TIFF writer stores neither MIP levels nor subimages");
+  for (std::size_t k = 0; k < levels.size(); ++k) {
+    const RgbaImage& l = levels[k];
+    // The attributes of make_texture's output (texture_config), so both writers' files read alike.
+    OIIO::ImageSpec spec(l.width, l.height, 4, OIIO::TypeDesc::UINT8);
+    spec.alpha_channel = 3;
+    spec.tile_width = spec.tile_height = options.tile_size;
+    spec.tile_depth = 1;
+    spec.attribute("compression", "zip");
+    spec.attribute("wrapmodes", "clamp,clamp");
+    spec.attribute("textureformat", "Plain Texture");
+    spec.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha, as convert keeps it
+    const auto mode = k == 0 ? OIIO::ImageOutput::Create
+                      : mip  ? OIIO::ImageOutput::AppendMIPLevel
+                             : OIIO::ImageOutput::AppendSubimage;
+    if (!out->open(tmp, spec, mode) || !out->write_image(OIIO::TypeDesc::UINT8, l.rgba.data()))
+      fail("level " + std::to_string(k) + ": " + out->geterror());
+  }
+  if (!out->close()) fail(out->geterror());
+  out.reset();
+  pm::rename_into_place(tmp, out_path);
+}
+
 ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& options)
     : impl_(std::make_unique<Impl>()) {
   assert(options.max_texture_size >= 1 && options.cache_mb >= 1);

@@ -168,4 +168,25 @@ RgbaImage LodDesignRule::render(const FloatRaster& values, const TexelRegion& re
   return apply_mapper(reduce_raster(values, region, generalise_), m);
 }
 
+std::vector<RgbaImage> render_pyramid_levels(const DesignRule& rule, const FloatRaster& values,
+                                             double sample_size_m, int max_texture_size) {
+  assert(values.width >= 1 && values.height >= 1 && sample_size_m > 0.0 && max_texture_size >= 1);
+  std::vector<RgbaImage> out;
+  const std::vector<LevelSize> sizes = pyramid_levels(values.width, values.height, max_texture_size);
+  for (std::size_t k = 0; k < sizes.size(); ++k) {
+    const int step = 1 << k;
+    // w_k = max(1, floor(W / 2^k)), so w_k 2^k <= W unless w_k is the 1 of max(1, .); then the
+    // whole width is one block. Either way ceil(cols / step) = w_k.
+    const TexelRegion region{0, 0, std::min(values.width, sizes[k].width * step),
+                             std::min(values.height, sizes[k].height * step), step};
+    out.push_back(rule.render(values, region, sample_size_m));
+    if (out.back().width != sizes[k].width || out.back().height != sizes[k].height)
+      throw std::invalid_argument("render_pyramid_levels: the rule drew level " + std::to_string(k) + " as " +
+                                  std::to_string(out.back().width) + " x " +
+                                  std::to_string(out.back().height) + " texels instead of " +
+                                  std::to_string(sizes[k].width) + " x " + std::to_string(sizes[k].height));
+  }
+  return out;
+}
+
 }  // namespace terralod::render

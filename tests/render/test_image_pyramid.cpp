@@ -1,10 +1,13 @@
 // Tests of ImagePyramid: level sizes by hand, exact round trips of level 0 through the tiled
-// MIP-mapped file, box-filtered coarser levels, reads beyond the image, bad files.
+// MIP-mapped file, box-filtered coarser levels, reads beyond the image, bad files, and
+// pyramids of given levels (write_levels): exact round trips, wrong sizes refused.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "terralod/render/image_pyramid.hpp"
 #include "terralod/render/texture_store.hpp"
@@ -150,6 +153,106 @@ TEST(ImagePyramid, BadFilesThrowNamingTheFile) {
   }
   po.max_texture_size = 64;  // fits: a one-level pyramid
   EXPECT_EQ(ImagePyramid(flat, po).levels(), 1);
+}
+
+// Level k of a test pyramid: every byte depends on x, y and k, alpha included (0, partial and
+// opaque), so a level read back from the wrong MIP level, premultiplied or filtered differs.
+RgbaImage level_pattern(int w, int h, int k) {
+  RgbaImage img(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.set(x, y,
+              {std::uint8_t(x * 5 + k * 40), std::uint8_t(y * 11 + k), std::uint8_t((x * y + 3 * k) & 255),
+               std::uint8_t((x + 2 * y + 17 * k) * 7 & 255)});
+  return img;
+}
+
+std::vector<RgbaImage> given_levels(int w, int h, int max_texture_size) {
+  std::vector<RgbaImage> out;
+  int k = 0;
+  for (const LevelSize& s : pyramid_levels(w, h, max_texture_size))
+    out.push_back(level_pattern(s.width, s.height, k++));
+  return out;
+}
+
+TEST(ImagePyramid, WrittenLevelsReadBackExactly) {
+  // 100 x 60 with max 16: 100x60, 50x30, 25x15, 12x7 (floor halving), each given, none filtered.
+  PyramidOptions po;
+  po.max_texture_size = 16;
+  const std::vector<RgbaImage> levels = given_levels(100, 60, 16);
+  ASSERT_EQ(levels.size(), 4u);
+  const std::string path = tmp_path("written.tx");
+  ImagePyramid::write_levels(levels, path, po);
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  const ImagePyramid pyr(path, po);
+  ASSERT_EQ(pyr.levels(), 4);
+  EXPECT_EQ(pyr.level_sizes(), pyramid_levels(100, 60, 16));
+  EXPECT_EQ(pyr.channels(), 4);
+  for (int k = 0; k < 4; ++k)
+    EXPECT_EQ(pyr.read({k, 0, 0, levels[k].width, levels[k].height}), levels[std::size_t(k)])
+        << "level " << k;
+  // The same kind of file convert writes: tiled tile_size x tile_size, zip, one MIP level each.
+  auto in = OIIO::ImageInput::open(path);
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->format_name(), std::string("tiff"));
+  EXPECT_EQ(in->spec().tile_width, 64);
+  EXPECT_EQ(in->spec().tile_height, 64);
+  EXPECT_EQ(in->spec().get_string_attribute("compression"), "zip");
+  int mips = 0;
+  while (in->seek_subimage(0, mips)) ++mips;
+  EXPECT_EQ(mips, 4);
+  // A single level (fits already) is a one-level file.
+  PyramidOptions big;
+  big.max_texture_size = 128;
+  ImagePyramid::write_levels({levels[0]}, tmp_path("one.tx"), big);
+  EXPECT_EQ(ImagePyramid(tmp_path("one.tx"), big).read({0, 0, 0, 100, 60}), levels[0]);
+}
+
+TEST(ImagePyramid, WrongLevelsAreRefusedBeforeAnythingIsWritten) {
+  PyramidOptions po;
+  po.max_texture_size = 16;
+  const std::string path = tmp_path("refused.tx");
+  fs::remove(path);  // from an earlier run
+  const auto refused = [&](const std::vector<RgbaImage>& levels, const std::vector<std::string>& words) {
+    try {
+      ImagePyramid::write_levels(levels, path, po);
+      ADD_FAILURE() << "no exception";
+    } catch (const std::invalid_argument& e) {
+      for (const std::string& w : words)
+        EXPECT_NE(std::string(e.what()).find(w), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(path + ".tmp"));
+  };
+  std::vector<RgbaImage> levels = given_levels(100, 60, 16);
+  levels[2] = level_pattern(26, 15, 2);  // ceil instead of floor: 25 x 15 wanted
+  refused(levels, {path, "level 2", "26 x 15", "25 x 15"});
+  EXPECT_FALSE(fs::exists(path));
+  levels = given_levels(100, 60, 16);
+  levels.pop_back();
+  refused(levels, {"got 3 levels", "level 3 is missing"});
+  levels = given_levels(100, 60, 16);
+  levels.push_back(level_pattern(6, 3, 4));
+  refused(levels, {"got 5 levels", "level 4 is one too many"});
+  refused({}, {"level 0"});
+  EXPECT_FALSE(fs::exists(path));
+  // A file already there stays as it was.
+  ImagePyramid::write_levels(given_levels(100, 60, 16), path, po);
+  const auto before = fs::file_size(path);
+  levels = given_levels(100, 60, 16);
+  levels[1] = level_pattern(50, 31, 1);
+  refused(levels, {"level 1", "50 x 31", "50 x 30"});
+  ASSERT_TRUE(fs::exists(path));
+  EXPECT_EQ(fs::file_size(path), before);
+  EXPECT_EQ(ImagePyramid(path, po).read({3, 0, 0, 12, 7}), level_pattern(12, 7, 3));
+  // A write failure (no such folder) names the file and leaves nothing.
+  const std::string nowhere = tmp_path("no_such_folder/x.tx");
+  try {
+    ImagePyramid::write_levels(given_levels(100, 60, 16), nowhere, po);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(nowhere), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(nowhere + ".tmp"));
 }
 
 }  // namespace

@@ -1,11 +1,15 @@
 // Tests of thematic textures: class tables, colour ramps and bands exact on small rasters, DEM
-// attributes (slope, aspect) on analytic planes, reductions, and LOD-dependent design rules.
+// attributes (slope, aspect) on analytic planes, reductions, LOD-dependent design rules and
+// the pyramid levels they draw.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/render/rgba_image.hpp"
@@ -150,4 +154,72 @@ TEST(ThematicTexture, LodDesignRuleChangesTheLookWithTexelSize) {
   const tr::RgbaImage mid = rule.render(cls, {0, 0, -1, -1, 2}, 10.0);
   ASSERT_EQ(mid.width, 2);
   EXPECT_EQ(mid.get(0, 0), kForest);  // 1 1 / 1 2 -> 1
+}
+
+namespace {
+// A rule that records the regions it is asked for and draws each as (step, col0 + cols, rows, 255).
+struct RecordingRule final : tr::DesignRule {
+  mutable std::vector<tr::TexelRegion> regions;
+  int extra_width = 0;  // > 0: draws a wrong size
+  tr::RgbaImage render(const tr::FloatRaster& values, const tr::TexelRegion& region, double) const override {
+    regions.push_back(region);
+    tr::RgbaImage img(region.out_width(values.width) + extra_width, region.out_height(values.height));
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x)
+        img.set(x, y, {std::uint8_t(region.step), std::uint8_t(region.cols), std::uint8_t(region.rows), 255});
+    return img;
+  }
+};
+}  // namespace
+
+TEST(ThematicTexture, PyramidLevelsHaveThePyramidSizesAndBlocksOfTwoToTheK) {
+  // 13 x 6 values, max texture size 2: pyramid_levels 13x6, 6x3, 3x1, 1x1. Level k asks for
+  // step 2^k over min(W, w_k 2^k) x min(H, h_k 2^k) samples:
+  //   k=0: 13 x 6 step 1;  k=1: 12 x 6 step 2 (column 12 left out);  k=2: 12 x 4 step 4;
+  //   k=3: 8 x 6 step 8 (h_3 = 1 is max(1, 6/8 = 0): the one row covers all 6).
+  const tr::FloatRaster values(13, 6, 1.0f);
+  RecordingRule rec;
+  const std::vector<tr::RgbaImage> lv = tr::render_pyramid_levels(rec, values, /*sample_size_m=*/10.0, 2);
+  ASSERT_EQ(lv.size(), 4u);
+  const std::vector<tr::LevelSize> want = tr::pyramid_levels(13, 6, 2);
+  const int cols[] = {13, 12, 12, 8}, rows[] = {6, 6, 4, 6};
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ((tr::LevelSize{lv[k].width, lv[k].height}), want[k]) << "level " << k;
+    const tr::TexelRegion& r = rec.regions[k];
+    EXPECT_EQ(r.col0, 0);
+    EXPECT_EQ(r.row0, 0);
+    EXPECT_EQ(r.step, 1 << k) << "level " << k;
+    EXPECT_EQ(r.cols, cols[k]) << "level " << k;
+    EXPECT_EQ(r.rows, rows[k]) << "level " << k;
+  }
+  // A rule that draws the wrong size is refused, naming the level.
+  RecordingRule wrong;
+  wrong.extra_width = 1;
+  try {
+    tr::render_pyramid_levels(wrong, values, 10.0, 2);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("level 0 as 14 x 6"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ThematicTexture, PyramidLevelsPickTheLookByTexelSize) {
+  // v(c, r) = c + 100 r on 13 x 6 samples of 10 m; near ramp 0 -> 1000 black to red, far ramp
+  // black to green; near up to 25 m: levels 0 (10 m) and 1 (20 m) near, 2 (40 m) far. Mean:
+  //   level 0 texel (12, 5) = 512             -> red   512/1000*250 = 128
+  //   level 1 texel (1, 0)  = mean of cols 2..3, rows 0..1 = 2.5 + 50 = 52.5 -> red 13.125 = 13
+  //   level 2 texel (0, 0)  = mean of cols 0..3, rows 0..3 = 1.5 + 150 = 151.5 -> green 37.875 = 38
+  tr::FloatRaster v(13, 6);
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 13; ++c) v.at(c, r) = float(c + 100 * r);
+  tr::LodDesignRule rule(tr::Reduction::Mean);
+  rule.add(25.0, std::make_shared<tr::ColorRamp>(
+                     std::vector<tr::ColorRamp::Stop>{{0.0f, {0, 0, 0, 255}}, {1000.0f, {250, 0, 0, 255}}}));
+  rule.add(1e30, std::make_shared<tr::ColorRamp>(
+                     std::vector<tr::ColorRamp::Stop>{{0.0f, {0, 0, 0, 255}}, {1000.0f, {0, 250, 0, 255}}}));
+  const std::vector<tr::RgbaImage> lv = tr::render_pyramid_levels(rule, v, 10.0, 2);
+  ASSERT_EQ(lv.size(), 4u);
+  EXPECT_EQ(lv[0].get(12, 5), (tr::Rgba{128, 0, 0, 255}));
+  EXPECT_EQ(lv[1].get(1, 0), (tr::Rgba{13, 0, 0, 255}));
+  EXPECT_EQ(lv[2].get(0, 0), (tr::Rgba{0, 38, 0, 255}));
 }

@@ -8,6 +8,9 @@
 //   pyr.levels();                          // e.g. 5: 16000^2, 8000^2, ..., 1000^2
 //   terralod::render::PixelRect r{/*level=*/2, /*x0=*/0, /*y0=*/0, /*width=*/512, /*height=*/256};
 //   terralod::render::RgbaImage px = pyr.read(r);   // 512 x 256 RGBA8, top row first
+//   // Levels rendered by the caller (a design rule per level of detail), not box-filtered:
+//   std::vector<terralod::render::RgbaImage> lv;  // sizes exactly pyramid_levels(w, h, 1024)
+//   terralod::render::ImagePyramid::write_levels(lv, "thematic.tx", po);
 //
 // Implementation: OpenImageIO's make_texture (the library behind `maketx`) writes a tiled
 // (64 x 64), MIP-mapped TIFF, reading the source through an ImageCache so the whole image is
@@ -16,6 +19,9 @@
 // approximation-tree.txt section 3.3 and dynamic-3d-maps-texture-layers.txt section 3.1: all
 // levels cover the same geo-referenced domain; level k+1 is level k scaled by 1/2 (OIIO:
 // max(1, floor(w/2)) per axis, box filter).
+// write_levels writes the same kind of TIFF through OIIO's ImageOutput, one directory per
+// level (the TIFF writer appends them as subimages; OIIO reads a file marked "textureformat"
+// back as MIP levels).
 //
 // Contract:
 //   - Pixel coordinates: (x, y), x to the right, y DOWN from the top row of the image, at the
@@ -27,6 +33,13 @@
 //     coarser levels average colour and alpha independently (box filter).
 //   - levels(): the finest level 0, down to and including the first level whose width and
 //     height are both <= max_texture_size (the file may hold coarser ones; they are not used).
+//   - write_levels(levels, out_path, options): levels[k] becomes MIP level k, byte for byte
+//     (RGBA8, straight alpha), in the same kind of file convert writes (tiled tile_size x
+//     tile_size, zip, TIFF); levels.size() and every level's size must equal
+//     pyramid_levels(levels[0].width, levels[0].height, options.max_texture_size), else
+//     std::invalid_argument naming the first level that does not, before anything is written.
+//   - Writers go through out_path + ".tmp", renamed onto out_path when complete: on any error
+//     out_path is untouched and no ".tmp" is left.
 //   - Errors (unreadable file, not an image, write failure) throw std::runtime_error naming
 //     the file and the reason. read() is thread-safe (the ImageCache is).
 //   - Memory: the cache (cache_mb, default 64 MiB) + the returned pixels (4 bytes each).
@@ -78,6 +91,15 @@ class ImagePyramid {
   /// Same from pixels in memory (generated textures, tests).
   static void convert(const RgbaImage& image, const std::string& out_path,
                       const PyramidOptions& options = {});
+
+  /// Writes given levels (not box-filtered from level 0) as a tiled, MIP-mapped TIFF at
+  /// `out_path` (through out_path + ".tmp"): level k of the file is levels[k] exactly. Sizes
+  /// must be exactly pyramid_levels(levels[0].width, levels[0].height,
+  /// options.max_texture_size), else std::invalid_argument naming the level; write failures
+  /// throw std::runtime_error naming the file. Memory: OIIO's tile buffers beyond the
+  /// caller's levels.
+  static void write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,
+                           const PyramidOptions& options = {});
 
   /// Opens a converted file (or any image; a flat one is a one-level pyramid if it fits).
   explicit ImagePyramid(const std::string& path, const PyramidOptions& options = {});

@@ -19,6 +19,8 @@
 //   rule.add(/*max_texel_size_m=*/1e30, std::make_shared<ColorRamp>(far));           // far
 //   RgbaImage level3 = rule.render(classes, TexelRegion{0, 0, -1, -1, /*step=*/8},
 //                                  /*sample_size_m=*/90.0);                          // far look
+//   // Every level of a pyramid, each drawn by the rule (write with ImagePyramid::write_levels):
+//   std::vector<RgbaImage> lv = render_pyramid_levels(rule, classes, 90.0, /*max_texture_size=*/1024);
 //
 // Contract:
 //   - Rasters are top row first (rgba_image.hpp); NaN means no data and maps to the mapper's
@@ -42,7 +44,18 @@
 //     reduces step x step blocks by `generalise`: Nearest takes the block's first sample
 //     (top-left), Majority the most frequent class id in the block (smallest id on ties; NaN
 //     only if the whole block is NaN), Mean the mean of its valid values.
+//   - render_pyramid_levels(rule, values, sample_size_m, max_texture_size): level k has exactly
+//     the size pyramid_levels(values.width, values.height, max_texture_size)[k] = w_k x h_k
+//     (floor halving, image_pyramid.hpp) and is rule.render(values, region_k, sample_size_m),
+//     region_k = {0, 0, min(W, w_k 2^k), min(H, h_k 2^k), step = 2^k}: texel (i, j) stands for
+//     the samples [i 2^k, (i+1) 2^k) x [j 2^k, (j+1) 2^k), so its texel size is
+//     2^k * sample_size_m. Where W (H) is not a multiple of 2^k the last W mod 2^k columns
+//     (rows) are left out of level k (less than one of its texels; a box-filtered pyramid
+//     spreads them over the level instead); where W < 2^k (w_k is the 1 of max(1, .)) its one
+//     column covers all W.
+//     std::invalid_argument if the rule returns an image of another size.
 //   - Memory: output 4 bytes per texel; rules allocate one reduced float raster (4 bytes per texel).
+//     render_pyramid_levels holds every level: about 4/3 x 4 bytes per full-resolution sample.
 #pragma once
 
 #include <array>
@@ -53,6 +66,7 @@
 #include <vector>
 
 #include "terralod/pm/heightfield.hpp"
+#include "terralod/render/image_pyramid.hpp"
 #include "terralod/render/rgba_image.hpp"
 #include "terralod/render/topographic_texture.hpp"
 
@@ -135,5 +149,11 @@ class LodDesignRule final : public DesignRule {
   Reduction generalise_;
   std::vector<std::pair<double, std::shared_ptr<const ColorMapper>>> entries_;
 };
+
+/// The levels of an image pyramid over `values` (sizes pyramid_levels(values.width,
+/// values.height, max_texture_size)), level k drawn by `rule` at step 2^k (contract above).
+/// sample_size_m > 0; max_texture_size >= 1; values at least 1 x 1.
+std::vector<RgbaImage> render_pyramid_levels(const DesignRule& rule, const FloatRaster& values,
+                                             double sample_size_m, int max_texture_size);
 
 }  // namespace terralod::render
