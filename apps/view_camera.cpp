@@ -39,15 +39,44 @@ std::vector<double> parse_numbers(const std::string& option, const std::string& 
 
 }  // namespace
 
+pm::Camera camera_option(const Args& a, const std::string& option, const pm::Camera& like) {
+  const std::vector<double> c = parse_numbers(option, a.get(option), 6);
+  if (c[4] < -90.0 || c[4] > 90.0) throw UsageError(option + ": PITCH must be in [-90, 90] degrees");
+  if (c[5] <= 0.0 || c[5] >= 180.0) throw UsageError(option + ": FOVY must be in (0, 180) degrees");
+  pm::Camera cam = like;
+  cam.x = c[0], cam.y = c[1], cam.z = c[2], cam.yaw_deg = c[3], cam.pitch_deg = c[4], cam.fovy_deg = c[5];
+  return cam;
+}
+
 ViewCamera view_camera_options(const Args& a) {
-  const std::vector<double> c = parse_numbers("--camera", a.get("--camera"), 6);
-  if (c[4] < -90.0 || c[4] > 90.0) throw UsageError("--camera: PITCH must be in [-90, 90] degrees");
-  if (c[5] <= 0.0 || c[5] >= 180.0) throw UsageError("--camera: FOVY must be in (0, 180) degrees");
+  // --camera first, then --tau and --size (the order of the UsageErrors).
+  const pm::Camera c = camera_option(a, "--camera", pm::Camera{});
   ViewCamera v;
   v.tau = tau_option(a);
   const auto [width, height] = image_size_option(a, {1024, 768});
-  v.camera = pm::Camera{c[0], c[1], c[2], c[3], c[4], c[5], width, height};
+  v.camera = pm::Camera{c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg, width, height};
   return v;
+}
+
+pm::Camera interpolate_camera(const pm::Camera& a, const pm::Camera& b, double alpha) {
+  if (alpha <= 0.0) return a;
+  if (alpha >= 1.0) {
+    pm::Camera c = b;
+    c.width_px = a.width_px, c.height_px = a.height_px, c.near_m = a.near_m, c.far_m = a.far_m;
+    return c;
+  }
+  pm::Camera c = a;
+  c.x = std::lerp(a.x, b.x, alpha);
+  c.y = std::lerp(a.y, b.y, alpha);
+  c.z = std::lerp(a.z, b.z, alpha);
+  c.pitch_deg = std::lerp(a.pitch_deg, b.pitch_deg, alpha);
+  c.fovy_deg = std::lerp(a.fovy_deg, b.fovy_deg, alpha);
+  // The turn from a's yaw to b's in (-180, 180]: the shorter way round.
+  double turn = std::fmod(b.yaw_deg - a.yaw_deg, 360.0);
+  if (turn > 180.0) turn -= 360.0;
+  if (turn <= -180.0) turn += 360.0;
+  c.yaw_deg = a.yaw_deg + alpha * turn;
+  return c;
 }
 
 void fit_clip_to_box(pm::Camera& c, const glm::dvec3& lo, const glm::dvec3& hi) {

@@ -1,5 +1,7 @@
 // Static geomorph M^G(alpha) between two selectively refined meshes M^A and M^B of one PM:
-// their plan-view overlay, with heights blended from M^A's surface to M^B's.
+// their plan-view overlay, with heights blended from M^A's surface to M^B's. The product uses it
+// in `terralod view --morph-to` (apps/cmd_view.cpp): a transition between two viewpoints, drawn
+// as one image per alpha.
 //
 // Usage:
 //   terralod::pm::SelectiveRefinement a(dag), b(dag);
