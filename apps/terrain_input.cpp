@@ -107,11 +107,12 @@ pm::Heightfield read_stage(const std::string& path, const blocks::DemOptions& op
   return hf;
 }
 
-pm::ProgressiveMesh build_with_progress(const pm::Heightfield& hf, pm::BuildOptions options, double& ms) {
+pm::ProgressiveMesh build_with_progress(const pm::Heightfield& hf, pm::BuildOptions options, double& ms,
+                                        BuildFn build) {
   ProgressBar bar("build");
   options.progress = [&bar](double f) { return bar.update(f); };
   const auto t = Clock::now();
-  pm::ProgressiveMesh mesh = pm::ProgressiveMesh::build(hf, options);
+  pm::ProgressiveMesh mesh = build(hf, options);
   ms = ms_since(t);
   bar.finish();
   return mesh;

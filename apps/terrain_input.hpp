@@ -64,9 +64,13 @@ pm::Heightfield generate_stage(const Args& a);
 pm::Heightfield read_stage(const std::string& path, const blocks::DemOptions& options = {});
 /// Builds its progressive mesh with a progress bar; prints vertices in -> out, max error, time.
 pm::ProgressiveMesh build_stage(const pm::Heightfield& hf, pm::BuildOptions options = {});
-/// build_stage's work without its line: the mesh and, in `ms`, the build's time (for a caller
-/// that prints build_line later).
-pm::ProgressiveMesh build_with_progress(const pm::Heightfield& hf, pm::BuildOptions options, double& ms);
+/// A function that builds a PM: pm::ProgressiveMesh::build, or pm::build_with_decimater
+/// (terralod pm --decimater openmesh).
+using BuildFn = pm::ProgressiveMesh (*)(const pm::Heightfield&, const pm::BuildOptions&);
+/// build_stage's work without its line: the mesh built by `build` and, in `ms`, the build's time
+/// (for a caller that prints build_line later).
+pm::ProgressiveMesh build_with_progress(const pm::Heightfield& hf, pm::BuildOptions options, double& ms,
+                                        BuildFn build = &pm::ProgressiveMesh::build);
 /// build_stage's line: "build V vertices -> B base vertices, N vsplits, max error E m, TIME".
 std::string build_line(const pm::ProgressiveMesh& mesh, double ms);
 /// Reads a .pm file; prints its size, vsplits and metric.

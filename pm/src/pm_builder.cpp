@@ -36,6 +36,7 @@
 
 #include "cached_linf_error.hpp"
 #include "collapse_mesh.hpp"
+#include "grid_mesh.hpp"
 #include "huge_vector.hpp"
 #include "terralod/pm/grid_border.hpp"
 #include "terralod/pm/parallel.hpp"
@@ -70,32 +71,21 @@ class Builder {
     number_vertices(x0, x1);
     reserve_mesh(3 * std::size_t(x1 - x0 + 1) * H_, 2 * std::size_t(x1 - x0) * H_);
     std::vector<Mesh::VertexHandle> tri(3);
-    auto add_cell = [&](int i, int j) {
-      const std::uint32_t s00 = std::uint32_t(j) * W_ + i, s10 = s00 + 1, s01 = s00 + W_, s11 = s01 + 1;
-      const std::uint32_t faces[2][3] = {{s00, s10, s11}, {s00, s11, s01}};
-      const std::size_t l00 = id_index(i, j), l10 = l00 + 1, l01 = l00 + id_cols_, l11 = l01 + 1;
-      const std::size_t ids[2][3] = {{l00, l10, l11}, {l00, l11, l01}};
-      for (int k = 0; k < 2; ++k) {
-        if (hf_.has_holes() && !(hf_.valid(faces[k][0]) && hf_.valid(faces[k][1]) && hf_.valid(faces[k][2])))
-          continue;
-        for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[ids[k][c]]));
-        if (!mesh_.add_triangle(tri).is_valid()) {
-          // Cells in tile order always extend the connected fans of their corners (see
-          // tile_order.hpp), so only a grid with holes can drop a face.
-          if (!hf_.has_holes())
-            throw std::logic_error("progressive mesh: the full-resolution grid is not manifold");
-          dropped.push_back(std::uint32_t(2 * (j * (W_ - 1) + i) + k));
-        }
-      }
+    const auto add_face = [&](const std::uint32_t(&)[3], const GridPoint(&corners)[3]) {
+      for (int c = 0; c < 3; ++c)
+        tri[c] = Mesh::VertexHandle(int(id_of_[id_index(corners[c].x, corners[c].y)]));
+      return mesh_.add_triangle(tri).is_valid();
     };
     if (hf_.has_holes()) {
       // Around holes the faces OpenMesh accepts depend on the order they come in: row by row,
-      // as the PM's full-resolution face numbering (dropped faces) expects.
-      for (int j = 0; j + 1 < H_; ++j)
-        for (int i = x0; i < x1; ++i) add_cell(i, j);
+      // as the PM's full-resolution face numbering (dropped faces) expects (grid_mesh.hpp).
+      detail::add_faces_row_by_row(hf_, x0, x1, add_face, dropped);
     } else {
-      for (std::uint32_t v = 0; v < n_ids_; ++v)  // cell (i,j) has its corner (i,j) first
-        if (point(v).x < x1 && point(v).y + 1 < H_) add_cell(point(v).x, point(v).y);
+      // Cells in tile order always extend the connected fans of their corners (see
+      // tile_order.hpp): OpenMesh accepts every face. Cell (i,j) has its corner (i,j) first.
+      for (std::uint32_t v = 0; v < n_ids_; ++v)
+        if (point(v).x < x1 && point(v).y + 1 < H_)
+          detail::add_cell_faces(hf_, point(v).x, point(v).y, add_face, dropped);
     }
     if (!hf_.has_holes()) grid_x0_ = x0, grid_x1_ = x1;
     for (int j = 0; j < H_; ++j) {
@@ -638,16 +628,7 @@ class Builder {
 }  // namespace
 
 ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions& options) {
-  if (hf.width() < 2 || hf.height() < 2)
-    throw std::invalid_argument("progressive mesh: grid is " + std::to_string(hf.width()) + " x " +
-                                std::to_string(hf.height()) + "; at least 2 x 2 samples are needed");
-  if (hf.size() >= (std::size_t(1) << 31))
-    throw std::invalid_argument("progressive mesh: grid of " + std::to_string(hf.size()) +
-                                " samples is too large for one PM; cut it into blocks");
-  for (std::size_t i = 0; i < hf.size(); ++i)
-    if (hf.valid(i) && !std::isfinite(hf[i]))
-      throw std::invalid_argument("progressive mesh: sample " + std::to_string(i) + " of " + hf.source +
-                                  " is not finite; fill or mask voids first");
+  detail::check_buildable(hf);
   const double quantum = error_quantum_for(hf);
   std::vector<Collapse> collapses;
   collapses.reserve(hf.size());

@@ -17,7 +17,10 @@
 // whose ring changed, with no caching). ProgressiveMesh::build runs the same kernel and the
 // same legality rules (the border rules are grid_border.hpp's, shared) in its own loop and
 // records the collapse sequence; use it unless you need OpenMesh's decimater framework (other
-// modules, observers, your own mesh type).
+// modules, observers, your own mesh type). The product's user of this module is the reference
+// build route through that framework: build_with_decimater (openmesh_build.hpp), which records
+// every collapse DecimaterT performs into a ProgressiveMesh, and with it
+// `terralod pm --decimater openmesh`.
 //
 // Contract:
 //   - Every vertex with a face has x = column and y = row as exact integers, at a valid sample
@@ -34,6 +37,7 @@
 //   - Binary mode (set_max_error(e) with binary = true, like ModQuadricT::set_max_err):
 //     LEGAL_COLLAPSE (0) when E <= e. Non-binary (the default): E itself, as a float rounded
 //     up so that the priority never understates the error.
+//   - collapse_error(ci) is E itself as a double (-1 when illegal), for recording collapses.
 //   - OpenMesh's own checks (link condition, boundary rules) run in DecimaterT before the
 //     module is asked.
 // Memory: none per vertex; O(valence) scratch per call.
@@ -99,25 +103,37 @@ class ModLInfT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   }
 
   float collapse_priority(const CollapseInfo& ci) override {
+    const double e = collapse_error(ci);
+    if (e < 0.0) return float(Base::ILLEGAL_COLLAPSE);
+    if (Base::is_binary()) return float(Base::LEGAL_COLLAPSE);
+    float prio = float(e);
+    if (double(prio) < e) prio = std::nextafter(prio, FLT_MAX);
+    return prio;
+  }
+
+  /// E of the collapse v0 -> v1 in metres, exactly (the priority before its rounding to a
+  /// float), or -1 when the collapse is illegal (see the contract; OpenMesh's own checks are
+  /// not repeated here). build_with_decimater records it for every collapse performed.
+  double collapse_error(const CollapseInfo& ci) {
+    constexpr double kIllegal = -1.0;
     MeshT& m = Base::mesh();
     const GridPoint p0 = grid_point(ci.p0), p1 = grid_point(ci.p1);
     // Grid corners never move; a border vertex stays on its border line (grid_border.hpp).
     const GridBorder border{hf_->width(), hf_->height()};
-    if (border.corner(p0)) return float(Base::ILLEGAL_COLLAPSE);
+    if (border.corner(p0)) return kIllegal;
     const BorderLine line = border.line(p0);
     if (line != BorderLine::None) {
-      if (!border.on(line, p1)) return float(Base::ILLEGAL_COLLAPSE);
+      if (!border.on(line, p1)) return kIllegal;
       // Along the border, v0 -> v1 must be a boundary edge and v0's other boundary neighbour
       // must be on the same line too (otherwise a hole touches the border here).
-      if (!m.is_boundary(m.edge_handle(ci.v0v1))) return float(Base::ILLEGAL_COLLAPSE);
+      if (!m.is_boundary(m.edge_handle(ci.v0v1))) return kIllegal;
       for (auto h : m.voh_range(ci.v0)) {
         const auto o = m.opposite_halfedge_handle(h);
         if (!m.is_boundary(h) && !m.is_boundary(o)) continue;
-        if (!border.on(line, grid_point(m.point(m.to_vertex_handle(h)))))
-          return float(Base::ILLEGAL_COLLAPSE);
+        if (!border.on(line, grid_point(m.point(m.to_vertex_handle(h))))) return kIllegal;
       }
     } else if (m.is_boundary(ci.v0)) {
-      return float(Base::ILLEGAL_COLLAPSE);  // the boundary of a hole keeps its shape
+      return kIllegal;  // the boundary of a hole keeps its shape
     }
     // The new triangles: v0's faces except fl and fr, with v0 replaced by v1. Each is measured
     // in full (no cutoff): a rejection only needs one triangle above max_error, and a full
@@ -130,14 +146,11 @@ class ModLInfT : public OpenMesh::Decimater::ModBaseT<MeshT> {
       const auto hn = m.next_halfedge_handle(h);
       const GridPoint a = grid_point(m.point(m.to_vertex_handle(h))),
                       b = grid_point(m.point(m.to_vertex_handle(hn)));
-      if (orient2d(p1, a, b) <= 0) return float(Base::ILLEGAL_COLLAPSE);  // flip or degenerate
+      if (orient2d(p1, a, b) <= 0) return kIllegal;  // flip or degenerate
       e = std::max(e, err.triangle(p1, a, b));
-      if (e > max_error_) return float(Base::ILLEGAL_COLLAPSE);
+      if (e > max_error_) return kIllegal;
     }
-    if (Base::is_binary()) return float(Base::LEGAL_COLLAPSE);
-    float prio = float(e);
-    if (double(prio) < e) prio = std::nextafter(prio, FLT_MAX);
-    return prio;
+    return e;
   }
 
  private:
