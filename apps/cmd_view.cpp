@@ -180,22 +180,10 @@ glm::dvec3 surface_normal(const pm::Heightfield& hf, double col, double row) {
 render::DrawMesh geomorph_draw_mesh(const pm::RenderMesh& m, const pm::Heightfield& hf,
                                     const glm::dvec3& origin, const std::vector<glm::vec3>& normals) {
   render::DrawMesh d;
-  d.origin = origin;
-  d.xyz.resize(3 * m.positions.size());
+  render::fill_draw_geometry(m.positions, m.triangles, origin, hf.transform.determinant() < 0.0, d);
   d.normals.resize(3 * m.positions.size());
-  for (std::size_t v = 0; v < m.positions.size(); ++v) {
-    d.xyz[3 * v + 0] = float(m.positions[v].x - origin.x);
-    d.xyz[3 * v + 1] = float(m.positions[v].y - origin.y);
-    d.xyz[3 * v + 2] = float(m.positions[v].z - origin.z);
+  for (std::size_t v = 0; v < m.positions.size(); ++v)
     for (int k = 0; k < 3; ++k) d.normals[3 * v + std::size_t(k)] = normals[v][k];
-  }
-  const bool flip = hf.transform.determinant() < 0.0;
-  d.indices.reserve(3 * m.triangles.size());
-  for (const auto& t : m.triangles) {
-    d.indices.push_back(t[0]);
-    d.indices.push_back(flip ? t[2] : t[1]);
-    d.indices.push_back(flip ? t[1] : t[2]);
-  }
   return d;
 }
 

@@ -79,24 +79,10 @@ class PmSource final : public LodSource {
     // full-resolution samples, triangles CCW seen from above.
     const auto t0 = Clock::now();
     const pm::RenderMesh m = sel_->render_mesh();
-    const bool flip = ext_.transform.determinant() < 0;
-    const glm::dvec3 o = ext_.origin;
-    dm.origin = o;
-    dm.z_target.clear();
-    dm.xyz.resize(m.positions.size() * 3);
+    render::fill_draw_geometry(m.positions, m.triangles, ext_.origin, ext_.transform.determinant() < 0, dm);
     dm.normals.resize(m.positions.size() * 3);
-    for (std::size_t v = 0; v < m.positions.size(); ++v) {
-      dm.xyz[3 * v] = float(m.positions[v].x - o.x);
-      dm.xyz[3 * v + 1] = float(m.positions[v].y - o.y);
-      dm.xyz[3 * v + 2] = float(m.positions[v].z - o.z);
+    for (std::size_t v = 0; v < m.positions.size(); ++v)
       std::copy_n(&normals_[std::size_t(m.samples[v]) * 3], 3, &dm.normals[3 * v]);
-    }
-    dm.indices.resize(m.triangles.size() * 3);
-    for (std::size_t f = 0; f < m.triangles.size(); ++f) {
-      dm.indices[3 * f] = m.triangles[f][0];
-      dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
-      dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
-    }
     r.upload_ms = ms_since(t0);
     return true;
   }

@@ -126,22 +126,29 @@ std::vector<float> triangle_normals(const DrawMesh& m) {
   return out;
 }
 
-void fill_draw_mesh(const blocks::DrawnMesh& m, const glm::dvec3& o, bool flip, DrawMesh& dm) {
-  const std::size_t nv = m.positions.size();
+void fill_draw_geometry(std::span<const pm::Vec3> positions,
+                        std::span<const std::array<std::uint32_t, 3>> triangles, const glm::dvec3& o,
+                        bool flip, DrawMesh& dm) {
+  const std::size_t nv = positions.size();
   dm.origin = o;
   dm.z_target.clear();
   dm.xyz.resize(nv * 3);
   for (std::size_t v = 0; v < nv; ++v) {
-    dm.xyz[3 * v] = float(m.positions[v].x - o.x);
-    dm.xyz[3 * v + 1] = float(m.positions[v].y - o.y);
-    dm.xyz[3 * v + 2] = float(m.positions[v].z - o.z);
+    dm.xyz[3 * v] = float(positions[v].x - o.x);
+    dm.xyz[3 * v + 1] = float(positions[v].y - o.y);
+    dm.xyz[3 * v + 2] = float(positions[v].z - o.z);
   }
-  dm.indices.resize(m.triangles.size() * 3);
-  for (std::size_t f = 0; f < m.triangles.size(); ++f) {
-    dm.indices[3 * f] = m.triangles[f][0];
-    dm.indices[3 * f + 1] = m.triangles[f][flip ? 2 : 1];
-    dm.indices[3 * f + 2] = m.triangles[f][flip ? 1 : 2];
+  dm.indices.resize(triangles.size() * 3);
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    dm.indices[3 * f] = triangles[f][0];
+    dm.indices[3 * f + 1] = triangles[f][flip ? 2 : 1];
+    dm.indices[3 * f + 2] = triangles[f][flip ? 1 : 2];
   }
+}
+
+void fill_draw_mesh(const blocks::DrawnMesh& m, const glm::dvec3& o, bool flip, DrawMesh& dm) {
+  fill_draw_geometry(m.positions, m.triangles, o, flip, dm);
+  const std::size_t nv = m.positions.size();
   // Normals in double from the world positions (the floats lose the small slopes far away).
   std::vector<glm::dvec3> acc(nv, glm::dvec3(0.0));
   for (std::size_t f = 0; f < m.triangles.size(); ++f) {

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_texture_database.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
@@ -33,31 +34,10 @@ using terralod::test::slurp;
 
 const fs::path& tmp_dir() { return terralod::test::process_temp_dir("texture-rules"); }
 
-/// Runs `terralod <args>`; `out` gets stdout and stderr interleaved.
-int run(const std::string& args, std::string* out = nullptr) {
-  const terralod::test::CommandResult r =
-      terralod::test::run_tool(TERRALOD_CLI, args, {.merge_stderr = true, .no_display = true});
-  if (out) *out = r.err;
-  if (r.status != 0) std::fprintf(stderr, "terralod %s:\n%s\n", args.c_str(), r.err.c_str());
-  return r.status;
-}
-
-/// A generated 65 x 65 terrain (30 m cells) as an ESRI ASCII grid at `asc`, built into `db`.
+const terralod::test::CliRunner cli{TERRALOD_CLI};
+int run(const std::string& args, std::string* out = nullptr) { return cli.run(args, out); }
 void build_database(const fs::path& asc, const fs::path& db) {
-  pm::TerrainOptions to;
-  to.width = to.height = 65;
-  to.seed = 11;
-  to.relief = 600;
-  to.quantize_to_metres = true;
-  const pm::Heightfield gen = pm::generate_terrain(to);
-  {
-    std::ofstream f(asc);
-    f << "ncols 65\nnrows 65\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
-    for (int r = 0; r < 65; ++r)
-      for (int c = 0; c < 65; ++c) f << gen.at(c, r) << (c + 1 < 65 ? " " : "\n");
-  }
-  ASSERT_EQ(run("build --input " + quote(asc.string()) + " --out " + quote(db.string()) + " --block-size 33"),
-            0);
+  terralod::test::build_cli_database(cli, asc, db);
 }
 
 void write_text(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::binary) << text; }

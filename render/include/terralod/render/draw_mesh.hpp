@@ -24,16 +24,19 @@
 //     after upload().
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "terralod/blocks/drawn_mesh.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
+#include "terralod/pm/view.hpp"
 
 namespace terralod::render {
 
@@ -73,6 +76,14 @@ struct DrawMeshOptions {
 /// left empty (no geomorph). Asserts that the mesh's sample indices are inside the grid.
 DrawMesh make_draw_mesh(const pm::TriangleMesh& mesh, const pm::Heightfield& hf,
                         const DrawMeshOptions& options = {});
+
+/// The geometry of a displayed mesh (world positions, geomorphs included, and triangles CCW in
+/// plan view at rest) into `out`, relative to `origin`: xyz = position - origin, triangles made
+/// CCW from above (flip_winding for a mirroring grid transform, determinant < 0), z_target
+/// cleared; normals are left to the caller. Reuses out's buffers. O(vertices + triangles).
+void fill_draw_geometry(std::span<const pm::Vec3> positions,
+                        std::span<const std::array<std::uint32_t, 3>> triangles, const glm::dvec3& origin,
+                        bool flip_winding, DrawMesh& out);
 
 /// The runtime's drawn mesh (blocks::TerrainRuntime::drawn_mesh(): world positions with the
 /// displayed heights, geomorphs included) as a DrawMesh relative to `origin`: triangles made
