@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cassert>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include <stdexcept>
 
 #include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/json.hpp"
 
 namespace terralod::cli {
 
@@ -297,42 +299,6 @@ std::string strf(const char* fmt, ...) {
 // ---------------------------------------------------------------------------------------------
 // JSON
 
-std::string JsonWriter::quote(const std::string& s) {
-  std::string q = "\"";
-  for (const char ch : s) {
-    const unsigned char c = static_cast<unsigned char>(ch);
-    switch (c) {
-      case '"':
-        q += "\\\"";
-        break;
-      case '\\':
-        q += "\\\\";
-        break;
-      case '\b':
-        q += "\\b";
-        break;
-      case '\f':
-        q += "\\f";
-        break;
-      case '\n':
-        q += "\\n";
-        break;
-      case '\r':
-        q += "\\r";
-        break;
-      case '\t':
-        q += "\\t";
-        break;
-      default:
-        if (c < 0x20 || c == 0x7f)
-          q += strf("\\u%04x", c);
-        else
-          q += ch;  // UTF-8 bytes pass through unchanged
-    }
-  }
-  return q + "\"";
-}
-
 std::string JsonWriter::number(double v) {
   if (!std::isfinite(v)) return "null";
   if (v == 0.0) return "0";  // also turns -0 into 0
@@ -340,34 +306,46 @@ std::string JsonWriter::number(double v) {
 }
 
 void JsonWriter::prefix(const std::string& key) {
-  if (!first_.empty()) {
-    out_ += first_.back() ? "\n" : ",\n";
-    first_.back() = false;
-    out_.append(2 * first_.size(), ' ');
+  if (!open_.empty()) {
+    assert(open_.back().array == key.empty() && "keys inside objects, none inside arrays");
+    out_ += open_.back().empty ? "\n" : ",\n";
+    open_.back().empty = false;
+    out_.append(2 * open_.size(), ' ');
   }
-  if (!key.empty()) out_ += quote(key) + ": ";
+  if (!key.empty()) out_ += pm::json_quote(key) + ": ";
+}
+
+void JsonWriter::close([[maybe_unused]] bool array, char bracket) {
+  assert(!open_.empty() && open_.back().array == array && "end_* matches its begin_*");
+  const bool empty = open_.back().empty;
+  open_.pop_back();
+  if (!empty) {
+    out_ += '\n';
+    out_.append(2 * open_.size(), ' ');
+  }
+  out_ += bracket;
+  if (open_.empty()) out_ += "\n";
 }
 
 void JsonWriter::begin_object(const std::string& key) {
   prefix(key);
   out_ += "{";
-  first_.push_back(true);
+  open_.push_back({/*array=*/false});
 }
 
-void JsonWriter::end_object() {
-  const bool empty = first_.back();
-  first_.pop_back();
-  if (!empty) {
-    out_ += '\n';
-    out_.append(2 * first_.size(), ' ');
-  }
-  out_ += "}";
-  if (first_.empty()) out_ += "\n";
+void JsonWriter::end_object() { close(/*array=*/false, '}'); }
+
+void JsonWriter::begin_array(const std::string& key) {
+  prefix(key);
+  out_ += "[";
+  open_.push_back({/*array=*/true});
 }
+
+void JsonWriter::end_array() { close(/*array=*/true, ']'); }
 
 void JsonWriter::field(const std::string& key, const std::string& value) {
   prefix(key);
-  out_ += quote(value);
+  out_ += pm::json_quote(value);
 }
 
 void JsonWriter::field(const std::string& key, double value) {

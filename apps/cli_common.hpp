@@ -137,12 +137,17 @@ std::string format_bytes(std::uint64_t bytes);
 /// printf-style formatting into a std::string.
 std::string strf(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
 
-/// Minimal pretty-printing JSON writer: objects, strings, numbers (%.17g; null if not finite),
-/// integers, booleans. Keys and values are emitted in call order.
+/// Minimal pretty-printing JSON writer: objects, arrays, strings (terralod/pm/json.hpp's
+/// json_quote), numbers (%.17g; null if not finite), integers, booleans. Keys and values are
+/// emitted in call order. Inside an object every member has a non-empty key (field,
+/// begin_object(key), begin_array(key)); inside an array the items have none (begin_object(),
+/// begin_array()); each begin_* is closed by its end_* (asserted).
 class JsonWriter {
  public:
   void begin_object(const std::string& key = {});
   void end_object();
+  void begin_array(const std::string& key = {});
+  void end_array();
   void field(const std::string& key, const std::string& value);
   void field(const std::string& key, const char* value) { field(key, std::string(value)); }
   void field(const std::string& key, double value);
@@ -151,15 +156,18 @@ class JsonWriter {
   void field(const std::string& key, bool value);
   const std::string& str() const { return out_; }
 
-  /// `s` as a JSON string literal: quotes, backslash and control characters escaped.
-  static std::string quote(const std::string& s);
   /// %.17g, or null when not finite.
   static std::string number(double v);
 
  private:
+  struct Open {
+    bool array;         // an array (items without keys), else an object
+    bool empty = true;  // nothing written in it yet
+  };
   void prefix(const std::string& key);
+  void close(bool array, char bracket);
   std::string out_;
-  std::vector<bool> first_;  // per open object: no member written yet
+  std::vector<Open> open_;
 };
 
 }  // namespace terralod::cli

@@ -14,6 +14,7 @@
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/hybrid/hybrid_terrain.hpp"
 #include "terralod/blocks/hybrid/hybrid_tree.hpp"
+#include "terralod/pm/json.hpp"
 #include "terralod/pm/mesh_io.hpp"
 
 namespace terralod::cli {
@@ -118,7 +119,7 @@ int cmd_hybrid(const Args& a) {
   info.crs_wkt = dem.crs_wkt;
   info.block_size = 0;
   info.build_parameters = strf("{\"grid_step\": %d, \"levels\": %d, \"tin\": %s}", step, levels,
-                               JsonWriter::quote(a.get("--tin")).c_str());
+                               pm::json_quote(a.get("--tin")).c_str());
   info.source = dem_path;
   {
     blocks::BlockDatabase db = blocks::BlockDatabase::create(out, info);

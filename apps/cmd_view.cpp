@@ -262,7 +262,7 @@ int view_morph(const MorphJob& job, const pm::ProgressiveMesh& mesh) {
   j.field("crossings", std::uint64_t(crossings));
   j.end_object();
   j.field("renderer", ctx->info().renderer);
-  j.begin_object("frames");  // "0" .. "N-1"
+  j.begin_array("frames");  // frame k is item k
 
   const auto t_frames = Clock::now();
   for (int k = 0; k < job.frames; ++k) {
@@ -306,7 +306,7 @@ int view_morph(const MorphJob& job, const pm::ProgressiveMesh& mesh) {
              k, job.frames - 1, alpha, triangles, vertices, bound, format_duration(frame.draw_ms).c_str(),
              png.c_str(), job.dump.empty() ? "" : (" and " + frame_path(job.dump, k)).c_str(),
              format_duration(ms_since(t_frame)).c_str()));
-    j.begin_object(std::to_string(k));
+    j.begin_object();
     j.field("alpha", alpha);
     j.field("output", png);
     write_view_json(j, cam, job.tau);
@@ -322,7 +322,7 @@ int view_morph(const MorphJob& job, const pm::ProgressiveMesh& mesh) {
   const double frames_ms = ms_since(t_frames);
   print_line(strf("morph: %d frames in %s (%s per frame)", job.frames, format_duration(frames_ms).c_str(),
                   format_duration(frames_ms / job.frames).c_str()));
-  j.end_object();
+  j.end_array();
   j.begin_object("timings_ms");
   j.field("load", job.load_ms);
   j.field("dag", dag_ms);

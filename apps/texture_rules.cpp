@@ -1,6 +1,5 @@
 // The colour ramps and the --rules file of 'terralod texture thematic' (texture_rules.hpp),
-// with the small strict JSON reader the rules file needs (RFC 8259 values, errors by line and
-// column).
+// read with the strict JSON reader of terralod/pm/json.hpp (errors by line and column).
 #include "texture_rules.hpp"
 
 #include <cerrno>
@@ -12,245 +11,22 @@
 #include <utility>
 
 #include "terrain_input.hpp"
+#include "terralod/pm/json.hpp"
 
 namespace terralod::cli {
 namespace {
 
 namespace tr = terralod::render;
+using pm::JsonValue;
 
-// A parsed JSON value; `at` is its first byte in the text (for messages).
-struct JsonValue {
-  enum class Kind { Null, Bool, Number, String, Array, Object } kind = Kind::Null;
-  std::size_t at = 0;
-  bool boolean = false;
-  double number = 0.0;
-  std::string string;
-  std::vector<JsonValue> items;                            // Array
-  std::vector<std::pair<std::string, JsonValue>> members;  // Object, in file order, keys unique
-};
-
-const char* kind_name(JsonValue::Kind k) {
-  switch (k) {
-    case JsonValue::Kind::Null:
-      return "null";
-    case JsonValue::Kind::Bool:
-      return "a boolean";
-    case JsonValue::Kind::Number:
-      return "a number";
-    case JsonValue::Kind::String:
-      return "a string";
-    case JsonValue::Kind::Array:
-      return "an array";
-    case JsonValue::Kind::Object:
-      return "an object";
+// An error in a rules file at byte `at`: "<where>: line L, column C: <what>", as UsageError
+// (exit code 2).
+struct RulesError {
+  std::string_view text;
+  const std::string& where;
+  [[noreturn]] void operator()(std::size_t at, const std::string& what) const {
+    throw UsageError(pm::JsonError(text, at, where, what).what());
   }
-  return "?";
-}
-
-// Strict recursive-descent JSON: no comments, no trailing commas, nesting at most 64 deep.
-class JsonParser {
- public:
-  JsonParser(const std::string& text, std::string where) : s_(text), where_(std::move(where)) {}
-
-  JsonValue document() {
-    JsonValue v = value(0);
-    ws();
-    if (i_ < s_.size()) fail(i_, "unexpected text after the JSON value");
-    return v;
-  }
-
-  // "<where>: line L, column C: <what>".
-  [[noreturn]] void fail(std::size_t at, const std::string& what) const {
-    std::size_t line = 1, col = 1;
-    for (std::size_t k = 0; k < at && k < s_.size(); ++k) {
-      if (s_[k] == '\n')
-        ++line, col = 1;
-      else
-        ++col;
-    }
-    throw UsageError(where_ + ": line " + std::to_string(line) + ", column " + std::to_string(col) + ": " +
-                     what);
-  }
-
- private:
-  void ws() {
-    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\t' || s_[i_] == '\n' || s_[i_] == '\r')) ++i_;
-  }
-  bool eat(char c) {
-    ws();
-    if (i_ < s_.size() && s_[i_] == c) return ++i_, true;
-    return false;
-  }
-  void expect(char c, const char* context) {
-    if (!eat(c)) fail(i_, std::string("expected '") + c + "' " + context);
-  }
-
-  JsonValue value(int depth) {
-    if (depth > 64) fail(i_, "nested more than 64 deep");
-    ws();
-    JsonValue v;
-    v.at = i_;
-    if (i_ >= s_.size()) fail(i_, "unexpected end of the file, expected a value");
-    const char c = s_[i_];
-    if (c == '{') {
-      v.kind = JsonValue::Kind::Object;
-      ++i_;
-      if (eat('}')) return v;
-      do {
-        ws();
-        const std::size_t key_at = i_;
-        if (i_ >= s_.size() || s_[i_] != '"') fail(i_, "expected a key in double quotes");
-        std::string key = string();
-        for (const auto& m : v.members)
-          if (m.first == key) fail(key_at, "key '" + key + "' given twice");
-        expect(':', "after a key");
-        v.members.emplace_back(std::move(key), value(depth + 1));
-      } while (eat(','));
-      expect('}', "or ',' in an object");
-    } else if (c == '[') {
-      v.kind = JsonValue::Kind::Array;
-      ++i_;
-      if (eat(']')) return v;
-      do v.items.push_back(value(depth + 1));
-      while (eat(','));
-      expect(']', "or ',' in an array");
-    } else if (c == '"') {
-      v.kind = JsonValue::Kind::String;
-      v.string = string();
-    } else if (literal("true")) {
-      v.kind = JsonValue::Kind::Bool;
-      v.boolean = true;
-    } else if (literal("false")) {
-      v.kind = JsonValue::Kind::Bool;
-    } else if (literal("null")) {
-      v.kind = JsonValue::Kind::Null;
-    } else if (c == '-' || (c >= '0' && c <= '9')) {
-      v.kind = JsonValue::Kind::Number;
-      v.number = number();
-    } else {
-      fail(i_, std::string("unexpected character '") + c + "', expected a value");
-    }
-    return v;
-  }
-
-  bool literal(const char* word) {
-    const std::size_t n = std::strlen(word);
-    if (s_.compare(i_, n, word) != 0) return false;
-    i_ += n;
-    return true;
-  }
-
-  static bool digit(char c) { return c >= '0' && c <= '9'; }
-
-  // -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?
-  double number() {
-    const std::size_t start = i_;
-    const auto digits = [&] {
-      if (i_ >= s_.size() || !digit(s_[i_])) fail(i_, "malformed number");
-      while (i_ < s_.size() && digit(s_[i_])) ++i_;
-    };
-    if (s_[i_] == '-') ++i_;
-    if (i_ < s_.size() && s_[i_] == '0')
-      ++i_;
-    else
-      digits();
-    if (i_ < s_.size() && s_[i_] == '.') ++i_, digits();
-    if (i_ < s_.size() && (s_[i_] == 'e' || s_[i_] == 'E')) {
-      ++i_;
-      if (i_ < s_.size() && (s_[i_] == '+' || s_[i_] == '-')) ++i_;
-      digits();
-    }
-    const double d = std::strtod(s_.substr(start, i_ - start).c_str(), nullptr);
-    if (!std::isfinite(d)) fail(start, "number out of range");
-    return d;
-  }
-
-  void utf8(std::string& o, unsigned cp) {
-    if (cp < 0x80) {
-      o += char(cp);
-    } else if (cp < 0x800) {
-      o += char(0xC0 | (cp >> 6)), o += char(0x80 | (cp & 0x3F));
-    } else if (cp < 0x10000) {
-      o += char(0xE0 | (cp >> 12)), o += char(0x80 | ((cp >> 6) & 0x3F)), o += char(0x80 | (cp & 0x3F));
-    } else {
-      o += char(0xF0 | (cp >> 18)), o += char(0x80 | ((cp >> 12) & 0x3F));
-      o += char(0x80 | ((cp >> 6) & 0x3F)), o += char(0x80 | (cp & 0x3F));
-    }
-  }
-
-  unsigned hex4() {
-    if (i_ + 4 > s_.size()) fail(i_, "truncated \\u escape");
-    unsigned v = 0;
-    for (int k = 0; k < 4; ++k, ++i_) {
-      const char c = s_[i_];
-      const int d = digit(c)                 ? c - '0'
-                    : (c >= 'a' && c <= 'f') ? c - 'a' + 10
-                    : (c >= 'A' && c <= 'F') ? c - 'A' + 10
-                                             : -1;
-      if (d < 0) fail(i_, "bad hex digit in a \\u escape");
-      v = v * 16 + unsigned(d);
-    }
-    return v;
-  }
-
-  std::string string() {
-    const std::size_t start = i_;
-    ++i_;  // the opening quote
-    std::string o;
-    for (;;) {
-      if (i_ >= s_.size()) fail(start, "string without its closing quote");
-      const char c = s_[i_++];
-      if (c == '"') return o;
-      if (static_cast<unsigned char>(c) < 0x20) fail(i_ - 1, "control character in a string");
-      if (c != '\\') {
-        o += c;
-        continue;
-      }
-      if (i_ >= s_.size()) fail(start, "string without its closing quote");
-      const char e = s_[i_++];
-      switch (e) {
-        case '"':
-        case '\\':
-        case '/':
-          o += e;
-          break;
-        case 'b':
-          o += '\b';
-          break;
-        case 'f':
-          o += '\f';
-          break;
-        case 'n':
-          o += '\n';
-          break;
-        case 'r':
-          o += '\r';
-          break;
-        case 't':
-          o += '\t';
-          break;
-        case 'u': {
-          unsigned cp = hex4();
-          if (cp >= 0xD800 && cp < 0xDC00 && s_.compare(i_, 2, "\\u") == 0) {
-            i_ += 2;
-            const unsigned lo = hex4();
-            if (lo < 0xDC00 || lo >= 0xE000) fail(i_ - 6, "unpaired surrogate in a \\u escape");
-            cp = 0x10000 + ((cp - 0xD800) << 10) + (lo - 0xDC00);
-          } else if (cp >= 0xD800 && cp < 0xE000) {
-            fail(i_ - 6, "unpaired surrogate in a \\u escape");
-          }
-          utf8(o, cp);
-          break;
-        }
-        default:
-          fail(i_ - 2, std::string("unknown escape '\\") + e + "' in a string");
-      }
-    }
-  }
-
-  const std::string& s_;
-  std::string where_;
-  std::size_t i_ = 0;
 };
 
 std::string read_text(const std::string& path) {
@@ -319,10 +95,17 @@ std::string stops_json(const tr::ColorRamp& ramp) {
 
 ThematicRules read_thematic_rules(const std::string& path, tr::TerrainAttribute attribute) {
   const std::string text = read_text(path);
-  JsonParser parser(text, "option '--rules': " + path);
-  const JsonValue doc = parser.document();
+  const std::string where = "option '--rules': " + path;
+  const RulesError fail{text, where};
+  JsonValue doc;
+  try {
+    doc = pm::parse_json(text, where);
+  } catch (const pm::JsonError& e) {
+    throw UsageError(e.what());
+  }
   const auto need = [&](const JsonValue& v, JsonValue::Kind k, const std::string& name) {
-    if (v.kind != k) parser.fail(v.at, name + " must be " + kind_name(k) + ", not " + kind_name(v.kind));
+    if (v.kind != k)
+      fail(v.begin, name + " must be " + pm::json_kind_name(k) + ", not " + pm::json_kind_name(v.kind));
   };
   need(doc, JsonValue::Kind::Object, "the file");
   ThematicRules out;
@@ -333,21 +116,21 @@ ThematicRules read_thematic_rules(const std::string& path, tr::TerrainAttribute 
     if (key == "generalise") {
       need(v, JsonValue::Kind::String, "\"generalise\"");
       if (v.string != "nearest" && v.string != "majority" && v.string != "mean")
-        parser.fail(v.at, "\"generalise\" must be nearest, majority or mean, not '" + v.string + "'");
+        fail(v.begin, "\"generalise\" must be nearest, majority or mean, not '" + v.string + "'");
       if (v.string == "mean" && attribute == tr::TerrainAttribute::AspectDegrees)
-        parser.fail(v.at,
-                    "\"generalise\": \"mean\" averages aspect degrees across north (359 and 1 give 180); use "
-                    "nearest or majority");
+        fail(v.begin,
+             "\"generalise\": \"mean\" averages aspect degrees across north (359 and 1 give 180); use "
+             "nearest or majority");
       out.generalise = v.string;
     } else if (key == "rules") {
       rules = &v;
     } else {
-      parser.fail(v.at, "unknown key '" + key + "' (the keys are generalise and rules)");
+      fail(v.begin, "unknown key '" + key + "' (the keys are generalise and rules)");
     }
   }
-  if (!rules) parser.fail(0, "no \"rules\" (an array of {\"max_texel_m\", \"ramp\", \"bands\"})");
+  if (!rules) fail(0, "no \"rules\" (an array of {\"max_texel_m\", \"ramp\", \"bands\"})");
   need(*rules, JsonValue::Kind::Array, "\"rules\"");
-  if (rules->items.empty()) parser.fail(rules->at, "\"rules\" is empty; it needs at least one rule");
+  if (rules->items.empty()) fail(rules->begin, "\"rules\" is empty; it needs at least one rule");
   for (std::size_t k = 0; k < rules->items.size(); ++k) {
     const JsonValue& r = rules->items[k];
     const std::string name = "rules[" + std::to_string(k) + "]";
@@ -359,12 +142,11 @@ ThematicRules read_thematic_rules(const std::string& path, tr::TerrainAttribute 
       if (key == "max_texel_m") {
         need(v, JsonValue::Kind::Number, name + ".max_texel_m");
         if (last)
-          parser.fail(v.at,
-                      name + " is the last rule: it draws every coarser texel, so it takes no max_texel_m");
-        if (!(v.number > 0.0)) parser.fail(v.at, name + ".max_texel_m must be > 0 metres");
+          fail(v.begin, name + " is the last rule: it draws every coarser texel, so it takes no max_texel_m");
+        if (!(v.number > 0.0)) fail(v.begin, name + ".max_texel_m must be > 0 metres");
         if (!out.looks.empty() && !(v.number > out.looks.back().max_texel_m))
-          parser.fail(v.at, name + ".max_texel_m must be larger than the rule before's " +
-                                strf("%.9g", out.looks.back().max_texel_m) + " (rules go from near to far)");
+          fail(v.begin, name + ".max_texel_m must be larger than the rule before's " +
+                            strf("%.9g", out.looks.back().max_texel_m) + " (rules go from near to far)");
         look.max_texel_m = v.number;
         has_max = true;
       } else if (key == "ramp") {
@@ -374,11 +156,11 @@ ThematicRules read_thematic_rules(const std::string& path, tr::TerrainAttribute 
         need(v, JsonValue::Kind::Bool, name + ".bands");
         look.bands = v.boolean;
       } else {
-        parser.fail(v.at, name + ": unknown key '" + key + "' (the keys are max_texel_m, ramp and bands)");
+        fail(v.begin, name + ": unknown key '" + key + "' (the keys are max_texel_m, ramp and bands)");
       }
     }
     if (!last && !has_max)
-      parser.fail(r.at, name + " needs \"max_texel_m\" (only the last rule, the far one, goes without)");
+      fail(r.begin, name + " needs \"max_texel_m\" (only the last rule, the far one, goes without)");
     out.looks.push_back(std::move(look));
   }
   return out;
@@ -421,7 +203,7 @@ std::string rules_parameters(const ThematicRules& rules, const BuiltRule& built,
       "{\"attribute\": \"%s\", \"rules_file\": %s, \"generalise\": \"%s\", \"sample_size_m\": %.17g, "
       "\"rules\": "
       "[%s], \"level_rules\": [%s]}",
-      attribute_name.c_str(), JsonWriter::quote(rules.path).c_str(), rules.generalise.c_str(), sample_size_m,
+      attribute_name.c_str(), pm::json_quote(rules.path).c_str(), rules.generalise.c_str(), sample_size_m,
       looks.c_str(), levels.c_str());
 }
 

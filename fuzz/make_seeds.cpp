@@ -6,7 +6,7 @@
 // DEM seeds start with the selector byte of fuzz_dem_reader.cpp (0 .hgt, 1 .asc, 2 .png, 3 .tif,
 // +4 = keep voids as holes). Block-summaries seeds start with the two grid selector bytes of
 // fuzz_block_summaries.cpp. Mesh seeds start with the selector byte of fuzz_mesh_reader.cpp
-// (0 .ply, 1 .obj).
+// (0 .ply, 1 .obj). JSON seeds (CORPUS_DIR/fuzz_json/seed_*) are plain text.
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
@@ -358,6 +358,14 @@ int main(int argc, char** argv) {
         "# seed\r\nx,y,z,yaw,pitch,fovy\r\n1,2,3,45,-15,60\r\n\r\n-1.5e3,+2,3.25,-370,90,179.5\n";
     write(root / "fuzz_camera_path" / "seed_flight.csv", Bytes(path_csv.begin(), path_csv.end()));
     mesh_seeds(root / "fuzz_mesh_reader", tmp);
+    // JSON: a texture layer record as the block database stores it (fuzz/regressions/fuzz_json/
+    // holds more: a rules file, every escape, the limits).
+    fs::create_directories(root / "fuzz_json");
+    const std::string record =
+        "{\"format\": 1, \"name\": \"pattern\", \"kind\": \"image\", \"source\": \"a\\u00e9.tif\", "
+        "\"georef\": [0, 0, 100, 100], \"levels\": [[100, 100], [50, 50]], \"tile_size\": 16, "
+        "\"power_of_two\": false, \"parameters\": {\"note\": \"a, b\", \"stops\": [[0.5, 1, 2, 3, 255]]}}";
+    write(root / "fuzz_json" / "seed_record.json", Bytes(record.begin(), record.end()));
     fs::remove_all(tmp);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod_fuzz_seeds: %s\n", e.what());

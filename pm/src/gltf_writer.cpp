@@ -5,7 +5,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string_view>
@@ -13,6 +12,7 @@
 #include "shortest_decimal.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/glb.hpp"
+#include "terralod/pm/json.hpp"
 
 namespace terralod::pm::detail {
 
@@ -55,25 +55,6 @@ struct Json {
     return *this << "[" << v[0] << "," << v[1] << "," << v[2] << "]";
   }
 };
-
-std::string json_string(const std::string& s) {
-  std::string out = "\"";
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", unsigned(c));
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  out += '"';
-  return out;
-}
 
 std::string base64(std::span<const std::uint8_t> bytes) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -166,7 +147,7 @@ std::string encode_gltf(const TriangleMeshData& mesh, bool binary, const std::ve
   j << R"({"asset":{"version":"2.0","generator":"terralod")";
   if (!comments.empty()) {
     j << R"(,"extras":{"comments":[)";
-    for (std::size_t i = 0; i < comments.size(); ++i) j << (i ? "," : "") << json_string(comments[i]);
+    for (std::size_t i = 0; i < comments.size(); ++i) j << (i ? "," : "") << json_quote(comments[i]);
     j << "]}";
   }
   j << R"(},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{)";

@@ -17,6 +17,7 @@
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/pm/atomic_file.hpp"
 #include "terralod/pm/byte_io.hpp"
+#include "terralod/pm/json.hpp"
 
 namespace terralod::render {
 namespace {
@@ -24,108 +25,17 @@ namespace {
 constexpr std::uint32_t kTileVersion = 1;
 const std::string kMetaPrefix = "texture_layer:";
 
-std::string json_string(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\')
-      o += '\\', o += c;
-    else if (static_cast<unsigned char>(c) < 0x20) {
-      char b[8];
-      std::snprintf(b, sizeof b, "\\u%04x", unsigned(c));
-      o += b;
-    } else
-      o += c;
-  }
-  return o + "\"";
-}
 std::string num(double v) {
   char b[40];
   std::snprintf(b, sizeof b, "%.17g", v);
   return b;
 }
 
-// A minimal reader for the JSON this file writes (objects, arrays, strings, numbers, bools).
-struct JsonReader {
-  const std::string& s;
-  std::size_t i = 0;
-  std::string where;
-  [[noreturn]] void fail(const std::string& what) const {
-    throw std::runtime_error(where + ": malformed layer metadata at byte " + std::to_string(i) + ": " + what);
-  }
-  void ws() {
-    while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
-  }
-  bool eat(char c) {
-    ws();
-    if (i < s.size() && s[i] == c) return ++i, true;
-    return false;
-  }
-  void expect(char c) {
-    if (!eat(c)) fail(std::string("expected '") + c + "'");
-  }
-  std::string str() {
-    expect('"');
-    std::string o;
-    while (i < s.size() && s[i] != '"') {
-      if (s[i] == '\\' && i + 1 < s.size()) {
-        ++i;
-        if (s[i] == 'u' && i + 4 < s.size()) {
-          o += char(std::stoi(s.substr(i + 1, 4), nullptr, 16));
-          i += 5;
-          continue;
-        }
-      }
-      o += s[i++];
-    }
-    expect('"');
-    return o;
-  }
-  double number() {
-    ws();
-    const char* b = s.c_str() + i;
-    char* e = nullptr;
-    const double v = std::strtod(b, &e);
-    if (e == b || !std::isfinite(v)) fail("expected a number");
-    i += std::size_t(e - b);
-    return v;
-  }
-  // The raw text of any value (for "parameters").
-  std::string raw() {
-    ws();
-    const std::size_t start = i;
-    int depth = 0;
-    bool in_str = false;
-    for (; i < s.size(); ++i) {
-      const char c = s[i];
-      if (in_str) {
-        if (c == '\\')
-          ++i;
-        else if (c == '"')
-          in_str = false;
-        continue;
-      }
-      if (c == '"')
-        in_str = true;
-      else if (c == '{' || c == '[')
-        ++depth;
-      else if (c == '}' || c == ']') {
-        if (depth == 0) break;
-        if (--depth == 0) {
-          ++i;
-          break;
-        }
-      } else if (c == ',' && depth == 0)
-        break;
-    }
-    return s.substr(start, i - start);
-  }
-};
-
 std::string record_json(const LayerRecord& r) {
-  std::string j = "{\"format\": 1, \"name\": " + json_string(r.name) + ", \"kind\": " + json_string(r.kind) +
-                  ", \"source\": " + json_string(r.source) + ", \"georef\": [" + num(r.georef.minx) + ", " +
-                  num(r.georef.miny) + ", " + num(r.georef.maxx) + ", " + num(r.georef.maxy) +
-                  "], \"levels\": [";
+  std::string j = "{\"format\": 1, \"name\": " + pm::json_quote(r.name) +
+                  ", \"kind\": " + pm::json_quote(r.kind) + ", \"source\": " + pm::json_quote(r.source) +
+                  ", \"georef\": [" + num(r.georef.minx) + ", " + num(r.georef.miny) + ", " +
+                  num(r.georef.maxx) + ", " + num(r.georef.maxy) + "], \"levels\": [";
   for (std::size_t k = 0; k < r.levels.size(); ++k)
     j += (k ? ", [" : "[") + std::to_string(r.levels[k].width) + ", " + std::to_string(r.levels[k].height) +
          "]";
@@ -137,66 +47,76 @@ std::string record_json(const LayerRecord& r) {
   return j;
 }
 
+// Reads a record with the strict reader (pm/json.hpp). Every record record_json ever wrote
+// parses: keys in any order, unknown keys (of later versions) skipped; "parameters" keeps its
+// text verbatim. Errors: "<where>: line L, column C: <what>" (JsonError) for malformed JSON or
+// a value of the wrong kind, "<where>: malformed layer metadata: <what>" for bad contents.
 LayerRecord parse_record(const std::string& text, const std::string& where) {
-  JsonReader jr{text, 0, where};
+  using Kind = pm::JsonValue::Kind;
+  const pm::JsonValue doc = pm::parse_json(text, where);
+  const auto need = [&](const pm::JsonValue& v, Kind k, const std::string& name) -> const pm::JsonValue& {
+    if (v.kind != k)
+      throw pm::JsonError(text, v.begin, where,
+                          name + " must be " + pm::json_kind_name(k) + ", not " + pm::json_kind_name(v.kind));
+    return v;
+  };
+  const auto bad = [&](const std::string& what) {
+    return std::runtime_error(where + ": malformed layer metadata: " + what);
+  };
+  // A count or size: a whole number in [0, 2^31) (2^53 for "patches").
+  const auto whole = [&](const pm::JsonValue& v, const std::string& name, double max) {
+    const double d = need(v, Kind::Number, "\"" + name + "\"").number;
+    if (!(d >= 0 && d < max && d == std::floor(d)))
+      throw pm::JsonError(text, v.begin, where,
+                          "\"" + name + "\" must be a whole number in [0, " + num(max) + "), not " +
+                              std::string(v.raw(text)));
+    return d;
+  };
+  constexpr double kInt = 2147483648.0, kCount = 9007199254740992.0;
+  need(doc, Kind::Object, "the layer record");
   LayerRecord r;
   r.parameters = "{}";
-  int format = 0;
-  jr.expect('{');
-  if (!jr.eat('}')) {
-    do {
-      const std::string key = jr.str();
-      jr.expect(':');
-      if (key == "format")
-        format = int(jr.number());
-      else if (key == "name")
-        r.name = jr.str();
-      else if (key == "kind")
-        r.kind = jr.str();
-      else if (key == "source")
-        r.source = jr.str();
-      else if (key == "georef") {
-        jr.expect('[');
-        r.georef.minx = jr.number(), jr.expect(','), r.georef.miny = jr.number(), jr.expect(',');
-        r.georef.maxx = jr.number(), jr.expect(','), r.georef.maxy = jr.number();
-        jr.expect(']');
-      } else if (key == "levels") {
-        jr.expect('[');
-        if (!jr.eat(']')) {
-          do {
-            jr.expect('[');
-            LevelSize l;
-            l.width = int(jr.number());
-            jr.expect(',');
-            l.height = int(jr.number());
-            jr.expect(']');
-            r.levels.push_back(l);
-          } while (jr.eat(','));
-          jr.expect(']');
-        }
-      } else if (key == "tile_size")
-        r.tile_size = int(jr.number());
-      else if (key == "max_texture_size")
-        r.constraints.max_texture_size = int(jr.number());
-      else if (key == "power_of_two") {
-        const std::string v = jr.raw();
-        r.constraints.power_of_two = v == "true";
-      } else if (key == "patches")
-        r.patches = std::size_t(jr.number());
-      else if (key == "parameters")
-        r.parameters = jr.raw();
-      else
-        jr.raw();  // unknown keys of later versions are skipped
-    } while (jr.eat(','));
-    jr.expect('}');
+  double format = 0;
+  for (const auto& [key, v] : doc.members) {
+    if (key == "format") {
+      format = need(v, Kind::Number, "\"format\"").number;
+    } else if (key == "name") {
+      r.name = need(v, Kind::String, "\"name\"").string;
+    } else if (key == "kind") {
+      r.kind = need(v, Kind::String, "\"kind\"").string;
+    } else if (key == "source") {
+      r.source = need(v, Kind::String, "\"source\"").string;
+    } else if (key == "georef") {
+      const auto& g = need(v, Kind::Array, "\"georef\"").items;
+      if (g.size() != 4) throw pm::JsonError(text, v.begin, where, "\"georef\" must hold 4 numbers");
+      double c[4];
+      for (int k = 0; k < 4; ++k) c[k] = need(g[std::size_t(k)], Kind::Number, "\"georef\" item").number;
+      r.georef = GeoRect{c[0], c[1], c[2], c[3]};
+    } else if (key == "levels") {
+      for (const pm::JsonValue& l : need(v, Kind::Array, "\"levels\"").items) {
+        const auto& wh = need(l, Kind::Array, "a level").items;
+        if (wh.size() != 2) throw pm::JsonError(text, l.begin, where, "a level must be [width, height]");
+        r.levels.push_back(LevelSize{int(whole(wh[0], "width", kInt)), int(whole(wh[1], "height", kInt))});
+      }
+    } else if (key == "tile_size") {
+      r.tile_size = int(whole(v, key, kInt));
+    } else if (key == "max_texture_size") {
+      r.constraints.max_texture_size = int(whole(v, key, kInt));
+    } else if (key == "power_of_two") {
+      r.constraints.power_of_two = need(v, Kind::Bool, "\"power_of_two\"").boolean;
+    } else if (key == "patches") {
+      r.patches = std::size_t(whole(v, key, kCount));
+    } else if (key == "parameters") {
+      r.parameters = std::string(v.raw(text));
+    }  // unknown keys of later versions are skipped
   }
-  if (format != 1) jr.fail("format " + std::to_string(format) + " (this build reads format 1)");
-  if (!(r.georef.width() > 0 && r.georef.height() > 0)) jr.fail("empty georef rectangle");
+  if (format != 1) throw bad("format " + num(format) + " (this build reads format 1)");
+  if (!(r.georef.width() > 0 && r.georef.height() > 0)) throw bad("empty georef rectangle");
   if (r.levels.empty() || r.tile_size < 1 || r.constraints.max_texture_size < 1)
-    jr.fail("no levels or a bad tile size");
+    throw bad("no levels or a bad tile size");
   for (const LevelSize& l : r.levels)
     if (l.width < 1 || l.height < 1)
-      jr.fail("a level of " + std::to_string(l.width) + " x " + std::to_string(l.height));
+      throw bad("a level of " + std::to_string(l.width) + " x " + std::to_string(l.height));
   return r;
 }
 

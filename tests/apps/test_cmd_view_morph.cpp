@@ -5,7 +5,8 @@
 // heights bit-equal); every vertex of a frame between is at (1 - a) z_A + a z_B, z_A and z_B
 // being the first and last frames' surfaces at its plan point (located here by brute force);
 // its triangles keep their plan-view orientation and cover the domain exactly; the images exist
-// and differ; the statistics agree; bad command lines write nothing.
+// and differ; the statistics (strict JSON, one array item per frame) agree; bad command lines
+// write nothing.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "run_command.hpp"
+#include "terralod/pm/json.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
@@ -42,30 +44,11 @@ CliResult terralod(const std::string& args) {
   return terralod::test::run_tool(TERRALOD_CLI, args, {.no_display = true});
 }
 
-/// The number after "key": in `json` from `from` on (NaN when absent).
-double json_number(const std::string& json, const std::string& key, std::size_t from = 0) {
-  const std::string tag = "\"" + key + "\": ";
-  const std::size_t at = json.find(tag, from);
-  if (at == std::string::npos) return std::nan("");
-  const char* start = json.c_str() + at + tag.size();
-  char* end = nullptr;
-  const double v = std::strtod(start, &end);
-  return end == start ? std::nan("") : v;
-}
-
-/// The text of frame k's object in the --stats JSON ("frames": {"0": {...}, "1": {...}}).
-std::string frame_json(const std::string& json, int k) {
-  auto key = [](int i) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "\"%d\": {", i);
-    return std::string(buf);
-  };
-  const std::size_t frames = json.find("\"frames\": {");
-  if (frames == std::string::npos) return "";
-  const std::size_t start = json.find(key(k), frames);
-  if (start == std::string::npos) return "";
-  const std::size_t end = json.find(key(k + 1), start);
-  return json.substr(start, end == std::string::npos ? std::string::npos : end - start);
+/// Member `key` of `v` as a number, looked up in v and its "camera" object (NaN when absent).
+double number_of(const pm::JsonValue& v, const std::string& key) {
+  const pm::JsonValue* m = v.find(key);
+  if (!m && v.find("camera")) m = v.find("camera")->find(key);
+  return m && m->kind == pm::JsonValue::Kind::Number ? m->number : std::nan("");
 }
 
 // A 65 x 65 generated terrain, 30 m spacing, north-up: x in [0, 1920], y in [0, 1920].
@@ -230,30 +213,39 @@ TEST_F(ViewMorph, WritesNDifferentImagesAndTheirStatistics) {
   EXPECT_EQ(frame_lines, kFrames) << morph_->out;
 
   const std::string s = slurp(tmp_dir() / "m.json");
+  // The statistics are strict JSON; the frames an array, item k for frame k.
+  const pm::JsonValue stats = pm::parse_json(s, "m.json");
   EXPECT_NE(s.find("\"selection\": \"geomorph\""), std::string::npos) << s;
-  EXPECT_EQ(json_number(s, "frame_count"), kFrames);
-  const double e_a = json_number(slurp(tmp_dir() / "a.json"), "error_bound");
-  const double e_b = json_number(slurp(tmp_dir() / "b.json"), "error_bound");
+  EXPECT_EQ(number_of(stats, "frame_count"), kFrames);
+  const double e_a = number_of(pm::parse_json(slurp(tmp_dir() / "a.json"), "a.json"), "error_bound");
+  const double e_b = number_of(pm::parse_json(slurp(tmp_dir() / "b.json"), "b.json"), "error_bound");
   ASSERT_FALSE(std::isnan(e_a) || std::isnan(e_b));
+  const pm::JsonValue* frames = stats.find("frames");
+  ASSERT_NE(frames, nullptr) << s;
+  ASSERT_EQ(frames->kind, pm::JsonValue::Kind::Array) << s;
+  ASSERT_EQ(frames->items.size(), std::size_t(kFrames)) << s;
   for (int k = 0; k < kFrames; ++k) {
     SCOPED_TRACE("frame " + std::to_string(k));
-    const std::string f = frame_json(s, k);
-    ASSERT_FALSE(f.empty()) << s;
+    const pm::JsonValue& f = frames->items[std::size_t(k)];
+    ASSERT_EQ(f.kind, pm::JsonValue::Kind::Object) << s;
     const double alpha = double(k) / (kFrames - 1);
-    EXPECT_EQ(json_number(f, "alpha"), alpha);
-    EXPECT_NEAR(json_number(f, "x"), -300.0 + 2600.0 * alpha, 1e-9);
-    EXPECT_NEAR(json_number(f, "y"), -300.0 + 1300.0 * alpha, 1e-9);
-    EXPECT_NEAR(json_number(f, "z"), 900.0 - 200.0 * alpha, 1e-9);
-    EXPECT_NEAR(json_number(f, "pitch"), -30.0 + 10.0 * alpha, 1e-9);
-    EXPECT_NEAR(json_number(f, "fovy"), 60.0 - 10.0 * alpha, 1e-9);
-    const double yaw = json_number(f, "yaw");  // 30 - 90 a, modulo 360
+    EXPECT_EQ(number_of(f, "alpha"), alpha);
+    EXPECT_NEAR(number_of(f, "x"), -300.0 + 2600.0 * alpha, 1e-9);
+    EXPECT_NEAR(number_of(f, "y"), -300.0 + 1300.0 * alpha, 1e-9);
+    EXPECT_NEAR(number_of(f, "z"), 900.0 - 200.0 * alpha, 1e-9);
+    EXPECT_NEAR(number_of(f, "pitch"), -30.0 + 10.0 * alpha, 1e-9);
+    EXPECT_NEAR(number_of(f, "fovy"), 60.0 - 10.0 * alpha, 1e-9);
+    const double yaw = number_of(f, "yaw");  // 30 - 90 a, modulo 360
     EXPECT_NEAR(std::remainder(yaw - (30.0 - 90.0 * alpha), 360.0), 0.0, 1e-9) << yaw;
     const pm::TriangleMeshData m = frame_mesh(k);
-    EXPECT_EQ(json_number(f, "triangles"), double(m.triangles.size()));
-    EXPECT_EQ(json_number(f, "vertices"), double(m.positions.size()));
-    EXPECT_EQ(json_number(f, "error_bound_from"), e_a);
-    EXPECT_EQ(json_number(f, "error_bound_to"), e_b);
-    EXPECT_NEAR(json_number(f, "error_bound"), (1.0 - alpha) * e_a + alpha * e_b, 1e-12 * (1.0 + e_a + e_b));
+    EXPECT_EQ(number_of(f, "triangles"), double(m.triangles.size()));
+    EXPECT_EQ(number_of(f, "vertices"), double(m.positions.size()));
+    EXPECT_EQ(number_of(f, "error_bound_from"), e_a);
+    EXPECT_EQ(number_of(f, "error_bound_to"), e_b);
+    EXPECT_NEAR(number_of(f, "error_bound"), (1.0 - alpha) * e_a + alpha * e_b, 1e-12 * (1.0 + e_a + e_b));
+    const pm::JsonValue* mesh = f.find("mesh");
+    ASSERT_NE(mesh, nullptr);
+    EXPECT_EQ(mesh->string, k == 0 ? "from" : k == kFrames - 1 ? "to" : "geomorph");
   }
 }
 

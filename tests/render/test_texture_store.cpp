@@ -114,6 +114,12 @@ TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
   EXPECT_EQ(back.tile_size, 16);
   EXPECT_EQ(back.patches, 5u);
   EXPECT_EQ(back.parameters, rec.parameters);
+  // The record's bytes, as every version so far has written them (pm::json_quote for strings).
+  EXPECT_EQ(
+      db.get_meta("texture_layer:pattern"),
+      "{\"format\": 1, \"name\": \"pattern\", \"kind\": \"image\", \"source\": \"\", \"georef\": [0, 0, 100, "
+      "100], \"levels\": [[100, 100], [50, 50], [25, 25]], \"tile_size\": 16, \"max_texture_size\": 32, "
+      "\"power_of_two\": false, \"patches\": 5, \"parameters\": {\"note\": \"a, b\"}}");
   EXPECT_EQ(read_layer_level(db, back, 0), src);  // exact, across 7 x 7 tiles of 16
   EXPECT_EQ(read_layer_level(db, back, 1), pyr.read({1, 0, 0, 50, 50}));
   const auto tree = std::make_shared<TextureTree>(doms, back.levels, back.georef, back.constraints);
@@ -147,6 +153,64 @@ TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
     EXPECT_EQ(again.read({0, 0, 0, 100, 100}), src) << ext;
   }
   EXPECT_THROW(write_layer_image(src, (tmp_dir() / "x.jpg").string()), std::runtime_error);
+}
+
+TEST(TextureStore, RecordsOfEarlierVersionsStayReadable) {
+  const fs::path dbp = tmp_dir() / "records.db";
+  tb::DatabaseInfo info;
+  info.grid_width = info.grid_height = 9;
+  info.transform = pm::GridTransform::identity();
+  auto db = tb::BlockDatabase::create(dbp.string(), info);
+  // As the first writer wrote it: control characters as \u00xx, other bytes (UTF-8) as they
+  // are, a quote and a backslash escaped, "parameters" any JSON object.
+  db.set_meta("texture_layer:old",
+              "{\"format\": 1, \"name\": \"old\", \"kind\": \"thematic\", \"source\": "
+              "\"a\\u0001\\u000a\\\"q\\\\ \xC3\xA9.tif\", "
+              "\"georef\": [-0.5, -0.5, 8.5, 8.5], \"levels\": [[9, 9], [5, 5]], \"tile_size\": 512, "
+              "\"max_texture_size\": 2048, \"power_of_two\": true, \"patches\": 0, \"parameters\": "
+              "{\"attribute\": \"slope\", \"stops\": [[0, 255, 255, 255, 255], [45, 160, 0, 0, 255]]}}");
+  // Keys in another order, a key of a later version, no parameters.
+  db.set_meta("texture_layer:later",
+              "{\"levels\": [[4, 2]], \"format\": 1, \"name\": \"later\", \"future\": {\"x\": [1, 2]}, "
+              "\"georef\": [0, 0, 4, 2], \"tile_size\": 2, \"max_texture_size\": 4}");
+  db.set_meta("texture_layer:broken", "{\"format\": 1, \"name\": \"broken\",\n \"georef\": [0, 0, 4, 2],}");
+  db.set_meta("texture_layer:format2",
+              "{\"format\": 2, \"georef\": [0, 0, 4, 2], \"levels\": [[4, 2]], \"tile_size\": 2}");
+  db.set_meta("texture_layer:kinds", "{\"format\": 1, \"name\": 7}");
+
+  const LayerRecord old = read_layer_record(db, "old");
+  EXPECT_EQ(old.kind, "thematic");
+  EXPECT_EQ(old.source, "a\x01\n\"q\\ \xC3\xA9.tif");  // every escape decoded
+  EXPECT_EQ(old.georef, (GeoRect{-0.5, -0.5, 8.5, 8.5}));
+  EXPECT_EQ(old.levels, (std::vector<LevelSize>{{9, 9}, {5, 5}}));
+  EXPECT_TRUE(old.constraints.power_of_two);
+  EXPECT_EQ(old.parameters,
+            "{\"attribute\": \"slope\", \"stops\": [[0, 255, 255, 255, 255], [45, 160, 0, 0, 255]]}");
+  const LayerRecord later = read_layer_record(db, "later");
+  EXPECT_EQ(later.levels, (std::vector<LevelSize>{{4, 2}}));
+  EXPECT_EQ(later.tile_size, 2);
+  EXPECT_EQ(later.parameters, "{}");
+
+  const auto error = [&](const std::string& name) -> std::string {
+    try {
+      (void)read_layer_record(db, name);
+    } catch (const tb::DatabaseError& e) {
+      return e.what();
+    }
+    return "(read)";
+  };
+  // Malformed JSON and wrong kinds: by line and column (the trailing comma's '}' is on line 2,
+  // column 25); bad contents by what is wrong. Each names the database.
+  for (const auto& [name, what] :
+       {std::pair<std::string, std::string>{"broken",
+                                            "texture layer 'broken': line 2, column 25: expected a key"},
+        {"kinds", "texture layer 'kinds': line 1, column 23: \"name\" must be a string, not a number"},
+        {"format2",
+         "texture layer 'format2': malformed layer metadata: format 2 (this build reads format 1)"}}) {
+    const std::string e = error(name);
+    EXPECT_NE(e.find(what), std::string::npos) << e;
+    EXPECT_NE(e.find(dbp.string()), std::string::npos) << e;
+  }
 }
 
 #ifdef TERRALOD_CLI

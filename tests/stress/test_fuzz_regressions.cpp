@@ -37,6 +37,10 @@
 //     few bytes (refused before allocating: every ascii value takes >= 2 bytes), a big-endian
 //     PLY whose face list counts 2^32 - 1 indices (refused as truncated), and an OBJ face whose
 //     relative index -4 points before the first of 3 vertices (refused naming the line).
+//   fuzz_json/* (seeds written with the target, kept as the failure classes of the reader):
+//     a stored texture layer record and a --rules file (valid), every escape with a lone
+//     surrogate, numbers out of range, a trailing comma, a key twice, 64 and 65 nested levels,
+//     truncated input.
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -67,6 +71,7 @@ extern "C" int terralod_fuzz_block_summaries(const std::uint8_t* data, std::size
 extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
 extern "C" int terralod_fuzz_mesh_reader(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_mesh_reader_init(int* argc, char*** argv);
+extern "C" int terralod_fuzz_json(const std::uint8_t* data, std::size_t size);
 
 namespace {
 
@@ -121,6 +126,8 @@ TEST(FuzzRegressions, MeshReader) {
   terralod_fuzz_mesh_reader_init(&argc, &argv);
   EXPECT_GE(replay("fuzz_mesh_reader", terralod_fuzz_mesh_reader), 3u);
 }
+
+TEST(FuzzRegressions, Json) { EXPECT_GE(replay("fuzz_json", terralod_fuzz_json), 9u); }
 
 TEST(FuzzRegressions, DemReader) {
   int argc = 0;
