@@ -52,7 +52,8 @@ std::vector<tr::ColorRamp::Stop> parse_ramp(const std::string& text, const std::
     const std::string v = item.substr(0, colon), hex = item.substr(colon + 1);
     char* end = nullptr;
     const double value = std::strtod(v.c_str(), &end);
-    if (v.empty() || *end != '\0' || !std::isfinite(value)) throw bad("'" + v + "' is not a number");
+    if (v.empty() || *end != '\0' || !std::isfinite(value) || !std::isfinite(float(value)))
+      throw bad("'" + v + "' is not a number (a finite 32-bit float)");
     if ((hex.size() != 6 && hex.size() != 8) ||
         hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
       throw bad("'" + hex + "' is not a colour RRGGBB or RRGGBBAA");

@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/json.hpp"
 #include "terralod/pm/parallel.hpp"
 #include "terralod/pm/pm_io.hpp"
 
@@ -115,20 +116,7 @@ std::string format_record(const BlockRecord& r) {
 
 std::string DatabaseSummary::to_json() const {
   std::string j = "{\n";
-  auto quote = [](const std::string& s) {
-    std::string q = "\"";
-    for (char c : s) {
-      if (c == '"' || c == '\\')
-        q += '\\', q += c;
-      else if (static_cast<unsigned char>(c) < 0x20) {
-        char b[8];
-        std::snprintf(b, sizeof b, "\\u%04x", c);
-        q += b;
-      } else
-        q += c;
-    }
-    return q + "\"";
-  };
+  const auto quote = [](const std::string& s) { return pm::json_quote(s); };
   auto num = [](double v) {
     if (!std::isfinite(v)) return std::string("null");
     char b[40];

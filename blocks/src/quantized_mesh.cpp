@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "terralod/pm/byte_io.hpp"
+#include "terralod/pm/json.hpp"
 
 namespace terralod::blocks {
 namespace {
@@ -231,20 +232,7 @@ std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes) {
 std::string layer_json(const std::string& name, const GeoRect& b,
                        const std::vector<std::vector<TileRange>>& available,
                        const std::vector<std::string>& extensions, const std::string& extra_members) {
-  auto quoted = [](const std::string& s) {
-    std::string q = "\"";
-    for (char c : s) {
-      if (c == '"' || c == '\\') q += '\\';
-      if (static_cast<unsigned char>(c) < 0x20) {
-        char buf[8];
-        std::snprintf(buf, sizeof buf, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
-        q += buf;
-        continue;
-      }
-      q += c;
-    }
-    return q + "\"";
-  };
+  const auto quoted = [](const std::string& s) { return pm::json_quote(s); };
   char buf[256];
   std::string j =
       "{\n  \"tilejson\": \"2.1.0\",\n  \"name\": " + quoted(name) +

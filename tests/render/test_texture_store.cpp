@@ -322,6 +322,10 @@ TEST(TextureCli, ThematicLayersEndToEnd) {
   EXPECT_NE(text.find("not strictly increasing"), std::string::npos) << text;
   EXPECT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer x --ramp 0:zz0000", &text), 2);
   EXPECT_NE(text.find("'zz0000' is not a colour"), std::string::npos) << text;
+  // Beyond the float range: the stop would be stored as inf, which no JSON reader accepts.
+  EXPECT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer x --ramp 0:ff0000,1e39:00ff00", &text),
+            2);
+  EXPECT_NE(text.find("'1e39' is not a number"), std::string::npos) << text;
   EXPECT_EQ(run("texture thematic " + quote(dbp.string()) + " --layer x --attribute height", &text), 2);
 }
 #endif

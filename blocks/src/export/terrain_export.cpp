@@ -19,6 +19,7 @@
 #include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/json.hpp"
 #include "terralod/pm/parallel.hpp"
 #include "tile_mesher.hpp"
 
@@ -338,20 +339,11 @@ std::string tileset_json(const std::vector<std::vector<TileId>>& tiles,
   const double root = std::max(we, ee) * 2;
   return "{\"asset\": {\"version\": \"1.1\", \"generator\": \"terralod export\"},\n \"extras\": "
          "{\"terralod\": "
-         "{\"vertical_datum\": \"" +
-         datum + "\", \"heights\": \"WGS 84 ellipsoid\"}},\n \"geometricError\": " + num(root * 2) +
+         "{\"vertical_datum\": " +
+         datum + ", \"heights\": \"WGS 84 ellipsoid\"}},\n \"geometricError\": " + num(root * 2) +
          ",\n \"root\": {\"boundingVolume\": " + region_json({-180, -90, 180, 90}, lo, hi) +
          ", \"geometricError\": " + num(root) + ", \"refine\": \"REPLACE\", \"children\": [\n  " + west +
          ",\n  " + east + "]}}\n";
-}
-
-std::string json_text(std::string s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) >= 0x20) out += c;
-  }
-  return out;
 }
 
 }  // namespace
@@ -521,10 +513,10 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   }
 
   // The index, last.
-  const std::string datum = json_text(grid.vertical_datum);
+  const std::string datum = pm::json_quote(grid.vertical_datum);  // with its quotes
   try {
     if (qm) {
-      std::string extra = "\"terralod\": {\"vertical_datum\": \"" + datum + "\", \"bound\": [";
+      std::string extra = "\"terralod\": {\"vertical_datum\": " + datum + ", \"bound\": [";
       for (std::size_t z = 0; z < report.levels.size(); ++z)
         extra += (z ? ", " : "") + num(report.levels[z].bound);
       extra += "], \"max_error\": [";
