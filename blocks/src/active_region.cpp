@@ -3,8 +3,6 @@
 // active_region.hpp.
 #include "terralod/blocks/active_region.hpp"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -199,9 +197,7 @@ using pm::load_f64;
 using pm::load_u16;
 using pm::load_u32;
 
-std::uint32_t crc(const std::uint8_t* p, std::size_t n) {
-  return std::uint32_t(::crc32(::crc32(0L, Z_NULL, 0), p, uInt(n)));
-}
+std::uint32_t crc(const std::uint8_t* p, std::size_t n) { return pm::crc32_of({p, n}); }
 
 }  // namespace
 

@@ -3,8 +3,6 @@
 // stack of at most depth * d node ids.
 #include "terralod/blocks/approximation_tree.hpp"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <cassert>
 #include <chrono>
@@ -215,8 +213,7 @@ std::vector<std::uint8_t> encode_tree(const ApproximationTree& tree) {
   w.varint(std::uint64_t(p.grid_height));
   w.varint(tree.size());
   for (const TreeNode& n : tree.nodes()) write_node(w, n);
-  const std::uint32_t crc = std::uint32_t(crc32(0L, w.bytes.data(), uInt(w.bytes.size())));
-  w.u32(crc);
+  w.u32(pm::crc32_of(w.bytes));
   return std::move(w.bytes);
 }
 
@@ -225,8 +222,7 @@ ApproximationTree decode_tree(std::span<const std::uint8_t> bytes, const std::st
     fail_at(name, "not an approximation tree (bad magic)", 0);
   {
     const std::uint32_t stored = pm::load_u32(bytes.data() + bytes.size() - 4);
-    const std::uint32_t crc = std::uint32_t(crc32(0L, bytes.data(), uInt(bytes.size() - 4)));
-    if (crc != stored) fail_at(name, "checksum mismatch", 0);
+    if (pm::crc32_of(bytes.first(bytes.size() - 4)) != stored) fail_at(name, "checksum mismatch", 0);
   }
   Reader r(bytes.first(bytes.size() - 4), name);
   r.raw(8);  // the magic

@@ -2,7 +2,6 @@
 // per-block PMs on local threads and remote builders, crash-consistent resumable writes, then the
 // approximation tree above the blocks (build_tree) and the stand-ins, written last.
 #include <sqlite3.h>
-#include <zlib.h>
 
 #include <algorithm>
 #include <atomic>
@@ -21,6 +20,7 @@
 #include <thread>
 
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/json.hpp"
 #include "terralod/pm/parallel.hpp"
 #include "terralod/pm/pm_io.hpp"
@@ -39,12 +39,11 @@ const char* metric_name(pm::ErrorMetric m) {
 }
 
 std::uint32_t samples_crc(const pm::Heightfield& hf) {
-  uLong crc = crc32(0L, Z_NULL, 0);
   const auto& z = hf.samples();
-  crc = crc32_z(crc, reinterpret_cast<const Bytef*>(z.data()), z.size() * sizeof(double));
+  const std::uint32_t crc =
+      pm::crc32_of({reinterpret_cast<const std::uint8_t*>(z.data()), z.size() * sizeof(double)});
   const auto& m = hf.mask();
-  if (!m.empty()) crc = crc32_z(crc, m.data(), m.size());
-  return std::uint32_t(crc);
+  return m.empty() ? crc : pm::crc32_of(m, crc);
 }
 
 std::string build_parameters_json(const pm::Heightfield& hf, const DatabaseBuildOptions& o) {

@@ -12,12 +12,6 @@
 namespace terralod::blocks::detail {
 namespace {
 
-inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
-  assert(b > 0);
-  std::int64_t q = a / b;
-  return (a % b != 0 && a < 0) ? q - 1 : q;
-}
-
 /// The non-degenerate triangle (a,b,c), made counter-clockwise (b and c swapped when clockwise).
 inline pm::GridTriangle ccw_triangle(pm::GridPoint& a, pm::GridPoint& b, pm::GridPoint& c) {
   const pm::GridTriangle t = pm::GridTriangle::ccw(a, b, c);
@@ -114,20 +108,20 @@ Crossing worst_crossing(const pm::Heightfield& hf, pm::GridPoint p, pm::GridPoin
   };
   auto vertical = [](pm::GridPoint a, pm::GridPoint b, std::int64_t D, std::int64_t t, pm::GridPoint& s0,
                      pm::GridPoint& s1, std::int64_t& r) {
-    const std::int64_t N = std::int64_t(a.y) * D + t * (std::int64_t(b.y) - a.y), j = floor_div(N, D);
+    const std::int64_t N = std::int64_t(a.y) * D + t * (std::int64_t(b.y) - a.y), j = pm::floor_div(N, D);
     r = N - j * D;
     s0 = {int(a.x + t), int(j)}, s1 = {int(a.x + t), int(j) + 1};
   };
   auto horizontal = [](pm::GridPoint a, pm::GridPoint b, std::int64_t D, std::int64_t t, pm::GridPoint& s0,
                        pm::GridPoint& s1, std::int64_t& r) {
-    const std::int64_t N = std::int64_t(a.x) * D + t * (std::int64_t(b.x) - a.x), i = floor_div(N, D);
+    const std::int64_t N = std::int64_t(a.x) * D + t * (std::int64_t(b.x) - a.x), i = pm::floor_div(N, D);
     r = N - i * D;
     s0 = {int(i), int(a.y + t)}, s1 = {int(i) + 1, int(a.y + t)};
   };
   auto diagonal = [](pm::GridPoint a, pm::GridPoint b, std::int64_t D, std::int64_t t, pm::GridPoint& s0,
                      pm::GridPoint& s1, std::int64_t& r) {
     const std::int64_t k = std::int64_t(a.x - a.y) + t;
-    const std::int64_t N = std::int64_t(a.x) * D + t * (std::int64_t(b.x) - a.x), i = floor_div(N, D);
+    const std::int64_t N = std::int64_t(a.x) * D + t * (std::int64_t(b.x) - a.x), i = pm::floor_div(N, D);
     r = N - i * D;
     s0 = {int(i), int(i - k)}, s1 = {int(i) + 1, int(i + 1 - k)};
   };

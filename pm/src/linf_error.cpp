@@ -9,15 +9,6 @@
 #include "terralod/pm/grid_triangle.hpp"
 
 namespace terralod::pm {
-namespace {
-
-inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
-  assert(b > 0);
-  std::int64_t q = a / b;
-  return (a % b != 0 && a < 0) ? q - 1 : q;
-}
-
-}  // namespace
 
 double LInfError::surface_height(double col, double row) const {
   const int W = hf_->width(), H = hf_->height();

@@ -357,7 +357,7 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm) {
   }
 
   out.u64_at(12, out.bytes.size() + 4);
-  out.u32(std::uint32_t(crc32(0L, out.bytes.data(), uInt(out.bytes.size()))));
+  out.u32(crc32_of(out.bytes));
   return std::move(out.bytes);
 }
 
@@ -392,14 +392,7 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
     fail(name, "truncated: " + std::to_string(file_size) + " bytes cannot hold a PM header");
   const std::size_t body = bytes.size() - 4;
   const std::uint32_t stored_crc = load_u32(bytes.data() + body);
-  // zlib's crc32 takes uInt lengths; feed it in chunks.
-  uLong crc = crc32(0L, Z_NULL, 0);
-  for (std::size_t off = 0; off < body;) {
-    const std::size_t len = std::min<std::size_t>(body - off, std::size_t(1) << 30);
-    crc = crc32(crc, bytes.data() + off, uInt(len));
-    off += len;
-  }
-  if (std::uint32_t(crc) != stored_crc) fail(name, "checksum mismatch (the file is corrupt)");
+  if (crc32_of(bytes.first(body)) != stored_crc) fail(name, "checksum mismatch (the file is corrupt)");
   // The rest of the header and the sections, which must end before the checksum.
   ByteReader c = reader(bytes.first(body).subspan(head.position() + sizeof kMagic), name);
 

@@ -18,7 +18,6 @@
 //         8+.. u64 number of codes, sub-cell tree bitstream (same code), then (PC cells + 1) x u32
 //              offsets (in codes) of each PC cell's tree
 //   end-4 4    u32 CRC-32 (zlib, polynomial 0xEDB88320) of every byte before it
-#include <zlib.h>
 
 #include <cstring>
 #include <string>
@@ -132,7 +131,7 @@ std::vector<std::uint8_t> HybridTerrain::encode() const {
     put_codes(w, tree);
     for (std::uint32_t o : e.tree_offset) w.u32(o);
   }
-  w.u32(std::uint32_t(crc32(0L, w.bytes.data(), uInt(w.bytes.size()))));
+  w.u32(pm::crc32_of(w.bytes));
   return std::move(w.bytes);
 }
 
@@ -141,10 +140,7 @@ HybridTerrain HybridTerrain::decode(std::span<const std::uint8_t> blob, const st
     fail(what, "not a hybrid model (bad magic)");
   const std::size_t body = blob.size() - 4;
   const std::uint32_t stored = pm::load_u32(blob.data() + body);
-  uLong crc = crc32(0L, Z_NULL, 0);
-  for (std::size_t off = 0; off < body; off += (1u << 30))
-    crc = crc32(crc, blob.data() + off, uInt(std::min<std::size_t>(body - off, 1u << 30)));
-  if (std::uint32_t(crc) != stored) fail(what, "checksum mismatch");
+  if (pm::crc32_of(blob.first(body)) != stored) fail(what, "checksum mismatch");
   Reader r(blob.first(body), what);
   r.raw(8);  // the magic
   const std::uint32_t version = r.u32();

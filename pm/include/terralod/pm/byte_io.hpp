@@ -197,4 +197,10 @@ class ByteReader {
   VarintForm varints_;
 };
 
+/// CRC-32 of `bytes` as zlib's crc32 computes it (polynomial 0xEDB88320, as in PNG and gzip),
+/// continued from `crc` (0 starts one): crc32_of(b, crc32_of(a)) == crc32_of(a then b). Any
+/// length (zlib takes 32-bit lengths; this feeds it in pieces). The one checksum of every format
+/// terralod writes (PM files, database blocks and blobs, hybrid models, texture tiles).
+std::uint32_t crc32_of(std::span<const std::uint8_t> bytes, std::uint32_t crc = 0);
+
 }  // namespace terralod::pm

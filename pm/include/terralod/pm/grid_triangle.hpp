@@ -19,6 +19,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <type_traits>
@@ -34,6 +35,14 @@ struct GridPoint {
 };
 
 /// Twice the signed area of (a,b,c) in (col,row) index space; > 0 for the mesh's orientation.
+/// floor(a / b) for b > 0 (C++'s / truncates toward zero): where a step of a rational slope
+/// lands on the grid.
+inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
+  assert(b > 0);
+  const std::int64_t q = a / b;
+  return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+
 inline std::int64_t orient2d(GridPoint a, GridPoint b, GridPoint c) {
   return std::int64_t(b.x - a.x) * (c.y - a.y) - std::int64_t(b.y - a.y) * (c.x - a.x);
 }
