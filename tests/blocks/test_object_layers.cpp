@@ -283,6 +283,45 @@ TEST(ObjectLayers, ShapefileFeaturesAreIndexedUnderEveryBlockTheirBoxTouches) {
   EXPECT_TRUE(tb::block_object_features(db, "pts", {5, 5}).empty());
 }
 
+TEST(ObjectLayers, AnUnblockedTerrainIndexesEverythingUnderBlockZeroAndATerrainWithoutCrsRefuses) {
+  TempDir t;
+  const std::string shp = t / "p.shp";
+  write_vector(shp, "ESRI Shapefile", 32633,
+               {{"POINT (" + at(10, 10) + ")", "a", 1}, {"POINT (" + at(60, 60) + ")", "b", 2}});
+  {
+    tb::DatabaseInfo info;  // block_size 0: one block, (0, 0)
+    info.grid_width = info.grid_height = kSize;
+    info.transform = kUtm;
+    info.crs_wkt = wkt_of_epsg(32633);
+    auto db = tb::BlockDatabase::create(t / "u.db", info);
+    db.put_georeference({kUtm, ""});
+    tb::add_object_layer(db, opts("p", shp));
+    EXPECT_EQ(tb::block_object_features(db, "p", {0, 0}).size(), 2u);
+    EXPECT_TRUE(tb::block_object_features(db, "p", {1, 1}).empty());
+  }
+  for (const bool crs : {false, true}) {  // no CRS at all; a CRS but no georeference
+    tb::DatabaseInfo info;
+    info.grid_width = info.grid_height = kSize;
+    info.block_size = kBlock;
+    info.transform = kUtm;
+    if (crs) info.crs_wkt = wkt_of_epsg(32633);
+    const std::string path = t / (crs ? "nogeo.db" : "nocrs.db");
+    tb::BlockDatabase::create(path, info);
+    const std::string before = bytes_of(path);
+    {
+      auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
+      try {
+        tb::add_object_layer(db, opts("p", shp));
+        ADD_FAILURE() << path << ": accepted";
+      } catch (const tb::ObjectLayerError& e) {
+        EXPECT_NE(std::string(e.what()).find(crs ? "has no georeference" : "has no CRS"), std::string::npos)
+            << e.what();
+      }
+    }
+    EXPECT_EQ(bytes_of(path), before);
+  }
+}
+
 TEST(ObjectLayers, GeoPackagePolygonsKeepHolesAndSplitMultiPolygons) {
   TempDir t;
   const std::string db_path = t / "t.db", gpkg = t / "b.gpkg";
