@@ -59,6 +59,9 @@ int cmd_export(const Args&);
 CommandSpec testdem_spec();
 int cmd_testdem(const Args&);
 
+CommandSpec objects_spec();
+int cmd_objects(const Args&);
+
 // Defined only when the benchmarks are built (TERRALOD_HAVE_BENCH; bench/CMakeLists.txt adds it).
 CommandSpec bench_spec();
 int cmd_bench(const Args&);

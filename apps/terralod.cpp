@@ -40,6 +40,7 @@ const std::vector<Command>& commands() {
       {terralod::cli::fly_spec, terralod::cli::cmd_fly},
       {terralod::cli::export_spec, terralod::cli::cmd_export},
       {terralod::cli::testdem_spec, terralod::cli::cmd_testdem},
+      {terralod::cli::objects_spec, terralod::cli::cmd_objects},
 #ifdef TERRALOD_HAVE_BENCH  // terralod bench: only when bench/ is built (it adds cmd_bench.cpp)
       {terralod::cli::bench_spec, terralod::cli::cmd_bench},
 #endif

@@ -21,6 +21,7 @@
 
 #include "fuzz_support.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/object_layers.hpp"
 
 namespace {
 
@@ -100,6 +101,13 @@ void read_everything(const std::string& path) {
   });
   guarded(path, [&] {
     for (const std::string& key : db.meta_keys()) guarded(path, [&] { (void)db.get_meta(key); });
+  });
+  guarded(path, [&] {  // object layers: their records, feature blobs and block index
+    for (const tb::ObjectLayerInfo& layer : tb::object_layers(db))
+      guarded(path, [&] {
+        (void)tb::object_features(db, layer.name);
+        (void)tb::block_object_features(db, layer.name, {0, 0});
+      });
   });
 }
 

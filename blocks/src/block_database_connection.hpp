@@ -90,6 +90,14 @@ struct BlockDatabaseImpl {
   void configure();
 };
 
+/// The connection behind a BlockDatabase, for the library's stores that keep tables of their own.
+struct ImplAccess {
+  static BlockDatabaseImpl& of(const BlockDatabase& db) {
+    assert(db.impl_ && "BlockDatabase: use of a moved-from object");
+    return *db.impl_;
+  }
+};
+
 /// A new connection to `path` in `mode`, configured (the file must exist: create() makes it
 /// itself, so SQLITE_OPEN_CREATE is never used).
 std::unique_ptr<BlockDatabaseImpl> connect(const std::string& path, BlockDatabase::Mode mode);

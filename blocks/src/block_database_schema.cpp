@@ -86,7 +86,71 @@ constexpr std::array<std::pair<const char*, const char*>, 5> kTables = {{
     {"meta", "SELECT key, value FROM meta"},
 }};
 
+// The object-layer tables (terralod/blocks/object_layers.hpp documents them), created together by
+// the first object layer; older databases and older terralods simply have none.
+constexpr const char* kObjectSchema = R"sql(
+CREATE TABLE IF NOT EXISTS object_layers (
+  name TEXT NOT NULL PRIMARY KEY,
+  kind TEXT NOT NULL, geometry TEXT NOT NULL, source TEXT NOT NULL, crs_wkt TEXT NOT NULL,
+  feature_count INTEGER NOT NULL, skipped INTEGER NOT NULL,
+  label_field TEXT NOT NULL, height_field TEXT NOT NULL, rules TEXT
+);
+CREATE TABLE IF NOT EXISTS object_features (
+  layer TEXT NOT NULL, id INTEGER NOT NULL, source_fid INTEGER NOT NULL, part INTEGER NOT NULL,
+  min_x REAL NOT NULL, min_y REAL NOT NULL, max_x REAL NOT NULL, max_y REAL NOT NULL,
+  size INTEGER NOT NULL, crc32 INTEGER NOT NULL, data BLOB NOT NULL,
+  PRIMARY KEY (layer, id)
+);
+CREATE TABLE IF NOT EXISTS object_blocks (
+  layer TEXT NOT NULL, col INTEGER NOT NULL, row INTEGER NOT NULL, feature INTEGER NOT NULL,
+  PRIMARY KEY (layer, col, row, feature)
+) WITHOUT ROWID;
+)sql";
+
+constexpr std::array<std::pair<const char*, const char*>, 3> kObjectTables = {{
+    {"object_layers",
+     "SELECT name, kind, geometry, source, crs_wkt, feature_count, skipped, label_field, height_field, rules "
+     "FROM object_layers"},
+    {"object_features",
+     "SELECT layer, id, source_fid, part, min_x, min_y, max_x, max_y, size, crc32, data FROM "
+     "object_features"},
+    {"object_blocks", "SELECT layer, col, row, feature FROM object_blocks"},
+}};
+
 }  // namespace
+
+bool detail::object_tables_exist(BlockDatabaseImpl& d) {
+  int present = 0;
+  for (const auto& [name, sql] : kObjectTables) {
+    OneOff st(d, "SELECT type FROM sqlite_schema WHERE name = ?1", "cannot read the schema");
+    sqlite3_bind_text(st, 1, name, -1, SQLITE_STATIC);
+    const int rc = sqlite3_step(st);
+    if (rc != SQLITE_ROW && rc != SQLITE_DONE) d.check(rc, "cannot read the schema");
+    if (rc == SQLITE_DONE) continue;
+    const auto* type = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+    if (!type || std::strcmp(type, "table") != 0)
+      d.fail(std::string("schema mismatch: '") + name + "' is not a table");
+    ++present;
+  }
+  if (present == 0) return false;
+  if (present != int(kObjectTables.size()))
+    d.fail("schema mismatch: some of the object-layer tables are missing");
+  for (const auto& [name, sql] : kObjectTables) {
+    sqlite3_stmt* s = nullptr;
+    if (sqlite3_prepare_v2(d.db, sql, -1, &s, nullptr) != SQLITE_OK) {
+      const std::string msg = sqlite3_errmsg(d.db);
+      sqlite3_finalize(s);
+      d.fail(std::string("schema mismatch in table '") + name + "' (" + msg + ")");
+    }
+    sqlite3_finalize(s);
+  }
+  return true;
+}
+
+void detail::create_object_tables(BlockDatabaseImpl& d) {
+  assert(d.in_transaction);
+  if (!object_tables_exist(d)) d.exec(kObjectSchema, "cannot create the object-layer tables");
+}
 
 void detail::read_info(BlockDatabaseImpl& d, DatabaseInfo& info, int& format_version) {
   const std::string what = "info";

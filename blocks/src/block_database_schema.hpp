@@ -10,4 +10,11 @@ namespace terralod::blocks::detail {
 /// problem (no row, several rows, a bad field, a newer format version, a checksum mismatch).
 void read_info(BlockDatabaseImpl& d, DatabaseInfo& info, int& format_version);
 
+/// Whether the object-layer tables exist (object_layers.hpp): false when none of them does, true
+/// when all three are real tables with the expected columns; DatabaseError "schema mismatch ..."
+/// for anything in between (a missing one, a view, a missing column).
+bool object_tables_exist(BlockDatabaseImpl& d);
+/// Creates the object-layer tables unless they exist (inside the caller's transaction).
+void create_object_tables(BlockDatabaseImpl& d);
+
 }  // namespace terralod::blocks::detail

@@ -82,6 +82,8 @@
 //   texture_tiles  layer TEXT, node INTEGER, level INTEGER, size INTEGER, crc32 INTEGER,
 //                  data BLOB, PRIMARY KEY (layer, node, level)
 //   meta           small key/value state: key TEXT PRIMARY KEY, value TEXT NOT NULL
+//   object_layers, object_features, object_blocks: present once an object layer was added;
+//                  documented in terralod/blocks/object_layers.hpp.
 // Every read of a blob checks that length(data) == size and crc32(data) == crc32.
 #pragma once
 
@@ -100,7 +102,8 @@ namespace terralod::blocks {
 
 namespace detail {
 struct BlockDatabaseImpl;  // the SQLite connection and its cached statements (block_database_connection.hpp)
-}
+struct ImplAccess;         // lets the library's other stores (object_layers.cpp) use the connection
+}  // namespace detail
 
 /// Bad or unreadable database content. what() = "<path>: <problem>".
 class DatabaseError : public std::runtime_error {
@@ -215,7 +218,7 @@ class BlockDatabase {
   struct IntegrityReport {
     bool ok = true;                     ///< no problem found
     std::vector<std::string> problems;  ///< each "<path>: <item>: <problem>"
-    std::size_t items_checked = 0;      ///< blobs (blocks + named blobs + tiles) verified
+    std::size_t items_checked = 0;      ///< blobs (blocks, named blobs, tiles, object features) verified
   };
   /// SQLite's PRAGMA integrity_check plus every blob's size and checksum. Problems are
   /// reported, not thrown (only a database that cannot be read at all throws).
@@ -227,6 +230,7 @@ class BlockDatabase {
 
  private:
   using Impl = detail::BlockDatabaseImpl;
+  friend struct detail::ImplAccess;
   explicit BlockDatabase(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };

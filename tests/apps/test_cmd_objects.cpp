@@ -1,0 +1,138 @@
+// terralod objects add|list end to end: a 65 x 65 UTM terrain built by 'terralod build', GeoJSON
+// layers added and listed, and each bad input refused with a message naming the file, the exit
+// status of other commands, and the database file unchanged.
+#include <gtest/gtest.h>
+#include <ogr_spatialref.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "cli_texture_database.hpp"
+#include "run_command.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using terralod::test::CliRunner;
+using terralod::test::quote;
+
+std::string bytes_of(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+// Points in WGS 84 inside the terrain (cs2cs: lon 15.0114513341, lat 45.1615781192 is
+// E 500900, N 5000900 in UTM 33N), one without geometry.
+const char* kPoints = R"({"type": "FeatureCollection", "features": [
+  {"type": "Feature", "id": 1, "properties": {"name": "Hut", "ele": 1200},
+   "geometry": {"type": "Point", "coordinates": [15.0114513341, 45.1615781192]}},
+  {"type": "Feature", "id": 2, "properties": {"name": "Spring", "ele": 900},
+   "geometry": {"type": "Point", "coordinates": [15.005, 45.155]}},
+  {"type": "Feature", "id": 3, "properties": {"name": "lost"}, "geometry": null}]})";
+
+// The terrain, built once for the suite (each 'terralod' run costs about half a second):
+// 65 x 65 samples of 30 m in UTM zone 33N, lower-left corner (500000, 5000000).
+class ObjectsCli : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    suite_dir_ = new terralod::test::TempDir("objects-suite");
+    const fs::path d = suite_dir_->path();
+    {
+      std::ofstream f(d / "dem.asc");
+      f << "ncols 65\nnrows 65\nxllcorner 500000\nyllcorner 5000000\ncellsize 30\n";
+      for (int r = 0; r < 65; ++r)
+        for (int c = 0; c < 65; ++c) f << 100 + (r * 7 + c * 3) % 50 << (c + 1 < 65 ? " " : "\n");
+    }
+    OGRSpatialReference utm;
+    ASSERT_EQ(utm.importFromEPSG(32633), OGRERR_NONE);
+    char* wkt = nullptr;
+    utm.exportToWkt(&wkt);
+    std::ofstream(d / "dem.prj") << wkt;
+    CPLFree(wkt);
+    ASSERT_EQ(CliRunner{TERRALOD_CLI}.run("build --input " + quote((d / "dem.asc").string()) + " --out " +
+                                          quote((d / "t.db").string()) + " --block-size 33"),
+              0);
+  }
+  static void TearDownTestSuite() {
+    delete suite_dir_;
+    suite_dir_ = nullptr;
+  }
+  void SetUp() override {
+    ASSERT_NE(suite_dir_, nullptr);
+    ASSERT_TRUE(fs::exists(suite_dir_->path() / "t.db"));
+    fs::copy_file(suite_dir_->path() / "t.db", db());
+    std::ofstream(dir_.path() / "points.geojson") << kPoints;
+  }
+  std::string db() const { return (dir_.path() / "t.db").string(); }
+  std::string file(const std::string& name) const { return (dir_.path() / name).string(); }
+
+  static terralod::test::TempDir* suite_dir_;
+  terralod::test::TempDir dir_{"objects"};
+  CliRunner cli_{TERRALOD_CLI};
+};
+terralod::test::TempDir* ObjectsCli::suite_dir_ = nullptr;
+
+TEST_F(ObjectsCli, AddThenListShowsTheLayer) {
+  std::string out;
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson")) +
+                         " --kind label --label-field name --height-field ele",
+                     &out),
+            0);
+  EXPECT_NE(out.find("3 features (1 without geometry, skipped) in WGS 84 -> 2 point parts"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("store object layer 'huts' (label): 2 features"), std::string::npos) << out;
+  ASSERT_EQ(
+      cli_.run("objects add " + quote(db()) + " --layer more --input " + quote(file("points.geojson")), &out),
+      0);
+  ASSERT_EQ(cli_.run("objects list " + quote(db()), &out), 0);
+  EXPECT_NE(
+      out.find("huts\tkind label\t2 features (points)\tsource " + file("points.geojson") + "\tCRS WGS 84"),
+      std::string::npos)
+      << out;
+  EXPECT_NE(out.find("more\tkind icon\t2 features"), std::string::npos) << out;  // points default to icons
+  EXPECT_LT(out.find("huts"), out.find("more"));                                 // sorted by name
+  ASSERT_EQ(cli_.run("objects --help", &out), 0);
+  EXPECT_NE(out.find("add|list DB"), std::string::npos) << out;
+  EXPECT_NE(out.find("later part"), std::string::npos) << out;  // --rules is stored, not yet applied
+}
+
+TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
+  std::ofstream(file("outside.geojson")) << R"({"type": "FeatureCollection", "features": [{"type": "Feature",
+    "id": 12, "properties": {}, "geometry": {"type": "Point", "coordinates": [16.5, 45.1]}}]})";
+  std::ofstream(file("bad.json")) << "{\"rules\": [";
+  std::ofstream(file("garbage.geojson")) << "not a vector file";
+  ASSERT_EQ(
+      cli_.run("objects add " + quote(db()) + " --layer taken --input " + quote(file("points.geojson"))), 0);
+  const std::string before = bytes_of(db());
+  struct Case {
+    std::string args, message;
+    int status;
+  };
+  const std::string add = "objects add " + quote(db()) + " --layer x --input ";
+  const Case cases[] = {
+      {add + quote(file("missing.geojson")), file("missing.geojson") + ": no such file", 1},
+      {add + quote(file("garbage.geojson")), file("garbage.geojson") + ": not a readable vector file", 1},
+      {add + quote(file("outside.geojson")), file("outside.geojson") + ": feature 12: lies wholly outside",
+       1},
+      {"objects add " + quote(db()) + " --layer taken --input " + quote(file("points.geojson")),
+       db() + ": object layer 'taken' already exists", 1},
+      {add + quote(file("points.geojson")) + " --kind line", "kind line does not fit its points", 2},
+      {add + quote(file("points.geojson")) + " --label-field title", "label field 'title' is not a field", 2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("bad.json")),
+       file("bad.json") + ": not JSON", 2},
+  };
+  for (const Case& c : cases) {
+    std::string out;
+    EXPECT_EQ(cli_.run(c.args, &out), c.status) << c.args;
+    EXPECT_NE(out.find(c.message), std::string::npos) << c.args << "\n" << out;
+    EXPECT_EQ(bytes_of(db()), before) << c.args;
+  }
+  std::string out;
+  ASSERT_EQ(cli_.run("objects list " + quote(db()), &out), 0);
+  EXPECT_EQ(out.find("\nx\t"), std::string::npos) << out;
+}
+
+}  // namespace
