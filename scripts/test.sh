@@ -64,9 +64,14 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # other render tests. So are the boxes-against-spheres triangle count (the guarantee tests refine
 # with both bounding volumes) and the serial build of a large grid without strips (every small PM
 # of the unit tests is a serial build).
-asan_exclude='RealTileFull|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu|SelectiveRefinement.BoxesNeedFewerTrianglesThanSpheres|ProgressiveMesh.WithoutParallelStripsNoColumnStaysAtFullResolution'
+# The command-line tests that run the tool many times over (test_cli, test_render_cli,
+# test_texture_rules: about 4 CPU-minutes under ASan, each terralod start instrumented) join the
+# other end-to-end tests in the normal pass; the library code under them runs instrumented in the
+# unit tests. So does the triangle-count comparison of the OpenMesh reference build (a
+# measurement; its guarantee tests run).
+asan_exclude='RealTileFull|test_cli|test_render_cli|test_texture_rules|OpenMeshBuild.TriangleCountsAlikeTheBuilders|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu|SelectiveRefinement.BoxesNeedFewerTrianglesThanSpheres|ProgressiveMesh.WithoutParallelStripsNoColumnStaysAtFullResolution'
 # The test executables excluded whole are not built (nor what only they need, such as terralod-fly).
-asan_unbuilt='^(test_cesium_client|test_gltf_validator|test_database_build|test_build_mpi|test_bench|test_fly.*|test_texture_store|test_cmd_.*|test_bad_input_tools)$'
+asan_unbuilt='^(test_cli|test_render_cli|test_texture_rules|test_cesium_client|test_gltf_validator|test_database_build|test_build_mpi|test_bench|test_fly.*|test_texture_store|test_cmd_.*|test_bad_input_tools)$'
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
 asan() {
   # -O1 -g1: line tables are enough for reports and compile about a third faster than -O2 -g.

@@ -26,6 +26,7 @@
 #include <cstdint>
 
 #include "block_database_encoding.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::blocks::detail {
 
@@ -118,7 +119,8 @@ std::string BlockDatabaseImpl::verify(sqlite3_stmt* st, int first, std::vector<s
     if (n < size) return "truncated (" + std::to_string(n) + " of " + std::to_string(size) + " bytes)";
     return "size mismatch (" + std::to_string(n) + " bytes stored, " + std::to_string(size) + " recorded)";
   }
-  if (crc < 0 || crc > std::int64_t(UINT32_MAX) || crc32_of(data, std::size_t(n)) != std::uint32_t(crc))
+  if (crc < 0 || crc > std::int64_t(UINT32_MAX) ||
+      pm::crc32_of({static_cast<const std::uint8_t*>(data), std::size_t(n)}) != std::uint32_t(crc))
     return "checksum mismatch";
   if (out) {
     const auto* p = static_cast<const std::uint8_t*>(data);
@@ -143,7 +145,7 @@ void BlockDatabaseImpl::bind_blob(sqlite3_stmt* st, int first, std::span<const s
   if (blob.size() > std::size_t(sqlite3_limit(db, SQLITE_LIMIT_LENGTH, -1)))
     fail(item + ": " + std::to_string(blob.size()) + " bytes is more than SQLite stores in one blob");
   check(sqlite3_bind_int64(st, first, std::int64_t(blob.size())), item);
-  check(sqlite3_bind_int64(st, first + 1, std::int64_t(crc32_of(blob.data(), blob.size()))), item);
+  check(sqlite3_bind_int64(st, first + 1, std::int64_t(pm::crc32_of(blob))), item);
   // A zero-length blob must be bound as a blob, not NULL (data is NOT NULL).
   static const std::uint8_t empty = 0;
   check(sqlite3_bind_blob64(st, first + 2, blob.empty() ? &empty : blob.data(), blob.size(), SQLITE_STATIC),

@@ -3,8 +3,6 @@
 // block_database_encoding.hpp).
 #include "block_database_encoding.hpp"
 
-#include <zlib.h>
-
 #include <cmath>
 
 #include "terralod/pm/byte_io.hpp"
@@ -24,11 +22,6 @@ void put_transform(pm::ByteWriter& b, const pm::GridTransform& t) {
 }
 
 }  // namespace
-
-std::uint32_t crc32_of(const void* data, std::size_t size) {
-  if (size == 0) return 0;  // the CRC-32 of nothing
-  return std::uint32_t(crc32_z(0L, static_cast<const Bytef*>(data), z_size_t(size)));
-}
 
 std::vector<std::uint8_t> encode_transform(const pm::GridTransform& t) {
   pm::ByteWriter b;
@@ -63,7 +56,7 @@ std::uint32_t info_crc(int format_version, const DatabaseInfo& info) {
   b.i32(info.block_size);
   put_string(b, info.build_parameters);
   put_string(b, info.source);
-  return crc32_of(b.bytes.data(), b.bytes.size());
+  return pm::crc32_of(b.bytes);
 }
 
 std::vector<std::uint8_t> encode_georeference(const Georeference& g) {

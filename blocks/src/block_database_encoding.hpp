@@ -16,9 +16,6 @@ namespace terralod::blocks::detail {
 
 constexpr std::size_t kTransformBytes = 48;
 
-/// CRC-32 (zlib) of `size` bytes; 0 for none.
-std::uint32_t crc32_of(const void* data, std::size_t size);
-
 /// x0, xc, xr, y0, yc, yr as IEEE-754 binary64 little-endian: kTransformBytes bytes.
 std::vector<std::uint8_t> encode_transform(const pm::GridTransform& t);
 /// Reads kTransformBytes bytes at p.
