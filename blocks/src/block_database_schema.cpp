@@ -117,33 +117,40 @@ constexpr std::array<std::pair<const char*, const char*>, 3> kObjectTables = {{
     {"object_blocks", "SELECT layer, col, row, feature FROM object_blocks"},
 }};
 
+// Whether `name` exists in the schema; a view or index of that name is a schema mismatch (a
+// view could run any query on every read).
+bool table_present(BlockDatabaseImpl& d, const char* name) {
+  OneOff st(d, "SELECT type FROM sqlite_schema WHERE name = ?1", "cannot read the schema");
+  sqlite3_bind_text(st, 1, name, -1, SQLITE_STATIC);
+  const int rc = sqlite3_step(st);
+  if (rc != SQLITE_ROW && rc != SQLITE_DONE) d.check(rc, "cannot read the schema");
+  if (rc == SQLITE_DONE) return false;
+  const auto* type = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+  if (!type || std::strcmp(type, "table") != 0)
+    d.fail(std::string("schema mismatch: '") + name + "' is not a table");
+  return true;
+}
+
+// The columns the code reads exist: `sql` (a SELECT of them) prepares.
+void check_columns(BlockDatabaseImpl& d, const char* name, const char* sql) {
+  sqlite3_stmt* s = nullptr;
+  if (sqlite3_prepare_v2(d.db, sql, -1, &s, nullptr) != SQLITE_OK) {
+    const std::string msg = sqlite3_errmsg(d.db);
+    sqlite3_finalize(s);
+    d.fail(std::string("schema mismatch in table '") + name + "' (" + msg + ")");
+  }
+  sqlite3_finalize(s);
+}
+
 }  // namespace
 
 bool detail::object_tables_exist(BlockDatabaseImpl& d) {
   int present = 0;
-  for (const auto& [name, sql] : kObjectTables) {
-    OneOff st(d, "SELECT type FROM sqlite_schema WHERE name = ?1", "cannot read the schema");
-    sqlite3_bind_text(st, 1, name, -1, SQLITE_STATIC);
-    const int rc = sqlite3_step(st);
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE) d.check(rc, "cannot read the schema");
-    if (rc == SQLITE_DONE) continue;
-    const auto* type = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
-    if (!type || std::strcmp(type, "table") != 0)
-      d.fail(std::string("schema mismatch: '") + name + "' is not a table");
-    ++present;
-  }
+  for (const auto& [name, sql] : kObjectTables) present += table_present(d, name);
   if (present == 0) return false;
   if (present != int(kObjectTables.size()))
     d.fail("schema mismatch: some of the object-layer tables are missing");
-  for (const auto& [name, sql] : kObjectTables) {
-    sqlite3_stmt* s = nullptr;
-    if (sqlite3_prepare_v2(d.db, sql, -1, &s, nullptr) != SQLITE_OK) {
-      const std::string msg = sqlite3_errmsg(d.db);
-      sqlite3_finalize(s);
-      d.fail(std::string("schema mismatch in table '") + name + "' (" + msg + ")");
-    }
-    sqlite3_finalize(s);
-  }
+  for (const auto& [name, sql] : kObjectTables) check_columns(d, name, sql);
   return true;
 }
 
@@ -223,25 +230,9 @@ void check_identity(BlockDatabaseImpl& d) {
            ")");
   }
   // Tables must be real tables: a view could run any query on every read.
-  for (const auto& [name, sql] : kTables) {
-    OneOff st(d, "SELECT type FROM sqlite_schema WHERE name = ?1", "cannot read the schema");
-    sqlite3_bind_text(st, 1, name, -1, SQLITE_STATIC);
-    const int rc = sqlite3_step(st);
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE) d.check(rc, "cannot read the schema");
-    if (rc == SQLITE_DONE) d.fail(std::string("schema mismatch: no table '") + name + "'");
-    const auto* type = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
-    if (!type || std::strcmp(type, "table") != 0)
-      d.fail(std::string("schema mismatch: '") + name + "' is not a table");
-  }
-  for (const auto& [name, sql] : kTables) {
-    sqlite3_stmt* s = nullptr;
-    if (sqlite3_prepare_v2(d.db, sql, -1, &s, nullptr) != SQLITE_OK) {
-      const std::string msg = sqlite3_errmsg(d.db);
-      sqlite3_finalize(s);
-      d.fail(std::string("schema mismatch in table '") + name + "' (" + msg + ")");
-    }
-    sqlite3_finalize(s);
-  }
+  for (const auto& [name, sql] : kTables)
+    if (!table_present(d, name)) d.fail(std::string("schema mismatch: no table '") + name + "'");
+  for (const auto& [name, sql] : kTables) check_columns(d, name, sql);
   read_info(d, d.info, d.format_version);
 }
 

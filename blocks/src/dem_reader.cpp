@@ -93,24 +93,9 @@ void check_dimensions(const std::string& path, long long w, long long h) {
 // ---------------------------------------------------------------------------------------------
 // GDAL plumbing: registration once, errors captured instead of printed.
 
+using detail::gdal_message;
+using detail::QuietGdal;
 using detail::register_gdal;
-
-/// Silences GDAL's error printing for the current thread while alive.
-class QuietGdal {
- public:
-  QuietGdal() {
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    CPLErrorReset();
-  }
-  ~QuietGdal() { CPLPopErrorHandler(); }
-  QuietGdal(const QuietGdal&) = delete;
-  QuietGdal& operator=(const QuietGdal&) = delete;
-};
-
-std::string gdal_message(const std::string& fallback) {
-  const char* msg = CPLGetLastErrorMsg();
-  return (msg != nullptr && *msg != '\0') ? std::string(msg) : fallback;
-}
 
 std::string wkt_of(const OGRSpatialReference& srs) {
   char* text = nullptr;

@@ -1,4 +1,5 @@
-// Private to terralod::blocks: GDAL registered once per process, whoever asks first.
+// Private to terralod::blocks: GDAL registered once per process, whoever asks first; its error
+// messages taken instead of printed; VRT mosaics.
 #pragma once
 
 #include <gdal_priv.h>
@@ -13,6 +14,25 @@ namespace terralod::blocks::detail {
 inline void register_gdal() {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
+}
+
+/// Silences GDAL's error printing for the current thread while alive: its messages are taken
+/// into our errors (gdal_message) instead of being printed.
+class QuietGdal {
+ public:
+  QuietGdal() {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+  }
+  ~QuietGdal() { CPLPopErrorHandler(); }
+  QuietGdal(const QuietGdal&) = delete;
+  QuietGdal& operator=(const QuietGdal&) = delete;
+};
+
+/// GDAL's last error message, or `fallback` when it has none.
+inline std::string gdal_message(const std::string& fallback) {
+  const char* msg = CPLGetLastErrorMsg();
+  return (msg != nullptr && *msg != '\0') ? std::string(msg) : fallback;
 }
 
 /// Writes `dest` (a file or a /vsimem path) as a VRT mosaic of `files` (GDALBuildVRT, later

@@ -6,7 +6,6 @@
 // then written in one transaction; reads allocate the features they return.
 #include "terralod/blocks/object_layers.hpp"
 
-#include <cpl_json.h>
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 #include <sqlite3.h>
@@ -26,6 +25,7 @@
 #include "gdal_support.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/pm/byte_io.hpp"
+#include "terralod/pm/json.hpp"
 #include "terralod/pm/timing.hpp"
 
 namespace terralod::blocks {
@@ -34,28 +34,13 @@ namespace {
 
 namespace fs = std::filesystem;
 using detail::BlockDatabaseImpl;
+using detail::gdal_message;
 using detail::OneOff;
+using detail::QuietGdal;
 
 constexpr std::uint8_t kFeatureVersion = 1;
 // Points on the terrain's edge may come back from PROJ a rounding error outside it.
 constexpr double kEdgeTolerance = 1e-6;  // samples
-
-// GDAL's messages are taken into our errors instead of being printed.
-class QuietGdal {
- public:
-  QuietGdal() {
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    CPLErrorReset();
-  }
-  ~QuietGdal() { CPLPopErrorHandler(); }
-  QuietGdal(const QuietGdal&) = delete;
-  QuietGdal& operator=(const QuietGdal&) = delete;
-};
-
-std::string gdal_message(const std::string& fallback) {
-  const char* msg = CPLGetLastErrorMsg();
-  return (msg != nullptr && *msg != '\0') ? std::string(msg) : fallback;
-}
 
 std::string crs_name(const OGRSpatialReference& srs) {
   const char* n = srs.GetName();
@@ -350,12 +335,12 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
   for (const ObjectLayerInfo& l : object_layers(db))
     if (l.name == o.name) d.fail("object layer '" + o.name + "' already exists");
   if (o.rules_json) {
-    CPLJSONDocument doc;
-    const QuietGdal quiet;
-    if (!doc.LoadMemory(*o.rules_json))
-      throw ObjectLayerError((o.rules_source.empty() ? in + ": the rules" : o.rules_source) +
-                                 ": not JSON text (" + gdal_message("parse error") + ")",
-                             ObjectLayerError::Cause::Option);
+    const std::string source = o.rules_source.empty() ? in + ": the rules" : o.rules_source;
+    try {
+      pm::parse_json(*o.rules_json, source);
+    } catch (const pm::JsonError& e) {
+      throw ObjectLayerError(source + ": not JSON text (" + e.what() + ")", ObjectLayerError::Cause::Option);
+    }
   }
 
   detail::register_gdal();
