@@ -48,6 +48,14 @@ void write_objects_csv(const std::vector<blocks::PlacedObject>& placed, const bl
   if (std::fclose(f) != 0) throw std::runtime_error(path + ": cannot write (" + std::strerror(errno) + ")");
 }
 
+std::string objects_line(const blocks::ObjectPlacer& placer) {
+  std::string s =
+      strf("objects %zu in view (%.2f ms)   layers", placer.placed().size(), placer.stats().place_ms);
+  for (const blocks::ObjectLayerInfo& l : placer.layers())
+    s += strf("  %s%s", l.name.c_str(), placer.layer_visible(l.name) ? "" : "(off)");
+  return s;
+}
+
 std::vector<std::string> pick_lines(const std::optional<blocks::PickResult>& pick,
                                     const blocks::ObjectPlacer& placer, std::size_t width) {
   if (!pick) return {"picked: nothing (the ray meets no object and no drawn terrain)"};

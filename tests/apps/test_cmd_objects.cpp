@@ -13,6 +13,7 @@
 
 #include "cli_texture_database.hpp"
 #include "run_command.hpp"
+#include "xvfb.hpp"
 
 namespace {
 
@@ -190,5 +191,41 @@ TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
   EXPECT_NE(out.find("--objects NAME"), std::string::npos) << out;
   EXPECT_NE(out.find("name,kind,x,y,z,ground_z"), std::string::npos) << out;
 }
+
+#ifdef TERRALOD_FLY
+// terralod-fly --objects: placed in every headless frame (the summary counts them, the HUD line
+// is drawn), in the window under Xvfb (flies and exits cleanly); usage and missing layers are
+// clear errors.
+TEST_F(ObjectsCli, FlyDemoPlacesObjects) {
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
+            0);
+  {
+    std::ofstream f(file("path.csv"));
+    f << "x,y,z,yaw,pitch,fovy\n";
+    for (int k = 0; k < 3; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
+  }
+  const CliRunner fly{TERRALOD_FLY};
+  const std::string base = "--db " + quote(db()) + " --size 160x120 ";
+  std::string out;
+  ASSERT_EQ(fly.run("--headless " + base + "--path " + quote(file("path.csv")) + " --out " +
+                        quote(file("h")) + " --hud --objects huts",
+                    &out),
+            0);
+  EXPECT_NE(out.find("headless: objects in view median 2, max 2 (of 2)"), std::string::npos) << out;
+  EXPECT_EQ(fly.run("--headless --path " + quote(file("path.csv")) + " --objects huts", &out), 2);
+  EXPECT_NE(out.find("--objects needs --db"), std::string::npos) << out;
+  EXPECT_EQ(fly.run("--headless " + base + "--path " + quote(file("path.csv")) + " --objects nope", &out), 1);
+  EXPECT_NE(out.find(db() + ": object layer 'nope': not in the database"), std::string::npos) << out;
+  ASSERT_EQ(fly.run("--help", &out), 0);
+  EXPECT_NE(out.find("O switches the object layers on/off"), std::string::npos) << out;
+  terralod::test::Xvfb xvfb;
+  if (xvfb.display().empty()) GTEST_SKIP() << "Xvfb could not be started (is the xvfb package installed?)";
+  const terralod::test::CommandResult r =
+      terralod::test::run_command("DISPLAY=" + xvfb.display() + " " + quote(TERRALOD_FLY) + " " + base +
+                                  "--objects huts --replay " + quote(file("path.csv")) + " --frames 3");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("flew 3 frames"), std::string::npos) << r.out << r.err;
+}
+#endif
 
 }  // namespace
