@@ -119,6 +119,7 @@ ObjectPlacer::ObjectPlacer(const BlockDatabase& db, const std::vector<std::strin
   const std::size_t cells = std::size_t(nx_) * std::size_t(ny_);
   start_.assign(layers_.size(), std::vector<std::uint32_t>(cells + 1, 0));
   items_.assign(layers_.size(), {});
+  item_anchors_.assign(layers_.size(), {});
   std::vector<std::size_t> cell_of(objects_.size());
   for (std::size_t k = 0; k < objects_.size(); ++k) {
     const int i = std::clamp(int(std::floor((objects_[k].anchor.x - x0_) / cell_w_)), 0, nx_ - 1);
@@ -129,10 +130,14 @@ ObjectPlacer::ObjectPlacer(const BlockDatabase& db, const std::vector<std::strin
   for (std::size_t l = 0; l < layers_.size(); ++l) {
     for (std::size_t c = 1; c <= cells; ++c) start_[l][c] += start_[l][c - 1];
     items_[l].resize(start_[l][cells]);
+    item_anchors_[l].resize(start_[l][cells]);
   }
   std::vector<std::vector<std::uint32_t>> fill = start_;
-  for (std::size_t k = 0; k < objects_.size(); ++k)  // by id within each cell: stable order
-    items_[objects_[k].layer][fill[objects_[k].layer][cell_of[k]]++] = std::uint32_t(k);
+  for (std::size_t k = 0; k < objects_.size(); ++k) {  // by id within each cell: stable order
+    const std::size_t l = objects_[k].layer, at = fill[l][cell_of[k]]++;
+    items_[l][at] = std::uint32_t(k);
+    item_anchors_[l][at] = objects_[k].anchor;
+  }
 }
 
 std::size_t ObjectPlacer::layer_index(const std::string& layer) const {
@@ -168,12 +173,12 @@ void ObjectPlacer::visit(const TerrainRuntime& rt, const pm::View& view, int i0,
   for (std::size_t l = 0; l < layers_.size(); ++l) {
     if (!visible_[l]) continue;
     for (std::uint32_t k = start_[l][cell]; k < start_[l][cell + 1]; ++k) {
-      const MapObject& m = objects_[items_[l][k]];
+      const WorldPoint& a = item_anchors_[l][k];  // contiguous: the object itself only when placed
       ++stats_.objects_tested;
-      const double z = rt.drawn_height(m.anchor.x, m.anchor.y);
+      const double z = rt.drawn_height(a.x, a.y);
       if (std::isnan(z)) continue;
-      const pm::Vec3 p{m.anchor.x, m.anchor.y, z};
-      if (view.contains(p)) placed_.push_back({&m, p});
+      const pm::Vec3 p{a.x, a.y, z};
+      if (view.contains(p)) placed_.push_back({&objects_[items_[l][k]], p});
     }
   }
 }

@@ -45,7 +45,7 @@
 //              to the point nearest its anchor) wins, unless the ray meets the drawn terrain
 //              more than that radius before it (hidden behind a hill); otherwise the first
 //              point where the ray meets a drawn triangle (edges included); otherwise nullopt.
-// Memory: every feature of the layers with its attributes (object_layers.hpp), plus 8 bytes
+// Memory: every feature of the layers with its attributes (object_layers.hpp), plus 20 bytes
 // per object and 4 per grid cell per layer for the grid, and the placed objects of a frame.
 #pragma once
 
@@ -136,6 +136,7 @@ class ObjectPlacer {
   double x0_ = 0, y0_ = 0, cell_w_ = 1, cell_h_ = 1;
   std::vector<std::vector<std::uint32_t>> start_;
   std::vector<std::vector<std::uint32_t>> items_;
+  std::vector<std::vector<WorldPoint>> item_anchors_;  // the anchors of items_, in its order
   std::vector<PlacedObject> placed_;
   PlacementStats stats_;
   std::optional<pm::View> view_;  // of the last place()
