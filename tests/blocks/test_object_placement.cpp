@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <random>
 #include <string>
 #include <vector>
@@ -301,6 +302,42 @@ TEST(ObjectPlacement, PickReturnsTheObjectUnderThePixelElseTheDrawnGround) {
       EXPECT_GT(q.z, h - 1e-6) << "the ray meets the mesh before " << a;
     }
   }
+  // Rays aimed at the Summit from around it, low and high: it is picked exactly when the
+  // segment up to it stays above the drawn mesh (scanned at 1 m steps) except within the pick
+  // radius r before it; rays that dip below by less than 1 m, or near r, are not judged.
+  const double r = 8.0 * view.depth(summit->anchor) / view.focal_px();
+  int seen = 0, hidden = 0;
+  for (int k = 0; k < 48; ++k) {
+    const double az = k * 7.5 * std::numbers::pi / 180, el = (1.0 + (k % 6) * 4.0) * std::numbers::pi / 180;
+    const tp::Vec3 a = summit->anchor;
+    const double len = 2500;
+    const tp::Vec3 o{a.x + len * std::cos(el) * std::cos(az), a.y + len * std::cos(el) * std::sin(az),
+                     a.z + len * std::sin(el)};
+    double deepest_before = 0;  // how far below the mesh the ray gets before t = len - 2 r
+    bool near_r = false;
+    for (double t = 1; t < len; t += 1) {
+      const tp::Vec3 q{o.x + t / len * (a.x - o.x), o.y + t / len * (a.y - o.y), o.z + t / len * (a.z - o.z)};
+      const double h = mesh_height(rt.drawn_mesh(), q.x, q.y);
+      if (std::isnan(h) || q.z >= h) continue;
+      if (t < len - 2 * r)
+        deepest_before = std::max(deepest_before, h - q.z);
+      else if (t < len - 0.5 * r)
+        near_r = true;
+    }
+    if (near_r || (deepest_before > 0 && deepest_before < 1)) continue;
+    const auto hit = placer.pick(rt, o, {a.x - o.x, a.y - o.y, a.z - o.z});
+    if (deepest_before == 0) {
+      ++seen;
+      ASSERT_TRUE(hit && hit->object) << "ray " << k << " sees the Summit";
+      EXPECT_LE(hit->distance, len + 1e-6) << "ray " << k;
+    } else {
+      ++hidden;
+      EXPECT_FALSE(hit && hit->object == summit->object)
+          << "ray " << k << ": the Summit is behind the terrain";
+    }
+  }
+  EXPECT_GT(seen, 0);
+  EXPECT_GT(hidden, 0);
   // Hidden layers are not picked: the Summit's pixel then gives the ground.
   placer.set_layer_visible("points", false);
   placer.place(rt, view);

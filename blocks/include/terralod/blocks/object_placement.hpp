@@ -31,7 +31,8 @@
 //              over nothing drawn, e.g. outside the terrain, are skipped) and whose anchor at
 //              that height lies in the view's closed frustum (pm::View::contains). anchor.z is
 //              that drawn height, so objects never float or sink as the level of detail changes.
-//              Order: by grid cell, then layer, then feature id (the same input, the same order).
+//              Order: by grid cell (in the order the quadrant traversal below visits them), then
+//              layer, then feature id: the same input gives the same order.
 //   cost       place(): grid cells are culled by quadrants against the frustum (a cell's box:
 //              its plan rectangle x the terrain's height range, which holds every drawn height);
 //              objects of culled cells and of hidden layers are not touched. An object tested
