@@ -303,7 +303,7 @@ TEST(ObjectPlacement, PickReturnsTheObjectUnderThePixelElseTheDrawnGround) {
     }
   }
   // Rays aimed at the Summit from around it, low and high: it is picked exactly when the
-  // segment up to it stays above the drawn mesh (scanned at 1 m steps) except within the pick
+  // segment up to it stays above the drawn mesh (scanned at 4 m steps) except within the pick
   // radius r before it; rays that dip below by less than 1 m, or near r, are not judged.
   const double r = 8.0 * view.depth(summit->anchor) / view.focal_px();
   int seen = 0, hidden = 0;
@@ -315,7 +315,7 @@ TEST(ObjectPlacement, PickReturnsTheObjectUnderThePixelElseTheDrawnGround) {
                      a.z + len * std::sin(el)};
     double deepest_before = 0;  // how far below the mesh the ray gets before t = len - 2 r
     bool near_r = false;
-    for (double t = 1; t < len; t += 1) {
+    for (double t = 2; t < len; t += 4) {
       const tp::Vec3 q{o.x + t / len * (a.x - o.x), o.y + t / len * (a.y - o.y), o.z + t / len * (a.z - o.z)};
       const double h = mesh_height(rt.drawn_mesh(), q.x, q.y);
       if (std::isnan(h) || q.z >= h) continue;
