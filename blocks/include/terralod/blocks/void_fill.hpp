@@ -39,8 +39,9 @@
 //   result       counts over the window (see VoidFillStats).
 // A region with no valid neighbour (a grid that is all void) is misuse: asserted, left void.
 // Cost: about 0.8 us and 170 bytes per void sample of large regions, 4 bytes per window sample
-// for the labels; regions are solved in parallel (VoidFillOptions::threads), with bits that do
-// not depend on the thread count.
+// for the labels and 4 bytes per sample of each region's box while it is solved; regions are
+// solved in parallel (VoidFillOptions::threads), with bits that do not depend on the thread
+// count.
 #pragma once
 
 #include <cstddef>
