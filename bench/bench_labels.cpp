@@ -99,10 +99,11 @@ int main(int argc, char** argv) {
     }
     const Run with = run(base, vx, frames, seed, /*memory=*/true);
     const Run without = run(base, vx, frames, seed, /*memory=*/false);
-    std::printf("%6d candidates: update median %.3f ms, p99 %.3f ms, %.0f shown, %.1f shown-set changes/frame"
-                " | without memory: median %.3f ms (ratio %.2f), %.1f changes/frame\n",
-                n, with.median_ms, with.p99_ms, with.shown, with.changes, without.median_ms,
-                with.median_ms / without.median_ms, without.changes);
+    std::printf(
+        "%6d candidates: update median %.3f ms, p99 %.3f ms, %.0f shown, %.1f shown-set changes/frame"
+        " | without memory: median %.3f ms (ratio %.2f), %.1f changes/frame\n",
+        n, with.median_ms, with.p99_ms, with.shown, with.changes, without.median_ms,
+        with.median_ms / without.median_ms, without.changes);
   }
   return 0;
 }

@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <random>
 #include <string>
 
 #include "terralod/blocks/object_layers.hpp"
@@ -191,3 +193,56 @@ TEST(ObjectRules, MalformedFilesAreRefusedWithFileLineAndColumn) {
 }
 
 }  // namespace
+
+// Seeded random edits of a valid file (a fuzz-like sweep; no libFuzzer target yet): every
+// result either parses into rules whose ranges keep their order, or throws JsonError naming the
+// file with a line and column inside the text; never anything else.
+TEST(ObjectRules, MutatedFilesParseIntoOrderedRulesOrFailWithAPosition) {
+  const unsigned seed = 77;
+  std::printf("seed %u\n", seed);
+  std::mt19937 rng(seed);
+  const std::string base = kDistance;
+  const std::string alphabet = "{}[]\":,.-+0123456789e \nabcdefghijklmnopqrstuvwxyz_";
+  int parsed = 0, refused = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    std::string s = base;
+    const int edits = 1 + int(rng() % 4);
+    for (int e = 0; e < edits && !s.empty(); ++e) {
+      const std::size_t at = rng() % s.size();
+      switch (rng() % 3) {
+        case 0:
+          s[at] = alphabet[rng() % alphabet.size()];
+          break;
+        case 1:
+          s.erase(at, 1 + rng() % 8);
+          break;
+        default:
+          s.insert(at, 1, alphabet[rng() % alphabet.size()]);
+          break;
+      }
+    }
+    try {
+      const tb::ObjectRules r = tb::parse_object_rules(s, "m.json");
+      ++parsed;
+      ASSERT_FALSE(r.ranges().empty()) << s;
+      for (std::size_t k = 1; k + 1 < r.ranges().size(); ++k)
+        ASSERT_TRUE(r.measure() == tb::ObjectRules::Measure::Distance
+                        ? r.ranges()[k].limit > r.ranges()[k - 1].limit
+                        : r.ranges()[k].limit < r.ranges()[k - 1].limit)
+            << s;
+      for (std::size_t k = 0; k + 1 < r.ranges().size(); ++k) {  // each limit belongs to its range
+        const double v = r.ranges()[k].limit;
+        ASSERT_EQ(r.choose(v, v), r.ranges()[k].draw) << s;
+      }
+    } catch (const terralod::pm::JsonError& e) {
+      ++refused;
+      ASSERT_EQ(std::string(e.what()).rfind("m.json: line ", 0), 0u) << e.what();
+      ASSERT_GE(e.line(), 1u);
+      ASSERT_GE(e.column(), 1u);
+      ASSERT_LE(e.line() + e.column(), s.size() + 2) << e.what();
+    }
+  }
+  std::printf("%d mutated files parsed, %d refused\n", parsed, refused);
+  EXPECT_GT(parsed, 100);
+  EXPECT_GT(refused, 10000);
+}
