@@ -36,12 +36,35 @@ LabelDeclutterer::LabelDeclutterer(Options options) : options_(options) {
   cols_ = (options_.screen_width + options_.cell_px - 1) / options_.cell_px;
   rows_ = (options_.screen_height + options_.cell_px - 1) / options_.cell_px;
   cells_.resize(std::size_t(cols_) * std::size_t(rows_));
+  remember({});
 }
 
-void LabelDeclutterer::reset() { previous_.clear(); }
+void LabelDeclutterer::reset() { remember({}); }
+
+std::size_t LabelDeclutterer::slot_of(const LabelId& id) const {
+  const std::uint64_t h = (std::uint64_t(id.layer) + 1) * 0x9E3779B97F4A7C15ull ^
+                          std::uint64_t(id.feature) * 0xC2B2AE3D27D4EB4Full;
+  return std::size_t(h ^ (h >> 29)) & (slots_.size() - 1);
+}
 
 bool LabelDeclutterer::was_shown(const LabelId& id) const {
-  return std::binary_search(previous_.begin(), previous_.end(), id);
+  for (std::size_t k = slot_of(id);; k = (k + 1) & (slots_.size() - 1)) {  // linear probing
+    if (!full_[k]) return false;
+    if (slots_[k] == id) return true;
+  }
+}
+
+void LabelDeclutterer::remember(std::span<const LabelId> ids) {
+  std::size_t size = 16;  // a power of two, at least twice the ids: probes stay short
+  while (size < 2 * ids.size()) size *= 2;
+  slots_.resize(size);
+  full_.assign(size, 0);  // no allocation once grown
+  for (const LabelId& id : ids) {
+    std::size_t k = slot_of(id);
+    for (; full_[k]; k = (k + 1) & (size - 1)) assert(slots_[k] != id);  // ids unique
+    slots_[k] = id;
+    full_[k] = 1;
+  }
 }
 
 void LabelDeclutterer::order(std::span<const LabelCandidate> candidates) {
@@ -137,9 +160,7 @@ std::span<const LabelId> LabelDeclutterer::update(std::span<const LabelCandidate
     if (shown_before_[index]) ++stats_.kept;
   }
   stats_.shown = shown_.size();
-  previous_.assign(shown_.begin(), shown_.end());
-  std::sort(previous_.begin(), previous_.end());
-  assert(std::adjacent_find(previous_.begin(), previous_.end()) == previous_.end());  // ids unique
+  remember(shown_);
   return shown_;
 }
 

@@ -34,10 +34,10 @@
 //   update     returns the ids shown, in placement order (decreasing key); the span stays valid
 //              until the next update. The previous frame is the previous call's result; reset()
 //              forgets it (a cut in the view).
-//   cost       O(n log n) for n candidates: a binary search per candidate in the previous
-//              frame's sorted ids; the key order by an LSD radix sort of 64-bit keys (8 passes)
-//              when every priority is exactly a float and every depth >= 0, else by std::sort
-//              of 128-bit keys (the same order); ties of the whole key sorted by id. Then the
+//   cost       O(n log n) for n candidates: a hash lookup per candidate among the previous
+//              frame's ids (open addressing); the key order by an LSD radix sort of 64-bit keys
+//              (8 passes) when every priority is exactly a float and every depth >= 0, else by
+//              std::sort of 128-bit keys (the same order); ties of the whole key by id. Then the
 //              grid cells each rectangle covers (Options::cell_px, default 32: a 100 x 16 px
 //              label covers 4 to 8 cells), each holding copies of the shown rectangles in it.
 //              No allocation once the buffers have grown to the largest frame seen.
@@ -87,7 +87,7 @@ class LabelDeclutterer {
     std::size_t overlap_tests = 0;  ///< rectangle pairs compared
   };
 
-  explicit LabelDeclutterer(Options options = {});
+  explicit LabelDeclutterer(Options options = {});  ///< remembers no previous frame
 
   /// One frame: the ids of the labels shown (see the contract).
   std::span<const LabelId> update(std::span<const LabelCandidate> candidates);
@@ -105,7 +105,9 @@ class LabelDeclutterer {
     std::uint64_t key;  // the key in 64 bits, when priorities are floats and depths >= 0
     std::uint32_t index;
   };
+  std::size_t slot_of(const LabelId& id) const;
   bool was_shown(const LabelId& id) const;
+  void remember(std::span<const LabelId> ids);             // the ids shown, for the next update
   void order(std::span<const LabelCandidate> candidates);  // fills order_ and shown_before_
 
   Options options_;
@@ -120,7 +122,9 @@ class LabelDeclutterer {
   std::vector<std::vector<Box>> cells_;    // rectangles of the shown labels per cell (copies: no
                                            // indirection into the candidates)
   std::vector<std::uint32_t> used_cells_;  // cells to clear before the next update
-  std::vector<LabelId> shown_, previous_;  // previous_ sorted by id
+  std::vector<LabelId> shown_;
+  std::vector<LabelId> slots_;      // hash set of the ids shown by the previous update
+  std::vector<std::uint8_t> full_;  // per slot: holds an id
   Stats stats_;
 };
 
