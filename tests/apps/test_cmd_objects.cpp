@@ -99,13 +99,19 @@ TEST_F(ObjectsCli, AddThenListShowsTheLayer) {
   EXPECT_LT(out.find("huts"), out.find("more"));                                 // sorted by name
   ASSERT_EQ(cli_.run("objects --help", &out), 0);
   EXPECT_NE(out.find("add|list DB"), std::string::npos) << out;
-  EXPECT_NE(out.find("later part"), std::string::npos) << out;  // --rules is stored, not yet applied
+  EXPECT_NE(out.find("--rules FILE"), std::string::npos) << out;
+  EXPECT_NE(out.find("design rules by level of detail"), std::string::npos) << out;
 }
 
 TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
   std::ofstream(file("outside.geojson")) << R"({"type": "FeatureCollection", "features": [{"type": "Feature",
     "id": 12, "properties": {}, "geometry": {"type": "Point", "coordinates": [16.5, 45.1]}}]})";
   std::ofstream(file("bad.json")) << "{\"rules\": [";
+  std::ofstream(file("sprite.json"))
+      << "{\"ranges\": [\n  {\"max_distance_m\": 900, \"draw\": \"sprite\"},\n  {\"draw\": \"none\"}]}";
+  std::ofstream(file("order.json"))
+      << "{\"ranges\": [{\"max_distance_m\": 900, \"draw\": \"icon\"},\n"
+         "  {\"max_distance_m\": 90, \"draw\": \"label\"}, {\"draw\": \"none\"}]}";
   std::ofstream(file("garbage.geojson")) << "not a vector file";
   ASSERT_EQ(
       cli_.run("objects add " + quote(db()) + " --layer taken --input " + quote(file("points.geojson"))), 0);
@@ -125,7 +131,15 @@ TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
       {add + quote(file("points.geojson")) + " --kind line", "kind line does not fit its points", 2},
       {add + quote(file("points.geojson")) + " --label-field title", "label field 'title' is not a field", 2},
       {add + quote(file("points.geojson")) + " --rules " + quote(file("bad.json")),
-       file("bad.json") + ": not JSON", 2},
+       file("bad.json") + ": line 1, column 12", 2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("sprite.json")),
+       file("sprite.json") + ": line 2, column 35: ranges[0].draw: unknown representation 'sprite'", 2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("order.json")),
+       file("order.json") + ": line 2, column 22: ranges[1].max_distance_m must be larger than the range "
+                            "before's 900",
+       2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("none.json")),
+       "option '--rules': " + file("none.json") + ": cannot be read", 2},
   };
   for (const Case& c : cases) {
     std::string out;
