@@ -69,11 +69,6 @@ std::string name_of(const ObjectFeature& f, const ObjectLayerInfo& layer) {
   return a && !a->value.empty() ? a->value : std::to_string(f.id);
 }
 
-pm::Vec3 sub(const pm::Vec3& a, const pm::Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-pm::Vec3 cross(const pm::Vec3& a, const pm::Vec3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
 }  // namespace
 
 ObjectPlacer::ObjectPlacer(const BlockDatabase& db, const std::vector<std::string>& layer_names,
