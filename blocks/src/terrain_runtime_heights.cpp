@@ -30,44 +30,60 @@ double TerrainRuntime::max_height_at(double x, double y) const {
   return n->bbox.hi.z;
 }
 
+namespace {
+
+// Cell of v in a grid of n cells of width w. Building and querying both use it, so a point and
+// every triangle holding it meet in the same cell.
+int cell_of(double v, double w, int n) { return std::clamp(int(std::floor(v / w)), 0, n - 1); }
+
+}  // namespace
+
 const TerrainRuntime::HeightIndex& TerrainRuntime::height_index() const {
   // A bucket grid over the drawn triangles' sample-space boxes, built on the first call after
-  // an update: a query then tests the triangles of one bucket (ray marches call it often).
+  // an update: a query then tests the triangles of one bucket (ray marches call it often)
+  // against their boxes first. The drawn mesh is view-dependent, so near the camera a bucket
+  // holds hundreds of full-resolution triangles; the box test keeps them cheap (a sub-grid per
+  // crowded bucket was measured: built for all, it cost 3 ms a frame; built on a bucket's first
+  // query, placement took 0.97 ms against 0.51 ms with the box test alone, terralod-bench-objects).
   HeightIndex& ix = height_index_;
+  if (ix.frame == frame_) return ix;
+  ix.frame = frame_;
   const std::uint64_t W = std::uint64_t(grid_.grid_width());
-  auto corners = [&](std::size_t f, detail::Tri3& q) {
+  const std::size_t T = mesh_.triangles.size();
+  ix.box.resize(T);
+  for (std::size_t f = 0; f < T; ++f) {
     const auto& t = mesh_.triangles[f];
-    for (std::size_t k = 0; k < 3; ++k) {
-      const std::uint64_t sm = mesh_.samples[t[k]];
-      q[k] = {double(sm % W), double(sm / W), mesh_.positions[t[k]].z};
+    const std::uint64_t a = mesh_.samples[t[0]], b = mesh_.samples[t[1]], c = mesh_.samples[t[2]];
+    const double ca = double(a % W), cb = double(b % W), cc = double(c % W);
+    const double ra = double(a / W), rb = double(b / W), rc = double(c / W);
+    ix.box[f] = {std::min({ca, cb, cc}), std::max({ca, cb, cc}), std::min({ra, rb, rc}),
+                 std::max({ra, rb, rc})};
+  }
+  const int side = std::clamp(int(std::sqrt(double(T) / 4.0)), 1, 256);
+  ix.nx = ix.ny = side;
+  ix.cell_w = double(std::max(grid_.grid_width() - 1, 1)) / side;
+  ix.cell_h = double(std::max(grid_.grid_height() - 1, 1)) / side;
+  const std::size_t cells = std::size_t(side) * side;
+  ix.start.assign(cells + 1, 0);
+  for (int pass = 0; pass < 2; ++pass) {  // count, then place: a counting sort into buckets
+    if (pass == 1) {
+      for (std::size_t k = 1; k <= cells; ++k) ix.start[k] += ix.start[k - 1];
+      ix.fill.assign(ix.start.begin(), ix.start.end() - 1);
+      ix.tris.resize(ix.start.back());
     }
-  };
-  if (ix.frame != frame_) {
-    ix.frame = frame_;
-    const int side = std::clamp(int(std::sqrt(double(mesh_.triangles.size()) / 4.0)), 1, 256);
-    ix.nx = ix.ny = side;
-    ix.cell_w = double(std::max(grid_.grid_width() - 1, 1)) / side;
-    ix.cell_h = double(std::max(grid_.grid_height() - 1, 1)) / side;
-    ix.start.assign(std::size_t(side) * side + 1, 0);
-    std::vector<std::array<int, 4>> span(mesh_.triangles.size());
-    for (std::size_t f = 0; f < mesh_.triangles.size(); ++f) {
-      detail::Tri3 q;
-      corners(f, q);
-      auto cell = [&](double v, double w, int n) { return std::clamp(int(std::floor(v / w)), 0, n - 1); };
-      span[f] = {cell(std::min({q[0][0], q[1][0], q[2][0]}), ix.cell_w, side),
-                 cell(std::max({q[0][0], q[1][0], q[2][0]}), ix.cell_w, side),
-                 cell(std::min({q[0][1], q[1][1], q[2][1]}), ix.cell_h, side),
-                 cell(std::max({q[0][1], q[1][1], q[2][1]}), ix.cell_h, side)};
-      for (int j = span[f][2]; j <= span[f][3]; ++j)
-        for (int i = span[f][0]; i <= span[f][1]; ++i) ++ix.start[std::size_t(j) * side + i + 1];
+    for (std::size_t f = 0; f < T; ++f) {
+      const auto& bx = ix.box[f];
+      const int i0 = cell_of(bx[0], ix.cell_w, side), i1 = cell_of(bx[1], ix.cell_w, side);
+      const int j0 = cell_of(bx[2], ix.cell_h, side), j1 = cell_of(bx[3], ix.cell_h, side);
+      for (int j = j0; j <= j1; ++j)
+        for (int i = i0; i <= i1; ++i) {
+          const std::size_t at = std::size_t(j) * side + i;
+          if (pass == 0)
+            ++ix.start[at + 1];
+          else
+            ix.tris[ix.fill[at]++] = std::uint32_t(f);
+        }
     }
-    for (std::size_t k = 1; k < ix.start.size(); ++k) ix.start[k] += ix.start[k - 1];
-    ix.tris.resize(ix.start.back());
-    std::vector<std::uint32_t> fill(ix.start.begin(), ix.start.end() - 1);
-    for (std::size_t f = 0; f < mesh_.triangles.size(); ++f)
-      for (int j = span[f][2]; j <= span[f][3]; ++j)
-        for (int i = span[f][0]; i <= span[f][1]; ++i)
-          ix.tris[fill[std::size_t(j) * side + i]++] = std::uint32_t(f);
   }
   return ix;
 }
@@ -80,9 +96,8 @@ void TerrainRuntime::drawn_triangles_in(double x0, double y0, double x1, double 
   const auto [cb, rb] = grid_.to_grid(x1, y1);
   const double c0 = std::min(ca, cb), c1 = std::max(ca, cb), r0 = std::min(ra, rb), r1 = std::max(ra, rb);
   if (!(c1 >= 0 && r1 >= 0 && c0 <= grid_.grid_width() - 1 && r0 <= grid_.grid_height() - 1)) return;
-  auto cell = [](double v, double w, int n) { return std::clamp(int(std::floor(v / w)), 0, n - 1); };
-  const int i0 = cell(c0, ix.cell_w, ix.nx), i1 = cell(c1, ix.cell_w, ix.nx);
-  const int j0 = cell(r0, ix.cell_h, ix.ny), j1 = cell(r1, ix.cell_h, ix.ny);
+  const int i0 = cell_of(c0, ix.cell_w, ix.nx), i1 = cell_of(c1, ix.cell_w, ix.nx);
+  const int j0 = cell_of(r0, ix.cell_h, ix.ny), j1 = cell_of(r1, ix.cell_h, ix.ny);
   for (int j = j0; j <= j1; ++j)
     for (int i = i0; i <= i1; ++i) {
       const std::size_t b = std::size_t(j) * ix.nx + i;
@@ -105,13 +120,13 @@ double TerrainRuntime::drawn_height(double x, double y) const {
   const auto [c, r] = grid_.to_grid(x, y);
   if (!(c >= 0 && r >= 0 && c <= grid_.grid_width() - 1 && r <= grid_.grid_height() - 1))
     return std::numeric_limits<double>::quiet_NaN();
-  const int i = std::clamp(int(std::floor(c / ix.cell_w)), 0, ix.nx - 1);
-  const int j = std::clamp(int(std::floor(r / ix.cell_h)), 0, ix.ny - 1);
-  const std::size_t bucket = std::size_t(j) * ix.nx + i;
-  for (std::uint32_t k = ix.start[bucket]; k < ix.start[bucket + 1]; ++k) {
+  const std::size_t bucket = std::size_t(cell_of(r, ix.cell_h, ix.ny)) * ix.nx + cell_of(c, ix.cell_w, ix.nx);
+  const std::uint32_t *tris = ix.tris.data(), k0 = ix.start[bucket], k1 = ix.start[bucket + 1];
+  for (std::uint32_t k = k0; k < k1; ++k) {
+    const auto& bx = ix.box[tris[k]];  // the same test as detail::outside_box, precomputed
+    if (c < bx[0] || c > bx[1] || r < bx[2] || r > bx[3]) continue;
     detail::Tri3 q;
-    corners(ix.tris[k], q);
-    if (detail::outside_box(q, c, r)) continue;
+    corners(tris[k], q);
     const detail::Barycentric w = detail::barycentric(q, c, r);
     if (w.det == 0) continue;
     if (w.l1 >= -1e-12 && w.l2 >= -1e-12 && w.l0 >= -1e-12) return detail::plane_height(q, w);

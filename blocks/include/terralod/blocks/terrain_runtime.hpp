@@ -268,6 +268,8 @@ class TerrainRuntime {
     int nx = 0, ny = 0;
     double cell_w = 1, cell_h = 1;
     std::vector<std::uint32_t> start, tris;  // bucket b's triangles: tris[start[b], start[b+1])
+    std::vector<std::array<double, 4>> box;  // per triangle: min col, max col, min row, max row
+    std::vector<std::uint32_t> fill;         // building scratch: next slot per bucket
   };
   mutable HeightIndex height_index_;
   const HeightIndex& height_index() const;  // height_index_, built for this frame
