@@ -335,10 +335,11 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
     throw ObjectLayerError(in + ": the object layer needs a name", ObjectLayerError::Cause::Option);
   for (const ObjectLayerInfo& l : object_layers(db))
     if (l.name == o.name) d.fail("object layer '" + o.name + "' already exists");
+  const std::string rules_source = o.rules_source.empty() ? in + ": the rules" : o.rules_source;
+  std::optional<ObjectRules> rules;
   if (o.rules_json) {
-    const std::string source = o.rules_source.empty() ? in + ": the rules" : o.rules_source;
     try {
-      parse_object_rules(*o.rules_json, source);  // "<source>: line L, column C: <what>"
+      rules = parse_object_rules(*o.rules_json, rules_source);  // "<source>: line L, column C: <what>"
     } catch (const pm::JsonError& e) {
       throw ObjectLayerError(e.what(), ObjectLayerError::Cause::Option);
     }
@@ -392,6 +393,8 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
                                  OGRFieldDefn::GetFieldTypeName(t) + ")",
                              ObjectLayerError::Cause::Option);
   }
+  if (rules && !rules->priority_field().empty())
+    field_index(rules->priority_field(), (rules_source + ": priority_field").c_str());
   info.label_field = o.label_field;
   info.height_field = o.height_field;
   info.rules_json = o.rules_json;
@@ -474,6 +477,18 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
                                geometry_name(info.geometry) +
                                "s (icon and label need points, line lines, shape polygons)",
                            ObjectLayerError::Cause::Option);
+  // A rule drawing a shape needs polygons, a line lines or polygons (their outlines); icons,
+  // labels and symbols stand at any feature's anchor.
+  if (rules)
+    for (const RuleRange& r : rules->ranges()) {
+      const bool bad = (r.draw == Representation::Shape && info.geometry != GeometryType::Polygon) ||
+                       (r.draw == Representation::Line && info.geometry == GeometryType::Point);
+      if (bad)
+        throw ObjectLayerError(rules_source + ": draws \"" + representation_name(r.draw) + "\", which " +
+                                   geometry_name(info.geometry) + "s of " + in +
+                                   " cannot be (shape needs polygons, line lines or polygons)",
+                               ObjectLayerError::Cause::Option);
+    }
   info.feature_count = std::int64_t(parts.size());
   if (o.progress) o.progress(1.0);
   report.read_ms = pm::ms_since(t0);

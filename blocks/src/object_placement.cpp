@@ -85,17 +85,30 @@ ObjectPlacer::ObjectPlacer(const BlockDatabase& db, const std::vector<std::strin
         std::find_if(all.begin(), all.end(), [&](const ObjectLayerInfo& l) { return l.name == name; });
     assert(info != all.end());
     layers_.push_back(*info);
+    rules_.push_back(
+        info->rules_json
+            ? parse_object_rules(*info->rules_json, db.path() + ": object layer '" + name + "' rules")
+            : ObjectRules::everything_as(*parse_representation(kind_name(info->kind))));
+    const ObjectRules& rules = rules_.back();
+    max_extent_.push_back(0.0);
     for (ObjectFeature& f : features) {
       MapObject m;
       m.layer = layers_.size() - 1;
       m.kind = info->kind;
       m.name = name_of(f, *info);
       m.anchor = anchor_of(f);
+      m.extent_m = f.geometry == GeometryType::Point ? rules.icon_size_m()
+                                                     : std::max({f.max.x - f.min.x, f.max.y - f.min.y, 1e-3});
+      if (!rules.priority_field().empty())
+        if (const ObjectAttribute* a = f.attribute(rules.priority_field()))
+          m.priority = priority_value(a->value);
+      max_extent_.back() = std::max(max_extent_.back(), m.extent_m);
       m.feature = std::move(f);
       objects_.push_back(std::move(m));
     }
   }
   visible_.assign(layers_.size(), true);
+  reach_.assign(layers_.size(), 0.0);
   if (objects_.size() >= std::numeric_limits<std::uint32_t>::max())
     throw std::invalid_argument(db.path() + ": too many objects to place (at most 2^32 - 2)");
 
@@ -151,7 +164,13 @@ void ObjectPlacer::visit(const TerrainRuntime& rt, const pm::View& view, int i0,
                          double zlo, double zhi) {
   const pm::Box box{{x0_ + i0 * cell_w_, y0_ + j0 * cell_h_, zlo},
                     {x0_ + i1 * cell_w_, y0_ + j1 * cell_h_, zhi}};
-  if (view.outside(box)) {
+  // The box's distance from the eye: nothing in it is nearer.
+  const pm::Vec3& e = view.eye();
+  const double dx = std::max({box.lo.x - e.x, 0.0, e.x - box.hi.x});
+  const double dy = std::max({box.lo.y - e.y, 0.0, e.y - box.hi.y});
+  const double dz = std::max({box.lo.z - e.z, 0.0, e.z - box.hi.z});
+  const double distance = std::sqrt(dx * dx + dy * dy + dz * dz);
+  if (distance > max_reach_ || view.outside(box)) {
     ++stats_.regions_culled;
     return;
   }
@@ -164,16 +183,37 @@ void ObjectPlacer::visit(const TerrainRuntime& rt, const pm::View& view, int i0,
     return;
   }
   ++stats_.cells_visited;
-  const std::size_t cell = std::size_t(j0) * std::size_t(nx_) + std::size_t(i0);
+  place_cell(rt, view, std::size_t(j0) * std::size_t(nx_) + std::size_t(i0), distance);
+}
+
+void ObjectPlacer::place_cell(const TerrainRuntime& rt, const pm::View& view, std::size_t cell,
+                              double cell_distance) {
+  const pm::Vec3& e = view.eye();
+  const double focal = view.focal_px();
   for (std::size_t l = 0; l < layers_.size(); ++l) {
-    if (!visible_[l]) continue;
+    if (!(reach_[l] >= cell_distance)) continue;  // hidden (-inf), or its rules end nearer
+    const double reach2 = reach_[l] * reach_[l];
     for (std::uint32_t k = start_[l][cell]; k < start_[l][cell + 1]; ++k) {
       const WorldPoint& a = item_anchors_[l][k];  // contiguous: the object itself only when placed
       ++stats_.objects_tested;
+      const double px = a.x - e.x, py = a.y - e.y;
+      if (px * px + py * py > reach2) {  // the plan distance alone is beyond the rules
+        ++stats_.beyond_rules;
+        continue;
+      }
       const double z = rt.drawn_height(a.x, a.y);
       if (std::isnan(z)) continue;
       const pm::Vec3 p{a.x, a.y, z};
-      if (view.contains(p)) placed_.push_back({&objects_[items_[l][k]], p});
+      if (!view.contains(p)) continue;
+      const MapObject& m = objects_[items_[l][k]];
+      const double d = std::sqrt(px * px + py * py + (z - e.z) * (z - e.z));
+      const double size = d > 0 ? m.extent_m * focal / d : std::numeric_limits<double>::infinity();
+      const Representation draw = rules_[l].choose(d, size);
+      if (draw == Representation::None) {
+        ++stats_.beyond_rules;
+        continue;
+      }
+      placed_.push_back({&m, p, draw, d});
     }
   }
 }
@@ -183,6 +223,12 @@ const std::vector<PlacedObject>& ObjectPlacer::place(const TerrainRuntime& rt, c
   stats_ = {};
   placed_.clear();
   const pm::Box& terrain = rt.terrain_box();
+  max_reach_ = -std::numeric_limits<double>::infinity();
+  for (std::size_t l = 0; l < layers_.size(); ++l) {
+    reach_[l] = visible_[l] ? rules_[l].max_drawn_distance(max_extent_[l], view.focal_px())
+                            : -std::numeric_limits<double>::infinity();
+    max_reach_ = std::max(max_reach_, reach_[l]);
+  }
   if (!objects_.empty()) visit(rt, view, 0, 0, nx_, ny_, terrain.lo.z, terrain.hi.z);
   stats_.objects_placed = placed_.size();
   view_ = view;

@@ -78,6 +78,15 @@ Representation ObjectRules::choose(double distance_m, double screen_size_px) con
   return it->draw;
 }
 
+double ObjectRules::max_drawn_distance(double extent_m, double focal_px) const {
+  std::size_t k = ranges_.size();
+  while (k > 0 && ranges_[k - 1].draw == Representation::None) --k;
+  if (k == 0) return -std::numeric_limits<double>::infinity();
+  if (k == ranges_.size()) return std::numeric_limits<double>::infinity();
+  const double limit = ranges_[k - 1].limit;
+  return measure_ == Measure::Distance ? limit : extent_m * focal_px / limit;
+}
+
 double priority_value(std::string_view text) {
   double v = 0.0;
   const char* end = text.data() + text.size();

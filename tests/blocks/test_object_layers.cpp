@@ -401,6 +401,15 @@ TEST(ObjectLayers, EveryBadInputLeavesTheDatabaseByteIdentical) {
       {"label field", opts("a", good, {}, "nope"), "label field 'nope' is not a field"},
       {"height field", opts("a", good, {}, "", "name"), "height field 'name' is not numeric"},
       {"rules", opts("a", good, {}, "", "", "{\"a\": "), "r.json: line 1, column 7"},
+      {"shape rule on points", opts("a", good, {}, "", "", R"({"ranges": [{"draw": "shape"}]})"),
+       "r.json: draws \"shape\", which points of"},
+      {"line rule on points",
+       opts("a", good, {}, "", "",
+            R"({"ranges": [{"max_distance_m": 9, "draw": "icon"}, {"draw": "line"}]})"),
+       "r.json: draws \"line\""},
+      {"priority field",
+       opts("a", good, {}, "", "", R"({"ranges": [{"draw": "label"}], "priority_field": "pop"})"),
+       "r.json: priority_field 'pop' is not a field"},
   };
   const std::string before = bytes_of(db_path);
   ASSERT_FALSE(before.empty());

@@ -91,6 +91,13 @@ void write_layer(const std::string& path, const std::vector<std::pair<std::strin
   }
 }
 
+// Icons up to 1000 m, labels to 2000 m, nothing beyond; labels ranked by the number in the name.
+const char* kNearRules = R"({"ranges": [{"max_distance_m": 1000, "draw": "icon"},
+  {"max_distance_m": 2000, "draw": "label"}, {"draw": "none"}], "priority_field": "name"})";
+// Icons of 30 m while they cover at least 20 px: up to 30 focal / 20 metres away.
+const char* kSizedRules = R"({"ranges": [{"min_screen_px": 20, "draw": "icon"}, {"draw": "none"}],
+  "icon_size_m": 30})";
+
 struct Scene {
   tp::Heightfield hf;
   std::string db;
@@ -141,6 +148,14 @@ const Scene& scene() {
       tb::ObjectLayerOptions lo;
       lo.name = name;
       lo.input = (dir / (std::string(name) + ".gpkg")).string();
+      tb::add_object_layer(db, lo);
+    }
+    // The same points twice more, with rules by distance and by size on screen.
+    for (const auto& [name, rules] : {std::pair{"near", kNearRules}, std::pair{"sized", kSizedRules}}) {
+      tb::ObjectLayerOptions lo;
+      lo.name = name;
+      lo.input = (dir / "points.gpkg").string();
+      lo.rules_json = rules;
       tb::add_object_layer(db, lo);
     }
     return r;
@@ -347,6 +362,59 @@ TEST(ObjectPlacement, PickReturnsTheObjectUnderThePixelElseTheDrawnGround) {
   EXPECT_NEAR(under->point.z, summit->anchor.z, 1.0);
   // A ray into the sky meets nothing.
   EXPECT_FALSE(placer.pick(rt, e, {0, 0, 1}));
+}
+
+// Rules inside placement: exactly the objects drawn, in view and within their rules are placed,
+// each as its range says (hand rules here, not choose()), and objects beyond the rules are not
+// touched: every object tested lies within the rules' reach plus one grid cell's diagonal.
+TEST(ObjectPlacement, RulesChooseTheDrawingAndObjectsBeyondThemCostNothing) {
+  const Scene& s = scene();
+  const auto db = tb::BlockDatabase::open(s.db);
+  tb::ObjectPlacer placer(db, {"near", "sized"});
+  ASSERT_EQ(placer.objects().size(), 2 * std::size_t(kPoints + 1));
+  EXPECT_EQ(placer.rules(0).priority_field(), "name");
+  EXPECT_EQ(placer.objects()[0].priority, 0.0);  // "p0" is no number: priority 0
+  EXPECT_EQ(placer.objects()[kPoints + 1].extent_m, 30.0);
+  tb::TerrainRuntime rt(s.db);
+  std::size_t icons = 0, labels = 0, beyond = 0, tested = 0;
+  for (int f = 0; f < 6; ++f) {
+    tp::Camera cam = camera_at(s, 10 + 20 * f, 120 - 18 * f, 150.0, 30.0 + 50 * f, -15.0);
+    rt.fit_clip_planes(cam);
+    const tp::View view(cam);
+    rt.update_until_loaded(view, f);
+    std::map<const tb::MapObject*, tb::Representation> got;
+    for (const tb::PlacedObject& p : placer.place(rt, view)) got[p.object] = p.draw;
+    const double focal = view.focal_px(), sized_reach = 30.0 * focal / 20.0;
+    for (const tb::MapObject& m : placer.objects()) {
+      const double h = mesh_height(rt.drawn_mesh(), m.anchor.x, m.anchor.y);
+      const tp::Vec3 p{m.anchor.x, m.anchor.y, h};
+      const double d = std::sqrt(tp::dot(tp::sub(p, view.eye()), tp::sub(p, view.eye())));
+      tb::Representation want = tb::Representation::None;
+      if (m.layer == 0)
+        want = d <= 1000 ? tb::Representation::Icon : d <= 2000 ? tb::Representation::Label : want;
+      if (m.layer == 1 && d <= sized_reach) want = tb::Representation::Icon;
+      if (std::isnan(h) || !view.contains(p)) want = tb::Representation::None;
+      const auto g = got.find(&m);
+      ASSERT_EQ(g != got.end() ? g->second : tb::Representation::None, want)
+          << "frame " << f << ", layer " << m.layer << ", " << m.name << " at " << d << " m";
+      icons += want == tb::Representation::Icon, labels += want == tb::Representation::Label;
+      beyond += !std::isnan(h) && view.contains(p) && want == tb::Representation::None;
+    }
+    // Nothing beyond the reach (2000 m, sized_reach) plus a cell's diagonal is tested.
+    const double cell = std::hypot(s.hf.width() * 30.0, s.hf.height() * 30.0) /
+                        std::ceil(std::sqrt(placer.objects().size() / 8.0));
+    std::size_t reachable = 0;
+    for (const tb::MapObject& m : placer.objects())
+      reachable +=
+          std::hypot(m.anchor.x - cam.x, m.anchor.y - cam.y) <= (m.layer == 0 ? 2000 : sized_reach) + cell;
+    EXPECT_LE(placer.stats().objects_tested, reachable) << "frame " << f;
+    tested += placer.stats().objects_tested;
+  }
+  std::printf("rules: %zu icons, %zu labels placed, %zu in view beyond the rules; %zu objects tested\n",
+              icons, labels, beyond, tested);
+  EXPECT_GT(icons, 10u);
+  EXPECT_GT(labels, 10u);
+  EXPECT_GT(beyond, 50u);
 }
 
 TEST(ObjectPlacement, AnchorsOfLinesAndPolygonsAndBadLayerNames) {

@@ -105,6 +105,35 @@ TEST(ObjectRules, OneRangeAndTheDefaultRuleDrawEverythingOneWay) {
   EXPECT_EQ(tb::parse_representation("Icon"), std::nullopt);
 }
 
+// max_drawn_distance is the supremum of the distances choose() draws at: hand cases, and
+// choose() just inside and just beyond it.
+TEST(ObjectRules, MaxDrawnDistanceIsWhereTheLastDrawingRangeEnds) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const tb::ObjectRules d = tb::parse_object_rules(kDistance, "d.json");
+  EXPECT_EQ(d.max_drawn_distance(10.0, 1000.0), 30000.0);  // extent and focal do not matter
+  EXPECT_EQ(d.choose(30000.0, 0), R::Label);
+  EXPECT_EQ(d.choose(std::nextafter(30000.0, inf), 0), R::None);
+  // A none range in the middle does not end the drawing.
+  const tb::ObjectRules gap = tb::parse_object_rules(
+      R"({"ranges": [{"max_distance_m": 100, "draw": "none"}, {"max_distance_m": 500, "draw": "icon"},
+          {"draw": "none"}]})",
+      "gap.json");
+  EXPECT_EQ(gap.max_drawn_distance(1.0, 1.0), 500.0);
+  EXPECT_EQ(tb::parse_object_rules(R"({"ranges": [{"draw": "label"}]})", "a.json").max_drawn_distance(1, 1),
+            inf);
+  EXPECT_EQ(tb::parse_object_rules(R"({"ranges": [{"draw": "none"}]})", "n.json").max_drawn_distance(1, 1),
+            -inf);
+  // Screen size 8 px is the smallest drawn: an object of 40 m at focal 600 px is 8 px at 3000 m.
+  const tb::ObjectRules s = tb::parse_object_rules(
+      R"({"ranges": [{"min_screen_px": 200, "draw": "shape"}, {"min_screen_px": 8, "draw": "symbol"},
+          {"draw": "none"}]})",
+      "s.json");
+  const double reach = s.max_drawn_distance(40.0, 600.0);
+  EXPECT_DOUBLE_EQ(reach, 3000.0);
+  EXPECT_EQ(s.choose(0, 40.0 * 600.0 / (reach * (1 - 1e-12))), R::Symbol);
+  EXPECT_EQ(s.choose(0, 40.0 * 600.0 / (reach * (1 + 1e-12))), R::None);
+}
+
 TEST(ObjectRules, PriorityIsTheAttributeTextAsANumberOrZero) {
   EXPECT_EQ(tb::priority_value("1200"), 1200.0);  // OGR's text of an Integer
   EXPECT_EQ(tb::priority_value("-2.5"), -2.5);    // and of a Real

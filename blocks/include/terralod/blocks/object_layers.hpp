@@ -52,6 +52,9 @@
 //              size gets, and the attribute that ranks labels. It is checked by
 //              parse_object_rules (object_rules.hpp, the file format) before the input is read
 //              and stored as given; a layer without rules draws every object as its kind.
+//              The rules must fit the layer: "shape" needs polygons, "line" lines or polygons,
+//              and priority_field must name a field of the layer (ObjectLayerError "<rules_source>
+//              ..." naming the input, Cause Option).
 //              A bad rules text is an ObjectLayerError "<rules_source>: line L, column C: ...".
 //   errors     ObjectLayerError "<input>: <problem>" for the vector file (missing, unreadable,
 //              no or unknown CRS, no transformation, outside the terrain, mixed geometry; Cause

@@ -9,8 +9,9 @@
 //   tb::ObjectPlacer objects(db, {"peaks", "huts"});          // reads the layers once
 //   tb::TerrainRuntime rt("terrain.db");
 //   ... rt.update(view, t);                                    // then, the same frame:
-//   for (const tb::PlacedObject& p : objects.place(rt, view))  // the objects in view
-//     draw_icon(p.object->name, p.anchor);                     // anchor.z: the drawn height
+//   for (const tb::PlacedObject& p : objects.place(rt, view))  // the objects in view and
+//     if (p.draw == tb::Representation::Icon)                  // within their rules
+//       draw_icon(p.object->name, p.anchor);                   // anchor.z: the drawn height
 //   objects.set_layer_visible("huts", false);                  // from the next place()
 //   if (auto hit = objects.pick_pixel(rt, 640, 360))           // after place(), same frame
 //     hit->object ? show(hit->object->feature.attributes) : show(hit->point);
@@ -26,17 +27,28 @@
 //              exterior ring's vertices when that area is 0.
 //   name       the value of the layer's label field when it has one, else of the attribute
 //              "name"; when that is missing or empty, the feature id in decimal.
+//   rules      each layer's design rules (object_rules.hpp): its stored rules file, else the
+//              default rule (everything drawn as the layer's kind). An object's extent is
+//              icon_size_m for a point, else the larger side of its features' plan box (at least
+//              1 mm); its size on screen at distance d is extent * view.focal_px() / d; its
+//              priority is the rules' priority field (priority_value; 0 without one).
 //   place      after rt.update() of a frame, with that frame's view: every object of a visible
 //              layer whose anchor the runtime draws (rt.drawn_height(x, y) is not NaN: objects
-//              over nothing drawn, e.g. outside the terrain, are skipped) and whose anchor at
-//              that height lies in the view's closed frustum (pm::View::contains). anchor.z is
-//              that drawn height, so objects never float or sink as the level of detail changes.
+//              over nothing drawn, e.g. outside the terrain, are skipped), whose anchor at that
+//              height lies in the view's closed frustum (pm::View::contains), and whose rules
+//              draw it at its distance d = |anchor - eye| (draw = rules.choose(d, size on screen)
+//              is not None). anchor.z is that drawn height, so objects never float or sink as the
+//              level of detail changes.
 //              Order: by grid cell (in the order the quadrant traversal below visits them), then
 //              layer, then feature id: the same input gives the same order.
-//   cost       place(): grid cells are culled by quadrants against the frustum (a cell's box:
-//              its plan rectangle x the terrain's height range, which holds every drawn height);
-//              objects of culled cells and of hidden layers are not touched. An object tested
-//              costs one drawn_height() (one bucket of the drawn mesh) and one frustum test.
+//   cost       place(): grid cells are culled by quadrants against the frustum and against the
+//              farthest distance any visible layer's rules draw at (ObjectRules::
+//              max_drawn_distance, with the layer's largest extent): a cell's box is its plan
+//              rectangle x the terrain's height range, which holds every drawn height. Objects of
+//              culled cells, of hidden layers, of layers whose rules end nearer than the cell, and
+//              objects whose plan distance alone puts them beyond their layer's rules are not
+//              touched (beyond their rules they cost nothing). An object tested costs one
+//              drawn_height() (one bucket of the drawn mesh), one frustum test and one choose().
 //              pick(): O(objects placed + drawn triangles) (one exact ray test per triangle).
 //   pick       a ray from `origin` along `direction` (non-zero; normalised here) against the
 //              objects of the last place() and the drawn mesh of the same frame (asserted: same
@@ -58,6 +70,7 @@
 
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/object_layers.hpp"
+#include "terralod/blocks/object_rules.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/pm/view.hpp"
 
@@ -74,13 +87,17 @@ struct MapObject {
   ObjectKind kind = ObjectKind::Icon;
   std::string name;       ///< see the contract
   WorldPoint anchor;      ///< plan point, world frame (see the contract)
+  double extent_m = 0;    ///< size for screen-size rules, metres (see the contract)
+  double priority = 0;    ///< for decluttering labels (see the contract)
   ObjectFeature feature;  ///< as stored: id, geometry, attributes
 };
 
 /// An object in view this frame.
 struct PlacedObject {
-  const MapObject* object = nullptr;  ///< owned by the placer
-  pm::Vec3 anchor;                    ///< x, y: object->anchor; z: the drawn height there
+  const MapObject* object = nullptr;           ///< owned by the placer
+  pm::Vec3 anchor;                             ///< x, y: object->anchor; z: the drawn height there
+  Representation draw = Representation::None;  ///< what its layer's rules draw it as (never None)
+  double distance = 0.0;                       ///< |anchor - eye|, metres
 };
 
 /// What the last place() did.
@@ -88,7 +105,8 @@ struct PlacementStats {
   std::size_t cells_visited = 0;   ///< grid cells not culled (their objects were tested)
   std::size_t regions_culled = 0;  ///< quadrants of cells outside the frustum
   std::size_t objects_tested = 0;  ///< objects of visible layers in the visited cells
-  std::size_t objects_placed = 0;  ///< of those, drawn and in the frustum
+  std::size_t beyond_rules = 0;    ///< of those, dropped because their rules draw nothing there
+  std::size_t objects_placed = 0;  ///< of those, drawn, in the frustum and drawn by their rules
   double place_ms = 0.0;           ///< wall time of place()
 };
 
@@ -105,6 +123,8 @@ class ObjectPlacer {
                const PlacementOptions& options = {});
 
   const std::vector<ObjectLayerInfo>& layers() const { return layers_; }
+  /// The design rules of layer `layer` (an index into layers()), see the contract.
+  const ObjectRules& rules(std::size_t layer) const { return rules_.at(layer); }
   const std::vector<MapObject>& objects() const { return objects_; }
   /// Shows or hides a layer from the next place(); std::invalid_argument for a layer not read.
   void set_layer_visible(const std::string& layer, bool visible);
@@ -126,10 +146,15 @@ class ObjectPlacer {
   std::size_t layer_index(const std::string& layer) const;
   void visit(const TerrainRuntime& rt, const pm::View& view, int i0, int j0, int i1, int j1, double zlo,
              double zhi);
+  void place_cell(const TerrainRuntime& rt, const pm::View& view, std::size_t cell, double cell_distance);
 
   PlacementOptions opt_;
   std::vector<ObjectLayerInfo> layers_;
   std::vector<bool> visible_;
+  std::vector<ObjectRules> rules_;  // per layer
+  std::vector<double> max_extent_;  // per layer: the largest extent_m of its objects
+  std::vector<double> reach_;       // per layer, this frame: max_drawn_distance (-inf: hidden)
+  double max_reach_ = 0;            // this frame: the largest reach_
   std::vector<MapObject> objects_;
   // The grid over the anchors' plan box: nx x ny cells; cell (i, j) of layer l holds the objects
   // items_[l][start_[l][j nx + i] .. start_[l][j nx + i + 1]) (indices into objects_).

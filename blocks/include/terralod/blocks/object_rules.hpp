@@ -106,6 +106,14 @@ class ObjectRules {
   /// `screen_size_px` pixels on screen (only the rules' measure is read).
   Representation choose(double distance_m, double screen_size_px) const;
 
+  /// The largest camera distance at which an object of extent `extent_m` metres (> 0) is drawn
+  /// at all (choose() gives something other than None) in a view of focal length `focal_px`
+  /// (pm::View::focal_px), taking an object's screen size as extent_m * focal_px / distance:
+  /// +inf when the last range draws, -inf when no range does; otherwise the limit of the last
+  /// range that draws (Distance), or extent_m * focal_px / that limit (ScreenSize). Placement
+  /// culls by it, so objects beyond their rules cost nothing.
+  double max_drawn_distance(double extent_m, double focal_px) const;
+
   Measure measure() const { return measure_; }
   /// Near to far (Distance: limits increasing, last +inf; ScreenSize: decreasing, last 0).
   const std::vector<RuleRange>& ranges() const { return ranges_; }
