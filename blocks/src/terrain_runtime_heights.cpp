@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
@@ -92,9 +93,13 @@ void TerrainRuntime::drawn_triangles_in(double x0, double y0, double x1, double 
                                         std::vector<std::uint32_t>& out) const {
   out.clear();
   const HeightIndex& ix = height_index();
-  const auto [ca, ra] = grid_.to_grid(x0, y0);
-  const auto [cb, rb] = grid_.to_grid(x1, y1);
-  const double c0 = std::min(ca, cb), c1 = std::max(ca, cb), r0 = std::min(ra, rb), r1 = std::max(ra, rb);
+  // All four corners: under a rotated grid transform the box's grid-space extent is not that
+  // of two opposite corners.
+  double c0 = std::numeric_limits<double>::infinity(), c1 = -c0, r0 = c0, r1 = -c0;
+  for (const auto& [x, y] : {std::pair{x0, y0}, std::pair{x1, y0}, std::pair{x0, y1}, std::pair{x1, y1}}) {
+    const auto [c, r] = grid_.to_grid(x, y);
+    c0 = std::min(c0, c), c1 = std::max(c1, c), r0 = std::min(r0, r), r1 = std::max(r1, r);
+  }
   if (!(c1 >= 0 && r1 >= 0 && c0 <= grid_.grid_width() - 1 && r0 <= grid_.grid_height() - 1)) return;
   const int i0 = cell_of(c0, ix.cell_w, ix.nx), i1 = cell_of(c1, ix.cell_w, ix.nx);
   const int j0 = cell_of(r0, ix.cell_h, ix.ny), j1 = cell_of(r1, ix.cell_h, ix.ny);
