@@ -64,8 +64,9 @@ class Draper {
                 {b.x - h * n0.x, b.y - h * n0.y},
                 {b.x + h * n0.x, b.y + h * n0.y},
                 {a.x + h * n0.x, a.y + h * n0.y}};
-      drape_piece(object);
-      if (i + 2 < points_.size()) join(a, b, points_[i + 2], h, object);
+      join_.clear();
+      if (i + 2 < points_.size()) join(a, b, points_[i + 2], h);
+      drape_segment(object);
     }
   }
 
@@ -79,7 +80,7 @@ class Draper {
 
   // The round join at b between a -> b and b -> c: the sector on the outer side of the turn,
   // from the end of the first rectangle to the start of the second (their corners exactly).
-  void join(P2 a, P2 b, P2 c, double h, std::uint32_t object) {
+  void join(P2 a, P2 b, P2 c, double h) {
     const P2 n0 = left_normal(a, b), n1 = left_normal(b, c);
     const double d0x = b.x - a.x, d0y = b.y - a.y, d1x = c.x - b.x, d1y = c.y - b.y;
     const double turn = std::atan2(d0x * d1y - d0y * d1x, d0x * d1x + d0y * d1y);
@@ -88,44 +89,65 @@ class Draper {
     const P2 from = turn > 0 ? P2{-n0.x, -n0.y} : n1, to = turn > 0 ? P2{-n1.x, -n1.y} : n0;
     const double sweep = std::abs(turn), start = std::atan2(from.y, from.x);
     const int steps = std::max(1, int(std::ceil(sweep / (std::numbers::pi / 8))));
-    piece_.clear();
-    piece_.push_back(b);
-    piece_.push_back({b.x + h * from.x, b.y + h * from.y});
+    join_.push_back(b);
+    join_.push_back({b.x + h * from.x, b.y + h * from.y});
     for (int k = 1; k < steps; ++k) {
       const double t = start + sweep * k / steps;
-      piece_.push_back({b.x + h * std::cos(t), b.y + h * std::sin(t)});
+      join_.push_back({b.x + h * std::cos(t), b.y + h * std::sin(t)});
     }
-    piece_.push_back({b.x + h * to.x, b.y + h * to.y});
-    drape_piece(object);
+    join_.push_back({b.x + h * to.x, b.y + h * to.y});
   }
 
-  // Clips piece_ (convex, CCW in world plan) against the drawn triangles under its box.
-  void drape_piece(std::uint32_t object) {
-    ++stats.pieces;
-    double x0 = piece_[0].x, x1 = x0, y0 = piece_[0].y, y1 = y0;
-    for (const P2& p : piece_) {
-      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x);
-      y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+  struct Box {
+    double x0, y0, x1, y1;
+  };
+  static Box box_of(const Polygon& p) {
+    Box b{p[0].x, p[0].y, p[0].x, p[0].y};
+    for (const P2& q : p) {
+      b.x0 = std::min(b.x0, q.x), b.x1 = std::max(b.x1, q.x);
+      b.y0 = std::min(b.y0, q.y), b.y1 = std::max(b.y1, q.y);
     }
-    rt_.drawn_triangles_in(x0, y0, x1, y1, ids_);
+    return b;
+  }
+
+  // Clips piece_ (a segment's rectangle) and join_ (its join at the far end, or empty), both
+  // convex and CCW in world plan, against the drawn triangles under the segment's box (one
+  // index query for both).
+  void drape_segment(std::uint32_t object) {
+    const Box rect = box_of(piece_);
+    Box all = rect, join = rect;
+    stats.pieces += join_.empty() ? 1 : 2;
+    if (!join_.empty()) {
+      join = box_of(join_);
+      all = {std::min(rect.x0, join.x0), std::min(rect.y0, join.y0), std::max(rect.x1, join.x1),
+             std::max(rect.y1, join.y1)};
+    }
+    rt_.drawn_triangles_in(all.x0, all.y0, all.x1, all.y1, ids_);
     for (const std::uint32_t f : ids_) {
       const auto& t = mesh_.triangles[f];
       const pm::Vec3 &A = mesh_.positions[t[0]], &B = mesh_.positions[t[1]], &C = mesh_.positions[t[2]];
-      if (std::max({A.x, B.x, C.x}) < x0 || std::min({A.x, B.x, C.x}) > x1 ||
-          std::max({A.y, B.y, C.y}) < y0 || std::min({A.y, B.y, C.y}) > y1)
-        continue;
-      ++stats.drawn_triangles_tested;
-      const P2 a{A.x, A.y}, b{B.x, B.y}, c{C.x, C.y};
-      const double det = cross(a, b, c);
-      if (det == 0) continue;  // vertical in plan: covers no ground
-      const double sign = det > 0 ? 1.0 : -1.0;
-      clip_half_plane(piece_, a, b, sign, tmp_);
-      if (tmp_.size() >= 3) clip_half_plane(tmp_, b, c, sign, clip_);
-      if (tmp_.size() < 3 || clip_.size() < 3) continue;
-      clip_half_plane(clip_, c, a, sign, tmp_);
-      if (tmp_.size() < 3) continue;
-      emit(tmp_, A, B, C, det, object);
+      const Box tb{std::min({A.x, B.x, C.x}), std::min({A.y, B.y, C.y}), std::max({A.x, B.x, C.x}),
+                   std::max({A.y, B.y, C.y})};
+      clip_to(piece_, rect, tb, A, B, C, object);
+      if (!join_.empty()) clip_to(join_, join, tb, A, B, C, object);
     }
+  }
+
+  // Clips `piece` (box `pb`) against the drawn triangle A, B, C (box `tb`) and emits the result.
+  void clip_to(const Polygon& piece, const Box& pb, const Box& tb, const pm::Vec3& A, const pm::Vec3& B,
+               const pm::Vec3& C, std::uint32_t object) {
+    if (tb.x1 < pb.x0 || tb.x0 > pb.x1 || tb.y1 < pb.y0 || tb.y0 > pb.y1) return;
+    ++stats.drawn_triangles_tested;
+    const P2 a{A.x, A.y}, b{B.x, B.y}, c{C.x, C.y};
+    const double det = cross(a, b, c);
+    if (det == 0) return;  // vertical in plan: covers no ground
+    const double sign = det > 0 ? 1.0 : -1.0;
+    clip_half_plane(piece, a, b, sign, tmp_);
+    if (tmp_.size() < 3) return;
+    clip_half_plane(tmp_, b, c, sign, clip_);
+    if (clip_.size() < 3) return;
+    clip_half_plane(clip_, c, a, sign, tmp_);
+    if (tmp_.size() >= 3) emit(tmp_, A, B, C, det, object);
   }
 
   // Fans the clipped polygon `p` (CCW in plan) into triangles lifted onto the plane of the drawn
@@ -159,7 +181,7 @@ class Draper {
   const DrawnMesh& mesh_;
   ObjectMesh& out_;
   std::vector<P2> points_;
-  Polygon piece_, clip_, tmp_;
+  Polygon piece_, join_, clip_, tmp_;
   std::vector<std::uint32_t> ids_, fan_;
 };
 

@@ -18,8 +18,8 @@
 // points at most 22.5 degrees apart (so the outline is the polyline's buffer with round joins
 // and butt ends, up to the arcs' chords). Each piece is clipped (Sutherland-Hodgman, in plan)
 // against every drawn triangle it overlaps, found with TerrainRuntime::drawn_triangles_in over
-// the piece's box; each non-empty clip is fanned into triangles whose vertices are lifted onto
-// that drawn triangle's plane (barycentric on its three world positions).
+// the box of its segment (rectangle and join); each non-empty clip is fanned into triangles whose vertices
+// are lifted onto that drawn triangle's plane (barycentric on its three world positions).
 //
 // Contract:
 //   rt         after rt.update() of a frame: the ribbon lies on rt.drawn_mesh() of that frame.
@@ -41,10 +41,10 @@
 //              and vertices are not shared between pieces.
 //   thread     const on rt; the first call of a frame builds drawn_height's index (the same rule
 //              as drawn_height: no concurrent first calls).
-// Cost: per piece, one drawn_triangles_in() over its box plus one clip (3 half-planes) per
-// triangle returned: O(pieces x drawn triangles under each piece's box), never O(all drawn
-// triangles) per line. Memory: the output (object_mesh.hpp), plus a scratch of the triangle ids
-// and polygons of one piece.
+// Cost: per segment, one drawn_triangles_in() over the box of its rectangle and join, plus one
+// clip (3 half-planes) per piece and returned triangle whose boxes meet: O(pieces x drawn
+// triangles under each segment's box), never O(all drawn triangles) per line. Memory: the output
+// (object_mesh.hpp), plus a scratch of the triangle ids and polygons of one piece.
 #pragma once
 
 #include <cstddef>
