@@ -11,6 +11,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -250,7 +252,7 @@ std::pair<render::PixelBox, Image> lone_label(Stage& st, const std::string& text
   const render::PixelBox r = st.objects.label_rect({p->x, p->y}, text, size_px);
   const glm::ivec2 size = st.objects.measure_label(text, size_px);
   EXPECT_EQ(size, glm::ivec2(r.width(), r.height())) << text;
-  st.objects.draw_labels(st.terrain, {{{anchor, text, size_px}}});
+  st.objects.draw_labels(st.terrain, {{anchor, text, size_px}});
   return {r, st.terrain.read_color()};
 }
 
@@ -365,6 +367,106 @@ TEST(Reference, FrameMatchesTheStoredReferenceAndChangesFailIt) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Icon geometry
+
+/// An icon alone on black, seen horizontally from 200 m at compass bearing `from_deg` (the camera
+/// stands that way from the anchor and looks back at it): the drawn box, and the mean x of the
+/// red and of the blue pixels.
+struct IconView {
+  render::PixelBox box;
+  double red_x = 0.0, blue_x = 0.0;
+};
+IconView view_icon(Stage& st, render::IconStyleId style, double from_deg) {
+  const double a = from_deg * std::acos(-1.0) / 180.0;
+  const glm::dvec3 anchor(kX0 + 256.0, kY0 + 256.0, 400.0);
+  const Camera cam{.x = anchor.x + 200.0 * std::sin(a),
+                   .y = anchor.y + 200.0 * std::cos(a),
+                   .z = anchor.z + 20.0,
+                   .yaw_deg = from_deg + 180.0,
+                   .pitch_deg = 0.0,
+                   .fovy_deg = 50.0,
+                   .width_px = 320,
+                   .height_px = 240,
+                   .near_m = 1.0,
+                   .far_m = 5000.0};
+  st.terrain.options().sky_color = {0.0f, 0.0f, 0.0f};
+  st.terrain.draw(cam, std::span<const render::DrawItem>());
+  st.objects.draw_icons(st.terrain, {{anchor, style, 40.0}});
+  const Image img = st.terrain.read_color();
+  IconView v{ink_box(img)};
+  double rx = 0, rn = 0, bx = 0, bn = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const std::uint8_t* p = img.pixel(x, y);
+      if (p[0] > 128 && p[2] < 64) rx += x, rn += 1;
+      if (p[2] > 128 && p[0] < 64) bx += x, bn += 1;
+    }
+  v.red_x = rn > 0 ? rx / rn : -1.0;
+  v.blue_x = bn > 0 ? bx / bn : -1.0;
+  return v;
+}
+
+TEST(Icons, OneQuadFacesTheCameraTwoQuadsAreFixedInTheWorld) {
+  Stage st;
+  render::RgbaImage half(32, 32);  // left half red, right half blue: shows a mirrored billboard
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 32; ++x)
+      half.set(
+          x, y,
+          x < 16 ? std::array<std::uint8_t, 4>{255, 0, 0, 255} : std::array<std::uint8_t, 4>{0, 0, 255, 255});
+  const render::IconStyleId billboard = st.objects.add_icon_style(half, 1);
+  const render::IconStyleId cross = st.objects.add_icon_style(half, 2);
+  // A square 40 m icon at 200 m: about 40 * K / 200 = 51 pixels wide when seen face-on.
+  const double k = 120.0 / std::tan(25.0 * std::acos(-1.0) / 180.0), face_on = 40.0 * k / 200.0;
+  for (const double from : {180.0, 225.0, 300.0}) {
+    const IconView v = view_icon(st, billboard, from);
+    EXPECT_NEAR(v.box.width(), face_on, 2.0) << "billboard seen from " << from;
+    EXPECT_LT(v.red_x, v.blue_x) << "the billboard's image must not be mirrored (seen from " << from << ")";
+  }
+  // The cross: quad 0 along world x, quad 1 along y. Seen from the south, quad 0 is face-on
+  // (full width); from the south-west both quads are at 45 degrees: the widest points are the
+  // two ends nearer the camera, 20 cos 45 m to either side and as much nearer than the anchor.
+  const double c45 = std::sqrt(0.5);
+  EXPECT_NEAR(view_icon(st, cross, 180.0).box.width(), face_on, 2.0);
+  EXPECT_NEAR(view_icon(st, cross, 225.0).box.width(), face_on * c45 * 200.0 / (200.0 - 20.0 * c45), 2.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Cost
+
+TEST(Cost, DrawCallsDoNotGrowWithTheNumberOfObjects) {
+  Stage st;
+  const render::IconStyleId marker = st.objects.add_icon_style(render::default_marker_image(), 1);
+  const render::IconStyleId tree = st.objects.add_icon_style(render::default_marker_image(32), 3);
+  std::vector<render::IconInstance> icons;
+  std::vector<render::LabelInstance> labels;
+  for (int i = 0; i < 2000; ++i) {  // a fixed scatter over the square
+    const double dx = 8.0 + (i * 37 % 496), dy = 8.0 + (i * 101 % 496);
+    icons.push_back({on_ground(dx, dy), i % 2 ? marker : tree, 15.0});
+    if (i % 5 == 0) labels.push_back({on_ground(dx, dy), "Pt " + std::to_string(i), 12});
+  }
+  const blocks::ObjectMesh box = box_mesh(300, 200, 30, 30, 20, true);
+  const Camera cam = scene_camera();
+  st.terrain.draw(cam, {{st.hill, 0.0f}});
+  const auto t0 = std::chrono::steady_clock::now();
+  const render::ObjectDrawStats si = st.objects.draw_icons(st.terrain, icons);
+  const render::ObjectDrawStats sl = st.objects.draw_labels(st.terrain, labels);
+  const render::ObjectDrawStats sm = st.objects.draw_mesh(st.terrain, box, {1, 1, 1, 1});
+  (void)st.terrain.read_color();  // waits for the GPU
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::printf(
+      "%zu icons: %zu draw calls, %zu bytes; %zu labels: %zu draw calls, %zu bytes; mesh: %zu call; "
+      "all drawn and read back in %.1f ms\n",
+      si.objects, si.draw_calls, si.bytes_uploaded, sl.objects, sl.draw_calls, sl.bytes_uploaded,
+      sm.draw_calls, ms);
+  EXPECT_EQ(si.draw_calls, 2u);  // one per style
+  EXPECT_EQ(si.bytes_uploaded, icons.size() * 16);
+  EXPECT_EQ(sl.draw_calls, 2u);  // halo pass, text pass
+  EXPECT_EQ(sm.draw_calls, 1u);
+  EXPECT_EQ(sl.objects, labels.size());  // all are in front of the camera
+}
+
+// ---------------------------------------------------------------------------------------------
 // Depth against the terrain
 
 TEST(Depth, IconBehindTheHillIsHiddenByTheTerrain) {
@@ -399,6 +501,19 @@ TEST(Depth, IconBehindTheHillIsHiddenByTheTerrain) {
   EXPECT_GT(changed_pixels(/*terrain=*/false), 200u);
   // ... with it, every one of them keeps the terrain's colour.
   EXPECT_EQ(changed_pixels(/*terrain=*/true), 0u);
+
+  // A label there too: its depth point (2 % of 590 m nearer) is still behind the hill.
+  const auto label_pixels = [&](bool terrain) {
+    const std::vector<render::DrawItem> items = {{st.hill, 0.0f}};
+    st.terrain.draw(cam,
+                    terrain ? std::span<const render::DrawItem>(items) : std::span<const render::DrawItem>());
+    const Image before = st.terrain.read_color();
+    st.objects.draw_labels(st.terrain, {{hidden[0].anchor, "Hidden Hut", 16}});
+    const Image after = st.terrain.read_color();
+    return compare(before, after).share_over_16 * before.width * before.height;
+  };
+  EXPECT_GT(label_pixels(/*terrain=*/false), 50.0);
+  EXPECT_EQ(label_pixels(/*terrain=*/true), 0.0);
 }
 
 // ---------------------------------------------------------------------------------------------

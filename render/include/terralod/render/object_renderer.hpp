@@ -159,7 +159,13 @@ class ObjectRenderer {
   PixelBox label_rect(const glm::dvec2& anchor_px, std::string_view text, int size_px);
 
   ObjectDrawStats draw_icons(TerrainRenderer& frame, std::span<const IconInstance> icons);
+  ObjectDrawStats draw_icons(TerrainRenderer& frame, std::initializer_list<IconInstance> icons) {
+    return draw_icons(frame, std::span<const IconInstance>(icons.begin(), icons.size()));
+  }
   ObjectDrawStats draw_labels(TerrainRenderer& frame, std::span<const LabelInstance> labels);
+  ObjectDrawStats draw_labels(TerrainRenderer& frame, std::initializer_list<LabelInstance> labels) {
+    return draw_labels(frame, std::span<const LabelInstance>(labels.begin(), labels.size()));
+  }
   ObjectDrawStats draw_mesh(TerrainRenderer& frame, const blocks::ObjectMesh& mesh, const glm::vec4& color,
                             const MeshStyle& style = {});
 
