@@ -312,7 +312,9 @@ TEST(Labels, MeasureGrowsWithTextAndSizeAndEmptyTextHasNoArea) {
 TEST(Reference, FrameMatchesTheStoredReferenceAndChangesFailIt) {
   Stage st;
   const render::IconStyleId marker = st.objects.add_icon_style(render::default_marker_image(), 1);
-  const render::IconStyleId tree = st.objects.load_icon_style(write_tree_png(), 2);
+  const std::string tree_png = write_tree_png();
+  const render::IconStyleId tree = st.objects.load_icon_style(tree_png, 2);
+  fs::remove_all(fs::path(tree_png).parent_path());
   const Camera cam = scene_camera();
   const Scene scene = reference_scene(marker, tree);
   const Image frame = draw_scene(st, cam, scene);
