@@ -8,7 +8,7 @@ packages=(
   libopenmesh-dev libgdal-dev libproj-dev proj-data libmeshoptimizer-dev libopenimageio-dev libsqlite3-dev
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  xvfb fonts-dejavu-core clang-format
+  xvfb fonts-dejavu-core libfreetype-dev clang-format
   chromium proj-bin
   openmpi-bin libopenmpi-dev
   "$@"

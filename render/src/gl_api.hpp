@@ -97,6 +97,8 @@ namespace terralod::render::detail {
   X(PFNGLUNIFORM4FPROC, Uniform4f, true)                                 \
   X(PFNGLBLENDFUNCPROC, BlendFunc, true)                                 \
   X(PFNGLBLENDEQUATIONPROC, BlendEquation, true)                         \
+  X(PFNGLVERTEXATTRIBDIVISORPROC, VertexAttribDivisor, true)             \
+  X(PFNGLDRAWARRAYSINSTANCEDPROC, DrawArraysInstanced, true)             \
   X(PFNGLCLIPCONTROLPROC, ClipControl, false)
 // clang-format on
 

@@ -514,6 +514,21 @@ std::vector<DepthSample> TerrainRenderer::read_depth(std::span<const glm::ivec2>
   return out;
 }
 
+FrameTarget TerrainRenderer::bind_frame() {
+  assert(impl_->drawn && "TerrainRenderer::bind_frame before the first draw()");
+  ctx_.make_current();
+  const detail::GlApi& gl = impl_->gl;
+  const Camera& cam = impl_->last_camera;
+  const bool reverse = impl_->last_reverse_z;
+  gl.BindFramebuffer(GL_FRAMEBUFFER, impl_->target.fbo);
+  gl.Viewport(0, 0, cam.width_px, cam.height_px);
+  if (ctx_.info().clip_control)
+    gl.ClipControl(GL_LOWER_LEFT, reverse ? GL_ZERO_TO_ONE : GL_NEGATIVE_ONE_TO_ONE);
+  detail::check_gl(gl, "renderer: binding the frame");
+  return {cam, reverse,
+          (reverse ? reverse_z_projection_matrix(cam) : projection_matrix(cam)) * view_matrix(cam)};
+}
+
 void TerrainRenderer::present(bool swap) {
   assert(impl_->drawn && "TerrainRenderer::present before the first draw()");
   ctx_.make_current();

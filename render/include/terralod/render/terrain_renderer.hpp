@@ -113,6 +113,14 @@ struct FrameStats {
   double draw_ms = 0.0;            ///< clear + draw calls (+ glFinish when options.finish)
 };
 
+/// The last frame as a target to draw more into (object_renderer.hpp): its camera, depth
+/// convention and world -> clip matrix (doubles; translate to a nearby origin before floats).
+struct FrameTarget {
+  Camera camera;
+  bool reverse_z = false;           ///< true: near -> depth 1, far -> 0 (GL_GREATER passes nearer)
+  glm::dmat4 view_projection{1.0};  ///< clip from world, the projection the terrain was drawn with
+};
+
 /// Depth read back at one pixel of the last frame.
 struct DepthSample {
   glm::ivec2 pixel{0, 0};     ///< image coordinates, (0,0) = top-left pixel
@@ -173,6 +181,10 @@ class TerrainRenderer {
   std::vector<DepthSample> read_depth(std::initializer_list<glm::ivec2> pixels) const {
     return read_depth(std::span<const glm::ivec2>(pixels.begin(), pixels.size()));
   }
+  /// Binds the last frame's framebuffer (its colour and depth, as draw() left them), viewport
+  /// and depth convention, so that objects drawn next are depth-tested against the terrain;
+  /// read_color() then shows them. Asserts after the first draw(). The next draw() clears it.
+  FrameTarget bind_frame();
   /// Copies the last frame to the default framebuffer (scaled to its size) and swaps; with
   /// swap = false it only copies, so that an overlay (hud.hpp) can be drawn before the swap.
   void present(bool swap = true);
