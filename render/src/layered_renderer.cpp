@@ -12,6 +12,7 @@
 #include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -128,6 +129,7 @@ struct LayeredRenderer::Impl {
   TexApi tx;
   int gl_units = 16;
   detail::OffscreenTarget target;
+  std::optional<Camera> last_camera;  // of the last draw(), for bind_frame()
   std::map<std::uint32_t, GpuMesh> meshes;
   std::uint32_t next_mesh = 1;
   std::map<std::uint32_t, GpuTexture> textures;
@@ -516,6 +518,7 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
   const int passes = passes_for(st, lens, any_seq);
 
   im.ensure_framebuffer(camera.width_px, camera.height_px);
+  im.last_camera = camera;
   gl.BindFramebuffer(GL_FRAMEBUFFER, im.target.fbo);
   gl.Viewport(0, 0, camera.width_px, camera.height_px);
   gl.ClearColor(options_.sky_color.r, options_.sky_color.g, options_.sky_color.b, 1.0f);
@@ -668,6 +671,17 @@ LayeredFrameStats LayeredRenderer::draw(const Camera& camera, std::span<const La
   stats.draw_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   im.drawn = true;
   return stats;
+}
+
+FrameTarget LayeredRenderer::bind_frame() {
+  assert(impl_->last_camera && "LayeredRenderer::bind_frame before the first draw()");
+  ctx_.make_current();
+  const detail::GlApi& gl = impl_->gl;
+  const Camera& cam = *impl_->last_camera;
+  gl.BindFramebuffer(GL_FRAMEBUFFER, impl_->target.fbo);
+  gl.Viewport(0, 0, cam.width_px, cam.height_px);
+  detail::check_gl(gl, "layered renderer: binding the frame");
+  return {cam, false, projection_matrix(cam) * view_matrix(cam), options_.light_direction, options_.ambient};
 }
 
 Image LayeredRenderer::read_color() const {

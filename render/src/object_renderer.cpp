@@ -391,7 +391,7 @@ PixelBox ObjectRenderer::label_rect(const glm::dvec2& anchor_px, std::string_vie
   return {o.x, o.y, o.x + l.width, o.y + l.height};
 }
 
-ObjectDrawStats ObjectRenderer::draw_icons(TerrainRenderer& frame, std::span<const IconInstance> icons) {
+ObjectDrawStats ObjectRenderer::draw_icons(FrameSource& frame, std::span<const IconInstance> icons) {
   ObjectDrawStats stats;
   for (const IconInstance& i : icons) {
     if (i.style.value == 0 || i.style.value > impl_->styles.size())
@@ -449,7 +449,7 @@ ObjectDrawStats ObjectRenderer::draw_icons(TerrainRenderer& frame, std::span<con
   return stats;
 }
 
-ObjectDrawStats ObjectRenderer::draw_labels(TerrainRenderer& frame, std::span<const LabelInstance> labels) {
+ObjectDrawStats ObjectRenderer::draw_labels(FrameSource& frame, std::span<const LabelInstance> labels) {
   ObjectDrawStats stats;
   for (const LabelInstance& l : labels)
     if (l.size_px < 1)
@@ -513,7 +513,7 @@ ObjectDrawStats ObjectRenderer::draw_labels(TerrainRenderer& frame, std::span<co
   return stats;
 }
 
-ObjectDrawStats ObjectRenderer::draw_mesh(TerrainRenderer& frame, const blocks::ObjectMesh& mesh,
+ObjectDrawStats ObjectRenderer::draw_mesh(FrameSource& frame, const blocks::ObjectMesh& mesh,
                                           const glm::vec4& color, const MeshStyle& style) {
   ObjectDrawStats stats;
   const std::size_t n = mesh.positions.size();
@@ -559,11 +559,11 @@ ObjectDrawStats ObjectRenderer::draw_mesh(TerrainRenderer& frame, const blocks::
   }
   gl.UseProgram(impl_->mesh_program);
   const glm::mat4 mvp = camera_relative_mvp(f);
-  const glm::dvec3 light = glm::normalize(frame.options().light_direction);
+  const glm::dvec3 light = glm::normalize(f.light_direction);
   gl.UniformMatrix4fv(impl_->loc(impl_->mesh_program, "u_mvp"), 1, GL_FALSE, &mvp[0][0]);
   gl.Uniform1i(impl_->loc(impl_->mesh_program, "u_has_normals"), mesh.normals.empty() ? 0 : 1);
   gl.Uniform3f(impl_->loc(impl_->mesh_program, "u_light"), float(light.x), float(light.y), float(light.z));
-  gl.Uniform1f(impl_->loc(impl_->mesh_program, "u_ambient"), frame.options().ambient);
+  gl.Uniform1f(impl_->loc(impl_->mesh_program, "u_ambient"), f.ambient);
   gl.Uniform4f(impl_->loc(impl_->mesh_program, "u_color"), color.r, color.g, color.b, color.a);
   gl.DrawElements(GL_TRIANGLES, GLsizei(mesh.triangles.size() * 3), GL_UNSIGNED_INT, nullptr);
   stats.draw_calls = 1;

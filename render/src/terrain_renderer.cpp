@@ -526,7 +526,8 @@ FrameTarget TerrainRenderer::bind_frame() {
     gl.ClipControl(GL_LOWER_LEFT, reverse ? GL_ZERO_TO_ONE : GL_NEGATIVE_ONE_TO_ONE);
   detail::check_gl(gl, "renderer: binding the frame");
   return {cam, reverse,
-          (reverse ? reverse_z_projection_matrix(cam) : projection_matrix(cam)) * view_matrix(cam)};
+          (reverse ? reverse_z_projection_matrix(cam) : projection_matrix(cam)) * view_matrix(cam),
+          options_.light_direction, options_.ambient};
 }
 
 void TerrainRenderer::present(bool swap) {

@@ -110,7 +110,7 @@ struct LayeredFrameStats {
   double draw_ms = 0.0;
 };
 
-class LayeredRenderer {
+class LayeredRenderer : public FrameSource {
  public:
   explicit LayeredRenderer(GlContext& context, const LayeredRendererOptions& options = {});
   ~LayeredRenderer();
@@ -145,6 +145,7 @@ class LayeredRenderer {
   }
   /// The last frame's colour, top row first.
   Image read_color() const;
+  FrameTarget bind_frame() override;  ///< see FrameSource (no reverse-Z: the layers draw without it)
 
  private:
   struct Impl;

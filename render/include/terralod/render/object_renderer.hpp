@@ -19,9 +19,10 @@
 //   terralod::render::Image img = terrain.read_color();          // terrain + objects
 //
 // Contract:
-//   - Drawing calls bind the terrain renderer's last frame (TerrainRenderer::bind_frame: its
-//     framebuffer, depth buffer, camera and depth convention) and draw into it; call them
-//     after terrain.draw() and before read_color()/present(). Both renderers must use the same
+//   - Drawing calls bind the last frame of a FrameSource (terrain_renderer.hpp: a
+//     TerrainRenderer, or a LayeredRenderer with texture layers; its framebuffer, depth buffer,
+//     camera, depth convention and light) and draw into it; call them after its draw() and
+//     before read_color()/present(). Both renderers must use the same
 //     context; the ObjectRenderer must be destroyed before it. Not thread-safe.
 //   - Coordinates: anchors and mesh positions are world metres in doubles; each call subtracts
 //     the camera position (the per-frame origin) in doubles before anything becomes a float,
@@ -158,15 +159,15 @@ class ObjectRenderer {
   /// The rectangle draw_labels() covers for a label whose anchor projects to `anchor_px`.
   PixelBox label_rect(const glm::dvec2& anchor_px, std::string_view text, int size_px);
 
-  ObjectDrawStats draw_icons(TerrainRenderer& frame, std::span<const IconInstance> icons);
-  ObjectDrawStats draw_icons(TerrainRenderer& frame, std::initializer_list<IconInstance> icons) {
+  ObjectDrawStats draw_icons(FrameSource& frame, std::span<const IconInstance> icons);
+  ObjectDrawStats draw_icons(FrameSource& frame, std::initializer_list<IconInstance> icons) {
     return draw_icons(frame, std::span<const IconInstance>(icons.begin(), icons.size()));
   }
-  ObjectDrawStats draw_labels(TerrainRenderer& frame, std::span<const LabelInstance> labels);
-  ObjectDrawStats draw_labels(TerrainRenderer& frame, std::initializer_list<LabelInstance> labels) {
+  ObjectDrawStats draw_labels(FrameSource& frame, std::span<const LabelInstance> labels);
+  ObjectDrawStats draw_labels(FrameSource& frame, std::initializer_list<LabelInstance> labels) {
     return draw_labels(frame, std::span<const LabelInstance>(labels.begin(), labels.size()));
   }
-  ObjectDrawStats draw_mesh(TerrainRenderer& frame, const blocks::ObjectMesh& mesh, const glm::vec4& color,
+  ObjectDrawStats draw_mesh(FrameSource& frame, const blocks::ObjectMesh& mesh, const glm::vec4& color,
                             const MeshStyle& style = {});
 
  private:

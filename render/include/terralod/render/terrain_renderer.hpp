@@ -119,6 +119,21 @@ struct FrameTarget {
   Camera camera;
   bool reverse_z = false;           ///< true: near -> depth 1, far -> 0 (GL_GREATER passes nearer)
   glm::dmat4 view_projection{1.0};  ///< clip from world, the projection the terrain was drawn with
+  glm::dvec3 light_direction{-0.5, 0.5, 0.707};  ///< the terrain's light (towards it, world frame)
+  float ambient = 0.35f;                         ///< the terrain's ambient share
+};
+
+/// A renderer whose last frame objects can be drawn into (TerrainRenderer, LayeredRenderer).
+class FrameSource {
+ public:
+  /// Binds the last frame's framebuffer (its colour and depth, as draw() left them), viewport
+  /// and depth convention, so that what is drawn next is depth-tested against the terrain and
+  /// the renderer's read_color() shows it. Asserts after the first draw(); the next draw()
+  /// clears it.
+  virtual FrameTarget bind_frame() = 0;
+
+ protected:
+  ~FrameSource() = default;
 };
 
 /// Depth read back at one pixel of the last frame.
@@ -131,7 +146,7 @@ struct DepthSample {
   glm::dvec3 world{0.0};      ///< that surface point, world frame
 };
 
-class TerrainRenderer {
+class TerrainRenderer : public FrameSource {
  public:
   /// Compiles the shaders; throws RenderError on failure. Keeps a reference to `context`.
   explicit TerrainRenderer(GlContext& context, const RendererOptions& options = {});
@@ -181,10 +196,7 @@ class TerrainRenderer {
   std::vector<DepthSample> read_depth(std::initializer_list<glm::ivec2> pixels) const {
     return read_depth(std::span<const glm::ivec2>(pixels.begin(), pixels.size()));
   }
-  /// Binds the last frame's framebuffer (its colour and depth, as draw() left them), viewport
-  /// and depth convention, so that objects drawn next are depth-tested against the terrain;
-  /// read_color() then shows them. Asserts after the first draw(). The next draw() clears it.
-  FrameTarget bind_frame();
+  FrameTarget bind_frame() override;  ///< see FrameSource
   /// Copies the last frame to the default framebuffer (scaled to its size) and swaps; with
   /// swap = false it only copies, so that an overlay (hud.hpp) can be drawn before the swap.
   void present(bool swap = true);
