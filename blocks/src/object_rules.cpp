@@ -111,9 +111,21 @@ ObjectRules parse_object_rules(std::string_view json, const std::string& source)
       out.label_size_px_ = fail.positive(v, "\"label_size_px\"", "pixels");
     } else if (key == "icon_size_m") {
       out.icon_size_m_ = fail.positive(v, "\"icon_size_m\"", "metres");
+    } else if (key == "icon_image") {
+      fail.need(v, JsonValue::Kind::String, "\"icon_image\"");
+      if (v.string.empty()) fail(v.begin, "\"icon_image\" is empty (leave it out for the built-in marker)");
+      out.icon_image_ = v.string;
+    } else if (key == "icon_quads") {
+      fail.need(v, JsonValue::Kind::Number, "\"icon_quads\"");
+      if (v.number != 1 && v.number != 2 && v.number != 3)
+        fail(v.begin, "\"icon_quads\" must be 1, 2 or 3, not " + number_text(v.number));
+      out.icon_quads_ = int(v.number);
+    } else if (key == "line_width_m") {
+      out.line_width_m_ = fail.positive(v, "\"line_width_m\"", "metres");
     } else {
-      fail(v.begin,
-           "unknown key '" + key + "' (the keys are ranges, priority_field, label_size_px and icon_size_m)");
+      fail(v.begin, "unknown key '" + key +
+                        "' (the keys are ranges, priority_field, label_size_px, icon_size_m, icon_image, "
+                        "icon_quads and line_width_m)");
     }
   }
   if (!ranges)

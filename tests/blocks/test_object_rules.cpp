@@ -88,6 +88,15 @@ TEST(ObjectRules, ScreenSizeRangesSwitchAtTheirLimits) {
 
 TEST(ObjectRules, OneRangeAndTheDefaultRuleDrawEverythingOneWay) {
   const tb::ObjectRules one = tb::parse_object_rules(R"({"ranges": [{"draw": "label"}]})", "one.json");
+  EXPECT_EQ(one.icon_image(), "");  // defaults: the built-in marker as a billboard, 8 m lines
+  EXPECT_EQ(one.icon_quads(), 1);
+  EXPECT_EQ(one.line_width_m(), 8.0);
+  const tb::ObjectRules trees = tb::parse_object_rules(
+      R"({"ranges": [{"draw": "icon"}], "icon_image": "icons/tree.png", "icon_quads": 3, "line_width_m": 2.5})",
+      "trees.json");
+  EXPECT_EQ(trees.icon_image(), "icons/tree.png");
+  EXPECT_EQ(trees.icon_quads(), 3);
+  EXPECT_EQ(trees.line_width_m(), 2.5);
   for (double d : {0.0, 1.0, 1e9}) EXPECT_EQ(one.choose(d, d), R::Label);
   // The default rule of a layer of each kind: the kind's name is a representation's.
   for (tb::ObjectKind k :
@@ -156,6 +165,12 @@ TEST(ObjectRules, MalformedFilesAreRefusedWithFileLineAndColumn) {
       {"not an object", "[1]", 1, 1, "the rules must be an object, not an array"},
       {"unknown key", "{\"ranges\": [{\"draw\": \"icon\"}],\n \"colour\": 3}", 2, 12, "unknown key 'colour'"},
       {"no ranges", "{}", 1, 1, "no \"ranges\""},
+      {"four quads", "{\"ranges\": [{\"draw\": \"icon\"}], \"icon_quads\": 4}", 1, 46,
+       "\"icon_quads\" must be 1, 2 or 3, not 4"},
+      {"empty image", "{\"ranges\": [{\"draw\": \"icon\"}], \"icon_image\": \"\"}", 1, 46,
+       "\"icon_image\" is empty"},
+      {"zero width", "{\"ranges\": [{\"draw\": \"line\"}], \"line_width_m\": 0}", 1, 48,
+       "\"line_width_m\" must be > 0 metres"},
       {"ranges not array", "{\"ranges\": 4}", 1, 12, "\"ranges\" must be an array, not a number"},
       {"empty ranges", "{\"ranges\": []}", 1, 12, "\"ranges\" is empty"},
       {"range not object", "{\"ranges\": [3]}", 1, 13, "ranges[0] must be an object"},

@@ -22,7 +22,14 @@
 //    "priority_field": "population",              optional: the numeric attribute that ranks
 //                                                 labels when they overlap (higher wins)
 //    "label_size_px": 14,                         optional, > 0: label text height (default 14)
-//    "icon_size_m": 20}                           optional, > 0: icon size in metres (default 20)
+//    "icon_size_m": 20,                           optional, > 0: icon height in metres (default 20)
+//    "icon_image": "/data/icons/hut.png",         optional: the icon's image (any file OpenImageIO
+//                                                 reads; a path as the drawing program sees it,
+//                                                 absolute or relative to its working folder);
+//                                                 default: the built-in map pin
+//    "icon_quads": 1,                             optional, 1..3: a billboard (1) or 2-3 crossed
+//                                                 quads, like the paper's trees (default 1)
+//    "line_width_m": 8}                           optional, > 0: draped lines' width (default 8)
 //   Ranges keyed by the object's size on screen instead (largest first):
 //   {"ranges": [{"min_screen_px": 200, "draw": "shape"},   objects >= 200 px on screen
 //               {"min_screen_px": 8, "draw": "icon"},      [8, 200) px
@@ -51,7 +58,7 @@
 // The default rule (a layer stored without rules): everything_as(the representation of the
 //   layer's kind: each ObjectKind's kind_name is also a representation name): one range, every
 //   object drawn as the layer's kind at every distance and size, priority 0, label_size_px 14,
-//   icon_size_m 20.
+//   icon_size_m 20, the built-in marker as one billboard, line_width_m 8.
 //
 // Contract:
 //   parse_object_rules(json, source): the rules, or pm::JsonError
@@ -120,13 +127,18 @@ class ObjectRules {
   const std::string& priority_field() const { return priority_field_; }  ///< "" = none
   double label_size_px() const { return label_size_px_; }
   double icon_size_m() const { return icon_size_m_; }
+  const std::string& icon_image() const { return icon_image_; }  ///< "" = the built-in marker
+  int icon_quads() const { return icon_quads_; }
+  double line_width_m() const { return line_width_m_; }
 
  private:
   friend ObjectRules parse_object_rules(std::string_view json, const std::string& source);
   Measure measure_ = Measure::Distance;
   std::vector<RuleRange> ranges_;
   std::string priority_field_;
-  double label_size_px_ = 14.0, icon_size_m_ = 20.0;
+  double label_size_px_ = 14.0, icon_size_m_ = 20.0, line_width_m_ = 8.0;
+  std::string icon_image_;
+  int icon_quads_ = 1;
 };
 
 /// Reads and checks a rules file; pm::JsonError "<source>: line L, column C: <what>".
