@@ -362,6 +362,7 @@ void ShapeExtruder::extrude(const TerrainRuntime& rt, std::span<const PlacedObje
       if (std::max({a.x, b.x, c.x}) < f.min.x || std::min({a.x, b.x, c.x}) > f.max.x ||
           std::max({a.y, b.y, c.y}) < f.min.y || std::min({a.y, b.y, c.y}) > f.max.y)
         continue;
+      if (std::min({a.z, b.z, c.z}) >= lo && std::max({a.z, b.z, c.z}) <= hi) continue;  // changes nothing
       clipped_range(a, b, c, f.min.x, f.min.y, f.max.x, f.max.y, lo, hi);
     }
     const double base = lo, roof = hi + heights_[index];
