@@ -270,6 +270,11 @@ TEST(ShapePlan, DegenerateFootprintsGiveNoRoofAndNoError) {
       tb::plan_footprint({{{0, 0}, {10, 0}, {10, 10}, {0, 10}}, {{20, 0}, {21, 0}, {21, 1}}});
   EXPECT_EQ(out.status, S::NotSimple);
   EXPECT_TRUE(out.empty());
+  // A hole in the notch of an L (inside its box, outside the L): no bridge can reach it.
+  const tb::ShapeFootprint notch = tb::plan_footprint(
+      {{{0, 0}, {20, 0}, {20, 10}, {10, 10}, {10, 30}, {0, 30}}, {{14, 14}, {16, 14}, {16, 16}, {14, 16}}});
+  EXPECT_EQ(notch.status, S::NotSimple);
+  EXPECT_TRUE(notch.empty());
 }
 
 TEST(ShapePlan, RandomStarsAndCombsWithHoles) {
@@ -636,6 +641,15 @@ TEST(ShapeExtrusion, BuildingsStandOnTheDrawnTerrainAlongAFlightWithGeomorphsAnd
   shapes.extrude(rt, placer.placed(), mesh);
   EXPECT_EQ(mesh.positions.data(), positions);
   EXPECT_EQ(mesh.triangles.data(), triangles);
+}
+
+TEST(ShapeExtrusion, ADefaultHeightThatIsNotAPositiveNumberIsRefused) {
+  const auto db = tb::BlockDatabase::open(scene().db);
+  tb::ObjectPlacer placer(db, {"buildings"});
+  for (const double h :
+       {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
+    EXPECT_THROW(tb::ShapeExtruder(placer, {.default_height_m = h}), std::invalid_argument) << h;
+  EXPECT_EQ(tb::ShapeExtruder(placer, {.default_height_m = 3.0}).height(0), 12.0);  // L keeps its own
 }
 
 TEST(ShapeExtrusion, FootprintsOverNothingDrawnAreSkippedAndCounted) {
