@@ -43,7 +43,7 @@ void write_objects_csv(const std::vector<blocks::PlacedObject>& placed, const bl
   std::fprintf(f, "name,kind,x,y,z,ground_z\n");
   for (const blocks::PlacedObject& p : placed)
     std::fprintf(f, "%s,%s,%.17g,%.17g,%.17g,%.17g\n", csv_field(p.object->name).c_str(),
-                 blocks::kind_name(p.object->kind).c_str(), p.anchor.x, p.anchor.y, p.anchor.z,
+                 blocks::representation_name(p.draw).c_str(), p.anchor.x, p.anchor.y, p.anchor.z,
                  rt.drawn_height(p.anchor.x, p.anchor.y));
   if (std::fclose(f) != 0) throw std::runtime_error(path + ": cannot write (" + std::strerror(errno) + ")");
 }

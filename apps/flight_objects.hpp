@@ -10,10 +10,10 @@
 //
 // objects_NNNNN.csv: the header name,kind,x,y,z,ground_z and one row per object placed that
 // frame, in placement order: name (the layer's label field, else the attribute "name", else
-// the feature id; quoted as CSV when it holds a comma, quote or line break), kind (icon, label,
-// shape, line), the anchor x, y, z as drawn (world frame, metres, %.17g) and ground_z, the drawn
-// terrain's height under the anchor (TerrainRuntime::drawn_height): equal to z as long as
-// anchors stand on the ground.
+// the feature id; quoted as CSV when it holds a comma, quote or line break), kind (what the
+// layer's rules draw it as this frame: icon, label, shape, line or symbol), the anchor x, y, z as drawn
+// (world frame, metres, %.17g) and ground_z, the drawn terrain's height under the anchor
+// (TerrainRuntime::drawn_height): equal to z as long as anchors stand on the ground.
 #pragma once
 
 #include <optional>

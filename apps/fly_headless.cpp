@@ -3,6 +3,7 @@
 // (optionally with the HUD, and the drawn meshes as PLY) and frames.csv, with a summary of the
 // run's times and of the guarantee as measured.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -14,10 +15,12 @@
 
 #include "cli_common.hpp"
 #include "flight_log.hpp"
+#include "flight_objects.hpp"
 #include "fly_cli.hpp"
 #include "fly_hud.hpp"
 #include "fly_modes.hpp"
 #include "fly_pipeline.hpp"
+#include "object_drawing.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/timing.hpp"
@@ -83,6 +86,9 @@ int run_headless(const Args& a) {
   if (ec || !fs::is_directory(out)) throw std::runtime_error(out + ": cannot create the output folder");
   auto ctx = render::create_offscreen_context({w, h});
   Pipeline p(*t, *ctx);
+  std::optional<ObjectDrawing> drawing;  // the objects' icons, labels, lines and shapes
+  if (objects) drawing.emplace(*ctx, *objects);
+  ObjectDrawStats drawn;
   p.wireframe = a.has("--wireframe");
   if (layers) {
     layers->wait_loaded(/*timeout_ms=*/600000);  // every frame sees every layer: deterministic
@@ -91,7 +97,8 @@ int run_headless(const Args& a) {
   FlightLog log(out, /*drawing=*/true);  // the columns of 'terralod fly', then the drawing's
   ProgressBar bar("render " + std::to_string(frames) + " frames");
   std::vector<double> update_ms, update_cpu_ms, frame_ms, triangles, resident, placed;
-  double worst_bound = 0, wait_ms = 0;  // worst bound / tau of the frames with nothing missing
+  std::array<std::vector<double>, 5> drawn_per_frame;  // the ObjectDrawStats counts, per frame
+  double worst_bound = 0, wait_ms = 0;                 // worst bound / tau of the frames with nothing missing
   std::size_t complete = 0;
   for (long long k = 0; k < frames; ++k) {
     pm::Camera c = path[std::size_t(k)];
@@ -100,6 +107,11 @@ int run_headless(const Args& a) {
     if (objects && t->runtime()) {
       objects->place(*t->runtime(), pm::View(c));
       placed.push_back(double(objects->placed().size()));
+      drawn = drawing->draw(p.frame_source(), *objects, *t->runtime(), pm::View(c));
+      for (std::size_t i = 0; i < 5; ++i)
+        drawn_per_frame[i].push_back(
+            double(std::array{drawn.icons, drawn.labels_shown, drawn.label_candidates, drawn.line_triangles,
+                              drawn.shape_triangles}[i]));
     }
     update_ms.push_back(r.lod.update_ms);
     update_cpu_ms.push_back(r.lod.update_cpu_ms);
@@ -122,7 +134,7 @@ int run_headless(const Args& a) {
     if (hud) {
       std::vector<std::string> lines = lod_lines(r, t->options(), /*timings=*/false);
       lines[0] = strf("frame %lld   ", k) + lines[0];
-      if (objects) lines.push_back(strf("objects %zu in view", objects->placed().size()));
+      if (objects) lines.insert(lines.end(), {objects_line(*objects), drawn_line(drawn)});
       overlay_text(img, render::rasterize_text(lines), render::HudOptions{}.margin);
     }
     render::write_png(img, (fs::path(out) / (std::string(name) + ".png")).string());
@@ -144,6 +156,15 @@ int run_headless(const Args& a) {
   if (!placed.empty())
     std::printf("headless: objects in view median %.0f, max %.0f (of %zu)\n", pm::quantile(placed, 0.5),
                 pm::quantile(placed, 1.0), objects->objects().size());
+  if (!placed.empty()) {
+    const auto& d = drawn_per_frame;
+    std::printf(
+        "headless: objects drawn per frame (median): %.0f icons, %.0f of %.0f labels (decluttered), %.0f "
+        "line "
+        "and %.0f shape triangles\n",
+        pm::quantile(d[0], 0.5), pm::quantile(d[1], 0.5), pm::quantile(d[2], 0.5), pm::quantile(d[3], 0.5),
+        pm::quantile(d[4], 0.5));
+  }
   if (!resident.empty())
     std::printf("headless: blocks resident median %.0f, max %.0f; waited %s for block loads in all\n",
                 pm::quantile(resident, 0.5), pm::quantile(resident, 1.0), format_duration(wait_ms).c_str());

@@ -27,6 +27,10 @@ class Pipeline {
   render::Image read_color() const { return drew_layered_ ? layered_->read_color() : renderer_.read_color(); }
 
   render::TerrainRenderer& renderer() { return renderer_; }
+  /// The renderer that drew the last frame (plain or layered): map objects draw into it.
+  render::FrameSource& frame_source() {
+    return drew_layered_ ? static_cast<render::FrameSource&>(*layered_) : renderer_;
+  }
   LodSource& source() { return src_; }
   bool frozen = false, wireframe = false;
 

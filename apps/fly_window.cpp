@@ -16,10 +16,12 @@
 #include <vector>
 
 #include "cli_common.hpp"
+#include "flight_objects.hpp"
 #include "fly_cli.hpp"
 #include "fly_hud.hpp"
 #include "fly_modes.hpp"
 #include "fly_pipeline.hpp"
+#include "object_drawing.hpp"
 #include "terralod/pm/camera_path.hpp"
 #include "terralod/render/gl_context.hpp"
 #include "terralod/render/hud.hpp"
@@ -125,6 +127,9 @@ int run_window(const Args& a) {
   wo.width = w, wo.height = h, wo.title = "terralod-fly";
   auto win = render::WindowContext::create(wo);
   Pipeline p(*t, *win);
+  std::optional<ObjectDrawing> drawing;  // the objects' icons, labels, lines and shapes
+  if (objects) drawing.emplace(*win, *objects);
+  ObjectDrawStats drawn;
   p.wireframe = a.has("--wireframe");
   if (layers) {
     p.set_layers(*win, &*layers);
@@ -257,6 +262,7 @@ int run_window(const Args& a) {
     r = p.frame(cam, time_s, /*wait=*/false);
     if (objects && t->runtime()) {
       objects->place(*t->runtime(), pm::View(cam));
+      drawn = drawing->draw(p.frame_source(), *objects, *t->runtime(), pm::View(cam));
       if (clicked) {
         const auto hit =
             objects->pick_pixel(*t->runtime(), click[0] * cam.width_px, click[1] * cam.height_px);
@@ -281,6 +287,7 @@ int run_window(const Args& a) {
     }
     if (objects) {
       lines.push_back(objects_line(*objects));
+      lines.push_back(drawn_line(drawn));
       lines.insert(lines.end(), picked.begin(), picked.end());
     }
     hud.set_lines(lines);

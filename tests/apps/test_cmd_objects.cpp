@@ -207,12 +207,59 @@ TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
 }
 
 #ifdef TERRALOD_FLY
-// terralod-fly --objects: placed in every headless frame (the summary counts them, the HUD line
-// is drawn), in the window under Xvfb (flies and exits cleanly); usage and missing layers are
+// A building (a 47 m x 44 m square, 40 m high) north-east of the Hut, and a road across the
+// terrain, in WGS 84.
+const char* kBuilding = R"({"type": "FeatureCollection", "features": [
+  {"type": "Feature", "properties": {"name": "Hall", "height": 40}, "geometry": {"type": "Polygon",
+   "coordinates": [[[15.0120, 45.1620], [15.0126, 45.1620], [15.0126, 45.1624], [15.0120, 45.1624],
+                    [15.0120, 45.1620]]]}}]})";
+const char* kRoad = R"({"type": "FeatureCollection", "features": [
+  {"type": "Feature", "properties": {"name": "Road"}, "geometry": {"type": "LineString",
+   "coordinates": [[15.005, 45.158], [15.010, 45.161], [15.015, 45.163]]}}]})";
+
+// terralod-fly --objects: placed and drawn in every headless frame (the summary counts the
+// icons, labels, line and shape triangles; the frames differ from the same flight without
+// objects), in the window under Xvfb (flies and exits cleanly); usage and missing layers are
 // clear errors.
 TEST_F(ObjectsCli, FlyDemoPlacesObjects) {
   ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
             0);
+  std::ofstream(file("building.geojson")) << kBuilding;
+  std::ofstream(file("road.geojson")) << kRoad;
+  // In view: the Hut (the Spring is off to the west), the hall and the road.
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer halls --height-field height --input " +
+                     quote(file("building.geojson"))),
+            0);
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer roads --input " + quote(file("road.geojson"))),
+            0);
+  {
+    std::ofstream f(file("low.csv"));
+    f << "x,y,z,yaw,pitch,fovy\n";
+    for (int k = 0; k < 2; ++k) f << 500900 + 10 * k << ",4999900,700,0,-30,60\n";
+  }
+  const CliRunner demo{TERRALOD_FLY};
+  const std::string low =
+      "--headless --db " + quote(db()) + " --size 320x240 --path " + quote(file("low.csv"));
+  std::string drawn;
+  ASSERT_EQ(
+      demo.run(low + " --out " + quote(file("with")) + " --objects huts --objects halls --objects roads",
+               &drawn),
+      0);
+  EXPECT_NE(drawn.find("objects drawn per frame (median): 1 icons, 0 of 0 labels (decluttered), "),
+            std::string::npos)
+      << drawn;
+  int line_tris = 0, shape_tris = 0;
+  const std::size_t at = drawn.find("labels (decluttered), ");
+  ASSERT_NE(at, std::string::npos) << drawn;
+  ASSERT_EQ(std::sscanf(drawn.c_str() + at, "labels (decluttered), %d line and %d shape triangles",
+                        &line_tris, &shape_tris),
+            2)
+      << drawn;
+  EXPECT_GT(line_tris, 4) << drawn;               // the road, split at the drawn triangles' edges
+  EXPECT_EQ(shape_tris, 4 * 2 + 2 * 2) << drawn;  // 4 walls, a roof and a floor of 2 triangles
+  ASSERT_EQ(demo.run(low + " --out " + quote(file("without")), &drawn), 0);
+  EXPECT_NE(bytes_of(file("with/frame_00000.png")), bytes_of(file("without/frame_00000.png")))
+      << "the objects must show in the frame";
   {
     std::ofstream f(file("path.csv"));
     f << "x,y,z,yaw,pitch,fovy\n";
