@@ -16,6 +16,7 @@
 
 #include "commands.hpp"
 #include "dem_options.hpp"
+#include "flight_objects.hpp"
 #include "layer_options.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
@@ -51,7 +52,9 @@ CommandSpec view_spec() {
           "its bound_px bounds the screen-space error of the picture (<= --tau when nothing needed is\n"
           "missing). --layer draws texture layers of --texture-db (default --db) per drawn patch: each\n"
           "patch gets the coarsest texture of its layer's texture tree whose texel covers at most --gamma\n"
-          "pixels^2 (raised when the textures would not fit --texture-memory). A 'terralod hybrid'\n"
+          "pixels^2 (raised when the textures would not fit --texture-memory). --objects NAME draws an\n"
+          "object layer of --db on that frame as its rules choose (icons, decluttered labels, draped\n"
+          "lines, extruded shapes; each anchor at the drawn terrain's height). A 'terralod hybrid'\n"
           "database is drawn from its own tree (TIN near, grid far), without layers.\n\n"
           "Mesh: the VIEW-DEPENDENT selection of the pm/ runtime (CollapseDag + SelectiveRefinement,\n"
           "one update from the camera): every collapse is kept only where its error, projected from the\n"
@@ -94,7 +97,8 @@ CommandSpec view_spec() {
               {"--stats", "FILE.json", "write statistics and timings as JSON"},
               {"--morph-to", "CAMERA",
                "with --input: end camera X,Y,Z,YAW,PITCH,FOVY of a geomorph from --camera"},
-              {"--frames", "N", "images of the --morph-to transition (2..10000, default 2)"}},
+              {"--frames", "N", "images of the --morph-to transition (2..10000, default 2)"},
+              objects_option_spec()},
              concat(layer_option_specs(), build_option_specs())),
       dem_option_specs());
   return s;
@@ -379,10 +383,12 @@ int cmd_view(const Args& a) {
   if (!stats_path.empty()) check_output_folder(stats_path);
   if (a.has("--db") == a.has("--input")) throw UsageError("view needs exactly one of '--input' and '--db'");
   if (a.has("--db") && a.has("--uniform")) throw UsageError("--uniform is for --input (a .pm file or a DEM)");
+  if (a.has("--objects") && !a.has("--db")) throw UsageError("--objects needs --db (a block database)");
   if (a.has("--db")) {
     if (blocks::BlockDatabase::open(a.get("--db")).info().kind != "hybrid")
       return view_blocks(a, view.camera, tau);
     if (!layer_specs.empty()) throw UsageError("--layer draws on block databases, not on a hybrid one");
+    if (a.has("--objects")) throw UsageError("--objects draws on block databases, not on a hybrid one");
     if (a.has("--stats")) throw UsageError("--stats is not available for a hybrid database");
     return view_hybrid(a.get("--db"), view.camera, tau, out, dump, a.has("--wireframe"));
   }

@@ -1,6 +1,7 @@
 // terralod view --db terrain.db: one frame of a block database's runtime (blocks::TerrainRuntime:
 // the approximation tree from its root, coarse nodes, stand-ins and refined PM blocks, every
-// load this view needs finished) rendered offscreen into a PNG, with texture layers per patch.
+// load this view needs finished) rendered offscreen into a PNG, with texture layers per patch and
+// map objects (--objects) placed on and drawn over the drawn terrain.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -10,7 +11,9 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "flight_objects.hpp"
 #include "layer_options.hpp"
+#include "object_drawing.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/view.hpp"
@@ -68,6 +71,12 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
            s.missing_in_view ? strf(", %zu needed blocks missing", s.missing_in_view).c_str() : "",
            format_duration(s.update_ms).c_str(), format_duration(first.update_ms).c_str()));
 
+  // Map objects (--objects): placed on this frame's drawn terrain, drawn after it.
+  std::optional<tb::ObjectPlacer> objects = object_placer(a, path);
+  if (objects) objects->place(rt, view);
+  std::optional<ObjectDrawing> drawing;
+  ObjectDrawStats drawn;
+
   // Texture layers per drawn patch, from the texture trees over the drawn tree.
   std::optional<LayerSetup> layers;
   if (!specs.empty()) {
@@ -100,7 +109,9 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
     const rd::MeshId id = r.upload(sorted);
     const std::vector<rd::LayeredItem> items = layers->items(r, id, f);
     draw_ms = r.draw(cam, layers->styles(), layers->lens(), items).draw_ms;
+    if (objects) drawn = drawing.emplace(*ctx, *objects).draw(r, *objects, rt, view);
     img = r.read_color();
+    drawing.reset();  // before its renderer
     texture_bytes = layers->resident_bytes(), texture_patches = f.stats.wanted, gamma_used = f.stats.gamma_px;
     print_line(strf("textures: %zu patches in %zu groups, gamma %g px^2%s, %s resident (budget %s)",
                     texture_patches, f.groups.size(), gamma_used,
@@ -112,8 +123,11 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
     rd::TerrainRenderer r(*ctx, o);
     const rd::MeshId id = r.upload(dm);
     draw_ms = r.draw(cam, {{id, 0.0f}}).draw_ms;
+    if (objects) drawn = drawing.emplace(*ctx, *objects).draw(r, *objects, rt, view);
     img = r.read_color();
+    drawing.reset();  // before its renderer
   }
+  if (objects) print_line(objects_line(*objects) + "; " + drawn_line(drawn));
   rd::write_png(img, out);
   print_line(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height,
                   ctx->info().renderer.c_str(), format_duration(draw_ms).c_str(), out.c_str(),
@@ -139,6 +153,16 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
     j.field("fallback_nodes", std::uint64_t(s.fallback_nodes));
     j.field("resident_bytes", std::uint64_t(s.resident_bytes));
     j.field("bytes_read", std::uint64_t(s.bytes_read_total));
+    if (objects) {
+      j.begin_object("objects");
+      j.field("placed", std::uint64_t(objects->placed().size()));
+      j.field("icons", std::uint64_t(drawn.icons));
+      j.field("labels_shown", std::uint64_t(drawn.labels_shown));
+      j.field("label_candidates", std::uint64_t(drawn.label_candidates));
+      j.field("line_triangles", std::uint64_t(drawn.line_triangles));
+      j.field("shape_triangles", std::uint64_t(drawn.shape_triangles));
+      j.end_object();
+    }
     if (layers) {
       j.field("texture_bytes", std::uint64_t(texture_bytes));
       j.field("texture_patches", std::uint64_t(texture_patches));

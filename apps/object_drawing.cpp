@@ -62,7 +62,6 @@ ObjectDrawStats ObjectDrawing::draw(render::FrameSource& frame, const blocks::Ob
     const glm::dvec3 anchor{p.anchor.x, p.anchor.y, p.anchor.z};
     switch (p.draw) {
       case blocks::Representation::Icon:
-      case blocks::Representation::Symbol:
         icons_.push_back({anchor, icon_style_[m.layer], rules.icon_size_m()});
         break;
       case blocks::Representation::Label: {
@@ -100,6 +99,7 @@ ObjectDrawStats ObjectDrawing::draw(render::FrameSource& frame, const blocks::Ob
         }
         break;
       }
+      case blocks::Representation::Symbol:  // in its texture layer ('terralod texture symbols')
       case blocks::Representation::None:
         break;
     }

@@ -9,7 +9,8 @@
 //           (object_drape.hpp) as a ribbon of line_width_m;
 //   shape   a polygon extruded from the drawn terrain (object_shapes.hpp; a line feature is drawn
 //           as its ribbon);
-//   symbol  drawn as an icon (thematic texture symbols are the texture layers' business).
+//   symbol  not drawn here: a 2D symbol lives in a thematic texture layer made from the object
+//           layer ('terralod texture symbols'), drawn with the terrain's texture layers.
 //
 // Usage:
 //   cli::ObjectDrawing drawing(ctx, placer);            // icon styles, the label font

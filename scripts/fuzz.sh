@@ -14,7 +14,7 @@ cd "$(dirname "$0")/.."
 secs="${1:-60}"
 shift || true
 targets=("$@")
-((${#targets[@]})) || targets=(fuzz_pm_decoder fuzz_dem_reader fuzz_camera_path fuzz_block_database fuzz_tree_decoder fuzz_block_summaries fuzz_mesh_reader fuzz_json)
+((${#targets[@]})) || targets=(fuzz_pm_decoder fuzz_dem_reader fuzz_camera_path fuzz_block_database fuzz_tree_decoder fuzz_block_summaries fuzz_mesh_reader fuzz_json fuzz_object_rules)
 [[ "$secs" =~ ^[0-9]+$ ]] || { echo "fuzz.sh: SECONDS_PER_TARGET must be a whole number, not '$secs'" >&2; exit 2; }
 
 # Debian 12: clang 14 is the default clang; libFuzzer's runtime is in libclang-rt-14-dev.

@@ -41,6 +41,9 @@
 //     a stored texture layer record and a --rules file (valid), every escape with a lone
 //     surrogate, numbers out of range, a trailing comma, a key twice, 64 and 65 nested levels,
 //     truncated input.
+//   fuzz_object_rules/* (seeds, kept as the rules' edge cases): the header's distance example
+//     with every optional key, screen-size ranges, a none range before a drawing one, limits
+//     near the largest double, and the smallest positive limit beside a fractional quad count.
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -72,6 +75,7 @@ extern "C" int terralod_fuzz_dem_reader_init(int* argc, char*** argv);
 extern "C" int terralod_fuzz_mesh_reader(const std::uint8_t* data, std::size_t size);
 extern "C" int terralod_fuzz_mesh_reader_init(int* argc, char*** argv);
 extern "C" int terralod_fuzz_json(const std::uint8_t* data, std::size_t size);
+extern "C" int terralod_fuzz_object_rules(const std::uint8_t* data, std::size_t size);
 
 namespace {
 
@@ -128,6 +132,8 @@ TEST(FuzzRegressions, MeshReader) {
 }
 
 TEST(FuzzRegressions, Json) { EXPECT_GE(replay("fuzz_json", terralod_fuzz_json), 9u); }
+
+TEST(FuzzRegressions, ObjectRules) { EXPECT_GE(replay("fuzz_object_rules", terralod_fuzz_object_rules), 4u); }
 
 TEST(FuzzRegressions, DemReader) {
   int argc = 0;
