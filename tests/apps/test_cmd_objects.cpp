@@ -206,6 +206,32 @@ TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
   EXPECT_NE(out.find("name,kind,x,y,z,ground_z"), std::string::npos) << out;
 }
 
+// terralod view --db --objects: the frame with the objects drawn (the summary line counts them,
+// the PNG differs from the same view without them, --stats records them); --objects needs --db.
+TEST_F(ObjectsCli, ViewDrawsObjectLayers) {
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
+            0);
+  const std::string view =
+      "view --db " + quote(db()) + " --camera 500900,4999900,700,0,-30,60 --size 320x240";
+  std::string out;
+  ASSERT_EQ(cli_.run(view + " --objects huts --out " + quote(file("with.png")) + " --stats " +
+                         quote(file("with.json")),
+                     &out),
+            0);
+  EXPECT_NE(out.find("objects 1 in view"), std::string::npos) << out;
+  EXPECT_NE(out.find("drawn: 1 icons"), std::string::npos) << out;
+  const std::string stats = terralod::test::slurp(file("with.json"));
+  EXPECT_NE(stats.find("\"placed\": 1,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"icons\": 1,"), std::string::npos) << stats;
+  ASSERT_EQ(cli_.run(view + " --out " + quote(file("without.png")), &out), 0);
+  EXPECT_NE(bytes_of(file("with.png")), bytes_of(file("without.png")));
+  EXPECT_EQ(
+      cli_.run("view --input x.hgt --camera 0,0,0,0,0,60 --out " + quote(file("x.png")) + " --objects huts",
+               &out),
+      2);
+  EXPECT_NE(out.find("--objects needs --db"), std::string::npos) << out;
+}
+
 #ifdef TERRALOD_FLY
 // A building (a 47 m x 44 m square, 40 m high) north-east of the Hut, and a road across the
 // terrain, in WGS 84.
