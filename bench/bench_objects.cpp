@@ -196,6 +196,9 @@ int main(int argc, char** argv) {
         "centre median %.3f ms\n",
         frames, placer.objects().size(), pct(place_ms, 0.5), pct(place_ms, 0.99), pct(in_view, 0.5),
         pct(tested, 0.5), pct(triangles, 0.5), pct(index_ms, 0.5), pct(pick_ms, 0.5));
+    std::printf(
+        "memory: %.0f bytes per object (ObjectPlacer::memory_bytes, %zu objects with their attributes)\n",
+        double(ruled.memory_bytes()) / double(ruled.objects().size()), ruled.objects().size());
     const double med = pct(pipeline_ms, 0.5);
     std::printf(
         "with rules: placement + rules + decluttering thread CPU median %.3f ms, p99 %.3f ms (objects tested "

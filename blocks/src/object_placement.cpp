@@ -148,6 +148,22 @@ ObjectPlacer::ObjectPlacer(const BlockDatabase& db, const std::vector<std::strin
   }
 }
 
+std::size_t ObjectPlacer::memory_bytes() const {
+  // A std::string's own buffer only when it outgrew the small-string buffer inside it.
+  auto heap = [](const std::string& t) { return t.capacity() > 15 ? t.capacity() + 1 : 0; };
+  std::size_t n = objects_.capacity() * sizeof(MapObject) + placed_.capacity() * sizeof(PlacedObject);
+  for (const MapObject& m : objects_) {
+    n += heap(m.name) + m.feature.rings.capacity() * sizeof(std::vector<WorldPoint>) +
+         m.feature.attributes.capacity() * sizeof(ObjectAttribute);
+    for (const auto& ring : m.feature.rings) n += ring.capacity() * sizeof(WorldPoint);
+    for (const ObjectAttribute& a : m.feature.attributes) n += heap(a.name) + heap(a.value);
+  }
+  for (std::size_t l = 0; l < layers_.size(); ++l)
+    n += start_[l].capacity() * 4 + items_[l].capacity() * 4 +
+         item_anchors_[l].capacity() * sizeof(WorldPoint);
+  return n;
+}
+
 std::size_t ObjectPlacer::layer_index(const std::string& layer) const {
   for (std::size_t l = 0; l < layers_.size(); ++l)
     if (layers_[l].name == layer) return l;

@@ -375,6 +375,9 @@ TEST(ObjectPlacement, RulesChooseTheDrawingAndObjectsBeyondThemCostNothing) {
   EXPECT_EQ(placer.rules(0).priority_field(), "name");
   EXPECT_EQ(placer.objects()[0].priority, 0.0);  // "p0" is no number: priority 0
   EXPECT_EQ(placer.objects()[kPoints + 1].extent_m, 30.0);
+  // Every object, its ring and its attributes at least.
+  EXPECT_GE(placer.memory_bytes(), placer.objects().size() * (sizeof(tb::MapObject) + sizeof(tb::WorldPoint) +
+                                                              sizeof(tb::ObjectAttribute)));
   tb::TerrainRuntime rt(s.db);
   std::size_t icons = 0, labels = 0, beyond = 0, tested = 0;
   for (int f = 0; f < 6; ++f) {
