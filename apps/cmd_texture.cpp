@@ -1,6 +1,6 @@
-// terralod texture add|shade|thematic|export: texture layers of a block database (an image, a
-// shading texture or a thematic texture computed from the full-resolution terrain), stored as
-// pyramid and texture-tree tiles.
+// terralod texture add|shade|thematic|symbols|export: texture layers of a block database (an
+// image, a shading texture or a thematic texture computed from the full-resolution terrain, or
+// an object layer's symbols), stored as pyramid and texture-tree tiles.
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -25,6 +25,7 @@
 #include "terralod/render/thematic_texture.hpp"
 #include "terralod/render/topographic_texture.hpp"
 #include "texture_rules.hpp"
+#include "texture_symbols.hpp"
 
 namespace terralod::cli {
 namespace {
@@ -300,7 +301,7 @@ int texture_export(const Args& a, const std::string& path) {
 CommandSpec texture_spec() {
   CommandSpec s;
   s.name = "texture";
-  s.positionals = "add|shade|thematic|export DB";
+  s.positionals = "add|shade|thematic|symbols|export DB";
   s.min_positionals = s.max_positionals = 2;
   s.summary =
       "Add, compute (topographic shading, thematic maps) or export texture layers of a block database.";
@@ -328,6 +329,14 @@ CommandSpec texture_spec() {
       "          max_texel_m is >= its texel size (2^k x the mean x/y sample spacing, metres), else\n"
       "          by the last rule: {\"generalise\": \"mean\", \"rules\": [{\"max_texel_m\": 60,\n"
       "          \"ramp\": \"0:ffffff,45:a00000\", \"bands\": true}, {\"ramp\": \"0:ffffff,45:606060\"}]}.\n"
+      "  symbols --layer NAME --objects OBJLAYER [--color RRGGBB[AA]] [--symbol-px N]: the objects of\n"
+      "          the object layer OBJLAYER that its design rules draw as \"symbol\", as discs of N\n"
+      "          texels (default 7) in the colour (default c81e1e) with a 1-texel dark outline at\n"
+      "          each object's anchor, anti-aliased, on a transparent layer. Level k (texels of\n"
+      "          t_k = 2^k x the mean x/y sample spacing) shows the objects the rules draw as\n"
+      "          symbols at d_k = t_k x 623.5 / sqrt(1) metres, the distance at which a 1280 x 720,\n"
+      "          60 deg view (focal 623.5 px) sees one texel as gamma = 1 pixel (screen-size rules:\n"
+      "          the object's extent at d_k). Symbols keep their size in texels at every level.\n"
       "  export  --layer NAME [--level K] --out FILE.tif|FILE.png: pyramid level K (0 = full size).";
   s.options = {
       {"--layer", "NAME", "texture layer name", true},
@@ -341,8 +350,12 @@ CommandSpec texture_spec() {
       {"--ramp", "STOPS", "thematic: colour stops V:RRGGBB[AA],... (values increasing)"},
       {"--bands", "", "thematic: constant colour bands between the stops"},
       {"--rules", "FILE", "thematic: JSON design rules by level of detail (not with --ramp/--bands)"},
-      {"--max-texture-size", "N", "add/shade/thematic: renderer texture limit, pixels (default 1024)"},
-      {"--power-of-two", "", "add/shade/thematic: texture-tree patches of power-of-two sizes"},
+      {"--objects", "OBJLAYER", "symbols: the object layer whose symbols are drawn"},
+      {"--color", "RRGGBB[AA]", "symbols: symbol colour (default c81e1e, opaque)"},
+      {"--symbol-px", "N", "symbols: symbol diameter in texels, >= 1 (default 7)"},
+      {"--max-texture-size", "N",
+       "add/shade/thematic/symbols: renderer texture limit, pixels (default 1024)"},
+      {"--power-of-two", "", "add/shade/thematic/symbols: texture-tree patches of power-of-two sizes"},
       {"--level", "K", "export: pyramid level (default 0)"},
       {"--out", "FILE", "export: output .tif or .png"},
   };
@@ -354,8 +367,14 @@ int cmd_texture(const Args& a) {
   if (verb == "add") return texture_add(a, path);
   if (verb == "shade") return texture_shade(a, path);
   if (verb == "thematic") return texture_thematic(a, path);
+  if (verb == "symbols")
+    return texture_symbols(a, path,
+                           [&](tb::BlockDatabase& db, tr::LayerRecord& rec, const PyramidWriter& write) {
+                             require_complete_blocks(db);
+                             store_computed(db, path, rec, a, write);
+                           });
   if (verb == "export") return texture_export(a, path);
-  throw UsageError("unknown action '" + verb + "' (add, shade, thematic or export)");
+  throw UsageError("unknown action '" + verb + "' (add, shade, thematic, symbols or export)");
 }
 
 }  // namespace terralod::cli

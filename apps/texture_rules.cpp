@@ -40,6 +40,16 @@ std::string read_text(const std::string& path) {
 
 }  // namespace
 
+std::optional<tr::Rgba> parse_hex_color(const std::string& hex) {
+  if ((hex.size() != 6 && hex.size() != 8) ||
+      hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+    return std::nullopt;
+  tr::Rgba c{0, 0, 0, 255};
+  for (std::size_t k = 0; k < hex.size() / 2; ++k)
+    c[k] = std::uint8_t(std::stoul(hex.substr(2 * k, 2), nullptr, 16));
+  return c;
+}
+
 std::vector<tr::ColorRamp::Stop> parse_ramp(const std::string& text, const std::string& what) {
   const auto bad = [&](const std::string& why) {
     return UsageError(what + ": " + why + " in '" + text + "' (expected V:RRGGBB[AA],V:RRGGBB[AA],...)");
@@ -54,14 +64,10 @@ std::vector<tr::ColorRamp::Stop> parse_ramp(const std::string& text, const std::
     const double value = std::strtod(v.c_str(), &end);
     if (v.empty() || *end != '\0' || !std::isfinite(value) || !std::isfinite(float(value)))
       throw bad("'" + v + "' is not a number (a finite 32-bit float)");
-    if ((hex.size() != 6 && hex.size() != 8) ||
-        hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
-      throw bad("'" + hex + "' is not a colour RRGGBB or RRGGBBAA");
-    tr::Rgba c{0, 0, 0, 255};
-    for (std::size_t k = 0; k < hex.size() / 2; ++k)
-      c[k] = std::uint8_t(std::stoul(hex.substr(2 * k, 2), nullptr, 16));
+    const std::optional<tr::Rgba> c = parse_hex_color(hex);
+    if (!c) throw bad("'" + hex + "' is not a colour RRGGBB or RRGGBBAA");
     if (!stops.empty() && !(float(value) > stops.back().value)) throw bad("values not strictly increasing");
-    stops.push_back({float(value), c});
+    stops.push_back({float(value), *c});
   }
   if (stops.empty()) throw bad("no stops");
   return stops;

@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,9 @@
 #include "terralod/render/thematic_texture.hpp"
 
 namespace terralod::cli {
+
+/// "RRGGBB" or "RRGGBBAA" (hex digits, either case; alpha 255 when absent), else nullopt.
+std::optional<render::Rgba> parse_hex_color(const std::string& hex);
 
 /// "V:RRGGBB[AA],V:RRGGBB[AA],...": the stops of a colour ramp, values strictly increasing.
 /// UsageError "<what>: <why> in '<text>' (expected V:RRGGBB[AA],...)"; `what` names the
