@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -17,6 +18,7 @@
 
 #include "commands.hpp"
 #include "flight_log.hpp"
+#include "flight_objects.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -74,6 +76,15 @@ CommandSpec fly_spec() {
       "seam_triangles. --dump-meshes also writes each frame's drawn mesh as DIR/frame_NNNNN.ply\n"
       "(binary little-endian, double x y z in the world frame at the displayed heights, int faces,\n"
       "counter-clockwise seen from above).\n\n"
+      "--objects NAME (an object layer of --db, from 'terralod objects add'; repeatable) places the\n"
+      "layer's objects every frame on the terrain as drawn (geomorphs included): each anchor (a\n"
+      "point, a line's midpoint by length, a polygon's area centroid) takes the drawn mesh's height\n"
+      "under it; objects outside the frustum or over nothing drawn are left out (and cost nothing\n"
+      "beyond their grid cell's frustum test). The summary gives the objects placed per frame and\n"
+      "the placement's thread CPU time. --dump-objects also writes DIR/objects_NNNNN.csv per frame:\n"
+      "name,kind,x,y,z,ground_z (name: the layer's label field, else the attribute 'name', else the\n"
+      "feature id; x, y, z: the anchor as drawn, world frame; ground_z: the drawn terrain's height\n"
+      "under the anchor, equal to z while anchors stand on the ground).\n\n"
       "--speed-factor K paces frame f to start no earlier than f / (60 K) seconds after the first\n"
       "(K = 1: real time, 2: twice as fast; 0: no pacing, as fast as the CPU goes). Loading runs in\n"
       "real time, so K decides how much time the loader gets per frame.";
@@ -85,6 +96,8 @@ CommandSpec fly_spec() {
       {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
       {"--triangles", "N", "triangle-budget mode: regulate tau to hold about N triangles (default off)"},
       {"--dump-meshes", "", "also write every frame's drawn mesh as DIR/frame_NNNNN.ply"},
+      objects_option_spec(),
+      {"--dump-objects", "", "with --objects: write every frame's placed objects as DIR/objects_NNNNN.csv"},
       {"--no-prefetch", "", "no flight-path prediction (load what the view and the region need)"},
       {"--speed-factor", "K", "replay speed relative to real time, >= 0 (default 1; 0 = unpaced)"},
       {"--morph", "SECONDS", "geomorph duration, >= 0 (default 0.5; 0 pops)"},
@@ -113,7 +126,8 @@ int cmd_fly(const Args& a) {
   if (!(budget_mb > 0))
     throw UsageError("option '--budget' must be > 0 megabytes, not '" + a.get("--budget") + "'");
   const long long target = a.has("--triangles") ? a.get_int("--triangles", 0, 1, 1000000000) : 0;
-  const bool dump = a.has("--dump-meshes");
+  const bool dump = a.has("--dump-meshes"), dump_objects = a.has("--dump-objects");
+  if (dump_objects && !a.has("--objects")) throw UsageError("--dump-objects needs --objects");
 
   const std::vector<PathRow> path = read_path(path_csv);
   print_line(
@@ -135,6 +149,11 @@ int cmd_fly(const Args& a) {
   print_line(strf("open  %s: %d x %d samples, %d x %d blocks of %d, tree of %zu nodes, in %s",
                   db_path.c_str(), grid.grid_width(), grid.grid_height(), grid.cols(), grid.rows(),
                   grid.block_size(), rt.tree().size(), format_duration(ms_since(t)).c_str()));
+
+  std::optional<blocks::ObjectPlacer> objects = object_placer(a, db_path);
+  std::vector<double> placed, place_cpu;
+  if (objects)
+    print_line(strf("read  %zu objects of %zu layers", objects->objects().size(), objects->layers().size()));
 
   FlightLog log(out, /*drawing=*/false);  // frames.csv appears only when the whole flight succeeded
   std::vector<double> ms, cpu, sel_ms, res_ms, ref_ms, seam_ms;
@@ -169,6 +188,14 @@ int cmd_fly(const Args& a) {
       over_tau += s.bound_px > s.tolerance_px;
     }
     log.row({f, s.time_s, cam, s});
+    if (objects) {
+      const double c0 = pm::thread_cpu_ms();
+      objects->place(rt, pm::View(cam));
+      place_cpu.push_back(pm::thread_cpu_ms() - c0);
+      placed.push_back(double(objects->placed().size()));
+      if (dump_objects)
+        write_objects_csv(objects->placed(), rt, (fs::path(out) / strf("objects_%05zu.csv", f)).string());
+    }
     if (dump) {
       const blocks::DrawnMesh& m = rt.drawn_mesh();
       pm::TriangleMeshData d;
@@ -204,8 +231,14 @@ int cmd_fly(const Args& a) {
            "bound / "
            "tau %.3f)",
            complete, path.size(), complete - over_tau, worst_complete));
-  print_line(strf("write %s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "",
-                  format_duration(ms_since(t_start)).c_str()));
+  if (objects)
+    print_line(
+        strf("objects placed per frame median %.0f, max %.0f; placement thread CPU median %.3f ms, p99 "
+             "%.3f ms",
+             pm::quantile(placed, 0.5), pm::quantile(placed, 1.0), pm::quantile(place_cpu, 0.5),
+             pm::quantile(place_cpu, 0.99)));
+  print_line(strf("write %s%s%s in %s", log.path().c_str(), dump ? " and the frame meshes" : "",
+                  dump_objects ? " and the objects" : "", format_duration(ms_since(t_start)).c_str()));
   return 0;
 }
 

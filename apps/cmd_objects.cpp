@@ -102,9 +102,13 @@ CommandSpec objects_spec() {
       "  add   --layer NAME --input FILE [--kind icon|label|shape|line] [--label-field F]\n"
       "        [--height-field F] [--rules RULES.json]: kind defaults from the geometry (points\n"
       "        icon, lines line, polygons shape; label also takes points). --label-field and\n"
-      "        --height-field name fields of the file (the height one numeric). --rules is checked\n"
-      "        to be JSON and stored as given: the design rules by level of detail that read it\n"
-      "        come in a later part of issue 19 (nothing draws object layers yet).\n"
+      "        --height-field name fields of the file (the height one numeric). --rules is the\n"
+      "        layer's design rules by level of detail, checked and stored with it: for each\n"
+      "        camera-distance range (or screen-size range) draw icon, label, shape, line, symbol\n"
+      "        or none, e.g. {\"ranges\": [{\"max_distance_m\": 2000, \"draw\": \"icon\"},\n"
+      "        {\"max_distance_m\": 30000, \"draw\": \"label\"}, {\"draw\": \"none\"}],\n"
+      "        \"priority_field\": \"population\"} (format: blocks/object_rules.hpp). Without\n"
+      "        --rules every object is drawn as the layer's kind at every distance.\n"
       "  list  one line per layer: name, kind, features, source file, CRS.";
   s.options = {
       {"--layer", "NAME", "add: object layer name (unique in the database)"},
@@ -112,7 +116,7 @@ CommandSpec objects_spec() {
       {"--kind", "K", "add: icon, label, shape or line (default: from the geometry)"},
       {"--label-field", "F", "add: the attribute that labels a feature"},
       {"--height-field", "F", "add: the numeric attribute that gives a shape's height"},
-      {"--rules", "FILE", "add: JSON design rules, stored for a later part (checked to be JSON)"},
+      {"--rules", "FILE", "add: design rules by level of detail (JSON; errors name the file, line, column)"},
   };
   return s;
 }

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "dem_options.hpp"
+#include "flight_objects.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 
@@ -34,7 +35,8 @@ CommandSpec fly_spec() {
       "on/off; X wireframe; L freeze the level of detail (fly around it to inspect it from\n"
       "outside); B triangle-budget mode (holds --budget triangles by regulating tau over the\n"
       "whole frame); [ and ] tau down/up; C start/stop recording the flight to --record; P\n"
-      "screenshot; Esc quit. G, B, [ and ] take effect at the next frame; nothing is read again.\n"
+      "screenshot; Esc quit; a click picks and O switches object layers (--objects, below). G, B, [\n"
+      "and ] take effect at the next frame; nothing is read again.\n"
       "Texture layers (--layer NAME, from --texture-db, which defaults to --db): with --db each\n"
       "drawn patch gets its texture from the layer's texture tree, the coarsest whose texel covers\n"
       "at most --gamma pixels^2 on screen (the parent's texture while one loads; gamma is raised\n"
@@ -42,6 +44,12 @@ CommandSpec fly_spec() {
       "layer 1..9 on/off; H switches the highlight lens, which follows the ground point at the\n"
       "screen's centre, or under the mouse while the right button is held (X shows the untextured\n"
       "wireframe).\n"
+      "Map objects (--objects NAME, an object layer of --db from 'terralod objects add'; repeatable)\n"
+      "are placed every frame on the terrain as drawn (each anchor at the drawn mesh's height, so\n"
+      "objects never float or sink as the level of detail changes; drawing them comes later): the\n"
+      "HUD counts those in view. A click (left button released within 0.25 s of its press) picks\n"
+      "through the pixel: the HUD shows the nearest object within 8 pixels (name, kind, layer and\n"
+      "attributes) or the ground point on the drawn terrain. O switches the object layers on/off.\n"
       "The heads-up display shows frames per second, tau, the bound of what is drawn, triangles,\n"
       "update and draw times, nodes drawn (PM blocks, blocks drawn as their stand-ins, coarse\n"
       "nodes, ancestors drawn for missing blocks), blocks resident/loading/evicted, prefetch misses, bytes "
@@ -83,6 +91,7 @@ CommandSpec fly_spec() {
       {"--hud", "", "headless: draw the heads-up display into the frames (without its timings)"},
       {"--wireframe", "", "draw the triangle edges over the shading (the window's X toggles it)"},
   };
+  s.options.push_back(objects_option_spec());
   for (OptionSpec& o : layer_option_specs()) s.options.push_back(std::move(o));
   return s;
 }
@@ -106,6 +115,11 @@ std::optional<LayerSetup> layer_setup(const Args& a) {
   const std::vector<render::PatchDomain> tree =
       render::tree_domains(blocks::BlockDatabase::open(a.get("--db")));
   return LayerSetup::open(a.get("--texture-db", a.get("--db")), specs, lens, lo, &tree);
+}
+
+std::optional<blocks::ObjectPlacer> fly_objects(const Args& a) {
+  if (a.has("--objects") && !a.has("--db")) throw UsageError("--objects needs --db (the layers are in it)");
+  return a.has("--objects") ? object_placer(a, a.get("--db")) : std::nullopt;
 }
 
 std::pair<int, int> parse_size(const Args& a) {

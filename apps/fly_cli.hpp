@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "cli_common.hpp"
+#include "flight_objects.hpp"
 #include "fly_source.hpp"
 #include "layer_options.hpp"
 
@@ -14,6 +15,10 @@ namespace terralod::fly {
 
 // What `terralod-fly --help` prints and the parser accepts.
 cli::CommandSpec fly_spec();
+
+// --objects NAME... of --db (flight_objects.hpp); nullopt without --objects. UsageError when
+// there is no --db.
+std::optional<blocks::ObjectPlacer> fly_objects(const cli::Args& a);
 
 // --size WxH, each 1..16384 (default 1280x720).
 std::pair<int, int> parse_size(const cli::Args& a);

@@ -68,6 +68,7 @@ int run_headless(const Args& a) {
   if (a.has("--path")) path = pm::read_camera_path(a.get("--path"), po);
   const bool dump = a.has("--dump-meshes"), hud = a.has("--hud");
   std::optional<LayerSetup> layers = layer_setup(a);
+  std::optional<blocks::ObjectPlacer> objects = fly_objects(a);
   const std::unique_ptr<LodSource> t = open_terrain(a);
   if (path.empty()) {
     path = default_flight(*t, int(a.get_int("--frames", 240, 1, 1000000)), w, h);
@@ -89,13 +90,17 @@ int run_headless(const Args& a) {
   }
   FlightLog log(out, /*drawing=*/true);  // the columns of 'terralod fly', then the drawing's
   ProgressBar bar("render " + std::to_string(frames) + " frames");
-  std::vector<double> update_ms, update_cpu_ms, frame_ms, triangles, resident;
+  std::vector<double> update_ms, update_cpu_ms, frame_ms, triangles, resident, placed;
   double worst_bound = 0, wait_ms = 0;  // worst bound / tau of the frames with nothing missing
   std::size_t complete = 0;
   for (long long k = 0; k < frames; ++k) {
     pm::Camera c = path[std::size_t(k)];
     t->fit_clip(c);
     const FrameRecord r = p.frame(c, double(k) / 60.0, /*wait=*/true);
+    if (objects && t->runtime()) {
+      objects->place(*t->runtime(), pm::View(c));
+      placed.push_back(double(objects->placed().size()));
+    }
     update_ms.push_back(r.lod.update_ms);
     update_cpu_ms.push_back(r.lod.update_cpu_ms);
     frame_ms.push_back(r.lod.update_ms + r.upload_ms + r.draw_ms);
@@ -117,6 +122,7 @@ int run_headless(const Args& a) {
     if (hud) {
       std::vector<std::string> lines = lod_lines(r, t->options(), /*timings=*/false);
       lines[0] = strf("frame %lld   ", k) + lines[0];
+      if (objects) lines.push_back(strf("objects %zu in view", objects->placed().size()));
       overlay_text(img, render::rasterize_text(lines), render::HudOptions{}.margin);
     }
     render::write_png(img, (fs::path(out) / (std::string(name) + ".png")).string());
@@ -135,6 +141,9 @@ int run_headless(const Args& a) {
       pm::quantile(frame_ms, 0.5), pm::quantile(frame_ms, 0.99), pm::quantile(update_ms, 0.5),
       pm::quantile(update_ms, 0.99), pm::quantile(update_cpu_ms, 0.5), pm::quantile(update_cpu_ms, 0.99),
       pm::quantile(triangles, 0.5), pm::quantile(triangles, 1.0));
+  if (!placed.empty())
+    std::printf("headless: objects in view median %.0f, max %.0f (of %zu)\n", pm::quantile(placed, 0.5),
+                pm::quantile(placed, 1.0), objects->objects().size());
   if (!resident.empty())
     std::printf("headless: blocks resident median %.0f, max %.0f; waited %s for block loads in all\n",
                 pm::quantile(resident, 0.5), pm::quantile(resident, 1.0), format_duration(wait_ms).c_str());

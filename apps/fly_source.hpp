@@ -80,6 +80,9 @@ class LodSource {
   virtual std::size_t budget_share(std::size_t budget) const = 0;
   // The approximation-tree node of each triangle of the last mesh (empty: no tree).
   virtual std::span<const std::int64_t> triangle_nodes() const { return {}; }
+  // The block database's runtime (--db), after update() in the frame's state; nullptr for a
+  // single PM.
+  virtual const blocks::TerrainRuntime* runtime() const { return nullptr; }
 };
 
 // The single-PM terrains (fly_pm_source.cpp): a DEM built in memory (`input` names it), a .pm

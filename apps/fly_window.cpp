@@ -1,6 +1,7 @@
 // terralod-fly's window: a GLFW window with flight controls (mouse and keys, terrain following,
-// recording and replay of a path, screenshots), texture-layer switches and a highlight lens, and
-// the heads-up display over every frame.
+// recording and replay of a path, screenshots), texture-layer switches and a highlight lens, map
+// objects placed on the drawn terrain (picked by a click, switched by O), and the heads-up
+// display over every frame.
 #include <GLFW/glfw3.h>
 
 #include <algorithm>
@@ -105,6 +106,7 @@ struct Controls {
 int run_window(const Args& a) {
   const auto [w, h] = parse_size(a);
   std::optional<LayerSetup> layers = layer_setup(a);  // usage errors before the terrain loads
+  std::optional<blocks::ObjectPlacer> objects = fly_objects(a);
   const std::unique_ptr<LodSource> t = open_terrain(a);
   const Extent& ext = t->extent();
   std::vector<pm::Camera> replay;
@@ -152,6 +154,11 @@ int run_window(const Args& a) {
     return edge;
   };
 
+  // A click: the left button released within 0.25 s of its press picks at the release point.
+  bool left_down = false, clicked = false;
+  Clock::time_point pressed_at{};
+  std::array<double, 2> click{0.0, 0.0};
+  std::vector<std::string> picked;  // the last pick's HUD lines
   double fps = 0;
   long long frame = 0;
   bool screenshot_written = false;
@@ -179,6 +186,16 @@ int run_window(const Args& a) {
           layers->styles()[std::size_t(k)].enabled = !layers->styles()[std::size_t(k)].enabled;
       if (pressed(GLFW_KEY_H)) layers->lens().enabled = !layers->lens().enabled;
     }
+    if (objects && pressed(GLFW_KEY_O)) {  // all object layers off when any is on, else all on
+      bool any = false;
+      for (const blocks::ObjectLayerInfo& l : objects->layers()) any |= objects->layer_visible(l.name);
+      for (const blocks::ObjectLayerInfo& l : objects->layers()) objects->set_layer_visible(l.name, !any);
+    }
+    const bool left = glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+    if (left && !left_down) pressed_at = now;
+    if (!left && left_down && now - pressed_at < std::chrono::milliseconds(250))
+      clicked = true, click = cursor_in_window(gw);
+    left_down = left;
     if (pressed(GLFW_KEY_B))
       o.target_triangles = o.target_triangles ? 0 : t->budget_share(budget), options_changed = true;
     if (pressed(GLFW_KEY_LEFT_BRACKET))
@@ -238,6 +255,15 @@ int run_window(const Args& a) {
     }
 
     r = p.frame(cam, time_s, /*wait=*/false);
+    if (objects && t->runtime()) {
+      objects->place(*t->runtime(), pm::View(cam));
+      if (clicked) {
+        const auto hit =
+            objects->pick_pixel(*t->runtime(), click[0] * cam.width_px, click[1] * cam.height_px);
+        picked = pick_lines(hit, *objects);
+        clicked = false;
+      }
+    }
     const pm::RefinementOptions now_o = t->options();
     std::vector<std::string> lines = lod_lines(r, now_o, /*timings=*/true);
     lines[0] = strf("%5.1f fps   ", fps) + lines[0];
@@ -252,6 +278,10 @@ int run_window(const Args& a) {
         on += strf("  %zu:%s%s", k + 1, layers->styles()[k].name.c_str(),
                    layers->styles()[k].enabled ? "" : "(off)");
       lines.push_back(on + (layers->lens().enabled ? "  lens" : ""));
+    }
+    if (objects) {
+      lines.push_back(objects_line(*objects));
+      lines.insert(lines.end(), picked.begin(), picked.end());
     }
     hud.set_lines(lines);
     if (p.drew_layered())

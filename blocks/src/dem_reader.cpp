@@ -24,7 +24,7 @@
 
 #include "dem_frame.hpp"
 #include "gdal_support.hpp"
-#include "void_fill.hpp"
+#include "terralod/blocks/void_fill.hpp"
 
 namespace terralod::blocks {
 
@@ -629,10 +629,8 @@ pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& op
   pm::Heightfield hf(r.width, r.height);
   hf.transform = transform;
   hf.voids.voids = voids;
-  if (voids > 0 && options.fill_voids) {
-    detail::fill_voids_harmonic(r.z, r.width, r.height);
-    hf.voids.filled = voids;
-  } else if (voids > 0) {
+  if (voids > 0 && options.fill_voids) hf.voids.filled = fill_voids(r.z, r.width, r.height).filled;
+  if (hf.voids.filled < voids) {  // not filling, or regions over VoidFillOptions::max_region_cells
     std::vector<std::uint8_t> mask(r.z.size(), 1);
     for (std::size_t i = 0; i < r.z.size(); ++i) {
       if (!std::isfinite(r.z[i])) {

@@ -23,6 +23,7 @@
 #include "block_database_connection.hpp"
 #include "block_database_schema.hpp"
 #include "gdal_support.hpp"
+#include "terralod/blocks/object_rules.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/json.hpp"
@@ -337,9 +338,9 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
   if (o.rules_json) {
     const std::string source = o.rules_source.empty() ? in + ": the rules" : o.rules_source;
     try {
-      pm::parse_json(*o.rules_json, source);
+      parse_object_rules(*o.rules_json, source);  // "<source>: line L, column C: <what>"
     } catch (const pm::JsonError& e) {
-      throw ObjectLayerError(source + ": not JSON text (" + e.what() + ")", ObjectLayerError::Cause::Option);
+      throw ObjectLayerError(e.what(), ObjectLayerError::Cause::Option);
     }
   }
 

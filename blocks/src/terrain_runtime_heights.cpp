@@ -30,7 +30,7 @@ double TerrainRuntime::max_height_at(double x, double y) const {
   return n->bbox.hi.z;
 }
 
-double TerrainRuntime::drawn_height(double x, double y) const {
+const TerrainRuntime::HeightIndex& TerrainRuntime::height_index() const {
   // A bucket grid over the drawn triangles' sample-space boxes, built on the first call after
   // an update: a query then tests the triangles of one bucket (ray marches call it often).
   HeightIndex& ix = height_index_;
@@ -69,6 +69,39 @@ double TerrainRuntime::drawn_height(double x, double y) const {
         for (int i = span[f][0]; i <= span[f][1]; ++i)
           ix.tris[fill[std::size_t(j) * side + i]++] = std::uint32_t(f);
   }
+  return ix;
+}
+
+void TerrainRuntime::drawn_triangles_in(double x0, double y0, double x1, double y1,
+                                        std::vector<std::uint32_t>& out) const {
+  out.clear();
+  const HeightIndex& ix = height_index();
+  const auto [ca, ra] = grid_.to_grid(x0, y0);
+  const auto [cb, rb] = grid_.to_grid(x1, y1);
+  const double c0 = std::min(ca, cb), c1 = std::max(ca, cb), r0 = std::min(ra, rb), r1 = std::max(ra, rb);
+  if (!(c1 >= 0 && r1 >= 0 && c0 <= grid_.grid_width() - 1 && r0 <= grid_.grid_height() - 1)) return;
+  auto cell = [](double v, double w, int n) { return std::clamp(int(std::floor(v / w)), 0, n - 1); };
+  const int i0 = cell(c0, ix.cell_w, ix.nx), i1 = cell(c1, ix.cell_w, ix.nx);
+  const int j0 = cell(r0, ix.cell_h, ix.ny), j1 = cell(r1, ix.cell_h, ix.ny);
+  for (int j = j0; j <= j1; ++j)
+    for (int i = i0; i <= i1; ++i) {
+      const std::size_t b = std::size_t(j) * ix.nx + i;
+      out.insert(out.end(), ix.tris.begin() + ix.start[b], ix.tris.begin() + ix.start[b + 1]);
+    }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
+double TerrainRuntime::drawn_height(double x, double y) const {
+  const HeightIndex& ix = height_index();
+  const std::uint64_t W = std::uint64_t(grid_.grid_width());
+  auto corners = [&](std::size_t f, detail::Tri3& q) {
+    const auto& t = mesh_.triangles[f];
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint64_t sm = mesh_.samples[t[k]];
+      q[k] = {double(sm % W), double(sm / W), mesh_.positions[t[k]].z};
+    }
+  };
   const auto [c, r] = grid_.to_grid(x, y);
   if (!(c >= 0 && r >= 0 && c <= grid_.grid_width() - 1 && r <= grid_.grid_height() - 1))
     return std::numeric_limits<double>::quiet_NaN();

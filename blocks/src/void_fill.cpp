@@ -1,11 +1,13 @@
-// Harmonic (Laplace) inpainting of DEM voids, solved by multigrid-preconditioned conjugate
-// gradients and kept inside each void region's border range exactly.
+// Harmonic (Laplace) inpainting of DEM voids, one 4-connected void region at a time, solved by
+// multigrid-preconditioned conjugate gradients and kept inside the region's border range exactly.
 //
-// Problem: for the void samples V, find z with count_i z_i - sum_{j in N(i)} z_j = 0 for i in V,
-// where N(i) are the 4-neighbours of i inside the grid and valid samples are fixed (Dirichlet
-// data; the grid edge is a natural Neumann boundary). Written as A x = b over the voids:
+// Problem: for the samples V of one void region, find z with count_i z_i - sum_{j in N(i)} z_j = 0
+// for i in V, where N(i) are the 4-neighbours of i inside the grid and valid samples are fixed
+// (Dirichlet data; the grid edge is a natural Neumann boundary). Written as A x = b over V:
 // A_ii = count_i, A_ij = -1 for void neighbours, b_i = sum of valid neighbours. A is symmetric
-// positive definite because every 4-connected void region touches a valid sample.
+// positive definite because the region touches a valid sample. Regions do not interact, so each
+// is solved alone on its box (bounding box + 1 ring, cut by the grid edge), in box coordinates:
+// its bits depend only on that box, whichever window of the grid holds it (void_fill.hpp).
 //
 // Bound: by the discrete maximum principle the solution lies within [lo, hi], the range of the
 // valid samples 4-adjacent to the region. The solver's iterates need not, so afterwards each
@@ -20,17 +22,21 @@
 // coarsest level). Iterations hardly grow with the void's size (measured: 17 for 8e3 voids, 24
 // for 1.1e6 in a 1200-wide disc) where plain CG needs O(D) and Gauss-Seidel O(D^2) for a void D
 // samples across. Time: about 0.8 us per void sample for large voids (1.1e6 voids: 0.9 s).
-// Memory: about 170 bytes per void sample over all levels, plus 4 bytes per grid sample while
-// labelling.
-#include "void_fill.hpp"
+// Memory: about 170 bytes per void sample over all levels, plus 4 bytes per sample of the
+// window (labels) and of the region's box (unknown numbers) while it is solved.
+#include "terralod/blocks/void_fill.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cassert>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <optional>
 
-namespace terralod::blocks::detail {
+#include "terralod/pm/parallel.hpp"
+
+namespace terralod::blocks {
 
 namespace {
 
@@ -225,117 +231,118 @@ double dot(const std::vector<double>& a, const std::vector<double>& b, std::size
   return s;
 }
 
-}  // namespace
+// One void region: its samples are cells[first, first + count) (window indices), its bounding
+// box bbox (window coordinates).
+struct Region {
+  std::size_t first = 0, count = 0;
+  SampleRect bbox;
+};
 
-VoidFillStats fill_voids_harmonic(std::vector<double>& z, int width, int height) {
-  assert(width >= 1 && height >= 1 && z.size() == std::size_t(width) * height);
-  assert(z.size() < std::size_t(kNone));
-  VoidFillStats stats;
-  const std::size_t n = z.size();
-  const std::size_t w = std::size_t(width);
+// What solving one region did.
+struct RegionSolve {
+  bool filled = false;
+  int iterations = 0;
+  double residual = 0.0;
+  int sweeps = 0;
+  double last_change = 0.0;
+};
 
-  double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
-  for (double v : z) {
-    if (std::isfinite(v)) {
-      zmin = std::min(zmin, v);
-      zmax = std::max(zmax, v);
-    } else {
-      ++stats.voids;
-    }
-  }
-  if (stats.voids == 0) return stats;
-  assert(stats.voids < n);
-
-  // 4-connected void regions, breadth-first: each void's region, and each region's bounds.
-  std::vector<std::uint32_t> slot(n, kNone);  // region while labelling, then unknown number
-  std::vector<std::uint32_t> order;           // voids in labelling order
-  std::vector<double> lo, hi;
-  order.reserve(stats.voids);
-  for (std::size_t seed = 0; seed < n; ++seed) {
-    if (std::isfinite(z[seed]) || slot[seed] != kNone) continue;
-    const std::uint32_t region = std::uint32_t(lo.size());
-    double rlo = std::numeric_limits<double>::infinity(), rhi = -rlo;
-    std::size_t q = order.size();
-    order.push_back(std::uint32_t(seed));
-    slot[seed] = region;
-    for (; q < order.size(); ++q) {
-      const std::size_t i = order[q], c = i % w, r = i / w;
-      const bool has[4] = {c > 0, c + 1 < w, r > 0, r + 1 < std::size_t(height)};
-      const std::size_t at[4] = {i - 1, i + 1, i - w, i + w};
-      for (int d = 0; d < 4; ++d) {
-        if (!has[d]) continue;
-        const std::size_t j = at[d];
-        if (std::isfinite(z[j])) {
-          rlo = std::min(rlo, z[j]);
-          rhi = std::max(rhi, z[j]);
-        } else if (slot[j] == kNone) {
-          slot[j] = region;
-          order.push_back(std::uint32_t(j));
-        }
-      }
-    }
-    lo.push_back(rlo);
-    hi.push_back(rhi);
-  }
-  stats.regions = lo.size();
-
-  // Unknowns in red-black order, their bounds, the system A x = b.
-  red_black_order(order, width);
-  const std::size_t m = order.size();
-  std::vector<double> x_lo(m), x_hi(m);
+/// Fills region `id` on `box` (its bounding box plus one ring, cut by the grid edge; window
+/// coordinates, inside the window). Everything is computed in the box's own coordinates and in
+/// an order fixed by them, and only the region's samples and the valid samples 4-adjacent to
+/// them are read (label[j] == id: the region; kNone: valid), so the result depends on nothing
+/// else. Writes only the region's samples of z.
+RegionSolve solve_region(std::vector<double>& z, std::size_t ww, const std::vector<std::uint32_t>& label,
+                         std::uint32_t id, const std::uint32_t* region_cells, std::size_t m, SampleRect box) {
+  RegionSolve out;
+  const std::size_t bw = std::size_t(box.width()), bh = std::size_t(box.height());
+  const auto window_index = [&](std::size_t local) {
+    return (local / bw + std::size_t(box.row0)) * ww + local % bw + std::size_t(box.col0);
+  };
+  // The region's samples as box indices, red-black order (see red_black_order).
+  std::vector<std::uint32_t> order(m);
   for (std::size_t k = 0; k < m; ++k) {
-    x_lo[k] = lo[slot[order[k]]];
-    x_hi[k] = hi[slot[order[k]]];
+    const std::size_t i = region_cells[k];
+    order[k] = std::uint32_t((i / ww - std::size_t(box.row0)) * bw + i % ww - std::size_t(box.col0));
   }
+  red_black_order(order, int(bw));
+
+  // Neighbours of sample k: d = west, east, north, south; -1 outside the box (= outside the grid).
+  const auto neighbours = [&](std::size_t local, std::array<std::ptrdiff_t, 4>& at) {
+    const std::size_t c = local % bw, r = local / bw;
+    at = {c > 0 ? std::ptrdiff_t(local - 1) : -1, c + 1 < bw ? std::ptrdiff_t(local + 1) : -1,
+          r > 0 ? std::ptrdiff_t(local - bw) : -1, r + 1 < bh ? std::ptrdiff_t(local + bw) : -1};
+  };
+  std::array<std::ptrdiff_t, 4> at{};
+
+  // The region's bounds [lo, hi]: the range of its valid 4-neighbours.
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (std::size_t k = 0; k < m; ++k) {
+    neighbours(order[k], at);
+    for (int d = 0; d < 4; ++d) {
+      if (at[d] < 0) continue;
+      const std::size_t j = window_index(std::size_t(at[d]));
+      if (label[j] == id) continue;
+      assert(label[j] == kNone && std::isfinite(z[j]));
+      lo = std::min(lo, z[j]);
+      hi = std::max(hi, z[j]);
+    }
+  }
+  assert(lo <= hi && "a void region with no valid neighbour: the grid is all void");
+  if (!(lo <= hi)) return out;
+  out.filled = true;
+
+  // The system A x = b: A_kk = neighbours in the grid, A_kj = -1 for void neighbours, b_k = sum
+  // of valid neighbours.
+  std::vector<std::uint32_t> slot(bw * bh, kNone);
   for (std::size_t k = 0; k < m; ++k) slot[order[k]] = std::uint32_t(k);
   Level finest;
-  finest.w = width;
-  finest.h = height;
+  finest.w = int(bw);
+  finest.h = int(bh);
   finest.pos = order;
   finest.allocate(m);
   std::vector<double> b(m, 0.0), x(m + 1, 0.0);  // x[m]: the sentinel
   for (std::size_t k = 0; k < m; ++k) {
-    const std::size_t i = order[k], col = i % w, row = i / w;
-    const bool has[4] = {col > 0, col + 1 < w, row > 0, row + 1 < std::size_t(height)};
-    const std::size_t at[4] = {i - 1, i + 1, i - w, i + w};
-    double sum = 0.0;
+    neighbours(order[k], at);
     int valid = 0;
     for (int d = 0; d < 4; ++d) {
-      if (!has[d]) continue;
+      if (at[d] < 0) continue;
       finest.diag[k] += 1.0;
-      if (slot[at[d]] != kNone) {  // a void (valid samples never get a number)
-        finest.nb[k][d] = slot[at[d]];
+      const std::uint32_t s = slot[std::size_t(at[d])];
+      if (s != kNone) {
+        finest.nb[k][d] = s;
         finest.weight[k][d] = 1.0f;
       } else {
-        b[k] += z[at[d]];
-        sum += z[at[d]];
+        b[k] += z[window_index(std::size_t(at[d]))];
         ++valid;
       }
     }
-    // First guess: the mean of the valid neighbours, or the middle of the region's bounds.
-    x[k] = valid > 0 ? sum / valid : 0.5 * (x_lo[k] + x_hi[k]);
+    // First guess: the mean of the valid neighbours, or the middle of the bounds.
+    x[k] = valid > 0 ? b[k] / valid : 0.5 * (lo + hi);
   }
   std::vector<std::uint32_t>().swap(slot);
   finest.finish();
 
   // Preconditioned conjugate gradients (the multigrid is built only when needed).
-  std::vector<double> r(m), p(m + 1, 0.0), q(m), ap(m);
+  const double tolerance = kResidualTolerance * std::max({hi - lo, std::abs(hi), std::abs(lo), 1e-300});
+  std::vector<double> r(m);
   double rmax = 0.0;
   for (std::size_t k = 0; k < m; ++k) {
     r[k] = b[k] - row_product(finest, k, x);
     rmax = std::max(rmax, std::abs(r[k]));
   }
-  const double scale = std::max({zmax - zmin, std::abs(zmax), std::abs(zmin), 1e-300});
-  const double tolerance = kResidualTolerance * scale;
+  std::optional<Multigrid> mg;
+  const Level* A = &finest;
   int it = 0;
   if (rmax > tolerance) {
-    Multigrid mg(std::move(finest));
-    const Level& A = mg.finest();
-    mg.precondition(r, q);
+    mg.emplace(std::move(finest));
+    A = &mg->finest();
+    std::vector<double> p(m + 1, 0.0), q(m), ap(m);
+    mg->precondition(r, q);
     std::copy(q.begin(), q.end(), p.begin());
     double rq = dot(r, q, m);
     while (it < kMaxIterations && rq > 0.0) {
-      for (std::size_t k = 0; k < m; ++k) ap[k] = row_product(A, k, p);
+      for (std::size_t k = 0; k < m; ++k) ap[k] = row_product(*A, k, p);
       const double pap = dot(p, ap, m);
       if (!(pap > 0.0)) break;
       const double alpha = rq / pap;
@@ -347,51 +354,123 @@ VoidFillStats fill_voids_harmonic(std::vector<double>& z, int width, int height)
       }
       ++it;
       if (rmax <= tolerance) break;
-      mg.precondition(r, q);
+      mg->precondition(r, q);
       const double rq_next = dot(r, q, m);
       const double beta = rq_next / rq;
       rq = rq_next;
       for (std::size_t k = 0; k < m; ++k) p[k] = q[k] + beta * p[k];
     }
   }
-  stats.iterations = it;
-  stats.residual = rmax;
+  out.iterations = it;
+  out.residual = rmax;
 
-  // Clip to the region bounds, then Gauss-Seidel sweeps that keep them (see the top).
-  for (std::size_t k = 0; k < m; ++k) z[order[k]] = std::clamp(x[k], x_lo[k], x_hi[k]);
+  // Clip to the bounds, then Gauss-Seidel sweeps that keep them (see the top).
+  for (std::size_t k = 0; k < m; ++k) x[k] = std::clamp(x[k], lo, hi);
   double change = 0.0;
   int sweeps = 0;
   do {
     change = 0.0;
     for (std::size_t k = 0; k < m; ++k) {
-      const std::size_t i = order[k], col = i % w, row = i / w;
-      double s = 0.0;
-      int count = 0;
-      if (col > 0) {
-        s += z[i - 1];
-        ++count;
-      }
-      if (col + 1 < w) {
-        s += z[i + 1];
-        ++count;
-      }
-      if (row > 0) {
-        s += z[i - w];
-        ++count;
-      }
-      if (row + 1 < std::size_t(height)) {
-        s += z[i + w];
-        ++count;
-      }
-      const double next = std::clamp(s / count, x_lo[k], x_hi[k]);
-      change = std::max(change, std::abs(next - z[i]));
-      z[i] = next;
+      const double next = std::clamp((b[k] + neighbour_sum(*A, k, x)) / A->diag[k], lo, hi);
+      change = std::max(change, std::abs(next - x[k]));
+      x[k] = next;
     }
     ++sweeps;
   } while (change > tolerance && sweeps < kPolishSweeps);
-  stats.sweeps = sweeps;
-  stats.last_change = change;
+  out.sweeps = sweeps;
+  out.last_change = change;
+  for (std::size_t k = 0; k < m; ++k) z[window_index(order[k])] = x[k];
+  return out;
+}
+
+}  // namespace
+
+VoidFillStats fill_voids_in_window(std::vector<double>& z, SampleRect window, int grid_width, int grid_height,
+                                   const VoidFillOptions& options) {
+  assert(grid_width >= 1 && grid_height >= 1);
+  assert(window.col0 >= 0 && window.row0 >= 0 && window.col0 <= window.col1 && window.row0 <= window.row1);
+  assert(window.col1 < grid_width && window.row1 < grid_height);
+  assert(z.size() == window.samples() && z.size() < std::size_t(kNone));
+  VoidFillStats stats;
+  const std::size_t n = z.size(), ww = std::size_t(window.width()), wh = std::size_t(window.height());
+
+  // 4-connected void regions, breadth-first from the first sample of each in row-major order.
+  std::vector<std::uint32_t> label(n, kNone);
+  std::vector<std::uint32_t> cells;
+  std::vector<Region> regions;
+  for (std::size_t seed = 0; seed < n; ++seed) {
+    if (std::isfinite(z[seed]) || label[seed] != kNone) continue;
+    const std::uint32_t id = std::uint32_t(regions.size());
+    Region g;
+    g.first = cells.size();
+    g.bbox = SampleRect{int(seed % ww), int(seed / ww), int(seed % ww), int(seed / ww)};
+    cells.push_back(std::uint32_t(seed));
+    label[seed] = id;
+    for (std::size_t q = g.first; q < cells.size(); ++q) {
+      const std::size_t i = cells[q], c = i % ww, r = i / ww;
+      g.bbox = SampleRect{std::min(g.bbox.col0, int(c)), std::min(g.bbox.row0, int(r)),
+                          std::max(g.bbox.col1, int(c)), std::max(g.bbox.row1, int(r))};
+      const bool has[4] = {c > 0, c + 1 < ww, r > 0, r + 1 < wh};
+      const std::size_t at[4] = {i - 1, i + 1, i - ww, i + ww};
+      for (int d = 0; d < 4; ++d) {
+        if (has[d] && !std::isfinite(z[at[d]]) && label[at[d]] == kNone) {
+          label[at[d]] = id;
+          cells.push_back(std::uint32_t(at[d]));
+        }
+      }
+    }
+    g.count = cells.size() - g.first;
+    regions.push_back(g);
+  }
+  stats.voids = cells.size();
+  stats.regions = regions.size();
+
+  // Which regions this window can close; the rest stay void.
+  const bool cut_w = window.col0 > 0, cut_e = window.col1 + 1 < grid_width;
+  const bool cut_n = window.row0 > 0, cut_s = window.row1 + 1 < grid_height;
+  std::vector<std::uint32_t> closed;
+  for (std::uint32_t id = 0; id < regions.size(); ++id) {
+    const Region& g = regions[id];
+    const SampleRect& b = g.bbox;
+    if (b.samples() > options.max_region_cells) {
+      ++stats.capped_regions;
+      stats.capped_samples += g.count;
+    } else if ((cut_w && b.col0 == 0) || (cut_e && std::size_t(b.col1) + 1 == ww) || (cut_n && b.row0 == 0) ||
+               (cut_s && std::size_t(b.row1) + 1 == wh)) {
+      stats.open.push_back(OpenVoidRegion{
+          SampleRect{b.col0 + window.col0, b.row0 + window.row0, b.col1 + window.col0, b.row1 + window.row0},
+          g.count});
+    } else {
+      closed.push_back(id);
+    }
+  }
+  // Largest first, so that one big region does not finish alone at the end.
+  std::stable_sort(closed.begin(), closed.end(),
+                   [&](std::uint32_t a, std::uint32_t b) { return regions[a].count > regions[b].count; });
+
+  std::vector<RegionSolve> solved(closed.size());
+  pm::parallel_for(closed.size(), options.threads, [&](std::size_t k) {
+    const std::uint32_t id = closed[k];
+    const Region& g = regions[id];
+    const SampleRect box{std::max(g.bbox.col0 - 1, 0), std::max(g.bbox.row0 - 1, 0),
+                         std::min(g.bbox.col1 + 1, int(ww) - 1), std::min(g.bbox.row1 + 1, int(wh) - 1)};
+    solved[k] = solve_region(z, ww, label, id, cells.data() + g.first, g.count, box);
+  });
+  for (std::size_t k = 0; k < closed.size(); ++k) {
+    const RegionSolve& s = solved[k];
+    if (!s.filled) continue;
+    ++stats.filled_regions;
+    stats.filled += regions[closed[k]].count;
+    stats.iterations = std::max(stats.iterations, s.iterations);
+    stats.residual = std::max(stats.residual, s.residual);
+    stats.sweeps = std::max(stats.sweeps, s.sweeps);
+    stats.last_change = std::max(stats.last_change, s.last_change);
+  }
   return stats;
 }
 
-}  // namespace terralod::blocks::detail
+VoidFillStats fill_voids(std::vector<double>& z, int width, int height, const VoidFillOptions& options) {
+  return fill_voids_in_window(z, SampleRect{0, 0, width - 1, height - 1}, width, height, options);
+}
+
+}  // namespace terralod::blocks

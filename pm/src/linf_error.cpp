@@ -30,20 +30,23 @@ double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
   // between the line's samples i and i + 1 (indices along the line), at i + r / D, where
   // i D + r = i0 D + t di with 0 <= r < D is tracked exactly. height(t, i, k) is the height of
   // sample i + k (k = 0, 1) of the t-th line. Heights are compared multiplied by D (exact for
-  // integers).
+  // integers). The largest difference is divided once: division by D > 0 is monotonic in
+  // floating point, so max(|d|) / D is the largest of the |d| / D, bit for bit.
   auto crossings = [&](std::int64_t D, std::int64_t i0, std::int64_t di, double za, double zb,
                        auto&& height) {
     if (D <= 0) return;
     const std::int64_t qs = floor_div(di, D), rs = di - qs * D;
     std::int64_t i = i0, r = 0;
+    double most = 0.0;
     for (std::int64_t t = 1; t < D; ++t) {
       i += qs, r += rs;
       if (r >= D) r -= D, ++i;
       double orig = height(t, i, 0) * double(D - r);
       if (r) orig += height(t, i, 1) * double(r);
       const double lin = za * double(D - t) + zb * double(t);
-      worst = std::max(worst, std::abs(lin - orig) / double(D));
+      most = std::max(most, std::abs(lin - orig));
     }
+    worst = std::max(worst, most / double(D));
   };
   // Vertical lines x = a.x + t, their samples indexed by row (a.x <= b.x).
   auto vertical = [&](GridPoint a, GridPoint b, double za, double zb) {

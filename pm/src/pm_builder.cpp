@@ -373,17 +373,20 @@ class Builder {
         const std::uint32_t a = std::uint32_t(mesh_.to_vertex_handle(h).idx());
         ringv_.push_back(a);
         ringh_.push_back(h);
-        const GridPoint pa = point(a);
-        rloc_.push_back(Local{std::int64_t(pa.x) - pu.x, std::int64_t(pa.y) - pu.y, sites_[a].z});
+        // Records are filled field by field in place: a record built aside and copied in is
+        // read back in wider loads than its fields were written with, which stalls the CPU
+        // (store forwarding fails) on every ring vertex.
+        const Site& sa = sites_[a];
+        Local& la = rloc_.emplace_back();
+        la.x = std::int64_t(sa.p.x) - pu.x, la.y = std::int64_t(sa.p.y) - pu.y, la.z = sa.z;
         if (mesh_.is_boundary(h)) {
           boundary = true;
         } else {
           // The face's third corner is the previous ring vertex (filled in below, so that
           // the head of next(h) need not be loaded); its edge error is at next(h)'s edge.
-          RingFace f{};
+          RingFace& f = ring_.emplace_back();
           f.a = a, f.ka = k;
           f.edge_error = continuous ? edge_err_[mesh_.edge_handle(mesh_.next_halfedge_handle(h)).idx()] : 0.0;
-          ring_.push_back(f);
         }
         ++k;
       });
@@ -427,8 +430,9 @@ class Builder {
     const RingFace* fs = ring_.data();
     std::size_t kept = 0;
     const double zu = sites_[u].z;
-    for (Candidate& c : cand_) {
-      const Local& lw = rl[c.k];
+    for (std::size_t i = 0; i < cand_.size(); ++i) {
+      const std::uint32_t cw = cand_[i].w, ck = cand_[i].k;
+      const Local& lw = rl[ck];
       // With positions relative to u: orient(w, a, b) = cross(a, b) + X(a) - X(b), where
       // X(x) = cross(w, x); orient(w, a, u) = X(a) and orient(b, w, u) = -X(b). u lies in
       // the first new triangle (w, a, b) whose wedge at w contains the direction w -> u:
@@ -437,7 +441,7 @@ class Builder {
       bool flat = false;
       for (std::size_t j = 0; j < nf; ++j) {
         const RingFace& f = fs[j];
-        if (f.ka == c.k || f.kb == c.k) continue;
+        if (f.ka == ck || f.kb == ck) continue;
         const std::int64_t xa = lw.x * rl[f.ka].y - lw.y * rl[f.ka].x,
                            xb = lw.x * rl[f.kb].y - lw.y * rl[f.kb].x;
         const std::int64_t e2 = xa, e1 = -xb;
@@ -454,9 +458,8 @@ class Builder {
         }
       }
       if (flat) continue;
-      c.lower = lb;
-      c.tie = tie_of(pu, point(c.w));
-      cand_[kept++] = c;
+      Candidate& c = cand_[kept++];  // in place, field by field (see the ring walk above)
+      c.w = cw, c.k = ck, c.lower = lb, c.tie = tie_of(pu, point(cw));
     }
     cand_.resize(kept);
     const auto by_bound = [](const Candidate& a, const Candidate& b) {

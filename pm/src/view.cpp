@@ -30,12 +30,8 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
 Vec3 add(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 Vec3 mul(const Vec3& a, double s) { return {a.x * s, a.y * s, a.z * s}; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
 Vec3 normalized(const Vec3& a) { return mul(a, 1.0 / std::sqrt(dot(a, a))); }
 Vec3 absv(const Vec3& a) { return {std::abs(a.x), std::abs(a.y), std::abs(a.z)}; }
 

@@ -4,13 +4,16 @@
 #include <gtest/gtest.h>
 #include <ogr_spatialref.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "cli_texture_database.hpp"
 #include "run_command.hpp"
+#include "xvfb.hpp"
 
 namespace {
 
@@ -96,13 +99,19 @@ TEST_F(ObjectsCli, AddThenListShowsTheLayer) {
   EXPECT_LT(out.find("huts"), out.find("more"));                                 // sorted by name
   ASSERT_EQ(cli_.run("objects --help", &out), 0);
   EXPECT_NE(out.find("add|list DB"), std::string::npos) << out;
-  EXPECT_NE(out.find("later part"), std::string::npos) << out;  // --rules is stored, not yet applied
+  EXPECT_NE(out.find("--rules FILE"), std::string::npos) << out;
+  EXPECT_NE(out.find("design rules by level of detail"), std::string::npos) << out;
 }
 
 TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
   std::ofstream(file("outside.geojson")) << R"({"type": "FeatureCollection", "features": [{"type": "Feature",
     "id": 12, "properties": {}, "geometry": {"type": "Point", "coordinates": [16.5, 45.1]}}]})";
   std::ofstream(file("bad.json")) << "{\"rules\": [";
+  std::ofstream(file("sprite.json"))
+      << "{\"ranges\": [\n  {\"max_distance_m\": 900, \"draw\": \"sprite\"},\n  {\"draw\": \"none\"}]}";
+  std::ofstream(file("order.json"))
+      << "{\"ranges\": [{\"max_distance_m\": 900, \"draw\": \"icon\"},\n"
+         "  {\"max_distance_m\": 90, \"draw\": \"label\"}, {\"draw\": \"none\"}]}";
   std::ofstream(file("garbage.geojson")) << "not a vector file";
   ASSERT_EQ(
       cli_.run("objects add " + quote(db()) + " --layer taken --input " + quote(file("points.geojson"))), 0);
@@ -122,7 +131,15 @@ TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
       {add + quote(file("points.geojson")) + " --kind line", "kind line does not fit its points", 2},
       {add + quote(file("points.geojson")) + " --label-field title", "label field 'title' is not a field", 2},
       {add + quote(file("points.geojson")) + " --rules " + quote(file("bad.json")),
-       file("bad.json") + ": not JSON", 2},
+       file("bad.json") + ": line 1, column 12", 2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("sprite.json")),
+       file("sprite.json") + ": line 2, column 35: ranges[0].draw: unknown representation 'sprite'", 2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("order.json")),
+       file("order.json") + ": line 2, column 22: ranges[1].max_distance_m must be larger than the range "
+                            "before's 900",
+       2},
+      {add + quote(file("points.geojson")) + " --rules " + quote(file("none.json")),
+       "option '--rules': " + file("none.json") + ": cannot be read", 2},
   };
   for (const Case& c : cases) {
     std::string out;
@@ -134,5 +151,95 @@ TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
   ASSERT_EQ(cli_.run("objects list " + quote(db()), &out), 0);
   EXPECT_EQ(out.find("\nx\t"), std::string::npos) << out;
 }
+
+// terralod fly --objects --dump-objects: one objects_NNNNN.csv per frame with the header, the
+// anchors where the layer put them (the Hut at E 500900, N 5000900: the terrain's world frame
+// is its UTM frame) and z equal to the drawn ground under them; a missing layer names the
+// database; --dump-objects without --objects is a usage error.
+TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
+            0);
+  // Five frames south of the terrain, 1.5 km up, looking north and 40 degrees down at it.
+  {
+    std::ofstream f(file("path.csv"));
+    f << "x,y,z,yaw,pitch,fovy\n";
+    for (int k = 0; k < 5; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
+  }
+  const std::string fly = "fly --db " + quote(db()) + " --path " + quote(file("path.csv")) + " --out " +
+                          quote(file("out")) + " --speed-factor 0 --size 320x240";
+  std::string out;
+  ASSERT_EQ(cli_.run(fly + " --objects huts --dump-objects", &out), 0);
+  EXPECT_NE(out.find("read  2 objects of 1 layers"), std::string::npos) << out;
+  EXPECT_NE(out.find("objects placed per frame median 2"), std::string::npos) << out;
+  for (int k = 0; k < 5; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "objects_%05d.csv", k);
+    const std::vector<std::string> lines =
+        terralod::test::lines_of(terralod::test::slurp(file("out/") + name));
+    ASSERT_EQ(lines.size(), 3u) << name;
+    EXPECT_EQ(lines[0], "name,kind,x,y,z,ground_z");
+    bool hut = false;
+    for (std::size_t i = 1; i < lines.size(); ++i) {
+      char label[64] = {}, kind[16] = {};
+      double x = 0, y = 0, z = 0, ground = 0;
+      ASSERT_EQ(
+          std::sscanf(lines[i].c_str(), "%63[^,],%15[^,],%lf,%lf,%lf,%lf", label, kind, &x, &y, &z, &ground),
+          6)
+          << lines[i];
+      EXPECT_EQ(std::string(kind), "icon");
+      EXPECT_EQ(z, ground) << lines[i];
+      EXPECT_GT(z, 90.0) << lines[i];  // on the terrain (heights 100..149 m, drawn within them)
+      if (std::string(label) == "Hut") {
+        hut = true;
+        EXPECT_NEAR(x, 500900.0, 1e-3);
+        EXPECT_NEAR(y, 5000900.0, 1e-3);
+      }
+    }
+    EXPECT_TRUE(hut) << name;
+  }
+  EXPECT_EQ(cli_.run(fly + " --objects nope", &out), 1);
+  EXPECT_NE(out.find(db() + ": object layer 'nope': not in the database"), std::string::npos) << out;
+  EXPECT_EQ(cli_.run(fly + " --dump-objects", &out), 2);
+  EXPECT_NE(out.find("--dump-objects needs --objects"), std::string::npos) << out;
+  ASSERT_EQ(cli_.run("fly --help", &out), 0);
+  EXPECT_NE(out.find("--objects NAME"), std::string::npos) << out;
+  EXPECT_NE(out.find("name,kind,x,y,z,ground_z"), std::string::npos) << out;
+}
+
+#ifdef TERRALOD_FLY
+// terralod-fly --objects: placed in every headless frame (the summary counts them, the HUD line
+// is drawn), in the window under Xvfb (flies and exits cleanly); usage and missing layers are
+// clear errors.
+TEST_F(ObjectsCli, FlyDemoPlacesObjects) {
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
+            0);
+  {
+    std::ofstream f(file("path.csv"));
+    f << "x,y,z,yaw,pitch,fovy\n";
+    for (int k = 0; k < 3; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
+  }
+  const CliRunner fly{TERRALOD_FLY};
+  const std::string base = "--db " + quote(db()) + " --size 160x120 ";
+  std::string out;
+  ASSERT_EQ(fly.run("--headless " + base + "--path " + quote(file("path.csv")) + " --out " +
+                        quote(file("h")) + " --hud --objects huts",
+                    &out),
+            0);
+  EXPECT_NE(out.find("headless: objects in view median 2, max 2 (of 2)"), std::string::npos) << out;
+  EXPECT_EQ(fly.run("--headless --path " + quote(file("path.csv")) + " --objects huts", &out), 2);
+  EXPECT_NE(out.find("--objects needs --db"), std::string::npos) << out;
+  EXPECT_EQ(fly.run("--headless " + base + "--path " + quote(file("path.csv")) + " --objects nope", &out), 1);
+  EXPECT_NE(out.find(db() + ": object layer 'nope': not in the database"), std::string::npos) << out;
+  ASSERT_EQ(fly.run("--help", &out), 0);
+  EXPECT_NE(out.find("O switches the object layers on/off"), std::string::npos) << out;
+  terralod::test::Xvfb xvfb;
+  if (xvfb.display().empty()) GTEST_SKIP() << "Xvfb could not be started (is the xvfb package installed?)";
+  const terralod::test::CommandResult r =
+      terralod::test::run_command("DISPLAY=" + xvfb.display() + " " + quote(TERRALOD_FLY) + " " + base +
+                                  "--objects huts --replay " + quote(file("path.csv")) + " --frames 3");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("flew 3 frames"), std::string::npos) << r.out << r.err;
+}
+#endif
 
 }  // namespace

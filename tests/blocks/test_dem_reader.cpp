@@ -443,6 +443,44 @@ TEST(dem_reader_voids, FilledWithinRegionBoundsExactValuesForSingleVoids) {
   }
 }
 
+TEST(dem_reader_voids, RegionOverTheSizeCapStaysAHoleUnderAMask) {
+  // A 4102 x 4102 tile, z = (col + row) % 100, with three void regions:
+  //   L1: row 1 and column 1, samples 1..4100: bounding box 4100 x 4100 > 4096 x 4096 -> hole;
+  //   L2: row 3 and column 3, samples 3..4098: bounding box 4096 x 4096, the cap -> filled;
+  //   one void at (10, 10): neighbours 19, 21, 19, 21 -> filled with exactly 20.
+  const fs::path dir = scratch();
+  const int n = 4102;
+  std::vector<int> z(std::size_t(n) * n);
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) z[std::size_t(r) * n + c] = (c + r) % 100;
+  }
+  const auto at = [&](int c, int r) -> int& { return z[std::size_t(r) * n + c]; };
+  for (int k = 1; k <= 4100; ++k) at(k, 1) = at(1, k) = -32768;
+  for (int k = 3; k <= 4098; ++k) at(k, 3) = at(3, k) = -32768;
+  at(10, 10) = -32768;
+  const fs::path path = dir / "N10E010.hgt";
+  write_hgt(path, z);
+  z.clear();
+  const Heightfield hf = tb::read_dem(path.string());
+  const std::size_t l1 = 2 * 4100 - 1, l2 = 2 * 4096 - 1;
+  EXPECT_EQ(hf.voids.voids, l1 + l2 + 1);
+  EXPECT_EQ(hf.voids.filled, l2 + 1);
+  ASSERT_TRUE(hf.has_holes());
+  EXPECT_EQ(std::size_t(std::count(hf.mask().begin(), hf.mask().end(), 0)), l1);
+  for (int k = 1; k <= 4100; ++k) {
+    ASSERT_FALSE(hf.valid(k, 1));
+    ASSERT_FALSE(hf.valid(1, k));
+    ASSERT_EQ(hf.at(k, 1), 0.0);
+  }
+  for (int k = 3; k <= 4098; ++k) {
+    ASSERT_TRUE(hf.valid(k, 3));
+    ASSERT_TRUE(hf.valid(3, k));
+    ASSERT_TRUE(std::isfinite(hf.at(k, 3)));
+  }
+  EXPECT_TRUE(hf.valid(10, 10));
+  EXPECT_EQ(hf.at(10, 10), 20.0);
+}
+
 TEST(dem_reader_voids, KeptAsHolesWhenNotFilling) {
   const fs::path dir = scratch();
   const fs::path asc = dir / "c.asc";

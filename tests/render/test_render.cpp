@@ -8,8 +8,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-// AddressSanitizer builds (GCC defines __SANITIZE_ADDRESS__, clang has the feature test).
-#if defined(__SANITIZE_ADDRESS__)
+// AddressSanitizer builds: GCC defines __SANITIZE_ADDRESS__, clang has the feature test, and a
+// TERRALOD_SANITIZE build, which compiles the tests themselves plain, defines TERRALOD_TEST_ASAN.
+#if defined(TERRALOD_TEST_ASAN)
+#elif defined(__SANITIZE_ADDRESS__)
 #define TERRALOD_TEST_ASAN 1
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)

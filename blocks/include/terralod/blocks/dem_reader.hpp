@@ -90,14 +90,21 @@
 // Voids (fill_voids = true, the default): filled by harmonic (Laplace) inpainting: each void
 //   sample becomes the mean of its 4-neighbours inside the grid, valid samples held fixed
 //   (solved by multigrid-preconditioned conjugate gradients to a residual of 1e-10 of the
-//   height scale). Every filled value lies within [min, max] of the valid samples 4-adjacent to
-//   its 4-connected void region, exactly (the discrete maximum principle, enforced by a final
-//   clip and bound-preserving Gauss-Seidel sweeps): no spikes, no NaN. Cost: about 170 bytes
-//   and 0.8 us per void sample for large voids. Measured (Release): N44W072.hgt reads in 3 ms,
-//   N22W160.hgt (4279 voids) reads and fills in 8 ms; the first call in a process adds about
-//   25 ms of GDAL driver registration. With fill_voids = false the Heightfield gets a mask
-//   (1 valid, 0 void) and void samples hold 0. Voids are: SRTM -32768, the band's nodata value, samples
-//   outside a GDAL mask band, NaN and +-inf, ASCII grid NODATA_value.
+//   region's height scale). Every filled value lies within [min, max] of the valid samples
+//   4-adjacent to its 4-connected void region, exactly (the discrete maximum principle, enforced
+//   by a final clip and bound-preserving Gauss-Seidel sweeps): no spikes, no NaN. Each region is
+//   solved alone on its bounding box plus one ring (blocks/void_fill.hpp), so its filled heights
+//   depend only on the samples of that box, not on the rest of the file or on the window a
+//   reader holds. A region whose bounding box has more than 4096 x 4096 samples
+//   (VoidFillOptions::max_region_cells) is not filled: it stays a hole, so the Heightfield then
+//   has a mask, 0 on that region's samples (which hold 0), and hf.voids.filled < hf.voids.voids.
+//   Cost: about 170 bytes and 0.8 us per void sample for large voids. Measured (Release):
+//   N44W072.hgt reads in 3 ms, N22W160.hgt (4279 voids in 182 regions) reads and fills in 8 ms
+//   (measured with the former joint solve; the per-region fill measured no slower in the same
+//   run); the first call in a process adds about 25 ms of GDAL driver registration. With
+//   fill_voids = false the Heightfield gets a mask (1 valid, 0 void) and void samples hold 0.
+//   Voids are: SRTM -32768, the band's nodata value, samples outside a GDAL mask band, NaN and
+//   +-inf, ASCII grid NODATA_value.
 #pragma once
 
 #include <optional>
@@ -111,7 +118,8 @@ namespace terralod::blocks {
 
 /// How read_dem interprets a file. Every field has a usable default.
 struct DemOptions {
-  /// true: fill voids from their neighbours (hf.voids.filled == hf.voids.voids, no mask).
+  /// true: fill voids from their neighbours (hf.voids.filled == hf.voids.voids, no mask), except
+  /// void regions over the size cap (see the header comment), which stay holes under a mask.
   /// false: keep voids as holes (hf.has_holes(), void samples hold 0, hf.voids.filled == 0).
   bool fill_voids = true;
   /// Metres per raw unit, heightmaps (Format::Heightmap) only. Finite, non-zero.

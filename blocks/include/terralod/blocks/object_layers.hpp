@@ -47,8 +47,12 @@
 //              Icon and Label need points, Line lines, Shape polygons; otherwise an error.
 //   fields     label_field and height_field, when given, must name fields of the layer;
 //              height_field must be an Integer, Integer64 or Real field.
-//   rules      rules_json, when given, must be JSON text (checked by GDAL's parser); it is
-//              stored as given and not interpreted yet (design rules come in a later part).
+//   rules      rules_json, when given, is the layer's design rules by level of detail: which
+//              representation (icon, label, shape, line, symbol, none) each distance or screen
+//              size gets, and the attribute that ranks labels. It is checked by
+//              parse_object_rules (object_rules.hpp, the file format) before the input is read
+//              and stored as given; a layer without rules draws every object as its kind.
+//              A bad rules text is an ObjectLayerError "<rules_source>: line L, column C: ...".
 //   errors     ObjectLayerError "<input>: <problem>" for the vector file (missing, unreadable,
 //              no or unknown CRS, no transformation, outside the terrain, mixed geometry; Cause
 //              Input) and for options that do not fit it (kind, fields, rules, empty name; Cause
@@ -170,7 +174,7 @@ struct ObjectLayerOptions {
   std::string input;                      ///< the vector file (any OGR source)
   std::optional<ObjectKind> kind;         ///< default: from the geometry
   std::string label_field, height_field;  ///< "" = none
-  std::optional<std::string> rules_json;  ///< JSON text, stored as given
+  std::optional<std::string> rules_json;  ///< object_rules.hpp text, stored as given
   std::string rules_source;  ///< names the rules in errors (their file); "" = "<input>: the rules"
   std::function<void(double)> progress;  ///< fraction of features read; may be empty
 };

@@ -214,6 +214,11 @@ class TerrainRuntime {
   /// call after an update indexes the drawn triangles in a bucket grid (O(triangles)); each
   /// call then tests one bucket's triangles. Not thread-safe (the frame thread's).
   double drawn_height(double x, double y) const;
+  /// The drawn triangles (indices into drawn_mesh().triangles, sorted, each once) that may meet
+  /// the world box [x0, x1] x [y0, y1] (corners in any order): those of the buckets of
+  /// drawn_height's index over the box, a superset of the triangles meeting it. Empty when the
+  /// box misses the terrain. Same index and thread rule as drawn_height.
+  void drawn_triangles_in(double x0, double y0, double x1, double y1, std::vector<std::uint32_t>& out) const;
   /// The highest sample of the smallest tree node over world (x, y) (clamped to the terrain):
   /// a height at or above the terrain there, known without loading anything. O(tree depth).
   double max_height_at(double x, double y) const;
@@ -265,7 +270,8 @@ class TerrainRuntime {
     std::vector<std::uint32_t> start, tris;  // bucket b's triangles: tris[start[b], start[b+1])
   };
   mutable HeightIndex height_index_;
-  std::vector<Patch> patches_;  // the frame's patches (a pool: the first patch_count are used)
+  const HeightIndex& height_index() const;  // height_index_, built for this frame
+  std::vector<Patch> patches_;              // the frame's patches (a pool: the first patch_count are used)
   std::unique_ptr<Scratch> scratch_;
   // What the loader thread needs to prepare an arriving block's refinement (the last frame's
   // view, time and refinement options), behind its own lock.

@@ -86,12 +86,31 @@ struct GridTriangle {
   }
 
   /// Calls f(y, xl, xr) for every row y (increasing) whose span xl .. xr of samples inside the
-  /// closed triangle is not empty. When f returns bool, false stops the scan.
+  /// closed triangle is not empty: row_span's spans, with each edge's bound floor((B y + C) /
+  /// |A|) stepped exactly from row to row (quotient and remainder) instead of divided anew.
+  /// When f returns bool, false stops the scan.
   template <class F>
   void for_each_span(F&& f) const {
+    std::int64_t q[3] = {}, r[3] = {}, d[3] = {}, qs[3] = {}, rs[3] = {};
+    for (int k = 0; k < 3; ++k) {
+      d[k] = A[k] < 0 ? -A[k] : A[k];
+      if (d[k] == 0) continue;
+      const std::int64_t m = B[k] * y_min + C[k];
+      q[k] = floor_div(m, d[k]), r[k] = m - q[k] * d[k];
+      qs[k] = floor_div(B[k], d[k]), rs[k] = B[k] - qs[k] * d[k];
+    }
     for (int y = y_min; y <= y_max; ++y) {
       std::int64_t xl = x_min, xr = x_max;
-      row_span(y, xl, xr);
+      for (int k = 0; k < 3; ++k) {
+        if (A[k] > 0)  // A x + M >= 0: x >= ceil(-M / A) = -floor(M / A)
+          xl = std::max(xl, -q[k]);
+        else if (A[k] < 0)  // x <= floor(M / -A)
+          xr = std::min(xr, q[k]);
+        else if (B[k] * y + C[k] < 0)
+          xr = xl - 1;
+        q[k] += qs[k], r[k] += rs[k];
+        if (r[k] >= d[k] && d[k] > 0) r[k] -= d[k], ++q[k];
+      }
       if (xl > xr) continue;
       if constexpr (std::is_same_v<decltype(f(y, xl, xr)), bool>) {
         if (!f(y, xl, xr)) return;
