@@ -296,7 +296,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     BlockKey key;
     std::vector<std::uint8_t> blob;
     BlockRecord record;
-    std::optional<BlockSummary> summary;  // none when the block has voids
+    BlockSummary summary;
   };
   StandinOptions standin = opt.standin;
   standin.metric = opt.metric;
@@ -308,14 +308,10 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     d.record.error = base_mesh_error(pm);
     d.record.vertices = pm.full_vertex_count();
     d.record.bytes = d.blob.size();
-    try {
-      d.summary = summarize_block(pm, d.key, standin);
-    } catch (const std::invalid_argument&) {
-      // voids: no stand-in, and so no "block_summaries" blob
-    }
+    d.summary = summarize_block(pm, d.key, standin);  // holes take no part; an empty block has none
     return d;
   };
-  std::map<BlockKey, std::optional<BlockSummary>> summaries;
+  std::map<BlockKey, BlockSummary> summaries;
   std::mutex m;
   std::condition_variable cv;
   std::deque<Done> queue;
@@ -439,7 +435,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   std::vector<BlockKey> resumed;
   for (BlockKey k : keys)
     if (!summaries.count(k)) resumed.push_back(k);
-  std::vector<std::optional<BlockSummary>> resumed_sums(resumed.size());
+  std::vector<BlockSummary> resumed_sums(resumed.size());
   std::mutex db_mutex;
   parallel_for(resumed.size(), threads, [&](std::size_t i) {
     const BlockKey k = resumed[i];
@@ -450,29 +446,18 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     }
     const pm::ProgressiveMesh pm =
         pm::decode_pm(blob, path + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")");
-    try {
-      resumed_sums[i] = summarize_block(pm, k, standin);
-    } catch (const std::invalid_argument&) {
-      // voids, as above: no blob
-    }
+    resumed_sums[i] = summarize_block(pm, k, standin);
   });
   for (std::size_t i = 0; i < resumed.size(); ++i) summaries.emplace(resumed[i], std::move(resumed_sums[i]));
   const BlockGrid bgrid(hf.width(), hf.height(), opt.block_size, hf.transform);
   std::vector<BlockSummary> sums(bgrid.block_count());
-  bool complete_sums = true;
-  for (const auto& [k, sum] : summaries) {
-    if (!sum)
-      complete_sums = false;
-    else
-      sums[bgrid.index(k)] = *sum;
-  }
-  const std::vector<std::uint8_t> sum_bytes =
-      complete_sums ? encode_block_summaries(bgrid, sums) : std::vector<std::uint8_t>{};
+  for (const auto& [k, sum] : summaries) sums[bgrid.index(k)] = sum;
+  const std::vector<std::uint8_t> sum_bytes = encode_block_summaries(bgrid, sums);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   {
     BlockDatabase::Transaction tx(db);
     db.put_blob("tree", tree_bytes);
-    if (complete_sums) db.put_blob(kBlockSummariesBlob, sum_bytes);
+    db.put_blob(kBlockSummariesBlob, sum_bytes);
     char buf[40];
     std::snprintf(buf, sizeof buf, "%.6f", seconds);
     db.set_meta("build_seconds", buf);

@@ -27,6 +27,7 @@
 #include "gdal_support.hpp"
 #include "gdal_warp.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/void_fill.hpp"
 
 namespace terralod::blocks {
 
@@ -260,9 +261,14 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
   std::vector<std::uint8_t> mask(out.z.size(), 1);
   std::size_t holes = 0;
   for (std::size_t i = 0; i < out.z.size(); ++i)
-    if (!std::isfinite(out.z[i])) mask[i] = 0, out.z[i] = 0.0, ++holes;
+    if (!std::isfinite(out.z[i])) mask[i] = 0, ++holes;
   if (holes == out.z.size())
     throw DemError(path, "no sample is left after warping it to '" + name_of(target) + "'");
+  // The holes stay holes (mask 0), but hold the heights of a harmonic fill (0 where it is capped)
+  // so that the coarse surfaces and stand-ins through a hole sample pass near the terrain.
+  if (holes > 0) fill_voids(out.z, out.width, out.height);
+  for (double& z : out.z)
+    if (!std::isfinite(z)) z = 0.0;
   r.samples() = std::move(out.z);
   if (holes > 0) r.set_mask(std::move(mask));
   const double x0 = out.gt[0] + 0.5 * out.gt[1], y0 = out.gt[3] + 0.5 * out.gt[5];
