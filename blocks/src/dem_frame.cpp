@@ -234,11 +234,15 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
   if (!transform(*to_target, x, y))
     throw DemError(path, "part of it cannot be transformed to '" + name_of(target) + "' (" +
                              gdal_message("outside the CRS's domain?") + ")");
-  const double spacing = std::min(std::hypot(x[1] - x[0], y[1] - y[0]), std::hypot(x[2] - x[0], y[2] - y[0]));
+  // The source's ground spacing at its centre, east-west and north-south apart: the warped grid
+  // keeps about the source's number of samples (square cells of the smaller one would add 41 % at
+  // 44 degrees N). Cells need not be square: every transform downstream is affine.
+  const double sx = std::hypot(x[1] - x[0], y[1] - y[0]), sy = std::hypot(x[2] - x[0], y[2] - y[0]);
   const auto [xmin, xmax] = std::minmax_element(x.begin() + 3, x.end());
   const auto [ymin, ymax] = std::minmax_element(y.begin() + 3, y.end());
-  const double cols = std::ceil((*xmax - *xmin) / spacing), rows = std::ceil((*ymax - *ymin) / spacing);
-  if (!(spacing > 0.0) || !std::isfinite(cols) || !std::isfinite(rows) || cols * rows > double(1 << 30))
+  const double cols = std::ceil((*xmax - *xmin) / sx), rows = std::ceil((*ymax - *ymin) / sy);
+  if (!(sx > 0.0) || !(sy > 0.0) || !std::isfinite(cols) || !std::isfinite(rows) ||
+      cols * rows > double(1 << 30))
     throw DemError(path, "its footprint in '" + name_of(target) + "' is degenerate or over 2^30 samples");
 
   WarpGrid src;
@@ -252,7 +256,7 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
   grid.width = std::max(2, int(cols));
   grid.height = std::max(2, int(rows));
   const double cx = 0.5 * (*xmin + *xmax), cy = 0.5 * (*ymin + *ymax);
-  grid.gt = {cx - 0.5 * grid.width * spacing, spacing, 0.0, cy + 0.5 * grid.height * spacing, 0.0, -spacing};
+  grid.gt = {cx - 0.5 * grid.width * sx, sx, 0.0, cy + 0.5 * grid.height * sy, 0.0, -sy};
   std::string error;
   WarpGrid out = warp_grid(src, hf.crs_wkt, wkt_of(target), &grid, error);
   if (!error.empty()) throw DemError(path, "GDAL cannot warp it to '" + name_of(target) + "': " + error);
@@ -280,8 +284,8 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
   r.vertical_datum = hf.vertical_datum;
   r.source = hf.source;
   r.frame = description + " (unit factor " + format("%.12g", unit) + "); warped by GDAL (bilinear) from " +
-            name_of(source) + ", " + format("%.6g", spacing * unit * k0) + " m cells, " +
-            std::to_string(holes) + " cells outside the source are holes";
+            name_of(source) + ", " + format("%.6g", sx * unit * k0) + " x " + format("%.6g", sy * unit * k0) +
+            " m cells, " + std::to_string(holes) + " cells outside the source are holes";
   return with_scale_error(std::move(r), automatic);
 }
 

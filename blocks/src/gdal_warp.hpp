@@ -17,11 +17,11 @@ struct WarpGrid {
 };
 
 /// `src` (in CRS src_wkt) warped to CRS dst_wkt with bilinear resampling and exact (not
-/// approximated) coordinate transformations. `target`: the output grid (its width, height and gt;
-/// its z is ignored), or nullptr to let GDAL choose a grid covering the source
-/// (GDALSuggestedWarpOutput). Output cells outside the source, or whose bilinear neighbourhood
-/// holds only NaN, are NaN. On failure returns an empty grid and sets `error` to GDAL's reason.
-/// Memory: the source and output grids as doubles, plus GDAL's working buffers.
+/// approximated) coordinate transformations, on all cores (GDAL's NUM_THREADS=ALL_CPUS). `target`: the output
+/// grid (its width, height and gt; its z is ignored), or nullptr to let GDAL choose a grid covering the
+/// source (GDALSuggestedWarpOutput). Output cells outside the source, or whose bilinear neighbourhood holds
+/// only NaN, are NaN. On failure returns an empty grid and sets `error` to GDAL's reason. Memory: the source
+/// and output grids as doubles, plus GDAL's working buffers.
 WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::string& dst_wkt,
                    const WarpGrid* target, std::string& error);
 

@@ -72,15 +72,16 @@
 //     y0 = (height - 1) * spacing.
 //   - DemOptions::crs = "auto", geographic CRS: the DEM is read (and its voids filled) as above,
 //     then warped by GDAL (bilinear, exact transformations) to the azimuthal equidistant
-//     projection on the source's ellipsoid, centred on the DEM, onto a north-up grid of square
-//     cells (the smaller of the source's two ground spacings at its centre) covering the source's
-//     footprint; cells outside the footprint, and voids kept as holes, are holes (mask 0), never
-//     filled. World = k0 * projected metres with k0 = 2 / (1 + c_max / sin c_max), c_max = the
-//     angular distance of the farthest DEM corner from the centre: the radial scale (1) and the
-//     tangential one (c / sin c) are then balanced, so distances are true to within about
-//     c_max^2 / 12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees.
-//     Larger DEMs need a CRS of the user's choice. Projected inputs, and inputs without a CRS,
-//     stay native. hf.crs_wkt is the target CRS and hf.crs_transform maps samples to it.
+//     projection on the source's ellipsoid, centred on the DEM, onto a north-up grid of cells of
+//     the source's east-west and north-south ground spacings at its centre (not square: about the
+//     source's sample count) covering the source's footprint; cells outside the footprint, and
+//     voids kept as holes, are holes (mask 0, their heights a harmonic fill for the surfaces drawn
+//     through them, never valid samples). World = k0 * projected metres with k0 = 2 / (1 + c_max / sin
+//     c_max), c_max = the angular distance of the farthest DEM corner from the centre: the radial scale (1)
+//     and the tangential one (c / sin c) are then balanced, so distances are true to within about c_max^2 /
+//     12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees. Larger DEMs need a CRS
+//     of the user's choice. Projected inputs, and inputs without a CRS, stay native. hf.crs_wkt is the target
+//     CRS and hf.crs_transform maps samples to it.
 //   - DemOptions::crs = any CRS GDAL's SetFromUserInput accepts ("EPSG:32619", a PROJ string,
 //     WKT), which must be projected: the same warp to it, world = its coordinates in metres.
 //   Every frame with a CRS has its worst scale error measured (frame_scale_error) and stated at
