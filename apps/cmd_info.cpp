@@ -30,7 +30,10 @@ CommandSpec info_spec() {
           "relative error of distances in the frame, null without a CRS), crs_wkt, vertical_datum (of\n"
           "the heights, as the source states it; \"\" when it does not),\n"
           "height {min, max} metres, voids {found, filled}; for a .pm also metric, vertices,\n"
-          "base_vertices, vsplits, max_error, error_quantum (metres), bytes, bytes_per_vertex.\n\n") +
+          "base_vertices, vsplits, max_error, error_quantum (metres), bytes, bytes_per_vertex.\n"
+          "A block database (.db, kind blocks) prints its build summary, with frame {description,\n"
+          "scale_error, vertical_datum}: the world frame it was built in (as for its DEM under the\n"
+          "build's --crs), or \"not recorded (...)\" for databases built before frames were recorded.\n\n") +
       kDemFormats;
   s.options = dem_option_specs();
   return s;

@@ -19,6 +19,7 @@
 #include <sstream>
 #include <thread>
 
+#include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/json.hpp"
@@ -33,6 +34,9 @@ using pm::parallel_for;
 // Database build
 
 namespace {
+
+constexpr const char* kFrameMeta = "frame";
+constexpr const char* kFrameScaleErrorMeta = "frame_scale_error";
 
 const char* metric_name(pm::ErrorMetric m) {
   return m == pm::ErrorMetric::Samples ? "samples" : "continuous";
@@ -173,6 +177,15 @@ std::string DatabaseSummary::to_json() const {
   } else {
     field("georeference", "null");
   }
+  if (frame) {
+    const std::string datum = georeference ? georeference->vertical_datum : std::string();
+    field("frame", "{\"description\": " + quote(*frame) + ", \"scale_error\": " +
+                       (frame_scale_error ? num(*frame_scale_error) : std::string("null")) +
+                       ", \"vertical_datum\": " + quote(datum) + "}");
+  } else {
+    field("frame", quote("not recorded (built before databases recorded their frame; 'terralod info DEM' "
+                         "with the build's --crs prints it)"));
+  }
   field("build_parameters", build_parameters.empty() ? "null" : build_parameters, true);
   return j + "}\n";
 }
@@ -194,6 +207,9 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
   s.block_size = info.block_size;
   s.build_parameters = info.build_parameters;
   s.georeference = db.georeference();
+  s.frame = db.get_meta(kFrameMeta);
+  if (const auto e = db.get_meta(kFrameScaleErrorMeta); e && !e->empty())
+    s.frame_scale_error = std::atof(e->c_str());
   s.samples = std::uint64_t(info.grid_width) * std::uint64_t(info.grid_height);
   if (info.grid_width >= 2 && info.grid_height >= 2 && is_valid_block_size(info.block_size)) {
     const BlockLayout l = partition(info.grid_width, info.grid_height, info.block_size);
@@ -284,6 +300,15 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   }
   BlockDatabase& db = *dbo;
   if (hf.crs_transform) db.put_georeference({*hf.crs_transform, hf.vertical_datum});
+  {  // the world frame, for 'terralod info DB'
+    const std::optional<double> e = frame_scale_error(hf);
+    char buf[40] = "";
+    if (e) std::snprintf(buf, sizeof buf, "%.9g", *e);
+    BlockDatabase::Transaction tx(db);
+    db.set_meta(kFrameMeta, hf.frame);
+    db.set_meta(kFrameScaleErrorMeta, buf);
+    tx.commit();
+  }
 
   // Blocks still to build.
   const std::vector<BlockKey> keys = layout.keys();

@@ -1,6 +1,7 @@
 // End-to-end tests of the terralod command-line tool: runs the built binary on a small Esri
 // ASCII grid it writes itself and checks exit codes, messages, JSON fields and output meshes.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <cmath>
 #include <cstdio>
@@ -433,10 +434,46 @@ TEST(cli_crs, InfoReportsTheFrameItsScaleErrorAndTheVerticalDatum) {
   const CliResult none = terralod("info --crs EPSG:32619 " + quote(plain.string()));
   EXPECT_EQ(none.status, 1);
   EXPECT_NE(none.err.find("has no CRS"), std::string::npos) << none.err;
-  for (const std::string cmd : {"pm", "extract", "info", "view", "build", "tin"}) {
+  for (const std::string cmd : {"pm", "extract", "info", "view", "build", "tin", "hybrid"}) {
     const CliResult h = terralod(cmd + " --help");
     EXPECT_NE(h.out.find("--crs CRS"), std::string::npos) << cmd << ":\n" << h.out;
   }
+}
+
+TEST(cli_crs, InfoOfADatabaseReportsTheFrameItWasBuiltIn) {
+  const std::string dem = quote(write_geographic_asc("deg1db", -70.0, 44.0, 41, 0.025).string());
+  const fs::path db = tmp_dir() / "deg1.db";
+  const CliResult b =
+      terralod("build --threads 1 --block-size 17 --input " + dem + " --out " + quote(db.string()));
+  ASSERT_EQ(b.status, 0) << b.err;
+  const CliResult i = terralod("info " + quote(db.string()));
+  ASSERT_EQ(i.status, 0) << i.err;
+  EXPECT_NE(i.out.find("\"frame\": {\"description\": \"azimuthal equidistant (auto)"), std::string::npos)
+      << i.out;
+  EXPECT_NE(i.out.find("scale error within +-0.001 %"), std::string::npos) << i.out;
+  EXPECT_LT(json_number(i.out, "scale_error"), 2e-5) << i.out;
+  EXPECT_GT(json_number(i.out, "scale_error"), 0.0) << i.out;
+  EXPECT_NE(i.out.find("\"vertical_datum\": \"\"}"), std::string::npos) << i.out;  // an .asc states none
+  // Built with --crs native: its frame and its (larger) error.
+  const fs::path ndb = tmp_dir() / "deg1_native.db";
+  ASSERT_EQ(terralod("build --threads 1 --block-size 17 --crs native --input " + dem + " --out " +
+                     quote(ndb.string()))
+                .status,
+            0);
+  const CliResult n = terralod("info " + quote(ndb.string()));
+  EXPECT_NE(n.out.find("\"frame\": {\"description\": \"local equirectangular"), std::string::npos) << n.out;
+  EXPECT_GT(json_number(n.out, "scale_error"), 0.006) << n.out;
+  // A database built before frames were recorded (its meta rows removed): info says so.
+  sqlite3* s = nullptr;
+  ASSERT_EQ(sqlite3_open(db.string().c_str(), &s), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(s, "DELETE FROM meta WHERE key IN ('frame', 'frame_scale_error')", nullptr, nullptr,
+                         nullptr),
+            SQLITE_OK)
+      << sqlite3_errmsg(s);
+  sqlite3_close(s);
+  const CliResult old = terralod("info " + quote(db.string()));
+  ASSERT_EQ(old.status, 0) << old.err;
+  EXPECT_NE(old.out.find("\"frame\": \"not recorded (built before"), std::string::npos) << old.out;
 }
 
 TEST(cli_crs, ADemTooLargeForTheAutoFrameIsWarnedAbout) {

@@ -166,6 +166,12 @@ struct DatabaseSummary {
   /// Where the terrain lies on the Earth (absent for sources without a CRS, or databases built
   /// before it was recorded): to_json writes it as "georeference" with the frame convention.
   std::optional<Georeference> georeference;
+  /// The world frame the terrain was built in (meta "frame": Heightfield::frame, how read_dem
+  /// made it) and its worst scale error (meta "frame_scale_error", frame_scale_error; empty
+  /// without a CRS); nullopt for databases built before they were recorded. to_json writes
+  /// "frame" {description, scale_error, vertical_datum} or the string "not recorded (...)".
+  std::optional<std::string> frame;
+  std::optional<double> frame_scale_error;
   bool complete = false;
   /// One JSON object (the fields above).
   std::string to_json() const;
