@@ -236,10 +236,14 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
     const BlockGrid grid = BlockGrid::from_info(info);
     const std::vector<BlockSummary> sums = decode_block_summaries(grid, *b, db.path());
     s.summaries_bytes = b->size();
-    s.standin = sums.empty() ? "" : standin_kind_name(sums[0].standin);
+    // Over the blocks with samples (an empty block has no stand-in).
+    const auto filled =
+        std::count_if(sums.begin(), sums.end(), [](const BlockSummary& x) { return !x.empty; });
     for (const BlockSummary& x : sums) {
-      s.mean_standin_error += x.standin_error / double(sums.size());
-      s.mean_tm_error += x.tm_error / double(sums.size());
+      if (x.empty) continue;
+      if (s.standin.empty()) s.standin = standin_kind_name(x.standin);
+      s.mean_standin_error += x.standin_error / double(filled);
+      s.mean_tm_error += x.tm_error / double(filled);
     }
   }
   s.bytes_per_vertex = s.samples ? double(s.block_bytes + s.tree_bytes) / double(s.samples) : 0.0;
