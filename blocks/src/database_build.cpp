@@ -170,7 +170,7 @@ std::string DatabaseSummary::to_json() const {
             quote(
                 "sample (col,row) -> CRS coordinates of the source: X = crs_transform[0] + col * [1] + row * "
                 "[2], Y = [3] + col * [4] + row * [5] (degrees for a geographic CRS); the runtime's world "
-                "frame is the metric map of the build (terralod info of the DEM prints it); "
+                "frame is the metric map of the build (the 'frame' member describes it); "
                 "'terralod export' places samples through this map and converts heights from "
                 "vertical_datum to the WGS 84 ellipsoid") +
             "}");
