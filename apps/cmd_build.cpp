@@ -57,6 +57,7 @@ CommandSpec build_spec() {
       {"--standin", "KIND", "block stand-in surface: tin (default), grid, nonregular or two-triangle"},
       {"--standin-points", "N", "stand-ins have at most N points, 4..4096 (default 64)"},
       {"--keep-voids", "", "keep DEM voids as holes instead of filling them"},
+      crs_option_spec(),
   };
   return s;
 }
@@ -90,6 +91,7 @@ int cmd_build(const Args& a) {
   opt.standin.max_points = std::size_t(a.get_int("--standin-points", 64, 4, 4096));
   blocks::DemOptions dem;
   dem.fill_voids = !a.has("--keep-voids");
+  dem.crs = crs_from(a);
 
   const int ranks = launched_ranks();
   auto read = [&] {
@@ -97,6 +99,7 @@ int cmd_build(const Args& a) {
     const blocks::DemInputs inputs(a.get_all("--input"));
     pm::Heightfield hf = blocks::read_dem(inputs.path(), dem);
     hf.source = inputs.description();
+    if (launched_rank() == 0) warn_about_frame(hf);
     if (launched_rank() == 0)  // under MPI every rank reads; rank 0 speaks
       std::printf("read  %s: %d x %d samples, %s\n", inputs.description().c_str(), hf.width(), hf.height(),
                   format_duration(ms_since(t)).c_str());

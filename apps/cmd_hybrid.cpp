@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "dem_options.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
@@ -66,12 +67,15 @@ CommandSpec hybrid_spec() {
       "Writes DB (must not exist): DatabaseInfo kind 'hybrid' plus the named blob 'hybrid', and the\n"
       "approximation tree 'hybrid_tree' (grid-only quadtree above one hybrid node per coarsest cell and\n"
       "level, exact errors) that 'terralod view --db DB' selects from.\n"
-      "Prints the storage figures of the paper's Table 2 per level.";
-  s.options = {{"--grid", "DEM", "the reference DEM (any format 'terralod info' reads)", true},
-               {"--grid-step", "K", "samples between grid nodes of the finest level, >= 1 (default 4)"},
-               {"--levels", "N", "grid levels of detail, 1..10 (default 3)"},
-               {"--tin", "MESH[,MESH...]", "TIN microstructure(s) in the world frame: .ply or .obj", true},
-               {"--out", "DB", "hybrid database to create (.db)", true}};
+      "Prints the storage figures of the paper's Table 2 per level.\n\n" +
+      std::string(kDemFormats);
+  s.options =
+      concat({{"--grid", "DEM", "the reference DEM (any format 'terralod info' reads)", true},
+              {"--grid-step", "K", "samples between grid nodes of the finest level, >= 1 (default 4)"},
+              {"--levels", "N", "grid levels of detail, 1..10 (default 3)"},
+              {"--tin", "MESH[,MESH...]", "TIN microstructure(s) in the world frame: .ply or .obj", true},
+              {"--out", "DB", "hybrid database to create (.db)", true}},
+             dem_option_specs());
   return s;
 }
 
@@ -84,7 +88,8 @@ int cmd_hybrid(const Args& a) {
   if (fs::exists(out))
     throw std::runtime_error(out + ": already exists (the hybrid database is created new)");
   auto t = Clock::now();
-  const pm::Heightfield dem = blocks::read_dem(dem_path);
+  const pm::Heightfield dem = blocks::read_dem(dem_path, dem_options_from(a));  // --crs as every command
+  warn_about_frame(dem);
   print_line(strf("read %s: %dx%d samples, %s", dem_path.c_str(), dem.width(), dem.height(),
                   format_duration(ms_since(t)).c_str()));
   std::vector<hy::TinMesh> parts;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -24,9 +25,15 @@ CommandSpec info_spec() {
   s.description =
       std::string(
           "Fields: file, kind (pm|dem), grid {width, height}, transform {x0, xc, xr, y0, yc, yr, formula}\n"
-          "(sample (col,row) -> world (x,y) metres), spacing {x, y} metres, frame, crs_wkt,\n"
+          "(sample (col,row) -> world (x,y) metres), spacing {x, y} metres, frame (how the world frame\n"
+          "was made; it ends with its scale error when the DEM has a CRS), scale_error (that worst\n"
+          "relative error of distances in the frame, null without a CRS), crs_wkt, vertical_datum (of\n"
+          "the heights, as the source states it; \"\" when it does not),\n"
           "height {min, max} metres, voids {found, filled}; for a .pm also metric, vertices,\n"
-          "base_vertices, vsplits, max_error, error_quantum (metres), bytes, bytes_per_vertex.\n\n") +
+          "base_vertices, vsplits, max_error, error_quantum (metres), bytes, bytes_per_vertex.\n"
+          "A block database (.db, kind blocks) prints its build summary, with frame {description,\n"
+          "scale_error, vertical_datum}: the world frame it was built in (as for its DEM under the\n"
+          "build's --crs), or \"not recorded (...)\" for databases built before frames were recorded.\n\n") +
       kDemFormats;
   s.options = dem_option_specs();
   return s;
@@ -74,7 +81,9 @@ int cmd_info(const Args& a) {
   j.field("y", t.spacing_y());
   j.end_object();
   j.field("frame", hf.frame);
+  j.field("scale_error", blocks::frame_scale_error(hf).value_or(std::numeric_limits<double>::quiet_NaN()));
   j.field("crs_wkt", hf.crs_wkt);
+  j.field("vertical_datum", hf.vertical_datum);
   j.begin_object("height");
   j.field("min", hmin);
   j.field("max", hmax);

@@ -4,14 +4,15 @@
 // Usage:
 //   s.options = concat(concat({{"--input", "DEM", "elevation model to read", true}}, build_option_specs()),
 //                      dem_option_specs());
-//   const blocks::DemOptions dem = dem_options_from(a);  // --keep-voids, --vertical-scale, --spacing
+//   const blocks::DemOptions dem = dem_options_from(a);  // --keep-voids, --crs, --vertical-scale, --spacing
 //   const pm::BuildOptions build = build_options_from(a);  // --metric, --threads
 //
-// Contract: dem_options_from throws UsageError for --vertical-scale 0 or --spacing <= 0;
+// Contract: dem_options_from throws UsageError for --vertical-scale 0, --spacing <= 0 or an empty --crs;
 // build_options_from for a --metric other than continuous or samples (metric_from, which
 // 'terralod build' and 'terralod tin' share), or --threads outside 0..1024 (0 = all cores).
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "cli_common.hpp"
@@ -23,8 +24,15 @@ namespace terralod::cli {
 /// The paragraph that closes the --help of every command reading a DEM.
 extern const char* const kDemFormats;
 
-/// --keep-voids, --vertical-scale S, --spacing M.
+/// --keep-voids, --crs CRS, --vertical-scale S, --spacing M.
 std::vector<OptionSpec> dem_option_specs();
+/// --crs CRS alone, for commands with their own DEM options ('terralod build', 'terralod tin').
+OptionSpec crs_option_spec();
+/// --crs: "auto" when absent; UsageError when empty.
+std::string crs_from(const Args& a);
+/// Prints a warning on stderr when hf's world frame has a scale error over 0.1 %
+/// (blocks::frame_scale_error): distances in it are then off by more than the README promises.
+void warn_about_frame(const pm::Heightfield& hf);
 /// --metric NAME, --threads N.
 std::vector<OptionSpec> build_option_specs();
 

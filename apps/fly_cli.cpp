@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "dem_options.hpp"
 #include "flight_objects.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
@@ -76,6 +77,7 @@ CommandSpec fly_spec() {
       {"--theta", "DEGREES",
        "--db: the region kept ready around the eye, b = a cot(theta), (0, 90) (default 20)"},
       {"--input", "FILE", "a DEM or a .pm file (default: the built-in generated terrain)"},
+      crs_option_spec(),
       {"--terrain-size", "N", "samples per side of the built-in terrain (default 513, 2..8193)"},
       {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
       {"--morph", "SECONDS", "geomorph time (>= 0, default 0.3; 0 = off)"},
@@ -157,7 +159,9 @@ std::unique_ptr<LodSource> open_terrain(const Args& a) {
     ro.budget_bytes = std::size_t(mb * 1e6);
     return open_db_source(a.get("--db"), o, ro);
   }
-  return open_pm_source(a.get("--input"), size, o);
+  blocks::DemOptions dem;
+  dem.crs = crs_from(a);
+  return open_pm_source(a.get("--input"), size, o, dem);
 }
 
 }  // namespace terralod::fly

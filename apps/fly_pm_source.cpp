@@ -98,12 +98,12 @@ class PmSource final : public LodSource {
 }  // namespace
 
 std::unique_ptr<LodSource> open_pm_source(const std::string& input, int generated_size,
-                                          const pm::RefinementOptions& o) {
+                                          const pm::RefinementOptions& o, const blocks::DemOptions& dem) {
   const auto t0 = Clock::now();
   pm::BuildOptions b;
   b.parallel_strips = false;  // no full-resolution cut column in the view-dependent mesh
   pm::ProgressiveMesh mesh = [&] {
-    if (!input.empty()) return pm_input_stage(input, {}, b);
+    if (!input.empty()) return pm_input_stage(input, dem, b);
     const pm::Heightfield hf = pm::generate_terrain(demo_terrain_options(generated_size));
     std::printf("terrain: the built-in generated terrain, %d x %d samples\n", hf.width(), hf.height());
     return build_stage(hf, b);

@@ -10,6 +10,7 @@
 #include <string>
 #include <utility>
 
+#include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/selective_refinement.hpp"
@@ -86,9 +87,9 @@ class LodSource {
 
 // The single-PM terrains (fly_pm_source.cpp): a DEM built in memory (`input` names it), a .pm
 // file, or, with `input` empty, the built-in terrain of generated_size samples per side. Prints
-// one line (two for the built-in terrain) when ready.
+// one line (two for the built-in terrain) when ready. `dem`: how the DEM is read (its --crs).
 std::unique_ptr<LodSource> open_pm_source(const std::string& input, int generated_size,
-                                          const pm::RefinementOptions& o);
+                                          const pm::RefinementOptions& o, const blocks::DemOptions& dem);
 
 // A block database through blocks::TerrainRuntime (fly_db_source.cpp): the tree from its root,
 // PM blocks streamed within `base`'s budget; tau, budget and geomorphs from `o`. Prints one line.

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "cli_common.hpp"
+#include "dem_options.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/pm_io.hpp"
 
@@ -96,6 +97,7 @@ pm::Heightfield read_stage(const std::string& path, const blocks::DemOptions& op
   const auto t = Clock::now();
   pm::Heightfield hf = blocks::read_dem(path, options);
   const double ms = ms_since(t);
+  warn_about_frame(hf);
   std::string voids;
   if (hf.voids.voids == hf.voids.filled)
     voids = strf("%zu voids filled", hf.voids.filled);

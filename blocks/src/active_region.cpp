@@ -12,6 +12,7 @@
 #include "terralod/blocks/node_strategy.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/linf_error.hpp"
+#include "tin_error.hpp"
 
 namespace terralod::blocks {
 
@@ -141,7 +142,8 @@ void make_standin(const pm::Heightfield& hf, const StandinOptions& o, BlockSumma
   s.triangle_errors.clear();
   for (const auto& t : s.triangles) {
     const StandinPoint &a = s.points[t[0]], &b = s.points[t[1]], &c = s.points[t[2]];
-    const double e = err.triangle({a.col, a.row}, {b.col, b.row}, {c.col, c.row});
+    const double e =
+        detail::triangle_error(err, hf, o.metric, {a.col, a.row}, {b.col, b.row}, {c.col, c.row});
     s.standin_error = std::max(s.standin_error, e);
     s.triangle_errors.push_back(round_up_to_float(e));
   }
@@ -149,25 +151,27 @@ void make_standin(const pm::Heightfield& hf, const StandinOptions& o, BlockSumma
 
 }  // namespace
 
-BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k, const StandinOptions& standin) {
+BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey /*k*/, const StandinOptions& standin) {
   const pm::Heightfield& hf = pm.heightfield();
-  const std::string name = "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
-  if (hf.has_holes()) {
-    for (std::size_t i = 0; i < hf.size(); ++i)
-      if (!hf.valid(i)) throw std::invalid_argument(name + ": has voids; blocks need complete samples");
-  }
   const int w = hf.width(), h = hf.height();
   BlockSummary s;
+  // Heights of the existing samples only: holes (the warped edges of a DEM, kept voids) take no
+  // part in the range or in any error, and a block without any sample has no stand-in.
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (std::size_t i = 0; i < hf.size(); ++i)
+    if (hf.valid(i)) lo = std::min(lo, hf[i]), hi = std::max(hi, hf[i]);
+  if (lo > hi) {
+    s.empty = true;
+    return s;
+  }
   s.z00 = hf.at(0, 0);
   s.z10 = hf.at(w - 1, 0);
   s.z01 = hf.at(0, h - 1);
   s.z11 = hf.at(w - 1, h - 1);
-  const auto [lo, hi] = std::minmax_element(hf.samples().begin(), hf.samples().end());
-  s.zmin = *lo;
-  s.zmax = *hi;
   const pm::LInfError err(hf, pm::ErrorMetric::Continuous);
-  s.tm_error = std::max(err.triangle({0, 0}, {w - 1, 0}, {w - 1, h - 1}),
-                        err.triangle({0, 0}, {w - 1, h - 1}, {0, h - 1}));
+  s.tm_error = std::max(
+      detail::triangle_error(err, hf, pm::ErrorMetric::Continuous, {0, 0}, {w - 1, 0}, {w - 1, h - 1}),
+      detail::triangle_error(err, hf, pm::ErrorMetric::Continuous, {0, 0}, {w - 1, h - 1}, {0, h - 1}));
   const pm::TriangleMesh base = pm.extract_after(pm.vsplit_count());
   if (base.triangles.size() == 2) {
     const std::uint32_t c00 = 0, c10 = std::uint32_t(w - 1), c01 = std::uint32_t((h - 1) * w),
@@ -184,6 +188,9 @@ BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k, const St
     s.base_is_tm = (t0 == a && t1 == b) || (t0 == b && t1 == a);
   }
   make_standin(hf, standin, s);
+  // The range holds the existing samples and the stand-in's points (a corner may be a hole).
+  s.zmin = lo, s.zmax = hi;
+  for (const StandinPoint& p : s.points) s.zmin = std::min(s.zmin, p.z), s.zmax = std::max(s.zmax, p.z);
   return s;
 }
 
@@ -214,7 +221,8 @@ std::uint32_t crc(const std::uint8_t* p, std::size_t n) { return pm::crc32_of({p
 //    16  f64 tm_error          exact error of the two-triangle mesh (continuous metric), metres
 //    24  f64 standin_error     exact error of the stand-in surface, metres
 //    32  u8  kind              StandinKind: 0 two-triangle, 1 grid, 2 tin, 3 nonregular
-//    33  u8  flags             bit 0: base_is_tm; bits 1-7 zero
+//    33  u8  flags             bit 0: base_is_tm; bit 1: empty (the block has no valid sample:
+//                              every field then 0, n = m = 0, no stand-in follows); bits 2-7 zero
 //    34  u16 n                 stand-in points, 4..65535
 //    36  u16 m                 stand-in triangles, 1..65535
 //    38  u16 reserved = 0
@@ -243,6 +251,13 @@ std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::spa
   o.u32(std::uint32_t(grid.cols()));
   o.u32(std::uint32_t(grid.rows()));
   for (const BlockSummary& b : s) {
+    if (b.empty) {  // 40 bytes: no range, no errors, no stand-in
+      for (int i = 0; i < 4; ++i) o.f64(0.0);
+      o.u8(0);
+      o.u8(2);
+      o.u16(0), o.u16(0), o.u16(0);
+      continue;
+    }
     assert(b.points.size() >= 4 && !b.triangles.empty());
     if (b.points.size() > 65535 || b.triangles.size() > 65535)
       throw std::invalid_argument("block_summaries: a stand-in has more than 65535 points or triangles");
@@ -328,7 +343,15 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
     b.standin_error = load_f64(p + 24);
     const std::uint8_t kind = p[32], flags = p[33];
     const std::uint32_t n = load_u16(p + 34), m = load_u16(p + 36);
-    if (kind > 3 || flags > 1 || load_u16(p + 38) != 0) bad("bad kind or flags");
+    if (kind > 3 || flags > 2 || load_u16(p + 38) != 0) bad("bad kind or flags");
+    if (flags == 2) {  // empty: a block without any valid sample
+      if (kind != 0 || n != 0 || m != 0 || b.zmin != 0 || b.zmax != 0 || b.tm_error != 0 ||
+          b.standin_error != 0)
+        bad("an empty block with a stand-in or heights");
+      b.empty = true;
+      p += 40;
+      continue;
+    }
     if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) || !(b.standin_error >= 0) ||
         !std::isfinite(b.zmax - b.zmin + b.tm_error + b.standin_error))
       bad("inconsistent heights or errors");

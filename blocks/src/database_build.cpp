@@ -19,6 +19,7 @@
 #include <sstream>
 #include <thread>
 
+#include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/json.hpp"
@@ -33,6 +34,9 @@ using pm::parallel_for;
 // Database build
 
 namespace {
+
+constexpr const char* kFrameMeta = "frame";
+constexpr const char* kFrameScaleErrorMeta = "frame_scale_error";
 
 const char* metric_name(pm::ErrorMetric m) {
   return m == pm::ErrorMetric::Samples ? "samples" : "continuous";
@@ -166,12 +170,21 @@ std::string DatabaseSummary::to_json() const {
             quote(
                 "sample (col,row) -> CRS coordinates of the source: X = crs_transform[0] + col * [1] + row * "
                 "[2], Y = [3] + col * [4] + row * [5] (degrees for a geographic CRS); the runtime's world "
-                "frame is the metric map of the build (terralod info of the DEM prints it); "
+                "frame is the metric map of the build (the 'frame' member describes it); "
                 "'terralod export' places samples through this map and converts heights from "
                 "vertical_datum to the WGS 84 ellipsoid") +
             "}");
   } else {
     field("georeference", "null");
+  }
+  if (frame) {
+    const std::string datum = georeference ? georeference->vertical_datum : std::string();
+    field("frame", "{\"description\": " + quote(*frame) + ", \"scale_error\": " +
+                       (frame_scale_error ? num(*frame_scale_error) : std::string("null")) +
+                       ", \"vertical_datum\": " + quote(datum) + "}");
+  } else {
+    field("frame", quote("not recorded (built before databases recorded their frame; 'terralod info DEM' "
+                         "with the build's --crs prints it)"));
   }
   field("build_parameters", build_parameters.empty() ? "null" : build_parameters, true);
   return j + "}\n";
@@ -194,6 +207,9 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
   s.block_size = info.block_size;
   s.build_parameters = info.build_parameters;
   s.georeference = db.georeference();
+  s.frame = db.get_meta(kFrameMeta);
+  if (const auto e = db.get_meta(kFrameScaleErrorMeta); e && !e->empty())
+    s.frame_scale_error = std::atof(e->c_str());
   s.samples = std::uint64_t(info.grid_width) * std::uint64_t(info.grid_height);
   if (info.grid_width >= 2 && info.grid_height >= 2 && is_valid_block_size(info.block_size)) {
     const BlockLayout l = partition(info.grid_width, info.grid_height, info.block_size);
@@ -220,10 +236,14 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
     const BlockGrid grid = BlockGrid::from_info(info);
     const std::vector<BlockSummary> sums = decode_block_summaries(grid, *b, db.path());
     s.summaries_bytes = b->size();
-    s.standin = sums.empty() ? "" : standin_kind_name(sums[0].standin);
+    // Over the blocks with samples (an empty block has no stand-in).
+    const auto filled =
+        std::count_if(sums.begin(), sums.end(), [](const BlockSummary& x) { return !x.empty; });
     for (const BlockSummary& x : sums) {
-      s.mean_standin_error += x.standin_error / double(sums.size());
-      s.mean_tm_error += x.tm_error / double(sums.size());
+      if (x.empty) continue;
+      if (s.standin.empty()) s.standin = standin_kind_name(x.standin);
+      s.mean_standin_error += x.standin_error / double(filled);
+      s.mean_tm_error += x.tm_error / double(filled);
     }
   }
   s.bytes_per_vertex = s.samples ? double(s.block_bytes + s.tree_bytes) / double(s.samples) : 0.0;
@@ -284,6 +304,15 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   }
   BlockDatabase& db = *dbo;
   if (hf.crs_transform) db.put_georeference({*hf.crs_transform, hf.vertical_datum});
+  {  // the world frame, for 'terralod info DB'
+    const std::optional<double> e = frame_scale_error(hf);
+    char buf[40] = "";
+    if (e) std::snprintf(buf, sizeof buf, "%.9g", *e);
+    BlockDatabase::Transaction tx(db);
+    db.set_meta(kFrameMeta, hf.frame);
+    db.set_meta(kFrameScaleErrorMeta, buf);
+    tx.commit();
+  }
 
   // Blocks still to build.
   const std::vector<BlockKey> keys = layout.keys();
@@ -296,7 +325,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     BlockKey key;
     std::vector<std::uint8_t> blob;
     BlockRecord record;
-    std::optional<BlockSummary> summary;  // none when the block has voids
+    BlockSummary summary;
   };
   StandinOptions standin = opt.standin;
   standin.metric = opt.metric;
@@ -308,14 +337,10 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     d.record.error = base_mesh_error(pm);
     d.record.vertices = pm.full_vertex_count();
     d.record.bytes = d.blob.size();
-    try {
-      d.summary = summarize_block(pm, d.key, standin);
-    } catch (const std::invalid_argument&) {
-      // voids: no stand-in, and so no "block_summaries" blob
-    }
+    d.summary = summarize_block(pm, d.key, standin);  // holes take no part; an empty block has none
     return d;
   };
-  std::map<BlockKey, std::optional<BlockSummary>> summaries;
+  std::map<BlockKey, BlockSummary> summaries;
   std::mutex m;
   std::condition_variable cv;
   std::deque<Done> queue;
@@ -439,7 +464,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   std::vector<BlockKey> resumed;
   for (BlockKey k : keys)
     if (!summaries.count(k)) resumed.push_back(k);
-  std::vector<std::optional<BlockSummary>> resumed_sums(resumed.size());
+  std::vector<BlockSummary> resumed_sums(resumed.size());
   std::mutex db_mutex;
   parallel_for(resumed.size(), threads, [&](std::size_t i) {
     const BlockKey k = resumed[i];
@@ -450,29 +475,18 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     }
     const pm::ProgressiveMesh pm =
         pm::decode_pm(blob, path + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")");
-    try {
-      resumed_sums[i] = summarize_block(pm, k, standin);
-    } catch (const std::invalid_argument&) {
-      // voids, as above: no blob
-    }
+    resumed_sums[i] = summarize_block(pm, k, standin);
   });
   for (std::size_t i = 0; i < resumed.size(); ++i) summaries.emplace(resumed[i], std::move(resumed_sums[i]));
   const BlockGrid bgrid(hf.width(), hf.height(), opt.block_size, hf.transform);
   std::vector<BlockSummary> sums(bgrid.block_count());
-  bool complete_sums = true;
-  for (const auto& [k, sum] : summaries) {
-    if (!sum)
-      complete_sums = false;
-    else
-      sums[bgrid.index(k)] = *sum;
-  }
-  const std::vector<std::uint8_t> sum_bytes =
-      complete_sums ? encode_block_summaries(bgrid, sums) : std::vector<std::uint8_t>{};
+  for (const auto& [k, sum] : summaries) sums[bgrid.index(k)] = sum;
+  const std::vector<std::uint8_t> sum_bytes = encode_block_summaries(bgrid, sums);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   {
     BlockDatabase::Transaction tx(db);
     db.put_blob("tree", tree_bytes);
-    if (complete_sums) db.put_blob(kBlockSummariesBlob, sum_bytes);
+    db.put_blob(kBlockSummariesBlob, sum_bytes);
     char buf[40];
     std::snprintf(buf, sizeof buf, "%.6f", seconds);
     db.set_meta("build_seconds", buf);

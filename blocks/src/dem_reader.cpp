@@ -1,5 +1,6 @@
 // Reads SRTM .hgt tiles, GDAL rasters, OpenImageIO heightmaps and Esri ASCII grids into metric
-// Heightfields, mapping geographic grids to a local equirectangular frame and filling voids.
+// Heightfields, mapping geographic grids to a local equirectangular frame and filling voids; the
+// other frames (DemOptions::crs) are dem_frame.cpp's.
 #include "terralod/blocks/dem_reader.hpp"
 
 #include <OpenImageIO/imageio.h>
@@ -21,6 +22,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "dem_frame.hpp"
 #include "gdal_support.hpp"
 #include "terralod/blocks/void_fill.hpp"
 
@@ -646,7 +648,9 @@ pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& op
   }
   hf.vertical_datum = std::move(r.geo.vertical_datum);
   hf.source = path;
-  hf.frame = frame + r.height_note;
+  hf.frame = frame;
+  hf = detail::apply_frame(path, std::move(hf), options.crs);
+  hf.frame += r.height_note;
   return hf;
 }
 
@@ -667,6 +671,8 @@ void check_options(const DemOptions& o) {
   if (!std::isfinite(o.heightmap_spacing) || !(o.heightmap_spacing > 0.0)) {
     throw std::invalid_argument("DemOptions::heightmap_spacing must be finite and positive");
   }
+  if (o.crs.empty())
+    throw std::invalid_argument("DemOptions::crs must be 'native', 'auto' or a CRS, not empty");
 }
 
 }  // namespace

@@ -86,13 +86,14 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   tree_ = decode_tree(*tree_blob, db_path + ": tree");
   if (tree_.size() == 0) throw DatabaseError(db_path, "the approximation tree is empty");
   tree_bytes_ = tree_blob->size() * 3;  // decoded: doubles for the points, about 3x the blob
-  // Block summaries with their stand-ins, when the build stored them (it does not for blocks
-  // with voids: they have no rectangular stand-in). Without them no block is drawn as its
-  // stand-in, and a missing PmBlock root leaves nothing to draw until it arrives.
+  // Block summaries with their stand-ins, when the build stored them (databases built before
+  // blocks with holes had stand-ins may lack them). Without them no block is drawn as its
+  // stand-in, and a missing PmBlock root leaves nothing to draw until it arrives. An empty block
+  // (no valid sample) has no stand-in.
   if (db.read_blob(kBlockSummariesBlob)) {
     sums_ = read_block_summaries(db, grid_);
     for (std::size_t i = 0; i < sums_.size(); ++i)  // a summary without a surface: its two triangles
-      if (sums_[i].triangles.empty()) {
+      if (sums_[i].triangles.empty() && !sums_[i].empty) {
         const SampleRect d = grid_.domain(grid_.key(i));
         set_two_triangle_standin(sums_[i], d.width(), d.height());
       }

@@ -144,4 +144,14 @@ double edge_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::Grid
   return hf.has_holes() ? worst_crossing(hf, p, q).error : linf.segment(p, q);
 }
 
+double triangle_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::ErrorMetric metric,
+                      pm::GridPoint a, pm::GridPoint b, pm::GridPoint c) {
+  if (!hf.has_holes()) return linf.triangle(a, b, c);
+  double e = scan_triangle(hf, a, b, c).error;
+  if (metric == pm::ErrorMetric::Continuous)
+    e = std::max(
+        {e, worst_crossing(hf, a, b).error, worst_crossing(hf, b, c).error, worst_crossing(hf, c, a).error});
+  return e;
+}
+
 }  // namespace terralod::blocks::detail

@@ -43,4 +43,11 @@ void mark_triangle(pm::GridPoint a, pm::GridPoint b, pm::GridPoint c, int x0, in
 /// The crossing error of p-q: LInfError::segment when hf has no holes, else worst_crossing.
 double edge_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::GridPoint p, pm::GridPoint q);
 
+/// The exact error of the triangle (a,b,c) over hf's valid samples, in `linf`'s metric (built
+/// with `metric` over hf): LInfError::triangle when hf has no holes; otherwise the valid samples
+/// of the closed triangle and, for the continuous metric, the crossings of its edges with grid
+/// edges between valid samples (worst_crossing). Holes, wherever they are, take no part.
+double triangle_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::ErrorMetric metric,
+                      pm::GridPoint a, pm::GridPoint b, pm::GridPoint c);
+
 }  // namespace terralod::blocks::detail

@@ -11,6 +11,7 @@
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/linf_error.hpp"
 #include "terralod/pm/parallel.hpp"
+#include "tin_error.hpp"
 
 namespace terralod::blocks {
 namespace {
@@ -197,7 +198,8 @@ double surface_error(const pm::Heightfield& hf, const NodeSurface& s, pm::ErrorM
   const pm::LInfError err(hf, metric);
   double worst = 0.0;
   for (const auto& t : s.triangles)
-    worst = std::max(worst, err.triangle(gp(s.points[t[0]]), gp(s.points[t[1]]), gp(s.points[t[2]])));
+    worst = std::max(worst, detail::triangle_error(err, hf, metric, gp(s.points[t[0]]), gp(s.points[t[1]]),
+                                                   gp(s.points[t[2]])));
   return worst;
 }
 

@@ -292,8 +292,11 @@ const fs::path& database() {
   static const fs::path d = [] {
     const fs::path asc = tmp_dir() / "n44w072_crop.asc", db = tmp_dir() / "crop.db";
     write_crop(asc);
-    const auto b =
-        terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
+    // --crs native: the database keeps the DEM's own lon/lat samples, so the client's heights are
+    // compared with the samples themselves (an "auto" frame would resample them twice: to the
+    // azimuthal equidistant grid, then back to lon/lat for the export).
+    const auto b = terralod("build --threads 1 --crs native --input " + quote(asc.string()) + " --out " +
+                            quote(db.string()));
     if (b.status != 0) {
       ADD_FAILURE() << "terralod build failed:\n" << b.out << b.err;
       return fs::path();

@@ -1,6 +1,7 @@
 // End-to-end tests of the terralod command-line tool: runs the built binary on a small Esri
 // ASCII grid it writes itself and checks exit codes, messages, JSON fields and output meshes.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <cmath>
 #include <cstdio>
@@ -383,6 +384,111 @@ TEST(cli_voids, VoidsAreReportedFilledOrKept) {
   const CliResult i = terralod("info " + quote(out.string()));
   ASSERT_EQ(i.status, 0) << i.err;
   EXPECT_EQ(json_number(i.out, "vertices"), double(kW * kH - 1)) << i.out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// --crs: the world frame of geographic DEMs
+
+/// A geographic (WGS 84, .prj sidecar) ASCII grid of n x n samples `step` degrees apart, south-west
+/// sample centre at (lon0, lat0), heights 100 + col + row.
+fs::path write_geographic_asc(const std::string& name, double lon0, double lat0, int n, double step) {
+  const fs::path path = tmp_dir() / (name + ".asc");
+  std::ofstream f(path);
+  f.precision(17);
+  f << "ncols " << n << "\nnrows " << n << "\nxllcenter " << lon0 << "\nyllcenter " << lat0 << "\ncellsize "
+    << step << "\n";
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) f << (c ? " " : "") << 100 + c + r;
+    f << "\n";
+  }
+  std::ofstream(tmp_dir() / (name + ".prj"))
+      << "GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563]],"
+         "PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433],AUTHORITY[\"EPSG\",\"4326\"]]";
+  return path;
+}
+
+TEST(cli_crs, InfoReportsTheFrameItsScaleErrorAndTheVerticalDatum) {
+  const std::string dem = quote(write_geographic_asc("deg1", -70.0, 44.0, 41, 0.025).string());
+  const CliResult a = terralod("info " + dem);  // --crs auto by default
+  ASSERT_EQ(a.status, 0) << a.err;
+  EXPECT_NE(a.out.find("\"frame\": \"azimuthal equidistant (auto)"), std::string::npos) << a.out;
+  EXPECT_NE(a.out.find("scale error within +-0.001 %"), std::string::npos) << a.out;
+  EXPECT_LT(json_number(a.out, "scale_error"), 2e-5) << a.out;
+  EXPECT_NE(a.out.find("\"vertical_datum\": \"\""), std::string::npos) << a.out;  // an .asc states none
+  const CliResult n = terralod("info --crs native " + dem);
+  ASSERT_EQ(n.status, 0) << n.err;
+  EXPECT_NE(n.out.find("\"frame\": \"local equirectangular"), std::string::npos) << n.out;
+  EXPECT_GT(json_number(n.out, "scale_error"), 0.006) << n.out;
+  const CliResult u = terralod("info --crs EPSG:32619 " + dem);
+  ASSERT_EQ(u.status, 0) << u.err;
+  EXPECT_NE(u.out.find("UTM zone 19N"), std::string::npos) << u.out;
+  EXPECT_GT(json_number(u.out, "x0"), 300000.0) << u.out;  // UTM eastings
+  const CliResult bad = terralod("info --crs EPSG:999999 " + dem);
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("deg1.asc"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("'EPSG:999999'"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("--crs"), std::string::npos) << bad.err;
+  // A DEM without a CRS cannot be warped to one, and says so.
+  const fs::path plain = tmp_dir() / "plain.asc";
+  write_asc(plain);
+  const CliResult none = terralod("info --crs EPSG:32619 " + quote(plain.string()));
+  EXPECT_EQ(none.status, 1);
+  EXPECT_NE(none.err.find("has no CRS"), std::string::npos) << none.err;
+  for (const std::string cmd : {"pm", "extract", "info", "view", "build", "tin", "hybrid"}) {
+    const CliResult h = terralod(cmd + " --help");
+    EXPECT_NE(h.out.find("--crs CRS"), std::string::npos) << cmd << ":\n" << h.out;
+  }
+}
+
+TEST(cli_crs, InfoOfADatabaseReportsTheFrameItWasBuiltIn) {
+  const std::string dem = quote(write_geographic_asc("deg1db", -70.0, 44.0, 41, 0.025).string());
+  const fs::path db = tmp_dir() / "deg1.db";
+  const CliResult b =
+      terralod("build --threads 1 --block-size 17 --input " + dem + " --out " + quote(db.string()));
+  ASSERT_EQ(b.status, 0) << b.err;
+  const CliResult i = terralod("info " + quote(db.string()));
+  ASSERT_EQ(i.status, 0) << i.err;
+  EXPECT_NE(i.out.find("\"frame\": {\"description\": \"azimuthal equidistant (auto)"), std::string::npos)
+      << i.out;
+  EXPECT_NE(i.out.find("scale error within +-0.001 %"), std::string::npos) << i.out;
+  EXPECT_LT(json_number(i.out, "scale_error"), 2e-5) << i.out;
+  EXPECT_GT(json_number(i.out, "scale_error"), 0.0) << i.out;
+  EXPECT_NE(i.out.find("\"vertical_datum\": \"\"}"), std::string::npos) << i.out;  // an .asc states none
+  // Built with --crs native: its frame and its (larger) error.
+  const fs::path ndb = tmp_dir() / "deg1_native.db";
+  ASSERT_EQ(terralod("build --threads 1 --block-size 17 --crs native --input " + dem + " --out " +
+                     quote(ndb.string()))
+                .status,
+            0);
+  const CliResult n = terralod("info " + quote(ndb.string()));
+  EXPECT_NE(n.out.find("\"frame\": {\"description\": \"local equirectangular"), std::string::npos) << n.out;
+  EXPECT_GT(json_number(n.out, "scale_error"), 0.006) << n.out;
+  // A database built before frames were recorded (its meta rows removed): info says so.
+  sqlite3* s = nullptr;
+  ASSERT_EQ(sqlite3_open(db.string().c_str(), &s), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(s, "DELETE FROM meta WHERE key IN ('frame', 'frame_scale_error')", nullptr, nullptr,
+                         nullptr),
+            SQLITE_OK)
+      << sqlite3_errmsg(s);
+  sqlite3_close(s);
+  const CliResult old = terralod("info " + quote(db.string()));
+  ASSERT_EQ(old.status, 0) << old.err;
+  EXPECT_NE(old.out.find("\"frame\": \"not recorded (built before"), std::string::npos) << old.out;
+}
+
+TEST(cli_crs, ADemTooLargeForTheAutoFrameIsWarnedAbout) {
+  // 12 x 12 degrees on the equator: c_max = 8.5 degrees, scale error ~ c_max^2 / 12 = 0.18 %.
+  const std::string dem = quote(write_geographic_asc("deg12", 0.0, -6.0, 25, 0.5).string());
+  const fs::path out = tmp_dir() / "deg12.pm";
+  const CliResult p = terralod("pm --input " + dem + " --out " + quote(out.string()));
+  ASSERT_EQ(p.status, 0) << p.err;
+  EXPECT_NE(p.err.find("warning: "), std::string::npos) << p.err;
+  EXPECT_NE(p.err.find("over 0.1 %"), std::string::npos) << p.err;
+  const CliResult small =
+      terralod("pm --input " + quote(write_geographic_asc("deg2", 0.0, -1.0, 25, 0.08).string()) + " --out " +
+               quote((tmp_dir() / "deg2.pm").string()));
+  ASSERT_EQ(small.status, 0) << small.err;
+  EXPECT_EQ(small.err.find("warning: "), std::string::npos) << small.err;
 }
 
 // ---------------------------------------------------------------------------------------------

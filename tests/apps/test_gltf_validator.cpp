@@ -163,8 +163,9 @@ const fs::path& geographic_dem() {
 TEST(GltfValidator, ThreeDTilesExportIsValidTileByTile) {
   ASSERT_NO_FATAL_FAILURE(require_validator());
   const fs::path db = tmp_dir() / "geographic.db", out = tmp_dir() / "3dtiles";
-  auto r = terralod("build --threads 1 --block-size 33 --input " + quote(geographic_dem().string()) +
-                    " --out " + quote(db.string()));
+  // --crs native: the tiles are exported from the DEM's own lon/lat samples (levels as asserted).
+  auto r = terralod("build --threads 1 --block-size 33 --crs native --input " +
+                    quote(geographic_dem().string()) + " --out " + quote(db.string()));
   ASSERT_EQ(r.status, 0) << r.err;
   r = terralod("export --threads 1 --format 3dtiles --db " + quote(db.string()) + " --out " +
                quote(out.string()));
@@ -195,8 +196,9 @@ TEST(GltfValidator, MeshoptExportDecodesToTheUncompressedTiles) {
   ASSERT_NO_FATAL_FAILURE(require_validator());
   const fs::path db = tmp_dir() / "geographic_meshopt.db", plain = tmp_dir() / "3dtiles_plain",
                  packed = tmp_dir() / "3dtiles_meshopt";
-  auto r = terralod("build --threads 1 --block-size 33 --input " + quote(geographic_dem().string()) +
-                    " --out " + quote(db.string()));
+  // --crs native: the tiles are exported from the DEM's own lon/lat samples (levels as asserted).
+  auto r = terralod("build --threads 1 --block-size 33 --crs native --input " +
+                    quote(geographic_dem().string()) + " --out " + quote(db.string()));
   ASSERT_EQ(r.status, 0) << r.err;
   for (const auto& [dir, flag] : {std::pair{plain, ""}, std::pair{packed, " --meshopt"}}) {
     fs::remove_all(dir);

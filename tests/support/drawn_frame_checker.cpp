@@ -81,6 +81,16 @@ FrameCheck check_drawn_frame(const pm::Heightfield& hf, const DrawnFrame& f, con
     const bool terrain_border = (ax == bx && (ax == 0 || ax == std::int64_t(W) - 1)) ||
                                 (ay == by && (ay == 0 || ay == std::int64_t(H) - 1));
     if (terrain_border) continue;
+    // The border of a hole (a sample that is not valid beside an endpoint) is no crack: the
+    // terrain ends there.
+    auto beside_hole = [&](std::int64_t x, std::int64_t y) {
+      for (std::int64_t j = std::max<std::int64_t>(0, y - 1); j <= std::min<std::int64_t>(H - 1, y + 1); ++j)
+        for (std::int64_t i = std::max<std::int64_t>(0, x - 1); i <= std::min<std::int64_t>(W - 1, x + 1);
+             ++i)
+          if (!hf.valid(int(i), int(j))) return true;
+      return false;
+    };
+    if (hf.has_holes() && (beside_hole(ax, ay) || beside_hole(bx, by))) continue;
     bool in_view = false;
     for (std::uint64_t s : {e.first, e.second}) {
       if (!hf.valid(std::size_t(s))) continue;

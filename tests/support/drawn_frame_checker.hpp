@@ -23,7 +23,9 @@
 //     strictly inside another edge (T-junction, exact integer test); one sample drawn at two
 //     positions; boundary edges (used once) that are not on the terrain border and have an
 //     endpoint whose true point is inside the frustum (a hole where terrain is in view: a
-//     culled neighbour's box holds its border samples, so it would not have been culled).
+//     culled neighbour's box holds its border samples, so it would not have been culled);
+//     boundary edges with an endpoint beside a hole (an invalid sample among its 8 neighbours)
+//     are the terrain's own border there, not cracks.
 // Cost: O(samples + triangles x their bounding boxes). Memory: 8 bytes per sample.
 #pragma once
 

@@ -3,7 +3,6 @@
 #include "terralod/blocks/geo_grid.hpp"
 
 #include <gdal_priv.h>
-#include <gdalwarper.h>
 #include <ogr_spatialref.h>
 #include <proj.h>
 #include <proj_experimental.h>
@@ -16,6 +15,7 @@
 #include <mutex>
 
 #include "../gdal_support.hpp"
+#include "../gdal_warp.hpp"
 #include "terralod/pm/parallel.hpp"
 
 namespace terralod::blocks {
@@ -120,46 +120,33 @@ bool is_wgs84_geographic(const std::string& wkt) {
 
 /// hf warped to EPSG:4326 (bilinear, GDAL's choice of resolution), voids and outside as holes.
 GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
-  register_gdal();
-  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  std::unique_ptr<GDALDataset> src(mem->Create("", hf.width(), hf.height(), 1, GDT_Float64, nullptr));
-  if (!src) throw GeoError(what + ": GDAL could not make an in-memory raster to warp");
   const pm::GridTransform& t = *hf.crs_transform;
-  double gt[6] = {t.x0 - 0.5 * t.xc - 0.5 * t.xr, t.xc, t.xr, t.y0 - 0.5 * t.yc - 0.5 * t.yr, t.yc, t.yr};
-  src->SetGeoTransform(gt);
-  src->SetProjection(hf.crs_wkt.c_str());
-  std::vector<double> z(hf.samples());
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (std::size_t i = 0; i < z.size(); ++i)
-    if (!hf.valid(i)) z[i] = nan;
-  GDALRasterBand* band = src->GetRasterBand(1);
-  band->SetNoDataValue(nan);
-  if (band->RasterIO(GF_Write, 0, 0, hf.width(), hf.height(), z.data(), hf.width(), hf.height(), GDT_Float64,
-                     0, 0) != CE_None)
-    throw GeoError(what + ": GDAL could not fill the in-memory raster to warp");
+  detail::WarpGrid src;
+  src.width = hf.width();
+  src.height = hf.height();
+  src.gt = {t.x0 - 0.5 * t.xc - 0.5 * t.xr, t.xc, t.xr, t.y0 - 0.5 * t.yc - 0.5 * t.yr, t.yc, t.yr};
+  src.z = hf.samples();
+  for (std::size_t i = 0; i < src.z.size(); ++i)
+    if (!hf.valid(i)) src.z[i] = std::numeric_limits<double>::quiet_NaN();
+  register_gdal();
   OGRSpatialReference wgs84;
   wgs84.SetWellKnownGeogCS("WGS84");
   char* dst_wkt = nullptr;
   wgs84.exportToWkt(&dst_wkt);
-  GDALDatasetH warped = GDALAutoCreateWarpedVRT(src.get(), nullptr, dst_wkt, GRA_Bilinear, 0.0, nullptr);
+  const std::string dst = dst_wkt != nullptr ? dst_wkt : "";
   CPLFree(dst_wkt);
-  if (warped == nullptr)
-    throw GeoError(what + ": GDAL could not warp the terrain from its CRS to longitude/latitude: " +
-                   CPLGetLastErrorMsg());
+  std::string error;
+  const detail::WarpGrid w = detail::warp_grid(src, hf.crs_wkt, dst, /*target=*/nullptr, error);
+  if (!error.empty())
+    throw GeoError(what + ": GDAL could not warp the terrain from its CRS to longitude/latitude: " + error);
   GeoGrid g;
-  g.width = GDALGetRasterXSize(warped);
-  g.height = GDALGetRasterYSize(warped);
-  double wt[6];
-  GDALGetGeoTransform(warped, wt);
-  g.dlon = wt[1];
-  g.dlat = -wt[5];
-  g.west = wt[0] + 0.5 * wt[1];
-  g.north = wt[3] + 0.5 * wt[5];
-  g.heights.resize(std::size_t(g.width) * g.height);
-  const CPLErr rc = GDALRasterIO(GDALGetRasterBand(warped, 1), GF_Read, 0, 0, g.width, g.height,
-                                 g.heights.data(), g.width, g.height, GDT_Float64, 0, 0);
-  GDALClose(warped);
-  if (rc != CE_None) throw GeoError(what + ": GDAL could not read the warped terrain");
+  g.width = w.width;
+  g.height = w.height;
+  g.dlon = w.gt[1];
+  g.dlat = -w.gt[5];
+  g.west = w.gt[0] + 0.5 * w.gt[1];
+  g.north = w.gt[3] + 0.5 * w.gt[5];
+  g.heights = w.z;
   g.mask.assign(g.heights.size(), 1);
   bool any = false;
   for (std::size_t i = 0; i < g.heights.size(); ++i) {

@@ -139,13 +139,18 @@ struct BlockSummary {
   /// runtime bounds each triangle in its own box with it (standin_bound_px). Two-triangle stand-ins decoded
   /// from a version 1 blob have tm_error for both.
   std::vector<double> triangle_errors;
+  /// The block has no valid sample (all holes): no stand-in (points and triangles empty), the
+  /// other fields 0; nothing is drawn there.
+  bool empty = false;
   bool operator==(const BlockSummary&) const = default;
 };
 
 /// Summary of block `k` from its PM (whose heightfield is the block's samples), with a stand-in
-/// made by `standin`. Throws std::invalid_argument naming the block when the PM has holes (no
-/// rectangular stand-in). Cost: the strategy's build (a greedy TIN of s points over a 257^2
-/// block: a few milliseconds) plus one exact error measure.
+/// made by `standin`. With holes (mask 0) the stand-in still covers the block's rectangle, but
+/// zmin..zmax (widened to the stand-in's points), tm_error and the stand-in's errors are those
+/// of the existing samples only; a block without any valid sample gets an `empty` summary. Cost: the
+/// strategy's build (a greedy TIN of s points over a 257^2 block: a few milliseconds) plus one exact error
+/// measure.
 BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey k, const StandinOptions& standin = {});
 
 /// Replaces s's stand-in by the two triangles of its corners (error tm_error for both) over a

@@ -59,13 +59,34 @@
 //     For N44W072.hgt: dy = R*pi/180/1200 = 92.66 m, dx = dy * cos(44.5 deg) = 66.09 m.
 //     Distortion: distances are exact along the parallel phi_c and north-south; east-west
 //     they are off by cos(phi)/cos(phi_c) - 1 (about 0.9 % at the north and south edges of a
-//     1-degree tile at 45 deg). hf.frame records lon0, lat0 and phi_c so the map can be inverted.
+//     1-degree tile at 45 deg), and against the ellipsoid the sphere adds its own error (1.1 % in
+//     all for N44W072.hgt, as frame_scale_error measures). hf.frame records lon0, lat0 and phi_c
+//     so the map can be inverted.
+//     This is DemOptions::crs = "native", the library's default; "auto" (the CLI's default) and
+//     a named CRS warp the DEM to a projected CRS instead (below).
 //   - Projected CRS: the CRS coordinates, with its linear unit converted to metres
 //     (UTM-sized values stay as they are; they are doubles).
 //   - Geotransform but no CRS: the geotransform's units are taken as metres.
 //   - No georeferencing (plain images, rasters without geotransform): north-up, spacing
 //     options.heightmap_spacing, the south-west sample at (0, 0), so x0 = 0 and
 //     y0 = (height - 1) * spacing.
+//   - DemOptions::crs = "auto", geographic CRS: the DEM is read (and its voids filled) as above,
+//     then warped by GDAL (bilinear, exact transformations) to the azimuthal equidistant
+//     projection on the source's ellipsoid, centred on the DEM, onto a north-up grid of cells of
+//     the source's east-west and north-south ground spacings at its centre (not square: about the
+//     source's sample count) covering the source's footprint; cells outside the footprint, and
+//     voids kept as holes, are holes (mask 0, their heights a harmonic fill for the surfaces drawn
+//     through them, never valid samples). World = k0 * projected metres with k0 = 2 / (1 + c_max / sin
+//     c_max), c_max = the angular distance of the farthest DEM corner from the centre: the radial scale (1)
+//     and the tangential one (c / sin c) are then balanced, so distances are true to within about c_max^2 /
+//     12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees. Larger DEMs need a CRS
+//     of the user's choice. Projected inputs, and inputs without a CRS, stay native. hf.crs_wkt is the target
+//     CRS and hf.crs_transform maps samples to it.
+//   - DemOptions::crs = any CRS GDAL's SetFromUserInput accepts ("EPSG:32619", a PROJ string,
+//     WKT), which must be projected: the same warp to it, world = its coordinates in metres.
+//   Every frame with a CRS has its worst scale error measured (frame_scale_error) and stated at
+//   the end of hf.frame: "...; scale error within +-0.081 %". hf.vertical_datum is the source's
+//   in every frame.
 //
 // Voids (fill_voids = true, the default): filled by harmonic (Laplace) inpainting: each void
 //   sample becomes the mean of its 4-neighbours inside the grid, valid samples held fixed
@@ -87,6 +108,7 @@
 //   +-inf, ASCII grid NODATA_value.
 #pragma once
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -110,6 +132,12 @@ struct DemOptions {
   double heightmap_spacing = 1.0;
   /// File format; Auto chooses by extension (see the header comment).
   enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
+  /// The world frame (see the header comment): "native" (the source's own frame, local
+  /// equirectangular for geographic DEMs), "auto" (geographic DEMs warped to a balanced azimuthal
+  /// equidistant projection) or a projected CRS GDAL understands ("EPSG:32619", PROJ, WKT).
+  /// Defaults to "native" so that a file is read as it is and databases built from it before
+  /// this option existed resume; `terralod` commands default to "auto". Not empty.
+  std::string crs = "native";
 };
 
 /// Bad data: the message is always "<path>: <problem>".
@@ -131,6 +159,14 @@ class DemError : public std::runtime_error {
 /// the world frame and void handling). Throws DemError on bad data; std::invalid_argument
 /// when options hold an invalid value (non-finite or zero scale, spacing <= 0).
 pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {});
+
+/// The worst relative scale error of hf's world frame against its CRS's ellipsoid: the largest
+/// |sigma - 1| over the singular values sigma of the map (east, north metres on the ellipsoid)
+/// -> world metres, at a 33 x 33 lattice of valid samples and at both ends of every row of
+/// valid samples. Distances measured in the world frame are true to within this fraction
+/// (locally; along any path of valid samples). nullopt when hf has no CRS (or PROJ cannot
+/// place it). Costs a few milliseconds.
+std::optional<double> frame_scale_error(const pm::Heightfield& hf);
 
 /// The inputs of `terralod build --input` as one raster for read_dem: a single file as it is;
 /// several files, or a folder (its raster files: .tif .tiff .hgt .asc .img .dem .bil .flt, sorted

@@ -48,7 +48,8 @@ std::unique_ptr<NodeStrategy> make_nonregular_strategy(std::size_t max_points, p
 /// Grid of patch P plus a TIN microstructure of at most tin_points (>= 4) points (see above).
 std::unique_ptr<NodeStrategy> make_hybrid_strategy(int patch, std::size_t tin_points, pm::ErrorMetric metric);
 
-/// Exact error of a surface against hf: max over its triangles of pm::LInfError::triangle.
+/// Exact error of a surface against hf: max over its triangles of pm::LInfError::triangle,
+/// measured over hf's valid samples only when hf has holes (what is not there has no error).
 double surface_error(const pm::Heightfield& hf, const NodeSurface& surface, pm::ErrorMetric metric);
 
 }  // namespace terralod::blocks

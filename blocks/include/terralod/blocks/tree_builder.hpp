@@ -155,9 +155,9 @@ struct DatabaseSummary {
   std::uint64_t pm_vertices = 0;  ///< sum over blocks of their PM vertices (borders counted twice)
   std::uint64_t block_bytes = 0, tree_bytes = 0;
   std::uint64_t summaries_bytes = 0;  ///< the "block_summaries" blob (0 when absent)
-  std::string standin;                ///< stand-in kind of the blob's first block ("" when absent)
-  double mean_standin_error = 0;      ///< mean over blocks of the stand-in error, metres
-  double mean_tm_error = 0;           ///< mean over blocks of the two-triangle error, metres
+  std::string standin;                ///< stand-in kind of the blob's first non-empty block ("" when absent)
+  double mean_standin_error = 0;      ///< mean over non-empty blocks of the stand-in error, metres
+  double mean_tm_error = 0;           ///< mean over non-empty blocks of the two-triangle error, metres
   double bytes_per_vertex = 0;        ///< (block_bytes + tree_bytes) / samples
   double max_block_error = 0;         ///< largest PmBlock leaf error (base meshes), metres
   double root_error = 0;              ///< exact error of the root surface, metres
@@ -166,6 +166,12 @@ struct DatabaseSummary {
   /// Where the terrain lies on the Earth (absent for sources without a CRS, or databases built
   /// before it was recorded): to_json writes it as "georeference" with the frame convention.
   std::optional<Georeference> georeference;
+  /// The world frame the terrain was built in (meta "frame": Heightfield::frame, how read_dem
+  /// made it) and its worst scale error (meta "frame_scale_error", frame_scale_error; empty
+  /// without a CRS); nullopt for databases built before they were recorded. to_json writes
+  /// "frame" {description, scale_error, vertical_datum} or the string "not recorded (...)".
+  std::optional<std::string> frame;
+  std::optional<double> frame_scale_error;
   bool complete = false;
   /// One JSON object (the fields above).
   std::string to_json() const;

@@ -1,0 +1,100 @@
+// One GDAL warp of a height grid between CRSs (see gdal_warp.hpp).
+#include "gdal_warp.hpp"
+
+#include <gdal_priv.h>
+#include <gdal_utils.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include "gdal_support.hpp"
+
+namespace terralod::blocks::detail {
+
+namespace {
+
+std::string number(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+}  // namespace
+
+WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::string& dst_wkt,
+                   const WarpGrid* target, std::string& error) {
+  register_gdal();
+  QuietGdal quiet;
+  error.clear();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  std::unique_ptr<GDALDataset> in(mem->Create("", src.width, src.height, 1, GDT_Float64, nullptr));
+  if (!in) {
+    error = "GDAL could not make an in-memory raster to warp";
+    return {};
+  }
+  double gt[6] = {src.gt[0], src.gt[1], src.gt[2], src.gt[3], src.gt[4], src.gt[5]};
+  in->SetGeoTransform(gt);
+  in->SetProjection(src_wkt.c_str());
+  GDALRasterBand* band = in->GetRasterBand(1);
+  band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
+  if (band->RasterIO(GF_Write, 0, 0, src.width, src.height, const_cast<double*>(src.z.data()), src.width,
+                     src.height, GDT_Float64, 0, 0) != CE_None) {
+    error = "GDAL could not fill the in-memory raster to warp";
+    return {};
+  }
+
+  // gdalwarp -of MEM -t_srs DST -r bilinear -et 0 -dstnodata nan -wo NUM_THREADS=ALL_CPUS -multi
+  // [-te ... -ts W H]: exact transformations (-et 0; the approximate transformer at 0.125 pixel
+  // halved the warp of N44W072, 0.7 s -> 0.3 s, for up to 0.125 pixel of displacement), on every core.
+  std::vector<std::string> args = {
+      "-of",   "MEM",        "-t_srs", dst_wkt, "-r",      "bilinear", "-et",
+      "0",     "-dstnodata", "nan",    "-ot",   "Float64", "-wo",      "NUM_THREADS=ALL_CPUS",
+      "-multi"};
+  if (target != nullptr) {
+    const auto& t = target->gt;
+    if (t[2] != 0.0 || t[4] != 0.0) {
+      error = "the target grid of a warp must be north-up";
+      return {};
+    }
+    const double x0 = t[0], x1 = t[0] + target->width * t[1];
+    const double y0 = t[3] + target->height * t[5], y1 = t[3];
+    for (const std::string& s :
+         {std::string("-te"), number(x0), number(y0), number(x1), number(y1), std::string("-ts"),
+          std::to_string(target->width), std::to_string(target->height)})
+      args.push_back(s);
+  }
+  std::vector<char*> argv;
+  for (std::string& s : args) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  GDALWarpAppOptions* options = GDALWarpAppOptionsNew(argv.data(), nullptr);
+  if (options == nullptr) {
+    error = gdal_message("GDAL rejected the warp options");
+    return {};
+  }
+  GDALDatasetH source = GDALDataset::ToHandle(in.get());
+  int usage_error = 0;
+  GDALDatasetH out = GDALWarp("", nullptr, 1, &source, options, &usage_error);
+  GDALWarpAppOptionsFree(options);
+  if (out == nullptr) {
+    error = gdal_message("GDAL could not warp the grid");
+    return {};
+  }
+  WarpGrid w;
+  w.width = GDALGetRasterXSize(out);
+  w.height = GDALGetRasterYSize(out);
+  double ot[6];
+  GDALGetGeoTransform(out, ot);
+  for (int k = 0; k < 6; ++k) w.gt[std::size_t(k)] = ot[k];
+  w.z.resize(std::size_t(w.width) * std::size_t(w.height));
+  const CPLErr rc = GDALRasterIO(GDALGetRasterBand(out, 1), GF_Read, 0, 0, w.width, w.height, w.z.data(),
+                                 w.width, w.height, GDT_Float64, 0, 0);
+  GDALClose(out);
+  if (rc != CE_None) {
+    error = gdal_message("GDAL could not read the warped grid");
+    return {};
+  }
+  return w;
+}
+
+}  // namespace terralod::blocks::detail
