@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "object_bench.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/object_drape.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
@@ -51,23 +52,12 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "terralod-bench-drape: need --roads >= 1, --vertices >= 2 and --frames >= 1\n");
     return 2;
   }
-  const std::string dem = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
-  if (!fs::exists(dem)) {
+  if (!fs::exists(terralod::bench::n44w072_path())) {
     std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
     return 0;
   }
   try {
-    const std::string path = (fs::temp_directory_path() / "terralod-bench-drape-129.db").string();
-    {
-      const pm::Heightfield hf = tb::read_dem(dem);
-      tb::DatabaseBuildOptions o;
-      o.block_size = 129;
-      o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
-      const tb::DatabaseSummary s = tb::build_database(hf, path, o);
-      std::printf("%s %s: %d x %d samples in %zu blocks of %d, %.1f s\n",
-                  s.blocks_built == 0 ? "reuse" : "build", path.c_str(), s.grid_width, s.grid_height,
-                  s.blocks, s.block_size, s.seconds);
-    }
+    const std::string path = terralod::bench::n44w072_database(tb::read_dem(terralod::bench::n44w072_path()));
     tb::RuntimeOptions opt;
     opt.morph_seconds = 0.5;
     tb::TerrainRuntime rt(path, opt);
@@ -87,23 +77,18 @@ int main(int argc, char** argv) {
         p.push_back({x, y});
       lines.push_back({p, 8.0, std::uint32_t(r)});
     }
-    const double zmax = rt.terrain_box().hi.z;
     // The flight of terralod-bench-objects: 400 m/s along an arc (radius 12 km), 700 m above the
     // highest sample, looking ahead and 20 degrees down; every frame waits for its loads.
-    double x = x0 + 0.1 * (x1 - x0), y = y0 + 0.1 * (y1 - y0), heading = 0.2;
+    terralod::bench::ArcFlight flight{x0 + 0.1 * (x1 - x0), y0 + 0.1 * (y1 - y0), 0.2, 400, 12000, 700,
+                                      rt.terrain_box().hi.z};
     std::vector<double> drape_ms, index_ms, pieces, tested, made, drawn;
     tb::ObjectMesh mesh;
     for (long f = 0; f < frames; ++f) {
-      heading += 400.0 / 12000.0 / 60.0;
-      x += 400.0 / 60 * std::sin(heading), y += 400.0 / 60 * std::cos(heading);
-      pm::Camera c;
-      c.x = x, c.y = y, c.z = zmax + 700;
-      c.yaw_deg = heading * 180 / std::numbers::pi, c.pitch_deg = -20, c.fovy_deg = 60;
-      c.width_px = 1280, c.height_px = 720;
+      pm::Camera c = flight.next();
       rt.fit_clip_planes(c);
       rt.update_until_loaded(pm::View(c), double(f) / 60.0);
       double t0 = pm::thread_cpu_ms();
-      rt.drawn_height(x, y);  // the frame's first height query builds the bucket index
+      rt.drawn_height(c.x, c.y);  // the frame's first height query builds the bucket index
       index_ms.push_back(pm::thread_cpu_ms() - t0);
       mesh.clear();
       t0 = pm::thread_cpu_ms();

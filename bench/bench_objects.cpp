@@ -20,12 +20,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <numbers>
 #include <random>
 #include <string>
-#include <thread>
 #include <vector>
 
+#include "object_bench.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/label_declutter.hpp"
@@ -52,15 +51,8 @@ const char* kRules = R"({"ranges": [{"max_distance_m": 2000, "draw": "icon"},
 // The database of N44W072 with layers "points<N>" (no rules) and "ruled<N>" (kRules) of the same
 // n random points.
 std::string prepare(long n) {
-  const std::string dem = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
-  const std::string path = (fs::temp_directory_path() / "terralod-bench-objects-129.db").string();
-  const pm::Heightfield hf = tb::read_dem(dem);
-  tb::DatabaseBuildOptions o;
-  o.block_size = 129;
-  o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
-  const tb::DatabaseSummary s = tb::build_database(hf, path, o);
-  std::printf("%s %s: %d x %d samples in %zu blocks of %d, %.1f s\n", s.blocks_built == 0 ? "reuse" : "build",
-              path.c_str(), s.grid_width, s.grid_height, s.blocks, s.block_size, s.seconds);
+  const pm::Heightfield hf = tb::read_dem(terralod::bench::n44w072_path());
+  const std::string path = terralod::bench::n44w072_database(hf);
   const std::string layer = "points" + std::to_string(n), ruled = "ruled" + std::to_string(n);
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
   std::vector<std::string> missing = {layer, ruled};
@@ -118,7 +110,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "terralod-bench-objects: need --points >= 1 and --frames >= 1\n");
     return 2;
   }
-  if (!fs::exists(std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt")) {
+  if (!fs::exists(terralod::bench::n44w072_path())) {
     std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
     return 0;
   }
@@ -133,27 +125,26 @@ int main(int argc, char** argv) {
     opt.morph_seconds = 0.5;
     tb::TerrainRuntime rt(path, opt);
     const tb::BlockGrid& grid = rt.grid();
-    const double zmax = rt.terrain_box().hi.z;
     // The flight: 400 m/s along an arc across the tile (radius 12 km), 700 m above its highest
     // sample, looking ahead and 20 degrees down; every frame waits for its loads.
     const auto [xa, ya] = grid.transform().to_world(0, grid.grid_height() - 1);
     const auto [xb, yb] = grid.transform().to_world(grid.grid_width() - 1, 0);
-    double x = std::min(xa, xb) + 0.1 * std::abs(xb - xa), y = std::min(ya, yb) + 0.1 * std::abs(yb - ya);
-    double heading = 0.2;
+    terralod::bench::ArcFlight flight{std::min(xa, xb) + 0.1 * std::abs(xb - xa),
+                                      std::min(ya, yb) + 0.1 * std::abs(yb - ya),
+                                      0.2,
+                                      400,
+                                      12000,
+                                      700,
+                                      rt.terrain_box().hi.z};
     std::vector<double> place_ms, index_ms, pick_ms, in_view, tested, triangles;
     std::vector<double> pipeline_ms, ruled_place_ms, ruled_tested, ruled_placed, labels_shown;
     for (long f = 0; f < frames; ++f) {
-      heading += 400.0 / 12000.0 / 60.0;
-      x += 400.0 / 60 * std::sin(heading), y += 400.0 / 60 * std::cos(heading);
-      pm::Camera c;
-      c.x = x, c.y = y, c.z = zmax + 700;
-      c.yaw_deg = heading * 180 / std::numbers::pi, c.pitch_deg = -20, c.fovy_deg = 60;
-      c.width_px = 1280, c.height_px = 720;
+      pm::Camera c = flight.next();
       rt.fit_clip_planes(c);
       const pm::View view(c);
       rt.update_until_loaded(view, double(f) / 60.0);
       double t0 = pm::thread_cpu_ms();
-      rt.drawn_height(x, y);  // the frame's first height query builds the bucket index
+      rt.drawn_height(c.x, c.y);  // the frame's first height query builds the bucket index
       index_ms.push_back(pm::thread_cpu_ms() - t0);
       // The issue's pipeline on the ruled layer: rules + placement + decluttering, first.
       t0 = pm::thread_cpu_ms();

@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include "object_bench.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/object_layers.hpp"
@@ -42,15 +43,8 @@ std::pair<double, double> start_of(int width, int height) { return {0.1 * (width
 // The database of N44W072 with a layer "buildings<N>" of n buildings in the 12 km square
 // north-east of the flight's start.
 std::string prepare(long n) {
-  const std::string dem = std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt";
-  const std::string path = (fs::temp_directory_path() / "terralod-bench-shapes-129.db").string();
-  const pm::Heightfield hf = tb::read_dem(dem);
-  tb::DatabaseBuildOptions o;
-  o.block_size = 129;
-  o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
-  const tb::DatabaseSummary s = tb::build_database(hf, path, o);
-  std::printf("%s %s: %d x %d samples in %zu blocks of %d, %.1f s\n", s.blocks_built == 0 ? "reuse" : "build",
-              path.c_str(), s.grid_width, s.grid_height, s.blocks, s.block_size, s.seconds);
+  const pm::Heightfield hf = tb::read_dem(terralod::bench::n44w072_path());
+  const std::string path = terralod::bench::n44w072_database(hf);
   const std::string layer = "buildings" + std::to_string(n);
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
   for (const tb::ObjectLayerInfo& l : tb::object_layers(db))
@@ -120,7 +114,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "terralod-bench-shapes: need --buildings >= 1 and --frames >= 1\n");
     return 2;
   }
-  if (!fs::exists(std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt")) {
+  if (!fs::exists(terralod::bench::n44w072_path())) {
     std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
     return 0;
   }
@@ -135,21 +129,15 @@ int main(int argc, char** argv) {
     tb::RuntimeOptions opt;
     opt.morph_seconds = 0.5;
     tb::TerrainRuntime rt(path, opt);
-    const double zmax = rt.terrain_box().hi.z;
     // From the start north-east over the town at 100 m/s, 300 m above the highest sample,
     // 20 degrees down, turning slowly.
     const auto [start_col, start_row] = start_of(rt.grid().grid_width(), rt.grid().grid_height());
-    auto [x, y] = rt.grid().transform().to_world(start_col, start_row);
-    double heading = std::numbers::pi / 4;
+    const auto [x, y] = rt.grid().transform().to_world(start_col, start_row);
+    terralod::bench::ArcFlight flight{x, y, std::numbers::pi / 4, 100, 6000, 300, rt.terrain_box().hi.z};
     tb::ObjectMesh mesh;
     std::vector<double> extrude_ms, count, tris, drawn;
     for (long f = 0; f < frames; ++f) {
-      heading += 100.0 / 6000.0 / 60.0;
-      x += 100.0 / 60 * std::sin(heading), y += 100.0 / 60 * std::cos(heading);
-      pm::Camera c;
-      c.x = x, c.y = y, c.z = zmax + 300;
-      c.yaw_deg = heading * 180 / std::numbers::pi, c.pitch_deg = -20, c.fovy_deg = 60;
-      c.width_px = 1280, c.height_px = 720;
+      pm::Camera c = flight.next();
       rt.fit_clip_planes(c);
       const pm::View view(c);
       rt.update_until_loaded(view, double(f) / 60.0);

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "object_terrain.hpp"
 #include "printed_seed.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/object_drape.hpp"
@@ -34,31 +35,12 @@ namespace tt = terralod::test;
 
 constexpr int kSize = 129;
 constexpr double kSpacing = 30.0;
-const tp::GridTransform kUtm = tp::GridTransform::north_up(500015.0, 5001935.0, kSpacing, kSpacing);
+const tp::GridTransform kUtm = tt::object_terrain_transform();  // kSpacing-metre samples
 
-struct Scene {
-  tp::Heightfield hf;
-  std::string db;
-};
+using Scene = tt::ObjectTerrain;
 
 const Scene& scene() {
-  static const Scene s = [] {
-    Scene r;
-    tp::TerrainOptions to;
-    to.width = to.height = kSize;
-    to.seed = 33;
-    to.spacing = kSpacing;
-    to.relief = 900.0;
-    to.quantize_to_metres = true;
-    r.hf = tp::generate_terrain(to);
-    r.hf.transform = kUtm;
-    r.db = (tt::process_temp_dir("drape") / "t.db").string();
-    tb::DatabaseBuildOptions o;
-    o.block_size = 33;
-    o.threads = 2;
-    tb::build_database(r.hf, r.db, o);
-    return r;
-  }();
+  static const Scene s = tt::make_object_terrain("drape", 33);
   return s;
 }
 
@@ -274,13 +256,7 @@ void check_frame(const tb::TerrainRuntime& rt, const std::vector<Line>& lines, c
 }
 
 tp::Camera camera_at(const Scene& s, double col, double row, double above, double yaw, double pitch) {
-  tp::Camera c;
-  const auto [x, y] = kUtm.to_world(col, row);
-  c.x = x, c.y = y;
-  c.z = s.hf.at(int(col), int(row)) + above;
-  c.yaw_deg = yaw, c.pitch_deg = pitch;
-  c.width_px = 320, c.height_px = 240;
-  return c;
+  return tt::camera_over(s.hf, col, row, above, yaw, pitch);
 }
 
 TEST(ObjectDrape, RibbonsLieOnTheDrawnMeshWithoutGapsAlongAFlightWithGeomorphsAndLoads) {

@@ -31,6 +31,7 @@
 #include <tuple>
 #include <vector>
 
+#include "object_terrain.hpp"
 #include "printed_seed.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/block_database.hpp"
@@ -305,17 +306,7 @@ const std::string& objects_name(const tb::ObjectPlacer& placer, std::uint32_t i)
 }
 
 constexpr int kSize = 129, kRandom = 40;
-const tp::GridTransform kUtm = tp::GridTransform::north_up(500015.0, 5001935.0, 30.0, 30.0);
-
-std::string utm_wkt() {
-  OGRSpatialReference srs;
-  EXPECT_EQ(srs.importFromEPSG(32633), OGRERR_NONE);
-  char* text = nullptr;
-  srs.exportToWkt(&text);
-  std::string s = text;
-  CPLFree(text);
-  return s;
-}
+const tp::GridTransform kUtm = tt::object_terrain_transform();
 
 // A polygon's WKT from rings of (col, row) samples (each ring closed here).
 std::string polygon_wkt(const std::vector<std::vector<std::pair<double, double>>>& rings) {
@@ -375,21 +366,10 @@ struct Scene {
 const Scene& scene() {
   static const Scene s = [] {
     Scene r;
-    tp::TerrainOptions to;
-    to.width = to.height = kSize;
-    to.seed = 21;
-    to.spacing = 30.0;
-    to.relief = 900.0;
-    to.quantize_to_metres = true;
-    r.hf = tp::generate_terrain(to);
-    r.hf.crs_wkt = utm_wkt();
-    r.hf.crs_transform = kUtm;
-    const std::filesystem::path dir = tt::process_temp_dir("shapes");
-    r.db = (dir / "t.db").string();
-    tb::DatabaseBuildOptions o;
-    o.block_size = 33;
-    o.threads = 2;
-    tb::build_database(r.hf, r.db, o);
+    tt::ObjectTerrain t = tt::make_object_terrain("shapes", 21);
+    r.hf = std::move(t.hf);
+    r.db = t.db;
+    const std::filesystem::path dir = std::filesystem::path(r.db).parent_path();
     std::vector<Building> b;
     const auto add = [&](const std::string& name,
                          const std::vector<std::vector<std::pair<double, double>>>& rings,
@@ -481,13 +461,7 @@ std::vector<double> drawn_heights_at(const tb::DrawnMesh& m, const std::vector<s
 }
 
 tp::Camera camera_at(const Scene& s, double col, double row, double above, double yaw, double pitch) {
-  tp::Camera c;
-  const auto [x, y] = s.hf.transform.to_world(col, row);
-  c.x = x, c.y = y;
-  c.z = s.hf.at(int(col), int(row)) + above;
-  c.yaw_deg = yaw, c.pitch_deg = pitch;
-  c.width_px = 320, c.height_px = 240;
-  return c;
+  return tt::camera_over(s.hf, col, row, above, yaw, pitch);
 }
 
 }  // namespace
