@@ -2,7 +2,6 @@
 // layers added and listed, and each bad input refused with a message naming the file, the exit
 // status of other commands, and the database file unchanged.
 #include <gtest/gtest.h>
-#include <ogr_spatialref.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -11,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "cli_texture_database.hpp"
+#include "cli_utm_database.hpp"
 #include "run_command.hpp"
 #include "xvfb.hpp"
 
@@ -41,22 +40,7 @@ class ObjectsCli : public testing::Test {
  protected:
   static void SetUpTestSuite() {
     suite_dir_ = new terralod::test::TempDir("objects-suite");
-    const fs::path d = suite_dir_->path();
-    {
-      std::ofstream f(d / "dem.asc");
-      f << "ncols 65\nnrows 65\nxllcorner 500000\nyllcorner 5000000\ncellsize 30\n";
-      for (int r = 0; r < 65; ++r)
-        for (int c = 0; c < 65; ++c) f << 100 + (r * 7 + c * 3) % 50 << (c + 1 < 65 ? " " : "\n");
-    }
-    OGRSpatialReference utm;
-    ASSERT_EQ(utm.importFromEPSG(32633), OGRERR_NONE);
-    char* wkt = nullptr;
-    utm.exportToWkt(&wkt);
-    std::ofstream(d / "dem.prj") << wkt;
-    CPLFree(wkt);
-    ASSERT_EQ(CliRunner{TERRALOD_CLI}.run("build --input " + quote((d / "dem.asc").string()) + " --out " +
-                                          quote((d / "t.db").string()) + " --block-size 33"),
-              0);
+    terralod::test::build_utm_cli_database(CliRunner{TERRALOD_CLI}, suite_dir_->path());
   }
   static void TearDownTestSuite() {
     delete suite_dir_;

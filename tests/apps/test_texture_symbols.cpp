@@ -4,14 +4,13 @@
 // range, at the anchor's texel, with the asked diameter and colour, and is transparent elsewhere;
 // bad options fail clearly and leave the database unchanged.
 #include <gtest/gtest.h>
-#include <ogr_spatialref.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
-#include "cli_texture_database.hpp"
+#include "cli_utm_database.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/render/image_pyramid.hpp"
@@ -48,23 +47,10 @@ class SymbolsCli : public testing::Test {
   static void SetUpTestSuite() {
     suite_ = new terralod::test::TempDir("symbols-suite");
     const fs::path d = suite_->path();
-    {
-      std::ofstream f(d / "dem.asc");
-      f << "ncols 65\nnrows 65\nxllcorner 500000\nyllcorner 5000000\ncellsize 30\n";
-      for (int r = 0; r < 65; ++r)
-        for (int c = 0; c < 65; ++c) f << 100 + (r * 7 + c * 3) % 50 << (c + 1 < 65 ? " " : "\n");
-    }
-    OGRSpatialReference utm;
-    ASSERT_EQ(utm.importFromEPSG(32633), OGRERR_NONE);
-    char* wkt = nullptr;
-    utm.exportToWkt(&wkt);
-    std::ofstream(d / "dem.prj") << wkt;
-    CPLFree(wkt);
+    terralod::test::build_utm_cli_database(cli, d);
     std::ofstream(d / "points.geojson") << kPoints;
     std::ofstream(d / "rules.json") << kRules;
     const std::string db = quote((d / "t.db").string());
-    ASSERT_EQ(run("build --input " + quote((d / "dem.asc").string()) + " --out " + db + " --block-size 33"),
-              0);
     ASSERT_EQ(run("objects add " + db + " --layer huts --input " + quote((d / "points.geojson").string()) +
                   " --rules " + quote((d / "rules.json").string())),
               0);

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "full_mesh.hpp"
 #include "terralod/blocks/object_mesh.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
@@ -63,19 +64,7 @@ pm::Heightfield hill_heightfield() {
   return hf;
 }
 
-/// Every sample, cell (i,j) split along (i,j)-(i+1,j+1) (as extract_after(0) gives it).
-pm::TriangleMesh full_mesh(const pm::Heightfield& hf) {
-  pm::TriangleMesh m;
-  const std::uint32_t w = hf.width(), h = hf.height();
-  for (std::uint32_t s = 0; s < w * h; ++s) m.vertices.push_back(s);
-  for (std::uint32_t j = 0; j + 1 < h; ++j)
-    for (std::uint32_t i = 0; i + 1 < w; ++i) {
-      const std::uint32_t a = j * w + i, b = a + 1, c = a + w + 1, d = a + w;
-      m.triangles.push_back({a, b, c});
-      m.triangles.push_back({a, c, d});
-    }
-  return m;
-}
+using terralod::test::full_mesh;
 
 /// South of the square looking north and down over the hill; 320 x 240.
 Camera scene_camera() {
