@@ -1,0 +1,80 @@
+// A DEM's samples read window by window, so that a build never has to hold the whole raster:
+// the one way the block-database build (tree_builder.hpp) reads its input.
+//
+// Usage:
+//   #include <terralod/blocks/dem_source.hpp>
+//   namespace tb = terralod::blocks;
+//   auto src = tb::open_dem_source("mosaic.vrt");           // windowed when the frame allows it
+//   const tb::DemGrid& g = src->grid();                      // g.width x g.height samples
+//   pm::Heightfield b = src->read({0, 0, 256, 256});          // one block, voids filled
+//
+//   pm::Heightfield hf = tb::read_dem("N44W072.hgt");
+//   auto mem = tb::heightfield_source(hf);                   // the same interface over memory
+//
+// Contract:
+//   read(window)  the window's samples exactly as block_heightfield(read_dem(path, options), window)
+//                 gives them (partition.hpp): the same bits, a mask only when a sample of the window
+//                 is a hole, the transform's origin at the window's first sample computed from the
+//                 grid's transform (so a block's world coordinates do not depend on how it was read),
+//                 crs_wkt, source and frame copied from the grid. window: inclusive, inside the grid.
+//                 Thread-safe: workers call it concurrently.
+//   samples_crc   CRC-32 (pm::crc32_of) of the grid's samples as doubles in row-major order, then of
+//                 its mask bytes when the grid has a hole: what the database's build parameters
+//                 record so that a resumed build checks it reads the same terrain.
+//   in_memory     true when the whole grid is held (heightfield_source, or a frame that needs the
+//                 whole raster, such as a warp); false when read() reads the file each time.
+//   Errors: reading a file throws DemError naming it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/sample_rect.hpp"
+#include "terralod/pm/heightfield.hpp"
+
+namespace terralod::blocks {
+
+/// What a DEM is, without its samples: the fields of pm::Heightfield that describe the grid.
+struct DemGrid {
+  int width = 0, height = 0;
+  pm::GridTransform transform;                     ///< sample (col, row) -> world metres
+  std::string crs_wkt;                             ///< Heightfield::crs_wkt
+  std::optional<pm::GridTransform> crs_transform;  ///< Heightfield::crs_transform
+  std::string vertical_datum;                      ///< Heightfield::vertical_datum
+  std::string source;                              ///< Heightfield::source
+  std::string frame;                               ///< Heightfield::frame
+
+  /// The grid of `hf` (its samples left out).
+  static DemGrid of(const pm::Heightfield& hf);
+  /// Samples in the grid.
+  std::uint64_t samples() const { return std::uint64_t(width) * std::uint64_t(height); }
+};
+
+class DemSource {
+ public:
+  virtual ~DemSource() = default;
+  const DemGrid& grid() const { return grid_; }
+  /// The samples of `window` (see the header comment).
+  virtual pm::Heightfield read(SampleRect window) const = 0;
+  /// CRC-32 of the samples and mask (see the header comment).
+  virtual std::uint32_t samples_crc() const = 0;
+  /// Whether the whole grid is in memory.
+  virtual bool in_memory() const = 0;
+
+ protected:
+  DemGrid grid_;
+};
+
+/// A DemSource over `hf`, which must outlive it (no copy is made).
+std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf);
+
+/// The DEM at `path` as read_dem(path, options) reads it, windowed when that is possible: GDAL
+/// rasters (GeoTIFF, VRT mosaics, ...) and SRTM .hgt files whose world frame needs no warp (a
+/// projected CRS or no CRS, or options.crs == "native"). Other inputs (heightmap images, ASCII
+/// grids, warped frames) are read whole by read_dem and served from memory. DemError as read_dem.
+std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOptions& options = {});
+
+}  // namespace terralod::blocks
