@@ -86,7 +86,7 @@ blocks::RemoteBuilder serve_ranks(std::vector<int> slots) {
 }
 
 /// A rank >= 1: `threads` slots, each asking rank 0 for a block, building it and sending it back.
-void work_for_rank0(const pm::Heightfield& hf, const blocks::DatabaseBuildOptions& opt, int threads,
+void work_for_rank0(const blocks::DemSource& src, const blocks::DatabaseBuildOptions& opt, int threads,
                     int rank) {
   std::vector<std::thread> pool;
   for (int s = 0; s < threads; ++s)
@@ -100,7 +100,7 @@ void work_for_rank0(const pm::Heightfield& hf, const blocks::DatabaseBuildOption
           if (m.empty()) break;
           std::int32_t key[2];
           std::memcpy(key, m.data(), 8);
-          const std::vector<std::uint8_t> blob = blocks::build_block_blob(hf, {key[0], key[1]}, opt);
+          const std::vector<std::uint8_t> blob = blocks::build_block_blob(src, {key[0], key[1]}, opt);
           std::vector<char> out(8 + blob.size());
           std::memcpy(out.data(), key, 8);
           std::memcpy(out.data() + 8, blob.data(), blob.size());
@@ -115,7 +115,7 @@ void work_for_rank0(const pm::Heightfield& hf, const blocks::DatabaseBuildOption
 
 }  // namespace
 
-int build_with_mpi(const std::function<pm::Heightfield()>& read, const std::string& out,
+int build_with_mpi(const std::function<std::unique_ptr<blocks::DemSource>()>& open, const std::string& out,
                    blocks::DatabaseBuildOptions opt,
                    const std::function<void(const blocks::DatabaseSummary&, int ranks)>& report) {
   int provided = 0;
@@ -127,19 +127,19 @@ int build_with_mpi(const std::function<pm::Heightfield()>& read, const std::stri
     abort_job(rank, "the MPI library gives no MPI_THREAD_MULTIPLE, which the build's threads need");
   const int threads = terralod::pm::thread_count(opt.threads);
   try {
-    const pm::Heightfield hf = read();
+    const std::unique_ptr<blocks::DemSource> src = open();
     // Every rank says how many threads it builds with; rank 0 hands out one block per thread.
     std::vector<int> slots(std::size_t(size), 0);
     MPI_Gather(&threads, 1, MPI_INT, slots.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
     if (rank == 0) {
       slots[0] = 0;
       opt.remote_builders.push_back(serve_ranks(slots));
-      const blocks::DatabaseSummary s = blocks::build_database(hf, out, opt);
+      const blocks::DatabaseSummary s = blocks::build_database(*src, out, opt);
       report(s, size);
     } else {
       // Progress and the summary are rank 0's.
       opt.progress = nullptr;
-      work_for_rank0(hf, opt, threads, rank);
+      work_for_rank0(*src, opt, threads, rank);
     }
   } catch (const std::exception& e) {
     abort_job(rank, e.what());

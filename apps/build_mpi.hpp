@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include "terralod/blocks/tree_builder.hpp"
@@ -38,7 +39,7 @@ inline int launched_rank() {
 /// Runs the build as rank `rank` of the job (MPI is initialized and finalized here). `read`
 /// reads the terrain (every rank calls it), `report` prints rank 0's summary. Returns the exit
 /// status; any error on any rank aborts the whole job with its message.
-int build_with_mpi(const std::function<pm::Heightfield()>& read, const std::string& out,
+int build_with_mpi(const std::function<std::unique_ptr<blocks::DemSource>()>& open, const std::string& out,
                    blocks::DatabaseBuildOptions options,
                    const std::function<void(const blocks::DatabaseSummary&, int ranks)>& report);
 

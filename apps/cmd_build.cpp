@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
+#include <optional>
 #include <cstdio>
 #include <sstream>
 #include <string>
@@ -13,7 +15,9 @@
 #include "commands.hpp"
 #include "dem_options.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace terralod::cli {
 
@@ -94,17 +98,21 @@ int cmd_build(const Args& a) {
   dem.crs = crs_from(a);
 
   const int ranks = launched_ranks();
-  auto read = [&] {
+  // The input stays open while the build reads its windows (a mosaic's VRT lives in `inputs`).
+  std::optional<blocks::DemInputs> inputs;
+  auto open = [&] {
     const auto t = std::chrono::steady_clock::now();
-    const blocks::DemInputs inputs(a.get_all("--input"));
-    pm::Heightfield hf = blocks::read_dem(inputs.path(), dem);
-    hf.source = inputs.description();
-    if (launched_rank() == 0) warn_about_frame(hf);
+    inputs.emplace(a.get_all("--input"));
+    std::unique_ptr<blocks::DemSource> src = blocks::open_dem_source(inputs->path(), dem);
+    src->set_source(inputs->description());
+    const blocks::DemGrid& g = src->grid();
+    if (launched_rank() == 0) warn_about_frame(g);
     if (launched_rank() == 0)  // under MPI every rank reads; rank 0 speaks
-      std::printf("read  %s: %d x %d samples, %s\n", inputs.description().c_str(), hf.width(), hf.height(),
+      std::printf("read  %s: %d x %d samples, %s, %s\n", inputs->description().c_str(), g.width, g.height,
+                  src->in_memory() ? "held in memory" : "read window by window",
                   format_duration(ms_since(t)).c_str());
     std::fflush(stdout);
-    return hf;
+    return src;
   };
 
   // Progress with an estimate of the time left: a redrawn line on a terminal, else every 10 %.
@@ -155,16 +163,20 @@ int cmd_build(const Args& a) {
         static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
         format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
         format_duration(ms_since(t0)).c_str());
+    // Peak resident set of this process over the whole command (under MPI: rank 0's, which also
+    // writes the database); getrusage, so what the kernel counted, GDAL's block cache included.
+    std::printf("memory peak resident %s%s\n", format_bytes(pm::peak_resident_bytes()).c_str(),
+                ranks_used > 1 ? " (rank 0)" : "");
   };
   if (ranks > 1) {
 #ifdef TERRALOD_HAVE_MPI
-    return build_with_mpi(read, out, opt, report);
+    return build_with_mpi(open, out, opt, report);
 #else
     throw UsageError("started by mpirun with " + std::to_string(ranks) +
                      " ranks, but this terralod was built without MPI (install libopenmpi-dev and rebuild)");
 #endif
   }
-  report(blocks::build_database(read(), out, opt), 1);
+  report(blocks::build_database(*open(), out, opt), 1);
   return 0;
 }
 

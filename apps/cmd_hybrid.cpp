@@ -89,7 +89,7 @@ int cmd_hybrid(const Args& a) {
     throw std::runtime_error(out + ": already exists (the hybrid database is created new)");
   auto t = Clock::now();
   const pm::Heightfield dem = blocks::read_dem(dem_path, dem_options_from(a));  // --crs as every command
-  warn_about_frame(dem);
+  warn_about_frame(blocks::DemGrid::of(dem));
   print_line(strf("read %s: %dx%d samples, %s", dem_path.c_str(), dem.width(), dem.height(),
                   format_duration(ms_since(t)).c_str()));
   std::vector<hy::TinMesh> parts;

@@ -37,13 +37,13 @@ std::string crs_from(const Args& a) {
   return crs;
 }
 
-void warn_about_frame(const pm::Heightfield& hf) {
-  const std::optional<double> e = blocks::frame_scale_error(hf);
+void warn_about_frame(const blocks::DemGrid& g) {
+  const std::optional<double>& e = g.scale_error;
   if (!e || *e <= 0.001) return;
   std::fprintf(stderr,
                "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%), the best "
                "this frame does for this extent; name a CRS suited to it with --crs for truer distances\n",
-               hf.source.c_str(), *e * 100.0);
+               g.source.c_str(), *e * 100.0);
 }
 
 std::vector<OptionSpec> build_option_specs() {

@@ -17,6 +17,7 @@
 
 #include "cli_common.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/dem_source.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 
 namespace terralod::cli {
@@ -32,7 +33,7 @@ OptionSpec crs_option_spec();
 std::string crs_from(const Args& a);
 /// Prints a warning on stderr when hf's world frame has a scale error over 0.1 %
 /// (blocks::frame_scale_error): distances in it are then off by more than the README promises.
-void warn_about_frame(const pm::Heightfield& hf);
+void warn_about_frame(const blocks::DemGrid& grid);
 /// --metric NAME, --threads N.
 std::vector<OptionSpec> build_option_specs();
 

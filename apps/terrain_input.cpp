@@ -97,7 +97,7 @@ pm::Heightfield read_stage(const std::string& path, const blocks::DemOptions& op
   const auto t = Clock::now();
   pm::Heightfield hf = blocks::read_dem(path, options);
   const double ms = ms_since(t);
-  warn_about_frame(hf);
+  warn_about_frame(blocks::DemGrid::of(hf));
   std::string voids;
   if (hf.voids.voids == hf.voids.filled)
     voids = strf("%zu voids filled", hf.voids.filled);

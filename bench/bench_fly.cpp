@@ -10,7 +10,6 @@
 //   --budget: the runtime's memory budget, megabytes (default 1024: the flight at tau = 1 px
 //   peaks near 710 MB with the default 129-sample blocks; below what a frame needs, blocks stay
 //   missing).
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -27,6 +26,7 @@
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/timing.hpp"
 
 namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
@@ -162,8 +162,6 @@ int main(int argc, char** argv) {
       }
       std::fprintf(stderr, "\n");
       const tb::RuntimeFrameStats& st = rt.stats();
-      struct rusage ru {};
-      getrusage(RUSAGE_SELF, &ru);
       std::printf(
           "prediction %-3s: frame median %.2f ms, p99 %.2f ms, worst %.2f ms, %zu frames over 16.7 ms; "
           "prefetch misses %zu of %zu blocks needed in view (after the first 2 s: %zu of %zu), %zu frames "
@@ -176,7 +174,7 @@ int main(int argc, char** argv) {
           st.prefetch_hits_total + st.prefetch_misses_total - cold_needed, missing_frames,
           double(st.peak_resident_bytes) / 1e6, double(opt.budget_bytes) / 1e6,
           double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, triangles, pct(bounds, 0.5),
-          bound, double(ru.ru_maxrss) / 1024.0);
+          bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0));
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod-bench-fly: %s\n", e.what());

@@ -42,15 +42,7 @@ const char* metric_name(pm::ErrorMetric m) {
   return m == pm::ErrorMetric::Samples ? "samples" : "continuous";
 }
 
-std::uint32_t samples_crc(const pm::Heightfield& hf) {
-  const auto& z = hf.samples();
-  const std::uint32_t crc =
-      pm::crc32_of({reinterpret_cast<const std::uint8_t*>(z.data()), z.size() * sizeof(double)});
-  const auto& m = hf.mask();
-  return m.empty() ? crc : pm::crc32_of(m, crc);
-}
-
-std::string build_parameters_json(const pm::Heightfield& hf, const DatabaseBuildOptions& o) {
+std::string build_parameters_json(const DemSource& src, const DatabaseBuildOptions& o) {
   std::string levels;
   for (StrategyChoice c : o.tree.levels)
     levels += std::string(levels.empty() ? "" : ",") + strategy_choice_name(c);
@@ -59,8 +51,8 @@ std::string build_parameters_json(const pm::Heightfield& hf, const DatabaseBuild
       buf, sizeof buf,
       "{\"block_size\": %d, \"metric\": \"%s\", \"strategy\": \"%s\", \"patch\": %d, \"max_points\": %zu, "
       "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 "}",
-      o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, hf.width(),
-      hf.height(), samples_crc(hf));
+      o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, src.grid().width,
+      src.grid().height, src.samples_crc());
   return buf;
 }
 
@@ -254,17 +246,21 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
 
 std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
                                            const DatabaseBuildOptions& opt) {
-  const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
+  return build_block_blob(*heightfield_source(hf), key, opt);
+}
+
+std::vector<std::uint8_t> build_block_blob(const DemSource& src, BlockKey key, const DatabaseBuildOptions& opt) {
+  const DemGrid& g = src.grid();
+  const BlockLayout layout = partition(g.width, g.height, opt.block_size);
   if (!layout.contains(key))
     throw BuildError("block (" + std::to_string(key.col) + "," + std::to_string(key.row) +
-                     ") is not a block of a " + std::to_string(hf.width()) + " x " +
-                     std::to_string(hf.height()) + " terrain in blocks of " + std::to_string(opt.block_size));
-  return pm::encode_pm(build_block_pm(hf, layout.rect(key), opt.metric));
+                     ") is not a block of a " + std::to_string(g.width) + " x " + std::to_string(g.height) +
+                     " terrain in blocks of " + std::to_string(opt.block_size));
+  return pm::encode_pm(build_block_pm(src.read(layout.rect(key)), opt.metric));
 }
 
 DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path,
                                const DatabaseBuildOptions& opt) {
-  const auto t0 = std::chrono::steady_clock::now();
   const std::string source = hf.source.empty() ? std::string("(in memory)") : hf.source;
   if (hf.width() < 2 || hf.height() < 2)
     throw BuildError(source + ": a " + std::to_string(hf.width()) + " x " + std::to_string(hf.height()) +
@@ -272,19 +268,29 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   bool any_valid = !hf.has_holes();
   for (std::size_t i = 0; !any_valid && i < hf.size(); ++i) any_valid = hf.valid(i);
   if (!any_valid) throw BuildError(source + ": every sample is void; there is no terrain to build");
+  return build_database(*heightfield_source(hf), path, opt);
+}
+
+DatabaseSummary build_database(const DemSource& src, const std::string& path, const DatabaseBuildOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const DemGrid& g = src.grid();
+  const std::string source = g.source.empty() ? std::string("(in memory)") : g.source;
+  if (g.width < 2 || g.height < 2)
+    throw BuildError(source + ": a " + std::to_string(g.width) + " x " + std::to_string(g.height) +
+                     " grid is too small to build a terrain (at least 2 x 2 samples)");
   if (!is_valid_block_size(opt.block_size))
     throw BuildError(path + ": block size must be 2^k + 1 (3, 5, 9, ..., 257, ...), not " +
                      std::to_string(opt.block_size));
-  const BlockLayout layout = partition(hf.width(), hf.height(), opt.block_size);
+  const BlockLayout layout = partition(g.width, g.height, opt.block_size);
 
   DatabaseInfo info;
-  info.grid_width = hf.width();
-  info.grid_height = hf.height();
-  info.transform = hf.transform;
-  info.crs_wkt = hf.crs_wkt;
+  info.grid_width = g.width;
+  info.grid_height = g.height;
+  info.transform = g.transform;
+  info.crs_wkt = g.crs_wkt;
   info.block_size = opt.block_size;
-  info.build_parameters = build_parameters_json(hf, opt);
-  info.source = hf.source;
+  info.build_parameters = build_parameters_json(src, opt);
+  info.source = g.source;
 
   std::optional<BlockDatabase> dbo;
   if (std::filesystem::exists(path) && is_interrupted_create(path)) {
@@ -303,13 +309,13 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     dbo.emplace(BlockDatabase::create(path, info));
   }
   BlockDatabase& db = *dbo;
-  if (hf.crs_transform) db.put_georeference({*hf.crs_transform, hf.vertical_datum});
+  if (g.crs_transform) db.put_georeference({*g.crs_transform, g.vertical_datum});
   {  // the world frame, for 'terralod info DB'
-    const std::optional<double> e = frame_scale_error(hf);
+    const std::optional<double>& e = g.scale_error;
     char buf[40] = "";
     if (e) std::snprintf(buf, sizeof buf, "%.9g", *e);
     BlockDatabase::Transaction tx(db);
-    db.set_meta(kFrameMeta, hf.frame);
+    db.set_meta(kFrameMeta, g.frame);
     db.set_meta(kFrameScaleErrorMeta, buf);
     tx.commit();
   }
@@ -381,7 +387,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   for (int t = 0; t < threads && !todo.empty(); ++t)
     run_worker([&] {
       for (std::optional<BlockKey> k; (k = claim());) {
-        const pm::ProgressiveMesh pm = build_block_pm(hf, layout.rect(*k), opt.metric);
+        const pm::ProgressiveMesh pm = build_block_pm(src.read(layout.rect(*k)), opt.metric);
         push(make_done(*k, pm, pm::encode_pm(pm)));
       }
     });
@@ -456,7 +462,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   topt.pm_leaves = true;
   topt.metric = opt.metric;
   topt.threads = threads;
-  const ApproximationTree tree = build_tree(hf, layout, topt, errors);
+  const ApproximationTree tree = build_tree(src, layout, topt, errors);
   const std::vector<std::uint8_t> tree_bytes = encode_tree(tree);
 
   // Block summaries with their stand-ins: the blocks built now were summarized by the workers;
@@ -478,7 +484,7 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
     resumed_sums[i] = summarize_block(pm, k, standin);
   });
   for (std::size_t i = 0; i < resumed.size(); ++i) summaries.emplace(resumed[i], std::move(resumed_sums[i]));
-  const BlockGrid bgrid(hf.width(), hf.height(), opt.block_size, hf.transform);
+  const BlockGrid bgrid(g.width, g.height, opt.block_size, g.transform);
   std::vector<BlockSummary> sums(bgrid.block_count());
   for (const auto& [k, sum] : summaries) sums[bgrid.index(k)] = sum;
   const std::vector<std::uint8_t> sum_bytes = encode_block_summaries(bgrid, sums);

@@ -20,6 +20,7 @@ DemGrid DemGrid::of(const pm::Heightfield& hf) {
   g.vertical_datum = hf.vertical_datum;
   g.source = hf.source;
   g.frame = hf.frame;
+  g.scale_error = frame_scale_error(hf);
   return g;
 }
 
@@ -49,3 +50,4 @@ std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf) {
 }
 
 }  // namespace terralod::blocks
+

@@ -74,11 +74,15 @@ pm::Heightfield block_heightfield(const pm::Heightfield& hf, SampleRect r) {
 }
 
 pm::ProgressiveMesh build_block_pm(const pm::Heightfield& hf, SampleRect rect, pm::ErrorMetric metric) {
+  return build_block_pm(block_heightfield(hf, rect), metric);
+}
+
+pm::ProgressiveMesh build_block_pm(const pm::Heightfield& block, pm::ErrorMetric metric) {
   pm::BuildOptions opt;
   opt.metric = metric;
   opt.threads = 1;
   opt.parallel_strips = false;  // no full-resolution cut column: blocks run in parallel instead
-  return pm::ProgressiveMesh::build(block_heightfield(hf, rect), opt);
+  return pm::ProgressiveMesh::build(block, opt);
 }
 
 double base_mesh_error(const pm::ProgressiveMesh& pm) {

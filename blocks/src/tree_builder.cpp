@@ -11,6 +11,7 @@
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/linf_error.hpp"
 #include "terralod/pm/parallel.hpp"
+#include "surface_scan.hpp"
 #include "tin_error.hpp"
 
 namespace terralod::blocks {
@@ -125,29 +126,89 @@ struct Built {
   bool split = false;
 };
 
-pm::Box domain_box(const pm::Heightfield& hf, SampleRect d) {
-  double zlo = std::numeric_limits<double>::infinity(), zhi = -zlo;
-  for (int r = d.row0; r <= d.row1; ++r)
-    for (int c = d.col0; c <= d.col1; ++c)
-      if (hf.valid(c, r)) {
-        const double z = hf.at(c, r);
-        zlo = std::min(zlo, z);
-        zhi = std::max(zhi, z);
-      }
-  if (zlo > zhi) zlo = zhi = 0.0;
+/// The node's box: its domain's corners in the world frame, z from the scan of its samples.
+pm::Box domain_box(const DemGrid& g, SampleRect d, double zlo, double zhi) {
   pm::Box b;
   b.lo = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(), zlo};
   b.hi = {-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(), zhi};
   for (int c : {d.col0, d.col1})
     for (int r : {d.row0, d.row1}) {
-      const auto [x, y] = hf.transform.to_world(c, r);
+      const auto [x, y] = g.transform.to_world(c, r);
       b.lo.x = std::min(b.lo.x, x), b.hi.x = std::max(b.hi.x, x);
       b.lo.y = std::min(b.lo.y, y), b.hi.y = std::max(b.hi.y, y);
     }
   return b;
 }
 
-/// Children domains of `p` for a node with `children_max` (4 = quadtree, 2 = k-d) children.
+/// What a node's strategy sees of its domain: hf(i, j) is the sample (cols[i], rows[j]). Domains
+/// of at most kNodeSamples samples are read whole (cols and rows every sample); larger ones (the
+/// levels above a few thousand blocks) as a lattice every `stride` samples, a power of two, plus
+/// their last column and row, read one row at a time, so that no node ever holds more than about
+/// kNodeSamples samples whatever the DEM's size. The strategies choose their points on it; the
+/// node's error is then measured exactly over every sample of the domain (scan_surfaces).
+constexpr std::size_t kNodeSamples = std::size_t(513) * 513;
+/// Window of the exact error scan, samples (a 513 x 513 square: 2 MiB of doubles).
+constexpr std::size_t kScanWindow = std::size_t(513) * 513;
+
+struct NodeSamples {
+  pm::Heightfield hf;
+  std::vector<int> cols, rows;
+};
+
+std::vector<int> lattice(int a, int b, int stride) {
+  std::vector<int> v;
+  for (std::int64_t x = a; x < b; x += stride) v.push_back(int(x));
+  v.push_back(b);
+  return v;
+}
+
+NodeSamples node_samples(const DemSource& src, SampleRect d) {
+  NodeSamples n;
+  int stride = 1;
+  while (std::size_t((d.width() - 2) / stride + 2) * std::size_t((d.height() - 2) / stride + 2) > kNodeSamples)
+    stride *= 2;
+  if (stride == 1) {
+    n.hf = src.read(d);
+    n.cols = lattice(d.col0, d.col1, 1);
+    n.rows = lattice(d.row0, d.row1, 1);
+    return n;
+  }
+  n.cols = lattice(d.col0, d.col1, stride);
+  n.rows = lattice(d.row0, d.row1, stride);
+  n.hf = pm::Heightfield(int(n.cols.size()), int(n.rows.size()));
+  std::vector<std::uint8_t> mask;
+  for (std::size_t j = 0; j < n.rows.size(); ++j) {
+    const pm::Heightfield row = src.read(SampleRect{d.col0, n.rows[j], d.col1, n.rows[j]});
+    if (row.has_holes() && mask.empty()) mask.assign(n.hf.size(), 1);
+    for (std::size_t i = 0; i < n.cols.size(); ++i) {
+      const int c = n.cols[i] - d.col0;
+      n.hf.at(int(i), int(j)) = row.at(c, 0);
+      if (!row.valid(c, 0)) mask[j * n.cols.size() + i] = 0;
+    }
+  }
+  if (!mask.empty()) n.hf.set_mask(std::move(mask));
+  return n;
+}
+
+/// `s`, made on ns.hf, in whole-grid samples. A lattice can map a TIN's triangle to the other
+/// orientation (its last column and row are closer than the stride); then false, and the caller
+/// takes another surface.
+bool to_grid(NodeSurface& s, const NodeSamples& ns) {
+  std::vector<std::array<double, 3>> mapped = s.points;
+  for (auto& p : mapped) p[0] = ns.cols[std::size_t(p[0])], p[1] = ns.rows[std::size_t(p[1])];
+  for (const auto& t : s.triangles) {
+    const auto o = [&](const std::vector<std::array<double, 3>>& q) {
+      return pm::orient2d(gp(q[t[0]]), gp(q[t[1]]), gp(q[t[2]]));
+    };
+    const std::int64_t before = o(s.points), after = o(mapped);
+    if ((before > 0) != (after > 0) || (before < 0) != (after < 0)) return false;
+  }
+  s.points = std::move(mapped);
+  for (int& c : s.cols) c = ns.cols[std::size_t(c)];
+  for (int& r : s.rows) r = ns.rows[std::size_t(r)];
+  return true;
+}
+
 std::vector<Pending> split(const Pending& p, int children_max, const BlockLayout& layout) {
   std::vector<Pending> out;
   const bool multi = p.bc1 > p.bc0 || p.br1 > p.br0;
@@ -229,8 +290,13 @@ StrategyChoice parse_strategy_choice(const std::string& name) {
 ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout,
                              const TreeBuildOptions& opt, std::span<const double> block_errors,
                              const std::function<void(double)>& progress) {
+  return build_tree(*heightfield_source(hf), layout, opt, block_errors, progress);
+}
+
+ApproximationTree build_tree(const DemSource& src, const BlockLayout& layout, const TreeBuildOptions& opt,
+                             std::span<const double> block_errors, const std::function<void(double)>& progress) {
   assert(!opt.levels.empty() && opt.patch >= 1 && opt.max_points >= 4 && opt.leaf_error >= 0.0);
-  assert(layout.grid_width == hf.width() && layout.grid_height == hf.height());
+  assert(layout.grid_width == src.grid().width && layout.grid_height == src.grid().height);
   assert(!opt.pm_leaves || block_errors.size() == layout.count());
   const auto grid = make_grid_strategy(opt.patch);
   const auto tin = make_tin_strategy(opt.max_points, opt.metric);
@@ -255,9 +321,10 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
   ApproximationTree::Parameters params;
   params.patch = opt.patch;
   params.metric = opt.metric;
-  params.transform = hf.transform;
-  params.grid_width = hf.width();
-  params.grid_height = hf.height();
+  const DemGrid& g = src.grid();
+  params.transform = g.transform;
+  params.grid_width = g.width;
+  params.grid_height = g.height;
   params.max_points = 0;
   params.max_children = 0;
   for (StrategyChoice c : opt.levels) {
@@ -274,7 +341,7 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
   std::vector<TreeNode> nodes;
   std::vector<Pending> level{Pending{-1, 0, layout.rect(0, 0, layout.blocks_x - 1, layout.blocks_y - 1), 0, 0,
                                      layout.blocks_x - 1, layout.blocks_y - 1}};
-  const double total_area = double(hf.width() - 1) * double(hf.height() - 1);
+  const double total_area = double(g.width - 1) * double(g.height - 1);
   double done_area = 0.0;
   while (!level.empty()) {
     std::vector<Built> built(level.size());
@@ -285,39 +352,49 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
       n.parent = p.parent;
       n.level = p.level;
       n.domain = p.domain;
-      n.bbox = domain_box(hf, p.domain);
       const bool single_block = p.bc0 == p.bc1 && p.br0 == p.br1;
       if (opt.pm_leaves && single_block) {
         n.strategy = Strategy::PmBlock;
         n.block = BlockKey{p.bc0, p.br0};
         n.error = block_errors[std::size_t(p.bc0) * std::size_t(layout.blocks_y) + std::size_t(p.br0)];
+        const detail::SurfaceScan z = detail::scan_surfaces(src, p.domain, {}, opt.metric, kScanWindow);
+        n.bbox = domain_box(g, p.domain, z.zlo, z.zhi);
         return;
       }
       const StrategyChoice choice =
           opt.levels[std::min<std::size_t>(std::size_t(p.level), opt.levels.size() - 1)];
-      if (choice == StrategyChoice::Auto) {
-        // Error per byte: keep the candidate with the smallest error x bytes (ties: fewer bytes).
-        double best_score = std::numeric_limits<double>::infinity();
-        std::size_t best_bytes = 0;
-        for (const NodeStrategy* s : {grid.get(), nonreg.get(), tin.get(), hybrid.get()}) {
-          TreeNode cand = n;
-          cand.strategy = s->kind();
-          cand.surface = s->approximate(hf, p.domain);
-          cand.error = surface_error(hf, cand.surface, opt.metric);
-          const std::size_t bytes = encoded_node_bytes(cand);
-          const double score = cand.error * double(bytes);
-          if (score < best_score || (score == best_score && bytes < best_bytes)) {
-            best_score = score;
-            best_bytes = bytes;
-            n = std::move(cand);
-          }
+      const std::vector<const NodeStrategy*> tried =
+          choice == StrategyChoice::Auto
+              ? std::vector<const NodeStrategy*>{grid.get(), nonreg.get(), tin.get(), hybrid.get()}
+              : std::vector<const NodeStrategy*>{strategy_of(choice)};
+      // Every candidate's surface on the node's samples, then all their exact errors in one scan.
+      const NodeSamples ns = node_samples(src, p.domain);
+      const SampleRect whole{0, 0, ns.hf.width() - 1, ns.hf.height() - 1};
+      std::vector<TreeNode> cands(tried.size(), n);
+      std::vector<const NodeSurface*> surfaces;
+      for (std::size_t k = 0; k < tried.size(); ++k) {
+        cands[k].strategy = tried[k]->kind();
+        cands[k].surface = tried[k]->approximate(ns.hf, whole);
+        if (!to_grid(cands[k].surface, ns)) {  // a lattice flipped a triangle: the grid's never flip
+          cands[k].strategy = Strategy::Grid;
+          cands[k].surface = grid->approximate(ns.hf, whole);
+          to_grid(cands[k].surface, ns);
         }
-      } else {
-        const NodeStrategy* s = strategy_of(choice);
-        n.strategy = s->kind();
-        n.surface = s->approximate(hf, p.domain);
-        n.error = surface_error(hf, n.surface, opt.metric);
+        surfaces.push_back(&cands[k].surface);
       }
+      const detail::SurfaceScan scan = detail::scan_surfaces(src, p.domain, surfaces, opt.metric, kScanWindow);
+      // Error per byte: keep the candidate with the smallest error x bytes (ties: fewer bytes).
+      double best_score = std::numeric_limits<double>::infinity();
+      std::size_t best_bytes = 0, best = 0;
+      for (std::size_t k = 0; k < cands.size(); ++k) {
+        cands[k].error = scan.errors[k];
+        const std::size_t bytes = encoded_node_bytes(cands[k]);
+        const double score = cands[k].error * double(bytes);
+        if (k == 0 || score < best_score || (score == best_score && bytes < best_bytes))
+          best_score = score, best_bytes = bytes, best = k;
+      }
+      n = std::move(cands[best]);
+      n.bbox = domain_box(g, p.domain, scan.zlo, scan.zhi);
       b.split = opt.pm_leaves || n.error > opt.leaf_error;
     });
     std::vector<Pending> next;

@@ -46,8 +46,9 @@ struct DemGrid {
   std::string vertical_datum;                      ///< Heightfield::vertical_datum
   std::string source;                              ///< Heightfield::source
   std::string frame;                               ///< Heightfield::frame
+  std::optional<double> scale_error;  ///< frame_scale_error of the DEM (dem_reader.hpp)
 
-  /// The grid of `hf` (its samples left out).
+  /// The grid of `hf` (its samples left out; scale_error = frame_scale_error(hf)).
   static DemGrid of(const pm::Heightfield& hf);
   /// Samples in the grid.
   std::uint64_t samples() const { return std::uint64_t(width) * std::uint64_t(height); }
@@ -57,6 +58,8 @@ class DemSource {
  public:
   virtual ~DemSource() = default;
   const DemGrid& grid() const { return grid_; }
+  /// Names the input as the database records it (DemInputs::description()).
+  void set_source(std::string source) { grid_.source = std::move(source); }
   /// The samples of `window` (see the header comment).
   virtual pm::Heightfield read(SampleRect window) const = 0;
   /// CRC-32 of the samples and mask (see the header comment).

@@ -63,6 +63,8 @@ pm::Heightfield block_heightfield(const pm::Heightfield& hf, SampleRect rect);
 /// The block's PM, built on one thread with `metric`.
 pm::ProgressiveMesh build_block_pm(const pm::Heightfield& hf, SampleRect rect,
                                    pm::ErrorMetric metric = pm::ErrorMetric::Continuous);
+/// The same from the block's own samples (block_heightfield(hf, rect), or DemSource::read(rect)).
+pm::ProgressiveMesh build_block_pm(const pm::Heightfield& block, pm::ErrorMetric metric);
 
 /// Exact L-infinity error (pm::LInfError, the PM's metric) of the PM's base mesh (its coarsest
 /// extraction): the error of a PM block when it is drawn with no refinement at all.

@@ -46,6 +46,7 @@
 #include "terralod/blocks/active_region.hpp"
 #include "terralod/blocks/approximation_tree.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/node_strategy.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/pm/heightfield.hpp"
@@ -72,6 +73,13 @@ struct TreeBuildOptions {
 /// is the PmBlock leaf error of layout.keys()[i] (base_mesh_error of its PM); otherwise it is
 /// ignored. `progress` (optional) gets the fraction of the terrain's area finished per level.
 ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layout,
+                             const TreeBuildOptions& options, std::span<const double> block_errors = {},
+                             const std::function<void(double)>& progress = {});
+/// The same over a DemSource read window by window: a node's strategy sees its domain whole
+/// when it has at most 513^2 samples, else a lattice of about that many (every 2^k-th row and
+/// column plus the last ones); every node's error and box are then measured exactly over all
+/// the samples of its domain, streamed in 513^2-sample windows. No step holds the whole grid.
+ApproximationTree build_tree(const DemSource& source, const BlockLayout& layout,
                              const TreeBuildOptions& options, std::span<const double> block_errors = {},
                              const std::function<void(double)>& progress = {});
 
@@ -133,6 +141,7 @@ struct DatabaseBuildOptions {
 /// from the same samples and options).
 std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
                                            const DatabaseBuildOptions& opt);
+std::vector<std::uint8_t> build_block_blob(const DemSource& source, BlockKey key, const DatabaseBuildOptions& opt);
 
 /// A build that cannot proceed: what() = "<file>: <problem>".
 class BuildError : public std::runtime_error {
@@ -184,6 +193,12 @@ struct DatabaseSummary {
 /// each is written in its own transaction; the tree, the summary and "build_complete" = "1"
 /// are written together last. hf must have >= 2 x 2 samples and at least one valid sample.
 DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& path,
+                               const DatabaseBuildOptions& options);
+/// The same read through `source` (dem_source.hpp): with a windowed source nothing holds the
+/// whole DEM (blocks read their own windows; the tree reads as build_tree's DemSource overload
+/// says). The database is the same whichever way the same samples are read... except that the
+/// build parameters record source.samples_crc().
+DatabaseSummary build_database(const DemSource& source, const std::string& path,
                                const DatabaseBuildOptions& options);
 
 /// The summary of what a database holds (from its metadata, per-block records and tree); for

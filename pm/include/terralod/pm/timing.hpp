@@ -19,9 +19,14 @@
 //                   q = 1 the maximum). v is taken by value and sorted: O(n log n). An empty v
 //                   gives 0 (a report over no frames shows zeros rather than failing).
 //   median(v)       quantile(v, 0.5): the lower middle element for an even count.
+//   peak_resident_bytes() the process's peak resident set so far (getrusage's ru_maxrss, which
+//                   Linux keeps in KiB), bytes: what a build reports as its peak memory.
 #pragma once
 
+#include <sys/resource.h>
 #include <time.h>
+
+#include <cstdint>
 
 #include <algorithm>
 #include <chrono>
@@ -34,6 +39,12 @@ namespace terralod::pm {
 
 inline double ms_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
+inline std::uint64_t peak_resident_bytes() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return std::uint64_t(ru.ru_maxrss) * 1024u;
 }
 
 inline double thread_cpu_ms() {
