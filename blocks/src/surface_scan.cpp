@@ -49,6 +49,7 @@ struct Triangle {
 
 std::vector<SampleRect> scan_windows(SampleRect domain, std::size_t window_samples) {
   assert(window_samples >= 4 && domain.col0 <= domain.col1 && domain.row0 <= domain.row1);
+  window_samples = std::min(window_samples, std::size_t(1) << 62);  // side + 1 squared cannot overflow
   std::size_t side = std::size_t(std::sqrt(double(window_samples)));
   while (side * side > window_samples) --side;
   while ((side + 1) * (side + 1) <= window_samples) ++side;
