@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <type_traits>
 #include <utility>
 
 #include "terralod/pm/grid_triangle.hpp"
@@ -47,17 +48,21 @@ double LInfError::segment(GridPoint p, GridPoint q, double cutoff) const {
 
 double LInfError::segment(GridPoint p, GridPoint q, double zp, double zq, double cutoff) const {
   const Heightfield& hf = *hf_;
-  const int ox = window_.origin.x, oy = window_.origin.y;
-  const std::int64_t X0 = ox, X1 = std::int64_t(ox) + hf.width() - 1;
-  const std::int64_t Y0 = oy, Y1 = std::int64_t(oy) + hf.height() - 1;
+  // In the heightfield's indices: the crossings' values do not depend on where the grid's
+  // origin is (D, t and r are differences), and the window is 0 .. width-1, 0 .. height-1.
+  p = {p.x - window_.origin.x, p.y - window_.origin.y};
+  q = {q.x - window_.origin.x, q.y - window_.origin.y};
+  const std::int64_t X1 = hf.width() - 1, Y1 = hf.height() - 1;
   const bool holes = window_.skip_holes && hf.has_holes();
-  auto valid = [&](GridPoint s) { return hf.valid(s.x - ox, s.y - oy); };
+  // A segment inside the heightfield (always, over the whole grid) needs no clipping.
+  const bool inside = std::min(p.x, q.x) >= 0 && std::max(p.x, q.x) <= X1 && std::min(p.y, q.y) >= 0 &&
+                      std::max(p.y, q.y) <= Y1;
   double worst = 0.0;
   // The crossings of a segment a -> b (heights za, zb) with one family of grid lines, D > 0
   // steps apart along it (and the samples on it): at step t = 1 .. D-1 it crosses a line
   // between the line's samples i and i + 1 (indices along the line), at i + r / D, where
-  // i D + r = i0 D + t di with 0 <= r < D is tracked exactly. sample(t, i, k) is the grid point
-  // of sample i + k (k = 0, 1) of the t-th line. Heights are compared multiplied by D (exact for
+  // i D + r = i0 D + t di with 0 <= r < D is tracked exactly. sample(t, i, k) is the sample
+  // i + k (k = 0, 1) of the t-th line. Heights are compared multiplied by D (exact for
   // integers). The largest difference is divided once: division by D > 0 is monotonic in
   // floating point, so max(|d|) / D is the largest of the |d| / D, bit for bit.
   //
@@ -70,26 +75,36 @@ double LInfError::segment(GridPoint p, GridPoint q, double zp, double zq, double
                        double zb, auto&& sample) {
     if (D <= 0) return;
     std::int64_t t0 = 1, t1 = D - 1;
-    clip_steps(t0, t1, std::int64_t(a.x) * D, std::int64_t(b.x) - a.x, X0 * D, X1 * D);
-    clip_steps(t0, t1, std::int64_t(a.y) * D, std::int64_t(b.y) - a.y, Y0 * D, Y1 * D);
-    if (t0 > t1) return;
+    if (!inside) {
+      clip_steps(t0, t1, std::int64_t(a.x) * D, std::int64_t(b.x) - a.x, 0, X1 * D);
+      clip_steps(t0, t1, std::int64_t(a.y) * D, std::int64_t(b.y) - a.y, 0, Y1 * D);
+      if (t0 > t1) return;
+    }
     const std::int64_t qs = floor_div(di, D), rs = di - qs * D;
-    const std::int64_t n0 = i0 * D + t0 * di;
-    std::int64_t i = floor_div(n0, D), r = n0 - i * D;
-    double most = 0.0;
-    for (std::int64_t t = t0;;) {
-      const GridPoint s0 = sample(t, i, 0);
-      const GridPoint s1 = sample(t, i, 1);
-      if (!holes || (valid(s0) && (!r || valid(s1)))) {
-        double orig = at(s0) * double(D - r);
-        if (r) orig += at(s1) * double(r);
+    std::int64_t i_start = i0, r_start = 0;  // the walk's state one step before t0
+    if (t0 > 1) {
+      const std::int64_t n = i0 * D + (t0 - 1) * di;
+      i_start = floor_div(n, D), r_start = n - i_start * D;
+    }
+    auto walk = [&](auto skip_holes) {
+      std::int64_t i = i_start, r = r_start;
+      double most = 0.0;
+      for (std::int64_t t = t0; t <= t1; ++t) {
+        i += qs, r += rs;
+        if (r >= D) r -= D, ++i;
+        const GridPoint s0 = sample(t, i, 0);
+        if constexpr (decltype(skip_holes)::value) {
+          if (!hf.valid(s0.x, s0.y)) continue;
+          if (r && !hf.valid(sample(t, i, 1).x, sample(t, i, 1).y)) continue;
+        }
+        double orig = hf.at(s0.x, s0.y) * double(D - r);
+        if (r) orig += hf.at(sample(t, i, 1).x, sample(t, i, 1).y) * double(r);
         const double lin = za * double(D - t) + zb * double(t);
         most = std::max(most, std::abs(lin - orig));
       }
-      if (++t > t1) break;
-      i += qs, r += rs;
-      if (r >= D) r -= D, ++i;
-    }
+      return most;
+    };
+    const double most = holes ? walk(std::true_type{}) : walk(std::false_type{});
     worst = std::max(worst, most / double(D));
   };
   // Vertical lines x = a.x + t, their samples indexed by row (a.x <= b.x).
