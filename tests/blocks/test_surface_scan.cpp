@@ -6,12 +6,15 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "printed_seed.hpp"
 #include "surface_scan.hpp"
+#include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/node_strategy.hpp"
 #include "terralod/pm/heightfield.hpp"
@@ -207,4 +210,36 @@ TEST(SurfaceScan, DegenerateTriangleAndAllHoles) {
   EXPECT_EQ(got.errors[0], 0.0);
   EXPECT_EQ(got.zlo, 0.0);
   EXPECT_EQ(got.zhi, 0.0);
+}
+
+// The real tiles (read_dem, served by heightfield_source: open_dem_source is not implemented yet):
+// N44W072 and N22W160 (sea at 0 m, cliffs, voids filled by read_dem), a grid and a TIN surface
+// over the whole tile, both metrics.
+TEST(SurfaceScan, RealTiles) {
+  int found = 0;
+  for (const char* name : {"N44W072.hgt", "N22W160.hgt"}) {
+    const std::string path = std::string(TERRALOD_DATA_DIR) + "/" + name;
+    if (!std::ifstream(path)) {
+      std::printf("%s is absent: skipped\n", path.c_str());
+      continue;
+    }
+    ++found;
+    const pm::Heightfield hf = tb::read_dem(path);
+    const auto src = tb::heightfield_source(hf);
+    const tb::SampleRect d{0, 0, hf.width() - 1, hf.height() - 1};
+    for (pm::ErrorMetric m : {pm::ErrorMetric::Samples, pm::ErrorMetric::Continuous}) {
+      const tb::NodeSurface g = tb::make_grid_strategy(8)->approximate(hf, d);
+      const tb::NodeSurface t = tb::make_tin_strategy(64, m)->approximate(hf, d);
+      const tb::NodeSurface* both[] = {&g, &t};
+      const auto got = scan_surfaces(*src, d, both, m, 129 * 129, /*threads=*/2);
+      EXPECT_EQ(got.errors[0], tb::surface_error(hf, g, m)) << name;
+      EXPECT_EQ(got.errors[1], tb::surface_error(hf, t, m)) << name;
+      const auto [zlo, zhi] = z_range(hf, d);
+      EXPECT_EQ(got.zlo, zlo) << name;
+      EXPECT_EQ(got.zhi, zhi) << name;
+      std::printf("%s metric %d: grid %.3f m, tin %.3f m, z %.1f .. %.1f, holes %d\n", name, int(m),
+                  got.errors[0], got.errors[1], got.zlo, got.zhi, int(hf.has_holes()));
+    }
+  }
+  if (found == 0) GTEST_SKIP() << "no SRTM tile in " << TERRALOD_DATA_DIR;
 }
