@@ -147,11 +147,9 @@ double edge_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::Grid
 double triangle_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::ErrorMetric metric,
                       pm::GridPoint a, pm::GridPoint b, pm::GridPoint c) {
   if (!hf.has_holes()) return linf.triangle(a, b, c);
-  double e = scan_triangle(hf, a, b, c).error;
-  if (metric == pm::ErrorMetric::Continuous)
-    e = std::max(
-        {e, worst_crossing(hf, a, b).error, worst_crossing(hf, b, c).error, worst_crossing(hf, c, a).error});
-  return e;
+  // The hole rules of scan_triangle (valid samples) and worst_crossing (grid edges between valid
+  // samples), through LInfError's own code: the value it would give over the valid part.
+  return pm::LInfError(hf, metric, {.skip_holes = true}).triangle(a, b, c);
 }
 
 }  // namespace terralod::blocks::detail

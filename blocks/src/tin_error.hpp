@@ -46,7 +46,9 @@ double edge_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::Grid
 /// The exact error of the triangle (a,b,c) over hf's valid samples, in `linf`'s metric (built
 /// with `metric` over hf): LInfError::triangle when hf has no holes; otherwise the valid samples
 /// of the closed triangle and, for the continuous metric, the crossings of its edges with grid
-/// edges between valid samples (worst_crossing). Holes, wherever they are, take no part.
+/// edges between valid samples (scan_triangle's and worst_crossing's values: LInfError with
+/// GridWindow::skip_holes). Holes, wherever they are, take no part. A degenerate triangle is
+/// measured as its segments, as LInfError::triangle does.
 double triangle_error(const pm::LInfError& linf, const pm::Heightfield& hf, pm::ErrorMetric metric,
                       pm::GridPoint a, pm::GridPoint b, pm::GridPoint c);
 

@@ -91,4 +91,29 @@ TEST(GridTriangle, SteppedSpansAreTheClosedTriangleOnRandomTriangles) {
   }
 }
 
+// for_each_span clipped to a window: the whole scan's spans cut to the window's columns and
+// rows, whichever row the window starts at (the stepping starts there).
+TEST(GridTriangle, ClippedSpansAreTheWholeSpansCut) {
+  const unsigned seed = 20261203;
+  std::printf("seed %u\n", seed);
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> coord(-40, 40), side(0, 30);
+  for (int i = 0; i < 3000; ++i) {
+    pm::GridPoint a{coord(rng), coord(rng)}, b{coord(rng), coord(rng)}, c{coord(rng), coord(rng)};
+    const auto t = pm::GridTriangle::ccw(a, b, c);
+    const int c0 = coord(rng), r0 = coord(rng), c1 = c0 + side(rng), r1 = r0 + side(rng);
+    std::vector<Span> want;
+    for (const Span& s : brute_force(t)) {
+      const Span cut{s.y, std::max<std::int64_t>(s.xl, c0), std::min<std::int64_t>(s.xr, c1)};
+      if (s.y >= r0 && s.y <= r1 && cut.xl <= cut.xr) want.push_back(cut);
+    }
+    std::vector<Span> got;
+    t.for_each_span(c0, r0, c1, r1, [&](int y, std::int64_t xl, std::int64_t xr) {
+      got.push_back({y, xl, xr});
+    });
+    ASSERT_EQ(got, want) << "triangle (" << a.x << "," << a.y << ") (" << b.x << "," << b.y << ") (" << c.x
+                         << "," << c.y << ") window " << c0 << "," << r0 << " .. " << c1 << "," << r1;
+  }
+}
+
 }  // namespace

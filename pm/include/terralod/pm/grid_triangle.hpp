@@ -91,16 +91,27 @@ struct GridTriangle {
   /// When f returns bool, false stops the scan.
   template <class F>
   void for_each_span(F&& f) const {
+    for_each_span(x_min, y_min, x_max, y_max, std::forward<F>(f));
+  }
+
+  /// for_each_span clipped to the samples of columns col0 .. col1 and rows row0 .. row1 (a
+  /// window of the grid): the same spans, cut to the window. The bounds are exact quotients
+  /// whichever row the stepping starts from, so a window's spans are the whole scan's, clipped.
+  template <class F>
+  void for_each_span(int col0, int row0, int col1, int row1, F&& f) const {
+    const int y0 = std::max(y_min, row0), y1 = std::min(y_max, row1);
+    const std::int64_t x0 = std::max(x_min, col0), x1 = std::min(x_max, col1);
+    if (y0 > y1 || x0 > x1) return;
     std::int64_t q[3] = {}, r[3] = {}, d[3] = {}, qs[3] = {}, rs[3] = {};
     for (int k = 0; k < 3; ++k) {
       d[k] = A[k] < 0 ? -A[k] : A[k];
       if (d[k] == 0) continue;
-      const std::int64_t m = B[k] * y_min + C[k];
+      const std::int64_t m = B[k] * y0 + C[k];
       q[k] = floor_div(m, d[k]), r[k] = m - q[k] * d[k];
       qs[k] = floor_div(B[k], d[k]), rs[k] = B[k] - qs[k] * d[k];
     }
-    for (int y = y_min; y <= y_max; ++y) {
-      std::int64_t xl = x_min, xr = x_max;
+    for (int y = y0; y <= y1; ++y) {
+      std::int64_t xl = x0, xr = x1;
       for (int k = 0; k < 3; ++k) {
         if (A[k] > 0)  // A x + M >= 0: x >= ceil(-M / A) = -floor(M / A)
           xl = std::max(xl, -q[k]);
