@@ -1,6 +1,6 @@
 // Windowed DEM reads against read_dem: time and peak RSS (getrusage) of reading every 257-sample
-// block of a DEM through open_dem_source or through read_dem + block_heightfield. One mode per
-// process, so that each peak RSS is its own.
+// block of a DEM through open_dem_source or through read_dem + block_heightfield, then samples_crc. One mode
+// per process, so that each peak RSS is its own.
 //   terralod-bench-dem-source FILE source|read_dem [THREADS]
 //   (FILE e.g. from `terralod testdem --fractal 8193x8193 --out /tmp/x.tif`)
 #include <sys/resource.h>
@@ -50,12 +50,15 @@ int main(int argc, char** argv) {
     });
   for (std::thread& t : pool) t.join();
   const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto t1 = std::chrono::steady_clock::now();
+  const std::uint32_t crc = src->samples_crc();
+  const double crc_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   rusage ru{};
   getrusage(RUSAGE_SELF, &ru);
   std::printf(
       "%s: %d x %d samples, %zu blocks of 257, %d thread(s): open %.2f s, all blocks %.2f s, "
-      "peak RSS %.1f MiB (blocks with holes: %llu)\n",
-      mode.c_str(), src->grid().width, src->grid().height, keys.size(), threads, open_s, total_s,
+      "samples_crc %08x in %.2f s; peak RSS %.1f MiB (blocks with holes: %llu)\n",
+      mode.c_str(), src->grid().width, src->grid().height, keys.size(), threads, open_s, total_s, crc, crc_s,
       double(ru.ru_maxrss) / 1024.0, (unsigned long long)holes.load());
   return 0;
 }

@@ -94,6 +94,9 @@ class WindowedSource : public DemSource {
  protected:
   WindowedSource(std::string path, const DemOptions& options)
       : path_(std::move(path)), fill_(options.fill_voids) {}
+  /// The samples of `window` with voids filled (holes NaN) into z, which holds the returned
+  /// window: `window` grown while a void region meeting it was cut by its edge.
+  SampleRect load(SampleRect window, std::vector<double>& z) const;
   /// The raw samples of `window` (metres, voids NaN) into z.
   virtual void raw(SampleRect window, std::vector<double>& z) const = 0;
   /// grid_ from the header: everything but the scale error's note, which needs read().
@@ -176,12 +179,11 @@ bool meets(SampleRect a, SampleRect b) {
   return a.col0 <= b.col1 && b.col0 <= a.col1 && a.row0 <= b.row1 && b.row0 <= a.row1;
 }
 
-pm::Heightfield WindowedSource::read(SampleRect window) const {
+SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const {
   const int width = grid_.width, height = grid_.height;
   if (window.col0 < 0 || window.row0 < 0 || window.col1 >= width || window.row1 >= height ||
       window.col0 > window.col1 || window.row0 > window.row1)
     throw std::invalid_argument(path_ + ": window outside the grid");
-  std::vector<double> z;
   SampleRect held = window;
   VoidFillOptions fill;
   fill.threads = 1;  // readers run in parallel already; the bits do not depend on it
@@ -195,6 +197,12 @@ pm::Heightfield WindowedSource::read(SampleRect window) const {
     if (next == held) break;
     held = next;
   }
+  return held;
+}
+
+pm::Heightfield WindowedSource::read(SampleRect window) const {
+  std::vector<double> z;
+  const SampleRect held = load(window, z);
   pm::Heightfield b(window.width(), window.height());
   std::vector<std::uint8_t> mask(b.size(), 1);
   bool holes = false;
@@ -220,23 +228,31 @@ pm::Heightfield WindowedSource::read(SampleRect window) const {
 }
 
 std::uint32_t WindowedSource::samples_crc() const {
+  // Bands through load(), not read(): its buffers are reused, as freshly mapped pages for every
+  // band cost more than the reads (measured 3.5 s instead of 0.43 s for 8193 x 8193 samples).
   const int width = grid_.width, height = grid_.height;
-  const int rows = std::max(1, (1 << 22) / width);
+  const int rows = std::max(1, (1 << 18) / width);
   std::uint32_t crc = 0, mask_crc = 0;
-  std::uint64_t mask_bytes = 0;
   bool holes = false;
-  const std::vector<std::uint8_t> ones(std::size_t(rows) * std::size_t(width), 1);
-  for (int r = 0; r < height; r += rows) {
-    const pm::Heightfield b = read({0, r, width - 1, std::min(height, r + rows) - 1});
-    const auto& z = b.samples();
-    crc = pm::crc32_of({reinterpret_cast<const std::uint8_t*>(z.data()), z.size() * sizeof(double)}, crc);
-    holes = holes || b.has_holes();
-    mask_crc = pm::crc32_of(b.has_holes() ? std::span<const std::uint8_t>(b.mask())
-                                          : std::span<const std::uint8_t>(ones.data(), b.size()),
-                            mask_crc);
-    mask_bytes += b.size();
+  std::vector<double> z, row(std::size_t(width), 0.0);
+  std::vector<std::uint8_t> mask(std::size_t(width), 1);
+  for (int r0 = 0; r0 < height; r0 += rows) {
+    const SampleRect band{0, r0, width - 1, std::min(height, r0 + rows) - 1};
+    const SampleRect held = load(band, z);
+    for (int r = band.row0; r <= band.row1; ++r) {
+      const double* v = z.data() + std::size_t(r - held.row0) * std::size_t(width);
+      for (std::size_t i = 0; i < row.size(); ++i) {
+        const bool valid = std::isfinite(v[i]);
+        row[i] = valid ? v[i] : 0.0;
+        mask[i] = valid ? 1 : 0;
+        holes = holes || !valid;
+      }
+      crc =
+          pm::crc32_of({reinterpret_cast<const std::uint8_t*>(row.data()), row.size() * sizeof(double)}, crc);
+      mask_crc = pm::crc32_of(mask, mask_crc);
+    }
   }
-  return holes ? std::uint32_t(crc32_combine64(crc, mask_crc, z_off64_t(mask_bytes))) : crc;
+  return holes ? std::uint32_t(crc32_combine64(crc, mask_crc, z_off64_t(grid_.samples()))) : crc;
 }
 
 class GdalSource final : public WindowedSource {
