@@ -4,10 +4,12 @@
 //
 // read(window): the window's raw samples, then fill_voids_in_window; while a void region that
 // meets the window is cut by the window's edge (VoidFillStats::open), the window grows to hold
-// that region's extent seen so far plus a ring (16 samples, doubling at each step, cut by the
-// grid) and is read again. Regions are filled alone on their own box (void_fill.hpp), so the
+// a ring past each window edge that region touches (16 samples, doubling at each step, cut by
+// the grid) and is read again. Regions are filled alone on their own box (void_fill.hpp), so the
 // bits are those of read_dem's whole-grid fill; regions over VoidFillOptions::max_region_cells
-// are capped as soon as the part seen is over the cap, and stay holes, as in read_dem.
+// are capped as soon as the part seen is over the cap, and stay holes, as in read_dem. Cost: a
+// read meeting such a region (a nodata collar around a mosaic's coverage, say) holds more than
+// 4096 x 4096 samples before it knows, each time: nothing remembers capped regions between reads.
 // Thread-safety: GDAL datasets are not: each read takes an opened dataset from a pool (opening
 // another when all are busy) and gives it back; the fill runs on the caller's thread. .hgt
 // windows are read with a stream opened per read, so a file removed or truncated after opening
@@ -168,11 +170,14 @@ void WindowedSource::set_grid(int width, int height, const detail::Georef& geo, 
   grid_.frame += detail::scale_error_note(error, false) + height_note;
 }
 
-SampleRect grown(SampleRect a, SampleRect b, int margin, int width, int height) {
-  return SampleRect{std::max(0, std::min(a.col0, b.col0 - margin)),
-                    std::max(0, std::min(a.row0, b.row0 - margin)),
-                    std::min(width - 1, std::max(a.col1, b.col1 + margin)),
-                    std::min(height - 1, std::max(a.row1, b.row1 + margin))};
+/// `next` grown by `margin` samples past each edge of `held` that the extent `e` of a region
+/// touches (so the region may go on there), cut by the grid.
+SampleRect grown(SampleRect next, SampleRect held, SampleRect e, int margin, int width, int height) {
+  if (e.col0 == held.col0) next.col0 = std::max(0, std::min(next.col0, held.col0 - margin));
+  if (e.row0 == held.row0) next.row0 = std::max(0, std::min(next.row0, held.row0 - margin));
+  if (e.col1 == held.col1) next.col1 = std::min(width - 1, std::max(next.col1, held.col1 + margin));
+  if (e.row1 == held.row1) next.row1 = std::min(height - 1, std::max(next.row1, held.row1 + margin));
+  return next;
 }
 
 bool meets(SampleRect a, SampleRect b) {
@@ -193,7 +198,7 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
     const VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
     SampleRect next = held;
     for (const OpenVoidRegion& o : stats.open)
-      if (meets(o.extent, window)) next = grown(next, o.extent, margin, width, height);
+      if (meets(o.extent, window)) next = grown(next, held, o.extent, margin, width, height);
     if (next == held) break;
     held = next;
   }
