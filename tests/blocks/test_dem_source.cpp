@@ -259,6 +259,19 @@ TEST_F(DemSourceTest, HeightmapsAndNamedCrsAreInMemory) {
   o.vertical_scale = 0.1;
   expect_like_read_dem(png.string(), o, true);
 
+  // A .tif without georeference is a heightmap (OpenImageIO), read whole.
+  const fs::path bare = dir_ / "bare.tif";
+  GDALAllRegister();
+  {
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(bare.c_str(), 40, 30, 1,
+                                                                                     GDT_UInt16, nullptr));
+    ASSERT_TRUE(ds);
+    std::vector<std::uint16_t> v(40 * 30, 7);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 40, 30, v.data(), 40, 30, GDT_UInt16, 0, 0),
+              CE_None);
+  }
+  expect_like_read_dem(bare.string(), {}, true);
+
   const fs::path tif = dir_ / "utm.tif";
   write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);
   tb::DemOptions named;
