@@ -9,7 +9,8 @@
 // bits are those of read_dem's whole-grid fill; regions over VoidFillOptions::max_region_cells
 // are capped as soon as the part seen is over the cap, and stay holes, as in read_dem. Cost: a
 // read meeting such a region (a nodata collar around a mosaic's coverage, say) holds more than
-// 4096 x 4096 samples before it knows, each time: nothing remembers capped regions between reads.
+// 4096 x 4096 samples before it knows; the source then remembers that region's void samples (as
+// runs along rows), so a later read that meets a known part of it stops growing there.
 // Thread-safety: GDAL datasets are not: each read takes an opened dataset from a pool (opening
 // another when all are busy) and gives it back; the fill runs on the caller's thread. .hgt
 // windows are read with a stream opened per read, so a file removed or truncated after opening
@@ -26,9 +27,12 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <mutex>
+#include <shared_mutex>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -86,6 +90,79 @@ class CacheCap {
   }
 };
 
+/// Runs of columns [col0, col1] in grid rows.
+using Runs = std::vector<std::array<int, 3>>;  // {row, col0, col1}
+
+/// The void samples left in `z` (the samples of `held`), one 4-connected region at a time: its
+/// bounding box in grid coordinates and its samples as runs along rows.
+std::vector<std::pair<SampleRect, Runs>> void_regions(const std::vector<double>& z, SampleRect held) {
+  const int w = held.width(), h = held.height();
+  std::vector<std::uint8_t> seen(z.size(), 0);
+  std::vector<std::pair<SampleRect, Runs>> out;
+  std::vector<std::uint32_t> stack, cells;
+  for (std::size_t start = 0; start < z.size(); ++start) {
+    if (seen[start] || std::isfinite(z[start])) continue;
+    cells.clear();
+    stack.assign(1, std::uint32_t(start));
+    seen[start] = 1;
+    while (!stack.empty()) {
+      const std::uint32_t k = stack.back();
+      stack.pop_back();
+      cells.push_back(k);
+      const int c = int(k % std::uint32_t(w)), r = int(k / std::uint32_t(w));
+      auto visit = [&](int cc, int rr) {
+        const std::size_t n = std::size_t(rr) * std::size_t(w) + std::size_t(cc);
+        if (cc >= 0 && rr >= 0 && cc < w && rr < h && !seen[n] && !std::isfinite(z[n]))
+          seen[n] = 1, stack.push_back(std::uint32_t(n));
+      };
+      visit(c - 1, r), visit(c + 1, r), visit(c, r - 1), visit(c, r + 1);
+    }
+    std::sort(cells.begin(), cells.end());
+    SampleRect box{held.col1, held.row1, held.col0, held.row0};
+    Runs runs;
+    for (const std::uint32_t k : cells) {
+      const int c = held.col0 + int(k % std::uint32_t(w)), r = held.row0 + int(k / std::uint32_t(w));
+      box = {std::min(box.col0, c), std::min(box.row0, r), std::max(box.col1, c), std::max(box.row1, r)};
+      if (!runs.empty() && runs.back()[0] == r && runs.back()[2] + 1 == c) {
+        runs.back()[2] = c;
+      } else {
+        runs.push_back({r, c, c});
+      }
+    }
+    out.emplace_back(box, std::move(runs));
+  }
+  return out;
+}
+
+/// Void samples of regions over the fill cap found so far: a later read whose cut region holds
+/// one of them knows that region stays a hole without growing until it sees it whole.
+class CappedVoids {
+ public:
+  bool empty() const {
+    std::shared_lock lock(mutex_);
+    return rows_.empty();
+  }
+  /// Whether any sample of `runs` is a known capped void.
+  bool holds(const Runs& runs) const {
+    std::shared_lock lock(mutex_);
+    for (const auto& [r, c0, c1] : runs) {
+      const auto it = rows_.find(r);
+      if (it == rows_.end()) continue;
+      for (const auto& [a, b] : it->second)
+        if (a <= c1 && c0 <= b) return true;
+    }
+    return false;
+  }
+  void add(const Runs& runs) {
+    std::unique_lock lock(mutex_);
+    for (const auto& [r, c0, c1] : runs) rows_[r].emplace_back(c0, c1);
+  }
+
+ private:
+  mutable std::shared_mutex mutex_;
+  std::map<int, std::vector<std::pair<int, int>>> rows_;
+};
+
 /// A DemSource that reads raw windows (raw()) and fills their voids as read_dem does.
 class WindowedSource : public DemSource {
  public:
@@ -109,6 +186,7 @@ class WindowedSource : public DemSource {
 
  private:
   bool fill_;
+  mutable CappedVoids capped_;
 };
 
 void WindowedSource::set_grid(int width, int height, const detail::Georef& geo, const DemOptions& options,
@@ -197,8 +275,19 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
     if (!fill_ || std::all_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); })) break;
     const VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
     SampleRect next = held;
-    for (const OpenVoidRegion& o : stats.open)
-      if (meets(o.extent, window)) next = grown(next, held, o.extent, margin, width, height);
+    if (stats.capped_regions == 0 && capped_.empty()) {
+      for (const OpenVoidRegion& o : stats.open)
+        if (meets(o.extent, window)) next = grown(next, held, o.extent, margin, width, height);
+    } else {  // the regions left void: capped (known before, or now) or cut
+      for (const auto& [box, runs] : void_regions(z, held)) {
+        if (!meets(box, window) || capped_.holds(runs)) continue;
+        if (box.samples() > fill.max_region_cells) {
+          capped_.add(runs);
+        } else {
+          next = grown(next, held, box, margin, width, height);
+        }
+      }
+    }
     if (next == held) break;
     held = next;
   }

@@ -291,6 +291,8 @@ TEST_F(DemSourceTest, RegionOverTheCapStaysAHoleInEveryWindow) {
     for (int c = 0; c < n; ++c) z[std::size_t(r) * n + c] = double((c / 64 + r / 64) % 7);
   for (int i = 0; i + 1 < n; ++i) z[std::size_t(i) * n + i] = z[std::size_t(i) * n + i + 1] = kNaN;
   z[std::size_t(3000) * n + 100] = kNaN;
+  for (int r = 500; r < 530; ++r)  // a blob away from the staircase
+    for (int c = 3000; c < 3030; ++c) z[std::size_t(r) * n + c] = kNaN;
   const fs::path tif = dir_ / "stairs.tif";
   write_geotiff(tif, n, n, z, GDT_Float32, {0, 1, 0, 0, 0, -1}, 0);
   const Heightfield hf = tb::read_dem(tif.string());
@@ -299,11 +301,16 @@ TEST_F(DemSourceTest, RegionOverTheCapStaysAHoleInEveryWindow) {
   ASSERT_TRUE(hf.valid(100, 3000));
   const auto src = tb::open_dem_source(tif.string());
   expect_same_grid(src->grid(), tb::DemGrid::of(hf));
-  for (const tb::SampleRect& r : std::vector<tb::SampleRect>{{2000, 2000, 2000, 2000},
-                                                             {1990, 2000, 2010, 2010},
-                                                             {90, 2990, 110, 3010},
-                                                             {4000, 4090, 4099, 4099}})
+  std::vector<tb::SampleRect> rects = {
+      {2000, 2000, 2000, 2000}, {1990, 2000, 2010, 2010}, {90, 2990, 110, 3010}, {4000, 4090, 4099, 4099}};
+  const tb::BlockLayout layout = tb::partition(n, n, 257);
+  for (int k = 0; k < layout.blocks_x; ++k)
+    rects.push_back(layout.rect(tb::BlockKey{k, k}));  // the staircase
+  rects.push_back({3010, 510, 3020, 520});  // cutting the blob, once the staircase is known as capped
+  rects.push_back({2990, 520, 3015, 540});
+  for (const tb::SampleRect& r : rects)
     EXPECT_TRUE(same_block(src->read(r), tb::block_heightfield(hf, r))) << r.col0 << "," << r.row0;
+  EXPECT_EQ(src->samples_crc(), tb::heightfield_source(hf)->samples_crc());
 }
 
 TEST_F(DemSourceTest, ConcurrentReadersGetTheSameBlocks) {
