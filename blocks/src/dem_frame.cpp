@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <numbers>
@@ -83,12 +84,18 @@ bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vec
 
 }  // namespace
 
-std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
-  if (hf.crs_wkt.empty() || !hf.crs_transform) return std::nullopt;
+namespace detail {
+
+std::optional<double> scale_error(const std::string& crs_wkt,
+                                  const std::optional<pm::GridTransform>& crs_transform,
+                                  const pm::GridTransform& world, int w, int h,
+                                  const std::function<bool(int, int)>& valid,
+                                  const std::function<std::pair<int, int>(int)>& row_ends) {
+  if (crs_wkt.empty() || !crs_transform) return std::nullopt;
   register_gdal();
   QuietGdal quiet;
   OGRSpatialReference crs;
-  if (crs.importFromWkt(hf.crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
+  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
   crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
   if (!geog) return std::nullopt;
@@ -99,23 +106,21 @@ std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
   const double a = crs.GetSemiMajor(), b = crs.GetSemiMinor(), e2 = 1.0 - (b * b) / (a * a);
 
   // Where to measure: a 33 x 33 lattice and both ends of every row, valid samples only.
-  const int w = hf.width(), h = hf.height();
   std::vector<double> cols, rows;
   auto add = [&](int c, int r) {
-    if (hf.valid(c, r)) cols.push_back(c), rows.push_back(r);
+    if (valid(c, r)) cols.push_back(c), rows.push_back(r);
   };
   for (int i = 0; i <= 32; ++i)
     for (int j = 0; j <= 32; ++j)
       add(int(std::lround((w - 1) * i / 32.0)), int(std::lround((h - 1) * j / 32.0)));
   for (int r = 0; r < h; ++r) {
-    int first = 0, last = w - 1;
-    while (first < w && !hf.valid(first, r)) ++first;
-    while (last > first && !hf.valid(last, r)) --last;
-    if (first < w) add(first, r), add(last, r);
+    const auto [first, last] = row_ends(r);
+    if (first < w)
+      cols.insert(cols.end(), {double(first), double(last)}), rows.insert(rows.end(), {double(r), double(r)});
   }
   std::vector<double> lon(cols.size()), lat(cols.size());
   for (std::size_t i = 0; i < cols.size(); ++i)
-    std::tie(lon[i], lat[i]) = hf.crs_transform->to_world(cols[i], rows[i]);
+    std::tie(lon[i], lat[i]) = crs_transform->to_world(cols[i], rows[i]);
   if (!transform(*to_geog, lon, lat)) return std::nullopt;
 
   // Four neighbours at +-step degrees, through the CRS and the samples to the world frame.
@@ -126,10 +131,10 @@ std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
     y.insert(y.end(), {lat[i], lat[i], lat[i] + step, lat[i] - step});
   }
   if (!transform(*to_crs, x, y)) return std::nullopt;
-  const Affine samples{*hf.crs_transform};
+  const Affine samples{*crs_transform};
   for (std::size_t k = 0; k < x.size(); ++k) {
     const auto [c, r] = samples.inverse(x[k], y[k]);
-    std::tie(x[k], y[k]) = hf.transform.to_world(c, r);
+    std::tie(x[k], y[k]) = world.to_world(c, r);
   }
   double worst = 0.0;
   for (std::size_t i = 0; i < lon.size(); ++i) {
@@ -148,31 +153,63 @@ std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
   return worst;
 }
 
+}  // namespace detail
+
+std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
+  const int w = hf.width();
+  return detail::scale_error(
+      hf.crs_wkt, hf.crs_transform, hf.transform, w, hf.height(),
+      [&](int c, int r) { return hf.valid(c, r); },
+      [&](int r) {
+        int first = 0, last = w - 1;
+        while (first < w && !hf.valid(first, r)) ++first;
+        while (last > first && !hf.valid(last, r)) --last;
+        return std::pair{first, last};
+      });
+}
+
 namespace detail {
+
+std::string scale_error_note(std::optional<double> e, bool automatic) {
+  if (!e) return "";
+  std::string note = "; scale error within +-" + format("%.3f", *e * 100.0) + " %";
+  if (automatic && *e > 0.001) note += " (over 0.1 %: the best of this frame; name a CRS with --crs)";
+  return note;
+}
 
 namespace {
 
 /// Appends the measured scale error to hf.frame (nothing without a CRS); for "auto", over
 /// 0.1 %, says that this is the frame's limit.
 pm::Heightfield with_scale_error(pm::Heightfield hf, bool automatic = false) {
-  if (const std::optional<double> e = frame_scale_error(hf)) {
-    hf.frame += "; scale error within +-" + format("%.3f", *e * 100.0) + " %";
-    if (automatic && *e > 0.001) hf.frame += " (over 0.1 %: the best of this frame; name a CRS with --crs)";
-  }
+  hf.frame += scale_error_note(frame_scale_error(hf), automatic);
   return hf;
+}
+
+/// Whether hf.crs_wkt names a CRS (read into `source`) with a transform to it.
+bool read_crs(const std::string& crs_wkt, bool has_crs_transform, OGRSpatialReference& source) {
+  return !crs_wkt.empty() && has_crs_transform && source.importFromWkt(crs_wkt.c_str()) == OGRERR_NONE &&
+         !source.IsEmpty();
 }
 
 }  // namespace
 
+bool frame_warps(const std::string& crs_wkt, bool has_crs_transform, const std::string& crs) {
+  if (crs == "native") return false;
+  if (crs != "auto") return true;
+  register_gdal();
+  QuietGdal quiet;
+  OGRSpatialReference source;
+  return read_crs(crs_wkt, has_crs_transform, source) && source.IsGeographic();
+}
+
 pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const std::string& crs) {
-  if (crs == "native") return with_scale_error(std::move(hf));
+  if (!frame_warps(hf.crs_wkt, hf.crs_transform.has_value(), crs)) return with_scale_error(std::move(hf));
   const bool automatic = crs == "auto";
   register_gdal();
   QuietGdal quiet;
   OGRSpatialReference source;
-  const bool has_crs = !hf.crs_wkt.empty() && hf.crs_transform &&
-                       source.importFromWkt(hf.crs_wkt.c_str()) == OGRERR_NONE && !source.IsEmpty();
-  if (automatic && (!has_crs || !source.IsGeographic())) return with_scale_error(std::move(hf));
+  const bool has_crs = read_crs(hf.crs_wkt, hf.crs_transform.has_value(), source);
   if (!has_crs)
     throw DemError(path, "has no CRS, so it cannot be warped to the CRS '" + crs +
                              "' asked for (--crs, DemOptions::crs); use --crs native or auto");

@@ -23,6 +23,7 @@
 #include <system_error>
 
 #include "dem_frame.hpp"
+#include "dem_raster.hpp"
 #include "gdal_support.hpp"
 #include "terralod/blocks/void_fill.hpp"
 
@@ -42,17 +43,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 // ---------------------------------------------------------------------------------------------
 // What every reader produces before the common finishing steps.
 
-struct Georef {
-  enum class Kind { None, Geographic, Metric } kind = Kind::None;
-  /// Sample-centre affine map: X = a[0] + col a[1] + row a[2], Y = a[3] + col a[4] + row a[5];
-  /// degrees (lon, lat) for Geographic, metres for Metric, unused for None.
-  std::array<double, 6> a{};
-  /// The same map in the CRS's own units (degrees for geographic CRSs): Heightfield::crs_transform.
-  std::array<double, 6> native{};
-  std::string crs_wkt;
-  std::string vertical_datum;  ///< Heightfield::vertical_datum
-  std::string description;     ///< Metric: what the coordinates are; Geographic: the CRS name
-};
+using detail::Georef;
 
 struct Raster {
   int width = 0, height = 0;
@@ -142,7 +133,11 @@ void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* sr
 // ---------------------------------------------------------------------------------------------
 // SRTM .hgt
 
-Raster read_hgt(const std::string& path) {
+}  // namespace
+
+namespace detail {
+
+HgtTile hgt_tile(const std::string& path) {
   // South-west corner from the name: [NS]dd[EW]ddd, e.g. N44W072 (case-insensitive).
   const std::string name = fs::path(path).filename().string();
   auto digits = [&](std::size_t from, std::size_t count, int& value) {
@@ -181,34 +176,57 @@ Raster read_hgt(const std::string& path) {
   }
   check_dimensions(path, (long long)n, (long long)n);
 
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw DemError(path, "cannot open the file for reading");
-  std::vector<unsigned char> raw(bytes);
-  in.read(reinterpret_cast<char*>(raw.data()), std::streamsize(bytes));
-  if (in.gcount() != std::streamsize(bytes)) {
-    throw DemError(path, "read only " + std::to_string(in.gcount()) + " of " + std::to_string(bytes) +
-                             " bytes (file truncated or unreadable)");
-  }
-
-  Raster r;
-  r.width = r.height = int(n);
-  r.z.resize(n * n);
-  for (std::size_t i = 0; i < r.z.size(); ++i) {
-    const auto v = std::int16_t(std::uint16_t((raw[2 * i] << 8) | raw[2 * i + 1]));
-    r.z[i] = v == -32768 ? std::numeric_limits<double>::quiet_NaN() : double(v);
-  }
-
+  HgtTile t;
+  t.n = int(n);
   const double d = 1.0 / double(n - 1);  // degrees between samples; samples sit on the tile edges
-  r.geo.kind = Georef::Kind::Geographic;
-  r.geo.a = {double(lon), d, 0.0, double(lat) + 1.0, 0.0, -d};
-  r.geo.native = r.geo.a;
-  r.geo.vertical_datum = "EGM96";  // SRTM heights are above the EGM96 geoid
+  t.geo.kind = Georef::Kind::Geographic;
+  t.geo.a = {double(lon), d, 0.0, double(lat) + 1.0, 0.0, -d};
+  t.geo.native = t.geo.a;
+  t.geo.vertical_datum = "EGM96";  // SRTM heights are above the EGM96 geoid
   register_gdal();
   QuietGdal quiet;
   OGRSpatialReference wgs84;
   wgs84.SetWellKnownGeogCS("WGS84");
-  r.geo.crs_wkt = wkt_of(wgs84);
-  r.geo.description = "WGS 84";
+  t.geo.crs_wkt = wkt_of(wgs84);
+  t.geo.description = "WGS 84";
+  return t;
+}
+
+void read_hgt_window(const std::string& path, int n, SampleRect window, std::vector<double>& z) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw DemError(path, "cannot open the file for reading (removed since it was opened?)");
+  // Whole rows are one read; a narrower window one read per row.
+  const bool whole_rows = window.col0 == 0 && window.col1 == n - 1;
+  const std::size_t run = whole_rows ? window.samples() : std::size_t(window.width());
+  std::vector<unsigned char> raw(2 * run);
+  z.resize(window.samples());
+  for (int row = window.row0; row <= window.row1; row += whole_rows ? window.height() : 1) {
+    const std::uintmax_t at = 2 * (std::uintmax_t(row) * std::uintmax_t(n) + std::uintmax_t(window.col0));
+    in.seekg(std::streamoff(at));
+    in.read(reinterpret_cast<char*>(raw.data()), std::streamsize(raw.size()));
+    if (!in || in.gcount() != std::streamsize(raw.size())) {
+      throw DemError(path, "read only " + std::to_string(std::max<std::streamsize>(in.gcount(), 0)) + " of " +
+                               std::to_string(raw.size()) + " bytes at offset " + std::to_string(at) +
+                               " (file truncated or unreadable)");
+    }
+    double* out = z.data() + std::size_t(row - window.row0) * std::size_t(window.width());
+    for (std::size_t i = 0; i < run; ++i) {
+      const auto v = std::int16_t(std::uint16_t((raw[2 * i] << 8) | raw[2 * i + 1]));
+      out[i] = v == -32768 ? std::numeric_limits<double>::quiet_NaN() : double(v);
+    }
+  }
+}
+
+}  // namespace detail
+
+namespace {
+
+Raster read_hgt(const std::string& path) {
+  detail::HgtTile t = detail::hgt_tile(path);
+  Raster r;
+  r.width = r.height = t.n;
+  detail::read_hgt_window(path, t.n, SampleRect{0, 0, t.n - 1, t.n - 1}, r.z);
+  r.geo = std::move(t.geo);
   return r;
 }
 
@@ -224,6 +242,17 @@ std::optional<double> vertical_unit_to_metres(const std::string& unit) {
   return std::nullopt;
 }
 
+bool has_georeference(GDALDataset& ds) {
+  QuietGdal quiet;
+  double gt[6];
+  const OGRSpatialReference* srs = ds.GetSpatialRef();
+  return ds.GetGeoTransform(gt) == CE_None || (srs != nullptr && !srs->IsEmpty());
+}
+
+}  // namespace
+
+namespace detail {
+
 GDALDatasetUniquePtr open_gdal(const std::string& path) {
   if (!path.starts_with("/vsi")) require_file(path);
   register_gdal();
@@ -233,14 +262,7 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
   return ds;
 }
 
-bool has_georeference(GDALDataset& ds) {
-  QuietGdal quiet;
-  double gt[6];
-  const OGRSpatialReference* srs = ds.GetSpatialRef();
-  return ds.GetGeoTransform(gt) == CE_None || (srs != nullptr && !srs->IsEmpty());
-}
-
-Raster read_gdal(const std::string& path, GDALDataset& ds) {
+GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
   QuietGdal quiet;
   const int bands = ds.GetRasterCount();
   if (bands != 1) {
@@ -253,66 +275,94 @@ Raster read_gdal(const std::string& path, GDALDataset& ds) {
     throw DemError(path, std::string("band type ") + GDALGetDataTypeName(type) +
                              " is complex; a DEM needs real heights");
   }
-  const int w = ds.GetRasterXSize(), h = ds.GetRasterYSize();
-  check_dimensions(path, w, h);
-
-  Raster r;
-  r.width = w;
-  r.height = h;
-  r.z.resize(std::size_t(w) * h);
-  if (band->RasterIO(GF_Read, 0, 0, w, h, r.z.data(), w, h, GDT_Float64, 0, 0) != CE_None) {
-    throw DemError(path, "cannot read the samples: " + gdal_message("GDAL read error"));
+  GdalBand b;
+  b.width = ds.GetRasterXSize();
+  b.height = ds.GetRasterYSize();
+  if (limit_size) {
+    check_dimensions(path, b.width, b.height);
+  } else if (b.width < 2 || b.height < 2) {
+    check_dimensions(path, b.width, b.height);  // its message for grids under 2 x 2
   }
 
   // Voids: the nodata value (compared in the band's own type), a real mask band, NaN/inf.
   int has_nodata = 0;
-  const double nodata = band->GetNoDataValue(&has_nodata);
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  if (has_nodata && !std::isnan(nodata)) {
-    const bool as_float = type == GDT_Float32;
-    const float nodata_f = float(nodata);
-    for (double& v : r.z) {
-      if (as_float ? float(v) == nodata_f : v == nodata) v = nan;
-    }
-  }
+  b.nodata = band->GetNoDataValue(&has_nodata);
+  b.has_nodata = has_nodata && !std::isnan(b.nodata);
+  b.nodata_as_float = type == GDT_Float32;
   const int mask_flags = band->GetMaskFlags();
-  if (!(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA)) {
-    std::vector<std::uint8_t> mask(r.z.size());
-    if (band->GetMaskBand()->RasterIO(GF_Read, 0, 0, w, h, mask.data(), w, h, GDT_Byte, 0, 0) != CE_None) {
-      throw DemError(path, "cannot read the mask band: " + gdal_message("GDAL read error"));
-    }
-    for (std::size_t i = 0; i < mask.size(); ++i) {
-      if (mask[i] == 0) r.z[i] = nan;
-    }
-  }
+  b.mask_band = !(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA);
 
   // Heights: band scale and offset, then the vertical unit.
   int has_scale = 0, has_offset = 0;
   const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
-  double factor = has_scale ? scale : 1.0, shift = has_offset ? offset : 0.0;
+  b.factor = has_scale ? scale : 1.0;
+  b.shift = has_offset ? offset : 0.0;
   const char* unit_c = band->GetUnitType();
   const std::string unit = unit_c != nullptr ? unit_c : "";
   if (const auto metres = vertical_unit_to_metres(unit)) {
-    factor *= *metres;
-    shift *= *metres;
-    if (*metres != 1.0) r.height_note = "; heights converted from '" + unit + "' to metres";
+    b.factor *= *metres;
+    b.shift *= *metres;
+    if (*metres != 1.0) b.height_note = "; heights converted from '" + unit + "' to metres";
   } else {
-    r.height_note = "; heights in unknown unit '" + unit + "' taken as metres";
-  }
-  if (factor != 1.0 || shift != 0.0) {
-    for (double& v : r.z) v = v * factor + shift;
+    b.height_note = "; heights in unknown unit '" + unit + "' taken as metres";
   }
 
   // Georeferencing.
   const OGRSpatialReference* srs = ds.GetSpatialRef();
   const char* wkt = ds.GetProjectionRef();
-  r.geo.crs_wkt = wkt != nullptr ? wkt : "";
+  b.geo.crs_wkt = wkt != nullptr ? wkt : "";
   double gt[6];
   if (ds.GetGeoTransform(gt) == CE_None) {
-    georeference(r.geo, gt, srs);
+    georeference(b.geo, gt, srs);
   } else {
-    r.geo.kind = Georef::Kind::None;
+    b.geo.kind = Georef::Kind::None;
   }
+  return b;
+}
+
+void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& b, SampleRect window,
+                      std::vector<double>& z) {
+  QuietGdal quiet;
+  GDALRasterBand* band = ds.GetRasterBand(1);
+  const int w = window.width(), h = window.height();
+  z.resize(window.samples());
+  if (band->RasterIO(GF_Read, window.col0, window.row0, w, h, z.data(), w, h, GDT_Float64, 0, 0) != CE_None) {
+    throw DemError(path, "cannot read the samples: " + gdal_message("GDAL read error"));
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (b.has_nodata) {
+    const float nodata_f = float(b.nodata);
+    for (double& v : z) {
+      if (b.nodata_as_float ? float(v) == nodata_f : v == b.nodata) v = nan;
+    }
+  }
+  if (b.mask_band) {
+    std::vector<std::uint8_t> mask(z.size());
+    if (band->GetMaskBand()->RasterIO(GF_Read, window.col0, window.row0, w, h, mask.data(), w, h, GDT_Byte, 0,
+                                      0) != CE_None) {
+      throw DemError(path, "cannot read the mask band: " + gdal_message("GDAL read error"));
+    }
+    for (std::size_t i = 0; i < mask.size(); ++i) {
+      if (mask[i] == 0) z[i] = nan;
+    }
+  }
+  if (b.factor != 1.0 || b.shift != 0.0) {
+    for (double& v : z) v = v * b.factor + b.shift;
+  }
+}
+
+}  // namespace detail
+
+namespace {
+
+Raster read_gdal(const std::string& path, GDALDataset& ds) {
+  detail::GdalBand b = detail::gdal_band(path, ds, true);
+  Raster r;
+  r.width = b.width;
+  r.height = b.height;
+  detail::read_gdal_window(path, ds, b, SampleRect{0, 0, b.width - 1, b.height - 1}, r.z);
+  r.height_note = std::move(b.height_note);
+  r.geo = std::move(b.geo);
   return r;
 }
 
@@ -568,12 +618,15 @@ Raster read_ascii_grid(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Common finishing: frame, voids.
 
-pm::GridTransform world_transform(const std::string& path, const Raster& r, const DemOptions& options,
-                                  std::string& frame) {
-  const int w = r.width, h = r.height;
-  const auto& a = r.geo.a;
+}  // namespace
+
+namespace detail {
+
+pm::GridTransform world_transform(const std::string& path, int w, int h, const Georef& geo,
+                                  const DemOptions& options, std::string& frame) {
+  const auto& a = geo.a;
   pm::GridTransform t;
-  switch (r.geo.kind) {
+  switch (geo.kind) {
     case Georef::Kind::None: {
       const double s = options.heightmap_spacing;
       t = pm::GridTransform::north_up(0.0, double(h - 1) * s, s, s);
@@ -583,7 +636,7 @@ pm::GridTransform world_transform(const std::string& path, const Raster& r, cons
     }
     case Georef::Kind::Metric:
       t = pm::GridTransform{a[0], a[1], a[2], a[3], a[4], a[5]};
-      frame = r.geo.description;
+      frame = geo.description;
       break;
     case Georef::Kind::Geographic: {
       double lon0 = std::numeric_limits<double>::infinity(), lat0 = lon0;
@@ -602,7 +655,7 @@ pm::GridTransform world_transform(const std::string& path, const Raster& r, cons
       t = pm::GridTransform{kx * (a[0] - lon0), kx * a[1], kx * a[2],
                             ky * (a[3] - lat0), ky * a[4], ky * a[5]};
       frame =
-          "local equirectangular from " + r.geo.description +
+          "local equirectangular from " + geo.description +
           " lon/lat: x = R*cos(phi_c)*(lon-lon0)*pi/180, y = R*(lat-lat0)*pi/180, R = 6371008.8 m, lon0 = " +
           format_number(lon0) + ", lat0 = " + format_number(lat0) + ", phi_c = " + format_number(lat_c);
       break;
@@ -615,10 +668,14 @@ pm::GridTransform world_transform(const std::string& path, const Raster& r, cons
   return t;
 }
 
+}  // namespace detail
+
+namespace {
+
 pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& options) {
   check_dimensions(path, r.width, r.height);
   std::string frame;
-  const pm::GridTransform transform = world_transform(path, r, options, frame);
+  const pm::GridTransform transform = detail::world_transform(path, r.width, r.height, r.geo, options, frame);
 
   const std::size_t voids =
       std::size_t(std::count_if(r.z.begin(), r.z.end(), [](double v) { return !std::isfinite(v); }));
@@ -654,11 +711,24 @@ pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& op
   return hf;
 }
 
-Format format_from_extension(const std::string& path) {
+}  // namespace
+
+namespace detail {
+
+Format dem_format(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr& ds) {
   const std::string ext = lower(fs::path(path).extension().string());
-  if (ext == ".hgt") return Format::Hgt;
-  if (ext == ".asc") return Format::AsciiGrid;
-  if (ext == ".png") return Format::Heightmap;
+  if (options.format == Format::Auto) {
+    if (ext == ".hgt") return Format::Hgt;
+    if (ext == ".asc") return Format::AsciiGrid;
+    if (ext == ".png") return Format::Heightmap;
+  } else if (options.format != Format::Gdal) {
+    return options.format;
+  }
+  ds = detail::open_gdal(path);
+  if (options.format == Format::Auto && (ext == ".tif" || ext == ".tiff") && !has_georeference(*ds)) {
+    ds.reset();
+    return Format::Heightmap;
+  }
   return Format::Gdal;
 }
 
@@ -675,14 +745,13 @@ void check_options(const DemOptions& o) {
     throw std::invalid_argument("DemOptions::crs must be 'native', 'auto' or a CRS, not empty");
 }
 
-}  // namespace
+}  // namespace detail
 
 pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
-  check_options(options);
+  detail::check_options(options);
   try {
-    const bool automatic = options.format == Format::Auto;
-    const Format format = automatic ? format_from_extension(path) : options.format;
-    switch (format) {
+    GDALDatasetUniquePtr ds;
+    switch (detail::dem_format(path, options, ds)) {
       case Format::Hgt:
         return finish(path, read_hgt(path), options);
       case Format::AsciiGrid:
@@ -690,15 +759,8 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
       case Format::Heightmap:
         return finish(path, read_heightmap(path, options), options);
       case Format::Auto:
-      case Format::Gdal: {
-        GDALDatasetUniquePtr ds = open_gdal(path);
-        const std::string ext = lower(fs::path(path).extension().string());
-        if (automatic && (ext == ".tif" || ext == ".tiff") && !has_georeference(*ds)) {
-          ds.reset();
-          return finish(path, read_heightmap(path, options), options);
-        }
+      case Format::Gdal:
         return finish(path, read_gdal(path, *ds), options);
-      }
     }
     throw DemError(path, "unknown format");
   } catch (const fs::filesystem_error& e) {

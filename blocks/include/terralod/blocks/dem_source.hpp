@@ -75,9 +75,21 @@ class DemSource {
 std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf);
 
 /// The DEM at `path` as read_dem(path, options) reads it, windowed when that is possible: GDAL
-/// rasters (GeoTIFF, VRT mosaics, ...) and SRTM .hgt files whose world frame needs no warp (a
-/// projected CRS or no CRS, or options.crs == "native"). Other inputs (heightmap images, ASCII
-/// grids, warped frames) are read whole by read_dem and served from memory. DemError as read_dem.
+/// rasters (GeoTIFF, VRT mosaics such as DemInputs makes, ...) and SRTM .hgt tiles whose world
+/// frame needs no warp: options.crs "native", or "auto" for a projected CRS or none. A named CRS
+/// is always a warp (even the DEM's own CRS), as is "auto" for a geographic one. Other inputs
+/// (heightmap images, a .tif without georeference read as Format::Auto, ASCII grids, warped
+/// frames) are read whole by read_dem and held by the source (in_memory() true).
+/// Windowed: read() reads its window (grown while a void region meeting it is cut by its edge,
+/// then cut back) from the file each time; grid() is read from the header when opening, plus,
+/// for a grid with a CRS, the valid samples at read_dem's scale-error points (a 33 x 33 lattice
+/// and the ends of every row, found by reading the edge columns). GDAL's block cache is capped
+/// to 64 MiB while a windowed GDAL source is open, unless the process set GDAL_CACHEMAX
+/// (environment or config option). samples_crc streams bands of rows through read(), one pass.
+/// Unlike read_dem, a windowed source has no 2^30-sample limit, and does not check when opening
+/// that the grid has a valid sample. DemError as read_dem; read() throws DemError naming the
+/// file when it was removed or truncated since it was opened, std::invalid_argument for a
+/// window outside the grid.
 std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOptions& options = {});
 
 }  // namespace terralod::blocks

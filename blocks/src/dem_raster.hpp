@@ -1,0 +1,80 @@
+// Private to terralod::blocks: the parts of read_dem (dem_reader.cpp) that the windowed DEM source
+// (dem_windows.cpp) calls too, so that both read a file's header, georeference, voids and heights
+// the same way: format choice, GDAL band header and windowed sample reads, the .hgt header and
+// windowed row reads, and the native world frame.
+#pragma once
+
+#include <gdal_priv.h>
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/sample_rect.hpp"
+#include "terralod/pm/heightfield.hpp"
+
+namespace terralod::blocks::detail {
+
+/// A file's georeferencing, as every reader finds it.
+struct Georef {
+  enum class Kind { None, Geographic, Metric } kind = Kind::None;
+  /// Sample-centre affine map: X = a[0] + col a[1] + row a[2], Y = a[3] + col a[4] + row a[5];
+  /// degrees (lon, lat) for Geographic, metres for Metric, unused for None.
+  std::array<double, 6> a{};
+  /// The same map in the CRS's own units (degrees for geographic CRSs): Heightfield::crs_transform.
+  std::array<double, 6> native{};
+  std::string crs_wkt;
+  std::string vertical_datum;  ///< Heightfield::vertical_datum
+  std::string description;     ///< Metric: what the coordinates are; Geographic: the CRS name
+};
+
+/// The format read_dem reads `path` as (DemOptions::Format::Auto resolved, never Auto). For Gdal,
+/// `ds` is the opened dataset; a .tif/.tiff without georeference read as Auto is a Heightmap.
+DemOptions::Format dem_format(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr& ds);
+
+/// `path` opened by GDAL as a read-only raster; DemError naming it when GDAL cannot.
+GDALDatasetUniquePtr open_gdal(const std::string& path);
+
+/// std::invalid_argument for an invalid DemOptions value (see read_dem).
+void check_options(const DemOptions& options);
+
+/// A single-band GDAL raster's header: what read_gdal applies to every sample it reads.
+struct GdalBand {
+  int width = 0, height = 0;
+  bool has_nodata = false;  ///< a nodata value that is not NaN
+  double nodata = 0.0;      ///< compared in the band's type (float for Float32 bands)
+  bool nodata_as_float = false;
+  bool mask_band = false;            ///< a real mask band: its 0 samples are voids
+  double factor = 1.0, shift = 0.0;  ///< metres = raw * factor + shift (scale, offset, unit)
+  std::string height_note;           ///< appended to the frame description when not empty
+  Georef geo;
+};
+
+/// The header of `ds` (one band, a real type, at least 2 x 2 samples; at most 2^30 when
+/// `limit_size`). DemError naming `path`.
+GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size);
+
+/// The samples of `window` of band 1 of `ds` into `z` (resized, row-major), in metres, voids
+/// (nodata, mask band, NaN, +-inf) NaN. DemError naming `path` when GDAL cannot read them.
+void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& band, SampleRect window,
+                      std::vector<double>& z);
+
+/// An SRTM .hgt tile's header: n x n samples and its georeference (from the name and size).
+struct HgtTile {
+  int n = 0;
+  Georef geo;
+};
+HgtTile hgt_tile(const std::string& path);
+
+/// The samples of `window` of the n x n tile at `path` into `z`, read row by row from the file;
+/// -32768 is NaN. DemError naming `path` when the file is gone, shorter than n x n x 2 bytes or
+/// unreadable.
+void read_hgt_window(const std::string& path, int n, SampleRect window, std::vector<double>& z);
+
+/// The native world transform of a width x height grid georeferenced by `geo`, and `frame`, the
+/// line that says how it was made. DemError naming `path` for a degenerate georeference.
+pm::GridTransform world_transform(const std::string& path, int width, int height, const Georef& geo,
+                                  const DemOptions& options, std::string& frame);
+
+}  // namespace terralod::blocks::detail

@@ -1,0 +1,439 @@
+// open_dem_source (dem_source.hpp): DemSources that read a GDAL raster or an SRTM .hgt tile window
+// by window, through the header, georeference and sample code of read_dem (dem_raster.hpp), and
+// an owning in-memory source for every input whose frame needs the whole raster.
+//
+// read(window): the window's raw samples, then fill_voids_in_window; while a void region that
+// meets the window is cut by the window's edge (VoidFillStats::open), the window grows to hold
+// a ring past each window edge that region touches (16 samples, doubling at each step, cut by
+// the grid) and is read again. Regions are filled alone on their own box (void_fill.hpp), so the
+// bits are those of read_dem's whole-grid fill; regions over VoidFillOptions::max_region_cells
+// are capped as soon as the part seen is over the cap, and stay holes, as in read_dem. Cost: a
+// read meeting such a region (a nodata collar around a mosaic's coverage, say) holds more than
+// 4096 x 4096 samples before it knows; the source then remembers that region's void samples (as
+// runs along rows), so a later read that meets a known part of it stops growing there.
+// Thread-safety: GDAL datasets are not: each read takes an opened dataset from a pool (opening
+// another when all are busy) and gives it back; the fill runs on the caller's thread. .hgt
+// windows are read with a stream opened per read, so a file removed or truncated after opening
+// gives a DemError from read(), not stale samples (a GDAL source checks that its file still exists).
+// GDAL's block cache: unless the process set GDAL_CACHEMAX (environment or config option), it is
+// capped to 64 MiB while a windowed source is open (GDAL's default, 5 % of RAM, would grow with
+// the DEM) and restored when the last one closes.
+// samples_crc streams bands of whole rows (about 4 Mi samples each) through read(): one running
+// CRC of the samples, one of the mask bytes (1 for bands without holes), joined at the end by
+// zlib's crc32_combine64 when the grid has a hole: one pass, memory of one band.
+// Differs from read_dem: the grid size is not limited to 2^30 samples, and a grid with no valid
+// sample at all is not detected when opening (its reads give holes).
+#include <gdal_priv.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <shared_mutex>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "dem_frame.hpp"
+#include "dem_raster.hpp"
+#include "gdal_support.hpp"
+#include "terralod/blocks/dem_source.hpp"
+#include "terralod/blocks/void_fill.hpp"
+#include "terralod/pm/byte_io.hpp"
+
+namespace terralod::blocks {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Format = DemOptions::Format;
+
+/// GDAL's block cache capped while windowed GDAL sources are open (see the header comment).
+class CacheCap {
+ public:
+  CacheCap() {
+    std::lock_guard lock(mutex());
+    State& s = state();
+    if (s.open++ == 0 && CPLGetConfigOption("GDAL_CACHEMAX", nullptr) == nullptr) {
+      s.saved = GDALGetCacheMax64();
+      s.capped = true;
+      GDALSetCacheMax64(std::min<GIntBig>(s.saved, GIntBig(64) << 20));
+    }
+  }
+  ~CacheCap() {
+    std::lock_guard lock(mutex());
+    State& s = state();
+    if (--s.open == 0 && s.capped) {
+      GDALSetCacheMax64(s.saved);
+      s.capped = false;
+    }
+  }
+  CacheCap(const CacheCap&) = delete;
+  CacheCap& operator=(const CacheCap&) = delete;
+
+ private:
+  struct State {
+    int open = 0;
+    bool capped = false;
+    GIntBig saved = 0;
+  };
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static State& state() {
+    static State s;
+    return s;
+  }
+};
+
+/// Runs of columns [col0, col1] in grid rows.
+using Runs = std::vector<std::array<int, 3>>;  // {row, col0, col1}
+
+/// The void samples left in `z` (the samples of `held`), one 4-connected region at a time: its
+/// bounding box in grid coordinates and its samples as runs along rows.
+std::vector<std::pair<SampleRect, Runs>> void_regions(const std::vector<double>& z, SampleRect held) {
+  const int w = held.width(), h = held.height();
+  std::vector<std::uint8_t> seen(z.size(), 0);
+  std::vector<std::pair<SampleRect, Runs>> out;
+  std::vector<std::uint32_t> stack, cells;
+  for (std::size_t start = 0; start < z.size(); ++start) {
+    if (seen[start] || std::isfinite(z[start])) continue;
+    cells.clear();
+    stack.assign(1, std::uint32_t(start));
+    seen[start] = 1;
+    while (!stack.empty()) {
+      const std::uint32_t k = stack.back();
+      stack.pop_back();
+      cells.push_back(k);
+      const int c = int(k % std::uint32_t(w)), r = int(k / std::uint32_t(w));
+      auto visit = [&](int cc, int rr) {
+        const std::size_t n = std::size_t(rr) * std::size_t(w) + std::size_t(cc);
+        if (cc >= 0 && rr >= 0 && cc < w && rr < h && !seen[n] && !std::isfinite(z[n]))
+          seen[n] = 1, stack.push_back(std::uint32_t(n));
+      };
+      visit(c - 1, r), visit(c + 1, r), visit(c, r - 1), visit(c, r + 1);
+    }
+    std::sort(cells.begin(), cells.end());
+    SampleRect box{held.col1, held.row1, held.col0, held.row0};
+    Runs runs;
+    for (const std::uint32_t k : cells) {
+      const int c = held.col0 + int(k % std::uint32_t(w)), r = held.row0 + int(k / std::uint32_t(w));
+      box = {std::min(box.col0, c), std::min(box.row0, r), std::max(box.col1, c), std::max(box.row1, r)};
+      if (!runs.empty() && runs.back()[0] == r && runs.back()[2] + 1 == c) {
+        runs.back()[2] = c;
+      } else {
+        runs.push_back({r, c, c});
+      }
+    }
+    out.emplace_back(box, std::move(runs));
+  }
+  return out;
+}
+
+/// Void samples of regions over the fill cap found so far: a later read whose cut region holds
+/// one of them knows that region stays a hole without growing until it sees it whole.
+class CappedVoids {
+ public:
+  bool empty() const {
+    std::shared_lock lock(mutex_);
+    return rows_.empty();
+  }
+  /// Whether any sample of `runs` is a known capped void.
+  bool holds(const Runs& runs) const {
+    std::shared_lock lock(mutex_);
+    for (const auto& [r, c0, c1] : runs) {
+      const auto it = rows_.find(r);
+      if (it == rows_.end()) continue;
+      for (const auto& [a, b] : it->second)
+        if (a <= c1 && c0 <= b) return true;
+    }
+    return false;
+  }
+  void add(const Runs& runs) {
+    std::unique_lock lock(mutex_);
+    for (const auto& [r, c0, c1] : runs) rows_[r].emplace_back(c0, c1);
+  }
+
+ private:
+  mutable std::shared_mutex mutex_;
+  std::map<int, std::vector<std::pair<int, int>>> rows_;
+};
+
+/// A DemSource that reads raw windows (raw()) and fills their voids as read_dem does.
+class WindowedSource : public DemSource {
+ public:
+  pm::Heightfield read(SampleRect window) const override;
+  std::uint32_t samples_crc() const override;
+  bool in_memory() const override { return false; }
+
+ protected:
+  WindowedSource(std::string path, const DemOptions& options)
+      : path_(std::move(path)), fill_(options.fill_voids) {}
+  /// The samples of `window` with voids filled (holes NaN) into z, which holds the returned
+  /// window: `window` grown while a void region meeting it was cut by its edge.
+  SampleRect load(SampleRect window, std::vector<double>& z) const;
+  /// The raw samples of `window` (metres, voids NaN) into z.
+  virtual void raw(SampleRect window, std::vector<double>& z) const = 0;
+  /// grid_ from the header: everything but the scale error's note, which needs read().
+  void set_grid(int width, int height, const detail::Georef& geo, const DemOptions& options,
+                const std::string& height_note);
+
+  std::string path_;
+
+ private:
+  bool fill_;
+  mutable CappedVoids capped_;
+};
+
+void WindowedSource::set_grid(int width, int height, const detail::Georef& geo, const DemOptions& options,
+                              const std::string& height_note) {
+  grid_.width = width;
+  grid_.height = height;
+  grid_.transform = detail::world_transform(path_, width, height, geo, options, grid_.frame);
+  grid_.crs_wkt = geo.crs_wkt;
+  if (!geo.crs_wkt.empty() && geo.kind != detail::Georef::Kind::None) {
+    const auto& n = geo.native;
+    grid_.crs_transform = pm::GridTransform{n[0], n[1], n[2], n[3], n[4], n[5]};
+  }
+  grid_.vertical_datum = geo.vertical_datum;
+  grid_.source = path_;
+  // The scale error at read_dem's points: a 33 x 33 lattice and the ends of every row of valid
+  // samples, found through read() (edge columns in strips of rows, then along a row only where
+  // its end is a hole).
+  constexpr int kStrip = 4096;
+  struct Ends {
+    int row0 = -1;
+    std::vector<std::uint8_t> left, right;
+  } ends;
+  auto valid_in = [](const pm::Heightfield& b, int i) { return b.valid(std::size_t(i)); };
+  auto first_valid = [&](int r, bool from_left) {
+    const int w = grid_.width;
+    for (int k = 0; k < w; k += kStrip) {
+      const int c0 = from_left ? k : std::max(0, w - k - kStrip),
+                c1 = from_left ? std::min(w, k + kStrip) - 1 : w - k - 1;
+      const pm::Heightfield b = read({c0, r, c1, r});
+      for (int i = 0; i < b.width(); ++i) {
+        const int j = from_left ? i : b.width() - 1 - i;
+        if (valid_in(b, j)) return c0 + j;
+      }
+    }
+    return from_left ? w : -1;
+  };
+  const std::optional<double> error = detail::scale_error(
+      grid_.crs_wkt, grid_.crs_transform, grid_.transform, width, height,
+      [&](int c, int r) {
+        return !read({c, r, c, r}).has_holes();
+      },
+      [&](int r) {
+        if (r < ends.row0 || r >= ends.row0 + int(ends.left.size())) {
+          ends.row0 = r;
+          const int r1 = std::min(height, r + kStrip) - 1;
+          const pm::Heightfield left = read({0, r, 0, r1}), right = read({width - 1, r, width - 1, r1});
+          ends.left.assign(std::size_t(r1 - r + 1), 1);
+          ends.right = ends.left;
+          for (int i = 0; i <= r1 - r; ++i) {
+            ends.left[std::size_t(i)] = valid_in(left, i) ? 1 : 0;
+            ends.right[std::size_t(i)] = valid_in(right, i) ? 1 : 0;
+          }
+        }
+        const std::size_t i = std::size_t(r - ends.row0);
+        const int first = ends.left[i] ? 0 : first_valid(r, true);
+        if (first == width) return std::pair{width, width - 1};
+        return std::pair{first, ends.right[i] ? width - 1 : first_valid(r, false)};
+      });
+  grid_.frame += detail::scale_error_note(error, false) + height_note;
+}
+
+/// `next` grown by `margin` samples past each edge of `held` that the extent `e` of a region
+/// touches (so the region may go on there), cut by the grid.
+SampleRect grown(SampleRect next, SampleRect held, SampleRect e, int margin, int width, int height) {
+  if (e.col0 == held.col0) next.col0 = std::max(0, std::min(next.col0, held.col0 - margin));
+  if (e.row0 == held.row0) next.row0 = std::max(0, std::min(next.row0, held.row0 - margin));
+  if (e.col1 == held.col1) next.col1 = std::min(width - 1, std::max(next.col1, held.col1 + margin));
+  if (e.row1 == held.row1) next.row1 = std::min(height - 1, std::max(next.row1, held.row1 + margin));
+  return next;
+}
+
+bool meets(SampleRect a, SampleRect b) {
+  return a.col0 <= b.col1 && b.col0 <= a.col1 && a.row0 <= b.row1 && b.row0 <= a.row1;
+}
+
+SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const {
+  const int width = grid_.width, height = grid_.height;
+  if (window.col0 < 0 || window.row0 < 0 || window.col1 >= width || window.row1 >= height ||
+      window.col0 > window.col1 || window.row0 > window.row1)
+    throw std::invalid_argument(path_ + ": window outside the grid");
+  SampleRect held = window;
+  VoidFillOptions fill;
+  fill.threads = 1;  // readers run in parallel already; the bits do not depend on it
+  for (int margin = 16;; margin *= 2) {
+    raw(held, z);
+    if (!fill_ || std::all_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); })) break;
+    const VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
+    SampleRect next = held;
+    if (stats.capped_regions == 0 && capped_.empty()) {
+      for (const OpenVoidRegion& o : stats.open)
+        if (meets(o.extent, window)) next = grown(next, held, o.extent, margin, width, height);
+    } else {  // the regions left void: capped (known before, or now) or cut
+      for (const auto& [box, runs] : void_regions(z, held)) {
+        if (!meets(box, window) || capped_.holds(runs)) continue;
+        if (box.samples() > fill.max_region_cells) {
+          capped_.add(runs);
+        } else {
+          next = grown(next, held, box, margin, width, height);
+        }
+      }
+    }
+    if (next == held) break;
+    held = next;
+  }
+  return held;
+}
+
+pm::Heightfield WindowedSource::read(SampleRect window) const {
+  std::vector<double> z;
+  const SampleRect held = load(window, z);
+  pm::Heightfield b(window.width(), window.height());
+  std::vector<std::uint8_t> mask(b.size(), 1);
+  bool holes = false;
+  for (int j = 0; j < window.height(); ++j)
+    for (int i = 0; i < window.width(); ++i) {
+      const double v = z[std::size_t(window.row0 - held.row0 + j) * std::size_t(held.width()) +
+                         std::size_t(window.col0 - held.col0 + i)];
+      const std::size_t k = std::size_t(j) * std::size_t(b.width()) + std::size_t(i);
+      if (std::isfinite(v)) {
+        b.samples()[k] = v;
+      } else {
+        mask[k] = 0;
+        holes = true;
+      }
+    }
+  if (holes) b.set_mask(std::move(mask));
+  b.transform = grid_.transform;
+  std::tie(b.transform.x0, b.transform.y0) = grid_.transform.to_world(window.col0, window.row0);
+  b.crs_wkt = grid_.crs_wkt;
+  b.source = grid_.source;
+  b.frame = grid_.frame;
+  return b;
+}
+
+std::uint32_t WindowedSource::samples_crc() const {
+  // Bands through load(), not read(): its buffers are reused, as freshly mapped pages for every
+  // band cost more than the reads (measured 3.5 s instead of 0.43 s for 8193 x 8193 samples).
+  const int width = grid_.width, height = grid_.height;
+  const int rows = std::max(1, (1 << 18) / width);
+  std::uint32_t crc = 0, mask_crc = 0;
+  bool holes = false;
+  std::vector<double> z, row(std::size_t(width), 0.0);
+  std::vector<std::uint8_t> mask(std::size_t(width), 1);
+  for (int r0 = 0; r0 < height; r0 += rows) {
+    const SampleRect band{0, r0, width - 1, std::min(height, r0 + rows) - 1};
+    const SampleRect held = load(band, z);
+    for (int r = band.row0; r <= band.row1; ++r) {
+      const double* v = z.data() + std::size_t(r - held.row0) * std::size_t(width);
+      for (std::size_t i = 0; i < row.size(); ++i) {
+        const bool valid = std::isfinite(v[i]);
+        row[i] = valid ? v[i] : 0.0;
+        mask[i] = valid ? 1 : 0;
+        holes = holes || !valid;
+      }
+      crc =
+          pm::crc32_of({reinterpret_cast<const std::uint8_t*>(row.data()), row.size() * sizeof(double)}, crc);
+      mask_crc = pm::crc32_of(mask, mask_crc);
+    }
+  }
+  return holes ? std::uint32_t(crc32_combine64(crc, mask_crc, z_off64_t(grid_.samples()))) : crc;
+}
+
+class GdalSource final : public WindowedSource {
+ public:
+  GdalSource(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr ds,
+             detail::GdalBand band)
+      : WindowedSource(path, options), band_(std::move(band)) {
+    pool_.push_back(std::move(ds));
+    set_grid(band_.width, band_.height, band_.geo, options, band_.height_note);
+  }
+
+ protected:
+  void raw(SampleRect window, std::vector<double>& z) const override {
+    std::error_code ec;
+    if (!path_.starts_with("/vsi") && !fs::is_regular_file(path_, ec))
+      throw DemError(path_, "no longer exists (removed while it was being read?)");
+    GDALDatasetUniquePtr ds;
+    {
+      std::lock_guard lock(mutex_);
+      if (!pool_.empty()) ds = std::move(pool_.back()), pool_.pop_back();
+    }
+    if (!ds) ds = detail::open_gdal(path_);
+    detail::read_gdal_window(path_, *ds, band_, window, z);
+    std::lock_guard lock(mutex_);
+    pool_.push_back(std::move(ds));
+  }
+
+ private:
+  CacheCap cache_;
+  detail::GdalBand band_;
+  mutable std::mutex mutex_;
+  mutable std::vector<GDALDatasetUniquePtr> pool_;  ///< datasets no read is using
+};
+
+class HgtSource final : public WindowedSource {
+ public:
+  HgtSource(const std::string& path, const DemOptions& options, detail::HgtTile tile)
+      : WindowedSource(path, options), n_(tile.n) {
+    set_grid(n_, n_, tile.geo, options, "");
+  }
+
+ protected:
+  void raw(SampleRect window, std::vector<double>& z) const override {
+    detail::read_hgt_window(path_, n_, window, z);
+  }
+
+ private:
+  int n_;
+};
+
+/// read_dem's Heightfield, owned, served by heightfield_source.
+class OwnedSource final : public DemSource {
+ public:
+  explicit OwnedSource(pm::Heightfield hf) : hf_(std::move(hf)), inner_(heightfield_source(hf_)) {
+    grid_ = inner_->grid();
+  }
+  pm::Heightfield read(SampleRect window) const override { return inner_->read(window); }
+  std::uint32_t samples_crc() const override { return inner_->samples_crc(); }
+  bool in_memory() const override { return true; }
+
+ private:
+  pm::Heightfield hf_;
+  std::unique_ptr<DemSource> inner_;
+};
+
+}  // namespace
+
+std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOptions& options) {
+  detail::check_options(options);
+  try {
+    GDALDatasetUniquePtr ds;
+    const Format format = detail::dem_format(path, options, ds);
+    if (format == Format::Hgt) {
+      detail::HgtTile tile = detail::hgt_tile(path);
+      if (!detail::frame_warps(tile.geo.crs_wkt, true, options.crs))
+        return std::make_unique<HgtSource>(path, options, std::move(tile));
+    } else if (format == Format::Gdal) {
+      detail::GdalBand band = detail::gdal_band(path, *ds, false);
+      const bool has_crs_transform = !band.geo.crs_wkt.empty() && band.geo.kind != detail::Georef::Kind::None;
+      if (!detail::frame_warps(band.geo.crs_wkt, has_crs_transform, options.crs))
+        return std::make_unique<GdalSource>(path, options, std::move(ds), std::move(band));
+    }
+    ds.reset();
+    return std::make_unique<OwnedSource>(read_dem(path, options));
+  } catch (const fs::filesystem_error& e) {
+    throw DemError(path, e.what());
+  }
+}
+
+}  // namespace terralod::blocks

@@ -1,0 +1,366 @@
+// Tests for blocks::open_dem_source: windowed reads of GeoTIFFs, VRT mosaics and .hgt tiles give
+// exactly block_heightfield(read_dem(...)), bit for bit, filled or not, from any window and any
+// number of threads; the in-memory fallback for warped frames and heightmaps; errors.
+#include <OpenImageIO/imageio.h>
+#include <gdal_priv.h>
+#include <gtest/gtest.h>
+#include <ogr_spatialref.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/dem_source.hpp"
+#include "terralod/blocks/partition.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace tb = terralod::blocks;
+using terralod::pm::Heightfield;
+
+const double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("terralod_dem_source_" + name + "_" + std::to_string(std::random_device{}()));
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// A w x h terrain (smooth hills plus a ripple) with voids (NaN): single samples, a blob crossing
+/// many windows, a long thin snake (whose box grows a window far), and samples on every grid edge.
+std::vector<double> terrain(int w, int h) {
+  std::vector<double> z(std::size_t(w) * h);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c)
+      z[std::size_t(r) * w + c] = std::round(4.0 * (300.0 + 80.0 * std::sin(c * 0.05) * std::cos(r * 0.04) +
+                                                    7.0 * std::sin(c * 0.9 + r * 0.7))) /
+                                  4.0;
+  auto hole = [&](int c, int r) {
+    if (c >= 0 && r >= 0 && c < w && r < h) z[std::size_t(r) * w + c] = kNaN;
+  };
+  for (int k = 0; k < 40; ++k) hole((k * 37) % w, (k * 53 + 7) % h);  // single samples
+  for (int r = 40; r < 95; ++r)                                       // a blob, ragged
+    for (int c = 60; c < 130; ++c)
+      if ((c - 95) * (c - 95) / 1225.0 + (r - 67) * (r - 67) / 729.0 < 1.0 - 0.1 * std::sin(c * 0.7))
+        hole(c, r);
+  for (int c = 10; c < w - 20; ++c) hole(c, 150 + int(20 * std::sin(c * 0.05)));  // a snake
+  for (int c = 150; c < 175; ++c) hole(c, 0), hole(c, 1);                         // north edge
+  for (int r = 30; r < 60; ++r) hole(0, r), hole(w - 1, r + 100);                 // west, east edges
+  for (int c = 0; c < 12; ++c) hole(c, h - 1);                                    // south-west corner
+  return z;
+}
+
+/// A GeoTIFF through GDAL: tiled 32 x 32, Float32 with NaN voids or Int16 with nodata -32768
+/// (then band scale 0.25, offset 100, unit feet); `epsg` 0: no CRS.
+void write_geotiff(const fs::path& path, int w, int h, const std::vector<double>& z, GDALDataType type,
+                   const std::array<double, 6>& gt, int epsg) {
+  GDALAllRegister();
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
+  ASSERT_NE(driver, nullptr);
+  const char* options[] = {"TILED=YES", "BLOCKXSIZE=32", "BLOCKYSIZE=32", "COMPRESS=DEFLATE", nullptr};
+  GDALDatasetUniquePtr ds(driver->Create(path.c_str(), w, h, 1, type, const_cast<char**>(options)));
+  ASSERT_TRUE(ds) << CPLGetLastErrorMsg();
+  std::array<double, 6> g = gt;
+  ASSERT_EQ(ds->SetGeoTransform(g.data()), CE_None);
+  if (epsg != 0) {
+    OGRSpatialReference srs;
+    ASSERT_EQ(srs.importFromEPSG(epsg), OGRERR_NONE);
+    ASSERT_EQ(ds->SetSpatialRef(&srs), CE_None);
+  }
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  std::vector<double> raw = z;
+  if (type == GDT_Int16) {
+    ASSERT_EQ(band->SetNoDataValue(-32768), CE_None);
+    band->SetScale(0.25);
+    band->SetOffset(100.0);
+    band->SetUnitType("ft");
+    for (double& v : raw) v = std::isfinite(v) ? std::round((v - 200.0) * 4.0) : -32768.0;
+  }
+  ASSERT_EQ(band->RasterIO(GF_Write, 0, 0, w, h, raw.data(), w, h, GDT_Float64, 0, 0), CE_None);
+}
+
+/// SRTM .hgt: big-endian int16, -32768 for voids.
+void write_hgt(const fs::path& path, const std::vector<double>& z) {
+  std::vector<char> bytes;
+  for (double v : z) {
+    const auto u = std::uint16_t(std::int16_t(std::isfinite(v) ? std::lround(v) : -32768));
+    bytes.push_back(char(u >> 8));
+    bytes.push_back(char(u & 0xff));
+  }
+  std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+void expect_same_grid(const tb::DemGrid& a, const tb::DemGrid& b) {
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.height, b.height);
+  EXPECT_EQ(a.transform.x0, b.transform.x0);
+  EXPECT_EQ(a.transform.xc, b.transform.xc);
+  EXPECT_EQ(a.transform.xr, b.transform.xr);
+  EXPECT_EQ(a.transform.y0, b.transform.y0);
+  EXPECT_EQ(a.transform.yc, b.transform.yc);
+  EXPECT_EQ(a.transform.yr, b.transform.yr);
+  EXPECT_EQ(a.crs_wkt, b.crs_wkt);
+  ASSERT_EQ(a.crs_transform.has_value(), b.crs_transform.has_value());
+  if (a.crs_transform) {
+    EXPECT_EQ(a.crs_transform->x0, b.crs_transform->x0);
+    EXPECT_EQ(a.crs_transform->xc, b.crs_transform->xc);
+    EXPECT_EQ(a.crs_transform->y0, b.crs_transform->y0);
+    EXPECT_EQ(a.crs_transform->yr, b.crs_transform->yr);
+  }
+  EXPECT_EQ(a.vertical_datum, b.vertical_datum);
+  EXPECT_EQ(a.source, b.source);
+  EXPECT_EQ(a.frame, b.frame);
+}
+
+/// Same samples (bits), mask and transform; `metadata`: also crs_wkt, source and frame.
+::testing::AssertionResult same_block(const Heightfield& a, const Heightfield& b, bool metadata = true) {
+  if (a.width() != b.width() || a.height() != b.height())
+    return ::testing::AssertionFailure() << "size differs";
+  if (std::memcmp(a.samples().data(), b.samples().data(), a.size() * sizeof(double)) != 0) {
+    for (std::size_t i = 0; i < a.size(); ++i)
+      if (std::memcmp(&a.samples()[i], &b.samples()[i], sizeof(double)) != 0)
+        return ::testing::AssertionFailure()
+               << "sample " << i << ": " << a.samples()[i] << " vs " << b.samples()[i];
+  }
+  if (a.mask() != b.mask()) return ::testing::AssertionFailure() << "masks differ";
+  const auto &s = a.transform, &t = b.transform;
+  if (s.x0 != t.x0 || s.y0 != t.y0 || s.xc != t.xc || s.xr != t.xr || s.yc != t.yc || s.yr != t.yr)
+    return ::testing::AssertionFailure() << "transforms differ";
+  if (metadata && (a.crs_wkt != b.crs_wkt || a.source != b.source || a.frame != b.frame))
+    return ::testing::AssertionFailure() << "crs_wkt, source or frame differ";
+  return ::testing::AssertionSuccess();
+}
+
+/// Windows of a w x h grid: 1 x 1 ones, the full grid, edge rows and columns, block-sized and random.
+std::vector<tb::SampleRect> windows(int w, int h, int random, unsigned seed) {
+  std::vector<tb::SampleRect> out = {
+      {0, 0, w - 1, h - 1},     {0, 0, 0, 0},     {w - 1, h - 1, w - 1, h - 1}, {0, 0, w - 1, 0},
+      {0, h - 1, w - 1, h - 1}, {0, 0, 0, h - 1}, {w - 1, 0, w - 1, h - 1}};
+  if (w > 200 && h > 200)
+    out.insert(out.end(), {{95, 67, 95, 67}, {100, 150, 100, 150}});  // in a blob, a snake
+  const tb::BlockLayout layout = tb::partition(w, h, 33);
+  for (const tb::BlockKey& k : layout.keys()) out.push_back(layout.rect(k));
+  std::mt19937 rng(seed);
+  for (int i = 0; i < random; ++i) {
+    const int c0 = int(rng() % unsigned(w)), r0 = int(rng() % unsigned(h));
+    const int c1 = std::min(w - 1, c0 + int(rng() % 70u)), r1 = std::min(h - 1, r0 + int(rng() % 70u));
+    out.push_back({c0, r0, c1, r1});
+  }
+  return out;
+}
+
+/// open_dem_source(path, options) against read_dem: grid, every window, samples_crc.
+void expect_like_read_dem(const std::string& path, const tb::DemOptions& options, bool in_memory) {
+  const Heightfield hf = tb::read_dem(path, options);
+  const auto src = tb::open_dem_source(path, options);
+  EXPECT_EQ(src->in_memory(), in_memory);
+  expect_same_grid(src->grid(), tb::DemGrid::of(hf));
+  for (const tb::SampleRect& r : windows(hf.width(), hf.height(), 60, 7))
+    EXPECT_TRUE(same_block(src->read(r), tb::block_heightfield(hf, r)))
+        << path << " window " << r.col0 << "," << r.row0 << " - " << r.col1 << "," << r.row1;
+  EXPECT_EQ(src->samples_crc(), tb::heightfield_source(hf)->samples_crc());
+}
+
+constexpr int kW = 300, kH = 220;
+// UTM zone 19N, 10 m cells: a projected CRS, so the frame carries a measured scale error.
+constexpr std::array<double, 6> kUtm = {300000.0, 10.0, 0.0, 4900000.0, 0.0, -10.0};
+
+class DemSourceTest : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name()); }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(DemSourceTest, GeoTiffWindowsAreReadDemBlocksFilledOrNot) {
+  const fs::path f32 = dir_ / "f32.tif", i16 = dir_ / "i16.tif", plain = dir_ / "plain.tif";
+  const std::vector<double> z = terrain(kW, kH);
+  write_geotiff(f32, kW, kH, z, GDT_Float32, kUtm, 32619);
+  write_geotiff(i16, kW, kH, z, GDT_Int16, kUtm, 32619);                 // nodata, scale, offset, feet
+  write_geotiff(plain, kW, kH, z, GDT_Float32, {0, 2, 0, 0, 0, -2}, 0);  // no CRS
+  for (const fs::path& p : {f32, i16, plain})
+    for (const bool fill : {true, false})
+      for (const char* crs : {"native", "auto"}) {
+        SCOPED_TRACE(p.string() + (fill ? " filled " : " holes ") + crs);
+        tb::DemOptions o;
+        o.fill_voids = fill;
+        o.crs = crs;
+        expect_like_read_dem(p.string(), o, false);
+      }
+}
+
+TEST_F(DemSourceTest, VrtOfTilesIsTheSameMosaicAsOneFile) {
+  const std::vector<double> z = terrain(kW, kH);
+  const fs::path whole = dir_ / "whole.tif";
+  write_geotiff(whole, kW, kH, z, GDT_Float32, kUtm, 32619);
+  // 2 x 2 tiles split through the blob, the snake and the edge voids.
+  const int cs = 97, rs = 70;
+  std::vector<std::string> tiles;
+  for (const auto& [c0, c1] : {std::pair{0, cs}, std::pair{cs, kW}})
+    for (const auto& [r0, r1] : {std::pair{0, rs}, std::pair{rs, kH}}) {
+      std::vector<double> t;
+      for (int r = r0; r < r1; ++r)
+        for (int c = c0; c < c1; ++c) t.push_back(z[std::size_t(r) * kW + c]);
+      const fs::path p = dir_ / ("tile_" + std::to_string(r0) + "_" + std::to_string(c0) + ".tif");
+      write_geotiff(p, c1 - c0, r1 - r0, t, GDT_Float32,
+                    {kUtm[0] + c0 * kUtm[1], kUtm[1], 0, kUtm[3] + r0 * kUtm[5], 0, kUtm[5]}, 32619);
+      tiles.push_back(p.string());
+    }
+  const tb::DemInputs vrt(tiles);
+  for (const bool fill : {true, false}) {
+    tb::DemOptions o;
+    o.fill_voids = fill;
+    expect_like_read_dem(vrt.path(), o, false);
+    const auto a = tb::open_dem_source(vrt.path(), o), b = tb::open_dem_source(whole.string(), o);
+    for (const tb::SampleRect& r : windows(kW, kH, 40, 11))
+      EXPECT_TRUE(same_block(a->read(r), b->read(r), false));
+    EXPECT_EQ(a->samples_crc(), b->samples_crc());
+  }
+}
+
+TEST_F(DemSourceTest, HgtNativeIsWindowedAutoIsInMemory) {
+  const int n = 201;
+  std::vector<double> z = terrain(n, n);
+  for (double& v : z) v = std::isfinite(v) ? std::round(v) : v;
+  const fs::path hgt = dir_ / "N44W072.hgt";
+  write_hgt(hgt, z);
+  for (const bool fill : {true, false}) {
+    tb::DemOptions o;
+    o.fill_voids = fill;
+    expect_like_read_dem(hgt.string(), o, false);
+    o.crs = "auto";  // geographic: warped, so read whole
+    expect_like_read_dem(hgt.string(), o, true);
+  }
+  const fs::path real = "/work/shared/data/N44W072.hgt";
+  if (fs::exists(real)) expect_like_read_dem(real.string(), {}, false);
+}
+
+TEST_F(DemSourceTest, HeightmapsAndNamedCrsAreInMemory) {
+  const fs::path png = dir_ / "island.png";
+  std::vector<std::uint16_t> px(64 * 48);
+  for (std::size_t i = 0; i < px.size(); ++i) px[i] = std::uint16_t((i * 7919) % 4000);
+  auto out = OIIO::ImageOutput::create(png.string());
+  ASSERT_TRUE(out);
+  ASSERT_TRUE(out->open(png.string(), OIIO::ImageSpec(64, 48, 1, OIIO::TypeDesc::UINT16)));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT16, px.data()));
+  out->close();
+  tb::DemOptions o;
+  o.vertical_scale = 0.1;
+  expect_like_read_dem(png.string(), o, true);
+
+  // A .tif without georeference is a heightmap (OpenImageIO), read whole.
+  const fs::path bare = dir_ / "bare.tif";
+  GDALAllRegister();
+  {
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(bare.c_str(), 40, 30, 1,
+                                                                                     GDT_UInt16, nullptr));
+    ASSERT_TRUE(ds);
+    std::vector<std::uint16_t> v(40 * 30, 7);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 40, 30, v.data(), 40, 30, GDT_UInt16, 0, 0),
+              CE_None);
+  }
+  expect_like_read_dem(bare.string(), {}, true);
+
+  const fs::path tif = dir_ / "utm.tif";
+  write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);
+  tb::DemOptions named;
+  named.crs = "EPSG:32619";  // a named CRS warps, even to the DEM's own
+  const auto src = tb::open_dem_source(tif.string(), named);
+  EXPECT_TRUE(src->in_memory());
+  expect_same_grid(src->grid(), tb::DemGrid::of(tb::read_dem(tif.string(), named)));
+}
+
+// A void region whose box is over VoidFillOptions::max_region_cells (4096 x 4096, which read_dem
+// does not let a caller change): a 4-connected staircase from corner to corner. It stays a hole in
+// every window, however the window meets it, and a small void beside it is filled.
+TEST_F(DemSourceTest, RegionOverTheCapStaysAHoleInEveryWindow) {
+  const int n = 4100;
+  std::vector<double> z(std::size_t(n) * n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) z[std::size_t(r) * n + c] = double((c / 64 + r / 64) % 7);
+  for (int i = 0; i + 1 < n; ++i) z[std::size_t(i) * n + i] = z[std::size_t(i) * n + i + 1] = kNaN;
+  z[std::size_t(3000) * n + 100] = kNaN;
+  for (int r = 500; r < 530; ++r)  // a blob away from the staircase
+    for (int c = 3000; c < 3030; ++c) z[std::size_t(r) * n + c] = kNaN;
+  const fs::path tif = dir_ / "stairs.tif";
+  write_geotiff(tif, n, n, z, GDT_Float32, {0, 1, 0, 0, 0, -1}, 0);
+  const Heightfield hf = tb::read_dem(tif.string());
+  ASSERT_TRUE(hf.has_holes());
+  ASSERT_FALSE(hf.valid(2000, 2000));
+  ASSERT_TRUE(hf.valid(100, 3000));
+  const auto src = tb::open_dem_source(tif.string());
+  expect_same_grid(src->grid(), tb::DemGrid::of(hf));
+  std::vector<tb::SampleRect> rects = {
+      {2000, 2000, 2000, 2000}, {1990, 2000, 2010, 2010}, {90, 2990, 110, 3010}, {4000, 4090, 4099, 4099}};
+  const tb::BlockLayout layout = tb::partition(n, n, 257);
+  for (int k = 0; k < layout.blocks_x; ++k)
+    rects.push_back(layout.rect(tb::BlockKey{k, k}));  // the staircase
+  rects.push_back({3010, 510, 3020, 520});  // cutting the blob, once the staircase is known as capped
+  rects.push_back({2990, 520, 3015, 540});
+  for (const tb::SampleRect& r : rects)
+    EXPECT_TRUE(same_block(src->read(r), tb::block_heightfield(hf, r))) << r.col0 << "," << r.row0;
+  EXPECT_EQ(src->samples_crc(), tb::heightfield_source(hf)->samples_crc());
+}
+
+TEST_F(DemSourceTest, ConcurrentReadersGetTheSameBlocks) {
+  const fs::path tif = dir_ / "c.tif";
+  write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Int16, kUtm, 32619);
+  const Heightfield hf = tb::read_dem(tif.string());
+  const auto src = tb::open_dem_source(tif.string());
+  std::vector<int> failures(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      for (const tb::SampleRect& r : windows(kW, kH, 150, 100 + unsigned(t)))
+        if (!same_block(src->read(r), tb::block_heightfield(hf, r))) ++failures[std::size_t(t)];
+    });
+  for (std::thread& t : threads) t.join();
+  for (int f : failures) EXPECT_EQ(f, 0);
+}
+
+TEST_F(DemSourceTest, GdalCacheIsCappedWhileOpen) {
+  if (CPLGetConfigOption("GDAL_CACHEMAX", nullptr) != nullptr) GTEST_SKIP() << "GDAL_CACHEMAX is set";
+  const fs::path tif = dir_ / "cache.tif";
+  write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);
+  const GIntBig before = GDALGetCacheMax64();
+  {
+    const auto src = tb::open_dem_source(tif.string());
+    EXPECT_LE(GDALGetCacheMax64(), GIntBig(64) << 20);
+  }
+  EXPECT_EQ(GDALGetCacheMax64(), before);
+}
+
+TEST_F(DemSourceTest, FileRemovedOrTruncatedAfterOpeningIsAnError) {
+  const fs::path hgt = dir_ / "N10E010.hgt", tif = dir_ / "gone.tif";
+  write_hgt(hgt, std::vector<double>(101 * 101, 5.0));
+  write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);
+  const auto h = tb::open_dem_source(hgt.string()), g = tb::open_dem_source(tif.string());
+  fs::resize_file(hgt, 101 * 50 * 2);
+  fs::remove(tif);
+  auto expect_error = [](const tb::DemSource& s, const fs::path& p) {
+    try {
+      s.read({0, 90, 5, 99});
+      ADD_FAILURE() << "no error for " << p;
+    } catch (const tb::DemError& e) {
+      EXPECT_EQ(e.path(), p.string());
+      EXPECT_FALSE(e.problem().empty());
+    }
+  };
+  expect_error(*h, hgt);
+  expect_error(*g, tif);
+  fs::remove(hgt);
+  expect_error(*h, hgt);
+}
+
+}  // namespace
