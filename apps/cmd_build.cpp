@@ -4,9 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <memory>
 #include <optional>
-#include <cstdio>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -45,7 +45,15 @@ CommandSpec build_spec() {
       "reads the input and builds blocks on --threads threads; rank 0 hands the blocks out, writes\n"
       "the database (only rank 0 touches it: no shared folder is needed beyond the input) and\n"
       "shows the progress. The database is the same as a single-process build's, byte for byte; a\n"
-      "killed rank ends the job and the same command resumes it.";
+      "killed rank ends the job and the same command resumes it.\n"
+      "Memory: a DEM whose world frame needs no warp (GDAL rasters, VRT mosaics and .hgt tiles\n"
+      "with a projected CRS or none, or any of them with --crs native) is read window by window:\n"
+      "each block reads its own samples, tree nodes read a lattice of at most 513 x 513 samples\n"
+      "and measure their exact error in 513 x 513 windows, GDAL's cache is capped at 64 MiB, so\n"
+      "memory does not grow with the DEM's size. A geographic DEM under --crs auto (the default)\n"
+      "or a named CRS is warped, which needs it whole in memory (8 bytes a sample and more). The\n"
+      "first line says which ('read window by window' or 'held in memory'); the last one gives\n"
+      "the peak resident memory of the build.";
   s.options = {
       {"--input", "DEM",
        "elevation file (.hgt, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one mosaic", true,

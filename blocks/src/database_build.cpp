@@ -249,7 +249,8 @@ std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey k
   return build_block_blob(*heightfield_source(hf), key, opt);
 }
 
-std::vector<std::uint8_t> build_block_blob(const DemSource& src, BlockKey key, const DatabaseBuildOptions& opt) {
+std::vector<std::uint8_t> build_block_blob(const DemSource& src, BlockKey key,
+                                           const DatabaseBuildOptions& opt) {
   const DemGrid& g = src.grid();
   const BlockLayout layout = partition(g.width, g.height, opt.block_size);
   if (!layout.contains(key))
@@ -271,7 +272,8 @@ DatabaseSummary build_database(const pm::Heightfield& hf, const std::string& pat
   return build_database(*heightfield_source(hf), path, opt);
 }
 
-DatabaseSummary build_database(const DemSource& src, const std::string& path, const DatabaseBuildOptions& opt) {
+DatabaseSummary build_database(const DemSource& src, const std::string& path,
+                               const DatabaseBuildOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const DemGrid& g = src.grid();
   const std::string source = g.source.empty() ? std::string("(in memory)") : g.source;
@@ -293,6 +295,7 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path, co
   info.source = g.source;
 
   std::optional<BlockDatabase> dbo;
+  bool created = false;
   if (std::filesystem::exists(path) && is_interrupted_create(path)) {
     // A create() that was killed: nothing to resume, start again.
     for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
@@ -307,6 +310,7 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path, co
                        "); use the same options and input to resume, or remove it");
   } else {
     dbo.emplace(BlockDatabase::create(path, info));
+    created = true;
   }
   BlockDatabase& db = *dbo;
   if (g.crs_transform) db.put_georeference({*g.crs_transform, g.vertical_datum});
@@ -451,12 +455,22 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path, co
 
   // The tree above the blocks, written with the completion mark in one transaction.
   std::vector<double> errors(keys.size());
+  std::uint64_t vertices = 0;
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const auto r = read_block_record(db, keys[i]);
     if (!r)
       throw DatabaseError(path, "block (" + std::to_string(keys[i].col) + "," + std::to_string(keys[i].row) +
                                     "): no build record");
     errors[i] = r->error;
+    vertices += r->vertices;
+  }
+  // A windowed source does not scan its samples before the build: an all-void DEM shows here.
+  if (vertices == 0) {
+    if (created) {
+      dbo.reset();
+      for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
+    }
+    throw BuildError(source + ": every sample is void; there is no terrain to build");
   }
   TreeBuildOptions topt = opt.tree;
   topt.pm_leaves = true;

@@ -50,4 +50,3 @@ std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf) {
 }
 
 }  // namespace terralod::blocks
-

@@ -245,6 +245,7 @@ void WindowedSource::set_grid(int width, int height, const detail::Georef& geo, 
         if (first == width) return std::pair{width, width - 1};
         return std::pair{first, ends.right[i] ? width - 1 : first_valid(r, false)};
       });
+  grid_.scale_error = error;
   grid_.frame += detail::scale_error_note(error, false) + height_note;
 }
 

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <limits>
 
+#include "surface_scan.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/linf_error.hpp"
 #include "terralod/pm/parallel.hpp"
-#include "surface_scan.hpp"
 #include "tin_error.hpp"
 
 namespace terralod::blocks {
@@ -165,7 +165,8 @@ std::vector<int> lattice(int a, int b, int stride) {
 NodeSamples node_samples(const DemSource& src, SampleRect d) {
   NodeSamples n;
   int stride = 1;
-  while (std::size_t((d.width() - 2) / stride + 2) * std::size_t((d.height() - 2) / stride + 2) > kNodeSamples)
+  while (std::size_t((d.width() - 2) / stride + 2) * std::size_t((d.height() - 2) / stride + 2) >
+         kNodeSamples)
     stride *= 2;
   if (stride == 1) {
     n.hf = src.read(d);
@@ -294,7 +295,8 @@ ApproximationTree build_tree(const pm::Heightfield& hf, const BlockLayout& layou
 }
 
 ApproximationTree build_tree(const DemSource& src, const BlockLayout& layout, const TreeBuildOptions& opt,
-                             std::span<const double> block_errors, const std::function<void(double)>& progress) {
+                             std::span<const double> block_errors,
+                             const std::function<void(double)>& progress) {
   assert(!opt.levels.empty() && opt.patch >= 1 && opt.max_points >= 4 && opt.leaf_error >= 0.0);
   assert(layout.grid_width == src.grid().width && layout.grid_height == src.grid().height);
   assert(!opt.pm_leaves || block_errors.size() == layout.count());
@@ -382,7 +384,8 @@ ApproximationTree build_tree(const DemSource& src, const BlockLayout& layout, co
         }
         surfaces.push_back(&cands[k].surface);
       }
-      const detail::SurfaceScan scan = detail::scan_surfaces(src, p.domain, surfaces, opt.metric, kScanWindow);
+      const detail::SurfaceScan scan =
+          detail::scan_surfaces(src, p.domain, surfaces, opt.metric, kScanWindow);
       // Error per byte: keep the candidate with the smallest error x bytes (ties: fewer bytes).
       double best_score = std::numeric_limits<double>::infinity();
       std::size_t best_bytes = 0, best = 0;

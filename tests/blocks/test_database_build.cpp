@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "mesh_checker.hpp"
+#include "run_command.hpp"
 #include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -344,6 +345,20 @@ TEST(DatabaseBuild, CliBuildsAFolderOrAListOfTilesAsOneMosaic) {
   const std::string folder = tmp("tiles_folder.db"), listed = tmp("tiles_listed.db");
   ChildRun r = run_terralod({"build", "--input", dir + "/m", "--out", folder, "--block-size", "33"});
   ASSERT_EQ(r.status, 0) << r.err;
+  // A mosaic of GeoTIFFs without a CRS needs no warp: read window by window; the build ends with
+  // its peak memory. An ASCII grid is held in memory.
+  namespace tt = terralod::test;
+  const auto cli = [&](const std::string& input, const std::string& out) {
+    return tt::run_command(tt::quote(TERRALOD_BINARY) + " build --block-size 33 --input " + tt::quote(input) +
+                           " --out " + tt::quote(tmp(out)));
+  };
+  const auto windowed = cli(dir + "/m", "tiles_windowed.db");
+  ASSERT_EQ(windowed.status, 0) << windowed.err;
+  EXPECT_NE(windowed.out.find("read window by window"), std::string::npos) << windowed.out;
+  EXPECT_NE(windowed.out.find("memory peak resident "), std::string::npos) << windowed.out;
+  const auto whole = cli(dir + "/source.asc", "tiles_asc.db");
+  ASSERT_EQ(whole.status, 0) << whole.err;
+  EXPECT_NE(whole.out.find("held in memory"), std::string::npos) << whole.out;
   r = run_terralod({"build", "--input", dir + "/m/tile_0_0.tif", "--input", dir + "/m/tile_0_1.tif", "--out",
                     listed, "--block-size", "33"});
   ASSERT_EQ(r.status, 0) << r.err;

@@ -46,7 +46,7 @@ struct DemGrid {
   std::string vertical_datum;                      ///< Heightfield::vertical_datum
   std::string source;                              ///< Heightfield::source
   std::string frame;                               ///< Heightfield::frame
-  std::optional<double> scale_error;  ///< frame_scale_error of the DEM (dem_reader.hpp)
+  std::optional<double> scale_error;               ///< frame_scale_error of the DEM (dem_reader.hpp)
 
   /// The grid of `hf` (its samples left out; scale_error = frame_scale_error(hf)).
   static DemGrid of(const pm::Heightfield& hf);

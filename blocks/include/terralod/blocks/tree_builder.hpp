@@ -141,7 +141,8 @@ struct DatabaseBuildOptions {
 /// from the same samples and options).
 std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
                                            const DatabaseBuildOptions& opt);
-std::vector<std::uint8_t> build_block_blob(const DemSource& source, BlockKey key, const DatabaseBuildOptions& opt);
+std::vector<std::uint8_t> build_block_blob(const DemSource& source, BlockKey key,
+                                           const DatabaseBuildOptions& opt);
 
 /// A build that cannot proceed: what() = "<file>: <problem>".
 class BuildError : public std::runtime_error {

@@ -26,12 +26,11 @@
 #include <sys/resource.h>
 #include <time.h>
 
-#include <cstdint>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
