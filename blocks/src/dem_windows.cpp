@@ -22,7 +22,9 @@
 // CRC of the samples, one of the mask bytes (1 for bands without holes), joined at the end by
 // zlib's crc32_combine64 when the grid has a hole: one pass, memory of one band.
 // Differs from read_dem: the grid size is not limited to 2^30 samples, and a grid with no valid
-// sample at all is not detected when opening (its reads give holes).
+// sample at all is refused (DemError, read_dem's words) only by a read that grows to the whole
+// grid, which filling voids does (measuring the frame at open reads one); with voids kept, its
+// reads give holes and build_database refuses it after its blocks.
 #include <gdal_priv.h>
 #include <zlib.h>
 
@@ -274,6 +276,11 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
   for (int margin = 16;; margin *= 2) {
     raw(held, z);
     if (!fill_ || std::all_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); })) break;
+    // A window holding the whole grid with no valid sample: read_dem's refusal (filling would
+    // have no neighbour to start from).
+    if (held.col0 == 0 && held.row0 == 0 && held.col1 == width - 1 && held.row1 == height - 1 &&
+        std::none_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); }))
+      throw DemError(path_, "has no valid sample (all " + std::to_string(z.size()) + " are void)");
     const VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
     SampleRect next = held;
     if (stats.capped_regions == 0 && capped_.empty()) {
