@@ -413,6 +413,13 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
   };
 
   std::size_t written = 0;
+  // A database this call created and wrote no block into holds nothing worth resuming (a read
+  // error in the first blocks, an all-void DEM): it is removed rather than left half-made.
+  auto discard_if_new_and_empty = [&] {
+    if (!created || written > 0) return;
+    dbo.reset();
+    for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
+  };
   const auto tb = std::chrono::steady_clock::now();
   try {
     if (opt.progress && !keys.empty()) opt.progress(double(already) / double(keys.size()), -1.0);
@@ -447,10 +454,14 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
     }
   } catch (...) {
     stop_workers();
+    discard_if_new_and_empty();
     throw;
   }
   stop_workers();
-  if (worker_error) std::rethrow_exception(worker_error);
+  if (worker_error) {
+    discard_if_new_and_empty();
+    std::rethrow_exception(worker_error);
+  }
   if (written != todo.size()) throw BuildError(path + ": internal error: not every block was built");
 
   // The tree above the blocks, written with the completion mark in one transaction.
@@ -466,10 +477,8 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
   }
   // A windowed source does not scan its samples before the build: an all-void DEM shows here.
   if (vertices == 0) {
-    if (created) {
-      dbo.reset();
-      for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
-    }
+    written = 0;  // nothing but empty blocks: nothing worth keeping either
+    discard_if_new_and_empty();
     throw BuildError(source + ": every sample is void; there is no terrain to build");
   }
   TreeBuildOptions topt = opt.tree;
