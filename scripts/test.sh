@@ -116,9 +116,11 @@ asan() {
 # arriving block's refinement (test_terrain_runtime's TerrainRuntimeLoading: a stalled reader,
 # errors, eviction and reloads, random flights while blocks arrive; about 1.5 minutes under TSan
 # on 2 cores, half of it building their database), and build_database's writer beside its
-# workers and a remote builder's threads (test_remote_builder, what the MPI build runs).
+# workers and a remote builder's threads (test_remote_builder, what the MPI build runs), and
+# windowed DEM reads from four threads over a pool of GDAL datasets (test_dem_source
+# ConcurrentReadersGetTheSameBlocks).
 # Only their executables are built.
-tsan_tests=(test_progressive_mesh test_dem_reader test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime test_remote_builder)
+tsan_tests=(test_progressive_mesh test_dem_reader test_dem_source test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime test_remote_builder)
 tsan_regex='RemoteBuilder|Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
 tsan() {
   # -O1 -g1 as for ASan: line tables for the reports, a faster compile than -O2 -g.

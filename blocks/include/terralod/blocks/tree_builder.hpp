@@ -30,7 +30,10 @@
 // that exists with other parameters) throws std::invalid_argument / BuildError naming the file.
 // Memory: the tree (see approximation_tree.hpp) plus, while building a database, one block
 // heightfield and PM per worker thread (~250 bytes per block sample) and the encoded blocks
-// waiting to be written.
+// waiting to be written; the tree's nodes each hold at most about 513^2 samples (their domain,
+// or a lattice of it) and scan their exact error in 513^2-sample windows. Through a windowed
+// DemSource (dem_source.hpp) nothing holds the whole DEM, so memory does not grow with its size
+// beyond the per-block records (a stand-in summary and a tree node: a few KB a block).
 #pragma once
 
 #include <array>
