@@ -26,10 +26,19 @@ DemGrid DemGrid::of(const pm::Heightfield& hf) {
 
 namespace {
 
+/// Serves `hf`, or the grid it owns when given one to keep (`owned`).
 class HeightfieldSource final : public DemSource {
  public:
   explicit HeightfieldSource(const pm::Heightfield& hf) : hf_(hf) { grid_ = DemGrid::of(hf); }
-  pm::Heightfield read(SampleRect window) const override { return block_heightfield(hf_, window); }
+  explicit HeightfieldSource(pm::Heightfield&& hf) : owned_(std::move(hf)), hf_(owned_) {
+    grid_ = DemGrid::of(hf_);
+  }
+  /// block_heightfield's samples, named after the grid's source (set_source may rename it).
+  pm::Heightfield read(SampleRect window) const override {
+    pm::Heightfield b = block_heightfield(hf_, window);
+    b.source = grid_.source;
+    return b;
+  }
   std::uint32_t samples_crc() const override {
     const auto& z = hf_.samples();
     const std::uint32_t crc =
@@ -40,6 +49,7 @@ class HeightfieldSource final : public DemSource {
   bool in_memory() const override { return true; }
 
  private:
+  pm::Heightfield owned_;  ///< empty unless this source owns its grid
   const pm::Heightfield& hf_;
 };
 
@@ -47,6 +57,10 @@ class HeightfieldSource final : public DemSource {
 
 std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf) {
   return std::make_unique<HeightfieldSource>(hf);
+}
+
+std::unique_ptr<DemSource> heightfield_source(pm::Heightfield&& hf) {
+  return std::make_unique<HeightfieldSource>(std::move(hf));
 }
 
 }  // namespace terralod::blocks

@@ -1,6 +1,6 @@
 // open_dem_source (dem_source.hpp): DemSources that read a GDAL raster or an SRTM .hgt tile window
-// by window, through the header, georeference and sample code of read_dem (dem_raster.hpp), and
-// an owning in-memory source for every input whose frame needs the whole raster.
+// by window, through the header, georeference and sample code of read_dem (dem_raster.hpp),
+// and, for every input whose frame needs the whole raster, read_dem's grid served by heightfield_source.
 //
 // read(window): the window's raw samples, then fill_voids_in_window; while a void region that
 // meets the window is cut by the window's edge (VoidFillStats::open), the window grows to hold
@@ -405,21 +405,6 @@ class HgtSource final : public WindowedSource {
   int n_;
 };
 
-/// read_dem's Heightfield, owned, served by heightfield_source.
-class OwnedSource final : public DemSource {
- public:
-  explicit OwnedSource(pm::Heightfield hf) : hf_(std::move(hf)), inner_(heightfield_source(hf_)) {
-    grid_ = inner_->grid();
-  }
-  pm::Heightfield read(SampleRect window) const override { return inner_->read(window); }
-  std::uint32_t samples_crc() const override { return inner_->samples_crc(); }
-  bool in_memory() const override { return true; }
-
- private:
-  pm::Heightfield hf_;
-  std::unique_ptr<DemSource> inner_;
-};
-
 }  // namespace
 
 std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOptions& options) {
@@ -438,7 +423,7 @@ std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOpt
         return std::make_unique<GdalSource>(path, options, std::move(ds), std::move(band));
     }
     ds.reset();
-    return std::make_unique<OwnedSource>(read_dem(path, options));
+    return heightfield_source(read_dem(path, options));
   } catch (const fs::filesystem_error& e) {
     throw DemError(path, e.what());
   }

@@ -328,6 +328,16 @@ TEST_F(DemSourceTest, HeightmapsAndNamedCrsAreInMemory) {
   const auto src = tb::open_dem_source(tif.string(), named);
   EXPECT_TRUE(src->in_memory());
   expect_same_grid(src->grid(), tb::DemGrid::of(tb::read_dem(tif.string(), named)));
+
+  // set_source renames what every read gives, in memory as windowed (a PM records it: a mosaic's
+  // blocks are named after its description, not the VRT's in-memory path).
+  const auto windowed = tb::open_dem_source(tif.string());
+  ASSERT_FALSE(windowed->in_memory());
+  for (tb::DemSource* s : {src.get(), windowed.get()}) {
+    s->set_source("mosaic of 2 files");
+    EXPECT_EQ(s->grid().source, "mosaic of 2 files");
+    EXPECT_EQ(s->read({3, 4, 20, 30}).source, "mosaic of 2 files");
+  }
 }
 
 // A void region whose box is over VoidFillOptions::max_region_cells (4096 x 4096, which read_dem

@@ -73,6 +73,8 @@ class DemSource {
 
 /// A DemSource over `hf`, which must outlive it (no copy is made).
 std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf);
+/// A DemSource that owns `hf`.
+std::unique_ptr<DemSource> heightfield_source(pm::Heightfield&& hf);
 
 /// The DEM at `path` as read_dem(path, options) reads it, windowed when that is possible: GDAL
 /// rasters (GeoTIFF, VRT mosaics such as DemInputs makes, ...) and SRTM .hgt tiles whose world
