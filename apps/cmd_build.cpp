@@ -46,14 +46,13 @@ CommandSpec build_spec() {
       "the database (only rank 0 touches it: no shared folder is needed beyond the input) and\n"
       "shows the progress. The database is the same as a single-process build's, byte for byte; a\n"
       "killed rank ends the job and the same command resumes it.\n"
-      "Memory: a DEM whose world frame needs no warp (GDAL rasters, VRT mosaics and .hgt tiles\n"
-      "with a projected CRS or none, or any of them with --crs native) is read window by window:\n"
+      "Memory: GDAL rasters, VRT mosaics and .hgt tiles are read window by window, in every\n"
+      "frame (a warp to --crs auto or a named CRS reads the native window under each warped one):\n"
       "each block reads its own samples, tree nodes read a lattice of at most 513 x 513 samples\n"
       "and measure their exact error in 513 x 513 windows, GDAL's cache is capped at 64 MiB, so\n"
-      "memory does not grow with the DEM's size. A geographic DEM under --crs auto (the default)\n"
-      "or a named CRS is warped, which needs it whole in memory (8 bytes a sample and more). The\n"
-      "first line says which ('read window by window' or 'held in memory'); the last one gives\n"
-      "the peak resident memory of the build.";
+      "memory does not grow with the DEM's size. Heightmap images and ASCII grids are held in\n"
+      "memory (8 bytes a sample and more). The first line says which ('read window by window' or\n"
+      "'held in memory'); the last one gives the peak resident memory of the build.";
   s.options = {
       {"--input", "DEM",
        "elevation file (.hgt, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one mosaic", true,

@@ -1,6 +1,7 @@
 // The world frames of read_dem beyond the native one (DemOptions::crs): a projected CRS chosen per
-// terrain ("auto") or named by the user, reached by one GDAL warp, and the worst scale error of
-// any georeferenced frame, measured against the CRS's ellipsoid.
+// terrain ("auto") or named by the user, reached by a warp that reads window by window
+// (WarpedSource), and the worst scale error of any georeferenced frame, measured against the
+// CRS's ellipsoid.
 //
 // "auto" for a geographic DEM: the azimuthal equidistant projection (Snyder, Map Projections - A
 // Working Manual, USGS 1987, ch. 25) centred on the DEM. On the sphere its radial scale is 1 and
@@ -11,7 +12,8 @@
 // (c_max = 5.66 degrees), under 0.1 % up to c_max ~ 6.3 degrees (9 x 9 degrees on the equator).
 // The scale error recorded in the frame is measured, not taken from that formula: the singular
 // values of the Jacobian of (east, north metres on the ellipsoid) -> world at every lattice sample
-// and at both ends of every row of valid samples. Memory: the source and warped grids.
+// and at both ends of every row of valid samples. Memory: a warped window, its native window and
+// its positions (16 bytes a sample); apply_frame holds the native grid and the warped one.
 #include "dem_frame.hpp"
 
 #include <gdal_priv.h>
@@ -22,11 +24,13 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numbers>
 #include <optional>
+#include <stdexcept>
 
 #include "gdal_support.hpp"
-#include "gdal_warp.hpp"
+#include "sample_crc.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/void_fill.hpp"
 
@@ -34,17 +38,16 @@ namespace terralod::blocks {
 
 namespace {
 
+using detail::Affine;
+using detail::Transform;
+using detail::transform;
+
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 
 using detail::gdal_message;
 using detail::QuietGdal;
 using detail::register_gdal;
-
-struct TransformDeleter {
-  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
-};
-using Transform = std::unique_ptr<OGRCoordinateTransformation, TransformDeleter>;
 
 std::string format(const char* fmt, double v) {
   char buf[64];
@@ -65,108 +68,7 @@ std::string name_of(const OGRSpatialReference& srs) {
   return name != nullptr ? name : "unnamed CRS";
 }
 
-/// (col, row) -> (x, y) of an affine map and back.
-struct Affine {
-  pm::GridTransform t;
-  std::pair<double, double> inverse(double x, double y) const {
-    const double det = t.xc * t.yr - t.xr * t.yc, dx = x - t.x0, dy = y - t.y0;
-    return {(t.yr * dx - t.xr * dy) / det, (t.xc * dy - t.yc * dx) / det};
-  }
-};
-
-/// Transforms the points in place; false when any fails.
-bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vector<double>& y) {
-  std::vector<int> ok(x.size(), 0);
-  if (x.empty()) return true;
-  if (!ct.Transform(int(x.size()), x.data(), y.data(), nullptr, ok.data())) return false;
-  return std::all_of(ok.begin(), ok.end(), [](int v) { return v != 0; });
-}
-
 }  // namespace
-
-namespace detail {
-
-std::optional<double> scale_error(const std::string& crs_wkt,
-                                  const std::optional<pm::GridTransform>& crs_transform,
-                                  const pm::GridTransform& world, int w, int h,
-                                  const std::function<bool(int, int)>& valid,
-                                  const std::function<std::pair<int, int>(int)>& row_ends) {
-  if (crs_wkt.empty() || !crs_transform) return std::nullopt;
-  register_gdal();
-  QuietGdal quiet;
-  OGRSpatialReference crs;
-  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
-  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
-  if (!geog) return std::nullopt;
-  geog->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  Transform to_geog(OGRCreateCoordinateTransformation(&crs, geog.get()));
-  Transform to_crs(OGRCreateCoordinateTransformation(geog.get(), &crs));
-  if (!to_geog || !to_crs) return std::nullopt;
-  const double a = crs.GetSemiMajor(), b = crs.GetSemiMinor(), e2 = 1.0 - (b * b) / (a * a);
-
-  // Where to measure: a 33 x 33 lattice and both ends of every row, valid samples only.
-  std::vector<double> cols, rows;
-  auto add = [&](int c, int r) {
-    if (valid(c, r)) cols.push_back(c), rows.push_back(r);
-  };
-  for (int i = 0; i <= 32; ++i)
-    for (int j = 0; j <= 32; ++j)
-      add(int(std::lround((w - 1) * i / 32.0)), int(std::lround((h - 1) * j / 32.0)));
-  for (int r = 0; r < h; ++r) {
-    const auto [first, last] = row_ends(r);
-    if (first < w)
-      cols.insert(cols.end(), {double(first), double(last)}), rows.insert(rows.end(), {double(r), double(r)});
-  }
-  std::vector<double> lon(cols.size()), lat(cols.size());
-  for (std::size_t i = 0; i < cols.size(); ++i)
-    std::tie(lon[i], lat[i]) = crs_transform->to_world(cols[i], rows[i]);
-  if (!transform(*to_geog, lon, lat)) return std::nullopt;
-
-  // Four neighbours at +-step degrees, through the CRS and the samples to the world frame.
-  constexpr double step = 1e-3;
-  std::vector<double> x, y;
-  for (std::size_t i = 0; i < lon.size(); ++i) {
-    x.insert(x.end(), {lon[i] + step, lon[i] - step, lon[i], lon[i]});
-    y.insert(y.end(), {lat[i], lat[i], lat[i] + step, lat[i] - step});
-  }
-  if (!transform(*to_crs, x, y)) return std::nullopt;
-  const Affine samples{*crs_transform};
-  for (std::size_t k = 0; k < x.size(); ++k) {
-    const auto [c, r] = samples.inverse(x[k], y[k]);
-    std::tie(x[k], y[k]) = world.to_world(c, r);
-  }
-  double worst = 0.0;
-  for (std::size_t i = 0; i < lon.size(); ++i) {
-    const double phi = lat[i] * kDeg, s = std::sin(phi);
-    if (std::abs(lat[i]) > 89.9) continue;  // the east metres per degree vanish at a pole
-    const double n = a / std::sqrt(1.0 - e2 * s * s), m = n * (1.0 - e2) / (1.0 - e2 * s * s);
-    const double east = n * std::cos(phi) * kDeg * 2.0 * step, north = m * kDeg * 2.0 * step;
-    const std::size_t k = 4 * i;
-    const double ex = (x[k] - x[k + 1]) / east, ey = (y[k] - y[k + 1]) / east;
-    const double nx = (x[k + 2] - x[k + 3]) / north, ny = (y[k + 2] - y[k + 3]) / north;
-    const double t = ex * ex + ey * ey + nx * nx + ny * ny, d = std::abs(ex * ny - nx * ey);
-    const double root = std::sqrt(std::max(0.0, t * t - 4.0 * d * d));
-    const double s1 = std::sqrt(0.5 * (t + root)), s2 = std::sqrt(std::max(0.0, 0.5 * (t - root)));
-    worst = std::max({worst, std::abs(s1 - 1.0), std::abs(s2 - 1.0)});
-  }
-  return worst;
-}
-
-}  // namespace detail
-
-std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
-  const int w = hf.width();
-  return detail::scale_error(
-      hf.crs_wkt, hf.crs_transform, hf.transform, w, hf.height(),
-      [&](int c, int r) { return hf.valid(c, r); },
-      [&](int r) {
-        int first = 0, last = w - 1;
-        while (first < w && !hf.valid(first, r)) ++first;
-        while (last > first && !hf.valid(last, r)) --last;
-        return std::pair{first, last};
-      });
-}
 
 namespace detail {
 
@@ -192,30 +94,68 @@ bool read_crs(const std::string& crs_wkt, bool has_crs_transform, OGRSpatialRefe
          !source.IsEmpty();
 }
 
-}  // namespace
+/// warped_source's DemSource (dem_frame.hpp). The target grid is the footprint of the native
+/// grid's pixels in the target CRS (every pixel edge along its sides), with the native ground
+/// spacing at its centre east-west and north-south apart: the grid keeps about the native number
+/// of samples (square cells of the smaller spacing would add 41 % at 44 degrees N). Cells need not
+/// be square: every transform downstream is affine.
+class WarpedSource final : public DemSource {
+ public:
+  WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
+               const std::string& height_note);
+  pm::Heightfield read(SampleRect window) const override;
+  std::uint32_t samples_crc() const override;
+  bool in_memory() const override { return native_->in_memory(); }
 
-bool frame_warps(const std::string& crs_wkt, bool has_crs_transform, const std::string& crs) {
-  if (crs == "native") return false;
-  if (crs != "auto") return true;
-  register_gdal();
-  QuietGdal quiet;
-  OGRSpatialReference source;
-  return read_crs(crs_wkt, has_crs_transform, source) && source.IsGeographic();
-}
+ private:
+  /// Exact transformations at every step_-th sample of every step_-th row (see the header).
+  int step_ = 1;
+  /// How far bilinear positions may be from exact ones, in samples (choose_step measures it): a
+  /// height then moves by at most 2e-3 of the largest step between neighbouring samples, a
+  /// millimetre or two on SRTM's 1 m steps; GDAL's own approximate transformer allows 0.125.
+  /// Exact transformations cost about 2 microseconds each for the ellipsoidal "auto" frame (PROJ's
+  /// geodesics), so a step of 16 instead of 2 takes a full read of 10^9 samples from ~500 s to ~8 s.
+  static constexpr double kPositionTolerance = 1e-3;
+  struct Pos {
+    double c, r;  ///< position in the native grid (sample units); NaN where the transform failed
+  };
+  /// The native positions of the samples of `window`, row-major, exact every `step` samples.
+  void positions(SampleRect window, int step, std::vector<Pos>& out) const;
+  /// The largest step of 16, 8, 4, 2 (else 1: every sample exact) whose bilinear positions are
+  /// within kPositionTolerance of the exact ones at the midpoints of cells spread over the grid.
+  int choose_step() const;
+  /// Interpolates the samples of `piece` (inside `window`, whose positions `pos` holds) into b and
+  /// mask (b's samples: `window`), reading the native grid once for the piece, or splitting it
+  /// when the native window it needs is much larger than itself (a long row across curved
+  /// parallels, say): no value depends on how pieces are cut.
+  void interpolate(SampleRect window, SampleRect piece, const std::vector<Pos>& pos, pm::Heightfield& b,
+                   std::vector<std::uint8_t>& mask) const;
 
-pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const std::string& crs) {
-  if (!frame_warps(hf.crs_wkt, hf.crs_transform.has_value(), crs)) return with_scale_error(std::move(hf));
+  std::string path_;
+  std::unique_ptr<DemSource> native_;
+  int nw_ = 0, nh_ = 0;  ///< native grid size
+  Affine native_crs_;    ///< native (col, row) <-> native CRS
+  Transform to_native_;  ///< target CRS -> native CRS; cloned for each concurrent reader
+  mutable std::mutex mutex_;
+  mutable std::vector<Transform> pool_;  ///< clones no read is using
+};
+
+WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
+                           const std::string& height_note)
+    : path_(path), native_(std::move(native)) {
+  const DemGrid& ng = native_->grid();
   const bool automatic = crs == "auto";
   register_gdal();
   QuietGdal quiet;
   OGRSpatialReference source;
-  const bool has_crs = read_crs(hf.crs_wkt, hf.crs_transform.has_value(), source);
-  if (!has_crs)
+  if (!read_crs(ng.crs_wkt, ng.crs_transform.has_value(), source))
     throw DemError(path, "has no CRS, so it cannot be warped to the CRS '" + crs +
                              "' asked for (--crs, DemOptions::crs); use --crs native or auto");
   source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  const pm::GridTransform& st = *hf.crs_transform;
-  const int w = hf.width(), h = hf.height();
+  const pm::GridTransform& st = *ng.crs_transform;
+  nw_ = ng.width, nh_ = ng.height;
+  native_crs_ = Affine{st};
+  const int w = nw_, h = nh_;
 
   // The target CRS and, for "auto", the scale k0 that balances its scale error.
   OGRSpatialReference target;
@@ -253,7 +193,8 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
   }
   const double unit = target.GetLinearUnits(nullptr);
   Transform to_target(OGRCreateCoordinateTransformation(&source, &target));
-  if (!to_target)
+  to_native_.reset(OGRCreateCoordinateTransformation(&target, &source));
+  if (!to_target || !to_native_)
     throw DemError(path, "no transformation from its CRS '" + name_of(source) + "' to '" + name_of(target) +
                              "': " + gdal_message("PROJ found none"));
 
@@ -271,59 +212,305 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
   if (!transform(*to_target, x, y))
     throw DemError(path, "part of it cannot be transformed to '" + name_of(target) + "' (" +
                              gdal_message("outside the CRS's domain?") + ")");
-  // The source's ground spacing at its centre, east-west and north-south apart: the warped grid
-  // keeps about the source's number of samples (square cells of the smaller one would add 41 % at
-  // 44 degrees N). Cells need not be square: every transform downstream is affine.
   const double sx = std::hypot(x[1] - x[0], y[1] - y[0]), sy = std::hypot(x[2] - x[0], y[2] - y[0]);
   const auto [xmin, xmax] = std::minmax_element(x.begin() + 3, x.end());
   const auto [ymin, ymax] = std::minmax_element(y.begin() + 3, y.end());
   const double cols = std::ceil((*xmax - *xmin) / sx), rows = std::ceil((*ymax - *ymin) / sy);
-  if (!(sx > 0.0) || !(sy > 0.0) || !std::isfinite(cols) || !std::isfinite(rows) ||
-      cols * rows > double(1 << 30))
-    throw DemError(path, "its footprint in '" + name_of(target) + "' is degenerate or over 2^30 samples");
+  if (!(sx > 0.0) || !(sy > 0.0) || !std::isfinite(cols) || !std::isfinite(rows) || cols > double(1 << 30) ||
+      rows > double(1 << 30))
+    throw DemError(path,
+                   "its footprint in '" + name_of(target) + "' is degenerate or over 2^30 samples a side");
 
-  WarpGrid src;
-  src.width = w;
-  src.height = h;
-  src.gt = {st.x0 - 0.5 * st.xc - 0.5 * st.xr, st.xc, st.xr, st.y0 - 0.5 * st.yc - 0.5 * st.yr, st.yc, st.yr};
-  src.z = hf.samples();
-  for (std::size_t i = 0; i < src.z.size(); ++i)
-    if (!hf.valid(i)) src.z[i] = kNan;
-  WarpGrid grid;
-  grid.width = std::max(2, int(cols));
-  grid.height = std::max(2, int(rows));
+  grid_.width = std::max(2, int(cols));
+  grid_.height = std::max(2, int(rows));
   const double cx = 0.5 * (*xmin + *xmax), cy = 0.5 * (*ymin + *ymax);
-  grid.gt = {cx - 0.5 * grid.width * sx, sx, 0.0, cy + 0.5 * grid.height * sy, 0.0, -sy};
-  std::string error;
-  WarpGrid out = warp_grid(src, hf.crs_wkt, wkt_of(target), &grid, error);
-  if (!error.empty()) throw DemError(path, "GDAL cannot warp it to '" + name_of(target) + "': " + error);
-
-  pm::Heightfield r(out.width, out.height);
-  std::vector<std::uint8_t> mask(out.z.size(), 1);
-  std::size_t holes = 0;
-  for (std::size_t i = 0; i < out.z.size(); ++i)
-    if (!std::isfinite(out.z[i])) mask[i] = 0, ++holes;
-  if (holes == out.z.size())
-    throw DemError(path, "no sample is left after warping it to '" + name_of(target) + "'");
-  // The holes stay holes (mask 0), but hold the heights of a harmonic fill (0 where it is capped)
-  // so that the coarse surfaces and stand-ins through a hole sample pass near the terrain.
-  if (holes > 0) fill_voids(out.z, out.width, out.height);
-  for (double& z : out.z)
-    if (!std::isfinite(z)) z = 0.0;
-  r.samples() = std::move(out.z);
-  if (holes > 0) r.set_mask(std::move(mask));
-  const double x0 = out.gt[0] + 0.5 * out.gt[1], y0 = out.gt[3] + 0.5 * out.gt[5];
-  r.crs_transform = pm::GridTransform::north_up(x0, y0, out.gt[1], -out.gt[5]);
+  const double x0 = cx - 0.5 * grid_.width * sx + 0.5 * sx, y0 = cy + 0.5 * grid_.height * sy - 0.5 * sy;
+  grid_.crs_transform = pm::GridTransform::north_up(x0, y0, sx, sy);
   const double k = k0 * unit;
-  r.transform = pm::GridTransform::north_up(k * x0, k * y0, k * out.gt[1], -k * out.gt[5]);
-  r.crs_wkt = wkt_of(target);
-  r.voids = hf.voids;
-  r.vertical_datum = hf.vertical_datum;
-  r.source = hf.source;
-  r.frame = description + " (unit factor " + format("%.12g", unit) + "); warped by GDAL (bilinear) from " +
-            name_of(source) + ", " + format("%.6g", sx * unit * k0) + " x " + format("%.6g", sy * unit * k0) +
-            " m cells, " + std::to_string(holes) + " cells outside the source are holes";
-  return with_scale_error(std::move(r), automatic);
+  grid_.transform = pm::GridTransform::north_up(k * x0, k * y0, k * sx, k * sy);
+  grid_.crs_wkt = wkt_of(target);
+  grid_.vertical_datum = ng.vertical_datum;
+  grid_.source = ng.source;
+  step_ = choose_step();
+  grid_.frame = description + " (unit factor " + format("%.12g", unit) +
+                "); warped by terralod (bilinear; positions exact every " + std::to_string(step_) +
+                " samples, bilinear between them) from " + name_of(source) + ", " +
+                format("%.6g", sx * unit * k0) + " x " + format("%.6g", sy * unit * k0) +
+                " m cells; cells outside the source are holes";
+  grid_.scale_error = scale_error_by_reads(grid_, [this](SampleRect r) { return read(r); });
+  grid_.frame += scale_error_note(grid_.scale_error, automatic) + height_note;
+}
+
+void WarpedSource::positions(SampleRect window, int step, std::vector<Pos>& out) const {
+  const int a0 = window.col0 / step, a1 = (window.col1 + step - 1) / step;
+  const int b0 = window.row0 / step, b1 = (window.row1 + step - 1) / step;
+  const std::size_t na = std::size_t(a1 - a0 + 1), nb = std::size_t(b1 - b0 + 1);
+  std::vector<double> x(na * nb), y(na * nb);
+  for (std::size_t j = 0; j < nb; ++j)
+    for (std::size_t i = 0; i < na; ++i)
+      std::tie(x[j * na + i], y[j * na + i]) =
+          grid_.crs_transform->to_world(double((a0 + int(i)) * step), double((b0 + int(j)) * step));
+  std::vector<int> ok(x.size(), 0);
+  Transform t;
+  {
+    std::lock_guard lock(mutex_);
+    if (!pool_.empty()) t = std::move(pool_.back()), pool_.pop_back();
+  }
+  if (!t) t.reset(to_native_->Clone());
+  if (!t || !t->Transform(int(x.size()), x.data(), y.data(), nullptr, ok.data()))
+    std::fill(ok.begin(), ok.end(), 0);
+  if (t) {
+    std::lock_guard lock(mutex_);
+    pool_.push_back(std::move(t));
+  }
+  std::vector<Pos> node(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    if (ok[k]) {
+      const auto [c, r] = native_crs_.inverse(x[k], y[k]);
+      node[k] = {c, r};
+    } else {
+      node[k] = {kNan, kNan};
+    }
+  }
+  // Bilinear between the nodes, from the sample's own place only (a zero weight reads nothing, so
+  // the last node row or column of the window need not exist beyond it).
+  const auto lerp = [](const Pos& p, const Pos& q, double t) {
+    return t == 0.0 ? p : Pos{p.c + t * (q.c - p.c), p.r + t * (q.r - p.r)};
+  };
+  out.resize(window.samples());
+  std::size_t k = 0;
+  for (int j = window.row0; j <= window.row1; ++j) {
+    const int b = j / step;
+    const double fb = double(j - b * step) / step;
+    for (int i = window.col0; i <= window.col1; ++i, ++k) {
+      const int a = i / step;
+      const double fa = double(i - a * step) / step;
+      const std::size_t n00 = std::size_t(b - b0) * na + std::size_t(a - a0);
+      const Pos top = fa == 0.0 ? node[n00] : lerp(node[n00], node[n00 + 1], fa);
+      if (fb == 0.0) {
+        out[k] = top;
+      } else {
+        const std::size_t n01 = n00 + na;
+        out[k] = lerp(top, fa == 0.0 ? node[n01] : lerp(node[n01], node[n01 + 1], fa), fb);
+      }
+    }
+  }
+}
+
+void WarpedSource::interpolate(SampleRect window, SampleRect piece, const std::vector<Pos>& pos,
+                               pm::Heightfield& b, std::vector<std::uint8_t>& mask) const {
+  const std::size_t ww = std::size_t(window.width());
+  const auto at = [&](int i, int j) {
+    return std::size_t(j - window.row0) * ww + std::size_t(i - window.col0);
+  };
+  // The native cell (i0, j0) .. (i0 + 1, j0 + 1) of a position, clamped to the grid.
+  const auto cell = [](double v, int n) {
+    const double c = std::clamp(v, 0.0, double(n - 1));
+    const int i0 = std::min(int(std::floor(c)), std::max(0, n - 2));
+    return std::pair{i0, c - i0};
+  };
+  SampleRect src{nw_, nh_, -1, -1};
+  for (int j = piece.row0; j <= piece.row1; ++j)
+    for (int i = piece.col0; i <= piece.col1; ++i) {
+      const Pos& p = pos[at(i, j)];
+      if (!std::isfinite(p.c) || !std::isfinite(p.r)) continue;
+      const int c0 = cell(p.c, nw_).first, r0 = cell(p.r, nh_).first;
+      src = {std::min(src.col0, c0), std::min(src.row0, r0), std::max(src.col1, std::min(nw_ - 1, c0 + 1)),
+             std::max(src.row1, std::min(nh_ - 1, r0 + 1))};
+    }
+  if (src.col1 < 0) {  // no position: holes of height 0
+    for (int j = piece.row0; j <= piece.row1; ++j)
+      for (int i = piece.col0; i <= piece.col1; ++i) b.samples()[at(i, j)] = 0.0, mask[at(i, j)] = 0;
+    return;
+  }
+  if (piece.samples() > 1 && src.samples() > 4 * piece.samples() + 1024) {
+    SampleRect first = piece, second = piece;
+    if (piece.width() >= piece.height()) {
+      first.col1 = piece.col0 + piece.width() / 2 - 1, second.col0 = first.col1 + 1;
+    } else {
+      first.row1 = piece.row0 + piece.height() / 2 - 1, second.row0 = first.row1 + 1;
+    }
+    interpolate(window, first, pos, b, mask);
+    interpolate(window, second, pos, b, mask);
+    return;
+  }
+  const pm::Heightfield s = native_->read(src);
+  const std::size_t sw = std::size_t(s.width());
+  for (int j = piece.row0; j <= piece.row1; ++j)
+    for (int i = piece.col0; i <= piece.col1; ++i) {
+      const std::size_t k = at(i, j);
+      const Pos& p = pos[k];
+      if (!std::isfinite(p.c) || !std::isfinite(p.r)) {
+        b.samples()[k] = 0.0, mask[k] = 0;
+        continue;
+      }
+      const bool outside = p.c < -0.5 || p.c > nw_ - 0.5 || p.r < -0.5 || p.r > nh_ - 0.5;
+      const auto [c0, fx] = cell(p.c, nw_);
+      const auto [r0, fy] = cell(p.r, nh_);
+      const std::size_t i0 = std::size_t(c0 - src.col0),
+                        i1 = std::size_t(std::min(nw_ - 1, c0 + 1) - src.col0);
+      const std::size_t j0 = std::size_t(r0 - src.row0),
+                        j1 = std::size_t(std::min(nh_ - 1, r0 + 1) - src.row0);
+      const std::size_t corner[4] = {j0 * sw + i0, j0 * sw + i1, j1 * sw + i0, j1 * sw + i1};
+      const double weight[4] = {(1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy};
+      bool hole = false;
+      for (int q = 0; q < 4; ++q) hole = hole || (weight[q] > 0.0 && !s.valid(corner[q]));
+      const std::vector<double>& z = s.samples();
+      if (!hole) {
+        const auto lerp = [](double u, double v, double t) { return t == 0.0 ? u : u + t * (v - u); };
+        b.samples()[k] = lerp(lerp(z[corner[0]], z[corner[1]], fx), lerp(z[corner[2]], z[corner[3]], fx), fy);
+      } else {  // the valid neighbours' weighted mean, or 0
+        double sum = 0.0, total = 0.0;
+        for (int q = 0; q < 4; ++q)
+          if (weight[q] > 0.0 && s.valid(corner[q])) sum += weight[q] * z[corner[q]], total += weight[q];
+        b.samples()[k] = total > 0.0 ? sum / total : 0.0;
+      }
+      mask[k] = (hole || outside) ? 0 : 1;
+    }
+}
+
+int WarpedSource::choose_step() const {
+  const int w = grid_.width, h = grid_.height;
+  for (int step = 16; step > 1; step /= 2) {
+    if (step >= w || step >= h) continue;
+    double worst = 0.0;
+    std::vector<Pos> exact, lerped;
+    for (int gj = 0; gj <= 4 && worst <= kPositionTolerance; ++gj)
+      for (int gi = 0; gi <= 4 && worst <= kPositionTolerance; ++gi) {
+        // The cell of the lattice of `step` nearest to this point of a 5 x 5 spread.
+        const int c0 = std::min((w - 1 - step) / step, (w - 1) * gi / 4 / step) * step;
+        const int r0 = std::min((h - 1 - step) / step, (h - 1) * gj / 4 / step) * step;
+        const SampleRect cell{c0, r0, c0 + step, r0 + step};
+        positions(cell, 1, exact);
+        positions(cell, step, lerped);
+        for (std::size_t k = 0; k < exact.size(); ++k) {
+          const double d = std::max(std::abs(exact[k].c - lerped[k].c), std::abs(exact[k].r - lerped[k].r));
+          worst = std::isfinite(d) ? std::max(worst, d) : (std::isfinite(exact[k].c) ? 1e300 : worst);
+        }
+      }
+    if (worst <= kPositionTolerance) return step;
+  }
+  return 1;
+}
+
+pm::Heightfield WarpedSource::read(SampleRect window) const {
+  check_window(window, path_);
+  std::vector<Pos> pos;
+  positions(window, step_, pos);
+  pm::Heightfield b(window.width(), window.height());
+  std::vector<std::uint8_t> mask(b.size(), 1);
+  interpolate(window, window, pos, b, mask);
+  if (std::find(mask.begin(), mask.end(), 0) != mask.end()) b.set_mask(std::move(mask));
+  describe(b, window);
+  return b;
+}
+
+std::uint32_t WarpedSource::samples_crc() const {
+  const int width = grid_.width, rows = std::max(1, (1 << 18) / width);
+  SampleCrc crc;
+  for (int r0 = 0; r0 < grid_.height; r0 += rows) {
+    const pm::Heightfield b = read({0, r0, width - 1, std::min(grid_.height, r0 + rows) - 1});
+    for (int j = 0; j < b.height(); ++j) {
+      const std::size_t at = std::size_t(j) * std::size_t(width);
+      crc.add_row(b.samples().data() + at, b.has_holes() ? b.mask().data() + at : nullptr,
+                  std::size_t(width));
+    }
+  }
+  return crc.value();
+}
+
+}  // namespace
+
+bool frame_warps(const std::string& crs_wkt, bool has_crs_transform, const std::string& crs) {
+  if (crs == "native") return false;
+  if (crs != "auto") return true;
+  register_gdal();
+  QuietGdal quiet;
+  OGRSpatialReference source;
+  return read_crs(crs_wkt, has_crs_transform, source) && source.IsGeographic();
+}
+
+pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const std::string& crs) {
+  if (!frame_warps(hf.crs_wkt, hf.crs_transform.has_value(), crs)) return with_scale_error(std::move(hf));
+  const pm::VoidReport voids = hf.voids;
+  const std::unique_ptr<DemSource> warped = warped_source(path, heightfield_source(std::move(hf)), crs, "");
+  const DemGrid& g = warped->grid();
+  if (g.samples() > (std::uint64_t(1) << 30))
+    throw DemError(path,
+                   "its footprint in its world frame is over 2^30 samples, more than a grid held in memory "
+                   "may have (build reads it window by window: open_dem_source)");
+  // Read in bands of rows, so that the warp's positions (16 bytes a sample) are never held whole.
+  pm::Heightfield r(g.width, g.height);
+  std::vector<std::uint8_t> mask(r.size(), 1);
+  std::size_t holes = 0;
+  const int rows = std::max(1, (1 << 18) / g.width);
+  for (int r0 = 0; r0 < g.height; r0 += rows) {
+    const pm::Heightfield b = warped->read({0, r0, g.width - 1, std::min(g.height, r0 + rows) - 1});
+    const std::size_t at = std::size_t(r0) * std::size_t(g.width);
+    std::copy(b.samples().begin(), b.samples().end(), r.samples().begin() + std::ptrdiff_t(at));
+    for (std::size_t i = 0; i < b.size(); ++i)
+      if (!b.valid(i)) mask[at + i] = 0, ++holes;
+  }
+  if (holes == r.size()) throw DemError(path, "no sample is left after warping it to its world frame");
+  if (holes > 0) r.set_mask(std::move(mask));
+  r.transform = g.transform;
+  r.crs_transform = g.crs_transform;
+  r.crs_wkt = g.crs_wkt;
+  r.voids = voids;
+  r.vertical_datum = g.vertical_datum;
+  r.source = g.source;
+  r.frame = g.frame;
+  return r;
+}
+
+std::optional<double> scale_error_by_reads(const DemGrid& grid,
+                                           const std::function<pm::Heightfield(SampleRect)>& read) {
+  const int width = grid.width, height = grid.height;
+  if (grid.crs_wkt.empty() || !grid.crs_transform) return std::nullopt;
+  constexpr int kStrip = 4096;
+  struct Ends {
+    int row0 = -1;
+    std::vector<std::uint8_t> left, right;
+  } ends;
+  auto first_valid = [&](int r, bool from_left) {
+    for (int k = 0; k < width; k += kStrip) {
+      const int c0 = from_left ? k : std::max(0, width - k - kStrip),
+                c1 = from_left ? std::min(width, k + kStrip) - 1 : width - k - 1;
+      const pm::Heightfield b = read({c0, r, c1, r});
+      for (int i = 0; i < b.width(); ++i) {
+        const int j = from_left ? i : b.width() - 1 - i;
+        if (b.valid(std::size_t(j))) return c0 + j;
+      }
+    }
+    return from_left ? width : -1;
+  };
+  return scale_error(
+      grid.crs_wkt, grid.crs_transform, grid.transform, width, height,
+      [&](int c, int r) {
+        return !read({c, r, c, r}).has_holes();
+      },
+      [&](int r) {
+        if (r < ends.row0 || r >= ends.row0 + int(ends.left.size())) {
+          ends.row0 = r;
+          const int r1 = std::min(height, r + kStrip) - 1;
+          const pm::Heightfield left = read({0, r, 0, r1}), right = read({width - 1, r, width - 1, r1});
+          ends.left.assign(std::size_t(r1 - r + 1), 1);
+          ends.right = ends.left;
+          for (int i = 0; i <= r1 - r; ++i) {
+            ends.left[std::size_t(i)] = left.valid(std::size_t(i)) ? 1 : 0;
+            ends.right[std::size_t(i)] = right.valid(std::size_t(i)) ? 1 : 0;
+          }
+        }
+        const std::size_t i = std::size_t(r - ends.row0);
+        const int first = ends.left[i] ? 0 : first_valid(r, true);
+        if (first == width) return std::pair{width, width - 1};
+        return std::pair{first, ends.right[i] ? width - 1 : first_valid(r, false)};
+      });
+}
+
+std::unique_ptr<DemSource> warped_source(const std::string& path, std::unique_ptr<DemSource> native,
+                                         const std::string& crs, const std::string& height_note) {
+  return std::make_unique<WarpedSource>(path, std::move(native), crs, height_note);
 }
 
 }  // namespace detail

@@ -3,10 +3,13 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
 
+#include "frame_scale.hpp"
+#include "terralod/blocks/dem_grid.hpp"
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks::detail {
@@ -17,19 +20,30 @@ namespace terralod::blocks::detail {
 /// without a CRS to warp from, or a warp GDAL cannot do.
 pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const std::string& crs);
 
+/// The DEM at `path`, served by `native` in its native frame, in the frame `crs` asks for, when
+/// frame_warps says that it warps; window by window when `native` is. Each target sample is the
+/// bilinear interpolation of the native samples at its position in the native grid, a position
+/// found by exact coordinate transformations on a lattice of every step-th sample of every
+/// step-th row of the target grid, bilinear between them; the step (16, 8, 4, 2 or 1) is the
+/// largest whose positions are measured within 1e-3 samples of the exact ones (16 for SRTM
+/// tiles). So a sample's value depends on nothing but its place: any window, read alone or inside a
+/// larger one, gives the same bits. A target sample is a hole when its position lies outside the
+/// native grid's pixels (its height then that of the nearest edge point) or when a native hole
+/// weighs in its interpolation (its height then that of the valid neighbours, or 0). grid().frame
+/// ends with the frame's scale error measured at the valid samples of frame_scale_error's points,
+/// then `height_note`. Throws DemError naming `path` as apply_frame does.
+std::unique_ptr<DemSource> warped_source(const std::string& path, std::unique_ptr<DemSource> native,
+                                         const std::string& crs, const std::string& height_note);
+
+/// frame_scale_error of a grid that is read, not held: the points are found through `read`
+/// (edge columns in strips of rows, then along a row only where its end is a hole).
+std::optional<double> scale_error_by_reads(const DemGrid& grid,
+                                           const std::function<pm::Heightfield(SampleRect)>& read);
+
 /// Whether apply_frame warps a DEM with this CRS (crs_wkt, and a transform to it or not) to the
 /// frame `crs` asks for: never for "native"; for "auto" when the CRS is geographic; always for a
 /// named CRS (even the DEM's own), which apply_frame warps to or refuses.
 bool frame_warps(const std::string& crs_wkt, bool has_crs_transform, const std::string& crs);
-
-/// frame_scale_error (dem_reader.hpp) of a w x h grid known through `valid` (col, row) and
-/// `row_ends` (row -> its first and last valid column, first == w when it has none, last >= first),
-/// so that a grid that is not held can be measured at the same points.
-std::optional<double> scale_error(const std::string& crs_wkt,
-                                  const std::optional<pm::GridTransform>& crs_transform,
-                                  const pm::GridTransform& world, int w, int h,
-                                  const std::function<bool(int, int)>& valid,
-                                  const std::function<std::pair<int, int>(int)>& row_ends);
 
 /// What apply_frame appends to a frame for scale error `e` ("" for nullopt); `automatic`: the
 /// "auto" frame's warning over 0.1 %.

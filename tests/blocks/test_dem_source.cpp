@@ -1,6 +1,6 @@
 // Tests for blocks::open_dem_source: windowed reads of GeoTIFFs, VRT mosaics and .hgt tiles give
 // exactly block_heightfield(read_dem(...)), bit for bit, filled or not, from any window and any
-// number of threads; the in-memory fallback for warped frames and heightmaps; errors.
+// number of threads, warped to a projected frame or not; the in-memory fallback for heightmaps; errors.
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
@@ -176,6 +176,8 @@ void expect_like_read_dem(const std::string& path, const tb::DemOptions& options
 constexpr int kW = 300, kH = 220;
 // UTM zone 19N, 10 m cells: a projected CRS, so the frame carries a measured scale error.
 constexpr std::array<double, 6> kUtm = {300000.0, 10.0, 0.0, 4900000.0, 0.0, -10.0};
+// WGS 84 longitude and latitude, 3 arc-second cells at 44 N: warped by the "auto" frame.
+constexpr std::array<double, 6> kGeographic = {-71.25, 1.0 / 1200.0, 0.0, 44.5, 0.0, -1.0 / 1200.0};
 
 class DemSourceTest : public ::testing::Test {
  protected:
@@ -201,10 +203,13 @@ TEST_F(DemSourceTest, GeoTiffWindowsAreReadDemBlocksFilledOrNot) {
       }
 }
 
-TEST_F(DemSourceTest, VrtOfTilesIsTheSameMosaicAsOneFile) {
+/// A mosaic of 2 x 2 GeoTIFF tiles cut through voids (a VRT, as DemInputs makes) against the same
+/// grid in one file, read with o.crs = `crs`: the same windows, CRC and database, filled or not.
+void expect_vrt_same_as_one_file(const fs::path& dir, const std::array<double, 6>& gt, int epsg,
+                                 const std::string& crs) {
   const std::vector<double> z = terrain(kW, kH);
-  const fs::path whole = dir_ / "whole.tif";
-  write_geotiff(whole, kW, kH, z, GDT_Float32, kUtm, 32619);
+  const fs::path whole = dir / "whole.tif";
+  write_geotiff(whole, kW, kH, z, GDT_Float32, gt, epsg);
   // 2 x 2 tiles split through the blob, the snake and the edge voids.
   const int cs = 97, rs = 70;
   std::vector<std::string> tiles;
@@ -213,18 +218,20 @@ TEST_F(DemSourceTest, VrtOfTilesIsTheSameMosaicAsOneFile) {
       std::vector<double> t;
       for (int r = r0; r < r1; ++r)
         for (int c = c0; c < c1; ++c) t.push_back(z[std::size_t(r) * kW + c]);
-      const fs::path p = dir_ / ("tile_" + std::to_string(r0) + "_" + std::to_string(c0) + ".tif");
+      const fs::path p = dir / ("tile_" + std::to_string(r0) + "_" + std::to_string(c0) + ".tif");
       write_geotiff(p, c1 - c0, r1 - r0, t, GDT_Float32,
-                    {kUtm[0] + c0 * kUtm[1], kUtm[1], 0, kUtm[3] + r0 * kUtm[5], 0, kUtm[5]}, 32619);
+                    {gt[0] + c0 * gt[1], gt[1], 0, gt[3] + r0 * gt[5], 0, gt[5]}, epsg);
       tiles.push_back(p.string());
     }
   const tb::DemInputs vrt(tiles);
   for (const bool fill : {true, false}) {
     tb::DemOptions o;
     o.fill_voids = fill;
+    o.crs = crs;
     expect_like_read_dem(vrt.path(), o, false);
     const auto a = tb::open_dem_source(vrt.path(), o), b = tb::open_dem_source(whole.string(), o);
-    for (const tb::SampleRect& r : windows(kW, kH, 40, 11))
+    const tb::DemGrid& g = a->grid();
+    for (const tb::SampleRect& r : windows(g.width, g.height, 40, 11))
       EXPECT_TRUE(same_block(a->read(r), b->read(r), false));
     EXPECT_EQ(a->samples_crc(), b->samples_crc());
     if (!fill) continue;
@@ -235,7 +242,7 @@ TEST_F(DemSourceTest, VrtOfTilesIsTheSameMosaicAsOneFile) {
     tb::DatabaseBuildOptions opt;
     opt.block_size = 33;
     opt.threads = 2;
-    const std::string da = (dir_ / "vrt.db").string(), db = (dir_ / "whole.db").string();
+    const std::string da = (dir / "vrt.db").string(), db = (dir / "whole.db").string();
     tb::build_database(*a, da, opt);
     tb::build_database(*b, db, opt);
     const tb::BlockDatabase x = tb::BlockDatabase::open(da), y = tb::BlockDatabase::open(db);
@@ -248,6 +255,16 @@ TEST_F(DemSourceTest, VrtOfTilesIsTheSameMosaicAsOneFile) {
       EXPECT_EQ(x.read_blob(blob), y.read_blob(blob)) << blob;
     }
   }
+}
+
+TEST_F(DemSourceTest, VrtOfTilesIsTheSameMosaicAsOneFile) {
+  expect_vrt_same_as_one_file(dir_, kUtm, 32619, "auto");
+}
+
+// A geographic mosaic in the "auto" frame is warped window by window: the voids cut by the tiles'
+// edges are filled in the native grid, then every warped window is the same as the one-file one's.
+TEST_F(DemSourceTest, WarpedVrtOfGeographicTilesIsTheSameMosaicAsOneFile) {
+  expect_vrt_same_as_one_file(dir_, kGeographic, 4326, "auto");
 }
 
 // An all-void DEM: read_dem refuses it at once. A windowed source refuses it when a read grows
@@ -278,7 +295,7 @@ TEST_F(DemSourceTest, AllVoidDemIsRefusedAndLeavesNoDatabase) {
     }
 }
 
-TEST_F(DemSourceTest, HgtNativeIsWindowedAutoIsInMemory) {
+TEST_F(DemSourceTest, HgtIsWindowedNativeOrWarped) {
   const int n = 201;
   std::vector<double> z = terrain(n, n);
   for (double& v : z) v = std::isfinite(v) ? std::round(v) : v;
@@ -288,14 +305,14 @@ TEST_F(DemSourceTest, HgtNativeIsWindowedAutoIsInMemory) {
     tb::DemOptions o;
     o.fill_voids = fill;
     expect_like_read_dem(hgt.string(), o, false);
-    o.crs = "auto";  // geographic: warped, so read whole
-    expect_like_read_dem(hgt.string(), o, true);
+    o.crs = "auto";  // geographic: warped, window by window too
+    expect_like_read_dem(hgt.string(), o, false);
   }
   const fs::path real = "/work/shared/data/N44W072.hgt";
   if (fs::exists(real)) expect_like_read_dem(real.string(), {}, false);
 }
 
-TEST_F(DemSourceTest, HeightmapsAndNamedCrsAreInMemory) {
+TEST_F(DemSourceTest, HeightmapsAreInMemoryNamedCrsIsWindowed) {
   const fs::path png = dir_ / "island.png";
   std::vector<std::uint16_t> px(64 * 48);
   for (std::size_t i = 0; i < px.size(); ++i) px[i] = std::uint16_t((i * 7919) % 4000);
@@ -325,9 +342,10 @@ TEST_F(DemSourceTest, HeightmapsAndNamedCrsAreInMemory) {
   write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);
   tb::DemOptions named;
   named.crs = "EPSG:32619";  // a named CRS warps, even to the DEM's own
-  const auto src = tb::open_dem_source(tif.string(), named);
-  EXPECT_TRUE(src->in_memory());
-  expect_same_grid(src->grid(), tb::DemGrid::of(tb::read_dem(tif.string(), named)));
+  expect_like_read_dem(tif.string(), named, false);
+  named.crs = "EPSG:32618";  // the next zone west: cells outside the footprint
+  expect_like_read_dem(tif.string(), named, false);
+  const auto src = tb::heightfield_source(tb::read_dem(tif.string(), named));
 
   // set_source renames what every read gives, in memory as windowed (a PM records it: a mosaic's
   // blocks are named after its description, not the VRT's in-memory path).
@@ -375,17 +393,22 @@ TEST_F(DemSourceTest, RegionOverTheCapStaysAHoleInEveryWindow) {
 TEST_F(DemSourceTest, ConcurrentReadersGetTheSameBlocks) {
   const fs::path tif = dir_ / "c.tif";
   write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Int16, kUtm, 32619);
-  const Heightfield hf = tb::read_dem(tif.string());
-  const auto src = tb::open_dem_source(tif.string());
-  std::vector<int> failures(4, 0);
-  std::vector<std::thread> threads;
-  for (int t = 0; t < 4; ++t)
-    threads.emplace_back([&, t] {
-      for (const tb::SampleRect& r : windows(kW, kH, 150, 100 + unsigned(t)))
-        if (!same_block(src->read(r), tb::block_heightfield(hf, r))) ++failures[std::size_t(t)];
-    });
-  for (std::thread& t : threads) t.join();
-  for (int f : failures) EXPECT_EQ(f, 0);
+  const fs::path geo = dir_ / "g.tif";  // warped: a pool of coordinate transformations
+  write_geotiff(geo, kW, kH, terrain(kW, kH), GDT_Int16, kGeographic, 4326);
+  for (const fs::path& p : {tif, geo}) {
+    const Heightfield hf = tb::read_dem(p.string());
+    const auto src = tb::open_dem_source(p.string());
+    ASSERT_FALSE(src->in_memory());
+    std::vector<int> failures(4, 0);
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t)
+      threads.emplace_back([&, t] {
+        for (const tb::SampleRect& r : windows(hf.width(), hf.height(), 150, 100 + unsigned(t)))
+          if (!same_block(src->read(r), tb::block_heightfield(hf, r))) ++failures[std::size_t(t)];
+      });
+    for (std::thread& t : threads) t.join();
+    for (int f : failures) EXPECT_EQ(f, 0) << p;
+  }
 }
 
 TEST_F(DemSourceTest, GdalCacheIsCappedWhileOpen) {

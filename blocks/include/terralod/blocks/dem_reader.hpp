@@ -71,12 +71,14 @@
 //     options.heightmap_spacing, the south-west sample at (0, 0), so x0 = 0 and
 //     y0 = (height - 1) * spacing.
 //   - DemOptions::crs = "auto", geographic CRS: the DEM is read (and its voids filled) as above,
-//     then warped by GDAL (bilinear, exact transformations) to the azimuthal equidistant
-//     projection on the source's ellipsoid, centred on the DEM, onto a north-up grid of cells of
+//     then warped (warped_source in dem_frame.hpp: bilinear at positions within 1e-3 samples of
+//     the exact transformation, the same code open_dem_source reads windows with) to the azimuthal
+//     equidistant projection on the source's ellipsoid, centred on the DEM, onto a north-up grid of cells of
 //     the source's east-west and north-south ground spacings at its centre (not square: about the
 //     source's sample count) covering the source's footprint; cells outside the footprint, and
-//     voids kept as holes, are holes (mask 0, their heights a harmonic fill for the surfaces drawn
-//     through them, never valid samples). World = k0 * projected metres with k0 = 2 / (1 + c_max / sin
+//     voids kept as holes, are holes (mask 0, never valid samples; their heights, for the surfaces
+//     drawn through them, are those at the nearest point of the footprint, or of the valid
+//     neighbours of a kept void). World = k0 * projected metres with k0 = 2 / (1 + c_max / sin
 //     c_max), c_max = the angular distance of the farthest DEM corner from the centre: the radial scale (1)
 //     and the tangential one (c / sin c) are then balanced, so distances are true to within about c_max^2 /
 //     12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees. Larger DEMs need a CRS
@@ -113,6 +115,7 @@
 #include <string>
 #include <vector>
 
+#include "terralod/blocks/dem_grid.hpp"  // frame_scale_error
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks {
@@ -159,14 +162,6 @@ class DemError : public std::runtime_error {
 /// the world frame and void handling). Throws DemError on bad data; std::invalid_argument
 /// when options hold an invalid value (non-finite or zero scale, spacing <= 0).
 pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {});
-
-/// The worst relative scale error of hf's world frame against its CRS's ellipsoid: the largest
-/// |sigma - 1| over the singular values sigma of the map (east, north metres on the ellipsoid)
-/// -> world metres, at a 33 x 33 lattice of valid samples and at both ends of every row of
-/// valid samples. Distances measured in the world frame are true to within this fraction
-/// (locally; along any path of valid samples). nullopt when hf has no CRS (or PROJ cannot
-/// place it). Costs a few milliseconds.
-std::optional<double> frame_scale_error(const pm::Heightfield& hf);
 
 /// The inputs of `terralod build --input` as one raster for read_dem: a single file as it is;
 /// several files, or a folder (its raster files: .tif .tiff .hgt .asc .img .dem .bil .flt, sorted

@@ -21,67 +21,26 @@
 //   samples_crc   CRC-32 (pm::crc32_of) of the grid's samples as doubles in row-major order, then of
 //                 its mask bytes when the grid has a hole: what the database's build parameters
 //                 record so that a resumed build checks it reads the same terrain.
-//   in_memory     true when the whole grid is held (heightfield_source, or a frame that needs the
-//                 whole raster, such as a warp); false when read() reads the file each time.
+//   in_memory     true when the whole grid is held (heightfield_source, or an input read whole,
+//                 such as a heightmap image); false when read() reads the file each time.
 //   Errors: reading a file throws DemError naming it.
 #pragma once
 
-#include <cstdint>
 #include <memory>
-#include <optional>
 #include <string>
 
+#include "terralod/blocks/dem_grid.hpp"
 #include "terralod/blocks/dem_reader.hpp"
-#include "terralod/blocks/sample_rect.hpp"
-#include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks {
 
-/// What a DEM is, without its samples: the fields of pm::Heightfield that describe the grid.
-struct DemGrid {
-  int width = 0, height = 0;
-  pm::GridTransform transform;                     ///< sample (col, row) -> world metres
-  std::string crs_wkt;                             ///< Heightfield::crs_wkt
-  std::optional<pm::GridTransform> crs_transform;  ///< Heightfield::crs_transform
-  std::string vertical_datum;                      ///< Heightfield::vertical_datum
-  std::string source;                              ///< Heightfield::source
-  std::string frame;                               ///< Heightfield::frame
-  std::optional<double> scale_error;               ///< frame_scale_error of the DEM (dem_reader.hpp)
-
-  /// The grid of `hf` (its samples left out; scale_error = frame_scale_error(hf)).
-  static DemGrid of(const pm::Heightfield& hf);
-  /// Samples in the grid.
-  std::uint64_t samples() const { return std::uint64_t(width) * std::uint64_t(height); }
-};
-
-class DemSource {
- public:
-  virtual ~DemSource() = default;
-  const DemGrid& grid() const { return grid_; }
-  /// Names the input as the database records it (DemInputs::description()).
-  void set_source(std::string source) { grid_.source = std::move(source); }
-  /// The samples of `window` (see the header comment).
-  virtual pm::Heightfield read(SampleRect window) const = 0;
-  /// CRC-32 of the samples and mask (see the header comment).
-  virtual std::uint32_t samples_crc() const = 0;
-  /// Whether the whole grid is in memory.
-  virtual bool in_memory() const = 0;
-
- protected:
-  DemGrid grid_;
-};
-
-/// A DemSource over `hf`, which must outlive it (no copy is made).
-std::unique_ptr<DemSource> heightfield_source(const pm::Heightfield& hf);
-/// A DemSource that owns `hf`.
-std::unique_ptr<DemSource> heightfield_source(pm::Heightfield&& hf);
-
 /// The DEM at `path` as read_dem(path, options) reads it, windowed when that is possible: GDAL
-/// rasters (GeoTIFF, VRT mosaics such as DemInputs makes, ...) and SRTM .hgt tiles whose world
-/// frame needs no warp: options.crs "native", or "auto" for a projected CRS or none. A named CRS
-/// is always a warp (even the DEM's own CRS), as is "auto" for a geographic one. Other inputs
-/// (heightmap images, a .tif without georeference read as Format::Auto, ASCII grids, warped
-/// frames) are read whole by read_dem and held by the source (in_memory() true).
+/// rasters (GeoTIFF, VRT mosaics such as DemInputs makes, ...) and SRTM .hgt tiles, in any
+/// frame. A frame that warps (a named CRS, even the DEM's own; "auto" for a geographic CRS) reads,
+/// for each window, the native window under it (dem_frame.hpp's warped_source, which read_dem
+/// warps with too), its grid() measured when opening. Other inputs (heightmap images, a .tif
+/// without georeference read as Format::Auto, ASCII grids) are read whole by read_dem and held
+/// by the source (in_memory() true).
 /// Windowed: read() reads its window (grown while a void region meeting it is cut by its edge,
 /// then cut back) from the file each time; grid() is read from the header when opening, plus,
 /// for a grid with a CRS, the valid samples at read_dem's scale-error points (a 33 x 33 lattice

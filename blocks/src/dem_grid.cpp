@@ -1,9 +1,12 @@
-// DemSource over a Heightfield in memory, and DemGrid::of (dem_source.hpp). The windowed GDAL
-// source lives beside the readers it shares code with (dem_windows.cpp).
-#include "terralod/blocks/dem_source.hpp"
+// DemSource over a Heightfield in memory, and DemGrid::of (dem_grid.hpp). The windowed GDAL
+// source lives beside the readers it shares code with (dem_windows.cpp); frame_scale_error beside
+// the scale error it measures through (frame_scale.cpp).
+#include "terralod/blocks/dem_grid.hpp"
 
 #include <cstdint>
 #include <span>
+#include <stdexcept>
+#include <tuple>
 
 #include "terralod/blocks/partition.hpp"
 #include "terralod/pm/byte_io.hpp"
@@ -22,6 +25,20 @@ DemGrid DemGrid::of(const pm::Heightfield& hf) {
   g.frame = hf.frame;
   g.scale_error = frame_scale_error(hf);
   return g;
+}
+
+void DemSource::check_window(SampleRect window, const std::string& name) const {
+  if (window.col0 < 0 || window.row0 < 0 || window.col1 >= grid_.width || window.row1 >= grid_.height ||
+      window.col0 > window.col1 || window.row0 > window.row1)
+    throw std::invalid_argument(name + ": window outside the grid");
+}
+
+void DemSource::describe(pm::Heightfield& b, SampleRect window) const {
+  b.transform = grid_.transform;
+  std::tie(b.transform.x0, b.transform.y0) = grid_.transform.to_world(window.col0, window.row0);
+  b.crs_wkt = grid_.crs_wkt;
+  b.source = grid_.source;
+  b.frame = grid_.frame;
 }
 
 namespace {

@@ -1,0 +1,118 @@
+// detail::scale_error and its coordinate helpers (frame_scale.hpp), and frame_scale_error
+// (dem_grid.hpp), which measures a grid held in memory through it.
+#include "frame_scale.hpp"
+
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <tuple>
+
+#include "gdal_support.hpp"
+#include "terralod/blocks/dem_grid.hpp"
+
+namespace terralod::blocks {
+
+namespace detail {
+
+namespace {
+constexpr double kDeg = std::numbers::pi / 180.0;
+}  // namespace
+
+void TransformDeleter::operator()(OGRCoordinateTransformation* t) const {
+  OGRCoordinateTransformation::DestroyCT(t);
+}
+
+bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vector<double>& y) {
+  std::vector<int> ok(x.size(), 0);
+  if (x.empty()) return true;
+  if (!ct.Transform(int(x.size()), x.data(), y.data(), nullptr, ok.data())) return false;
+  return std::all_of(ok.begin(), ok.end(), [](int v) { return v != 0; });
+}
+
+std::optional<double> scale_error(const std::string& crs_wkt,
+                                  const std::optional<pm::GridTransform>& crs_transform,
+                                  const pm::GridTransform& world, int w, int h,
+                                  const std::function<bool(int, int)>& valid,
+                                  const std::function<std::pair<int, int>(int)>& row_ends) {
+  if (crs_wkt.empty() || !crs_transform) return std::nullopt;
+  register_gdal();
+  QuietGdal quiet;
+  OGRSpatialReference crs;
+  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
+  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
+  if (!geog) return std::nullopt;
+  geog->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  Transform to_geog(OGRCreateCoordinateTransformation(&crs, geog.get()));
+  Transform to_crs(OGRCreateCoordinateTransformation(geog.get(), &crs));
+  if (!to_geog || !to_crs) return std::nullopt;
+  const double a = crs.GetSemiMajor(), b = crs.GetSemiMinor(), e2 = 1.0 - (b * b) / (a * a);
+
+  // Where to measure: a 33 x 33 lattice and both ends of every row, valid samples only.
+  std::vector<double> cols, rows;
+  auto add = [&](int c, int r) {
+    if (valid(c, r)) cols.push_back(c), rows.push_back(r);
+  };
+  for (int i = 0; i <= 32; ++i)
+    for (int j = 0; j <= 32; ++j)
+      add(int(std::lround((w - 1) * i / 32.0)), int(std::lround((h - 1) * j / 32.0)));
+  for (int r = 0; r < h; ++r) {
+    const auto [first, last] = row_ends(r);
+    if (first < w)
+      cols.insert(cols.end(), {double(first), double(last)}), rows.insert(rows.end(), {double(r), double(r)});
+  }
+  std::vector<double> lon(cols.size()), lat(cols.size());
+  for (std::size_t i = 0; i < cols.size(); ++i)
+    std::tie(lon[i], lat[i]) = crs_transform->to_world(cols[i], rows[i]);
+  if (!transform(*to_geog, lon, lat)) return std::nullopt;
+
+  // Four neighbours at +-step degrees, through the CRS and the samples to the world frame.
+  constexpr double step = 1e-3;
+  std::vector<double> x, y;
+  for (std::size_t i = 0; i < lon.size(); ++i) {
+    x.insert(x.end(), {lon[i] + step, lon[i] - step, lon[i], lon[i]});
+    y.insert(y.end(), {lat[i], lat[i], lat[i] + step, lat[i] - step});
+  }
+  if (!transform(*to_crs, x, y)) return std::nullopt;
+  const Affine samples{*crs_transform};
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    const auto [c, r] = samples.inverse(x[k], y[k]);
+    std::tie(x[k], y[k]) = world.to_world(c, r);
+  }
+  double worst = 0.0;
+  for (std::size_t i = 0; i < lon.size(); ++i) {
+    const double phi = lat[i] * kDeg, s = std::sin(phi);
+    if (std::abs(lat[i]) > 89.9) continue;  // the east metres per degree vanish at a pole
+    const double n = a / std::sqrt(1.0 - e2 * s * s), m = n * (1.0 - e2) / (1.0 - e2 * s * s);
+    const double east = n * std::cos(phi) * kDeg * 2.0 * step, north = m * kDeg * 2.0 * step;
+    const std::size_t k = 4 * i;
+    const double ex = (x[k] - x[k + 1]) / east, ey = (y[k] - y[k + 1]) / east;
+    const double nx = (x[k + 2] - x[k + 3]) / north, ny = (y[k + 2] - y[k + 3]) / north;
+    const double t = ex * ex + ey * ey + nx * nx + ny * ny, d = std::abs(ex * ny - nx * ey);
+    const double root = std::sqrt(std::max(0.0, t * t - 4.0 * d * d));
+    const double s1 = std::sqrt(0.5 * (t + root)), s2 = std::sqrt(std::max(0.0, 0.5 * (t - root)));
+    worst = std::max({worst, std::abs(s1 - 1.0), std::abs(s2 - 1.0)});
+  }
+  return worst;
+}
+
+}  // namespace detail
+
+std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
+  const int w = hf.width();
+  return detail::scale_error(
+      hf.crs_wkt, hf.crs_transform, hf.transform, w, hf.height(),
+      [&](int c, int r) { return hf.valid(c, r); },
+      [&](int r) {
+        int first = 0, last = w - 1;
+        while (first < w && !hf.valid(first, r)) ++first;
+        while (last > first && !hf.valid(last, r)) --last;
+        return std::pair{first, last};
+      });
+}
+
+}  // namespace terralod::blocks

@@ -1,0 +1,47 @@
+// Private to terralod::blocks: the worst scale error of a georeferenced frame (detail::scale_error,
+// measured against the CRS's ellipsoid at frame_scale_error's points, dem_grid.hpp) and the
+// coordinate helpers it shares with the frames' warp (dem_frame.cpp). Below both dem_grid and
+// dem_reader: it includes neither.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "terralod/pm/heightfield.hpp"
+
+class OGRCoordinateTransformation;
+
+namespace terralod::blocks::detail {
+
+struct TransformDeleter {
+  void operator()(OGRCoordinateTransformation* t) const;
+};
+/// An owned GDAL coordinate transformation.
+using Transform = std::unique_ptr<OGRCoordinateTransformation, TransformDeleter>;
+
+/// Transforms the points in place; false when any fails.
+bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vector<double>& y);
+
+/// (col, row) -> (x, y) of an affine map and back.
+struct Affine {
+  pm::GridTransform t;
+  std::pair<double, double> inverse(double x, double y) const {
+    const double det = t.xc * t.yr - t.xr * t.yc, dx = x - t.x0, dy = y - t.y0;
+    return {(t.yr * dx - t.xr * dy) / det, (t.xc * dy - t.yc * dx) / det};
+  }
+};
+
+/// frame_scale_error of a w x h grid known through `valid` (col, row) and `row_ends` (row -> its
+/// first and last valid column, first == w when it has none, last >= first), so that a grid that
+/// is not held can be measured at the same points.
+std::optional<double> scale_error(const std::string& crs_wkt,
+                                  const std::optional<pm::GridTransform>& crs_transform,
+                                  const pm::GridTransform& world, int w, int h,
+                                  const std::function<bool(int, int)>& valid,
+                                  const std::function<std::pair<int, int>(int)>& row_ends);
+
+}  // namespace terralod::blocks::detail
