@@ -15,7 +15,7 @@ for arg in "$@"; do
   esac
 done
 # The tests the ASan pass leaves to the Release pass (their reasons are where the ASan pass is set up).
-asan_exclude='RealTileFull|test_build_memory|test_cli|test_render_cli|test_texture_rules|test_texture_symbols|OpenMeshBuild.TriangleCountsAlikeTheBuilders|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu|SelectiveRefinement.BoxesNeedFewerTrianglesThanSpheres|ProgressiveMesh.WithoutParallelStripsNoColumnStaysAtFullResolution'
+asan_exclude='RealTileFull|WarpedVrtOfGeographicTiles|test_build_memory|test_cli|test_render_cli|test_texture_rules|test_texture_symbols|OpenMeshBuild.TriangleCountsAlikeTheBuilders|test_cesium_client|test_gltf_validator|KauaiVoids|test_database_build|test_build_mpi|test_bench|test_fly|test_texture_store|test_cmd_|test_bad_input_tools|TerrainRuntime.HighAndHorizon|TerrainRuntime.FastTurns|TerrainRuntime.EveryKindOfCoarse|TerrainRuntime.EveryPairOfCoarseKinds|TerrainRuntimeLoading.RandomFlights|TerrainRuntimeLoading.StandIns|TerrainRuntimeLoading.ScriptedFlight|TerrainRuntime.CurvedFlightMisses|RuntimeGeomorph.PerFrameChange|SelectiveRefinement.GuaranteeOnScriptedFlights|Timing.GeomorphGpuVsCpu|SelectiveRefinement.BoxesNeedFewerTrianglesThanSpheres|ProgressiveMesh.WithoutParallelStripsNoColumnStaysAtFullResolution'
 bash scripts/install-deps.sh
 # Every C++ file follows .clang-format (fix with: git ls-files '*.cpp' '*.hpp' | xargs clang-format -i).
 git ls-files '*.cpp' '*.hpp' | xargs clang-format --dry-run -Werror
@@ -78,7 +78,8 @@ timed() {  # timed LABEL COMMAND...: runs the command, then prints how long it t
 # test_texture_rules, test_texture_symbols: about 4 CPU-minutes under ASan, each terralod start instrumented) join the
 # other end-to-end tests in the normal pass; the library code under them runs instrumented in the
 # unit tests. So does the triangle-count comparison of the OpenMesh reference build (a
-# measurement; its guarantee tests run).
+# measurement; its guarantee tests run). The warped mosaic's database comparison
+# (WarpedVrtOfGeographicTiles) runs the warp the other DemSource tests run instrumented.
 # The test executables excluded whole are not built (nor what only they need, such as terralod-fly).
 asan_unbuilt='^(test_cli|test_render_cli|test_texture_rules|test_texture_symbols|test_cesium_client|test_gltf_validator|test_database_build|test_build_mpi|test_bench|test_fly.*|test_texture_store|test_cmd_.*|test_bad_input_tools)$'
 asan_images='dem_reader|test_bad_input|test_fuzz_regressions'
