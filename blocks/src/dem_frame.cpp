@@ -472,10 +472,12 @@ std::optional<double> scale_error_by_reads(const DemGrid& grid,
     int row0 = -1;
     std::vector<std::uint8_t> left, right;
   } ends;
+  // Segments from the row's end, 256 samples first (a row's valid samples usually start within a
+  // few of its end: a warped frame's slanted edges), doubling up to kStrip.
   auto first_valid = [&](int r, bool from_left) {
-    for (int k = 0; k < width; k += kStrip) {
-      const int c0 = from_left ? k : std::max(0, width - k - kStrip),
-                c1 = from_left ? std::min(width, k + kStrip) - 1 : width - k - 1;
+    for (int k = 0, len = 256; k < width; k += len, len = std::min(kStrip, 2 * len)) {
+      const int c0 = from_left ? k : std::max(0, width - k - len),
+                c1 = from_left ? std::min(width, k + len) - 1 : width - k - 1;
       const pm::Heightfield b = read({c0, r, c1, r});
       for (int i = 0; i < b.width(); ++i) {
         const int j = from_left ? i : b.width() - 1 - i;

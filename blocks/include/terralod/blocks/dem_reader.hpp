@@ -71,8 +71,8 @@
 //     options.heightmap_spacing, the south-west sample at (0, 0), so x0 = 0 and
 //     y0 = (height - 1) * spacing.
 //   - DemOptions::crs = "auto", geographic CRS: the DEM is read (and its voids filled) as above,
-//     then warped (warped_source in dem_frame.hpp: bilinear at positions within 1e-3 samples of
-//     the exact transformation, the same code open_dem_source reads windows with) to the azimuthal
+//     then warped (warped_source in dem_frame.hpp: bilinear at positions measured within 1e-3
+//     samples of the exact transformation, the same code open_dem_source reads windows with) to the azimuthal
 //     equidistant projection on the source's ellipsoid, centred on the DEM, onto a north-up grid of cells of
 //     the source's east-west and north-south ground spacings at its centre (not square: about the
 //     source's sample count) covering the source's footprint; cells outside the footprint, and
