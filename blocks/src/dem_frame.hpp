@@ -22,7 +22,8 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
 
 /// The DEM at `path`, served by `native` in its native frame, in the frame `crs` asks for, when
 /// frame_warps says that it warps; window by window when `native` is. Each target sample is the
-/// bilinear interpolation of the native samples at its position in the native grid, a position
+/// bilinear interpolation of the native samples, rounded to a multiple of 1/64 m (so that blocks
+/// store heights as integers), at its position in the native grid, a position
 /// found by exact coordinate transformations on a lattice of every step-th sample of every
 /// step-th row of the target grid, bilinear between them; the step (16, 8, 4, 2 or 1) is the
 /// largest whose positions are measured within 1e-3 samples of the exact ones (16 for SRTM
