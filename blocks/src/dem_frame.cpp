@@ -94,6 +94,16 @@ bool read_crs(const std::string& crs_wkt, bool has_crs_transform, OGRSpatialRefe
          !source.IsEmpty();
 }
 
+/// Reads the whole grid of `src` through read(), top to bottom, in bands of whole rows of about
+/// 2^18 samples: `band(row0, b)` gets each, so that no pass holds the grid (or a warp's
+/// positions, 16 bytes a sample) whole.
+void for_each_band(const DemSource& src, const std::function<void(int, const pm::Heightfield&)>& band) {
+  const DemGrid& g = src.grid();
+  const int rows = std::max(1, (1 << 18) / g.width);
+  for (int r0 = 0; r0 < g.height; r0 += rows)
+    band(r0, src.read({0, r0, g.width - 1, std::min(g.height, r0 + rows) - 1}));
+}
+
 /// warped_source's DemSource (dem_frame.hpp). The target grid is the footprint of the native
 /// grid's pixels in the target CRS (every pixel edge along its sides), with the native ground
 /// spacing at its centre east-west and north-south apart: the grid keeps about the native number
@@ -414,16 +424,12 @@ pm::Heightfield WarpedSource::read(SampleRect window) const {
 }
 
 std::uint32_t WarpedSource::samples_crc() const {
-  const int width = grid_.width, rows = std::max(1, (1 << 18) / width);
+  const std::size_t width = std::size_t(grid_.width);
   SampleCrc crc;
-  for (int r0 = 0; r0 < grid_.height; r0 += rows) {
-    const pm::Heightfield b = read({0, r0, width - 1, std::min(grid_.height, r0 + rows) - 1});
-    for (int j = 0; j < b.height(); ++j) {
-      const std::size_t at = std::size_t(j) * std::size_t(width);
-      crc.add_row(b.samples().data() + at, b.has_holes() ? b.mask().data() + at : nullptr,
-                  std::size_t(width));
-    }
-  }
+  for_each_band(*this, [&](int, const pm::Heightfield& b) {
+    for (std::size_t at = 0; at < b.size(); at += width)
+      crc.add_row(b.samples().data() + at, b.has_holes() ? b.mask().data() + at : nullptr, width);
+  });
   return crc.value();
 }
 
@@ -447,18 +453,15 @@ pm::Heightfield apply_frame(const std::string& path, pm::Heightfield hf, const s
     throw DemError(path,
                    "its footprint in its world frame is over 2^30 samples, more than a grid held in memory "
                    "may have (build reads it window by window: open_dem_source)");
-  // Read in bands of rows, so that the warp's positions (16 bytes a sample) are never held whole.
   pm::Heightfield r(g.width, g.height);
   std::vector<std::uint8_t> mask(r.size(), 1);
   std::size_t holes = 0;
-  const int rows = std::max(1, (1 << 18) / g.width);
-  for (int r0 = 0; r0 < g.height; r0 += rows) {
-    const pm::Heightfield b = warped->read({0, r0, g.width - 1, std::min(g.height, r0 + rows) - 1});
+  for_each_band(*warped, [&](int r0, const pm::Heightfield& b) {
     const std::size_t at = std::size_t(r0) * std::size_t(g.width);
     std::copy(b.samples().begin(), b.samples().end(), r.samples().begin() + std::ptrdiff_t(at));
     for (std::size_t i = 0; i < b.size(); ++i)
       if (!b.valid(i)) mask[at + i] = 0, ++holes;
-  }
+  });
   if (holes == r.size()) throw DemError(path, "no sample is left after warping it to its world frame");
   if (holes > 0) r.set_mask(std::move(mask));
   r.transform = g.transform;

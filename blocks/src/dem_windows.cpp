@@ -1,6 +1,7 @@
 // open_dem_source (dem_source.hpp): DemSources that read a GDAL raster or an SRTM .hgt tile window
 // by window, through the header, georeference and sample code of read_dem (dem_raster.hpp),
-// and, for every input whose frame needs the whole raster, read_dem's grid served by heightfield_source.
+// under a warped source (dem_frame.hpp) when the frame warps; and, for the inputs read whole
+// (heightmap images, ASCII grids), read_dem's grid served by heightfield_source.
 //
 // read(window): the window's raw samples, then fill_voids_in_window; while a void region that
 // meets the window is cut by the window's edge (VoidFillStats::open), the window grows to hold

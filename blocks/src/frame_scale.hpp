@@ -1,7 +1,8 @@
 // Private to terralod::blocks: the worst scale error of a georeferenced frame (detail::scale_error,
 // measured against the CRS's ellipsoid at frame_scale_error's points, dem_grid.hpp) and the
-// coordinate helpers it shares with the frames' warp (dem_frame.cpp). Below both dem_grid and
-// dem_reader: it includes neither.
+// coordinate helpers it shares with the frames' warp (dem_frame.cpp). Below dem_reader, which it
+// never includes; this header includes neither dem_reader.hpp nor dem_grid.hpp (frame_scale.cpp
+// defines dem_grid.hpp's frame_scale_error).
 #pragma once
 
 #include <functional>

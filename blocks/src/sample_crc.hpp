@@ -20,7 +20,7 @@ class SampleCrc {
   /// One row of n samples; valid[i] == 0 marks a hole (nullptr: none).
   void add_row(const double* z, const std::uint8_t* valid, std::size_t n) {
     crc_ = pm::crc32_of({reinterpret_cast<const std::uint8_t*>(z), n * sizeof(double)}, crc_);
-    ones_.assign(n, 1);
+    if (valid == nullptr && ones_.size() != n) ones_.assign(n, 1);
     const std::uint8_t* m = valid != nullptr ? valid : ones_.data();
     for (std::size_t i = 0; i < n && !holes_; ++i) holes_ = m[i] == 0;
     mask_crc_ = pm::crc32_of({m, n}, mask_crc_);
@@ -34,7 +34,7 @@ class SampleCrc {
   std::uint32_t crc_ = 0, mask_crc_ = 0;
   bool holes_ = false;
   std::uint64_t samples_ = 0;
-  std::vector<std::uint8_t> ones_;
+  std::vector<std::uint8_t> ones_;  ///< the mask of a row without holes, kept between rows
 };
 
 }  // namespace terralod::blocks::detail
