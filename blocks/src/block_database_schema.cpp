@@ -11,6 +11,7 @@
 #include <sqlite3.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cassert>
 #include <cerrno>
@@ -18,6 +19,8 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <system_error>
 #include <utility>
 
@@ -199,9 +202,29 @@ void detail::read_info(BlockDatabaseImpl& d, DatabaseInfo& info, int& format_ver
 
 namespace {
 
-/// Identifies the file as a terralod database of a readable version with the expected schema.
-void check_identity(BlockDatabaseImpl& d) {
+/// What a file's header says about it: its application id and number of schema objects, and
+/// whether it is what a killed create() leaves (block_database.hpp). Throws DatabaseError when
+/// the header cannot be read for another reason (not SQLite, I/O error).
+struct Identity {
   std::int64_t app_id = 0, objects = 0;
+  bool interrupted_create = false;
+};
+
+/// True when the rollback journal at `journal` restores a file of 0 pages: rolling it back
+/// leaves nothing. create() switches its new, empty file to WAL mode through such a journal.
+/// SQLite's journal header: 8 magic bytes, then big-endian 32-bit page count, nonce, and the
+/// database's size in pages before the transaction (https://www.sqlite.org/fileformat.html).
+bool journal_of_an_empty_file(const std::string& journal) {
+  static constexpr unsigned char kMagic[8] = {0xd9, 0xd5, 0x05, 0xf9, 0x20, 0xa1, 0x63, 0xd7};
+  unsigned char h[20] = {};
+  std::ifstream f(journal, std::ios::binary);
+  if (!f.read(reinterpret_cast<char*>(h), sizeof h)) return false;
+  return std::equal(std::begin(kMagic), std::end(kMagic), h) && h[16] == 0 && h[17] == 0 && h[18] == 0 &&
+         h[19] == 0;
+}
+
+Identity read_identity(BlockDatabaseImpl& d) {
+  Identity id;
   {
     OneOff st(d, "PRAGMA application_id", "not a terralod database");
     const int rc = sqlite3_step(st);
@@ -211,18 +234,31 @@ void check_identity(BlockDatabaseImpl& d) {
       // A terralod database is in WAL mode from its first commit on and never has a hot rollback
       // journal, except when create() was killed while switching the new file to WAL mode (a
       // ReadOnly connection cannot roll it back; a ReadWrite one would, leaving an empty file).
-      if (ext == SQLITE_READONLY_ROLLBACK) d.fail("not a terralod database (interrupted create?)");
+      if (ext == SQLITE_READONLY_ROLLBACK) {
+        id.interrupted_create = journal_of_an_empty_file(d.path + "-journal");
+        if (!id.interrupted_create) d.fail("has a hot rollback journal (not a terralod database)");
+        return id;
+      }
       d.check(rc, "cannot read the database header");
     }
-    app_id = sqlite3_column_int64(st, 0);
+    id.app_id = sqlite3_column_int64(st, 0);
   }
   {
     OneOff st(d, "SELECT count(*) FROM sqlite_schema", "cannot read the schema");
     const int rc = sqlite3_step(st);
     if (rc != SQLITE_ROW) d.check(rc, "cannot read the schema");
-    objects = sqlite3_column_int64(st, 0);
+    id.objects = sqlite3_column_int64(st, 0);
   }
-  if (app_id == 0 && objects == 0) d.fail("not a terralod database (interrupted create?)");
+  // Before create()'s one commit the file has neither an identity nor a table.
+  id.interrupted_create = id.app_id == 0 && id.objects == 0;
+  return id;
+}
+
+/// Identifies the file as a terralod database of a readable version with the expected schema.
+void check_identity(BlockDatabaseImpl& d) {
+  const Identity id = read_identity(d);
+  if (id.interrupted_create) d.fail("not a terralod database (interrupted create?)");
+  const std::int64_t app_id = id.app_id;
   if (app_id != kApplicationId) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "application_id 0x%08llx", static_cast<unsigned long long>(app_id));
@@ -310,6 +346,18 @@ BlockDatabase BlockDatabase::create(const std::string& path, const DatabaseInfo&
     remove_quietly(path + "-wal");
     remove_quietly(path + "-shm");
     throw;
+  }
+}
+
+bool BlockDatabase::is_interrupted_create(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return false;
+  try {
+    // ReadOnly: a ReadWrite connection would roll a hot journal back, changing the file.
+    auto impl = connect(path, Mode::ReadOnly);
+    return read_identity(*impl).interrupted_create;
+  } catch (const DatabaseError&) {
+    return false;  // not an SQLite file, or unreadable: open() says which
   }
 }
 

@@ -1,7 +1,6 @@
 // The block-database build (tree_builder.hpp: build_database, summarize_database): partition,
 // per-block PMs on local threads and remote builders, crash-consistent resumable writes, then the
 // approximation tree above the blocks (build_tree) and the stand-ins, written last.
-#include <sqlite3.h>
 
 #include <algorithm>
 #include <atomic>
@@ -54,30 +53,6 @@ std::string build_parameters_json(const DemSource& src, const DatabaseBuildOptio
       o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, src.grid().width,
       src.grid().height, src.samples_crc());
   return buf;
-}
-
-/// True when `path` is an SQLite file with no application id and no schema object: what a
-/// create() killed before its first commit leaves (block_database.hpp). Such a file holds
-/// nothing, so the build may replace it.
-bool is_interrupted_create(const std::string& path) {
-  sqlite3* db = nullptr;
-  bool empty = false;
-  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
-    sqlite3_stmt* st = nullptr;
-    std::int64_t app_id = -1, objects = -1;
-    if (sqlite3_prepare_v2(db, "PRAGMA application_id", -1, &st, nullptr) == SQLITE_OK &&
-        sqlite3_step(st) == SQLITE_ROW)
-      app_id = sqlite3_column_int64(st, 0);
-    sqlite3_finalize(st);
-    st = nullptr;
-    if (sqlite3_prepare_v2(db, "SELECT count(*) FROM sqlite_schema", -1, &st, nullptr) == SQLITE_OK &&
-        sqlite3_step(st) == SQLITE_ROW)
-      objects = sqlite3_column_int64(st, 0);
-    sqlite3_finalize(st);
-    empty = app_id == 0 && objects == 0;
-  }
-  sqlite3_close(db);
-  return empty;
 }
 
 std::string block_meta_key(BlockKey k) {
@@ -296,9 +271,10 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
 
   std::optional<BlockDatabase> dbo;
   bool created = false;
-  if (std::filesystem::exists(path) && is_interrupted_create(path)) {
-    // A create() that was killed: nothing to resume, start again.
-    for (const std::string& f : {path, path + "-wal", path + "-shm"}) std::filesystem::remove(f);
+  if (BlockDatabase::is_interrupted_create(path)) {
+    // A create() that was killed: nothing to resume, start again (create() discards the
+    // journal files left beside it).
+    std::filesystem::remove(path);
   }
   if (std::filesystem::exists(path)) {
     dbo.emplace(BlockDatabase::open(path, BlockDatabase::Mode::ReadWrite));

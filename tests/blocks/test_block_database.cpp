@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include "hot_journal.hpp"
 #include "terralod/blocks/block_database.hpp"
 
 namespace {
@@ -250,6 +251,44 @@ TEST(BlockDatabase, CreateRefusesAnExistingPathAndLeavesItAlone) {
   const fs::path nowhere = dir / "no" / "such" / "folder.db";
   EXPECT_EQ(error_of([&] { (void)BlockDatabase::create(nowhere, sample_info()); }),
             nowhere.string() + ": cannot create (No such file or directory)");
+}
+
+// is_interrupted_create() is true exactly for what a killed create() leaves (an empty file, or
+// a hot rollback journal over a file that was empty), and false for anything that holds data:
+// a build deletes what it calls true.
+TEST(BlockDatabase, InterruptedCreateIsRecognisedAndNothingElse) {
+  const fs::path dir = fresh_dir("interrupted_create");
+  const auto open_error = [](const fs::path& p) {
+    return error_of([&] { (void)BlockDatabase::open(p.string(), BlockDatabase::Mode::ReadOnly); });
+  };
+  EXPECT_FALSE(BlockDatabase::is_interrupted_create((dir / "missing.db").string()));
+  EXPECT_FALSE(BlockDatabase::is_interrupted_create(dir.string()));
+  write_file(dir / "empty.db", {});
+  EXPECT_TRUE(BlockDatabase::is_interrupted_create((dir / "empty.db").string()));
+
+  // Killed while switching the new file to WAL mode: a hot journal that restores 0 pages.
+  const std::string hot_empty = (dir / "hot_empty.db").string();
+  terralod::test::leave_hot_journal(hot_empty, "");
+  EXPECT_GT(fs::file_size(hot_empty), 0u);  // the spilled pages are in the file
+  EXPECT_TRUE(BlockDatabase::is_interrupted_create(hot_empty));
+  EXPECT_EQ(open_error(hot_empty), hot_empty + ": not a terralod database (interrupted create?)");
+  EXPECT_GT(fs::file_size(hot_empty + "-journal"), 0u) << "reading must not roll the journal back";
+
+  // A foreign file killed inside a transaction: its journal restores data, so it is not ours.
+  const std::string hot_foreign = (dir / "hot_foreign.db").string();
+  terralod::test::leave_hot_journal(hot_foreign,
+                                    "CREATE TABLE places(name TEXT); INSERT INTO places VALUES ('x')");
+  EXPECT_FALSE(BlockDatabase::is_interrupted_create(hot_foreign));
+  EXPECT_EQ(open_error(hot_foreign), hot_foreign + ": has a hot rollback journal (not a terralod database)");
+  EXPECT_GT(fs::file_size(hot_foreign + "-journal"), 0u);
+
+  raw_sql(dir / "foreign.db", "CREATE TABLE places(name TEXT)");
+  EXPECT_FALSE(BlockDatabase::is_interrupted_create((dir / "foreign.db").string()));
+  write_file(dir / "garbage.db", pattern(42, 8192));
+  EXPECT_FALSE(BlockDatabase::is_interrupted_create((dir / "garbage.db").string()));
+  const std::string complete = (dir / "complete.db").string();
+  (void)BlockDatabase::create(complete, sample_info());
+  EXPECT_FALSE(BlockDatabase::is_interrupted_create(complete));
 }
 
 TEST(BlockDatabase, OpenRejectsFilesThatAreNotTerralodDatabases) {
@@ -664,6 +703,7 @@ TEST(BlockDatabase, SigkillDuringCreateLeavesNothingOrACompleteDatabase) {
       ++complete;
     } catch (const DatabaseError& e) {
       EXPECT_EQ(std::string(e.what()), path + ": not a terralod database (interrupted create?)");
+      EXPECT_TRUE(BlockDatabase::is_interrupted_create(path));
       ++interrupted;
     }
   }

@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,6 +17,7 @@
 #include <string>
 #include <thread>
 
+#include "hot_journal.hpp"
 #include "mesh_checker.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/database_extract.hpp"
@@ -33,7 +35,7 @@ namespace pm = terralod::pm;
 
 std::string tmp(const std::string& name) {
   const std::string p = std::string(TERRALOD_TEST_TMP) + "/database_build_" + name;
-  for (const std::string& f : {p, p + "-wal", p + "-shm"}) fs::remove(f);
+  for (const std::string& f : {p, p + "-wal", p + "-shm", p + "-journal"}) fs::remove(f);
   return p;
 }
 
@@ -109,6 +111,50 @@ TEST(DatabaseBuild, GeneratedTerrainSummaryTreeAndExtraction) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("other parameters"), std::string::npos) << e.what();
   }
+}
+
+// What a killed create() leaves (an empty file, or a hot journal over one: block_database.hpp)
+// is replaced by a fresh build; a foreign file with a hot journal holds data: it is refused and
+// kept.
+TEST(DatabaseBuild, StartsOverOnAnInterruptedCreateOnly) {
+  const pm::Heightfield hf = terrain(65, 65, 9);
+  tb::DatabaseBuildOptions opt;
+  opt.block_size = 33;
+  opt.threads = 2;
+  const std::string ref = tmp("interrupted_ref.db");
+  tb::build_database(hf, ref, opt);
+  const tb::BlockDatabase want = tb::BlockDatabase::open(ref);
+  const std::string empty = tmp("interrupted_empty.db"), hot = tmp("interrupted_hot.db");
+  std::ofstream(empty).close();
+  terralod::test::leave_hot_journal(hot, "");
+  for (const std::string& path : {empty, hot}) {
+    SCOPED_TRACE(path);
+    EXPECT_TRUE(tb::build_database(hf, path, opt).complete);
+    const tb::BlockDatabase db = tb::BlockDatabase::open(path);
+    EXPECT_TRUE(db.check_integrity().ok);
+    EXPECT_EQ(db.blocks(), want.blocks());
+    EXPECT_EQ(db.read_blob("tree"), want.read_blob("tree"));
+    EXPECT_FALSE(fs::exists(path + "-journal"));
+  }
+  const std::string foreign = tmp("interrupted_foreign.db");
+  terralod::test::leave_hot_journal(foreign, "CREATE TABLE places(name TEXT)");
+  try {
+    tb::build_database(hf, foreign, opt);
+    ADD_FAILURE() << "a foreign file was built over";
+  } catch (const tb::DatabaseError& e) {
+    // The read-write open rolls the journal back (SQLite's own recovery): what is left is the
+    // foreign file as last committed, refused and kept.
+    EXPECT_EQ(std::string(e.what()), foreign + ": not a terralod database (an SQLite file of another kind)");
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open_v2(foreign.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK);
+  sqlite3_stmt* st = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "SELECT group_concat(name) FROM sqlite_schema", -1, &st, nullptr),
+            SQLITE_OK);
+  ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)), "places");
+  sqlite3_finalize(st);
+  sqlite3_close(db);
 }
 
 TEST(DatabaseBuild, ResumeAfterAnInterruption) {

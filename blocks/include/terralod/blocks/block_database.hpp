@@ -54,8 +54,8 @@
 // WAL frame checksums drop a torn tail). A power loss may lose the last few commits but never
 // corrupts the file. create() writes the schema and metadata in one transaction: an interrupted
 // create() leaves no file, a file that open() rejects with "not a terralod database
-// (interrupted create?)" (delete it and create again; create() discards the journal files
-// left beside it), or a complete empty database.
+// (interrupted create?)" (is_interrupted_create() is true of it: delete it and create again;
+// create() discards the journal files left beside it), or a complete empty database.
 //
 // On-disk format (format version 1). SQLite 3 database, PRAGMA application_id = 0x544C4F44
 // ("TLOD"), PRAGMA user_version = format version, journal_mode = WAL. Tables:
@@ -164,6 +164,11 @@ class BlockDatabase {
   /// Opens an existing database; checks that it is a terralod database of a supported format
   /// version with the expected schema and reads its info. Throws DatabaseError otherwise.
   static BlockDatabase open(const std::string& path, Mode mode = Mode::ReadOnly);
+  /// True when `path` is what a create() killed before its commit leaves: a file open() rejects
+  /// with "not a terralod database (interrupted create?)". It holds nothing; a caller that was
+  /// creating the database may delete it (with its -wal, -shm and -journal files) and create
+  /// again. Reads only; false for anything else, a complete database or a foreign file included.
+  static bool is_interrupted_create(const std::string& path);
 
   BlockDatabase(BlockDatabase&&) noexcept;
   BlockDatabase& operator=(BlockDatabase&&) noexcept;
