@@ -9,6 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
+export CMAKE_GENERATOR="${CMAKE_GENERATOR:-Ninja}"  # as scripts/test.sh: both share build/
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)" --target terralod terralod-fly
 if (($# > 0)); then
