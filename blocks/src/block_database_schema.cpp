@@ -202,11 +202,11 @@ void detail::read_info(BlockDatabaseImpl& d, DatabaseInfo& info, int& format_ver
 
 namespace {
 
-/// What a file's header says about it: its application id and number of schema objects, and
-/// whether it is what a killed create() leaves (block_database.hpp). Throws DatabaseError when
-/// the header cannot be read for another reason (not SQLite, I/O error).
+/// What a file's header says about it: its application id, and whether it is what a killed
+/// create() leaves (block_database.hpp). Throws DatabaseError when the header cannot be read for
+/// another reason (not SQLite, I/O error).
 struct Identity {
-  std::int64_t app_id = 0, objects = 0;
+  std::int64_t app_id = 0;
   bool interrupted_create = false;
 };
 
@@ -247,10 +247,9 @@ Identity read_identity(BlockDatabaseImpl& d) {
     OneOff st(d, "SELECT count(*) FROM sqlite_schema", "cannot read the schema");
     const int rc = sqlite3_step(st);
     if (rc != SQLITE_ROW) d.check(rc, "cannot read the schema");
-    id.objects = sqlite3_column_int64(st, 0);
+    // Before create()'s one commit the file has neither an identity nor a table.
+    id.interrupted_create = id.app_id == 0 && sqlite3_column_int64(st, 0) == 0;
   }
-  // Before create()'s one commit the file has neither an identity nor a table.
-  id.interrupted_create = id.app_id == 0 && id.objects == 0;
   return id;
 }
 
@@ -258,12 +257,11 @@ Identity read_identity(BlockDatabaseImpl& d) {
 void check_identity(BlockDatabaseImpl& d) {
   const Identity id = read_identity(d);
   if (id.interrupted_create) d.fail("not a terralod database (interrupted create?)");
-  const std::int64_t app_id = id.app_id;
-  if (app_id != kApplicationId) {
+  if (id.app_id != kApplicationId) {
     char buf[64];
-    std::snprintf(buf, sizeof buf, "application_id 0x%08llx", static_cast<unsigned long long>(app_id));
-    d.fail(std::string("not a terralod database (") + (app_id == 0 ? "an SQLite file of another kind" : buf) +
-           ")");
+    std::snprintf(buf, sizeof buf, "application_id 0x%08llx", static_cast<unsigned long long>(id.app_id));
+    d.fail(std::string("not a terralod database (") +
+           (id.app_id == 0 ? "an SQLite file of another kind" : buf) + ")");
   }
   // Tables must be real tables: a view could run any query on every read.
   for (const auto& [name, sql] : kTables)
