@@ -27,21 +27,24 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
   const auto t = std::chrono::steady_clock::now();
   auto b = std::make_shared<LoadedBlock>();
   b->key = k;
-  b->pm = pm::decode_pm(blob, name);
-  const SampleRect d = grid.domain(k);
-  const pm::Heightfield& hf = b->pm.heightfield();
-  if (hf.width() != d.width() || hf.height() != d.height())
-    throw DatabaseError(source_name, block_name(k) + ": " + std::to_string(hf.width()) + " x " +
-                                         std::to_string(hf.height()) + " samples, the block grid expects " +
-                                         std::to_string(d.width()) + " x " + std::to_string(d.height()));
-  b->dag = std::make_unique<pm::CollapseDag>(b->pm);
+  {
+    const pm::ProgressiveMesh pm = pm::decode_pm(blob, name);
+    const SampleRect d = grid.domain(k);
+    const pm::Heightfield& hf = pm.heightfield();
+    if (hf.width() != d.width() || hf.height() != d.height())
+      throw DatabaseError(source_name, block_name(k) + ": " + std::to_string(hf.width()) + " x " +
+                                           std::to_string(hf.height()) + " samples, the block grid expects " +
+                                           std::to_string(d.width()) + " x " + std::to_string(d.height()));
+    b->metric = pm.metric();
+    b->dag = std::make_unique<pm::CollapseDag>(pm);
+  }
   b->blob_bytes = blob.size();
-  const std::size_t collapses = b->pm.collapses().size(), samples = hf.size();
-  // PM (heights + collapses) + DAG + a SelectiveRefinement (selective_refinement.hpp: ~50 bytes
-  // per collapse, 8 per sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
-  b->memory_bytes = sizeof(LoadedBlock) + samples * 8 + collapses * sizeof(pm::Collapse) +
-                    b->dag->memory_bytes() + collapses * 50 + samples * 8 + b->dag->face_id_count() * 4 +
-                    b->pm.full_vertex_count() * 96;
+  const pm::CollapseDag& dag = *b->dag;
+  const std::size_t collapses = dag.collapse_count(), samples = dag.heightfield().size();
+  // DAG + a SelectiveRefinement (selective_refinement.hpp: ~50 bytes per collapse, 8 per
+  // sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
+  b->memory_bytes = sizeof(LoadedBlock) + dag.memory_bytes() + collapses * 50 + samples * 8 +
+                    dag.face_id_count() * 4 + dag.full_vertex_count() * 96;
   b->decode_ms = ms_since(t);
   return b;
 }

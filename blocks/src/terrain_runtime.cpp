@@ -366,7 +366,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
     p.tri_error.assign(b.rm.errors.begin(), b.rm.errors.end());
     p.bound_px = fs.bound_px;
     p.heights = &hf;
-    p.metric = b.data->pm.metric();
+    p.metric = b.data->metric;
     p.zlo = n.bbox.lo.z;
     p.zhi = n.bbox.hi.z;
     ++s.pm_blocks;

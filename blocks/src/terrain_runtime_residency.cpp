@@ -60,7 +60,7 @@ void TerrainRuntime::take_loads() {
   for (LoadResult& r : results) {
     if (!r.block) throw std::runtime_error(r.error);
     const BlockKey k = r.key;
-    const std::uint64_t nv = r.block->pm.full_vertex_count();
+    const std::uint64_t nv = r.block->dag->full_vertex_count();
     if (nv > 0)
       bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
     make_room(r.block->memory_bytes, keep);

@@ -61,10 +61,14 @@ BlockSourceFactory database_source(const std::string& path);
 /// A block in memory: its decoded PM and the DAG that selective refinement runs on.
 struct LoadedBlock {
   BlockKey key;
-  pm::ProgressiveMesh pm;  ///< heightfield in the block's own grid and transform
+  /// The PM's error metric. The decoded PM itself is not kept: the DAG holds a copy of all
+  /// the refinement needs (heightfield, collapses), and the PM's own would be 24 bytes a vertex
+  /// more for every resident block.
+  pm::ErrorMetric metric = pm::ErrorMetric::Continuous;
+  /// Heightfield (dag->heightfield()) in the block's own grid and transform.
   std::unique_ptr<pm::CollapseDag> dag;
   std::size_t blob_bytes = 0;  ///< bytes read from the source
-  /// Estimated bytes while resident: PM + DAG + one SelectiveRefinement over it.
+  /// Estimated bytes while resident: DAG + one SelectiveRefinement over it.
   std::size_t memory_bytes = 0;
   double read_ms = 0, decode_ms = 0;
 };

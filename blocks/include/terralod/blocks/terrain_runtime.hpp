@@ -97,8 +97,9 @@
 // a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
 // and the block. Not thread-safe: one frame thread; the loader thread is internal.
 // Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
-// blocks (LoadedBlock::memory_bytes each: PM, DAG, refinement), the drawn mesh (~40 bytes per
-// vertex, 20 per triangle) and the per-patch meshes of the frame (about as much again).
+// blocks (LoadedBlock::memory_bytes each: DAG and refinement, about 25 MB for 257 x 257
+// samples), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of
+// the frame (about as much again).
 #pragma once
 
 #include <cstdint>
