@@ -41,6 +41,25 @@ Vec3 CollapseDag::position(double col, double row, double z) const {
   return {x, y, z};
 }
 
+void CollapseDag::set_box(std::uint32_t c, const Box& b) {
+  // The float f stored for a bound v, relative to origin o, is the one whose o + f (what box()
+  // returns) lies on the outer side of v: start at the nearest float and step outwards until
+  // it does (rounding in v - o and in o + f may each take it a little inwards).
+  const auto below = [](double v, double o) {
+    float f = float(v - o);
+    while (o + double(f) > v) f = std::nextafter(f, -INFINITY);
+    return f;
+  };
+  const auto above = [](double v, double o) {
+    float f = float(v - o);
+    while (o + double(f) < v) f = std::nextafter(f, INFINITY);
+    return f;
+  };
+  const double ox = hf_.transform.x0, oy = hf_.transform.y0;
+  boxes_[c] = {{below(b.lo.x, ox), below(b.lo.y, oy), below(b.lo.z, 0.0)},
+               {above(b.hi.x, ox), above(b.hi.y, oy), above(b.hi.z, 0.0)}};
+}
+
 CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
     : hf_(pm.heightfield()), kind_(options.volume), collapses_(pm.collapses()) {
   const std::size_t n = collapses_.size();
@@ -152,13 +171,13 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
     }
     if (kind_ == VolumeKind::Box) {
       for (std::uint32_t p : preds(c)) {
-        const Box& q = boxes_[p];
+        const Box q = box(p);
         b.lo = {std::min(b.lo.x, q.lo.x), std::min(b.lo.y, q.lo.y), std::min(b.lo.z, q.lo.z)};
         b.hi = {std::max(b.hi.x, q.hi.x), std::max(b.hi.y, q.hi.y), std::max(b.hi.z, q.hi.z)};
       }
       b.lo.z = std::max(b.lo.z, zlo);
       b.hi.z = std::min(b.hi.z, zhi);
-      boxes_[c] = b;
+      set_box(c, b);
     } else {
       // Centre: the middle of the box of everything to enclose; radius: the farthest of the
       // extruded corners and of the predecessors' spheres (Fig. 4's rule, r >= |C - C_p| + r_p).
