@@ -41,9 +41,9 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
   b->blob_bytes = blob.size();
   const pm::CollapseDag& dag = *b->dag;
   const std::size_t collapses = dag.collapse_count(), samples = dag.heightfield().size();
-  // DAG + a SelectiveRefinement (selective_refinement.hpp: ~50 bytes per collapse, 8 per
-  // sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
-  b->memory_bytes = sizeof(LoadedBlock) + dag.memory_bytes() + collapses * 50 + samples * 8 +
+  // DAG + a SelectiveRefinement (selective_refinement.hpp: 18 bytes per collapse, its boxes
+  // being the DAG's, 8 per sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
+  b->memory_bytes = sizeof(LoadedBlock) + dag.memory_bytes() + collapses * 18 + samples * 8 +
                     dag.face_id_count() * 4 + dag.full_vertex_count() * 96;
   b->decode_ms = ms_since(t);
   return b;

@@ -57,7 +57,9 @@ void CollapseDag::set_box(std::uint32_t c, const Box& b) {
   };
   const double ox = hf_.transform.x0, oy = hf_.transform.y0;
   boxes_[c] = {{below(b.lo.x, ox), below(b.lo.y, oy), below(b.lo.z, 0.0)},
-               {above(b.hi.x, ox), above(b.hi.y, oy), above(b.hi.z, 0.0)}};
+               {above(b.hi.x, ox), above(b.hi.y, oy), above(b.hi.z, 0.0)},
+               above(saturated_[c], 0.0),
+               0.0f};
 }
 
 CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)

@@ -28,16 +28,6 @@ constexpr std::uint32_t kNone = CollapseDag::kNone;
 inline float float_below(double v) { return float(v - (std::abs(v) * 1e-7 + 1e-30)); }
 inline float float_above(double v) { return float(v + (std::abs(v) * 1e-7 + 1e-30)); }
 
-// Floats nearest to v below / above (v within float range).
-float round_down(double v) {
-  const float f = float(v);
-  return double(f) <= v ? f : std::nextafter(f, -INFINITY);
-}
-float round_up(double v) {
-  const float f = float(v);
-  return double(f) >= v ? f : std::nextafter(f, INFINITY);
-}
-
 void check_options(const RefinementOptions& o) {
   auto fail = [](const char* what) {
     throw std::invalid_argument(std::string("selective refinement: ") + what);
@@ -53,7 +43,7 @@ void check_options(const RefinementOptions& o) {
 }  // namespace
 
 SelectiveRefinement::SelectiveRefinement(const CollapseDag& dag, const RefinementOptions& options)
-    : dag_(&dag), opt_(options) {
+    : dag_(&dag), opt_(options), packed_(&dag.packed_boxes()) {
   check_options(opt_);
   tau_ = opt_.tolerance_px;
   const std::size_t n = dag.collapse_count();
@@ -74,21 +64,6 @@ SelectiveRefinement::SelectiveRefinement(const CollapseDag& dag, const Refinemen
     coord_scale_ = w * (std::abs(g.xc) + std::abs(g.yc)) + h * (std::abs(g.xr) + std::abs(g.yr)) +
                    std::max(std::abs(zlo_), std::abs(zhi_));
   }
-  if (dag.volume_kind() == VolumeKind::Box) {
-    // Boxes relative to (x0, y0, 0) in floats, rounded outwards, and saturated errors rounded
-    // up: the test stays conservative and reads one 32-byte record.
-    const double ox = dag.heightfield().transform.x0, oy = dag.heightfield().transform.y0;
-    auto down = round_down;
-    auto up = round_up;
-    packed_.resize(n);
-    for (std::uint32_t c = 0; c < n; ++c) {
-      const Box& b = dag.box(c);
-      packed_[c] = {{down(b.lo.x - ox), down(b.lo.y - oy), down(b.lo.z)},
-                    {up(b.hi.x - ox), up(b.hi.y - oy), up(b.hi.z)},
-                    up(dag.saturated_error(c)),
-                    0.0f};
-    }
-  }
   morph_of_.assign(dag.heightfield().size(), kNone);
   scratch_index_.assign(dag.heightfield().size(), kNone);
   // The float boxes of the faces, and the records beside the tops and the frontier, are made
@@ -104,8 +79,8 @@ SelectiveRefinement::SelectiveRefinement(const CollapseDag& dag, const Refinemen
   defer_boxes_ = false;
   for (const FaceRec& r : face_rec_) push_face_box(r);
   for (IndexSet* set : {&tops_, &frontier_})
-    if (!packed_.empty())
-      for (std::uint32_t c : set->items) set->recs.push_back(packed_[c]);
+    if (!packed_->empty())
+      for (std::uint32_t c : set->items) set->recs.push_back((*packed_)[c]);
   track_adjacency();
   stats_.active_vertices = active_vertex_count();
   stats_.triangles = active_.size();
@@ -139,7 +114,7 @@ void SelectiveRefinement::add_face(std::uint32_t f) {
 // descends to the base mesh (they are made at the end), and none without boxes.
 const std::vector<SelectiveRefinement::Packed>& SelectiveRefinement::list_records() const {
   static const std::vector<Packed> none;
-  return defer_boxes_ ? none : packed_;
+  return defer_boxes_ ? none : *packed_;
 }
 
 // Appends the float box of the face's clipped prism (as face_bound_px sees it) relative to

@@ -53,9 +53,9 @@
 //   - Samples are row * width + col; positions are world metres (hf.transform, z = height).
 //   - Throws std::invalid_argument when the collapses do not replay (a collapse whose u and w
 //     are not joined by an edge, or one that would flip a face): the PM is corrupt.
-//   - Memory (measured): about 235 bytes per full-resolution vertex - per face id (about 5.4
+//   - Memory (measured): about 245 bytes per full-resolution vertex - per face id (about 5.4
 //     per vertex) its corners, creator and remover (20 bytes); per collapse its removed-face
-//     list, 2.4 DAG edges each way, a box (24 bytes: floats, see box()) or sphere (32) and its
+//     list, 2.4 DAG edges each way, a box (32 bytes: PackedBox) or sphere (32) and its
 //     saturated error - plus the copied heightfield (8 bytes per sample). Building peaks at
 //     about 80 more bytes per vertex (per-sample face lists). Build time about 2.5 s per
 //     million vertices.
@@ -99,13 +99,22 @@ class CollapseDag {
   double saturated_error(std::uint32_t c) const { return saturated_[c]; }
   std::span<const std::uint32_t> preds(std::uint32_t c) const { return span(pred_off_, preds_, c); }
   std::span<const std::uint32_t> succs(std::uint32_t c) const { return span(succ_off_, succs_, c); }
-  /// The volume of c (volume_kind() decides which one is stored; the other is empty). Boxes are
-  /// stored in floats relative to the heightfield's origin (x0, y0, 0), rounded outwards so that
-  /// the box returned (origin + float, in doubles) contains the exact one: 24 bytes a collapse
-  /// instead of 48, for a resident block's whole flight. Rounding outwards is monotonic, so the
-  /// boxes still nest along the DAG.
+  /// c's box as one 32-byte record: the box in floats relative to the heightfield's origin
+  /// (x0, y0, 0), rounded outwards so that origin + float (in doubles) contains the exact box,
+  /// and the saturated error rounded up to a float. SelectiveRefinement tests these records
+  /// as they are, so a resident block holds its boxes once (32 bytes a collapse instead of 48
+  /// here and 32 more in every refinement). Rounding outwards is monotonic: the boxes still
+  /// nest along the DAG.
+  struct PackedBox {
+    float lo[3], hi[3];
+    float error, unused;
+  };
+  /// The records of all collapses; empty when volume_kind() is Sphere.
+  const std::vector<PackedBox>& packed_boxes() const { return boxes_; }
+  /// The volume of c (volume_kind() decides which one is stored): box() is packed_boxes()[c]
+  /// back in world metres.
   Box box(std::uint32_t c) const {
-    const FloatBox& b = boxes_[c];
+    const PackedBox& b = boxes_[c];
     const double ox = hf_.transform.x0, oy = hf_.transform.y0;
     return {{ox + double(b.lo[0]), oy + double(b.lo[1]), double(b.lo[2])},
             {ox + double(b.hi[0]), oy + double(b.hi[1]), double(b.hi[2])}};
@@ -152,11 +161,8 @@ class CollapseDag {
   std::vector<Collapse> collapses_;
   std::vector<double> saturated_;
   std::vector<std::uint32_t> pred_off_, preds_, succ_off_, succs_;
-  struct FloatBox {
-    float lo[3], hi[3];  // relative to (x0, y0, 0), rounded outwards (see box())
-  };
   void set_box(std::uint32_t c, const Box& b);
-  std::vector<FloatBox> boxes_;
+  std::vector<PackedBox> boxes_;
   std::vector<Sphere> spheres_;
   std::vector<std::array<std::uint32_t, 3>> faces_;
   std::vector<std::uint32_t> creator_, remover_;

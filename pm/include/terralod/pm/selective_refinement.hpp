@@ -98,7 +98,7 @@
 // Contract: view parameters come validated by View; time_s passed to update() must not
 // decrease (std::invalid_argument otherwise); options are checked on construction and in
 // set_options() (std::invalid_argument); changing the morph settings ends running morphs.
-// Memory: about 50 bytes per collapse (state, list positions, a packed 32-byte box and error),
+// Memory: about 18 bytes per collapse (state, list positions; its box and error are the DAG's),
 // 32 more per top and per frontier collapse (its box beside the list), 4 per face id, 8 per
 // sample, 76 per active triangle (48 for the exact bound, 28 for its float box and error), 80
 // per morphing vertex, and with Full geomorphs two lists per sample (48 bytes) plus 4 bytes
@@ -236,17 +236,14 @@ class SelectiveRefinement {
   double bound_px(const View& view) const;
 
  private:
-  struct Packed {  // box relative to (x0, y0, 0) rounded outwards; saturated error rounded up
-    float lo[3], hi[3];
-    float error, unused;
-  };
+  using Packed = CollapseDag::PackedBox;  // box relative to (x0, y0, 0), saturated error
   // A set of collapses with O(1) insert/erase; with boxes, each item's packed test record is
   // kept beside it (recs, parallel to items), so a pass over the set streams through memory.
   struct IndexSet {
     std::vector<std::uint32_t> items, pos;
     std::vector<Packed> recs;  // empty without boxes (spheres)
     bool has(std::uint32_t c) const { return pos[c] != CollapseDag::kNone; }
-    /// packed: the records of all collapses (packed_), or empty.
+    /// packed: the records of all collapses (CollapseDag::packed_boxes()), or empty.
     void insert(std::uint32_t c, const std::vector<Packed>& packed) {
       if (has(c)) return;
       pos[c] = std::uint32_t(items.size());
@@ -317,9 +314,9 @@ class SelectiveRefinement {
 
   const CollapseDag* dag_;
   RefinementOptions opt_;
-  std::vector<Packed> packed_;    // boxes only
-  double zlo_ = 0.0, zhi_ = 0.0;  // height range of the samples
-  double coord_scale_ = 0.0;      // bound on |x| + |y| + |z| of the fbox_ coordinates, metres
+  const std::vector<Packed>* packed_;  // the DAG's records (empty for spheres)
+  double zlo_ = 0.0, zhi_ = 0.0;       // height range of the samples
+  double coord_scale_ = 0.0;           // bound on |x| + |y| + |z| of the fbox_ coordinates, metres
   std::vector<std::uint8_t> in_s_;
   std::vector<std::uint32_t> preds_out_;  // predecessors not in S
   std::vector<std::uint32_t> succs_in_;   // successors in S
