@@ -53,7 +53,7 @@
 //   - Samples are row * width + col; positions are world metres (hf.transform, z = height).
 //   - Throws std::invalid_argument when the collapses do not replay (a collapse whose u and w
 //     are not joined by an edge, or one that would flip a face): the PM is corrupt.
-//   - Memory (measured): about 245 bytes per full-resolution vertex - per face id (about 5.4
+//   - Memory (measured): about 240 bytes per full-resolution vertex - per face id (about 5.4
 //     per vertex) its corners, creator and remover (20 bytes); per collapse its removed-face
 //     list, 2.4 DAG edges each way, a box (32 bytes: PackedBox) or sphere (32) and its
 //     saturated error - plus the copied heightfield (8 bytes per sample). Building peaks at
