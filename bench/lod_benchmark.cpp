@@ -158,7 +158,8 @@ class RuntimeLod : public LodStrategy {
     rt_ = std::make_unique<tb::TerrainRuntime>(db_, o);
   }
   void update(const pm::View& view, double time_s, Frame& f) override {
-    while (rt_->loading()) rt_->wait_for_loader(1.0);
+    while (rt_->wait_for_loader(1.0)) {
+    }  // every read done: update() takes them all
     const Stopwatch sw;
     const tb::RuntimeFrameStats& s = rt_->update(view, time_s);
     sw.stop(f.update_ms, f.update_cpu_ms);

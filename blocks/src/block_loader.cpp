@@ -102,6 +102,11 @@ std::size_t BlockLoader::pending() const {
   return queue_.size() + (in_flight_ ? 1 : 0);
 }
 
+std::size_t BlockLoader::finished() const {
+  std::lock_guard lock(mutex_);
+  return results_.size();
+}
+
 std::uint64_t BlockLoader::bytes_read() const {
   std::lock_guard lock(mutex_);
   return bytes_read_;

@@ -17,13 +17,14 @@ namespace terralod::blocks {
 
 using detail::refinement_options;
 
-bool TerrainRuntime::loading() const { return loader_->pending() > 0; }
+bool TerrainRuntime::loading() const { return loader_->pending() > 0 || loader_->finished() > 0; }
 
-void TerrainRuntime::wait_for_loader(double timeout_s) const {
+bool TerrainRuntime::wait_for_loader(double timeout_s) const {
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   const std::size_t before = loader_->pending();
   while (loader_->pending() > 0 && loader_->pending() >= before && std::chrono::steady_clock::now() < until)
     std::this_thread::sleep_for(std::chrono::microseconds(500));
+  return loader_->pending() > 0;
 }
 
 std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {

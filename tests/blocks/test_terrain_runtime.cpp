@@ -363,6 +363,24 @@ TEST(TerrainRuntime, MemoryBudgetHeldEveryFrameAndMissingReported) {
       << "the budget should bind on this flight";
 }
 
+// A block that finished after update() took the loader's results is never asked for again
+// (set_queue skips finished keys), so loading() must stay true until an update() takes it: a
+// caller looping "while blocks are missing and loading()" would otherwise stop one block short.
+TEST(TerrainRuntime, FinishedBlocksCountAsLoadingUntilAnUpdateTakesThem) {
+  const tp::Heightfield& hf = terrain().hf;
+  tb::RuntimeOptions o;
+  o.morph_seconds = 0;
+  tb::TerrainRuntime rt(terrain().db, o);
+  tp::Camera cam = pose(hf, 200, 300, 400.0, 30, -20);
+  rt.fit_clip_planes(cam);
+  const std::size_t missing = rt.update(tp::View(cam), 0.0).missing_in_view;
+  ASSERT_GT(missing, 0u) << "the first frame has nothing resident";
+  while (rt.wait_for_loader(1.0)) {
+  }  // every read finished; none taken
+  EXPECT_TRUE(rt.loading()) << "finished blocks wait for update()";
+  EXPECT_LT(rt.update(tp::View(cam), 1.0 / 60).missing_in_view, missing);
+}
+
 TEST(TerrainRuntime, ChangingTauMidFlightReadsNoBlock) {
   const tp::Heightfield& hf = terrain().hf;
   tb::RuntimeOptions o;

@@ -113,6 +113,8 @@ class BlockLoader {
   bool busy(BlockKey k) const;
   /// Requests queued plus the one being read.
   std::size_t pending() const;
+  /// Finished blocks and errors that take_results() has not returned yet.
+  std::size_t finished() const;
   /// Total blob bytes read so far.
   std::uint64_t bytes_read() const;
 

@@ -200,11 +200,14 @@ class TerrainRuntime {
   /// whatever terrain is in the frustum is drawn, at any altitude), near half the distance to
   /// the box (clamped to [0.05, 1000] m).
   void fit_clip_planes(pm::Camera& camera) const;
-  /// True while the loader has requests queued or in flight.
+  /// True while the loader has requests queued or in flight, or finished blocks that the next
+  /// update() takes (set_queue never asks again for those: counting them is what keeps a
+  /// caller waiting for a block that finished between update()'s take and its queue).
   bool loading() const;
   /// Waits (up to timeout_s) until the loader finishes a request or has none; for headless
-  /// runs that must be reproducible.
-  void wait_for_loader(double timeout_s) const;
+  /// runs that must be reproducible. Returns whether requests are still queued or in flight
+  /// (finished blocks wait for update(), so `while (wait_for_loader(1.0)) {}` ends).
+  bool wait_for_loader(double timeout_s) const;
 
   const ApproximationTree& tree() const { return tree_; }
   const BlockGrid& grid() const { return grid_; }
