@@ -43,7 +43,7 @@ void check_options(const RefinementOptions& o) {
 }  // namespace
 
 SelectiveRefinement::SelectiveRefinement(const CollapseDag& dag, const RefinementOptions& options)
-    : dag_(&dag), opt_(options), packed_(&dag.packed_boxes()) {
+    : dag_(&dag), opt_(options) {
   check_options(opt_);
   tau_ = opt_.tolerance_px;
   const std::size_t n = dag.collapse_count();
@@ -79,8 +79,8 @@ SelectiveRefinement::SelectiveRefinement(const CollapseDag& dag, const Refinemen
   defer_boxes_ = false;
   for (const FaceRec& r : face_rec_) push_face_box(r);
   for (IndexSet* set : {&tops_, &frontier_})
-    if (!packed_->empty())
-      for (std::uint32_t c : set->items) set->recs.push_back((*packed_)[c]);
+    if (const std::vector<Packed>& packed = dag.packed_boxes(); !packed.empty())
+      for (std::uint32_t c : set->items) set->recs.push_back(packed[c]);
   track_adjacency();
   stats_.active_vertices = active_vertex_count();
   stats_.triangles = active_.size();
@@ -114,7 +114,7 @@ void SelectiveRefinement::add_face(std::uint32_t f) {
 // descends to the base mesh (they are made at the end), and none without boxes.
 const std::vector<SelectiveRefinement::Packed>& SelectiveRefinement::list_records() const {
   static const std::vector<Packed> none;
-  return defer_boxes_ ? none : *packed_;
+  return defer_boxes_ ? none : dag_->packed_boxes();
 }
 
 // Appends the float box of the face's clipped prism (as face_bound_px sees it) relative to

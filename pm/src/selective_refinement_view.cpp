@@ -21,7 +21,8 @@ constexpr std::uint32_t kNone = CollapseDag::kNone;
 // 0: not ok (refine); 1: ok by the error test; 2: ok because volume(c) is outside the frustum.
 int SelectiveRefinement::classify(Frame& fr, std::uint32_t c) const {
   ++fr.evaluated;
-  if (!packed_->empty()) return classify_box(fr, (*packed_)[c]);  // boxes: one 32-byte record per test
+  if (const std::vector<Packed>& packed = dag_->packed_boxes(); !packed.empty())
+    return classify_box(fr, packed[c]);  // boxes: one 32-byte record per test
   const double E = dag_->saturated_error(c);
   if (E == 0.0) return 1;
   const Sphere& s = dag_->sphere(c);

@@ -58,7 +58,7 @@ using BlockSourceFactory = std::function<std::unique_ptr<BlockSource>()>;
 /// A factory that opens `path` read-only with BlockDatabase::open on the calling thread.
 BlockSourceFactory database_source(const std::string& path);
 
-/// A block in memory: its decoded PM and the DAG that selective refinement runs on.
+/// A block in memory: the DAG of its PM, which selective refinement runs on.
 struct LoadedBlock {
   BlockKey key;
   /// The PM's error metric. The decoded PM itself is not kept: the DAG holds a copy of all

@@ -314,9 +314,8 @@ class SelectiveRefinement {
 
   const CollapseDag* dag_;
   RefinementOptions opt_;
-  const std::vector<Packed>* packed_;  // the DAG's records (empty for spheres)
-  double zlo_ = 0.0, zhi_ = 0.0;       // height range of the samples
-  double coord_scale_ = 0.0;           // bound on |x| + |y| + |z| of the fbox_ coordinates, metres
+  double zlo_ = 0.0, zhi_ = 0.0;  // height range of the samples
+  double coord_scale_ = 0.0;      // bound on |x| + |y| + |z| of the fbox_ coordinates, metres
   std::vector<std::uint8_t> in_s_;
   std::vector<std::uint32_t> preds_out_;  // predecessors not in S
   std::vector<std::uint32_t> succs_in_;   // successors in S
