@@ -62,12 +62,25 @@ void CollapseDag::set_box(std::uint32_t c, const Box& b) {
                0.0f};
 }
 
+std::size_t CollapseDag::skip_for_floor(const ProgressiveMesh& pm, double floor_m) {
+  // The saturated error of a dropped collapse is at most the largest error before it (its
+  // predecessors come first in build order), so a prefix whose errors stay within floor_m
+  // leaves faces within floor_m.
+  const std::vector<Collapse>& cs = pm.collapses();
+  std::size_t s = 0;
+  while (s < cs.size() && cs[s].error <= floor_m) ++s;
+  return s;
+}
+
 CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
-    : hf_(pm.heightfield()), kind_(options.volume), collapses_(pm.collapses()) {
+    : hf_(pm.heightfield()), kind_(options.volume) {
+  const std::vector<Collapse>& all = pm.collapses();
+  const std::size_t skip = std::min(options.skip, all.size());
+  skipped_ = skip;
+  collapses_.assign(all.begin() + std::ptrdiff_t(skip), all.end());
   const std::size_t n = collapses_.size();
   const std::uint32_t slots = std::uint32_t(pm.full_face_slots());
   const std::uint32_t W = std::uint32_t(hf_.width());
-  created_base_ = slots;
 
   // Full-resolution faces and per-sample face lists.
   faces_.assign(slots, {kNone, kNone, kNone});
@@ -76,40 +89,27 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
   for (std::uint32_t f = 0; f < slots; ++f) {
     if (!pm.full_face(f, t)) continue;
     faces_[f] = t;
-    full_faces_.push_back(f);
     for (std::uint32_t v : t) star[v].push_back(f);
   }
-  for (const auto& s : star) full_vertex_count_ += s.empty() ? 0 : 1;
-  faces_.reserve(std::size_t(slots) + 4 * n);
   creator_.assign(slots, kNone);
   removed_by_.assign(hf_.size(), kNone);
 
   auto point = [W](std::uint32_t s) { return GridPoint{int(s % W), int(s / W)}; };
 
-  // Replay.
-  removed_off_.assign(1, 0);
-  created_off_.assign(1, 0);
-  removed_.reserve(6 * n);
-  std::vector<std::uint32_t> pred_list;  // flat (c, p) pairs, deduplicated per c
-  std::vector<std::uint32_t> pred_first;
-  pred_first.reserve(n + 1);
-  for (std::size_t c = 0; c < n; ++c) {
-    const std::uint32_t u = collapses_[c].u, w = collapses_[c].w;
+  // One collapse u -> w on the face lists: removes u's star (on_removed(f) for each face) and
+  // creates, for each of its faces without w, the face with u replaced by w (creator `label`).
+  const auto replay = [&](std::size_t c, std::uint32_t label, auto&& on_removed) {
+    const std::uint32_t u = all[c].u, w = all[c].w;
     std::vector<std::uint32_t> ring = std::move(star[u]);
     star[u] = {};
     int shared = 0;
     for (std::uint32_t f : ring) shared += (faces_[f][0] == w || faces_[f][1] == w || faces_[f][2] == w);
     if (shared < 1 || shared > 2) throw bad(c, "does not collapse an edge of the mesh");
-    pred_first.push_back(std::uint32_t(pred_list.size()));
     for (std::uint32_t f : ring) {
-      removed_.push_back(f);
+      on_removed(f);
       const std::array<std::uint32_t, 3> v = faces_[f];
       for (std::uint32_t x : v)
         if (x != u) erase_one(star[x], f);
-      const std::uint32_t p = creator_[f];
-      if (p != kNone &&
-          std::find(pred_list.begin() + pred_first.back(), pred_list.end(), p) == pred_list.end())
-        pred_list.push_back(p);
       if (v[0] == w || v[1] == w || v[2] == w) continue;
       std::array<std::uint32_t, 3> nv = v;
       for (std::uint32_t& x : nv)
@@ -117,12 +117,68 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
       if (orient2d(point(nv[0]), point(nv[1]), point(nv[2])) <= 0) throw bad(c, "flips a face");
       const std::uint32_t g = std::uint32_t(faces_.size());
       faces_.push_back(nv);
-      creator_.push_back(std::uint32_t(c));
+      creator_.push_back(label);
       for (std::uint32_t x : nv) star[x].push_back(g);
     }
+  };
+
+  if (skip > 0) {
+    // The skipped collapses, on the face lists only, with their saturated errors; then the
+    // faces left become the leaves (ids 0 .. L-1 in the order of their old ids), each with the
+    // saturated error of the collapse that made it as its error.
+    faces_.reserve(std::size_t(slots) + 2 * skip);
+    std::vector<double> sat(skip);
+    for (std::size_t c = 0; c < skip; ++c) {
+      double e = all[c].error;
+      replay(c, std::uint32_t(c), [&](std::uint32_t f) {
+        if (creator_[f] != kNone) e = std::max(e, sat[creator_[f]]);
+      });
+      sat[c] = e;
+    }
+    std::vector<std::uint32_t> leaf_id(faces_.size(), kNone);
+    for (const auto& s : star)
+      for (std::uint32_t f : s) leaf_id[f] = 0;
+    std::vector<std::array<std::uint32_t, 3>> leaves;
+    for (std::uint32_t f = 0; f < leaf_id.size(); ++f) {
+      if (leaf_id[f] == kNone) continue;
+      leaf_id[f] = std::uint32_t(leaves.size());
+      leaves.push_back(faces_[f]);
+      leaf_error_.push_back(creator_[f] == kNone ? 0.0 : sat[creator_[f]]);
+    }
+    for (auto& s : star)
+      for (std::uint32_t& f : s) f = leaf_id[f];
+    faces_ = std::move(leaves);
+    creator_.assign(faces_.size(), kNone);
+  }
+  created_base_ = std::uint32_t(faces_.size());
+  for (std::uint32_t f = 0; f < created_base_; ++f)
+    if (faces_[f][0] != kNone) full_faces_.push_back(f);
+  for (const auto& s : star) full_vertex_count_ += s.empty() ? 0 : 1;
+  faces_.reserve(faces_.size() + 4 * n);
+  for (double e : leaf_error_) floor_error_ = std::max(floor_error_, e);
+
+  // Replay of the DAG's collapses, recording what each removes and creates and its predecessors.
+  removed_off_.assign(1, 0);
+  created_off_.assign(1, 0);
+  removed_.reserve(6 * n);
+  std::vector<std::uint32_t> pred_list;  // flat (c, p) pairs, deduplicated per c
+  std::vector<std::uint32_t> pred_first;
+  pred_first.reserve(n + 1);
+  std::vector<double> leaf_sat(leaf_error_.empty() ? 0 : n, 0.0);  // largest error of a removed leaf
+  for (std::size_t c = 0; c < n; ++c) {
+    pred_first.push_back(std::uint32_t(pred_list.size()));
+    replay(skip + c, std::uint32_t(c), [&](std::uint32_t f) {
+      removed_.push_back(f);
+      const std::uint32_t p = creator_[f];
+      if (p == kNone) {
+        if (!leaf_sat.empty()) leaf_sat[c] = std::max(leaf_sat[c], leaf_error_[f]);
+      } else if (std::find(pred_list.begin() + pred_first.back(), pred_list.end(), p) == pred_list.end()) {
+        pred_list.push_back(p);
+      }
+    });
     removed_off_.push_back(std::uint32_t(removed_.size()));
-    created_off_.push_back(std::uint32_t(faces_.size() - slots));
-    removed_by_[u] = std::uint32_t(c);
+    created_off_.push_back(std::uint32_t(faces_.size() - created_base_));
+    removed_by_[collapses_[c].u] = std::uint32_t(c);
   }
   pred_first.push_back(std::uint32_t(pred_list.size()));
   star = {};
@@ -156,7 +212,7 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
     if (hf_.valid(i)) zlo = std::min(zlo, hf_[i]), zhi = std::max(zhi, hf_[i]);
   for (std::uint32_t c = 0; c < n; ++c) {
     const double e = collapses_[c].error;
-    double sat = e;
+    double sat = leaf_sat.empty() ? e : std::max(e, leaf_sat[c]);
     for (std::uint32_t p : preds(c)) sat = std::max(sat, saturated_[p]);
     saturated_[c] = sat;
     // Corners of the created faces; each face extruded by +-e lies in the box of its corners
@@ -222,7 +278,7 @@ std::size_t CollapseDag::memory_bytes() const {
          bytes(saturated_) + bytes(pred_off_) + bytes(preds_) + bytes(succ_off_) + bytes(succs_) +
          bytes(boxes_) + bytes(spheres_) + bytes(faces_) + bytes(creator_) + bytes(remover_) +
          bytes(removed_off_) + bytes(removed_) + bytes(created_off_) + bytes(full_faces_) +
-         bytes(removed_by_);
+         bytes(removed_by_) + bytes(leaf_error_);
 }
 
 }  // namespace terralod::pm

@@ -101,10 +101,8 @@ void SelectiveRefinement::add_face(std::uint32_t f) {
   face_pos_[f] = std::uint32_t(active_.size());
   active_.push_back(f);
   const auto& t = dag_->face(f);
-  const std::uint32_t c = dag_->creator(f);
   const Heightfield& hf = dag_->heightfield();
-  face_rec_.push_back(FaceRec{
-      {t[0], t[1], t[2]}, {hf[t[0]], hf[t[1]], hf[t[2]]}, c == kNone ? 0.0 : dag_->collapse(c).error});
+  face_rec_.push_back(FaceRec{{t[0], t[1], t[2]}, {hf[t[0]], hf[t[1]], hf[t[2]]}, dag_->face_error(f)});
   if (!defer_boxes_) push_face_box(face_rec_.back());
   if (!vfaces_.empty())
     for (std::uint32_t s : dag_->face(f)) vfaces_[s].push_back(f);

@@ -53,10 +53,7 @@ TriangleMesh SelectiveRefinement::mesh() const {
   std::sort(faces.begin(), faces.end());
   TriangleMesh m;
   index_faces(faces, m.vertices, m.triangles);
-  for (std::uint32_t f : faces) {
-    const std::uint32_t c = dag_->creator(f);
-    if (c != kNone) m.error_bound = std::max(m.error_bound, dag_->saturated_error(c));
-  }
+  for (std::uint32_t f : faces) m.error_bound = std::max(m.error_bound, dag_->face_saturated_error(f));
   return m;
 }
 

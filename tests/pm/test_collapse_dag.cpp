@@ -7,11 +7,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <vector>
 
 #include "dag_hierarchy_check.hpp"
+#include "mesh_checker.hpp"
 #include "screen_error_checker.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -103,6 +105,66 @@ TEST(CollapseDagHierarchy, RealTileCrop) {
   for (std::uint32_t c = 0; c < dag.collapse_count(); ++c) roots += dag.succs(c).empty();
   std::printf("N44W072 129x129 crop: %zu collapses, %zu without successors, max saturated error %.3f m\n",
               dag.collapse_count(), roots, pm.max_error());
+}
+
+// A DAG that skips the PM's first collapses (DagOptions::skip, what the runtime loads for a far
+// block): its leaves are exactly the PM's mesh after them, its collapses the rest, every leaf
+// face is within its leaf error by the independent checker, floor_error() stays within the
+// floor asked for, and the hierarchy invariants hold (saturation counting the leaves removed).
+TEST(CollapseDagPartial, LeavesAreThePmMeshAfterTheSkippedCollapses) {
+  Heightfield hf = generated(97, 81, /*metres=*/false, /*seed=*/13);
+  hf.transform = GridTransform::north_up(/*x0=*/500.0, /*y0=*/-300.0, /*dx=*/20.0, /*dy=*/30.0);
+  const ProgressiveMesh pm = ProgressiveMesh::build(hf);
+  const std::vector<Collapse>& all = pm.collapses();
+  std::vector<double> errors;
+  for (const Collapse& c : all) errors.push_back(c.error);
+  std::sort(errors.begin(), errors.end());
+  const auto sorted_triangles = [](std::vector<std::array<std::uint32_t, 3>> t) {
+    for (auto& x : t) std::rotate(x.begin(), std::min_element(x.begin(), x.end()), x.end());
+    std::sort(t.begin(), t.end());
+    return t;
+  };
+  for (double q : {0.0, 0.5, 0.9, 0.99, 1.0}) {
+    const double floor_m = q == 0.0 ? -1.0 : errors[std::min(errors.size() - 1, std::size_t(q * errors.size()))];
+    const std::size_t skip = CollapseDag::skip_for_floor(pm, floor_m);
+    for (std::size_t i = 0; i < skip; ++i) ASSERT_LE(all[i].error, floor_m);
+    if (skip < all.size()) {
+      EXPECT_GT(all[skip].error, floor_m);
+    }
+    const CollapseDag dag(pm, {.volume = VolumeKind::Box, .skip = skip});
+    const std::string label = "skip " + std::to_string(skip) + " of " + std::to_string(all.size());
+    ASSERT_EQ(dag.skipped(), skip) << label;
+    ASSERT_EQ(dag.collapse_count(), all.size() - skip) << label;
+    for (std::uint32_t c = 0; c < dag.collapse_count(); ++c)
+      ASSERT_TRUE(dag.collapse(c).u == all[skip + c].u && dag.collapse(c).w == all[skip + c].w) << label;
+    // The leaves are the PM's mesh after `skip` collapses.
+    const TriangleMesh after = pm.extract_after(skip);
+    std::vector<std::array<std::uint32_t, 3>> want, leaves;
+    for (const auto& t : after.triangles)
+      want.push_back({after.vertices[t[0]], after.vertices[t[1]], after.vertices[t[2]]});
+    for (std::uint32_t f : dag.full_faces()) leaves.push_back(dag.face(f));
+    ASSERT_EQ(sorted_triangles(leaves), sorted_triangles(want)) << label;
+    EXPECT_EQ(dag.full_vertex_count(), after.vertices.size()) << label;
+    // Every leaf within its error; the floor within what was asked.
+    double floor_seen = 0.0;
+    for (std::uint32_t f : dag.full_faces()) {
+      const auto& t = dag.face(f);
+      const terralod::test::TriangleError e = terralod::test::triangle_error(hf, t[0], t[1], t[2]);
+      ASSERT_LE(e.max(), dag.leaf_error(f) + 1e-9) << label << ", leaf " << f;
+      floor_seen = std::max(floor_seen, dag.leaf_error(f));
+    }
+    EXPECT_EQ(dag.floor_error(), floor_seen) << label;
+    if (skip == 0) {
+      EXPECT_EQ(dag.floor_error(), 0.0);
+    }
+    EXPECT_LE(dag.floor_error(), std::max(0.0, floor_m)) << label;
+    for (VolumeKind kind : {VolumeKind::Box, VolumeKind::Sphere})
+      EXPECT_EQ(dag_hierarchy_violation(CollapseDag(pm, {.volume = kind, .skip = skip})), "") << label;
+    // Fewer collapses, less memory.
+    if (skip > all.size() / 2) {
+      EXPECT_LT(dag.memory_bytes(), CollapseDag(pm).memory_bytes() * 3 / 4) << label;
+    }
+  }
 }
 
 }  // namespace

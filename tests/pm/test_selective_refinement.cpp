@@ -64,16 +64,16 @@ void expect_consistent(const pm::SelectiveRefinement& sel) {
   ASSERT_EQ(sel.active_vertex_count() + performed, dag.full_vertex_count());
 }
 
-// Every active face is within its creator's own error, at the samples and at the crossings,
-// measured by the independent checker (and so within its saturated error too).
+// Every active face is within its creator's own error (a leaf: its leaf error), at the samples
+// and at the crossings, measured by the independent checker (and so within its saturated error
+// too).
 void expect_faces_within_creator_error(const pm::SelectiveRefinement& sel) {
   const pm::CollapseDag& dag = sel.dag();
   for (std::uint32_t f : sel.active_faces()) {
     const auto& t = dag.face(f);
     const tt::TriangleError e = tt::triangle_error(dag.heightfield(), t[0], t[1], t[2]);
     const std::uint32_t c = dag.creator(f);
-    const double own = c == pm::CollapseDag::kNone ? 0.0 : dag.collapse(c).error;
-    const double saturated = c == pm::CollapseDag::kNone ? 0.0 : dag.saturated_error(c);
+    const double own = dag.face_error(f), saturated = dag.face_saturated_error(f);
     ASSERT_LE(e.samples, own + 1e-9) << "face " << f << " created by " << c;
     ASSERT_LE(e.max(), own + 1e-9) << "face " << f << " created by " << c;
     ASSERT_LE(own, saturated);
@@ -310,6 +310,61 @@ TEST(SelectiveRefinement, GuaranteeOnRealTerrain) {
     if (HasFatalFailure()) return;
   }
   tally.print("N44W072 crop 257 x 257");
+}
+
+// A refinement over a DAG that skips the PM's first collapses (what the runtime holds for a far
+// block) keeps the guarantee as reported: the brute-force error is within the reported bound on
+// every pose, every selection is closed, every face within its (leaf) error; where tau asks for
+// more than the leaves have, the bound says so (it reaches the floor) instead of tau; and at a
+// close view it descends to exactly the leaves.
+TEST(SelectiveRefinement, PartialDagReportsWhatItDraws) {
+  const Terrain& t = generated(257, 3);
+  std::vector<double> errors;
+  for (const pm::Collapse& c : t.pm.collapses()) errors.push_back(c.error);
+  std::sort(errors.begin(), errors.end());
+  const double floor_m = errors[errors.size() * 9 / 10];
+  const pm::CollapseDag dag(t.pm, {.skip = pm::CollapseDag::skip_for_floor(t.pm, floor_m)});
+  ASSERT_GT(dag.skipped(), t.pm.collapses().size() / 2);
+  ASSERT_GT(dag.floor_error(), 0.0);
+  std::printf("floor %.3f m: %zu of %zu collapses kept, %zu leaf vertices\n", dag.floor_error(),
+              dag.collapse_count(), t.pm.collapses().size(), dag.full_vertex_count());
+  std::mt19937_64 rng(51);
+  std::printf("seed 51\n");
+  pm::SelectiveRefinement sel(dag);
+  std::size_t over_tau = 0;
+  for (int k = 0; k < 80; ++k) {
+    const pm::Camera cam = tt::random_pose(t.hf, rng);
+    const pm::FrameStats st = sel.update(pm::View(cam));
+    const pm::TriangleMesh mesh = sel.mesh();
+    const tt::ScreenCheck chk = tt::check_screen_error(t.hf, mesh, tt::ScreenProjector(cam));
+    ASSERT_LE(chk.max_error_px, st.bound_px * (1 + 1e-9) + 1e-9) << chk.describe();
+    ASSERT_LE(mesh.error_bound, dag.floor_error() + dag.saturated_error(std::uint32_t(dag.collapse_count() - 1)));
+    if (st.bound_px > st.tolerance_px * (1 + 1e-12)) ++over_tau;
+    if (k % 10 == 0) {
+      expect_consistent(sel);
+      expect_faces_within_creator_error(sel);
+      const tt::MeshCheck mc = tt::check_mesh(t.hf, mesh, {});
+      ASSERT_TRUE(mc.ok(mesh.error_bound)) << mc.describe();
+    }
+    if (HasFatalFailure()) return;
+  }
+  std::printf("%zu of 80 poses report a bound over tau (the leaves are coarser than tau asks)\n", over_tau);
+  EXPECT_GT(over_tau, 0u);
+  // Close to the ground with a tiny tau: every collapse undone, the leaves drawn, the bound is
+  // the floor's.
+  pm::RefinementOptions o;
+  o.tolerance_px = 1e-3;
+  o.min_tolerance_px = 1e-3;
+  sel.set_options(o);
+  pm::Camera low = tt::random_pose(t.hf, rng);
+  const auto [cx, cy] = t.hf.transform.to_world(0.5 * (t.hf.width() - 1), 0.5 * (t.hf.height() - 1));
+  const auto [ex, ey] = t.hf.transform.to_world(double(t.hf.width() - 1), double(t.hf.height() - 1));
+  low.x = cx, low.y = cy, low.pitch_deg = -90, low.fovy_deg = 120;
+  low.z = tt::ground_height(t.hf, cx, cy) + 2.0 * std::hypot(ex - cx, ey - cy);
+  sel.update(pm::View(low));
+  EXPECT_EQ(sel.performed_count(), 0u);
+  EXPECT_EQ(sel.active_faces().size(), dag.full_faces().size());
+  EXPECT_EQ(sel.mesh().error_bound, dag.floor_error());
 }
 
 // The selection is S* = {c : ok(c)} whatever the previous frame was: incremental equals fresh.

@@ -1,6 +1,7 @@
 // The hierarchy invariants of a collapse DAG (the runtime's vertex hierarchy, collapse_dag.hpp),
 // checked independently of how the DAG computed them: the saturated error of every collapse is
-// its own error or its predecessors' largest, never below a predecessor's; every volume holds
+// its own error or its predecessors' largest (or that of a leaf face it removes, when the DAG
+// skips the PM's first collapses), never below a predecessor's; every volume holds
 // its predecessors' volumes (Fig. 4's nesting, boxes or spheres) and, optionally, the faces the
 // collapse creates extruded by its error (clipped to the height range for boxes); corners never
 // collapse and border vertices collapse only along their own border line.
@@ -60,6 +61,8 @@ inline std::string dag_hierarchy_violation(const pm::CollapseDag& dag, const Dag
       if (p >= c) return at(c, "a predecessor that comes later in the build");
       want = std::max(want, dag.saturated_error(p));
     }
+    for (std::uint32_t f : dag.removed_faces(c))
+      if (dag.creator(f) == pm::CollapseDag::kNone) want = std::max(want, dag.leaf_error(f));
     if (sat != want) return at(c, "saturated error " + std::to_string(sat) + " != " + std::to_string(want));
     // Volumes nest along the DAG.
     for (std::uint32_t p : dag.preds(c)) {

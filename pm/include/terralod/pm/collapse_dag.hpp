@@ -80,6 +80,14 @@ enum class VolumeKind : std::uint8_t {
 
 struct DagOptions {
   VolumeKind volume = VolumeKind::Box;
+  /// The first `skip` collapses of the PM are performed before the DAG starts: its finest mesh
+  /// (its "full-resolution" faces, the leaves) is the PM's mesh after them, and its collapses
+  /// are the rest. A far block needs only the coarse end of its PM, and this DAG holds only
+  /// that: its memory follows the collapses it keeps, plus 20 bytes a sample (heights, mask,
+  /// removed_by). Every face of the leaves keeps, as its error, the saturated error of the
+  /// skipped collapse that made it (leaf_error), so the error bound of every mesh of the DAG
+  /// still holds; floor_error() is the largest.
+  std::size_t skip = 0;
 };
 
 class CollapseDag {
@@ -88,12 +96,18 @@ class CollapseDag {
 
   /// Replays `pm` once; the PM need not outlive the DAG.
   explicit CollapseDag(const ProgressiveMesh& pm, const DagOptions& options = {});
+  /// The largest DagOptions::skip whose leaves are within floor_m of the samples: the length
+  /// of the PM's prefix whose errors are all <= floor_m (0 when floor_m is below the first).
+  static std::size_t skip_for_floor(const ProgressiveMesh& pm, double floor_m);
 
   const Heightfield& heightfield() const { return hf_; }
   VolumeKind volume_kind() const { return kind_; }
 
   // --- Collapses -----------------------------------------------------------------------------
+  /// The DAG's collapses: the PM's collapses from skipped() on (DAG collapse c is PM collapse
+  /// skipped() + c).
   std::size_t collapse_count() const { return collapses_.size(); }
+  std::size_t skipped() const { return skipped_; }
   const Collapse& collapse(std::uint32_t c) const { return collapses_[c]; }
   /// max(error(c), saturated_error(p) for every predecessor p), metres.
   double saturated_error(std::uint32_t c) const { return saturated_[c]; }
@@ -126,7 +140,20 @@ class CollapseDag {
   std::size_t face_id_count() const { return faces_.size(); }
   /// Corners (samples) of face f, CCW in (col,row); corners[0] == kNone for an unused slot.
   const std::array<std::uint32_t, 3>& face(std::uint32_t f) const { return faces_[f]; }
-  std::uint32_t creator(std::uint32_t f) const { return creator_[f]; }  ///< kNone: full resolution
+  std::uint32_t creator(std::uint32_t f) const { return creator_[f]; }  ///< kNone: a leaf
+  /// Error of a leaf face (creator kNone): 0 at full resolution, else the saturated error of
+  /// the skipped collapse that made it (DagOptions::skip).
+  double leaf_error(std::uint32_t f) const { return leaf_error_.empty() ? 0.0 : leaf_error_[f]; }
+  /// Error of face f as drawn: its creator's error, or its leaf error.
+  double face_error(std::uint32_t f) const {
+    return creator_[f] == kNone ? leaf_error(f) : collapses_[creator_[f]].error;
+  }
+  /// Saturated error of face f: its creator's saturated error, or its leaf error.
+  double face_saturated_error(std::uint32_t f) const {
+    return creator_[f] == kNone ? leaf_error(f) : saturated_[creator_[f]];
+  }
+  /// The largest leaf error: no mesh of the DAG is closer to the samples than this allows.
+  double floor_error() const { return floor_error_; }
   std::uint32_t remover(std::uint32_t f) const { return remover_[f]; }  ///< kNone: in the base mesh
   /// Faces of u's star that c removes (in the build: the faces it deletes and changes).
   std::span<const std::uint32_t> removed_faces(std::uint32_t c) const {
@@ -136,12 +163,15 @@ class CollapseDag {
   std::pair<std::uint32_t, std::uint32_t> created_faces(std::uint32_t c) const {
     return {created_base_ + created_off_[c], created_base_ + created_off_[c + 1]};
   }
-  /// Full-resolution faces of the domain (ids < full_face_slots), ascending.
+  /// The leaves, ascending: the full-resolution faces of the domain (ids < full_face_slots) when
+  /// nothing is skipped, else the faces of the mesh after the skipped collapses (ids 0 .. L-1).
   const std::vector<std::uint32_t>& full_faces() const { return full_faces_; }
 
   // --- Vertices ------------------------------------------------------------------------------
+  /// Vertices of the leaves (all the samples' vertices when nothing is skipped).
   std::size_t full_vertex_count() const { return full_vertex_count_; }
-  /// Collapse that removes sample s, or kNone for base-mesh vertices and non-vertices.
+  /// Collapse that removes sample s, or kNone for base-mesh vertices and samples that are not
+  /// vertices of the leaves.
   std::uint32_t removed_by(std::uint32_t s) const { return removed_by_[s]; }
   /// World position of sample s: (x, y) = transform.to_world(col, row), z = its height.
   Vec3 position(std::uint32_t s) const;
@@ -172,6 +202,9 @@ class CollapseDag {
   std::vector<std::uint32_t> full_faces_;
   std::vector<std::uint32_t> removed_by_;
   std::size_t full_vertex_count_ = 0;
+  std::size_t skipped_ = 0;
+  std::vector<double> leaf_error_;  // by leaf face; empty when nothing is skipped
+  double floor_error_ = 0;
 };
 
 }  // namespace terralod::pm
