@@ -3,13 +3,15 @@
 // and off: frame time (median, 99th percentile, worst), prefetch misses, peak resident memory,
 // bytes read.
 //
-// Usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB]
+// Usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB] [--partial F]
 //   DB: a block database of N44W072 (from 'terralod build'); without it the benchmark builds
 //   one with build_database (blocks of --block-size samples, default 129, the default tree and
 //   stand-ins) in a temporary folder first, and reuses it on later runs.
 //   --budget: the runtime's memory budget, megabytes (default 1024: the flight at tau = 1 px
 //   peaks near 710 MB with the default 129-sample blocks; below what a frame needs, blocks stay
 //   missing).
+//   --partial: RuntimeOptions::partial_load_factor (default 4: far blocks hold only the coarse
+//   end of their PM; 0 loads every block whole).
 
 #include <algorithm>
 #include <chrono>
@@ -64,7 +66,7 @@ double pct(std::vector<double> v, double q) {
 int main(int argc, char** argv) {
   std::string db_path;
   int block_size = 129;
-  double tau = 1.0, budget_mb = 1024.0;
+  double tau = 1.0, budget_mb = 1024.0, partial = tb::RuntimeOptions{}.partial_load_factor;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--block-size") && i + 1 < argc)
       block_size = std::atoi(argv[++i]);
@@ -72,18 +74,24 @@ int main(int argc, char** argv) {
       tau = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--budget") && i + 1 < argc)
       budget_mb = std::atof(argv[++i]);
+    else if (!std::strcmp(argv[i], "--partial") && i + 1 < argc)
+      partial = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {
       std::puts(
-          "usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB]\n"
+          "usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB] [--partial F]\n"
           "Replays a scripted 60 s flight over N44W072 in real time through the terrain runtime\n"
           "with prediction on and off. Without DB, builds one (blocks of N samples, default 129).\n"
-          "--budget: resident memory of the runtime, megabytes (default 1024).");
+          "--budget: resident memory of the runtime, megabytes (default 1024).\n"
+          "--partial: load a needed block only down to the error its view needs divided by F\n"
+          "(default 4); 0 loads every block whole.");
       return 0;
     } else
       db_path = argv[i];
   }
-  if (!(tau > 0) || !(budget_mb > 0) || block_size < 3) {
-    std::fprintf(stderr, "terralod-bench-fly: need --tau > 0, --budget > 0 and --block-size >= 3\n");
+  if (!(tau > 0) || !(budget_mb > 0) || block_size < 3 || !(partial == 0 || partial >= 1)) {
+    std::fprintf(
+        stderr,
+        "terralod-bench-fly: need --tau > 0, --budget > 0, --block-size >= 3 and --partial 0 or >= 1\n");
     return 2;
   }
   try {
@@ -135,6 +143,7 @@ int main(int argc, char** argv) {
       opt.tolerance_px = tau;
       opt.morph_seconds = 0.5;
       opt.budget_bytes = std::size_t(budget_mb * 1e6);
+      opt.partial_load_factor = partial;
       tb::TerrainRuntime rt(db_path, opt);
       std::vector<double> ms, bounds;
       std::size_t cold_misses = 0, cold_needed = 0;  // the first 2 s: every block is missing then
@@ -166,15 +175,15 @@ int main(int argc, char** argv) {
           "prediction %-3s: frame median %.2f ms, p99 %.2f ms, worst %.2f ms, %zu frames over 16.7 ms; "
           "prefetch misses %zu of %zu blocks needed in view (after the first 2 s: %zu of %zu), %zu frames "
           "with a block missing in view; peak resident %.1f MB (budget %.0f MB), %.1f MB read, %zu evicted, "
-          "%zu dropped; "
+          "%zu dropped, %zu reloaded finer; "
           "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB\n",
           prefetch ? "on" : "off", pct(ms, 0.5), pct(ms, 0.99), pct(ms, 1.0), slow_frames,
           st.prefetch_misses_total, st.prefetch_hits_total + st.prefetch_misses_total,
           st.prefetch_misses_total - cold_misses,
           st.prefetch_hits_total + st.prefetch_misses_total - cold_needed, missing_frames,
           double(st.peak_resident_bytes) / 1e6, double(opt.budget_bytes) / 1e6,
-          double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, triangles, pct(bounds, 0.5),
-          bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0));
+          double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, st.reloads_total, triangles,
+          pct(bounds, 0.5), bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0));
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod-bench-fly: %s\n", e.what());

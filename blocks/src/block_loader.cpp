@@ -21,7 +21,7 @@ std::string block_name(BlockKey k) {
 
 std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k,
                                                 std::span<const std::uint8_t> blob,
-                                                const std::string& source_name) {
+                                                const std::string& source_name, double floor_m) {
   assert(grid.contains(k));
   const std::string name = source_name + ": " + block_name(k);
   const auto t = std::chrono::steady_clock::now();
@@ -36,7 +36,9 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
                                            std::to_string(hf.height()) + " samples, the block grid expects " +
                                            std::to_string(d.width()) + " x " + std::to_string(d.height()));
     b->metric = pm.metric();
-    b->dag = std::make_unique<pm::CollapseDag>(pm);
+    b->floor_m = floor_m;
+    b->dag = std::make_unique<pm::CollapseDag>(
+        pm, pm::DagOptions{.skip = floor_m > 0 ? pm::CollapseDag::skip_for_floor(pm, floor_m) : 0});
   }
   b->blob_bytes = blob.size();
   const pm::CollapseDag& dag = *b->dag;
@@ -126,6 +128,7 @@ void BlockLoader::run() {
     cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
     if (stop_) return;
     const BlockKey k = queue_.front().key;
+    const double floor_m = queue_.front().floor_m;
     queue_.erase(queue_.begin());
     in_flight_ = k;
     lock.unlock();
@@ -140,7 +143,7 @@ void BlockLoader::run() {
         const std::vector<std::uint8_t> blob = source->read(k);
         const double read_ms = ms_since(t);
         bytes = blob.size();
-        auto b = std::const_pointer_cast<LoadedBlock>(decode_block(grid_, k, blob, source->name()));
+        auto b = std::const_pointer_cast<LoadedBlock>(decode_block(grid_, k, blob, source->name(), floor_m));
         b->read_ms = read_ms;
         if (prepare_) r.selection = prepare_(*b);
         r.block = std::move(b);

@@ -42,6 +42,8 @@ void check_options(const RuntimeOptions& o) {
   if (!(o.morph_seconds >= 0) || !std::isfinite(o.morph_seconds))
     throw std::invalid_argument("RuntimeOptions: morph_seconds must be >= 0 and finite");
   if (o.budget_bytes == 0) throw std::invalid_argument("RuntimeOptions: budget_bytes must be > 0");
+  if (!(o.partial_load_factor == 0 || (o.partial_load_factor >= 1 && std::isfinite(o.partial_load_factor))))
+    throw std::invalid_argument("RuntimeOptions: partial_load_factor must be 0 or finite and >= 1");
   if (!(o.prefetch_horizon_s >= 0) || !(o.prefetch_step_s > 0))
     throw std::invalid_argument("RuntimeOptions: need prefetch_horizon_s >= 0 and prefetch_step_s > 0");
   if (!(o.region.theta_deg > 0 && o.region.theta_deg < 90))
@@ -199,6 +201,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
                              .nodes_resident = tree_.size(),
                              .evicted_total = prev.evicted_total,
                              .dropped_total = prev.dropped_total,
+                             .reloads_total = prev.reloads_total,
                              .prefetch_hits_total = prev.prefetch_hits_total,
                              .prefetch_misses_total = prev.prefetch_misses_total,
                              .peak_resident_bytes = prev.peak_resident_bytes};
@@ -228,16 +231,17 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   Selection sel;
   const bool root_ok = visit(view, tau, 0, sel, std::numeric_limits<double>::infinity());
   const std::vector<std::int64_t>&coarse = sel.coarse, &pms = sel.pms;
-  const std::vector<std::pair<std::int64_t, double>>& needed = sel.needed;
+  const std::vector<Need>& needed = sel.needed;
   // A PmBlock root that is missing is drawn as its stand-in (no ancestor exists).
   const bool root_standin = !root_ok && !sums_[grid_.index(*tree_.root().block)].triangles.empty();
   s.needed_in_view = needed.size();
   std::set<BlockKey> needed_now;
-  for (const auto& [id, px] : needed) {
-    const BlockKey k = *tree_.node(id).block;
+  for (const Need& nd : needed) {
+    const BlockKey k = *tree_.node(nd.id).block;
     needed_now.insert(k);
-    if (blocks_.count(k)) {
-      blocks_[k]->last_used = frame_;
+    const auto it = blocks_.find(k);
+    if (it != blocks_.end()) it->second->last_used = frame_;
+    if (it != blocks_.end() && covers(*it->second, nd.floor_m)) {
       if (!needed_prev_.count(k) && !missing_.count(k)) ++s.prefetch_hits_total;
       missing_.erase(k);
     } else {
@@ -257,7 +261,8 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   // Refinement of the drawn PM blocks; what was drawn over a block before it arrived.
   const std::set<std::int64_t> coarse_set(coarse.begin(), coarse.end()), pm_set(pms.begin(), pms.end());
   std::map<std::int64_t, std::int64_t> drawn_as;
-  for (const auto& [id, px] : needed) {
+  for (const Need& nd : needed) {
+    const std::int64_t id = nd.id;
     std::int64_t a = id;
     if (!pm_set.count(id)) {
       a = tree_.node(id).parent;
@@ -432,6 +437,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   }
   s.evicted_total += s.blocks_evicted;
   s.blocks_resident = blocks_.size();
+  for (const auto& [k, b] : blocks_) s.partial_blocks += b->data->dag->skipped() > 0;
   s.blocks_loading = loader_->pending();
   s.bytes_read_total = loader_->bytes_read();
   s.bytes_read = s.bytes_read_total - prev.bytes_read_total;

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <stdexcept>
 #include <thread>
@@ -61,13 +62,21 @@ void TerrainRuntime::take_loads() {
   for (LoadResult& r : results) {
     if (!r.block) throw std::runtime_error(r.error);
     const BlockKey k = r.key;
+    auto old = blocks_.find(k);
+    // A copy no finer than the resident one (asked for before the resident one arrived) is
+    // not needed.
+    if (old != blocks_.end() && !(r.block->dag->floor_error() < old->second->data->dag->floor_error()))
+      continue;
     const std::uint64_t nv = r.block->dag->full_vertex_count();
-    if (nv > 0)
+    if (nv > 0 && r.block->dag->skipped() == 0)  // whole blocks only: estimate_bytes is for them
       bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
-    make_room(r.block->memory_bytes, keep);
+    // A finer copy replaces the resident one: only the difference needs room.
+    const std::size_t old_bytes = old != blocks_.end() ? old->second->data->memory_bytes : 0;
+    keep.insert(k);
+    make_room(r.block->memory_bytes > old_bytes ? r.block->memory_bytes - old_bytes : 0, keep);
     std::size_t resident = fixed_bytes();
     for (const auto& [kk, b] : blocks_) resident += b->data->memory_bytes;
-    if (resident + r.block->memory_bytes > opt_.budget_bytes) {
+    if (resident - old_bytes + r.block->memory_bytes > opt_.budget_bytes) {
       ++stats_.dropped_total;
       continue;
     }
@@ -77,39 +86,81 @@ void TerrainRuntime::take_loads() {
                  ? std::move(r.selection)
                  : std::make_unique<pm::SelectiveRefinement>(*b->data->dag, refinement_options(opt_, tau_));
     b->last_used = frame_;
+    if (old != blocks_.end()) {
+      // The finer copy blends in from what the coarser one drew last (or goes on with the
+      // blend that one was in), as a block arriving over its stand-in does.
+      Block& o = *old->second;
+      b->last_drawn = o.last_drawn;
+      if (opt_.morph_seconds > 0 && o.last_drawn + 1 >= frame_) {
+        if (o.blending) {
+          b->old = std::move(o.old);
+          b->blend_t0 = o.blend_t0;
+        } else if (o.rm_valid) {
+          const SampleRect d = grid_.domain(k);
+          const std::uint32_t bw = std::uint32_t(o.data->dag->heightfield().width());
+          for (const auto& t : o.rm.triangles) {
+            detail::Tri3 q;
+            for (int c = 0; c < 3; ++c) {
+              const std::uint32_t v = t[std::size_t(c)], ls = o.rm.samples[v];
+              q[std::size_t(c)] = {double(d.col0 + int(ls % bw)), double(d.row0 + int(ls / bw)),
+                                   o.rm.positions[v].z};
+            }
+            b->old.push_back(q);
+          }
+          b->blend_t0 = time_;
+        }
+        b->blending = !b->old.empty();
+      }
+      ++stats_.reloads_total;
+    }
     blocks_[k] = std::move(b);
-    keep.insert(k);
   }
 }
 
-void TerrainRuntime::queue_loads(const pm::View& view,
-                                 const std::vector<std::pair<std::int64_t, double>>& needed) {
+void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& needed) {
   // Requests in priority order (lower first): needed blocks by screen error, then the active
   // region around the eye, then the regions around the predicted path. The queue stops where
   // the estimated memory would pass the budget.
   std::vector<BlockLoader::Request> req;
-  std::set<BlockKey> seen;
+  std::map<BlockKey, std::size_t> queued;  // index in req
+  std::set<BlockKey> seen;                 // counted in `planned`
   std::size_t planned = fixed_bytes();
   for (const auto& [k, b] : blocks_)
     if (b->last_used == frame_) planned += b->data->memory_bytes, seen.insert(k);
-  auto want = [&](BlockKey k, double priority) {
-    if (!seen.insert(k).second) return true;
+  // The floor a block is loaded at when `need` is the coarsest its view can use (see
+  // RuntimeOptions::partial_load_factor).
+  const auto load_floor = [&](double need) {
+    return opt_.partial_load_factor > 0 ? need / opt_.partial_load_factor : 0.0;
+  };
+  // Wants block k at priority `priority` with leaves no coarser than `need`: resident and fine
+  // enough, it is kept; otherwise it is queued (a resident coarser copy stays until the finer
+  // one replaces it). False once the plan would pass the budget.
+  auto want = [&](BlockKey k, double priority, double need) {
+    if (const auto q = queued.find(k); q != queued.end()) {
+      req[q->second].floor_m = std::min(req[q->second].floor_m, load_floor(need));
+      return true;
+    }
     const auto it = blocks_.find(k);
-    const std::size_t bytes = it != blocks_.end() ? it->second->data->memory_bytes : estimate_bytes(k);
+    const bool resident = it != blocks_.end(), covered = resident && covers(*it->second, need);
+    if (covered && seen.count(k)) return true;
+    std::size_t bytes = !resident || seen.count(k) ? 0 : it->second->data->memory_bytes;
+    if (!covered) bytes += estimate_bytes(k);  // whole-block estimate: an upper bound of any copy
     if (planned + bytes > opt_.budget_bytes) return false;
     planned += bytes;
-    if (it != blocks_.end())
-      it->second->last_used = frame_;  // keep what the policy wants
-    else
-      req.push_back({k, priority});
+    seen.insert(k);
+    if (resident) it->second->last_used = frame_;  // keep what the policy wants
+    if (!covered) {
+      queued[k] = req.size();
+      req.push_back({k, priority, load_floor(need)});
+    }
     return true;
   };
-  std::vector<std::pair<double, BlockKey>> order;
-  for (const auto& [id, px] : needed) order.push_back({-px, *tree_.node(id).block});
+  std::vector<Want> order;
+  for (const Need& nd : needed) order.push_back({-nd.parent_px, *tree_.node(nd.id).block, nd.floor_m});
   std::sort(order.begin(), order.end());
   bool room = true;
   for (std::size_t i = 0; i < order.size() && room; ++i)
-    room = want(order[i].second, double(i) / double(order.size() + 1));
+    room = want(order[i].key, double(i) / double(order.size() + 1), order[i].floor_m);
   const pm::Vec3 eye = view.eye();
   const double scale = 1.0 / (grid_.block_extent_m() * double(2 * opt_.region.n_max + 3));
   auto dist = [&](BlockKey k) {
@@ -118,15 +169,25 @@ void TerrainRuntime::queue_loads(const pm::View& view,
                  dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
     return std::min(0.99, std::hypot(dx, dy) * scale);
   };
+  // The floor a view from `centre` (this view's lens) needs over block k at its nearest.
+  const double limit = detail::kSelectShare * tau_;
+  auto need_from = [&](const pm::Vec3& centre, BlockKey k) {
+    const pm::Box b = block_box(grid_, k, sums_[grid_.index(k)]);
+    const double d = std::hypot(std::max({b.lo.x - centre.x, 0.0, centre.x - b.hi.x}),
+                                std::max({b.lo.y - centre.y, 0.0, centre.y - b.hi.y}),
+                                std::max({b.lo.z - centre.z, 0.0, centre.z - b.hi.z}));
+    return limit / view.vertical_error_px_at_depth(d, 1.0);
+  };
   // The inner blocks of the active region around `centre`, nearest the eye first, at
-  // priorities base + spread * distance (distance scaled into [0, 0.99]).
+  // priorities base + spread * distance (distance scaled into [0, 0.99]), with the floor a view
+  // from `centre` needs.
   auto want_region = [&](const pm::Vec3& centre, double base, double spread) {
     const ActiveRegion r = active_region(grid_, sums_, centre, opt_.region);
     std::vector<std::pair<double, BlockKey>> around;
     for (BlockKey k : r.inner) around.push_back({dist(k), k});
     std::sort(around.begin(), around.end());
     for (std::size_t i = 0; i < around.size() && room; ++i)
-      room = want(around[i].second, base + spread * around[i].first);
+      room = want(around[i].second, base + spread * around[i].first, need_from(centre, around[i].second));
   };
   if (room) want_region(eye, 1.0, 1.0);
   if (room && opt_.prefetch) {
@@ -141,10 +202,11 @@ void TerrainRuntime::queue_loads(const pm::View& view,
       const double dx = pt.position.x - prev.x, dy = pt.position.y - prev.y;
       if (std::hypot(dx, dy) > 1e-6) c.yaw_deg = std::atan2(dx, dy) * 180.0 / std::numbers::pi;
       prev = pt.position;
-      std::vector<std::pair<double, BlockKey>> ahead;
+      std::vector<Want> ahead;
       needed_at(pm::View(c), tau_, 0, std::numeric_limits<double>::infinity(), ahead);
       std::sort(ahead.begin(), ahead.end());
-      for (std::size_t i = 0; i < ahead.size() && room; ++i) room = want(ahead[i].second, 2.0 + pt.dt);
+      for (std::size_t i = 0; i < ahead.size() && room; ++i)
+        room = want(ahead[i].key, 2.0 + pt.dt, ahead[i].floor_m);
       if (room)
         want_region(pt.position, 2.0 + pt.dt + 0.5 * opt_.prefetch_step_s, 0.25 * opt_.prefetch_step_s);
     }

@@ -1,12 +1,27 @@
 // Step 2 of the terrain runtime's frame (terrain_runtime.hpp): the selection over the
 // approximation tree (culling, coarse nodes within tau / 2, PM blocks as their stand-ins or
 // refined, ancestors drawn for missing blocks), and the same rules run ahead for prefetching.
+#include <limits>
+
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 
 namespace terralod::blocks {
 
 using detail::kSelectShare;
+
+namespace {
+// The coarsest error a PM block's leaves may have for the view to meet `limit` over its box:
+// View::vertical_error_px is linear in the error.
+double floor_for(const pm::View& view, const pm::Box& box, double limit) {
+  const double px_per_m = view.vertical_error_px(box, 1.0);
+  return px_per_m > 0 ? limit / px_per_m : std::numeric_limits<double>::infinity();
+}
+}  // namespace
+
+bool TerrainRuntime::covers(const Block& b, double floor_m) const {
+  return b.data->dag->floor_error() <= floor_m;
+}
 
 // Selection (header, step 2). Returns false when the subtree needs a block that is not resident.
 bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Selection& sel,
@@ -26,7 +41,9 @@ bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Se
       sel.standins.push_back(id);
       return true;
     }
-    sel.needed.push_back({id, parent_px});
+    // A resident block is drawn even when its leaves are coarser than this view needs (a finer
+    // copy is on its way): it is closer to the terrain than an ancestor, and its bound says so.
+    sel.needed.push_back({id, parent_px, floor_for(view, n.bbox, limit)});
     if (!blocks_.count(*n.block)) return false;
     sel.pms.push_back(id);
     return true;
@@ -52,14 +69,14 @@ bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Se
 // The PM blocks a view would need (the selection's rules, with the stand-in tried by its whole
 // box only: a cheap, conservative test for prefetching), largest screen error first.
 void TerrainRuntime::needed_at(const pm::View& view, double tau, std::int64_t id, double parent_px,
-                               std::vector<std::pair<double, BlockKey>>& out) const {
+                               std::vector<Want>& out) const {
   const TreeNode& n = tree_.node(id);
   if (view.outside(n.bbox)) return;
   const double limit = kSelectShare * tau;
   if (n.strategy == Strategy::PmBlock) {
     const BlockSummary& sum = sums_[grid_.index(*n.block)];
     if (!sum.triangles.empty() && view.vertical_error_px(n.bbox, sum.standin_error) <= limit) return;
-    out.push_back({-parent_px, *n.block});
+    out.push_back({-parent_px, *n.block, floor_for(view, n.bbox, limit)});
     return;
   }
   const double b = view.vertical_error_px(n.bbox, n.error);

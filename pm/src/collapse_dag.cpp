@@ -143,8 +143,15 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
       if (leaf_id[f] == kNone) continue;
       leaf_id[f] = std::uint32_t(leaves.size());
       leaves.push_back(faces_[f]);
-      leaf_error_.push_back(creator_[f] == kNone ? 0.0 : sat[creator_[f]]);
+      // Rounded up to a float: the bound it gives stays true, in half the bytes.
+      const double e = creator_[f] == kNone ? 0.0 : sat[creator_[f]];
+      float fe = float(e);
+      while (double(fe) < e) fe = std::nextafter(fe, INFINITY);
+      leaf_error_.push_back(fe);
     }
+    // No leaf moved off the samples (only collapses of error 0 were skipped): no list needed.
+    if (std::all_of(leaf_error_.begin(), leaf_error_.end(), [](float e) { return e == 0.0f; }))
+      leaf_error_ = {};
     for (auto& s : star)
       for (std::uint32_t& f : s) f = leaf_id[f];
     faces_ = std::move(leaves);
@@ -155,7 +162,7 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
     if (faces_[f][0] != kNone) full_faces_.push_back(f);
   for (const auto& s : star) full_vertex_count_ += s.empty() ? 0 : 1;
   faces_.reserve(faces_.size() + 4 * n);
-  for (double e : leaf_error_) floor_error_ = std::max(floor_error_, e);
+  for (float e : leaf_error_) floor_error_ = std::max(floor_error_, double(e));
 
   // Replay of the DAG's collapses, recording what each removes and creates and its predecessors.
   removed_off_.assign(1, 0);
@@ -171,7 +178,7 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
       removed_.push_back(f);
       const std::uint32_t p = creator_[f];
       if (p == kNone) {
-        if (!leaf_sat.empty()) leaf_sat[c] = std::max(leaf_sat[c], leaf_error_[f]);
+        if (!leaf_sat.empty()) leaf_sat[c] = std::max(leaf_sat[c], double(leaf_error_[f]));
       } else if (std::find(pred_list.begin() + pred_first.back(), pred_list.end(), p) == pred_list.end()) {
         pred_list.push_back(p);
       }

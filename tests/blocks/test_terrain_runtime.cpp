@@ -363,6 +363,57 @@ TEST(TerrainRuntime, MemoryBudgetHeldEveryFrameAndMissingReported) {
       << "the budget should bind on this flight";
 }
 
+// Far blocks are loaded only down to the error their view needs (partial_load_factor): the
+// same complete high view holds far less memory than with whole blocks, at the same bound; on
+// the way down finer copies replace the coarse ones, and every frame keeps the guarantee as
+// drawn (fly(): the independent checker, coverage, watertight seams, tau when nothing is
+// missing) while they blend in.
+TEST(TerrainRuntime, FarBlocksHoldOnlyTheirCoarseEndAndFinerCopiesReplaceThem) {
+  const tp::Heightfield& hf = terrain().hf;
+  // From a corner, 1000 m up, across the terrain (15 km) to its far corner.
+  const auto high = [&] {
+    return pose(hf, 0.02 * (hf.width() - 1), 0.98 * (hf.height() - 1), 1000.0, 45, -4);
+  };
+  std::size_t bytes[2] = {0, 0};
+  const double tau = 4.0;  // far blocks need only their coarse end at this tau (15 km across)
+  for (double factor : {0.0, 4.0}) {
+    tb::RuntimeOptions o;
+    o.tolerance_px = tau;
+    o.partial_load_factor = factor;
+    tb::TerrainRuntime rt(terrain().db, o);
+    tp::Camera cam = high();
+    rt.fit_clip_planes(cam);
+    rt.update_until_loaded(tp::View(cam), 0.0, 60.0);
+    const tb::RuntimeFrameStats s = rt.stats();  // the last frame, with everything loaded
+    ASSERT_EQ(s.missing_in_view, 0u);
+    ASSERT_GT(s.needed_in_view, 4u) << "the view should need several blocks";
+    EXPECT_LE(s.bound_px, tau);
+    const tt::FrameCheck c = tt::check_drawn_frame(hf, frame_of(rt.drawn_mesh()), cam);
+    EXPECT_LE(c.max_error_px, s.bound_px * (1 + 1e-9) + 1e-9) << c.describe();
+    bytes[factor > 0] = s.resident_bytes;
+    std::printf("partial_load_factor %g: %zu blocks resident (%zu partial), %zu bytes\n", factor,
+                s.blocks_resident, s.partial_blocks, s.resident_bytes);
+    if (factor == 0) {
+      EXPECT_EQ(s.partial_blocks, 0u);
+      continue;
+    }
+    EXPECT_GT(s.partial_blocks, 0u);
+    // Down to 60 m over the middle in 4 s: finer copies replace the coarse ones.
+    std::vector<tp::Camera> path;
+    for (int f = 0; f < 240; ++f) {
+      const double t = f / 239.0;
+      path.push_back(pose(hf, (0.02 + 0.48 * t) * (hf.width() - 1), (0.98 - 0.48 * t) * (hf.height() - 1),
+                          1000.0 * (1 - t) + 60.0 * t, 45, -4 - 11 * t));
+    }
+    const FlightResult r = fly(rt, path, tau, 4, /*wait=*/true, 1.0);
+    EXPECT_GT(rt.stats().reloads_total, 0u);
+    EXPECT_GT(r.complete_frames, r.frames / 2);
+    std::printf("descent: %zu finer copies, %zu of %zu frames complete, worst measured / bound %.3f\n",
+                rt.stats().reloads_total, r.complete_frames, r.frames, r.worst_ratio);
+  }
+  EXPECT_LT(bytes[1] * 10, bytes[0] * 7) << "partial blocks should hold far less memory (measured: half)";
+}
+
 // A block that finished after update() took the loader's results is never asked for again
 // (set_queue skips finished keys), so loading() must stay true until an update() takes it: a
 // caller looping "while blocks are missing and loading()" would otherwise stop one block short.

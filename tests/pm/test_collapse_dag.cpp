@@ -125,7 +125,8 @@ TEST(CollapseDagPartial, LeavesAreThePmMeshAfterTheSkippedCollapses) {
     return t;
   };
   for (double q : {0.0, 0.5, 0.9, 0.99, 1.0}) {
-    const double floor_m = q == 0.0 ? -1.0 : errors[std::min(errors.size() - 1, std::size_t(q * errors.size()))];
+    const double floor_m =
+        q == 0.0 ? -1.0 : errors[std::min(errors.size() - 1, std::size_t(q * errors.size()))];
     const std::size_t skip = CollapseDag::skip_for_floor(pm, floor_m);
     for (std::size_t i = 0; i < skip; ++i) ASSERT_LE(all[i].error, floor_m);
     if (skip < all.size()) {

@@ -338,7 +338,8 @@ TEST(SelectiveRefinement, PartialDagReportsWhatItDraws) {
     const pm::TriangleMesh mesh = sel.mesh();
     const tt::ScreenCheck chk = tt::check_screen_error(t.hf, mesh, tt::ScreenProjector(cam));
     ASSERT_LE(chk.max_error_px, st.bound_px * (1 + 1e-9) + 1e-9) << chk.describe();
-    ASSERT_LE(mesh.error_bound, dag.floor_error() + dag.saturated_error(std::uint32_t(dag.collapse_count() - 1)));
+    ASSERT_LE(mesh.error_bound,
+              dag.floor_error() + dag.saturated_error(std::uint32_t(dag.collapse_count() - 1)));
     if (st.bound_px > st.tolerance_px * (1 + 1e-12)) ++over_tau;
     if (k % 10 == 0) {
       expect_consistent(sel);

@@ -61,6 +61,10 @@ BlockSourceFactory database_source(const std::string& path);
 /// A block in memory: the DAG of its PM, which selective refinement runs on.
 struct LoadedBlock {
   BlockKey key;
+  /// The floor the block was asked for (metres; 0: full resolution). The DAG skips the PM's
+  /// collapses up to it (DagOptions::skip), so dag->floor_error() <= floor_m: a far block holds
+  /// only the coarse end of its PM.
+  double floor_m = 0;
   /// The PM's error metric. The decoded PM itself is not kept: the DAG holds a copy of all
   /// the refinement needs (heightfield, collapses), and the PM's own would be 24 bytes a vertex
   /// more for every resident block.
@@ -73,11 +77,13 @@ struct LoadedBlock {
   double read_ms = 0, decode_ms = 0;
 };
 
-/// Decodes a block blob (pm::decode_pm) and builds its DAG; checks its size against the grid.
-/// Throws pm::PmFormatError / DatabaseError naming `source_name` and the block.
+/// Decodes a block blob (pm::decode_pm) and builds its DAG, skipping the collapses within
+/// floor_m (CollapseDag::skip_for_floor; 0 keeps every collapse); checks its
+/// size against the grid. Throws pm::PmFormatError / DatabaseError naming `source_name` and the
+/// block.
 std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k,
                                                 std::span<const std::uint8_t> blob,
-                                                const std::string& source_name);
+                                                const std::string& source_name, double floor_m = 0);
 
 struct LoadResult {
   BlockKey key;
@@ -98,6 +104,7 @@ class BlockLoader {
   struct Request {
     BlockKey key;
     double priority = 0;  ///< lower is read first; ties in queue order
+    double floor_m = 0;   ///< decode_block's floor: the coarsest leaves the caller can use
   };
 
   BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare = {});

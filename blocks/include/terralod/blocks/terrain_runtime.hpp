@@ -37,9 +37,13 @@
 //      leaf reached this way is first tried as its stand-in (the block's TIN of at most 64
 //      samples in the database's block summaries, always resident, exact error per triangle):
 //      when that meets tau / 2 the block is drawn with it and need not be loaded. Otherwise the
-//      block is needed: when resident it is drawn by its SelectiveRefinement at tau / 2 (for the
-//      same reason); when not, it is missing, and its nearest ancestor (always resident: every
-//      coarse node is) is drawn in place of that ancestor's whole subtree, with its true bound.
+//      block is needed, with the coarsest leaf error that meets tau / 2 over its box (its
+//      floor: tau / 2 over View::vertical_error_px(box, 1 m)). When resident it is drawn by its
+//      SelectiveRefinement at tau / 2 (for the same reason); a resident copy whose leaves are
+//      coarser than the floor (a partial block, see 3) is drawn too, with its true bound, and
+//      counted missing until a finer copy replaces it. When not resident it is missing, and its
+//      nearest ancestor (always resident: every coarse node is) is drawn in place of that
+//      ancestor's whole subtree, with its true bound.
 //      A PmBlock root with no ancestor is drawn as its stand-in (BlockSummary) instead. A
 //      database without block summaries (its blocks have voids) has no stand-ins: no block is
 //      drawn as one, and a missing PmBlock root leaves its terrain undrawn (and counted missing).
@@ -48,7 +52,12 @@
 //      (active_region(), b = a cot(theta)), then (prefetch on) for each predicted eye position,
 //      nearest in time first, the blocks the view from there needs (the camera moved there and
 //      turned along the motion) and the active region around it; the queue stops where the blocks' memory
-//      (estimated from their vertex counts) would exceed the budget. Blocks not needed are
+//      (estimated from their vertex counts) would exceed the budget. Each block is read down to
+//      its floor divided by partial_load_factor (the finest floor any of these views asks): its
+//      DAG skips the PM's collapses below that (CollapseDag DagOptions::skip), so a far block
+//      holds only the coarse end of its PM. A finer copy, once read, replaces a coarser one,
+//      blending in from what the coarser one drew (as a block arriving over its stand-in does).
+//      Blocks not needed are
 //      evicted least-recently-used first whenever the resident bytes would pass the budget, and
 //      a block that arrives without room is dropped: resident_bytes <= budget_bytes at the end
 //      of every frame (the budget counts the blocks with their refinements, the tree, the
@@ -98,7 +107,8 @@
 // and the block. Not thread-safe: one frame thread; the loader thread is internal.
 // Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
 // blocks (LoadedBlock::memory_bytes each: DAG and refinement, about 25 MB for 257 x 257
-// samples), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of
+// samples read whole, in proportion to the collapses kept for a partial block, plus about 30
+// bytes a sample), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of
 // the frame (about as much again).
 #pragma once
 
@@ -129,7 +139,12 @@ struct RuntimeOptions {
   double min_tolerance_px = 0.1, max_tolerance_px = 256.0;  ///< budget-mode range, 0 < min <= max
   double morph_seconds = 0.5;                               ///< geomorph duration, seconds, >= 0; 0 = pop
   std::size_t budget_bytes = std::size_t(512) << 20;        ///< resident memory, bytes (everything loaded)
-  bool prefetch = true;                                     ///< queue the blocks around the predicted path
+  /// A needed block is loaded only down to the error its view needs, divided by this factor
+  /// (>= 1): its DAG skips the PM's collapses below that (LoadedBlock::floor_m), so a far block
+  /// holds only the coarse end of its PM, and serves until the eye is this many times closer;
+  /// then a finer copy is loaded and replaces it (with a blend). 0 loads every block whole.
+  double partial_load_factor = 4.0;
+  bool prefetch = true;  ///< queue the blocks around the predicted path
   PredictorOptions predictor;
   double prefetch_horizon_s = 3.0;  ///< seconds ahead, >= 0
   double prefetch_step_s = 0.25;    ///< spacing of predicted points, seconds, > 0
@@ -146,17 +161,21 @@ struct RuntimeFrameStats {
   double bound_px = 0;      ///< guaranteed screen-space error of the drawn mesh, as drawn
   std::size_t triangles = 0, vertices = 0;
   std::size_t nodes_visited = 0, nodes_culled = 0;
-  std::size_t coarse_nodes = 0;     ///< selected nodes drawn with their own surface (incl. fallbacks)
-  std::size_t pm_blocks = 0;        ///< PM blocks drawn by selective refinement
-  std::size_t standin_blocks = 0;   ///< PM blocks drawn as their stand-ins (within tau / 2, not loaded)
-  std::size_t needed_in_view = 0;   ///< PM blocks the selection needs
-  std::size_t missing_in_view = 0;  ///< of those, not resident (an ancestor is drawn)
-  std::size_t fallback_nodes = 0;   ///< ancestors drawn for missing blocks
-  std::size_t nodes_resident = 0;   ///< tree nodes in memory (all of them)
+  std::size_t coarse_nodes = 0;    ///< selected nodes drawn with their own surface (incl. fallbacks)
+  std::size_t pm_blocks = 0;       ///< PM blocks drawn by selective refinement
+  std::size_t standin_blocks = 0;  ///< PM blocks drawn as their stand-ins (within tau / 2, not loaded)
+  std::size_t needed_in_view = 0;  ///< PM blocks the selection needs
+  /// Of those, not resident (an ancestor is drawn), or resident with leaves coarser than the
+  /// view needs (it is drawn, its bound above tau / 2, while a finer copy loads).
+  std::size_t missing_in_view = 0;
+  std::size_t fallback_nodes = 0;  ///< ancestors drawn for missing blocks
+  std::size_t nodes_resident = 0;  ///< tree nodes in memory (all of them)
   std::size_t blocks_resident = 0, blocks_loading = 0, blocks_evicted = 0, evicted_total = 0;
-  std::size_t dropped_total = 0;                       ///< arrived blocks dropped for lack of room
-  std::size_t prefetch_hits_total = 0;                 ///< blocks resident when they became needed
-  std::size_t prefetch_misses_total = 0;               ///< blocks needed before they were resident
+  std::size_t dropped_total = 0;          ///< arrived blocks dropped for lack of room
+  std::size_t partial_blocks = 0;         ///< resident blocks holding only the coarse end of their PM
+  std::size_t reloads_total = 0;          ///< resident blocks replaced by a finer copy
+  std::size_t prefetch_hits_total = 0;    ///< blocks resident when they became needed
+  std::size_t prefetch_misses_total = 0;  ///< blocks needed before they were resident
   std::uint64_t bytes_read = 0, bytes_read_total = 0;  ///< blob bytes this frame / in total
   std::size_t resident_bytes = 0, peak_resident_bytes = 0;
   std::size_t morphing_blocks = 0;          ///< PM blocks with vertices still moving (incl. swap-in blends)
@@ -228,19 +247,30 @@ class TerrainRuntime {
   double max_height_at(double x, double y) const;
 
  private:
-  struct Block;       // a resident block with its refinement
-  struct Patch;       // one selected node's mesh this frame
-  struct Eval;        // a drawn triangle evaluated on its own
-  struct Scratch;     // assemble()'s buffers, reused
+  struct Block;    // a resident block with its refinement
+  struct Patch;    // one selected node's mesh this frame
+  struct Eval;     // a drawn triangle evaluated on its own
+  struct Scratch;  // assemble()'s buffers, reused
+  struct Need {    // a PM leaf the selection needs
+    std::int64_t id;
+    double parent_px;  // its parent's error on screen
+    double floor_m;    // the coarsest leaf error that meets tau / 2 over its box
+  };
   struct Selection {  // what step 2 chose (node ids)
     std::vector<std::int64_t> coarse, pms, standins;
-    std::vector<std::pair<std::int64_t, double>>
-        needed;  // PM leaves needed, with their parent's error on screen
+    std::vector<Need> needed;
+  };
+  struct Want {    // a block the view from a predicted point needs
+    double order;  // lower first
+    BlockKey key;
+    double floor_m;
+    bool operator<(const Want& o) const { return order < o.order || (order == o.order && key < o.key); }
   };
   bool visit(const pm::View& view, double tau, std::int64_t id, Selection& sel, double parent_px);
-  void queue_loads(const pm::View& view, const std::vector<std::pair<std::int64_t, double>>& needed);
+  void queue_loads(const pm::View& view, const std::vector<Need>& needed);
   void needed_at(const pm::View& view, double tau, std::int64_t id, double parent_px,
-                 std::vector<std::pair<double, BlockKey>>& out) const;
+                 std::vector<Want>& out) const;
+  bool covers(const Block& b, double floor_m) const;
   void take_loads();
   void make_room(std::size_t bytes, const std::set<BlockKey>& keep);
   std::size_t fixed_bytes() const;

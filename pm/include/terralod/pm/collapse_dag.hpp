@@ -142,8 +142,8 @@ class CollapseDag {
   const std::array<std::uint32_t, 3>& face(std::uint32_t f) const { return faces_[f]; }
   std::uint32_t creator(std::uint32_t f) const { return creator_[f]; }  ///< kNone: a leaf
   /// Error of a leaf face (creator kNone): 0 at full resolution, else the saturated error of
-  /// the skipped collapse that made it (DagOptions::skip).
-  double leaf_error(std::uint32_t f) const { return leaf_error_.empty() ? 0.0 : leaf_error_[f]; }
+  /// the skipped collapse that made it (DagOptions::skip), rounded up to a float.
+  double leaf_error(std::uint32_t f) const { return leaf_error_.empty() ? 0.0 : double(leaf_error_[f]); }
   /// Error of face f as drawn: its creator's error, or its leaf error.
   double face_error(std::uint32_t f) const {
     return creator_[f] == kNone ? leaf_error(f) : collapses_[creator_[f]].error;
@@ -203,7 +203,7 @@ class CollapseDag {
   std::vector<std::uint32_t> removed_by_;
   std::size_t full_vertex_count_ = 0;
   std::size_t skipped_ = 0;
-  std::vector<double> leaf_error_;  // by leaf face; empty when nothing is skipped
+  std::vector<float> leaf_error_;  // by leaf face, rounded up; empty when every leaf error is 0
   double floor_error_ = 0;
 };
 
