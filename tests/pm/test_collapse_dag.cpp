@@ -111,9 +111,7 @@ TEST(CollapseDagHierarchy, RealTileCrop) {
 // block): its leaves are exactly the PM's mesh after them, its collapses the rest, every leaf
 // face is within its leaf error by the independent checker, floor_error() stays within the
 // floor asked for, and the hierarchy invariants hold (saturation counting the leaves removed).
-TEST(CollapseDagPartial, LeavesAreThePmMeshAfterTheSkippedCollapses) {
-  Heightfield hf = generated(97, 81, /*metres=*/false, /*seed=*/13);
-  hf.transform = GridTransform::north_up(/*x0=*/500.0, /*y0=*/-300.0, /*dx=*/20.0, /*dy=*/30.0);
+void expect_partial_dags(const Heightfield& hf) {
   const ProgressiveMesh pm = ProgressiveMesh::build(hf);
   const std::vector<Collapse>& all = pm.collapses();
   std::vector<double> errors;
@@ -166,6 +164,22 @@ TEST(CollapseDagPartial, LeavesAreThePmMeshAfterTheSkippedCollapses) {
       EXPECT_LT(dag.memory_bytes(), CollapseDag(pm).memory_bytes() * 3 / 4) << label;
     }
   }
+}
+
+TEST(CollapseDagPartial, LeavesAreThePmMeshAfterTheSkippedCollapses) {
+  Heightfield hf = generated(97, 81, /*metres=*/false, /*seed=*/13);
+  hf.transform = GridTransform::north_up(/*x0=*/500.0, /*y0=*/-300.0, /*dx=*/20.0, /*dy=*/30.0);
+  expect_partial_dags(hf);
+}
+
+TEST(CollapseDagPartial, LeavesAroundHoles) {
+  Heightfield hf = generated(81, 73, /*metres=*/true, /*seed=*/23);
+  std::vector<std::uint8_t> mask(hf.size(), 1);
+  for (int r = 20; r < 31; ++r)
+    for (int c = 30; c < 37; ++c) mask[std::size_t(r) * hf.width() + c] = 0, hf.at(c, r) = 0.0;
+  mask[std::size_t(50) * hf.width() + 10] = 0;
+  hf.set_mask(std::move(mask));
+  expect_partial_dags(hf);
 }
 
 }  // namespace
