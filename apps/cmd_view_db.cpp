@@ -64,12 +64,12 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
       "%zu ancestors for missing blocks; %zu blocks read (%s) in %s",
       tau, s.nodes_visited, s.nodes_culled, s.pm_blocks, s.standin_blocks, s.coarse_nodes, s.fallback_nodes,
       s.blocks_resident, format_bytes(s.bytes_read_total).c_str(), format_duration(select_ms).c_str()));
-  print_line(
-      strf("mesh: %zu triangles (%zu stitched at seams), bound %.4g px (tau %g)%s; update %s (first, loads "
-           "excluded: %s)",
-           s.triangles, s.seam_triangles, s.bound_px, tau,
-           s.missing_in_view ? strf(", %zu needed blocks missing", s.missing_in_view).c_str() : "",
-           format_duration(s.update_ms).c_str(), format_duration(first.update_ms).c_str()));
+  print_line(strf(
+      "mesh: %zu triangles (%zu stitched at seams), bound %.4g px (tau %g)%s; update %s (first, loads "
+      "excluded: %s)",
+      s.triangles, s.seam_triangles, s.bound_px, tau,
+      s.missing_in_view ? strf(", %zu needed blocks missing or too coarse", s.missing_in_view).c_str() : "",
+      format_duration(s.update_ms).c_str(), format_duration(first.update_ms).c_str()));
 
   // Map objects (--objects): placed on this frame's drawn terrain, drawn after it.
   std::optional<tb::ObjectPlacer> objects = object_placer(a, path);

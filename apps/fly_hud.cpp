@@ -14,11 +14,12 @@ std::vector<std::string> lod_lines(const FrameRecord& r, const pm::RefinementOpt
   return {
       // One PM (no --db): its bound is the selection's; the display lags it while vertices morph.
       r.streamed
-          ? strf("tau %.2f px%s   drawn within %.3f px%s", l.tolerance_px,
-                 now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
-                 l.missing_in_view
-                     ? strf(" (%zu blocks missing: over tau allowed)", l.missing_in_view).c_str()
-                     : "")
+          ? strf(
+                "tau %.2f px%s   drawn within %.3f px%s", l.tolerance_px,
+                now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
+                l.missing_in_view
+                    ? strf(" (%zu blocks missing or too coarse: over tau allowed)", l.missing_in_view).c_str()
+                    : "")
           : strf("tau %.2f px%s   selection within %.3f px%s", l.tolerance_px,
                  now.target_triangles ? strf(" (budget %zu)", now.target_triangles).c_str() : "", l.bound_px,
                  l.moving_vertices ? strf(" (display lags: %zu vertices morphing)", l.moving_vertices).c_str()
