@@ -4,6 +4,7 @@
 // bytes read.
 //
 // Usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB] [--partial F]
+//                           [--loader-threads N]
 //   DB: a block database of N44W072 (from 'terralod build'); without it the benchmark builds
 //   one with build_database (blocks of --block-size samples, default 129, the default tree and
 //   stand-ins) in a temporary folder first, and reuses it on later runs.
@@ -12,6 +13,7 @@
 //   missing).
 //   --partial: RuntimeOptions::partial_load_factor (default 4: far blocks hold only the coarse
 //   end of their PM; 0 loads every block whole).
+//   --loader-threads: RuntimeOptions::loader_threads (default 2).
 
 #include <algorithm>
 #include <chrono>
@@ -67,6 +69,7 @@ int main(int argc, char** argv) {
   std::string db_path;
   int block_size = 129;
   double tau = 1.0, budget_mb = 1024.0, partial = tb::RuntimeOptions{}.partial_load_factor;
+  int loader_threads = tb::RuntimeOptions{}.loader_threads;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--block-size") && i + 1 < argc)
       block_size = std::atoi(argv[++i]);
@@ -76,22 +79,28 @@ int main(int argc, char** argv) {
       budget_mb = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--partial") && i + 1 < argc)
       partial = std::atof(argv[++i]);
+    else if (!std::strcmp(argv[i], "--loader-threads") && i + 1 < argc)
+      loader_threads = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {
       std::puts(
           "usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB] [--partial F]\n"
+          "                          [--loader-threads N]\n"
           "Replays a scripted 60 s flight over N44W072 in real time through the terrain runtime\n"
           "with prediction on and off. Without DB, builds one (blocks of N samples, default 129).\n"
           "--budget: resident memory of the runtime, megabytes (default 1024).\n"
           "--partial: load a needed block only down to the error its view needs divided by F\n"
-          "(default 4); 0 loads every block whole.");
+          "(default 4); 0 loads every block whole.\n"
+          "--loader-threads: threads reading and decoding blocks (default 2).");
       return 0;
     } else
       db_path = argv[i];
   }
-  if (!(tau > 0) || !(budget_mb > 0) || block_size < 3 || !(partial == 0 || partial >= 1)) {
+  if (!(tau > 0) || !(budget_mb > 0) || block_size < 3 || !(partial == 0 || partial >= 1) ||
+      loader_threads < 1) {
     std::fprintf(
         stderr,
-        "terralod-bench-fly: need --tau > 0, --budget > 0, --block-size >= 3 and --partial 0 or >= 1\n");
+        "terralod-bench-fly: need --tau > 0, --budget > 0, --block-size >= 3, --partial 0 or >= 1 and "
+        "--loader-threads >= 1\n");
     return 2;
   }
   try {
@@ -144,6 +153,7 @@ int main(int argc, char** argv) {
       opt.morph_seconds = 0.5;
       opt.budget_bytes = std::size_t(budget_mb * 1e6);
       opt.partial_load_factor = partial;
+      opt.loader_threads = loader_threads;
       tb::TerrainRuntime rt(db_path, opt);
       std::vector<double> ms, bounds;
       std::size_t cold_misses = 0, cold_needed = 0;  // the first 2 s: every block is missing then

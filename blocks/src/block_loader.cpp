@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cassert>
 #include <chrono>
+#include <stdexcept>
 
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/pm/timing.hpp"
@@ -51,8 +52,12 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
   return b;
 }
 
-BlockLoader::BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare)
-    : factory_(std::move(factory)), grid_(grid), prepare_(std::move(prepare)), thread_([this] { run(); }) {}
+BlockLoader::BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare, int threads)
+    : factory_(std::move(factory)), grid_(grid), prepare_(std::move(prepare)) {
+  if (threads < 1) throw std::invalid_argument("BlockLoader: threads must be >= 1");
+  // Started last: every member the threads read exists.
+  for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { run(); });
+}
 
 BlockLoader::~BlockLoader() {
   {
@@ -60,7 +65,7 @@ BlockLoader::~BlockLoader() {
     stop_ = true;
   }
   cv_.notify_all();
-  thread_.join();
+  for (std::thread& t : threads_) t.join();
 }
 
 void BlockLoader::set_queue(std::vector<Request> requests) {
@@ -77,7 +82,7 @@ void BlockLoader::set_queue(std::vector<Request> requests) {
     std::lock_guard lock(mutex_);
     // Not again what is being read or finished and not yet taken.
     std::erase_if(unique, [&](const Request& r) {
-      return (in_flight_ && *in_flight_ == r.key) ||
+      return std::find(in_flight_.begin(), in_flight_.end(), r.key) != in_flight_.end() ||
              std::any_of(results_.begin(), results_.end(),
                          [&](const LoadResult& x) { return x.key == r.key; });
     });
@@ -95,13 +100,13 @@ std::vector<LoadResult> BlockLoader::take_results() {
 
 bool BlockLoader::busy(BlockKey k) const {
   std::lock_guard lock(mutex_);
-  if (in_flight_ && *in_flight_ == k) return true;
+  if (std::find(in_flight_.begin(), in_flight_.end(), k) != in_flight_.end()) return true;
   return std::any_of(queue_.begin(), queue_.end(), [&](const Request& r) { return r.key == k; });
 }
 
 std::size_t BlockLoader::pending() const {
   std::lock_guard lock(mutex_);
-  return queue_.size() + (in_flight_ ? 1 : 0);
+  return queue_.size() + in_flight_.size();
 }
 
 std::size_t BlockLoader::finished() const {
@@ -130,7 +135,7 @@ void BlockLoader::run() {
     const BlockKey k = queue_.front().key;
     const double floor_m = queue_.front().floor_m;
     queue_.erase(queue_.begin());
-    in_flight_ = k;
+    in_flight_.push_back(k);
     lock.unlock();
     LoadResult r;
     r.key = k;
@@ -153,7 +158,7 @@ void BlockLoader::run() {
       }
     }
     lock.lock();
-    in_flight_.reset();
+    in_flight_.erase(std::find(in_flight_.begin(), in_flight_.end(), k));
     bytes_read_ += bytes;
     results_.push_back(std::move(r));
   }

@@ -44,6 +44,7 @@ void check_options(const RuntimeOptions& o) {
   if (o.budget_bytes == 0) throw std::invalid_argument("RuntimeOptions: budget_bytes must be > 0");
   if (!(o.partial_load_factor == 0 || (o.partial_load_factor >= 1 && std::isfinite(o.partial_load_factor))))
     throw std::invalid_argument("RuntimeOptions: partial_load_factor must be 0 or finite and >= 1");
+  if (o.loader_threads < 1) throw std::invalid_argument("RuntimeOptions: loader_threads must be >= 1");
   if (!(o.prefetch_horizon_s >= 0) || !(o.prefetch_step_s > 0))
     throw std::invalid_argument("RuntimeOptions: need prefetch_horizon_s >= 0 and prefetch_step_s > 0");
   if (!(o.region.theta_deg > 0 && o.region.theta_deg < 90))
@@ -129,25 +130,29 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
       block_vertices_[i] = std::uint64_t(grid_.domain(k).width()) * std::uint64_t(grid_.domain(k).height());
   }
   prep_options_ = refinement_options(opt_, tau_);
-  loader_ = std::make_unique<BlockLoader>(blocks ? std::move(blocks) : database_source(db_path), grid_,
-                                          [this](const LoadedBlock& b) {
-                                            std::optional<pm::View> view;
-                                            double t = 0;
-                                            pm::RefinementOptions o;
-                                            {
-                                              std::lock_guard lock(prep_mutex_);
-                                              view = prep_view_, t = prep_time_, o = prep_options_;
-                                            }
-                                            auto sel = std::make_unique<pm::SelectiveRefinement>(*b.dag, o);
-                                            if (view) sel->update(*view, t);  // a first update never morphs
-                                            return sel;
-                                          });
+  loader_ = std::make_unique<BlockLoader>(
+      blocks ? std::move(blocks) : database_source(db_path), grid_,
+      [this](const LoadedBlock& b) {
+        std::optional<pm::View> view;
+        double t = 0;
+        pm::RefinementOptions o;
+        {
+          std::lock_guard lock(prep_mutex_);
+          view = prep_view_, t = prep_time_, o = prep_options_;
+        }
+        auto sel = std::make_unique<pm::SelectiveRefinement>(*b.dag, o);
+        if (view) sel->update(*view, t);  // a first update never morphs
+        return sel;
+      },
+      opt_.loader_threads);
 }
 
 TerrainRuntime::~TerrainRuntime() { loader_.reset(); }
 
 void TerrainRuntime::set_options(const RuntimeOptions& options) {
   check_options(options);
+  if (options.loader_threads != opt_.loader_threads)
+    throw std::invalid_argument("RuntimeOptions: loader_threads is fixed when the runtime opens");
   const bool refine_changed = options.tolerance_px != opt_.tolerance_px ||
                               options.morph_seconds != opt_.morph_seconds ||
                               options.target_triangles != opt_.target_triangles;

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -85,6 +86,40 @@ TEST(BlockLoader, ReadsInPriorityOrderAndDecodesExactly) {
   }
   EXPECT_EQ(loader.bytes_read(), bytes);
   EXPECT_EQ(loader.pending(), 0u);
+}
+
+// Several threads, each with its own source: every block is read once and decodes exactly, and
+// the counts cover every thread's read in progress.
+TEST(BlockLoader, SeveralThreadsReadEveryBlockOnce) {
+  MemoryStore store;
+  store.terrain = &terrain();
+  store.set_stalled(true);
+  tb::BlockLoader loader(terralod::test::memory_source(store), terrain().grid, {}, /*threads=*/3);
+  const terralod::test::ReleaseAtExit release{store};
+  std::vector<tb::BlockLoader::Request> req;
+  for (const auto& [k, blob] : terrain().blobs) req.push_back({k, double(req.size())});
+  loader.set_queue(req);
+  EXPECT_EQ(loader.pending(), req.size());
+  // Whichever requests the threads took (and stall in), a new queue neither drops nor repeats.
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  loader.set_queue(req);
+  EXPECT_EQ(loader.pending(), req.size()) << "requests in flight are neither dropped nor queued twice";
+  store.set_stalled(false);
+  const std::vector<tb::LoadResult> r = wait_results(loader, req.size());
+  ASSERT_EQ(r.size(), req.size());
+  std::set<tb::BlockKey> seen;
+  std::uint64_t bytes = 0;
+  for (const tb::LoadResult& x : r) {
+    ASSERT_TRUE(x.block) << x.error;
+    EXPECT_TRUE(seen.insert(x.key).second) << "block read twice";
+    const std::vector<std::uint8_t>& blob = terrain().blobs.at(x.key);
+    EXPECT_TRUE(is_dag_of(*x.block, pm::decode_pm(blob, "blob")));
+    bytes += blob.size();
+  }
+  EXPECT_EQ(loader.bytes_read(), bytes);
+  EXPECT_EQ(loader.pending(), 0u);
+  EXPECT_THROW(tb::BlockLoader(terralod::test::memory_source(store), terrain().grid, {}, 0),
+               std::invalid_argument);
 }
 
 TEST(BlockLoader, ErrorsNameTheSourceAndTheBlock) {

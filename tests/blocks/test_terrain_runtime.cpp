@@ -521,6 +521,18 @@ TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {
   o = {};
   o.morph_seconds = -1;
   EXPECT_THROW(tb::TerrainRuntime(terrain().db, o), std::invalid_argument);
+  o = {};
+  o.loader_threads = 0;
+  EXPECT_THROW(tb::TerrainRuntime(terrain().db, o), std::invalid_argument);
+  o = {};
+  o.partial_load_factor = 0.5;
+  EXPECT_THROW(tb::TerrainRuntime(terrain().db, o), std::invalid_argument);
+  {
+    tb::TerrainRuntime rt(terrain().db);
+    o = {};
+    o.loader_threads = 3;  // the threads started when it opened
+    EXPECT_THROW(rt.set_options(o), std::invalid_argument);
+  }
   const std::string missing = std::string(TERRALOD_TEST_TMP) + "/no_such_runtime.db";
   try {
     tb::TerrainRuntime rt(missing);

@@ -1,6 +1,6 @@
-// Background block loader: one thread that reads block blobs from a source (the block database
-// on its own connection), decodes each block's progressive mesh and builds its collapse DAG, so
-// that the frame loop only ever picks up finished blocks and never waits on I/O.
+// Background block loader: threads (one by default) that read block blobs from a source (the
+// block database, one connection per thread), decode each block's progressive mesh and build its
+// collapse DAG, so that the frame loop only ever picks up finished blocks and never waits on I/O.
 //
 // Usage:
 //   terralod::blocks::BlockLoader loader(terralod::blocks::database_source("terrain.db"), grid);
@@ -10,17 +10,19 @@
 //   }
 //
 // Contract:
-//   - The factory is called once, on the loader thread, to open the thread's own source (one
-//     SQLite connection per thread, as block_database.hpp requires). A factory or read that
+//   - The factory is called once on each loader thread, to open the thread's own source (one
+//     SQLite connection per thread, as block_database.hpp requires); it must be safe to call
+//     from several threads at once. A factory or read that
 //     throws becomes a LoadResult with `error` set (the exception's message, which names the
 //     file and the block); the loader goes on with the next request.
 //   - set_queue() replaces every queued (not yet started) request; keys are blocks of the grid
-//     (assert); duplicates, the block being read and finished blocks not yet taken are dropped
-//     (so no block is read twice for one request); the read in progress is never interrupted.
+//     (assert); duplicates, the blocks being read and finished blocks not yet taken are dropped
+//     (so no block is read twice for one request); reads in progress are never interrupted.
+//     Each free thread takes the best queued request; results come in completion order.
 //   - Every public member is thread-safe and returns without waiting for a read: the lock
 //     guards only the queue and the result list, never the source, the decoder or the DAG.
-//   - The destructor stops the thread after the read in progress (if a source stalls forever,
-//     the destructor waits for it).
+//   - The destructor stops the threads after their reads in progress (if a source stalls
+//     forever, the destructor waits for it).
 //   - A block is checked against the grid: its PM's heightfield must have the block's
 //     domain's size (DatabaseError-style message "<source>: block (c,r): ..." otherwise).
 // Memory: one decoded block per finished result until taken (LoadedBlock::memory_bytes each).
@@ -95,7 +97,8 @@ struct LoadResult {
 
 /// Optional work done on the loader thread once a block is decoded, so that the frame thread
 /// does not: e.g. build the block's SelectiveRefinement and run its first, largest update.
-/// Called without the loader's lock; it must be thread-safe against the caller's frame thread.
+/// Called without the loader's lock; it must be thread-safe against the caller's frame thread
+/// and the other loader threads.
 /// An exception becomes the result's error.
 using PrepareFn = std::function<std::unique_ptr<pm::SelectiveRefinement>(const LoadedBlock&)>;
 
@@ -107,7 +110,8 @@ class BlockLoader {
     double floor_m = 0;   ///< decode_block's floor: the coarsest leaves the caller can use
   };
 
-  BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare = {});
+  /// `threads` (>= 1, std::invalid_argument otherwise) reading threads, each with its own source.
+  BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare = {}, int threads = 1);
   ~BlockLoader();
   BlockLoader(const BlockLoader&) = delete;
   BlockLoader& operator=(const BlockLoader&) = delete;
@@ -118,7 +122,7 @@ class BlockLoader {
   std::vector<LoadResult> take_results();
   /// True when k is queued or being read.
   bool busy(BlockKey k) const;
-  /// Requests queued plus the one being read.
+  /// Requests queued plus those being read.
   std::size_t pending() const;
   /// Finished blocks and errors that take_results() has not returned yet.
   std::size_t finished() const;
@@ -132,12 +136,12 @@ class BlockLoader {
   PrepareFn prepare_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  std::vector<Request> queue_;  // sorted by priority, best first
-  std::optional<BlockKey> in_flight_;
+  std::vector<Request> queue_;       // sorted by priority, best first
+  std::vector<BlockKey> in_flight_;  // being read, one per busy thread
   std::vector<LoadResult> results_;
   std::uint64_t bytes_read_ = 0;
   bool stop_ = false;
-  std::thread thread_;
+  std::vector<std::thread> threads_;
 };
 
 }  // namespace terralod::blocks

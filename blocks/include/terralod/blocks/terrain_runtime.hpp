@@ -144,6 +144,9 @@ struct RuntimeOptions {
   /// holds only the coarse end of its PM, and serves until the eye is this many times closer;
   /// then a finer copy is loaded and replaces it (with a blend). 0 loads every block whole.
   double partial_load_factor = 4.0;
+  /// Threads that read and decode blocks (>= 1), each with its own database connection. Fixed
+  /// when the runtime opens: set_options refuses another value (std::invalid_argument).
+  int loader_threads = 2;
   bool prefetch = true;  ///< queue the blocks around the predicted path
   PredictorOptions predictor;
   double prefetch_horizon_s = 3.0;  ///< seconds ahead, >= 0
