@@ -10,13 +10,41 @@
 #include <numbers>
 #include <stdexcept>
 #include <thread>
+#include <unordered_map>
 
+#include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 
 namespace terralod::blocks {
 
 using detail::refinement_options;
+
+namespace {
+
+// The height of the surface `tris` (whole-grid (col, row, z), corners on samples) at every
+// block-local sample inside one of them, into `out`: one pass over each triangle's samples
+// (exact on the integer grid), so that a blend from a large mesh (a coarser copy of the
+// block: thousands of triangles) does not search every triangle for every vertex.
+void old_surface_at_samples(const std::vector<detail::Tri3>& tris, const SampleRect& d, std::uint32_t bw,
+                            std::unordered_map<std::uint32_t, double>& out) {
+  out.reserve(out.size() + 2 * tris.size());
+  for (const detail::Tri3& t : tris) {
+    const int c0 = int(std::min({t[0][0], t[1][0], t[2][0]})),
+              c1 = int(std::max({t[0][0], t[1][0], t[2][0]}));
+    const int r0 = int(std::min({t[0][1], t[1][1], t[2][1]})),
+              r1 = int(std::max({t[0][1], t[1][1], t[2][1]}));
+    for (int r = r0; r <= r1; ++r)
+      for (int c = c0; c <= c1; ++c) {
+        const detail::Barycentric w = detail::barycentric(t, double(c), double(r));
+        if (w.det == 0 || w.l0 < 0 || w.l1 < 0 || w.l2 < 0) continue;
+        out.try_emplace(std::uint32_t(r - d.row0) * bw + std::uint32_t(c - d.col0),
+                        detail::plane_height(t, w));
+      }
+  }
+}
+
+}  // namespace
 
 bool TerrainRuntime::loading() const { return loader_->pending() > 0 || loader_->finished() > 0; }
 
@@ -107,6 +135,7 @@ void TerrainRuntime::take_loads() {
             }
             b->old.push_back(q);
           }
+          old_surface_at_samples(b->old, d, bw, b->old_z);
           b->blend_t0 = time_;
         }
         b->blending = !b->old.empty();
