@@ -100,11 +100,11 @@
 // (a face at tau / 2 may move by as much again; a stitched piece at tau not at all).
 //
 // Contract: the database is a complete blocked database (require_complete_build), opened
-// read-only on the constructor's thread and by the loader thread; DatabaseError /
+// read-only on the constructor's thread and by each loader thread; DatabaseError /
 // TreeFormatError / BuildError name the file. Options are checked by the constructor and
 // set_options (std::invalid_argument). update() times must not decrease (std::invalid_argument);
 // a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
-// and the block. Not thread-safe: one frame thread; the loader thread is internal.
+// and the block. Not thread-safe: one frame thread; the loader threads are internal.
 // Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
 // blocks (LoadedBlock::memory_bytes each: DAG and refinement, about 25 MB for 257 x 257
 // samples read whole, in proportion to the collapses kept for a partial block, plus about 30
