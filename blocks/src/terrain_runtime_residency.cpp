@@ -122,6 +122,7 @@ void TerrainRuntime::take_loads() {
       if (opt_.morph_seconds > 0 && o.last_drawn + 1 >= frame_) {
         if (o.blending) {
           b->old = std::move(o.old);
+          b->old_z = std::move(o.old_z);  // heights of the same old surface, at any sample
           b->blend_t0 = o.blend_t0;
         } else if (o.rm_valid) {
           const SampleRect d = grid_.domain(k);
