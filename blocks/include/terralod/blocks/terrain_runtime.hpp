@@ -52,8 +52,9 @@
 //      (active_region(), b = a cot(theta)), then (prefetch on) for each predicted eye position,
 //      nearest in time first, the blocks the view from there needs (the camera moved there and
 //      turned along the motion) and the active region around it; the queue stops where the blocks' memory
-//      (estimated from their vertex counts) would exceed the budget. Each block is read down to
-//      its floor divided by partial_load_factor (the finest floor any of these views asks): its
+//      (estimated from their vertex counts) would exceed the budget. With partial_load_factor
+//      set, each block is read down to its floor divided by it (the finest floor any of these
+//      views asks): its
 //      DAG skips the PM's collapses below that (CollapseDag DagOptions::skip), so a far block
 //      holds only the coarse end of its PM. A finer copy, once read, replaces a coarser one,
 //      blending in from what the coarser one drew (as a block arriving over its stand-in does).
@@ -139,14 +140,21 @@ struct RuntimeOptions {
   double min_tolerance_px = 0.1, max_tolerance_px = 256.0;  ///< budget-mode range, 0 < min <= max
   double morph_seconds = 0.5;                               ///< geomorph duration, seconds, >= 0; 0 = pop
   std::size_t budget_bytes = std::size_t(512) << 20;        ///< resident memory, bytes (everything loaded)
-  /// A needed block is loaded only down to the error its view needs, divided by this factor
-  /// (>= 1): its DAG skips the PM's collapses below that (LoadedBlock::floor_m), so a far block
+  /// When >= 1, a needed block is loaded only down to the error its view needs, divided by this
+  /// factor: its DAG skips the PM's collapses below that (LoadedBlock::floor_m), so a far block
   /// holds only the coarse end of its PM, and serves until the eye is this many times closer;
-  /// then a finer copy is loaded and replaces it (with a blend). 0 loads every block whole.
-  double partial_load_factor = 4.0;
+  /// then a finer copy is loaded and replaces it (with a blend). 4 is a good value (N44W072 at
+  /// tau = 1 and 512 MB: 958 -> 119 frames with a block missing). 0, the default, loads every
+  /// block whole: with partial blocks, when a finer copy replaces a coarser one depends on the
+  /// loader's timing, and so do the blends a replayed flight reports (terralod fly's headless
+  /// statistics are no longer the same run to run).
+  double partial_load_factor = 0.0;
   /// Threads that read and decode blocks (>= 1), each with its own database connection. Fixed
-  /// when the runtime opens: set_options refuses another value (std::invalid_argument).
-  int loader_threads = 2;
+  /// when the runtime opens: set_options refuses another value (std::invalid_argument). One by
+  /// default: blocks then arrive in one order, so a replayed flight (terralod fly, headless)
+  /// gives the same statistics run to run; two cut a real-time flight's missing frames where
+  /// the loader is the limit (terralod-bench-fly --loader-threads 2: N44W072, 119 -> 67).
+  int loader_threads = 1;
   bool prefetch = true;  ///< queue the blocks around the predicted path
   PredictorOptions predictor;
   double prefetch_horizon_s = 3.0;  ///< seconds ahead, >= 0
