@@ -37,7 +37,6 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
                                            std::to_string(hf.height()) + " samples, the block grid expects " +
                                            std::to_string(d.width()) + " x " + std::to_string(d.height()));
     b->metric = pm.metric();
-    b->floor_m = floor_m;
     b->dag = std::make_unique<pm::CollapseDag>(
         pm, pm::DagOptions{.skip = floor_m > 0 ? pm::CollapseDag::skip_for_floor(pm, floor_m) : 0});
   }

@@ -29,6 +29,20 @@ std::invalid_argument bad(std::size_t c, const std::string& what) {
   return std::invalid_argument("collapse dag: collapse " + std::to_string(c) + " " + what);
 }
 
+// The float f stored for a bound v, relative to origin o, is the one whose o + f lies on the
+// outer side of v: start at the nearest float and step outwards until it does (rounding in
+// v - o and in o + f may each take it a little inwards).
+float float_below(double v, double o) {
+  float f = float(v - o);
+  while (o + double(f) > v) f = std::nextafter(f, -INFINITY);
+  return f;
+}
+float float_above(double v, double o) {
+  float f = float(v - o);
+  while (o + double(f) < v) f = std::nextafter(f, INFINITY);
+  return f;
+}
+
 }  // namespace
 
 Vec3 CollapseDag::position(std::uint32_t s) const {
@@ -42,23 +56,11 @@ Vec3 CollapseDag::position(double col, double row, double z) const {
 }
 
 void CollapseDag::set_box(std::uint32_t c, const Box& b) {
-  // The float f stored for a bound v, relative to origin o, is the one whose o + f (what box()
-  // returns) lies on the outer side of v: start at the nearest float and step outwards until
-  // it does (rounding in v - o and in o + f may each take it a little inwards).
-  const auto below = [](double v, double o) {
-    float f = float(v - o);
-    while (o + double(f) > v) f = std::nextafter(f, -INFINITY);
-    return f;
-  };
-  const auto above = [](double v, double o) {
-    float f = float(v - o);
-    while (o + double(f) < v) f = std::nextafter(f, INFINITY);
-    return f;
-  };
+  // Rounded outwards, so that what box() returns (origin + float) holds the exact box.
   const double ox = hf_.transform.x0, oy = hf_.transform.y0;
-  boxes_[c] = {{below(b.lo.x, ox), below(b.lo.y, oy), below(b.lo.z, 0.0)},
-               {above(b.hi.x, ox), above(b.hi.y, oy), above(b.hi.z, 0.0)},
-               above(saturated_[c], 0.0),
+  boxes_[c] = {{float_below(b.lo.x, ox), float_below(b.lo.y, oy), float_below(b.lo.z, 0.0)},
+               {float_above(b.hi.x, ox), float_above(b.hi.y, oy), float_above(b.hi.z, 0.0)},
+               float_above(saturated_[c], 0.0),
                0.0f};
 }
 
@@ -144,10 +146,7 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
       leaf_id[f] = std::uint32_t(leaves.size());
       leaves.push_back(faces_[f]);
       // Rounded up to a float: the bound it gives stays true, in half the bytes.
-      const double e = creator_[f] == kNone ? 0.0 : sat[creator_[f]];
-      float fe = float(e);
-      while (double(fe) < e) fe = std::nextafter(fe, INFINITY);
-      leaf_error_.push_back(fe);
+      leaf_error_.push_back(float_above(creator_[f] == kNone ? 0.0 : sat[creator_[f]], 0.0));
     }
     // No leaf moved off the samples (only collapses of error 0 were skipped): no list needed.
     if (std::all_of(leaf_error_.begin(), leaf_error_.end(), [](float e) { return e == 0.0f; }))

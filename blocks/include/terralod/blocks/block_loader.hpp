@@ -63,10 +63,6 @@ BlockSourceFactory database_source(const std::string& path);
 /// A block in memory: the DAG of its PM, which selective refinement runs on.
 struct LoadedBlock {
   BlockKey key;
-  /// The floor the block was asked for (metres; 0: full resolution). The DAG skips the PM's
-  /// collapses up to it (DagOptions::skip), so dag->floor_error() <= floor_m: a far block holds
-  /// only the coarse end of its PM.
-  double floor_m = 0;
   /// The PM's error metric. The decoded PM itself is not kept: the DAG holds a copy of all
   /// the refinement needs (heightfield, collapses), and the PM's own would be 24 bytes a vertex
   /// more for every resident block.

@@ -141,7 +141,7 @@ struct RuntimeOptions {
   double morph_seconds = 0.5;                               ///< geomorph duration, seconds, >= 0; 0 = pop
   std::size_t budget_bytes = std::size_t(512) << 20;        ///< resident memory, bytes (everything loaded)
   /// When >= 1, a needed block is loaded only down to the error its view needs, divided by this
-  /// factor: its DAG skips the PM's collapses below that (LoadedBlock::floor_m), so a far block
+  /// factor: its DAG skips the PM's collapses below that (CollapseDag::floor_error), so a far block
   /// holds only the coarse end of its PM, and serves until the eye is this many times closer;
   /// then a finer copy is loaded and replaces it (with a blend). 4 is a good value (N44W072 at
   /// tau = 1 and 512 MB: 958 -> 119 frames with a block missing). 0, the default, loads every
