@@ -11,9 +11,9 @@
 //   --budget: the runtime's memory budget, megabytes (default 1024: the flight at tau = 1 px
 //   peaks near 710 MB with the default 129-sample blocks; below what a frame needs, blocks stay
 //   missing).
-//   --partial: RuntimeOptions::partial_load_factor (default 0, the library's: every block
-//   whole; 4: far blocks hold only the coarse end of their PM).
-//   --loader-threads: RuntimeOptions::loader_threads (default 1).
+//   --partial: RuntimeOptions::partial_load_factor (default 4: far blocks hold only the coarse
+//   end of their PM; 0 loads every block whole).
+//   --loader-threads: RuntimeOptions::loader_threads (default 2).
 
 #include <algorithm>
 #include <chrono>
@@ -89,8 +89,8 @@ int main(int argc, char** argv) {
           "with prediction on and off. Without DB, builds one (blocks of N samples, default 129).\n"
           "--budget: resident memory of the runtime, megabytes (default 1024).\n"
           "--partial: load a needed block only down to the error its view needs divided by F\n"
-          "(e.g. 4); 0, the default, loads every block whole.\n"
-          "--loader-threads: threads reading and decoding blocks (default 1).");
+          "(default 4); 0 loads every block whole.\n"
+          "--loader-threads: threads reading and decoding blocks (default 2).");
       return 0;
     } else
       db_path = argv[i];

@@ -222,6 +222,14 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   const double tau = tau_;
   s.tolerance_px = tau;
   predictor_.observe(time_s, view.eye());
+  // Blocks the loader decodes from now on are refined first for this view, before step 3
+  // queues them: set at the end of the frame instead, a block asked for in this frame and
+  // decoded before its end would be prepared for the previous view and geomorph from it when
+  // taken, and whether it was depended on the loader's timing (headless replays differed).
+  {
+    std::lock_guard lock(prep_mutex_);
+    prep_view_ = view, prep_time_ = time_s, prep_options_ = refinement_options(opt_, tau);
+  }
 
   auto lap = [last = std::chrono::steady_clock::now()]() mutable {
     const auto now = std::chrono::steady_clock::now();
@@ -449,10 +457,6 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.resident_bytes = fixed_bytes();
   for (const auto& [k, b] : blocks_) s.resident_bytes += b->data->memory_bytes;
   s.peak_resident_bytes = std::max(s.peak_resident_bytes, s.resident_bytes);
-  {
-    std::lock_guard lock(prep_mutex_);
-    prep_view_ = view, prep_time_ = time_s, prep_options_ = refinement_options(opt_, tau);
-  }
   s.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   s.update_cpu_ms = thread_cpu_ms() - cpu0;
   return stats_;

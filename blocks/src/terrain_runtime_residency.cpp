@@ -57,7 +57,8 @@ bool TerrainRuntime::wait_for_loader(double timeout_s) const {
 }
 
 std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {
-  return std::size_t(double(block_vertices_[grid_.index(k)]) * bytes_per_vertex_);
+  const double per_vertex = loaded_vertices_ > 0 ? loaded_bytes_ / loaded_vertices_ : 600.0;
+  return std::size_t(double(block_vertices_[grid_.index(k)]) * per_vertex);
 }
 
 std::size_t TerrainRuntime::fixed_bytes() const {
@@ -97,7 +98,7 @@ void TerrainRuntime::take_loads() {
       continue;
     const std::uint64_t nv = r.block->dag->full_vertex_count();
     if (nv > 0 && r.block->dag->skipped() == 0)  // whole blocks only: estimate_bytes is for them
-      bytes_per_vertex_ = 0.8 * bytes_per_vertex_ + 0.2 * double(r.block->memory_bytes) / double(nv);
+      loaded_bytes_ += double(r.block->memory_bytes), loaded_vertices_ += double(nv);
     // A finer copy replaces the resident one: only the difference needs room.
     const std::size_t old_bytes = old != blocks_.end() ? old->second->data->memory_bytes : 0;
     keep.insert(k);

@@ -52,9 +52,8 @@
 //      (active_region(), b = a cot(theta)), then (prefetch on) for each predicted eye position,
 //      nearest in time first, the blocks the view from there needs (the camera moved there and
 //      turned along the motion) and the active region around it; the queue stops where the blocks' memory
-//      (estimated from their vertex counts) would exceed the budget. With partial_load_factor
-//      set, each block is read down to its floor divided by it (the finest floor any of these
-//      views asks): its
+//      (estimated from their vertex counts) would exceed the budget. Each block is read down to
+//      its floor divided by partial_load_factor (the finest floor any of these views asks): its
 //      DAG skips the PM's collapses below that (CollapseDag DagOptions::skip), so a far block
 //      holds only the coarse end of its PM. A finer copy, once read, replaces a coarser one,
 //      blending in from what the coarser one drew (as a block arriving over its stand-in does).
@@ -140,21 +139,19 @@ struct RuntimeOptions {
   double min_tolerance_px = 0.1, max_tolerance_px = 256.0;  ///< budget-mode range, 0 < min <= max
   double morph_seconds = 0.5;                               ///< geomorph duration, seconds, >= 0; 0 = pop
   std::size_t budget_bytes = std::size_t(512) << 20;        ///< resident memory, bytes (everything loaded)
-  /// When >= 1, a needed block is loaded only down to the error its view needs, divided by this
-  /// factor: its DAG skips the PM's collapses below that (CollapseDag::floor_error), so a far block
+  /// A needed block is loaded only down to the error its view needs, divided by this factor
+  /// (>= 1): its DAG skips the PM's collapses below that (CollapseDag::floor_error), so a far block
   /// holds only the coarse end of its PM, and serves until the eye is this many times closer;
-  /// then a finer copy is loaded and replaces it (with a blend). 4 is a good value (N44W072 at
-  /// tau = 1 and 512 MB: 958 -> 119 frames with a block missing). 0, the default, loads every
-  /// block whole: with partial blocks, when a finer copy replaces a coarser one depends on the
-  /// loader's timing, and so do the blends a replayed flight reports (terralod fly's headless
-  /// statistics are no longer the same run to run).
-  double partial_load_factor = 0.0;
+  /// then a finer copy is loaded and replaces it (with a blend). 0 loads every block whole
+  /// (N44W072 in blocks of 257 at tau = 1 and 512 MB, terralod-bench-fly: 67 frames with a block
+  /// missing with 4, 958 with 0). Which inner update of update_until_loaded a copy arrives in
+  /// does not change what a replayed frame draws (FlyDb.HeadlessIsDeterministic runs with it).
+  double partial_load_factor = 4.0;
   /// Threads that read and decode blocks (>= 1), each with its own database connection. Fixed
-  /// when the runtime opens: set_options refuses another value (std::invalid_argument). One by
-  /// default: blocks then arrive in one order, so a replayed flight (terralod fly, headless)
-  /// gives the same statistics run to run; two cut a real-time flight's missing frames where
-  /// the loader is the limit (terralod-bench-fly --loader-threads 2: N44W072, 119 -> 67).
-  int loader_threads = 1;
+  /// when the runtime opens: set_options refuses another value (std::invalid_argument). Two
+  /// by default: one decodes a whole blob per read and was the limit of many-block flights
+  /// (N44W072 as above: 119 frames with a block missing with one thread, 67 with two).
+  int loader_threads = 2;
   bool prefetch = true;  ///< queue the blocks around the predicted path
   PredictorOptions predictor;
   double prefetch_horizon_s = 3.0;  ///< seconds ahead, >= 0
@@ -295,7 +292,9 @@ class TerrainRuntime {
   std::vector<BlockSummary> sums_;
   std::vector<std::uint64_t> block_vertices_;  // per block index: PM vertices (from the build's meta)
   std::size_t tree_bytes_ = 0, summary_bytes_ = 0;
-  double bytes_per_vertex_ = 600;  // learnt from loaded blocks
+  // Bytes per PM vertex of a decoded whole block, learnt from the whole blocks loaded so far:
+  // a ratio of sums, so that it does not depend on the order the loader threads finish in.
+  double loaded_bytes_ = 0, loaded_vertices_ = 0;
   std::map<BlockKey, std::unique_ptr<Block>> blocks_;
   std::unique_ptr<BlockLoader> loader_;
   FlightPredictor predictor_;
