@@ -28,8 +28,10 @@
 // Per frame, update(view, t):
 //   1. Loads: finished blocks are taken from the background loader (never waiting). The loader
 //      thread also builds each block's SelectiveRefinement and runs its first update (from the
-//      base mesh to the last frame's view: the largest one), so an arrival costs the frame
-//      thread only the change since then.
+//      base mesh to the view of the latest update() to start: the largest one), so an arrival
+//      costs the frame thread only the change since then. That view is set as update() starts,
+//      before step 3 queues anything: a block queued and decoded within one frame is refined
+//      for that frame's own view, whichever moment it is decoded at.
 //   2. Selection: from the root, a node whose box is outside the frustum is culled with its
 //      subtree. A coarse node (any strategy but PmBlock) is drawn with its own surface when
 //      View::vertical_error_px(box, error) <= tau / 2 (half of tau: the seams may add as much
@@ -319,8 +321,8 @@ class TerrainRuntime {
   const HeightIndex& height_index() const;  // height_index_, built for this frame
   std::vector<Patch> patches_;              // the frame's patches (a pool: the first patch_count are used)
   std::unique_ptr<Scratch> scratch_;
-  // What the loader thread needs to prepare an arriving block's refinement (the last frame's
-  // view, time and refinement options), behind its own lock.
+  // What the loader thread needs to prepare an arriving block's refinement (the view, time
+  // and refinement options of the latest update() to start), behind its own lock.
   std::mutex prep_mutex_;
   std::optional<pm::View> prep_view_;
   double prep_time_ = 0;
