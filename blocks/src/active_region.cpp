@@ -239,55 +239,217 @@ std::uint32_t crc(const std::uint8_t* p, std::size_t n) { return pm::crc32_of({p
 // (m ~ 2 n).
 // Version 1 (still decoded): the same header with version 1, then per block 64 bytes:
 // 7 x f64 (z00 z10 z01 z11 zmin zmax tm_error), u8 base_is_tm, 7 zero bytes; then the CRC.
-std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s) {
-  assert(s.size() == grid.block_count());
+namespace {
+
+void check_summary_grid(const BlockGrid& grid) {
   if (grid.block_size() > 65537)
     throw std::invalid_argument("block_summaries: stand-in coordinates need block_size <= 65537, not " +
                                 std::to_string(grid.block_size()));
-  pm::ByteWriter o;
-  o.bytes.reserve(16 + s.size() * 600 + 4);
+}
+
+void write_header(pm::ByteWriter& o, const BlockGrid& grid) {
   o.u32(kMagic);
   o.u32(kBlockSummariesVersion);
   o.u32(std::uint32_t(grid.cols()));
   o.u32(std::uint32_t(grid.rows()));
-  for (const BlockSummary& b : s) {
-    if (b.empty) {  // 40 bytes: no range, no errors, no stand-in
-      for (int i = 0; i < 4; ++i) o.f64(0.0);
-      o.u8(0);
-      o.u8(2);
-      o.u16(0), o.u16(0), o.u16(0);
-      continue;
-    }
-    assert(b.points.size() >= 4 && !b.triangles.empty());
-    if (b.points.size() > 65535 || b.triangles.size() > 65535)
-      throw std::invalid_argument("block_summaries: a stand-in has more than 65535 points or triangles");
-    for (double d : {b.zmin, b.zmax, b.tm_error, b.standin_error}) o.f64(d);
-    o.u8(std::uint8_t(b.standin));
-    o.u8(b.base_is_tm ? 1 : 0);
-    o.u16(std::uint16_t(b.points.size()));
-    o.u16(std::uint16_t(b.triangles.size()));
-    o.u16(0);
-    for (const StandinPoint& p : b.points) {
-      o.u16(std::uint16_t(p.col));
-      o.u16(std::uint16_t(p.row));
-      o.f64(p.z);
-    }
-    const bool small = b.points.size() <= 256;
-    for (const auto& t : b.triangles)
-      for (std::uint32_t v : t) small ? o.u8(std::uint8_t(v)) : o.u16(std::uint16_t(v));
-    assert(b.triangle_errors.size() == b.triangles.size());
-    for (double e : b.triangle_errors) {
-      const float f = static_cast<float>(e);
-      assert(double(f) == e);  // rounded up to a float when computed
-      o.f32(f);
-    }
+}
+
+void write_record(pm::ByteWriter& o, const BlockSummary& b) {
+  if (b.empty) {  // 40 bytes: no range, no errors, no stand-in
+    for (int i = 0; i < 4; ++i) o.f64(0.0);
+    o.u8(0);
+    o.u8(2);
+    o.u16(0), o.u16(0), o.u16(0);
+    return;
   }
+  assert(b.points.size() >= 4 && !b.triangles.empty());
+  if (b.points.size() > 65535 || b.triangles.size() > 65535)
+    throw std::invalid_argument("block_summaries: a stand-in has more than 65535 points or triangles");
+  for (double d : {b.zmin, b.zmax, b.tm_error, b.standin_error}) o.f64(d);
+  o.u8(std::uint8_t(b.standin));
+  o.u8(b.base_is_tm ? 1 : 0);
+  o.u16(std::uint16_t(b.points.size()));
+  o.u16(std::uint16_t(b.triangles.size()));
+  o.u16(0);
+  for (const StandinPoint& p : b.points) {
+    o.u16(std::uint16_t(p.col));
+    o.u16(std::uint16_t(p.row));
+    o.f64(p.z);
+  }
+  const bool small = b.points.size() <= 256;
+  for (const auto& t : b.triangles)
+    for (std::uint32_t v : t) small ? o.u8(std::uint8_t(v)) : o.u16(std::uint16_t(v));
+  assert(b.triangle_errors.size() == b.triangles.size());
+  for (double e : b.triangle_errors) {
+    const float f = static_cast<float>(e);
+    assert(double(f) == e);  // rounded up to a float when computed
+    o.f32(f);
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s) {
+  assert(s.size() == grid.block_count());
+  check_summary_grid(grid);
+  pm::ByteWriter o;
+  o.bytes.reserve(16 + s.size() * 600 + 4);
+  write_header(o, grid);
+  for (const BlockSummary& b : s) write_record(o, b);
   o.u32(crc(o.bytes.data(), o.bytes.size()));
   return std::move(o.bytes);
 }
 
-std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
-                                                 const std::string& name_for_errors) {
+std::vector<std::uint8_t> encode_block_summary_record(const BlockSummary& s) {
+  pm::ByteWriter o;
+  // Its exact size: a build may hold 10^5 of them.
+  const std::size_t n = s.points.size(), m = s.triangles.size();
+  o.bytes.reserve(s.empty ? 40 : 40 + 12 * n + (n <= 256 ? 3 : 6) * m + 4 * m);
+  write_record(o, s);
+  assert(o.bytes.size() == o.bytes.capacity());
+  return std::move(o.bytes);
+}
+
+void join_block_summary_records(const BlockGrid& grid,
+                                const std::function<std::vector<std::uint8_t>(std::size_t)>& record,
+                                const std::function<void(std::span<const std::uint8_t>)>& write) {
+  check_summary_grid(grid);
+  pm::ByteWriter o;
+  write_header(o, grid);
+  std::uint32_t c = pm::crc32_of(o.bytes);
+  write(o.bytes);
+  for (std::size_t i = 0; i < grid.block_count(); ++i) {
+    const std::vector<std::uint8_t> r = record(i);
+    if (r.size() < 40)
+      throw std::invalid_argument("block_summaries: block record " + std::to_string(i) + " has " +
+                                  std::to_string(r.size()) + " bytes (at least 40)");
+    c = pm::crc32_of(r, c);
+    write(r);
+  }
+  o.bytes.clear();
+  o.u32(c);
+  write(o.bytes);
+}
+
+namespace {
+
+// Decodes record i (format `version`) at p into b, records ending at `end`; returns the byte
+// after it. Throws DatabaseError naming the blob and the record.
+const std::uint8_t* decode_record(const BlockGrid& grid, std::uint32_t version, std::size_t i,
+                                  const std::uint8_t* p, const std::uint8_t* const end,
+                                  const std::string& name_for_errors, BlockSummary& b) {
+  auto fail = [&](const std::string& what) {
+    throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
+  };
+  const SampleRect d = grid.domain(grid.key(i));
+  const int w = d.width(), h = d.height();
+  auto bad = [&](const std::string& what) { fail("block record " + std::to_string(i) + ": " + what); };
+  if (version == 1) {
+    b.z00 = load_f64(p);
+    b.z10 = load_f64(p + 8);
+    b.z01 = load_f64(p + 16);
+    b.z11 = load_f64(p + 24);
+    b.zmin = load_f64(p + 32);
+    b.zmax = load_f64(p + 40);
+    b.tm_error = load_f64(p + 48);
+    b.base_is_tm = p[56] != 0;
+    if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) ||
+        !std::isfinite(b.zmax - b.zmin + b.tm_error + b.z00 + b.z10 + b.z01 + b.z11))
+      fail("block record " + std::to_string(i) + " is inconsistent");
+    for (double z : {b.z00, b.z10, b.z01, b.z11})  // corners are samples: inside the height range
+      if (!(z >= b.zmin && z <= b.zmax))
+        fail("block record " + std::to_string(i) + ": a corner outside zmin..zmax");
+    set_two_triangle_standin(b, w, h);
+    p += kRecordV1;
+    return p;
+  }
+  if (end - p < 40) bad("truncated");
+  b.zmin = load_f64(p);
+  b.zmax = load_f64(p + 8);
+  b.tm_error = load_f64(p + 16);
+  b.standin_error = load_f64(p + 24);
+  const std::uint8_t kind = p[32], flags = p[33];
+  const std::uint32_t n = load_u16(p + 34), m = load_u16(p + 36);
+  if (kind > 3 || flags > 2 || load_u16(p + 38) != 0) bad("bad kind or flags");
+  if (flags == 2) {  // empty: a block without any valid sample
+    if (kind != 0 || n != 0 || m != 0 || b.zmin != 0 || b.zmax != 0 || b.tm_error != 0 ||
+        b.standin_error != 0)
+      bad("an empty block with a stand-in or heights");
+    b.empty = true;
+    p += 40;
+    return p;
+  }
+  if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) || !(b.standin_error >= 0) ||
+      !std::isfinite(b.zmax - b.zmin + b.tm_error + b.standin_error))
+    bad("inconsistent heights or errors");
+  b.standin = StandinKind(kind);
+  b.base_is_tm = flags != 0;
+  const std::size_t isize = n <= 256 ? 1 : 2;
+  if (n < 4 || m < 1 || std::size_t(end - p) < 40 + 12 * std::size_t(n) + (3 * isize + 4) * m)
+    bad("truncated stand-in");
+  p += 40;
+  unsigned corners = 0;
+  b.points.resize(n);
+  for (StandinPoint& q : b.points) {
+    q.col = int(load_u16(p));
+    q.row = int(load_u16(p + 2));
+    q.z = load_f64(p + 4);
+    if (q.col >= w || q.row >= h || !(q.z >= b.zmin && q.z <= b.zmax))
+      bad("stand-in point outside the block");
+    const bool c0 = q.col == 0, c1 = q.col == w - 1, r0 = q.row == 0, r1 = q.row == h - 1;
+    if ((c0 || c1) && (r0 || r1)) {
+      (c0 ? (r0 ? b.z00 : b.z01) : (r0 ? b.z10 : b.z11)) = q.z;
+      corners |= 1u << ((c0 ? 0 : 1) + (r0 ? 0 : 2));
+    }
+    p += 12;
+  }
+  if (corners != 15) bad("the stand-in lacks a block corner");
+  b.triangles.resize(m);
+  std::int64_t area2 = 0;
+  for (auto& t : b.triangles) {
+    for (std::uint32_t& v : t) {
+      v = isize == 1 ? p[0] : load_u16(p);
+      p += isize;
+      if (v >= n) bad("stand-in triangle index out of range");
+    }
+    const StandinPoint &a = b.points[t[0]], &e = b.points[t[1]], &c = b.points[t[2]];
+    const std::int64_t o =
+        std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
+    if (o <= 0) bad("stand-in triangle not counter-clockwise");
+    area2 += o;
+  }
+  if (area2 != 2 * std::int64_t(w - 1) * (h - 1)) bad("stand-in triangles do not cover the block");
+  b.triangle_errors.resize(m);
+  double emax = 0;
+  for (double& e : b.triangle_errors) {
+    e = double(load_f32(p));
+    p += 4;
+    if (!(e >= 0) || !std::isfinite(e)) bad("bad stand-in triangle error");
+    emax = std::max(emax, e);
+  }
+  if (!(emax >= b.standin_error)) bad("stand-in triangle errors below the stand-in's error");
+  return p;
+}
+
+}  // namespace
+
+BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t index,
+                                         std::span<const std::uint8_t> record,
+                                         const std::string& name_for_errors) {
+  if (index >= grid.block_count())
+    throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": block record " +
+                                             std::to_string(index) + " is not a block of the grid");
+  BlockSummary b;
+  const std::uint8_t* const end = record.data() + record.size();
+  if (decode_record(grid, kBlockSummariesVersion, index, record.data(), end, name_for_errors, b) != end)
+    throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": block record " +
+                                             std::to_string(index) + " has bytes after its end");
+  return b;
+}
+
+void for_each_block_summary(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
+                            const std::string& name_for_errors,
+                            const std::function<void(std::size_t, BlockSummary&&)>& visit) {
   auto fail = [&](const std::string& what) {
     throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
   };
@@ -309,101 +471,26 @@ std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::spa
          std::to_string(grid.block_count()) + " block records");
   if (crc(bytes.data(), bytes.size() - 4) != load_u32(bytes.data() + bytes.size() - 4))
     fail("checksum mismatch");
-  std::vector<BlockSummary> out(grid.block_count());
   const std::uint8_t* p = bytes.data() + 16;
   const std::uint8_t* const end = bytes.data() + bytes.size() - 4;
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    BlockSummary& b = out[i];
-    const SampleRect d = grid.domain(grid.key(i));
-    const int w = d.width(), h = d.height();
-    auto bad = [&](const std::string& what) { fail("block record " + std::to_string(i) + ": " + what); };
-    if (version == 1) {
-      b.z00 = load_f64(p);
-      b.z10 = load_f64(p + 8);
-      b.z01 = load_f64(p + 16);
-      b.z11 = load_f64(p + 24);
-      b.zmin = load_f64(p + 32);
-      b.zmax = load_f64(p + 40);
-      b.tm_error = load_f64(p + 48);
-      b.base_is_tm = p[56] != 0;
-      if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) ||
-          !std::isfinite(b.zmax - b.zmin + b.tm_error + b.z00 + b.z10 + b.z01 + b.z11))
-        fail("block record " + std::to_string(i) + " is inconsistent");
-      for (double z : {b.z00, b.z10, b.z01, b.z11})  // corners are samples: inside the height range
-        if (!(z >= b.zmin && z <= b.zmax))
-          fail("block record " + std::to_string(i) + ": a corner outside zmin..zmax");
-      set_two_triangle_standin(b, w, h);
-      p += kRecordV1;
-      continue;
-    }
-    if (end - p < 40) bad("truncated");
-    b.zmin = load_f64(p);
-    b.zmax = load_f64(p + 8);
-    b.tm_error = load_f64(p + 16);
-    b.standin_error = load_f64(p + 24);
-    const std::uint8_t kind = p[32], flags = p[33];
-    const std::uint32_t n = load_u16(p + 34), m = load_u16(p + 36);
-    if (kind > 3 || flags > 2 || load_u16(p + 38) != 0) bad("bad kind or flags");
-    if (flags == 2) {  // empty: a block without any valid sample
-      if (kind != 0 || n != 0 || m != 0 || b.zmin != 0 || b.zmax != 0 || b.tm_error != 0 ||
-          b.standin_error != 0)
-        bad("an empty block with a stand-in or heights");
-      b.empty = true;
-      p += 40;
-      continue;
-    }
-    if (!(b.zmin <= b.zmax) || !(b.tm_error >= 0) || !(b.standin_error >= 0) ||
-        !std::isfinite(b.zmax - b.zmin + b.tm_error + b.standin_error))
-      bad("inconsistent heights or errors");
-    b.standin = StandinKind(kind);
-    b.base_is_tm = flags != 0;
-    const std::size_t isize = n <= 256 ? 1 : 2;
-    if (n < 4 || m < 1 || std::size_t(end - p) < 40 + 12 * std::size_t(n) + (3 * isize + 4) * m)
-      bad("truncated stand-in");
-    p += 40;
-    unsigned corners = 0;
-    b.points.resize(n);
-    for (StandinPoint& q : b.points) {
-      q.col = int(load_u16(p));
-      q.row = int(load_u16(p + 2));
-      q.z = load_f64(p + 4);
-      if (q.col >= w || q.row >= h || !(q.z >= b.zmin && q.z <= b.zmax))
-        bad("stand-in point outside the block");
-      const bool c0 = q.col == 0, c1 = q.col == w - 1, r0 = q.row == 0, r1 = q.row == h - 1;
-      if ((c0 || c1) && (r0 || r1)) {
-        (c0 ? (r0 ? b.z00 : b.z01) : (r0 ? b.z10 : b.z11)) = q.z;
-        corners |= 1u << ((c0 ? 0 : 1) + (r0 ? 0 : 2));
-      }
-      p += 12;
-    }
-    if (corners != 15) bad("the stand-in lacks a block corner");
-    b.triangles.resize(m);
-    std::int64_t area2 = 0;
-    for (auto& t : b.triangles) {
-      for (std::uint32_t& v : t) {
-        v = isize == 1 ? p[0] : load_u16(p);
-        p += isize;
-        if (v >= n) bad("stand-in triangle index out of range");
-      }
-      const StandinPoint &a = b.points[t[0]], &e = b.points[t[1]], &c = b.points[t[2]];
-      const std::int64_t o =
-          std::int64_t(e.col - a.col) * (c.row - a.row) - std::int64_t(e.row - a.row) * (c.col - a.col);
-      if (o <= 0) bad("stand-in triangle not counter-clockwise");
-      area2 += o;
-    }
-    if (area2 != 2 * std::int64_t(w - 1) * (h - 1)) bad("stand-in triangles do not cover the block");
-    b.triangle_errors.resize(m);
-    double emax = 0;
-    for (double& e : b.triangle_errors) {
-      e = double(load_f32(p));
-      p += 4;
-      if (!(e >= 0) || !std::isfinite(e)) bad("bad stand-in triangle error");
-      emax = std::max(emax, e);
-    }
-    if (!(emax >= b.standin_error)) bad("stand-in triangle errors below the stand-in's error");
+  for (std::size_t i = 0; i < grid.block_count(); ++i) {
+    BlockSummary b;
+    p = decode_record(grid, version, i, p, end, name_for_errors, b);
+    visit(i, std::move(b));
   }
   if (p != end)
     fail("size " + std::to_string(bytes.size()) + " bytes, expected " + std::to_string(p - bytes.data() + 4));
+}
+
+std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
+                                                 const std::string& name_for_errors) {
+  // Allocated at the first record, after the blob's size is checked against the grid's (a
+  // corrupt header must not allocate a huge grid's summaries).
+  std::vector<BlockSummary> out;
+  for_each_block_summary(grid, bytes, name_for_errors, [&](std::size_t i, BlockSummary&& b) {
+    if (out.empty()) out.resize(grid.block_count());
+    out[i] = std::move(b);
+  });
   return out;
 }
 

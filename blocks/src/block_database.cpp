@@ -10,12 +10,15 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <cassert>
 #include <climits>
+#include <memory>
 #include <utility>
 
 #include "block_database_connection.hpp"
 #include "block_database_encoding.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace terralod::blocks {
 
@@ -93,6 +96,65 @@ void BlockDatabase::put_blob(const std::string& name, std::span<const std::uint8
   d.bind_text(st, 1, name, item);
   d.bind_blob(st, 2, blob, item);
   d.step_write(st, item);
+}
+
+void BlockDatabase::remove_blob(const std::string& name) {
+  assert(impl_);
+  Impl& d = *impl_;
+  d.require_writable();
+  const std::string item = blob_item(name);
+  Use st(d.stmt(kRemoveBlob, item));
+  d.bind_text(st, 1, name, item);
+  d.step_write(st, item);
+}
+
+void BlockDatabase::put_blob_in_pieces(const std::string& name, std::uint64_t size, std::uint32_t crc32,
+                                       const std::function<void(const BlobPieceWriter&)>& fill) {
+  assert(impl_);
+  Impl& d = *impl_;
+  d.require_writable();
+  const std::string item = blob_item(name);
+  if (size > std::uint64_t(sqlite3_limit(d.db, SQLITE_LIMIT_LENGTH, -1)))
+    d.fail(item + ": " + std::to_string(size) + " bytes is more than SQLite stores in one blob");
+  {
+    Use st(d.stmt(kPutZeroBlob, item));
+    d.bind_text(st, 1, name, item);
+    d.check(sqlite3_bind_int64(st, 2, std::int64_t(size)), item);
+    d.check(sqlite3_bind_int64(st, 3, std::int64_t(crc32)), item);
+    d.step_write(st, item);
+  }
+  sqlite3_blob* b = nullptr;
+  d.check(sqlite3_blob_open(d.db, "main", "blobs", "data", sqlite3_last_insert_rowid(d.db), 1, &b),
+          item + ": cannot be opened for writing");
+  const std::unique_ptr<sqlite3_blob, int (*)(sqlite3_blob*)> close(b, sqlite3_blob_close);
+  // Pieces are gathered into writes of 1 MiB: each sqlite3_blob_write finds its offset along
+  // the blob's chain of overflow pages, so a write per small piece costs quadratic time.
+  constexpr std::size_t kWrite = 1 << 20;
+  std::vector<std::uint8_t> buf;
+  buf.reserve(std::size_t(std::min<std::uint64_t>(size, kWrite)));
+  std::uint64_t at = 0, written = 0;
+  std::uint32_t crc = 0;
+  auto flush = [&] {
+    d.check(sqlite3_blob_write(b, buf.data(), int(buf.size()), int(written)), item + ": cannot be written");
+    written += buf.size();
+    buf.clear();
+  };
+  fill([&](std::span<const std::uint8_t> piece) {
+    if (piece.size() > size - at)
+      d.fail(item + ": more than the " + std::to_string(size) + " bytes announced");
+    crc = pm::crc32_of(piece, crc);
+    at += piece.size();
+    while (!piece.empty()) {
+      const std::size_t n = std::min(piece.size(), kWrite - buf.size());
+      buf.insert(buf.end(), piece.begin(), piece.begin() + std::ptrdiff_t(n));
+      piece = piece.subspan(n);
+      if (buf.size() == kWrite) flush();
+    }
+  });
+  if (!buf.empty()) flush();
+  if (at != size)
+    d.fail(item + ": " + std::to_string(at) + " bytes given, " + std::to_string(size) + " announced");
+  if (crc != crc32) d.fail(item + ": the pieces given do not have the CRC-32 announced");
 }
 
 std::optional<std::vector<std::uint8_t>> BlockDatabase::read_blob(const std::string& name) const {

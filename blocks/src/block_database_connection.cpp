@@ -45,6 +45,8 @@ constexpr std::array<const char*, kStatementCount> kSql = {
     "INSERT OR REPLACE INTO blobs(name, size, crc32, data) VALUES (?1, ?2, ?3, ?4)",
     "SELECT size, crc32, data FROM blobs WHERE name = ?1",
     "SELECT name FROM blobs ORDER BY name",
+    "DELETE FROM blobs WHERE name = ?1",
+    "INSERT OR REPLACE INTO blobs(name, size, crc32, data) VALUES (?1, ?2, ?3, zeroblob(?2))",
     "INSERT OR REPLACE INTO texture_tiles(layer, node, level, size, crc32, data) VALUES (?1, ?2, ?3, ?4, ?5, "
     "?6)",
     "SELECT size, crc32, data FROM texture_tiles WHERE layer = ?1 AND node = ?2 AND level = ?3",

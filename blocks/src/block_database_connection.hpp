@@ -39,6 +39,8 @@ enum Stmt : int {
   kPutBlob,
   kReadBlob,
   kListBlobs,
+  kRemoveBlob,
+  kPutZeroBlob,
   kPutTile,
   kReadTile,
   kListLayers,

@@ -13,7 +13,6 @@
 #include <exception>
 #include <filesystem>
 #include <limits>
-#include <map>
 #include <mutex>
 #include <sstream>
 #include <thread>
@@ -57,6 +56,13 @@ std::string build_parameters_json(const DemSource& src, const DatabaseBuildOptio
 
 std::string block_meta_key(BlockKey k) {
   return "block/" + std::to_string(k.col) + "," + std::to_string(k.row);
+}
+
+// A block's record of the block_summaries blob, stored as the block is written (in its
+// transaction) and joined into the blob when the build completes, which removes them: the build
+// holds no per-block summary in memory, and a resumed build does not summarize again.
+std::string summary_blob_name(BlockKey k) {
+  return "block_summary/" + std::to_string(k.col) + "," + std::to_string(k.row);
 }
 
 struct BlockRecord {
@@ -164,7 +170,26 @@ void require_complete_build(const BlockDatabase& db) {
         ": the build is not complete (run 'terralod build' again with the same options to finish it)");
 }
 
-DatabaseSummary summarize_database(const BlockDatabase& db) {
+namespace {
+
+// The stand-in figures of a summary, one block summary at a time.
+struct StandinTally {
+  std::size_t filled = 0;  // blocks with samples (an empty block has no stand-in)
+  void add(DatabaseSummary& s, const BlockSummary& x) {
+    if (x.empty) return;
+    if (s.standin.empty()) s.standin = standin_kind_name(x.standin);
+    ++filled;
+    s.mean_standin_error += x.standin_error;
+    s.mean_tm_error += x.tm_error;
+  }
+  void finish(DatabaseSummary& s) const {
+    if (filled) s.mean_standin_error /= double(filled), s.mean_tm_error /= double(filled);
+  }
+};
+
+// summarize_database; with_standins false leaves the stand-in figures to the caller (the build,
+// which tallies them as it writes the blob, rather than reading it back whole).
+DatabaseSummary summarize(const BlockDatabase& db, bool with_standins) {
   DatabaseSummary s;
   const DatabaseInfo& info = db.info();
   s.path = db.path();
@@ -199,25 +224,23 @@ DatabaseSummary summarize_database(const BlockDatabase& db) {
     s.tree_depth = tree.depth();
     if (tree.size()) s.root_error = tree.root().error;
   }
-  if (const auto b = db.read_blob(kBlockSummariesBlob); b && s.blocks_x > 0) {
-    const BlockGrid grid = BlockGrid::from_info(info);
-    const std::vector<BlockSummary> sums = decode_block_summaries(grid, *b, db.path());
+  if (!with_standins) {
+  } else if (const auto b = db.read_blob(kBlockSummariesBlob); b && s.blocks_x > 0) {
     s.summaries_bytes = b->size();
-    // Over the blocks with samples (an empty block has no stand-in).
-    const auto filled =
-        std::count_if(sums.begin(), sums.end(), [](const BlockSummary& x) { return !x.empty; });
-    for (const BlockSummary& x : sums) {
-      if (x.empty) continue;
-      if (s.standin.empty()) s.standin = standin_kind_name(x.standin);
-      s.mean_standin_error += x.standin_error / double(filled);
-      s.mean_tm_error += x.tm_error / double(filled);
-    }
+    StandinTally tally;  // one summary decoded at a time: memory holds the blob alone
+    for_each_block_summary(BlockGrid::from_info(info), *b, db.path(),
+                           [&](std::size_t, BlockSummary&& x) { tally.add(s, x); });
+    tally.finish(s);
   }
   s.bytes_per_vertex = s.samples ? double(s.block_bytes + s.tree_bytes) / double(s.samples) : 0.0;
   if (const auto sec = db.get_meta("build_seconds")) s.seconds = std::atof(sec->c_str());
   s.complete = db.get_meta("build_complete").value_or("") == "1";
   return s;
 }
+
+}  // namespace
+
+DatabaseSummary summarize_database(const BlockDatabase& db) { return summarize(db, true); }
 
 std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
                                            const DatabaseBuildOptions& opt) {
@@ -259,6 +282,7 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
     throw BuildError(path + ": block size must be 2^k + 1 (3, 5, 9, ..., 257, ...), not " +
                      std::to_string(opt.block_size));
   const BlockLayout layout = partition(g.width, g.height, opt.block_size);
+  const BlockGrid bgrid(g.width, g.height, opt.block_size, g.transform);
 
   DatabaseInfo info;
   info.grid_width = g.width;
@@ -311,7 +335,7 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
     BlockKey key;
     std::vector<std::uint8_t> blob;
     BlockRecord record;
-    BlockSummary summary;
+    std::vector<std::uint8_t> summary;  // its record of the block_summaries blob
   };
   StandinOptions standin = opt.standin;
   standin.metric = opt.metric;
@@ -323,10 +347,11 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
     d.record.error = base_mesh_error(pm);
     d.record.vertices = pm.full_vertex_count();
     d.record.bytes = d.blob.size();
-    d.summary = summarize_block(pm, d.key, standin);  // holes take no part; an empty block has none
+    d.summary = encode_block_summary_record(summarize_block(pm, d.key, standin));  // holes take no part
     return d;
   };
-  std::map<BlockKey, BlockSummary> summaries;
+  // Bytes of each block's summary record in the database (0: none yet; a record has >= 40).
+  std::vector<std::uint32_t> summary_bytes(bgrid.block_count(), 0);  // 4 bytes a block
   std::mutex m;
   std::condition_variable cv;
   std::deque<Done> queue;
@@ -413,9 +438,10 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
         BlockDatabase::Transaction tx(db);
         db.put_block(d.key, d.blob);
         db.set_meta(block_meta_key(d.key), format_record(d.record));
+        db.put_blob(summary_blob_name(d.key), d.summary);
         tx.commit();
       }
-      summaries.emplace(d.key, std::move(d.summary));
+      summary_bytes[bgrid.index(d.key)] = std::uint32_t(d.summary.size());
       ++written;
       if (opt.progress) {
         const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
@@ -461,16 +487,23 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
   topt.pm_leaves = true;
   topt.metric = opt.metric;
   topt.threads = threads;
-  const ApproximationTree tree = build_tree(src, layout, topt, errors);
-  const std::vector<std::uint8_t> tree_bytes = encode_tree(tree);
+  // Only its encoding is kept: summarize_database decodes it again once it is written.
+  std::vector<std::uint8_t> tree_bytes = encode_tree(build_tree(src, layout, topt, errors));
 
   // Block summaries with their stand-ins: the blocks built now were summarized by the workers;
-  // resumed blocks are read back and summarized here.
+  // those of an earlier run have their record stored too, unless that run predates stored
+  // records: those blocks are read back and summarized here.
   std::vector<BlockKey> resumed;
-  for (BlockKey k : keys)
-    if (!summaries.count(k)) resumed.push_back(k);
-  std::vector<BlockSummary> resumed_sums(resumed.size());
+  for (BlockKey k : keys) {
+    std::uint32_t& n = summary_bytes[bgrid.index(k)];
+    if (n) continue;
+    if (const auto r = db.read_blob(summary_blob_name(k)))
+      n = std::uint32_t(r->size());
+    else
+      resumed.push_back(k);
+  }
   std::mutex db_mutex;
+  BlockDatabase::Transaction resumed_tx(db);
   parallel_for(resumed.size(), threads, [&](std::size_t i) {
     const BlockKey k = resumed[i];
     std::vector<std::uint8_t> blob;
@@ -480,25 +513,60 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
     }
     const pm::ProgressiveMesh pm =
         pm::decode_pm(blob, path + ": block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")");
-    resumed_sums[i] = summarize_block(pm, k, standin);
+    const std::vector<std::uint8_t> record = encode_block_summary_record(summarize_block(pm, k, standin));
+    std::lock_guard<std::mutex> lock(db_mutex);
+    db.put_blob(summary_blob_name(k), record);
+    summary_bytes[bgrid.index(k)] = std::uint32_t(record.size());
   });
-  for (std::size_t i = 0; i < resumed.size(); ++i) summaries.emplace(resumed[i], std::move(resumed_sums[i]));
-  const BlockGrid bgrid(g.width, g.height, opt.block_size, g.transform);
-  std::vector<BlockSummary> sums(bgrid.block_count());
-  for (const auto& [k, sum] : summaries) sums[bgrid.index(k)] = sum;
-  const std::vector<std::uint8_t> sum_bytes = encode_block_summaries(bgrid, sums);
+  resumed_tx.commit();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  DatabaseSummary standins;
+  StandinTally tally;
   {
     BlockDatabase::Transaction tx(db);
     db.put_blob("tree", tree_bytes);
-    db.put_blob(kBlockSummariesBlob, sum_bytes);
+    // The records are streamed into the blob and removed: a complete database holds the blob
+    // alone, and memory holds one record at a time, not the blob (1.6 kB a block).
+    std::uint64_t blob_bytes = kBlockSummariesFraming;
+    for (std::uint32_t n : summary_bytes) blob_bytes += n;
+    auto record = [&](std::size_t i) {
+      const std::string name = summary_blob_name(bgrid.key(i));
+      std::optional<std::vector<std::uint8_t>> r = db.read_blob(name);
+      if (!r) throw DatabaseError(path, name + ": missing");
+      return std::move(*r);
+    };
+    // First pass: the blob's CRC, which its row is written with (records are read twice, the
+    // row written once).
+    std::uint32_t crc = 0;
+    join_block_summary_records(bgrid, record,
+                               [&](std::span<const std::uint8_t> piece) { crc = pm::crc32_of(piece, crc); });
+    db.put_blob_in_pieces(
+        kBlockSummariesBlob, blob_bytes, crc, [&](const BlockDatabase::BlobPieceWriter& write) {
+          join_block_summary_records(
+              bgrid,
+              [&](std::size_t i) {
+                std::vector<std::uint8_t> r = record(i);
+                db.remove_blob(summary_blob_name(bgrid.key(i)));
+                tally.add(standins, decode_block_summary_record(
+                                        bgrid, i, r, path + ": block summary " + std::to_string(i)));
+                return r;
+              },
+              write);
+        });
+    standins.summaries_bytes = blob_bytes;
+    tally.finish(standins);
     char buf[40];
     std::snprintf(buf, sizeof buf, "%.6f", seconds);
     db.set_meta("build_seconds", buf);
     db.set_meta("build_complete", "1");
     tx.commit();
   }
-  DatabaseSummary s = summarize_database(db);
+  std::vector<std::uint8_t>().swap(tree_bytes);
+  DatabaseSummary s = summarize(db, false);
+  s.summaries_bytes = standins.summaries_bytes;
+  s.standin = standins.standin;
+  s.mean_standin_error = standins.mean_standin_error;
+  s.mean_tm_error = standins.mean_tm_error;
   s.blocks_built = written;
   s.seconds = seconds;
   return s;

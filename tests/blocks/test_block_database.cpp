@@ -23,6 +23,7 @@
 
 #include "hot_journal.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/pm/byte_io.hpp"
 
 namespace {
 
@@ -501,6 +502,57 @@ TEST(BlockDatabase, TransactionsCommitOrRollBack) {
   }
   db.put_block({3, 0}, pattern(5, 10));
   EXPECT_EQ(BlockDatabase::open(path).blocks(), (std::vector<BlockKey>{{0, 0}, {2, 0}, {3, 0}}));
+}
+
+// A blob written in pieces (put_blob_in_pieces) reads back as the same bytes as one put_blob,
+// replaces an earlier blob of the name, and a wrong size or CRC fails and, inside a
+// transaction, leaves the earlier blob; remove_blob removes one blob and ignores a missing one.
+TEST(BlockDatabase, BlobsInPiecesAndRemoval) {
+  const fs::path dir = fresh_dir("pieces");
+  auto db = BlockDatabase::create((dir / "terrain.db").string(), sample_info());
+  const Bytes whole = pattern(11, 3 * (1 << 20) + 12345);  // more than one 1 MiB write
+  const std::uint32_t crc = terralod::pm::crc32_of(whole);
+  auto fill_in = [&](std::size_t piece) {
+    return [&whole, piece](const BlockDatabase::BlobPieceWriter& write) {
+      for (std::size_t at = 0; at < whole.size(); at += piece)
+        write(std::span<const std::uint8_t>(whole).subspan(at, std::min(piece, whole.size() - at)));
+    };
+  };
+  db.put_blob("big", pattern(12, 10));
+  for (std::size_t piece : {std::size_t(1), std::size_t(1000), std::size_t(1) << 20, whole.size()}) {
+    if (piece == 1) {  // a byte at a time: 3 MB of calls would be slow; use the first 5000 bytes
+      const Bytes head(whole.begin(), whole.begin() + 5000);
+      db.put_blob_in_pieces("head", head.size(), terralod::pm::crc32_of(head),
+                            [&](const BlockDatabase::BlobPieceWriter& write) {
+                              for (std::uint8_t b : head) write(std::span<const std::uint8_t>(&b, 1));
+                            });
+      EXPECT_EQ(db.read_blob("head"), head);
+      continue;
+    }
+    db.put_blob_in_pieces("big", whole.size(), crc, fill_in(piece));
+    EXPECT_EQ(db.read_blob("big"), whole) << "pieces of " << piece;
+  }
+  db.put_blob_in_pieces("empty", 0, 0, [](const BlockDatabase::BlobPieceWriter&) {});
+  EXPECT_EQ(db.read_blob("empty"), Bytes{});
+  EXPECT_EQ(tb::BlockDatabase::open(db.path()).read_blob("big"), whole);  // committed, CRC checked
+  auto expect_failure = [&](std::uint64_t size, std::uint32_t c, const std::string& says) {
+    try {
+      BlockDatabase::Transaction t(db);
+      db.put_blob_in_pieces("big", size, c, fill_in(1 << 20));
+      ADD_FAILURE() << "no error for size " << size;
+    } catch (const tb::DatabaseError& e) {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("terrain.db"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(db.read_blob("big"), whole);  // rolled back
+  };
+  expect_failure(whole.size() + 1, crc, "announced");
+  expect_failure(whole.size() - 1, crc, "announced");
+  expect_failure(whole.size(), crc ^ 1u, "CRC-32");
+  db.remove_blob("big");
+  db.remove_blob("never there");
+  EXPECT_EQ(db.read_blob("big"), std::nullopt);
+  EXPECT_EQ(db.blob_names(), (std::vector<std::string>{"empty", "head"}));
 }
 
 // Two reader threads read every block again and again while one writer adds blocks. Each

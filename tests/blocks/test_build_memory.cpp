@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <string>
@@ -71,4 +72,47 @@ TEST(BuildMemory, FourTimesTheSamplesWithinAQuarterMoreMemory) {
   const std::uint64_t large = peak_of_build(4097);
   EXPECT_LE(double(large), 1.25 * double(small))
       << "4x the samples took " << double(large) / double(small) << "x the peak resident set";
+}
+
+// Memory that grows with the number of blocks, with the samples fixed: one 2049^2 DEM built by
+// `terralod build` in blocks of 129 (256 blocks) and of 33 (4,096 blocks), each in its own
+// process, whose peak resident set is the one it reports ('memory peak resident', the kernel's
+// VmHWM). Per block the build keeps the size of its summary record (4 bytes), its base error (8
+// bytes) and its share of the tree (a grid node per three blocks, its encoding and the copy
+// summarize_database decodes: about 1 kB in all); the stand-in records go through the database
+// into the block_summaries blob. A build that held every block's summary until the end (for
+// these 64-point TIN stand-ins the summary, its encoding, the joined blob and the copy read back:
+// 8.4 kB a block) grew by 32 MB here; the bound is 3 kB a block (11.5 MB).
+TEST(BuildMemory, PeakGrowsByLittleWithTheNumberOfBlocks) {
+#ifndef TERRALOD_BINARY
+  GTEST_SKIP() << "needs the terralod command-line tool";
+#else
+  ASSERT_EQ(setenv("GDAL_CACHEMAX", "8", 1), 0);  // the builds inherit it: both fill the cache
+  const terralod::test::TempDir dir("build-memory-blocks");
+  const std::string dem = (dir.path() / "fractal2049.tif").string();
+  tb::write_fractal_dem(pm::FractalField({.width = 2049, .height = 2049, .seed = 6}), dem, 2);
+  auto peak_of_build = [&](int block_size) -> double {
+    const std::string db = (dir.path() / (std::to_string(block_size) + ".db")).string();
+    const terralod::test::CommandResult r = terralod::test::run_tool(
+        TERRALOD_BINARY, "build --input '" + dem + "' --out '" + db + "' --threads 2 --block-size " +
+                             std::to_string(block_size));
+    EXPECT_EQ(r.status, 0) << r.out << r.err;
+    const std::size_t at = r.out.find("memory peak resident ");
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no 'memory peak resident' line in:\n" << r.out;
+      return 0;
+    }
+    double v = 0;
+    char unit[8] = "";
+    EXPECT_EQ(std::sscanf(r.out.c_str() + at, "memory peak resident %lf %7s", &v, unit), 2);
+    const double bytes = v * (std::string(unit) == "GB" ? 1e9 : std::string(unit) == "MB" ? 1e6 : 1e3);
+    std::printf("blocks of %d: peak %.1f MB\n", block_size, bytes / 1e6);
+    return bytes;
+  };
+  const double few = peak_of_build(129);
+  const double many = peak_of_build(33);
+  const double per_block = (many - few) / double(4096 - 256);
+  std::printf("%.2f kB more a block\n", per_block / 1e3);
+  EXPECT_LE(per_block, 3000.0) << "the peak grew by " << per_block << " bytes a block";
+#endif
 }

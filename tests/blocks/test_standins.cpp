@@ -180,6 +180,41 @@ TEST(Standin, BlobVersion2RoundTripWithEveryKind) {
   EXPECT_EQ(tb::encode_block_summaries(t.grid, tb::decode_block_summaries(t.grid, blob, "t.db")), blob);
 }
 
+// The blob joined from one record per block, streamed in pieces, is the blob encoded at once;
+// each record decodes alone to its block's summary, and a record with a byte more or less fails.
+TEST(Standin, RecordsJoinIntoTheBlob) {
+  const std::vector<tb::StandinOptions> mix = {standin(tb::StandinKind::Tin, 32),
+                                               standin(tb::StandinKind::Grid, 16),
+                                               standin(tb::StandinKind::Tin, 300)};
+  const terralod::test::BlockedTerrain t =
+      terralod::test::make_blocked_terrain(97, 81, 33, /*seed=*/7, 30.0, 600.0, mix);
+  std::vector<tb::BlockSummary> sums = t.summaries;
+  sums[4] = tb::BlockSummary{};
+  sums[4].empty = true;  // a block without samples: a 40-byte record
+  std::vector<std::vector<std::uint8_t>> records;
+  for (std::size_t i = 0; i < sums.size(); ++i) {
+    records.push_back(tb::encode_block_summary_record(sums[i]));
+    EXPECT_EQ(tb::decode_block_summary_record(t.grid, i, records.back(), "t.db"), sums[i]);
+  }
+  EXPECT_EQ(records[4].size(), 40u);
+  std::vector<std::uint8_t> joined;
+  std::size_t pieces = 0;
+  tb::join_block_summary_records(
+      t.grid, [&](std::size_t i) { return records[i]; },
+      [&](std::span<const std::uint8_t> p) { joined.insert(joined.end(), p.begin(), p.end()), ++pieces; });
+  EXPECT_EQ(joined, tb::encode_block_summaries(t.grid, sums));
+  EXPECT_EQ(pieces, sums.size() + 2);  // header, records, CRC
+  std::size_t records_bytes = 0;
+  for (const auto& r : records) records_bytes += r.size();
+  EXPECT_EQ(joined.size(), tb::kBlockSummariesFraming + records_bytes);
+  std::vector<std::uint8_t> longer = records[0];
+  longer.push_back(0);
+  EXPECT_THROW(tb::decode_block_summary_record(t.grid, 0, longer, "t.db"), tb::DatabaseError);
+  const std::vector<std::uint8_t> shorter(records[0].begin(), records[0].end() - 1);
+  EXPECT_THROW(tb::decode_block_summary_record(t.grid, 0, shorter, "t.db"), tb::DatabaseError);
+  EXPECT_THROW(tb::decode_block_summary_record(t.grid, sums.size(), records[0], "t.db"), tb::DatabaseError);
+}
+
 TEST(Standin, Version1BlobDecodesAsTwoTriangleStandins) {
   // A version 1 blob for a 2 x 1 grid of 3 x 3 blocks (a 5 x 3 terrain), written by hand from
   // its documented layout: record = 7 f64 (z00 z10 z01 z11 zmin zmax tm_error), u8 base_is_tm,

@@ -163,9 +163,29 @@ void set_two_triangle_standin(BlockSummary& s, int width, int height);
 /// 65537 (std::invalid_argument otherwise).
 inline constexpr std::uint32_t kBlockSummariesVersion = 2;
 std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s);
+/// One block's record of the blob (about 1.6 kB for a 64-point TIN stand-in, half a BlockSummary
+/// in memory) and back; decoding checks it as decode_block_summaries does (DatabaseError).
+std::vector<std::uint8_t> encode_block_summary_record(const BlockSummary& s);
+BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t index,
+                                         std::span<const std::uint8_t> record,
+                                         const std::string& name_for_errors);
+/// The blob, written piece by piece through write(): the header, record(i) for every block in
+/// BlockGrid::index order, the CRC. Its size is kBlockSummariesFraming plus the records'. A build
+/// stores each block's record as the block is built and streams them into the database at the
+/// end (BlockDatabase::put_blob_in_pieces), so it never holds the blob.
+inline constexpr std::size_t kBlockSummariesFraming = 16 + 4;
+void join_block_summary_records(const BlockGrid& grid,
+                                const std::function<std::vector<std::uint8_t>(std::size_t)>& record,
+                                const std::function<void(std::span<const std::uint8_t>)>& write);
 /// Throws DatabaseError("<name>: block_summaries: <problem>") on any mismatch or corruption.
 std::vector<BlockSummary> decode_block_summaries(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
                                                  const std::string& name_for_errors);
+/// decode_block_summaries one block at a time: visit(index, summary) in index order, holding one
+/// summary at once. Throws as decode_block_summaries does, after visiting the records before
+/// the problem (the CRC is checked before any visit).
+void for_each_block_summary(const BlockGrid& grid, std::span<const std::uint8_t> bytes,
+                            const std::string& name_for_errors,
+                            const std::function<void(std::size_t, BlockSummary&&)>& visit);
 /// Name of the blob in the block database.
 inline constexpr const char* kBlockSummariesBlob = "block_summaries";
 

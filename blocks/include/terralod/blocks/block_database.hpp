@@ -90,6 +90,7 @@
 #include <compare>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -197,6 +198,18 @@ class BlockDatabase {
   std::optional<std::vector<std::uint8_t>> read_blob(const std::string& name) const;
   /// Names of all named blobs, sorted.
   std::vector<std::string> blob_names() const;
+  /// Removes the named blob; nothing happens if there is none.
+  void remove_blob(const std::string& name);
+  /// put_blob for a blob of `size` bytes and CRC-32 `crc32` (pm::crc32_of; a caller computes it
+  /// first, e.g. by running its fill once with a writer that only sums) that fill() gives piece
+  /// by piece, calling write(piece) until exactly `size` bytes are given. Memory holds 1 MiB,
+  /// not the blob: the row is inserted once with zeros and its data written in place (SQLite's
+  /// incremental blob I/O), never rewritten. DatabaseError if fill gives another size or CRC;
+  /// call it inside a Transaction, so that a failure leaves nothing. read_blob reads the result
+  /// as any blob.
+  using BlobPieceWriter = std::function<void(std::span<const std::uint8_t>)>;
+  void put_blob_in_pieces(const std::string& name, std::uint64_t size, std::uint32_t crc32,
+                          const std::function<void(const BlobPieceWriter& write)>& fill);
 
   /// The "georeference" blob (see Georeference); nullopt when the database has none (built
   /// from a source without a CRS, or by a version before it was recorded); DatabaseError naming
