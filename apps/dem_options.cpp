@@ -11,10 +11,13 @@ const char* const kDemFormats =
     "DEM formats: SRTM .hgt, Esri ASCII grid .asc, PNG/TIFF heightmaps, any single-band raster\n"
     "GDAL reads. Geographic DEMs are warped to a metric frame (x east, y north, metres): --crs auto\n"
     "(the default) picks an azimuthal equidistant projection centred on the DEM, scaled so that\n"
-    "distances are true to within 0.1 % up to about 9 x 9 degrees (the frame states its scale\n"
-    "error; 'terralod info DEM' prints it); --crs native keeps the local equirectangular frame of\n"
-    "earlier versions (their databases resume with it); --crs EPSG:32619 (any projected CRS GDAL\n"
-    "knows) warps to that CRS. Projected DEMs stay in their own CRS unless --crs names another.";
+    "distances are true to within 0.1 % up to about 9 x 9 degrees; beyond, the transverse\n"
+    "Mercator, Lambert conformal conic or Mercator projection whose scale is truest over the DEM\n"
+    "(a strip about 7 degrees wide stays within 0.1 % however long; a continent cannot: the frame\n"
+    "states its scale error; 'terralod info DEM' prints it); --crs native keeps the local\n"
+    "equirectangular frame of earlier versions (their databases resume with it); --crs EPSG:32619\n"
+    "(any projected CRS GDAL knows) warps to that CRS. Projected DEMs stay in their own CRS\n"
+    "unless --crs names another.";
 
 std::vector<OptionSpec> dem_option_specs() {
   return {
@@ -27,7 +30,8 @@ std::vector<OptionSpec> dem_option_specs() {
 
 OptionSpec crs_option_spec() {
   return {"--crs", "CRS",
-          "world frame: auto (default; geographic DEMs to a balanced azimuthal equidistant projection), "
+          "world frame: auto (default; geographic DEMs to a balanced azimuthal equidistant projection, or to "
+          "the truest of transverse Mercator, Lambert conic and Mercator beyond about 9 x 9 degrees), "
           "native (the source's own frame) or a projected CRS, e.g. EPSG:32619"};
 }
 
@@ -41,8 +45,9 @@ void warn_about_frame(const blocks::DemGrid& g) {
   const std::optional<double>& e = g.scale_error;
   if (!e || *e <= 0.001) return;
   std::fprintf(stderr,
-               "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%), the best "
-               "this frame does for this extent; name a CRS suited to it with --crs for truer distances\n",
+               "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%); --crs auto "
+               "takes the truest of four projections, and an extent wider than about 7 degrees both ways "
+               "is beyond any flat frame; a CRS named with --crs may suit its shape better\n",
                g.source.c_str(), *e * 100.0);
 }
 

@@ -10,6 +10,11 @@
 // sin(c_max) over the DEM's corners, puts every scale in [k0, k0 s_max] = [1 - d, 1 + d] with
 // d = (s_max - 1) / (s_max + 1) ~ c_max^2 / 12: 0.081 % for an 8 x 8 degree DEM on the equator
 // (c_max = 5.66 degrees), under 0.1 % up to c_max ~ 6.3 degrees (9 x 9 degrees on the equator).
+// Beyond that, auto_frame measures three conformal candidates as well and takes the truest: a
+// conformal projection's scale grows with the square of the distance from its line of true scale
+// (k ~ 1 + d^2 / 2: the central meridian of a transverse Mercator, the standard parallel of a
+// conic, the equator of a Mercator), so balanced it is within ~ d_max^2 / 4 whatever the strip's
+// length, against c_max^2 / 12 of the azimuthal frame, whose c_max grows with the length.
 // The scale error recorded in the frame is measured, not taken from that formula: the singular
 // values of the Jacobian of (east, north metres on the ellipsoid) -> world at every lattice sample
 // and at both ends of every row of valid samples. Memory: a warped window, its native window and
@@ -75,7 +80,8 @@ namespace detail {
 std::string scale_error_note(std::optional<double> e, bool automatic) {
   if (!e) return "";
   std::string note = "; scale error within +-" + format("%.3f", *e * 100.0) + " %";
-  if (automatic && *e > 0.001) note += " (over 0.1 %: the best of this frame; name a CRS with --crs)";
+  if (automatic && *e > 0.001)
+    note += " (over 0.1 %: the best of the projections auto tries; name a CRS with --crs)";
   return note;
 }
 
@@ -102,6 +108,109 @@ void for_each_band(const DemSource& src, const std::function<void(int, const pm:
   const int rows = std::max(1, (1 << 18) / g.width);
   for (int r0 = 0; r0 < g.height; r0 += rows)
     band(r0, src.read({0, r0, g.width - 1, std::min(g.height, r0 + rows) - 1}));
+}
+
+/// The frame "auto" gives a geographic DEM (see the top of this file): its CRS (on the source's
+/// datum), the factor k0 from CRS metres to the world frame, and the description that starts
+/// the frame's text.
+struct AutoFrame {
+  OGRSpatialReference crs;
+  double k0 = 1.0;
+  std::string description;
+};
+
+/// Chooses the "auto" frame of a geographic DEM whose (col, row) -> (lon, lat) is `st` over a
+/// w x h grid. The azimuthal equidistant projection whenever its balanced scale error is within
+/// 0.1 % (every extent up to about 9 x 9 degrees; its k0 is Snyder's spherical formula, so frames
+/// and databases of earlier versions stay the same); otherwise the candidate whose measured scale
+/// range over the DEM's footprint is narrowest, balanced by k0 = 2 / (min + max): the azimuthal
+/// equidistant one, a transverse Mercator on the central meridian (a north-south strip: its
+/// scale grows with the distance from that meridian only, so a strip about 7 degrees wide stays
+/// within 0.1 % however long), a Lambert conformal conic with one standard parallel at the central
+/// latitude (an east-west strip away from the equator: its scale depends on the latitude only),
+/// and a Mercator (an east-west strip along the equator). An extent wide in both directions (a
+/// continent) is beyond every projection: the best one is taken and the frame says so.
+AutoFrame auto_frame(const std::string& path, const OGRSpatialReference& source, const pm::GridTransform& st,
+                     int w, int h) {
+  const auto [lon_c, lat_c] = st.to_world(0.5 * (w - 1), 0.5 * (h - 1));
+  double c_max = 0.0;
+  for (const auto& [c, r] : {std::pair{-0.5, -0.5}, {w - 0.5, -0.5}, {-0.5, h - 0.5}, {w - 0.5, h - 0.5}}) {
+    const auto [lon, lat] = st.to_world(c, r);
+    const double cos_c = std::sin(lat_c * kDeg) * std::sin(lat * kDeg) +
+                         std::cos(lat_c * kDeg) * std::cos(lat * kDeg) * std::cos((lon - lon_c) * kDeg);
+    c_max = std::max(c_max, std::acos(std::clamp(cos_c, -1.0, 1.0)));
+  }
+  const double s_max = c_max > 0.0 ? c_max / std::sin(c_max) : 1.0;
+  const std::string at = "lon " + format("%.9g", lon_c) + ", lat " + format("%.9g", lat_c);
+  struct Candidate {
+    std::string name;
+    std::function<OGRErr(OGRSpatialReference&)> set;
+    std::string where;
+  };
+  const std::vector<Candidate> candidates = {
+      {"azimuthal equidistant", [&](OGRSpatialReference& t) { return t.SetAE(lat_c, lon_c, 0.0, 0.0); },
+       "centred at " + at},
+      {"transverse Mercator", [&](OGRSpatialReference& t) { return t.SetTM(lat_c, lon_c, 1.0, 0.0, 0.0); },
+       "central meridian lon " + format("%.9g", lon_c) + ", origin at lat " + format("%.9g", lat_c)},
+      {"Lambert conformal conic",
+       [&](OGRSpatialReference& t) { return t.SetLCC1SP(lat_c, lon_c, 1.0, 0.0, 0.0); },
+       "standard parallel lat " + format("%.9g", lat_c) + ", central meridian lon " + format("%.9g", lon_c)},
+      {"Mercator", [&](OGRSpatialReference& t) { return t.SetMercator(0.0, lon_c, 1.0, 0.0, 0.0); },
+       "central meridian lon " + format("%.9g", lon_c)},
+  };
+
+  // Where the candidates are measured: the footprint's pixel edges, a 17 x 17 lattice over it and
+  // 64 points along each side.
+  std::vector<double> lon, lat;
+  const auto add = [&](double c, double r) {
+    const auto [x, y] = st.to_world(c, r);
+    lon.push_back(x), lat.push_back(y);
+  };
+  for (int i = 0; i <= 16; ++i)
+    for (int j = 0; j <= 16; ++j) add(-0.5 + w * i / 16.0, -0.5 + h * j / 16.0);
+  for (int k = 0; k <= 64; ++k) {
+    const double fc = -0.5 + w * k / 64.0, fr = -0.5 + h * k / 64.0;
+    add(fc, -0.5), add(fc, h - 0.5), add(-0.5, fr), add(w - 0.5, fr);
+  }
+  const double a = source.GetSemiMajor(), b = source.GetSemiMinor(), e2 = 1.0 - (b * b) / (a * a);
+
+  AutoFrame best;
+  double best_error = 1e300, aeqd_error = 1e300;
+  for (const Candidate& cand : candidates) {
+    OGRSpatialReference t;
+    t.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    if (t.CopyGeogCSFrom(&source) != OGRERR_NONE || cand.set(t) != OGRERR_NONE) continue;
+    const Transform ct(OGRCreateCoordinateTransformation(&source, &t));
+    if (!ct) continue;
+    const double unit = t.GetLinearUnits(nullptr);
+    const auto range =
+        detail::scale_range(lon, lat, a, e2, [&](std::vector<double>& x, std::vector<double>& y) {
+          if (!transform(*ct, x, y)) return false;
+          for (std::size_t k = 0; k < x.size(); ++k) x[k] *= unit, y[k] *= unit;
+          return true;
+        });
+    if (!range || !(range->first > 0.0)) continue;  // outside the projection's domain
+    const bool aeqd = &cand == &candidates.front();
+    const double k0 = aeqd ? 2.0 / (1.0 + s_max) : 2.0 / (range->first + range->second);
+    const double error = std::max(std::abs(k0 * range->first - 1.0), std::abs(k0 * range->second - 1.0));
+    if (aeqd) aeqd_error = error;
+    if (error < best_error) {
+      best_error = error;
+      best.crs = t;
+      best.k0 = k0;
+      best.description = cand.name + " (auto) on " + name_of(source) + ", " + cand.where +
+                         "; world = k0 * CRS metres, k0 = " + format("%.12g", k0);
+      if (!aeqd)
+        best.description += " (chosen for its scale error of +-" + format("%.3f", error * 100.0) +
+                            " % over the footprint against the azimuthal equidistant frame's +-" +
+                            format("%.3f", aeqd_error * 100.0) + " %)";
+    }
+    if (aeqd && error <= 0.001) break;  // within the promise: the frame of earlier versions
+  }
+  if (best_error == 1e300)
+    throw DemError(path, "GDAL cannot make any of the projections of --crs auto on its datum: " +
+                             gdal_message("unknown reason"));
+  return best;
 }
 
 /// warped_source's DemSource (dem_frame.hpp). The target grid is the footprint of the native
@@ -178,22 +287,11 @@ WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> n
   double k0 = 1.0;
   std::string description;
   if (automatic) {
-    const auto [lon_c, lat_c] = st.to_world(0.5 * (w - 1), 0.5 * (h - 1));
-    double c_max = 0.0;
-    for (const auto& [c, r] : {std::pair{-0.5, -0.5}, {w - 0.5, -0.5}, {-0.5, h - 0.5}, {w - 0.5, h - 0.5}}) {
-      const auto [lon, lat] = st.to_world(c, r);
-      const double cos_c = std::sin(lat_c * kDeg) * std::sin(lat * kDeg) +
-                           std::cos(lat_c * kDeg) * std::cos(lat * kDeg) * std::cos((lon - lon_c) * kDeg);
-      c_max = std::max(c_max, std::acos(std::clamp(cos_c, -1.0, 1.0)));
-    }
-    const double s_max = c_max > 0.0 ? c_max / std::sin(c_max) : 1.0;
-    k0 = 2.0 / (1.0 + s_max);
-    if (target.CopyGeogCSFrom(&source) != OGRERR_NONE || target.SetAE(lat_c, lon_c, 0.0, 0.0) != OGRERR_NONE)
-      throw DemError(path, "GDAL cannot make an azimuthal equidistant CRS on its datum: " +
-                               gdal_message("unknown reason"));
-    description = "azimuthal equidistant (auto) on " + name_of(source) + ", centred at lon " +
-                  format("%.9g", lon_c) + ", lat " + format("%.9g", lat_c) +
-                  "; world = k0 * CRS metres, k0 = " + format("%.12g", k0);
+    AutoFrame f = auto_frame(path, source, st, w, h);
+    target = f.crs;
+    target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // a copy may not keep it
+    k0 = f.k0;
+    description = std::move(f.description);
   } else {
     if (target.SetFromUserInput(crs.c_str()) != OGRERR_NONE || target.IsEmpty())
       throw DemError(path, "the CRS '" + crs +

@@ -33,6 +33,35 @@ bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vec
   return std::all_of(ok.begin(), ok.end(), [](int v) { return v != 0; });
 }
 
+std::optional<std::pair<double, double>> scale_range(
+    const std::vector<double>& lon, const std::vector<double>& lat, double a, double e2,
+    const std::function<bool(std::vector<double>&, std::vector<double>&)>& to_frame) {
+  // Four neighbours at +-step degrees, through to_frame.
+  constexpr double step = 1e-3;
+  std::vector<double> x, y;
+  for (std::size_t i = 0; i < lon.size(); ++i) {
+    x.insert(x.end(), {lon[i] + step, lon[i] - step, lon[i], lon[i]});
+    y.insert(y.end(), {lat[i], lat[i], lat[i] + step, lat[i] - step});
+  }
+  if (!to_frame(x, y)) return std::nullopt;
+  double lo = 1e300, hi = -1e300;
+  for (std::size_t i = 0; i < lon.size(); ++i) {
+    const double phi = lat[i] * kDeg, s = std::sin(phi);
+    if (std::abs(lat[i]) > 89.9) continue;  // the east metres per degree vanish at a pole
+    const double n = a / std::sqrt(1.0 - e2 * s * s), m = n * (1.0 - e2) / (1.0 - e2 * s * s);
+    const double east = n * std::cos(phi) * kDeg * 2.0 * step, north = m * kDeg * 2.0 * step;
+    const std::size_t k = 4 * i;
+    const double ex = (x[k] - x[k + 1]) / east, ey = (y[k] - y[k + 1]) / east;
+    const double nx = (x[k + 2] - x[k + 3]) / north, ny = (y[k + 2] - y[k + 3]) / north;
+    const double t = ex * ex + ey * ey + nx * nx + ny * ny, d = std::abs(ex * ny - nx * ey);
+    const double root = std::sqrt(std::max(0.0, t * t - 4.0 * d * d));
+    const double s1 = std::sqrt(0.5 * (t + root)), s2 = std::sqrt(std::max(0.0, 0.5 * (t - root)));
+    lo = std::min(lo, s2), hi = std::max(hi, s1);
+  }
+  if (lo > hi) return std::pair{1.0, 1.0};  // no point away from the poles
+  return std::pair{lo, hi};
+}
+
 std::optional<double> scale_error(const std::string& crs_wkt,
                                   const std::optional<pm::GridTransform>& crs_transform,
                                   const pm::GridTransform& world, int w, int h,
@@ -70,34 +99,19 @@ std::optional<double> scale_error(const std::string& crs_wkt,
     std::tie(lon[i], lat[i]) = crs_transform->to_world(cols[i], rows[i]);
   if (!transform(*to_geog, lon, lat)) return std::nullopt;
 
-  // Four neighbours at +-step degrees, through the CRS and the samples to the world frame.
-  constexpr double step = 1e-3;
-  std::vector<double> x, y;
-  for (std::size_t i = 0; i < lon.size(); ++i) {
-    x.insert(x.end(), {lon[i] + step, lon[i] - step, lon[i], lon[i]});
-    y.insert(y.end(), {lat[i], lat[i], lat[i] + step, lat[i] - step});
-  }
-  if (!transform(*to_crs, x, y)) return std::nullopt;
   const Affine samples{*crs_transform};
-  for (std::size_t k = 0; k < x.size(); ++k) {
-    const auto [c, r] = samples.inverse(x[k], y[k]);
-    std::tie(x[k], y[k]) = world.to_world(c, r);
-  }
-  double worst = 0.0;
-  for (std::size_t i = 0; i < lon.size(); ++i) {
-    const double phi = lat[i] * kDeg, s = std::sin(phi);
-    if (std::abs(lat[i]) > 89.9) continue;  // the east metres per degree vanish at a pole
-    const double n = a / std::sqrt(1.0 - e2 * s * s), m = n * (1.0 - e2) / (1.0 - e2 * s * s);
-    const double east = n * std::cos(phi) * kDeg * 2.0 * step, north = m * kDeg * 2.0 * step;
-    const std::size_t k = 4 * i;
-    const double ex = (x[k] - x[k + 1]) / east, ey = (y[k] - y[k + 1]) / east;
-    const double nx = (x[k + 2] - x[k + 3]) / north, ny = (y[k + 2] - y[k + 3]) / north;
-    const double t = ex * ex + ey * ey + nx * nx + ny * ny, d = std::abs(ex * ny - nx * ey);
-    const double root = std::sqrt(std::max(0.0, t * t - 4.0 * d * d));
-    const double s1 = std::sqrt(0.5 * (t + root)), s2 = std::sqrt(std::max(0.0, 0.5 * (t - root)));
-    worst = std::max({worst, std::abs(s1 - 1.0), std::abs(s2 - 1.0)});
-  }
-  return worst;
+  const std::optional<std::pair<double, double>> range =
+      scale_range(lon, lat, a, e2, [&](std::vector<double>& x, std::vector<double>& y) {
+        if (!transform(*to_crs, x, y)) return false;
+        for (std::size_t k = 0; k < x.size(); ++k) {
+          const auto [c, r] = samples.inverse(x[k], y[k]);
+          std::tie(x[k], y[k]) = world.to_world(c, r);
+        }
+        return true;
+      });
+  if (!range) return std::nullopt;
+  // |s - 1| over the points is largest at the smallest or the largest scale.
+  return std::max(std::abs(range->first - 1.0), std::abs(range->second - 1.0));
 }
 
 }  // namespace detail

@@ -36,6 +36,16 @@ struct Affine {
   }
 };
 
+/// The smallest and largest scale of a frame over geographic points (lon, lat in degrees on the
+/// ellipsoid of semi-major axis a and squared eccentricity e2): the singular values of the
+/// Jacobian of (east, north metres on the ellipsoid) -> frame, by differences over +-0.001 degrees
+/// passed through `to_frame` (geographic degrees -> frame metres, in place; false when it fails).
+/// Points within 0.1 degree of a pole are skipped ({1, 1} when none is left); nullopt when
+/// to_frame fails.
+std::optional<std::pair<double, double>> scale_range(
+    const std::vector<double>& lon, const std::vector<double>& lat, double a, double e2,
+    const std::function<bool(std::vector<double>&, std::vector<double>&)>& to_frame);
+
 /// frame_scale_error of a w x h grid known through `valid` (col, row) and `row_ends` (row -> its
 /// first and last valid column, first == w when it has none, last >= first), so that a grid that
 /// is not held can be measured at the same points.

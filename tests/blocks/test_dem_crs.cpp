@@ -41,32 +41,38 @@ double smooth_height(double lon, double lat) {
   return 1000.0 + 400.0 * std::sin(0.7 * lon) * std::cos(0.9 * lat);
 }
 
-/// A geographic (EPSG:4326) GeoTIFF of n x n samples, `step` degrees apart, whose south-west
+/// A geographic (EPSG:4326) GeoTIFF of cols x rows samples, `step` degrees apart, whose south-west
 /// sample centre is at (lon0, lat0); heights smooth_height, NaN (nodata) inside `void_box`
 /// (col0, row0, col1, row1, inclusive) when given.
-fs::path write_geographic(const std::string& name, double lon0, double lat0, int n, double step,
+fs::path write_geographic(const std::string& name, double lon0, double lat0, int cols, int rows, double step,
                           std::array<int, 4> void_box = {-1, -1, -1, -1}) {
   const fs::path path = temp_dir() / name;
   GDALAllRegister();
-  GDALDatasetUniquePtr ds(
-      GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), n, n, 1, GDT_Float64, nullptr));
+  GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), cols, rows,
+                                                                                   1, GDT_Float64, nullptr));
   EXPECT_TRUE(ds);
-  const double north = lat0 + (n - 1) * step;
+  const double north = lat0 + (rows - 1) * step;
   double gt[6] = {lon0 - 0.5 * step, step, 0.0, north + 0.5 * step, 0.0, -step};
   ds->SetGeoTransform(gt);
   OGRSpatialReference srs;
   srs.importFromEPSG(4326);
   ds->SetSpatialRef(&srs);
-  std::vector<double> z(std::size_t(n) * n);
-  for (int r = 0; r < n; ++r)
-    for (int c = 0; c < n; ++c) {
+  std::vector<double> z(std::size_t(cols) * rows);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
       const bool in_void = c >= void_box[0] && c <= void_box[2] && r >= void_box[1] && r <= void_box[3];
-      z[std::size_t(r) * n + c] = in_void ? kNaN : smooth_height(lon0 + c * step, north - r * step);
+      z[std::size_t(r) * cols + c] = in_void ? kNaN : smooth_height(lon0 + c * step, north - r * step);
     }
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(kNaN);
-  EXPECT_EQ(band->RasterIO(GF_Write, 0, 0, n, n, z.data(), n, n, GDT_Float64, 0, 0), CE_None);
+  EXPECT_EQ(band->RasterIO(GF_Write, 0, 0, cols, rows, z.data(), cols, rows, GDT_Float64, 0, 0), CE_None);
   return path;
+}
+
+/// The same, n x n samples.
+fs::path write_geographic(const std::string& name, double lon0, double lat0, int n, double step,
+                          std::array<int, 4> void_box = {-1, -1, -1, -1}) {
+  return write_geographic(name, lon0, lat0, n, n, step, void_box);
 }
 
 /// lon/lat (WGS 84) -> world (x, y) of hf, through hf.crs_wkt, crs_transform and transform.
@@ -105,20 +111,25 @@ class WorldOf {
 /// The largest |world distance / geodesic distance - 1| over seeded random pairs in the box
 /// [lon0, lon1] x [lat0, lat1]: 3000 short pairs (2-6 km, anywhere, corners included) and 1000
 /// long ones (any two points).
-double worst_distance_error(const Heightfield& hf, double lon0, double lon1, double lat0, double lat1) {
+struct DistanceErrors {
+  double short_pairs = 0.0, long_pairs = 0.0;
+  double all() const { return std::max(short_pairs, long_pairs); }
+};
+
+DistanceErrors distance_errors(const Heightfield& hf, double lon0, double lon1, double lat0, double lat1) {
   geod_geodesic g;
   geod_init(&g, 6378137.0, 1.0 / 298.257223563);
   const WorldOf world(hf);
   constexpr unsigned kSeed = 20261202;
   std::mt19937 rng(kSeed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  double worst = 0.0;
-  auto pair = [&](double la1, double lo1, double la2, double lo2) {
+  DistanceErrors worst;
+  auto pair = [&](double& into, double la1, double lo1, double la2, double lo2) {
     double s = 0.0;
     geod_inverse(&g, la1, lo1, la2, lo2, &s, nullptr, nullptr);
     const auto [x1, y1] = world(lo1, la1);
     const auto [x2, y2] = world(lo2, la2);
-    worst = std::max(worst, std::abs(std::hypot(x2 - x1, y2 - y1) / s - 1.0));
+    into = std::max(into, std::abs(std::hypot(x2 - x1, y2 - y1) / s - 1.0));
   };
   for (int i = 0; i < 3000; ++i) {
     // Every fourth short pair starts at a corner of the box.
@@ -127,13 +138,19 @@ double worst_distance_error(const Heightfield& hf, double lon0, double lon1, dou
     double la2 = 0.0, lo2 = 0.0;
     geod_direct(&g, lat, lon, 360.0 * u(rng), 2000.0 + 4000.0 * u(rng), &la2, &lo2, nullptr);
     la2 = std::clamp(la2, lat0, lat1), lo2 = std::clamp(lo2, lon0, lon1);
-    if (la2 != lat || lo2 != lon) pair(lat, lon, la2, lo2);
+    if (la2 != lat || lo2 != lon) pair(worst.short_pairs, lat, lon, la2, lo2);
   }
   for (int i = 0; i < 1000; ++i)
-    pair(lat0 + (lat1 - lat0) * u(rng), lon0 + (lon1 - lon0) * u(rng), lat0 + (lat1 - lat0) * u(rng),
-         lon0 + (lon1 - lon0) * u(rng));
-  std::printf("seed %u: worst |world / geodesic - 1| = %.5f %%\n", kSeed, worst * 100.0);
+    pair(worst.long_pairs, lat0 + (lat1 - lat0) * u(rng), lon0 + (lon1 - lon0) * u(rng),
+         lat0 + (lat1 - lat0) * u(rng), lon0 + (lon1 - lon0) * u(rng));
+  std::printf(
+      "seed %u: worst |world / geodesic - 1| = %.5f %% (2-6 km pairs %.5f %%, any two points %.5f %%)\n",
+      kSeed, worst.all() * 100.0, worst.short_pairs * 100.0, worst.long_pairs * 100.0);
   return worst;
+}
+
+double worst_distance_error(const Heightfield& hf, double lon0, double lon1, double lat0, double lat1) {
+  return distance_errors(hf, lon0, lon1, lat0, lat1).all();
 }
 
 /// The scale error stated at the end of hf.frame, as a fraction.
@@ -180,6 +197,68 @@ TEST_P(EightDegrees, AutoKeepsDistancesTrueWithinATenthOfAPercent) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Latitudes, EightDegrees, ::testing::Values(-4.0, 56.0));
+
+// Strips too long for one azimuthal equidistant frame (40 degrees one way, 6 the other): auto
+// picks the projection whose scale depends only on the short direction (the azimuthal frame would
+// be off by 0.6 to 1.1 %), and every distance of up to a few kilometres stays true within 0.1 %
+// over the whole strip. Between points thousands of kilometres apart the straight line of a flat
+// frame is not the geodesic: it stays within 0.1 % where the projection keeps long geodesics
+// nearly straight (the central meridian of the transverse Mercator, the equator of the Mercator),
+// and is up to 0.13 % short across the 40 degrees of the conic's strip at 45 N, whose
+// geodesics bow toward the pole.
+struct Strip {
+  const char* name;
+  double lon0, lat0, width, height;  // degrees
+  const char* projection;            // the one auto must pick
+  double long_bound;                 // of |world / geodesic - 1| between any two points
+};
+
+class LongStrips : public ::testing::TestWithParam<Strip> {};
+
+TEST_P(LongStrips, AutoPicksAProjectionThatKeepsDistancesTrueWithinATenthOfAPercent) {
+  const Strip& s = GetParam();
+  constexpr double step = 0.05;
+  const int cols = int(std::lround(s.width / step)) + 1, rows = int(std::lround(s.height / step)) + 1;
+  const fs::path path = write_geographic(std::string(s.name) + ".tif", s.lon0, s.lat0, cols, rows, step);
+  tb::DemOptions o;
+  o.crs = "auto";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  std::printf("%s\n", hf.frame.c_str());
+  EXPECT_EQ(hf.frame.rfind(s.projection, 0), 0u) << hf.frame;
+  EXPECT_NE(hf.frame.find("against the azimuthal equidistant frame's"), std::string::npos) << hf.frame;
+  const DistanceErrors worst = distance_errors(hf, s.lon0, s.lon0 + s.width, s.lat0, s.lat0 + s.height);
+  EXPECT_LE(worst.short_pairs, 0.001);
+  EXPECT_LE(worst.long_pairs, s.long_bound);
+  const std::optional<double> scale = tb::frame_scale_error(hf);
+  ASSERT_TRUE(scale);
+  EXPECT_LE(*scale, 0.001);
+  EXPECT_LE(worst.short_pairs, *scale + 1e-5);
+  EXPECT_NEAR(stated_scale_error(hf), *scale, 0.5e-5);
+  EXPECT_EQ(hf.frame.find("over 0.1 %"), std::string::npos) << hf.frame;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Strips, LongStrips,
+    ::testing::Values(Strip{"north_south", -72.0, -50.0, 6.0, 40.0, "transverse Mercator", 0.001},
+                      Strip{"east_west_45n", -100.0, 42.0, 40.0, 6.0, "Lambert conformal conic", 0.0015},
+                      Strip{"east_west_equator", 10.0, -3.0, 40.0, 6.0, "Mercator", 0.001}),
+    [](const ::testing::TestParamInfo<Strip>& info) { return std::string(info.param.name); });
+
+// A continent (30 x 30 degrees) is beyond every projection auto tries: the frame is the best of
+// them and says that it is over 0.1 %.
+TEST(DemCrs, AutoSaysWhenAContinentIsBeyondATenthOfAPercent) {
+  const fs::path path = write_geographic("continent.tif", 0.0, 30.0, 121, 0.25);
+  tb::DemOptions o;
+  o.crs = "auto";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  std::printf("%s\n", hf.frame.c_str());
+  const std::optional<double> scale = tb::frame_scale_error(hf);
+  ASSERT_TRUE(scale);
+  EXPECT_GT(*scale, 0.001);
+  EXPECT_NE(hf.frame.find("over 0.1 %: the best of the projections auto tries"), std::string::npos)
+      << hf.frame;
+  EXPECT_LE(distance_errors(hf, 0.0, 30.0, 30.0, 60.0).short_pairs, *scale + 1e-5);
+}
 
 /// Bilinear interpolation of the source file's samples at fractional (col, row).
 double bilinear(const std::vector<double>& z, int n, double c, double r) {

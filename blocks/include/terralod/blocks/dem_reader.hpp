@@ -81,9 +81,15 @@
 //     neighbours of a kept void). World = k0 * projected metres with k0 = 2 / (1 + c_max / sin
 //     c_max), c_max = the angular distance of the farthest DEM corner from the centre: the radial scale (1)
 //     and the tangential one (c / sin c) are then balanced, so distances are true to within about c_max^2 /
-//     12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees. Larger DEMs need a CRS
-//     of the user's choice. Projected inputs, and inputs without a CRS, stay native. hf.crs_wkt is the target
-//     CRS and hf.crs_transform maps samples to it.
+//     12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees. Beyond that (its
+//     balanced scale error measured over 0.1 %), auto takes whichever of a transverse Mercator on the
+//     central meridian, a Lambert conformal conic with its standard parallel at the central latitude
+//     and a Mercator has the narrowest scale range over the DEM's footprint (the azimuthal one
+//     included), balanced by k0 = 2 / (min + max): strips about 7 degrees wide stay within 0.1 %
+//     however long; an extent wide both ways (a continent) is beyond every flat frame, and the
+//     frame's text says so. A CRS of the user's choice may do better. Projected inputs, and
+//     inputs without a CRS, stay native. hf.crs_wkt is the target CRS and hf.crs_transform maps
+//     samples to it.
 //   - DemOptions::crs = any CRS GDAL's SetFromUserInput accepts ("EPSG:32619", a PROJ string,
 //     WKT), which must be projected: the same warp to it, world = its coordinates in metres.
 //   Every frame with a CRS has its worst scale error measured (frame_scale_error) and stated at
@@ -137,7 +143,8 @@ struct DemOptions {
   enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
   /// The world frame (see the header comment): "native" (the source's own frame, local
   /// equirectangular for geographic DEMs), "auto" (geographic DEMs warped to a balanced azimuthal
-  /// equidistant projection) or a projected CRS GDAL understands ("EPSG:32619", PROJ, WKT).
+  /// equidistant projection, or beyond about 9 x 9 degrees the truest of three conformal ones)
+  /// or a projected CRS GDAL understands ("EPSG:32619", PROJ, WKT).
   /// Defaults to "native" so that a file is read as it is and databases built from it before
   /// this option existed resume; `terralod` commands default to "auto". Not empty.
   std::string crs = "native";
