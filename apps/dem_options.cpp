@@ -11,9 +11,10 @@ const char* const kDemFormats =
     "DEM formats: SRTM .hgt, Esri ASCII grid .asc, PNG/TIFF heightmaps, any single-band raster\n"
     "GDAL reads. Geographic DEMs are warped to a metric frame (x east, y north, metres): --crs auto\n"
     "(the default) picks an azimuthal equidistant projection centred on the DEM, scaled so that\n"
-    "distances are true to within 0.1 % up to about 9 x 9 degrees; beyond, the transverse\n"
-    "Mercator, Lambert conformal conic or Mercator projection whose scale is truest over the DEM\n"
-    "(a strip about 7 degrees wide stays within 0.1 % however long; a continent cannot: the frame\n"
+    "distances are true to within 0.1 % up to about 9 x 9 degrees; beyond, the azimuthal,\n"
+    "transverse Mercator, Lambert conformal conic, Mercator or oblique Mercator projection whose\n"
+    "scale is truest over the DEM's data (a strip about 7 degrees wide stays within 0.1 % however\n"
+    "long, in any direction; a continent cannot: the frame\n"
     "states its scale error; 'terralod info DEM' prints it); --crs native keeps the local\n"
     "equirectangular frame of earlier versions (their databases resume with it); --crs EPSG:32619\n"
     "(any projected CRS GDAL knows) warps to that CRS. Projected DEMs stay in their own CRS\n"
@@ -31,7 +32,7 @@ std::vector<OptionSpec> dem_option_specs() {
 OptionSpec crs_option_spec() {
   return {"--crs", "CRS",
           "world frame: auto (default; geographic DEMs to a balanced azimuthal equidistant projection, or to "
-          "the truest of transverse Mercator, Lambert conic and Mercator beyond about 9 x 9 degrees), "
+          "the truest of five projections over its data beyond about 9 x 9 degrees), "
           "native (the source's own frame) or a projected CRS, e.g. EPSG:32619"};
 }
 

@@ -64,6 +64,13 @@ class HeightfieldSource final : public DemSource {
     return m.empty() ? crc : pm::crc32_of(m, crc);
   }
   bool in_memory() const override { return true; }
+  bool may_have_data(SampleRect window) const override {
+    if (!hf_.has_holes()) return true;
+    for (int r = window.row0; r <= window.row1; ++r)
+      for (int c = window.col0; c <= window.col1; ++c)
+        if (hf_.valid(c, r)) return true;
+    return false;
+  }
 
  private:
   pm::Heightfield owned_;  ///< empty unless this source owns its grid

@@ -331,6 +331,21 @@ class GdalSource final : public WindowedSource {
     pool_.push_back(std::move(ds));
   }
 
+ public:
+  bool may_have_data(SampleRect window) const override {
+    GDALDatasetUniquePtr ds;
+    {
+      std::lock_guard lock(mutex_);
+      if (!pool_.empty()) ds = std::move(pool_.back()), pool_.pop_back();
+    }
+    if (!ds) ds = detail::open_gdal(path_);
+    const int status = ds->GetRasterBand(1)->GetDataCoverageStatus(window.col0, window.row0, window.width(),
+                                                                   window.height(), 0, nullptr);
+    std::lock_guard lock(mutex_);
+    pool_.push_back(std::move(ds));
+    return status != GDAL_DATA_COVERAGE_STATUS_EMPTY;
+  }
+
  private:
   CacheCap cache_;
   detail::GdalBand band_;

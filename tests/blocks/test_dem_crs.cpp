@@ -3,6 +3,7 @@
 // independent path: lon/lat -> the Heightfield's CRS through OGR/PROJ -> samples through
 // crs_transform -> world through transform, against geodesics on WGS 84 (PROJ's geodesic.h).
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 #include <geodesic.h>
 #include <gtest/gtest.h>
 #include <ogr_spatialref.h>
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <numbers>
@@ -20,6 +22,7 @@
 #include <vector>
 
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/geo_grid.hpp"
 
 namespace {
@@ -42,10 +45,9 @@ double smooth_height(double lon, double lat) {
 }
 
 /// A geographic (EPSG:4326) GeoTIFF of cols x rows samples, `step` degrees apart, whose south-west
-/// sample centre is at (lon0, lat0); heights smooth_height, NaN (nodata) inside `void_box`
-/// (col0, row0, col1, row1, inclusive) when given.
+/// sample centre is at (lon0, lat0); heights smooth_height, NaN (nodata) where in_void(lon, lat).
 fs::path write_geographic(const std::string& name, double lon0, double lat0, int cols, int rows, double step,
-                          std::array<int, 4> void_box = {-1, -1, -1, -1}) {
+                          const std::function<bool(double, double)>& in_void) {
   const fs::path path = temp_dir() / name;
   GDALAllRegister();
   GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), cols, rows,
@@ -60,13 +62,23 @@ fs::path write_geographic(const std::string& name, double lon0, double lat0, int
   std::vector<double> z(std::size_t(cols) * rows);
   for (int r = 0; r < rows; ++r)
     for (int c = 0; c < cols; ++c) {
-      const bool in_void = c >= void_box[0] && c <= void_box[2] && r >= void_box[1] && r <= void_box[3];
-      z[std::size_t(r) * cols + c] = in_void ? kNaN : smooth_height(lon0 + c * step, north - r * step);
+      const double lon = lon0 + c * step, lat = north - r * step;
+      z[std::size_t(r) * cols + c] = in_void(lon, lat) ? kNaN : smooth_height(lon, lat);
     }
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(kNaN);
   EXPECT_EQ(band->RasterIO(GF_Write, 0, 0, cols, rows, z.data(), cols, rows, GDT_Float64, 0, 0), CE_None);
   return path;
+}
+
+/// The same, NaN inside `void_box` (col0, row0, col1, row1, inclusive) when given.
+fs::path write_geographic(const std::string& name, double lon0, double lat0, int cols, int rows, double step,
+                          std::array<int, 4> void_box = {-1, -1, -1, -1}) {
+  const double north = lat0 + (rows - 1) * step;
+  return write_geographic(name, lon0, lat0, cols, rows, step, [&](double lon, double lat) {
+    const int c = int(std::lround((lon - lon0) / step)), r = int(std::lround((north - lat) / step));
+    return c >= void_box[0] && c <= void_box[2] && r >= void_box[1] && r <= void_box[3];
+  });
 }
 
 /// The same, n x n samples.
@@ -258,6 +270,103 @@ TEST(DemCrs, AutoSaysWhenAContinentIsBeyondATenthOfAPercent) {
   EXPECT_NE(hf.frame.find("over 0.1 %: the best of the projections auto tries"), std::string::npos)
       << hf.frame;
   EXPECT_LE(distance_errors(hf, 0.0, 30.0, 30.0, 60.0).short_pairs, *scale + 1e-5);
+}
+
+// A strip along a great circle at 45 degrees (30 degrees long, 5 wide) inside a 30 x 30 degree
+// raster whose other samples are voids, kept as holes: auto judges the frame by the valid
+// samples (the raster's mask) and takes the oblique Mercator along the strip. Every distance of
+// a few kilometres within the strip is true within 0.1 %; the azimuthal frame over the raster
+// would be off by about 0.9 %.
+TEST(DemCrs, AutoFollowsADiagonalStripThroughItsValidSamples) {
+  constexpr double kLon = 10.0, kLat = 40.0, kAzimuth = 45.0, kHalfWidth = 2.5, kHalfLength = 15.0;
+  geod_geodesic g;
+  geod_init(&g, 6378137.0, 1.0 / 298.257223563);
+  // The strip's pole on the unit sphere: the cross product of the centre and the heading there.
+  const double d = std::numbers::pi / 180.0;
+  const double cx = std::cos(kLat * d) * std::cos(kLon * d), cy = std::cos(kLat * d) * std::sin(kLon * d),
+               cz = std::sin(kLat * d);
+  const double east[3] = {-std::sin(kLon * d), std::cos(kLon * d), 0.0};
+  const double north[3] = {-std::sin(kLat * d) * std::cos(kLon * d), -std::sin(kLat * d) * std::sin(kLon * d),
+                           std::cos(kLat * d)};
+  double t[3], n[3];
+  for (int k = 0; k < 3; ++k) t[k] = std::sin(kAzimuth * d) * east[k] + std::cos(kAzimuth * d) * north[k];
+  n[0] = cy * t[2] - cz * t[1], n[1] = cz * t[0] - cx * t[2], n[2] = cx * t[1] - cy * t[0];
+  const auto in_strip = [&](double lon, double lat) {
+    const double v[3] = {std::cos(lat * d) * std::cos(lon * d), std::cos(lat * d) * std::sin(lon * d),
+                         std::sin(lat * d)};
+    const double across = std::asin(std::abs(v[0] * n[0] + v[1] * n[1] + v[2] * n[2])) / d;
+    const double along =
+        std::atan2(v[0] * t[0] + v[1] * t[1] + v[2] * t[2], v[0] * cx + v[1] * cy + v[2] * cz) / d;
+    return across <= kHalfWidth && std::abs(along) <= kHalfLength;
+  };
+  const fs::path path = write_geographic("diagonal.tif", kLon - 15.0, kLat - 15.0, 301, 301, 0.1,
+                                         [&](double lon, double lat) { return !in_strip(lon, lat); });
+  tb::DemOptions o;
+  o.crs = "auto";
+  o.fill_voids = false;
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  std::printf("%s\n", hf.frame.c_str());
+  EXPECT_EQ(hf.frame.rfind("oblique Mercator", 0), 0u) << hf.frame;
+  EXPECT_NE(hf.frame.find("over the covered part of the footprint"), std::string::npos) << hf.frame;
+  const std::optional<double> scale = tb::frame_scale_error(hf);
+  ASSERT_TRUE(scale);
+  EXPECT_LE(*scale, 0.001);
+  EXPECT_NEAR(stated_scale_error(hf), *scale, 0.5e-5);
+  // Short pairs (2-6 km) in the strip, against geodesics on an independent path.
+  const WorldOf world(hf);
+  std::mt19937 rng(20261204);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  double worst = 0.0;
+  int pairs = 0;
+  for (int i = 0; i < 3000; ++i) {
+    double la = 0.0, lo = 0.0, az = 0.0, la1 = 0.0, lo1 = 0.0, la2 = 0.0, lo2 = 0.0;
+    geod_direct(&g, kLat, kLon, kAzimuth, (2.0 * u(rng) - 1.0) * kHalfLength * 111000.0, &la, &lo, &az);
+    geod_direct(&g, la, lo, az + 90.0, (2.0 * u(rng) - 1.0) * kHalfWidth * 111000.0, &la1, &lo1, nullptr);
+    geod_direct(&g, la1, lo1, 360.0 * u(rng), 2000.0 + 4000.0 * u(rng), &la2, &lo2, nullptr);
+    if (!in_strip(lo1, la1) || !in_strip(lo2, la2)) continue;
+    double s = 0.0;
+    geod_inverse(&g, la1, lo1, la2, lo2, &s, nullptr, nullptr);
+    const auto [x1, y1] = world(lo1, la1);
+    const auto [x2, y2] = world(lo2, la2);
+    worst = std::max(worst, std::abs(std::hypot(x2 - x1, y2 - y1) / s - 1.0));
+    ++pairs;
+  }
+  std::printf("%d pairs in the strip: worst |world / geodesic - 1| = %.5f %%\n", pairs, worst * 100.0);
+  EXPECT_GT(pairs, 2000);
+  EXPECT_LE(worst, 0.001);
+  EXPECT_LE(worst, *scale + 1e-5);
+}
+
+// The same judgement through GDAL's data coverage, as the build reads a mosaic: a VRT of ten
+// 2 x 2 degree tiles on the diagonal of a 20 x 20 degree extent, opened window by window with
+// its voids kept. The empty cells are known without reading them, and the frame follows the tiles.
+TEST(DemCrs, AutoFollowsTheTilesOfAMosaicThroughGdalsDataCoverage) {
+  std::vector<std::string> tiles;
+  for (int k = 0; k < 10; ++k)
+    tiles.push_back(write_geographic("diag_tile_" + std::to_string(k) + ".tif", 2.0 * k, 2.0 * k, 41, 41,
+                                     0.05, [](double, double) { return false; })
+                        .string());
+  const fs::path vrt = temp_dir() / "diag.vrt";
+  std::vector<const char*> names;
+  for (const std::string& t : tiles) names.push_back(t.c_str());
+  int usage = 0;
+  GDALDatasetH ds = GDALBuildVRT(vrt.c_str(), int(names.size()), nullptr, names.data(), nullptr, &usage);
+  ASSERT_NE(ds, nullptr);
+  GDALClose(ds);
+  tb::DemOptions o;
+  o.crs = "auto";
+  o.fill_voids = false;
+  const std::unique_ptr<tb::DemSource> src = tb::open_dem_source(vrt.string(), o);
+  const tb::DemGrid& grid = src->grid();
+  std::printf("%s\n", grid.frame.c_str());
+  EXPECT_FALSE(src->in_memory());
+  EXPECT_NE(grid.frame.find("over the covered part of the footprint"), std::string::npos) << grid.frame;
+  ASSERT_TRUE(grid.scale_error);
+  EXPECT_LE(*grid.scale_error, 0.001) << grid.frame;
+  // The frame read whole (read_dem, the grid's mask) makes the same choice.
+  const Heightfield hf = tb::read_dem(vrt.string(), o);
+  EXPECT_EQ(hf.frame.substr(0, hf.frame.find(" (unit factor")),
+            grid.frame.substr(0, grid.frame.find(" (unit factor")));
 }
 
 /// Bilinear interpolation of the source file's samples at fractional (col, row).

@@ -82,11 +82,13 @@
 //     c_max), c_max = the angular distance of the farthest DEM corner from the centre: the radial scale (1)
 //     and the tangential one (c / sin c) are then balanced, so distances are true to within about c_max^2 /
 //     12: 0.081 % for 8 x 8 degrees on the equator, 0.1 % up to about 9 x 9 degrees. Beyond that (its
-//     balanced scale error measured over 0.1 %), auto takes whichever of a transverse Mercator on the
-//     central meridian, a Lambert conformal conic with its standard parallel at the central latitude
-//     and a Mercator has the narrowest scale range over the DEM's footprint (the azimuthal one
-//     included), balanced by k0 = 2 / (min + max): strips about 7 degrees wide stay within 0.1 %
-//     however long; an extent wide both ways (a continent) is beyond every flat frame, and the
+//     balanced scale error measured over 0.1 %), auto takes whichever of the azimuthal frame, one
+//     centred on the data, a transverse Mercator on its central meridian, a Lambert conformal conic
+//     with its standard parallel at its central latitude, a Mercator and an oblique Mercator along
+//     its best-fitting great circle has the narrowest scale range over the part of the footprint
+//     that may hold data (DemSource::may_have_data over a 64 x 64 division), balanced by
+//     k0 = 2 / (min + max): strips about 7 degrees wide stay within 0.1 % however long, in any
+//     direction; an extent wide both ways (a continent) is beyond every flat frame, and the
 //     frame's text says so. A CRS of the user's choice may do better. Projected inputs, and
 //     inputs without a CRS, stay native. hf.crs_wkt is the target CRS and hf.crs_transform maps
 //     samples to it.
@@ -143,7 +145,7 @@ struct DemOptions {
   enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
   /// The world frame (see the header comment): "native" (the source's own frame, local
   /// equirectangular for geographic DEMs), "auto" (geographic DEMs warped to a balanced azimuthal
-  /// equidistant projection, or beyond about 9 x 9 degrees the truest of three conformal ones)
+  /// equidistant projection, or beyond about 9 x 9 degrees the truest of five over its data)
   /// or a projected CRS GDAL understands ("EPSG:32619", PROJ, WKT).
   /// Defaults to "native" so that a file is read as it is and databases built from it before
   /// this option existed resume; `terralod` commands default to "auto". Not empty.
