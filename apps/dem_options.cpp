@@ -47,7 +47,7 @@ void warn_about_frame(const blocks::DemGrid& g) {
   if (!e || *e <= 0.001) return;
   std::fprintf(stderr,
                "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%); --crs auto "
-               "takes the truest of four projections, and an extent wider than about 7 degrees both ways "
+               "takes the truest of six projections, and an extent wider than about 7 degrees both ways "
                "is beyond any flat frame; a CRS named with --crs may suit its shape better\n",
                g.source.c_str(), *e * 100.0);
 }

@@ -189,7 +189,8 @@ std::optional<GreatCircle> fit_great_circle(const std::vector<double>& lon, cons
 /// whenever its balanced scale error over the grid's rectangle is within 0.1 % (every extent up to
 /// about 9 x 9 degrees; its k0 is Snyder's spherical formula, so frames and databases of earlier
 /// versions stay the same). Otherwise the candidate whose measured scale range is narrowest over
-/// the covered part of the footprint (the cells of a 64 x 64 division that native.may_have_data:
+/// the covered part of the footprint (the cells of a 64 x 64 division that native.may_have_data,
+/// or whose group of empty cells the void fill would fill (native.filled_void_cells):
 /// a mosaic of tiles along a coast is judged by its tiles, not by the ocean around them; every
 /// cell when nothing is known), balanced by k0 = 2 / (min + max): that azimuthal frame; an
 /// azimuthal one centred on the covered cells; a transverse Mercator on their central meridian (a
@@ -270,13 +271,45 @@ AutoFrame auto_frame(const std::string& path, const OGRSpatialReference& source,
   // Beyond it: when some of the 64 x 64 cells are known to be empty, the corners and centres of
   // the covered cells instead of the whole footprint.
   const int nc = std::min(64, w), nr = std::min(64, h);
+  const auto cell = [&](int i, int j) {
+    return SampleRect{int(std::int64_t(w) * i / nc), int(std::int64_t(h) * j / nr),
+                      int(std::int64_t(w) * (i + 1) / nc) - 1, int(std::int64_t(h) * (j + 1) / nr) - 1};
+  };
+  std::vector<std::uint8_t> has(std::size_t(nc) * std::size_t(nr));
+  for (int j = 0; j < nr; ++j)
+    for (int i = 0; i < nc; ++i) has[std::size_t(j) * nc + i] = native.may_have_data(cell(i, j)) ? 1 : 0;
+  // Empty cells that reading fills count as covered: each 4-connected group of them whose
+  // bounding box holds at most filled_void_cells samples (the void fill's own limit).
+  if (const std::size_t fills = native.filled_void_cells(); fills > 0) {
+    std::vector<std::uint8_t> seen(has.size());
+    std::vector<std::size_t> group, stack;
+    for (std::size_t start = 0; start < has.size(); ++start) {
+      if (has[start] || seen[start]) continue;
+      group.clear(), stack.assign(1, start), seen[start] = 1;
+      SampleRect box = cell(int(start % nc), int(start / nc));
+      while (!stack.empty()) {
+        const std::size_t k = stack.back();
+        stack.pop_back();
+        group.push_back(k);
+        const int i = int(k % nc), j = int(k / nc);
+        const SampleRect r = cell(i, j);
+        box = {std::min(box.col0, r.col0), std::min(box.row0, r.row0), std::max(box.col1, r.col1),
+               std::max(box.row1, r.row1)};
+        for (const auto& [di, dj] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+          const int a = i + di, b = j + dj;
+          if (a < 0 || b < 0 || a >= nc || b >= nr) continue;
+          const std::size_t m = std::size_t(b) * nc + a;
+          if (!has[m] && !seen[m]) seen[m] = 1, stack.push_back(m);
+        }
+      }
+      if (box.samples() <= fills)
+        for (const std::size_t k : group) has[k] = 2;
+    }
+  }
   std::vector<SampleRect> covered;
   for (int j = 0; j < nr; ++j)
-    for (int i = 0; i < nc; ++i) {
-      const SampleRect cell{int(std::int64_t(w) * i / nc), int(std::int64_t(h) * j / nr),
-                            int(std::int64_t(w) * (i + 1) / nc) - 1, int(std::int64_t(h) * (j + 1) / nr) - 1};
-      if (native.may_have_data(cell)) covered.push_back(cell);
-    }
+    for (int i = 0; i < nc; ++i)
+      if (has[std::size_t(j) * nc + i]) covered.push_back(cell(i, j));
   const bool whole = covered.size() == std::size_t(nc) * std::size_t(nr) || covered.empty();
   if (!whole) {
     lon.clear(), lat.clear();

@@ -171,6 +171,7 @@ class WindowedSource : public DemSource {
   pm::Heightfield read(SampleRect window) const override;
   std::uint32_t samples_crc() const override;
   bool in_memory() const override { return false; }
+  std::size_t filled_void_cells() const override { return fill_ ? VoidFillOptions{}.max_region_cells : 0; }
 
  protected:
   WindowedSource(std::string path, const DemOptions& options)
@@ -311,6 +312,9 @@ class GdalSource final : public WindowedSource {
   GdalSource(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr ds,
              detail::GdalBand band, bool measure)
       : WindowedSource(path, options), band_(std::move(band)) {
+    int has_nodata = 0;
+    ds->GetRasterBand(1)->GetNoDataValue(&has_nodata);
+    empty_is_void_ = has_nodata != 0;
     pool_.push_back(std::move(ds));
     set_grid(band_.width, band_.height, band_.geo, options, measure ? band_.height_note : "", measure);
   }
@@ -333,6 +337,7 @@ class GdalSource final : public WindowedSource {
 
  public:
   bool may_have_data(SampleRect window) const override {
+    if (!empty_is_void_) return true;  // a VRT without nodata reads 0 where it has no tile
     GDALDatasetUniquePtr ds;
     {
       std::lock_guard lock(mutex_);
@@ -349,6 +354,7 @@ class GdalSource final : public WindowedSource {
  private:
   CacheCap cache_;
   detail::GdalBand band_;
+  bool empty_is_void_ = false;  ///< the band has a nodata value, which windows without data read as
   mutable std::mutex mutex_;
   mutable std::vector<GDALDatasetUniquePtr> pool_;  ///< datasets no read is using
 };

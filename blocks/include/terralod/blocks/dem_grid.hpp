@@ -11,6 +11,7 @@
 // The DemSource contract is dem_source.hpp's.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -51,13 +52,17 @@ class DemSource {
   /// Whether the whole grid is in memory.
   virtual bool in_memory() const = 0;
   /// false only when `window` is known to hold no valid sample without reading its samples (a
-  /// grid in memory: its mask; a GDAL raster: the driver's data coverage, such as a VRT mosaic
-  /// with no tile there); true otherwise. A covered window may still be all voids. --crs auto
-  /// chooses its projection over the covered part of the footprint.
+  /// grid in memory: its mask; a GDAL raster with a nodata value: the driver's data coverage,
+  /// such as a VRT mosaic with no tile there); true otherwise. A covered window may still be all voids. --crs
+  /// auto chooses its projection over the covered part of the footprint.
   virtual bool may_have_data(SampleRect window) const {
     (void)window;
     return true;
   }
+  /// The largest void region (bounding box, in samples) that read() fills: a region of empty
+  /// windows smaller than this still reads as samples. 0 when voids stay holes (kept, or
+  /// already filled in a grid held in memory).
+  virtual std::size_t filled_void_cells() const { return 0; }
 
  protected:
   /// Throws std::invalid_argument naming `name` unless `window` is a window of the grid.
