@@ -184,6 +184,50 @@ std::optional<GreatCircle> fit_great_circle(const std::vector<double>& lon, cons
   return GreatCircle{lon_c / kDeg, lat_c / kDeg, azimuth};
 }
 
+/// The cells of a division of a w x h grid into at most 64 x 64 that may hold data: those
+/// native.may_have_data, and the empty ones that reading fills (each 4-connected group of empty
+/// cells whose bounding box holds at most native.filled_void_cells() samples, the void fill's own
+/// limit). Empty when every cell may hold data, or none does: nothing is known then.
+std::vector<SampleRect> covered_cells(const DemSource& native, int w, int h) {
+  const int nc = std::min(64, w), nr = std::min(64, h);
+  const auto cell = [&](std::size_t k) {
+    const std::int64_t i = std::int64_t(k % std::size_t(nc)), j = std::int64_t(k / std::size_t(nc));
+    return SampleRect{int(w * i / nc), int(h * j / nr), int(w * (i + 1) / nc) - 1, int(h * (j + 1) / nr) - 1};
+  };
+  std::vector<std::uint8_t> has(std::size_t(nc) * std::size_t(nr));
+  for (std::size_t k = 0; k < has.size(); ++k) has[k] = native.may_have_data(cell(k)) ? 1 : 0;
+  if (const std::size_t fills = native.filled_void_cells(); fills > 0) {
+    std::vector<std::uint8_t> seen(has.size());
+    std::vector<std::size_t> group, stack;
+    for (std::size_t start = 0; start < has.size(); ++start) {
+      if (has[start] || seen[start]) continue;
+      group.clear(), stack.assign(1, start), seen[start] = 1;
+      SampleRect box = cell(start);
+      while (!stack.empty()) {
+        const std::size_t k = stack.back();
+        stack.pop_back();
+        group.push_back(k);
+        const SampleRect r = cell(k);
+        box = {std::min(box.col0, r.col0), std::min(box.row0, r.row0), std::max(box.col1, r.col1),
+               std::max(box.row1, r.row1)};
+        const int i = int(k % std::size_t(nc)), j = int(k / std::size_t(nc));
+        for (const auto& [a, b] : {std::pair{i + 1, j}, {i - 1, j}, {i, j + 1}, {i, j - 1}}) {
+          if (a < 0 || b < 0 || a >= nc || b >= nr) continue;
+          const std::size_t m = std::size_t(b) * std::size_t(nc) + std::size_t(a);
+          if (!has[m] && !seen[m]) seen[m] = 1, stack.push_back(m);
+        }
+      }
+      if (box.samples() <= fills)
+        for (const std::size_t k : group) has[k] = 1;
+    }
+  }
+  std::vector<SampleRect> covered;
+  for (std::size_t k = 0; k < has.size(); ++k)
+    if (has[k]) covered.push_back(cell(k));
+  if (covered.size() == has.size()) covered.clear();
+  return covered;
+}
+
 /// Chooses the "auto" frame of a geographic DEM whose (col, row) -> (lon, lat) is `st` over a
 /// w x h grid, read through `native`. The azimuthal equidistant projection centred on the grid
 /// whenever its balanced scale error over the grid's rectangle is within 0.1 % (every extent up to
@@ -268,49 +312,10 @@ AutoFrame auto_frame(const std::string& path, const OGRSpatialReference& source,
         first->crs, first->k0,
         aeqd.name + " (auto) on " + name_of(source) + ", " + aeqd.where + tail + format("%.12g", first->k0)};
 
-  // Beyond it: when some of the 64 x 64 cells are known to be empty, the corners and centres of
-  // the covered cells instead of the whole footprint.
-  const int nc = std::min(64, w), nr = std::min(64, h);
-  const auto cell = [&](int i, int j) {
-    return SampleRect{int(std::int64_t(w) * i / nc), int(std::int64_t(h) * j / nr),
-                      int(std::int64_t(w) * (i + 1) / nc) - 1, int(std::int64_t(h) * (j + 1) / nr) - 1};
-  };
-  std::vector<std::uint8_t> has(std::size_t(nc) * std::size_t(nr));
-  for (int j = 0; j < nr; ++j)
-    for (int i = 0; i < nc; ++i) has[std::size_t(j) * nc + i] = native.may_have_data(cell(i, j)) ? 1 : 0;
-  // Empty cells that reading fills count as covered: each 4-connected group of them whose
-  // bounding box holds at most filled_void_cells samples (the void fill's own limit).
-  if (const std::size_t fills = native.filled_void_cells(); fills > 0) {
-    std::vector<std::uint8_t> seen(has.size());
-    std::vector<std::size_t> group, stack;
-    for (std::size_t start = 0; start < has.size(); ++start) {
-      if (has[start] || seen[start]) continue;
-      group.clear(), stack.assign(1, start), seen[start] = 1;
-      SampleRect box = cell(int(start % nc), int(start / nc));
-      while (!stack.empty()) {
-        const std::size_t k = stack.back();
-        stack.pop_back();
-        group.push_back(k);
-        const int i = int(k % nc), j = int(k / nc);
-        const SampleRect r = cell(i, j);
-        box = {std::min(box.col0, r.col0), std::min(box.row0, r.row0), std::max(box.col1, r.col1),
-               std::max(box.row1, r.row1)};
-        for (const auto& [di, dj] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
-          const int a = i + di, b = j + dj;
-          if (a < 0 || b < 0 || a >= nc || b >= nr) continue;
-          const std::size_t m = std::size_t(b) * nc + a;
-          if (!has[m] && !seen[m]) seen[m] = 1, stack.push_back(m);
-        }
-      }
-      if (box.samples() <= fills)
-        for (const std::size_t k : group) has[k] = 2;
-    }
-  }
-  std::vector<SampleRect> covered;
-  for (int j = 0; j < nr; ++j)
-    for (int i = 0; i < nc; ++i)
-      if (has[std::size_t(j) * nc + i]) covered.push_back(cell(i, j));
-  const bool whole = covered.size() == std::size_t(nc) * std::size_t(nr) || covered.empty();
+  // Beyond it: when some cells are known to be empty, the corners and centres of the covered
+  // cells instead of the whole footprint.
+  const std::vector<SampleRect> covered = covered_cells(native, w, h);
+  const bool whole = covered.empty();
   if (!whole) {
     lon.clear(), lat.clear();
     for (const SampleRect& r : covered) {
@@ -349,7 +354,8 @@ AutoFrame auto_frame(const std::string& path, const OGRSpatialReference& source,
   double best_error = 1e300, aeqd_error = 1e300;
   for (const Candidate& cand : candidates) {
     const bool is_first = &cand == &candidates.front();
-    const std::optional<Measured> m = measure(cand, is_first ? 2.0 / (1.0 + s_max) : 0.0);
+    const std::optional<Measured> m =
+        is_first && whole ? first : measure(cand, is_first ? 2.0 / (1.0 + s_max) : 0.0);
     if (!m) continue;
     if (is_first) aeqd_error = m->error;
     if (best_error == 1e300 || m->error < 0.98 * best_error) {

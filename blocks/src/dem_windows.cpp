@@ -319,36 +319,23 @@ class GdalSource final : public WindowedSource {
     set_grid(band_.width, band_.height, band_.geo, options, measure ? band_.height_note : "", measure);
   }
 
+  bool may_have_data(SampleRect window) const override {
+    if (!empty_is_void_) return true;  // a VRT without nodata reads 0 where it has no tile
+    GDALDatasetUniquePtr ds = borrow();
+    const int status = ds->GetRasterBand(1)->GetDataCoverageStatus(window.col0, window.row0, window.width(),
+                                                                   window.height(), 0, nullptr);
+    give_back(std::move(ds));
+    return status != GDAL_DATA_COVERAGE_STATUS_EMPTY;
+  }
+
  protected:
   void raw(SampleRect window, std::vector<double>& z) const override {
     std::error_code ec;
     if (!path_.starts_with("/vsi") && !fs::is_regular_file(path_, ec))
       throw DemError(path_, "no longer exists (removed while it was being read?)");
-    GDALDatasetUniquePtr ds;
-    {
-      std::lock_guard lock(mutex_);
-      if (!pool_.empty()) ds = std::move(pool_.back()), pool_.pop_back();
-    }
-    if (!ds) ds = detail::open_gdal(path_);
+    GDALDatasetUniquePtr ds = borrow();
     detail::read_gdal_window(path_, *ds, band_, window, z);
-    std::lock_guard lock(mutex_);
-    pool_.push_back(std::move(ds));
-  }
-
- public:
-  bool may_have_data(SampleRect window) const override {
-    if (!empty_is_void_) return true;  // a VRT without nodata reads 0 where it has no tile
-    GDALDatasetUniquePtr ds;
-    {
-      std::lock_guard lock(mutex_);
-      if (!pool_.empty()) ds = std::move(pool_.back()), pool_.pop_back();
-    }
-    if (!ds) ds = detail::open_gdal(path_);
-    const int status = ds->GetRasterBand(1)->GetDataCoverageStatus(window.col0, window.row0, window.width(),
-                                                                   window.height(), 0, nullptr);
-    std::lock_guard lock(mutex_);
-    pool_.push_back(std::move(ds));
-    return status != GDAL_DATA_COVERAGE_STATUS_EMPTY;
+    give_back(std::move(ds));
   }
 
  private:
@@ -357,6 +344,23 @@ class GdalSource final : public WindowedSource {
   bool empty_is_void_ = false;  ///< the band has a nodata value, which windows without data read as
   mutable std::mutex mutex_;
   mutable std::vector<GDALDatasetUniquePtr> pool_;  ///< datasets no read is using
+
+  /// A dataset of the pool, or a new one when every one is in use.
+  GDALDatasetUniquePtr borrow() const {
+    {
+      std::lock_guard lock(mutex_);
+      if (!pool_.empty()) {
+        GDALDatasetUniquePtr ds = std::move(pool_.back());
+        pool_.pop_back();
+        return ds;
+      }
+    }
+    return detail::open_gdal(path_);
+  }
+  void give_back(GDALDatasetUniquePtr ds) const {
+    std::lock_guard lock(mutex_);
+    pool_.push_back(std::move(ds));
+  }
 };
 
 class HgtSource final : public WindowedSource {
