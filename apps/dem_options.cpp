@@ -14,11 +14,10 @@ const char* const kDemFormats =
     "distances are true to within 0.1 % up to about 9 x 9 degrees; beyond, the azimuthal,\n"
     "transverse Mercator, Lambert conformal conic, Mercator or oblique Mercator projection whose\n"
     "scale is truest over the DEM's data (a strip about 7 degrees wide stays within 0.1 % however\n"
-    "long, in any direction; a continent cannot: the frame\n"
-    "states its scale error; 'terralod info DEM' prints it); --crs native keeps the local\n"
-    "equirectangular frame of earlier versions (their databases resume with it); --crs EPSG:32619\n"
-    "(any projected CRS GDAL knows) warps to that CRS. Projected DEMs stay in their own CRS\n"
-    "unless --crs names another.";
+    "long, in any direction; a continent cannot: the frame states its scale error; 'terralod info\n"
+    "DEM' prints it); --crs native keeps the local equirectangular frame of earlier versions\n"
+    "(their databases resume with it); --crs EPSG:32619 (any projected CRS GDAL knows) warps to\n"
+    "that CRS. Projected DEMs stay in their own CRS unless --crs names another.";
 
 std::vector<OptionSpec> dem_option_specs() {
   return {
@@ -32,7 +31,7 @@ std::vector<OptionSpec> dem_option_specs() {
 OptionSpec crs_option_spec() {
   return {"--crs", "CRS",
           "world frame: auto (default; geographic DEMs to a balanced azimuthal equidistant projection, or to "
-          "the truest of five projections over its data beyond about 9 x 9 degrees), "
+          "the truest of five kinds of projection over its data beyond about 9 x 9 degrees), "
           "native (the source's own frame) or a projected CRS, e.g. EPSG:32619"};
 }
 
@@ -45,11 +44,12 @@ std::string crs_from(const Args& a) {
 void warn_about_frame(const blocks::DemGrid& g) {
   const std::optional<double>& e = g.scale_error;
   if (!e || *e <= 0.001) return;
-  std::fprintf(stderr,
-               "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%); --crs auto "
-               "takes the truest of six projections, and an extent wider than about 7 degrees both ways "
-               "is beyond any flat frame; a CRS named with --crs may suit its shape better\n",
-               g.source.c_str(), *e * 100.0);
+  std::fprintf(
+      stderr,
+      "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%); --crs auto "
+      "takes the truest of five kinds of projection, and an extent wider than about 7 degrees both ways "
+      "is beyond any flat frame; a CRS named with --crs may suit its shape better\n",
+      g.source.c_str(), *e * 100.0);
 }
 
 std::vector<OptionSpec> build_option_specs() {

@@ -53,8 +53,8 @@ class DemSource {
   virtual bool in_memory() const = 0;
   /// false only when `window` is known to hold no valid sample without reading its samples (a
   /// grid in memory: its mask; a GDAL raster with a nodata value: the driver's data coverage,
-  /// such as a VRT mosaic with no tile there); true otherwise. A covered window may still be all voids. --crs
-  /// auto chooses its projection over the covered part of the footprint.
+  /// such as a VRT mosaic with no tile there); true otherwise. A covered window may still be all
+  /// voids. --crs auto chooses its projection over the covered part of the footprint.
   virtual bool may_have_data(SampleRect window) const {
     (void)window;
     return true;

@@ -86,7 +86,8 @@
 //     centred on the data, a transverse Mercator on its central meridian, a Lambert conformal conic
 //     with its standard parallel at its central latitude, a Mercator and an oblique Mercator along
 //     its best-fitting great circle has the narrowest scale range over the part of the footprint
-//     that may hold data (DemSource::may_have_data over a 64 x 64 division), balanced by
+//     that may hold data (DemSource::may_have_data over a 64 x 64 division, counting empty cells
+//     that the void fill fills, DemSource::filled_void_cells), balanced by
 //     k0 = 2 / (min + max): strips about 7 degrees wide stay within 0.1 % however long, in any
 //     direction; an extent wide both ways (a continent) is beyond every flat frame, and the
 //     frame's text says so. A CRS of the user's choice may do better. Projected inputs, and
@@ -145,7 +146,7 @@ struct DemOptions {
   enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
   /// The world frame (see the header comment): "native" (the source's own frame, local
   /// equirectangular for geographic DEMs), "auto" (geographic DEMs warped to a balanced azimuthal
-  /// equidistant projection, or beyond about 9 x 9 degrees the truest of five over its data)
+  /// equidistant projection, or beyond about 9 x 9 degrees the truest of five kinds over its data)
   /// or a projected CRS GDAL understands ("EPSG:32619", PROJ, WKT).
   /// Defaults to "native" so that a file is read as it is and databases built from it before
   /// this option existed resume; `terralod` commands default to "auto". Not empty.
