@@ -115,9 +115,10 @@ void work_for_rank0(const blocks::DemSource& src, const blocks::DatabaseBuildOpt
 
 }  // namespace
 
-int build_with_mpi(const std::function<std::unique_ptr<blocks::DemSource>()>& open, const std::string& out,
-                   blocks::DatabaseBuildOptions opt,
-                   const std::function<void(const blocks::DatabaseSummary&, int ranks)>& report) {
+int build_with_mpi(
+    const std::function<std::unique_ptr<blocks::DemSource>()>& open, const std::string& out,
+    blocks::DatabaseBuildOptions opt,
+    const std::function<void(const blocks::DatabaseSummary&, int ranks, const blocks::DemSource&)>& report) {
   int provided = 0;
   MPI_Init_thread(nullptr, nullptr, MPI_THREAD_MULTIPLE, &provided);
   int rank = 0, size = 1;
@@ -135,7 +136,7 @@ int build_with_mpi(const std::function<std::unique_ptr<blocks::DemSource>()>& op
       slots[0] = 0;
       opt.remote_builders.push_back(serve_ranks(slots));
       const blocks::DatabaseSummary s = blocks::build_database(*src, out, opt);
-      report(s, size);
+      report(s, size, *src);
     } else {
       // Progress and the summary are rank 0's.
       opt.progress = nullptr;

@@ -39,8 +39,9 @@ inline int launched_rank() {
 /// Runs the build as rank `rank` of the job (MPI is initialized and finalized here). `read`
 /// reads the terrain (every rank calls it), `report` prints rank 0's summary. Returns the exit
 /// status; any error on any rank aborts the whole job with its message.
-int build_with_mpi(const std::function<std::unique_ptr<blocks::DemSource>()>& open, const std::string& out,
-                   blocks::DatabaseBuildOptions options,
-                   const std::function<void(const blocks::DatabaseSummary&, int ranks)>& report);
+int build_with_mpi(
+    const std::function<std::unique_ptr<blocks::DemSource>()>& open, const std::string& out,
+    blocks::DatabaseBuildOptions options,
+    const std::function<void(const blocks::DatabaseSummary&, int ranks, const blocks::DemSource&)>& report);
 
 }  // namespace terralod::cli

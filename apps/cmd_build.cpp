@@ -147,7 +147,7 @@ int cmd_build(const Args& a) {
     std::fflush(stderr);
   };
   const auto t = std::chrono::steady_clock::now();
-  auto report = [&](const blocks::DatabaseSummary& s, int ranks_used) {
+  auto report = [&](const blocks::DatabaseSummary& s, int ranks_used, const blocks::DemSource& src) {
     if (tty) std::fputs("\r\033[K", stderr);
     const auto& n = s.nodes_per_strategy;
     std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s%s\n", out.c_str(),
@@ -173,6 +173,11 @@ int cmd_build(const Args& a) {
         static_cast<unsigned long long>(s.samples), static_cast<unsigned long long>(s.pm_vertices),
         format_bytes(s.block_bytes).c_str(), format_bytes(s.tree_bytes).c_str(), s.bytes_per_vertex,
         format_duration(ms_since(t0)).c_str());
+    // What filling voids cost this process (under MPI, rank 0's reads only).
+    if (const auto v = src.void_fill_work(); v.solved + v.reused > 0)
+      std::printf("voids %zu regions solved (%llu samples), %zu times a large filled region was reused%s\n",
+                  v.solved, static_cast<unsigned long long>(v.solved_samples), v.reused,
+                  ranks_used > 1 ? " (rank 0)" : "");
     // Peak resident set of this process over the whole command (under MPI: rank 0's, which also
     // writes the database); getrusage, so what the kernel counted, GDAL's block cache included.
     std::printf("memory peak resident %s%s\n", format_bytes(pm::peak_resident_bytes()).c_str(),
@@ -186,7 +191,8 @@ int cmd_build(const Args& a) {
                      " ranks, but this terralod was built without MPI (install libopenmpi-dev and rebuild)");
 #endif
   }
-  report(blocks::build_database(*open(), out, opt), 1);
+  const std::unique_ptr<blocks::DemSource> src = open();
+  report(blocks::build_database(*src, out, opt), 1, *src);
   return 0;
 }
 

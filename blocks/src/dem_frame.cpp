@@ -389,6 +389,7 @@ class WarpedSource final : public DemSource {
   pm::Heightfield read(SampleRect window) const override;
   std::uint32_t samples_crc() const override;
   bool in_memory() const override { return native_->in_memory(); }
+  VoidFillWork void_fill_work() const override { return native_->void_fill_work(); }
 
  private:
   /// Exact transformations at every step_-th sample of every step_-th row (see the header).

@@ -11,7 +11,9 @@
 // are capped as soon as the part seen is over the cap, and stay holes, as in read_dem. Cost: a
 // read meeting such a region (a nodata collar around a mosaic's coverage, say) holds more than
 // 4096 x 4096 samples before it knows; the source then remembers that region's void samples (as
-// runs along rows), so a later read that meets a known part of it stops growing there.
+// runs along rows), so a later read that meets a known part of it stops growing there. Filled
+// regions of FilledVoids::kKeepFrom samples or more are kept with their values (FilledVoids), and
+// a later read takes them before filling, so a wide gap is solved once, not by every read.
 // Thread-safety: GDAL datasets are not: each read takes an opened dataset from a pool (opening
 // another when all are busy) and gives it back; the fill runs on the caller's thread. .hgt
 // windows are read with a stream opened per read, so a file removed or truncated after opening
@@ -31,6 +33,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -165,6 +168,99 @@ class CappedVoids {
   std::map<int, std::vector<std::pair<int, int>>> rows_;
 };
 
+/// Filled void regions of kKeepFrom samples or more, with their values, kept from the reads that
+/// solved them: a later read meeting one takes its values instead of growing to hold the region
+/// and solving it again. The bits are the same, since a region's values depend on its box alone
+/// (void_fill.hpp). Without it, every block (and every small read that measures the frame) meeting
+/// a wide gap between a mosaic's tiles solved the whole gap: a 4 x 4 degree band mosaic whose
+/// gaps are three SRTM tiles each spent minutes opening. Held up to kBudget bytes, the least
+/// recently used region leaving first; a region larger than that is solved by every read.
+class FilledVoids {
+ public:
+  static constexpr std::size_t kKeepFrom = 1024;
+  /// One region of the largest size filled (VoidFillOptions::max_region_cells, 128 MiB of
+  /// values) and as much again.
+  static constexpr std::size_t kBudget = std::size_t(256) << 20;
+
+  /// Writes the values of the kept regions into the void samples of z (the samples of `held`)
+  /// they cover; returns how many regions it used.
+  std::size_t apply(SampleRect held, std::vector<double>& z) const {
+    std::lock_guard lock(mutex_);
+    if (rows_.empty()) return 0;
+    const std::size_t w = std::size_t(held.width());
+    std::vector<std::uint64_t> used;
+    for (auto it = rows_.lower_bound(held.row0); it != rows_.end() && it->first <= held.row1; ++it)
+      for (const Ref& ref : it->second) {
+        const int c0 = std::max(ref.col0, held.col0), c1 = std::min(ref.col1, held.col1);
+        if (c0 > c1) continue;
+        const Entry& e = regions_.at(ref.id);
+        double* out = z.data() + std::size_t(it->first - held.row0) * w + std::size_t(c0 - held.col0);
+        const double* in = e.region.values.data() + ref.offset + std::size_t(c0 - ref.col0);
+        for (int c = c0; c <= c1; ++c, ++out, ++in)
+          if (!std::isfinite(*out)) *out = *in;  // a valid sample there would be a changed file: kept
+        if (std::find(used.begin(), used.end(), ref.id) == used.end()) used.push_back(ref.id);
+      }
+    for (const std::uint64_t id : used) regions_.at(id).last_use = ++clock_;
+    return used.size();
+  }
+
+  void add(std::vector<FilledVoidRegion>& regions) {
+    std::lock_guard lock(mutex_);
+    for (FilledVoidRegion& r : regions) {
+      if (r.runs.empty()) continue;
+      const std::size_t bytes =
+          r.values.size() * sizeof(double) + r.runs.size() * (sizeof(r.runs[0]) + sizeof(Ref));
+      if (bytes > kBudget || known(r.runs.front())) continue;  // too large, or another read kept it
+      while (bytes_ + bytes > kBudget) evict_oldest();
+      const std::uint64_t id = next_id_++;
+      std::size_t offset = 0;
+      for (const auto& [row, c0, c1] : r.runs) {
+        rows_[row].push_back(Ref{c0, c1, id, offset});
+        offset += std::size_t(c1 - c0 + 1);
+      }
+      bytes_ += bytes;
+      regions_.emplace(id, Entry{std::move(r), bytes, ++clock_});
+    }
+  }
+
+ private:
+  struct Entry {
+    FilledVoidRegion region;
+    std::size_t bytes = 0;
+    std::uint64_t last_use = 0;
+  };
+  struct Ref {  // one run of a region, in rows_
+    int col0, col1;
+    std::uint64_t id;
+    std::size_t offset;  // of its first value in the region's values
+  };
+  bool known(const std::array<int, 3>& run) const {
+    const auto it = rows_.find(run[0]);
+    if (it == rows_.end()) return false;
+    return std::any_of(it->second.begin(), it->second.end(),
+                       [&](const Ref& ref) { return ref.col0 <= run[2] && run[1] <= ref.col1; });
+  }
+  void evict_oldest() {
+    const auto oldest = std::min_element(regions_.begin(), regions_.end(), [](const auto& a, const auto& b) {
+      return a.second.last_use < b.second.last_use;
+    });
+    for (const auto& run : oldest->second.region.runs) {
+      auto it = rows_.find(run[0]);
+      std::erase_if(it->second, [&](const Ref& ref) { return ref.id == oldest->first; });
+      if (it->second.empty()) rows_.erase(it);
+    }
+    bytes_ -= oldest->second.bytes;
+    regions_.erase(oldest);
+  }
+
+  mutable std::mutex mutex_;
+  mutable std::map<std::uint64_t, Entry> regions_;  // by id
+  std::map<int, std::vector<Ref>> rows_;            // runs by row
+  std::uint64_t next_id_ = 0;
+  mutable std::uint64_t clock_ = 0;
+  std::size_t bytes_ = 0;
+};
+
 /// A DemSource that reads raw windows (raw()) and fills their voids as read_dem does.
 class WindowedSource : public DemSource {
  public:
@@ -172,6 +268,10 @@ class WindowedSource : public DemSource {
   std::uint32_t samples_crc() const override;
   bool in_memory() const override { return false; }
   std::size_t filled_void_cells() const override { return fill_ ? VoidFillOptions{}.max_region_cells : 0; }
+  VoidFillWork void_fill_work() const override {
+    std::lock_guard lock(work_mutex_);
+    return work_;
+  }
 
  protected:
   WindowedSource(std::string path, const DemOptions& options)
@@ -190,6 +290,9 @@ class WindowedSource : public DemSource {
  private:
   bool fill_;
   mutable CappedVoids capped_;
+  mutable FilledVoids filled_;
+  mutable std::mutex work_mutex_;
+  mutable VoidFillWork work_;
 };
 
 void WindowedSource::set_grid(int width, int height, const detail::Georef& geo, const DemOptions& options,
@@ -231,15 +334,31 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
   SampleRect held = window;
   VoidFillOptions fill;
   fill.threads = 1;  // readers run in parallel already; the bits do not depend on it
+  fill.keep_filled_from = FilledVoids::kKeepFrom;
+  const auto all_finite = [&] {
+    return std::all_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); });
+  };
   for (int margin = 16;; margin *= 2) {
     raw(held, z);
-    if (!fill_ || std::all_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); })) break;
+    if (!fill_ || all_finite()) break;
     // A window holding the whole grid with no valid sample: read_dem's refusal (filling would
     // have no neighbour to start from).
     if (held.col0 == 0 && held.row0 == 0 && held.col1 == width - 1 && held.row1 == height - 1 &&
         std::none_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); }))
       throw DemError(path_, "has no valid sample (all " + std::to_string(z.size()) + " are void)");
-    const VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
+    const std::size_t reused = filled_.apply(held, z);
+    if (reused > 0) {
+      std::lock_guard lock(work_mutex_);
+      work_.reused += reused;
+    }
+    if (all_finite()) break;
+    VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
+    if (stats.filled_regions > 0) {
+      std::lock_guard lock(work_mutex_);
+      work_.solved += stats.filled_regions;
+      work_.solved_samples += stats.filled;
+    }
+    filled_.add(stats.kept);
     SampleRect next = held;
     if (stats.capped_regions == 0 && capped_.empty()) {
       for (const OpenVoidRegion& o : stats.open)

@@ -465,6 +465,24 @@ VoidFillStats fill_voids_in_window(std::vector<double>& z, SampleRect window, in
     stats.residual = std::max(stats.residual, s.residual);
     stats.sweeps = std::max(stats.sweeps, s.sweeps);
     stats.last_change = std::max(stats.last_change, s.last_change);
+    const Region& g = regions[closed[k]];
+    if (options.keep_filled_from == 0 || g.count < options.keep_filled_from) continue;
+    FilledVoidRegion& kept = stats.kept.emplace_back();
+    kept.extent = SampleRect{g.bbox.col0 + window.col0, g.bbox.row0 + window.row0, g.bbox.col1 + window.col0,
+                             g.bbox.row1 + window.row0};
+    std::vector<std::uint32_t> at(cells.begin() + std::ptrdiff_t(g.first),
+                                  cells.begin() + std::ptrdiff_t(g.first + g.count));
+    std::sort(at.begin(), at.end());
+    kept.values.reserve(at.size());
+    for (const std::uint32_t i : at) {
+      const int c = int(i % ww) + window.col0, r = int(i / ww) + window.row0;
+      if (!kept.runs.empty() && kept.runs.back()[0] == r && kept.runs.back()[2] + 1 == c) {
+        kept.runs.back()[2] = c;
+      } else {
+        kept.runs.push_back({r, c, c});
+      }
+      kept.values.push_back(z[i]);
+    }
   }
   return stats;
 }

@@ -388,6 +388,9 @@ TEST(DatabaseBuild, CliBuildsAFolderOrAListOfTilesAsOneMosaic) {
   ASSERT_EQ(run_terralod({"testdem", "--mirror", dir + "/source.asc", "--tiles", "2x1", "--out", dir + "/m"})
                 .status,
             0);
+  ASSERT_EQ(run_terralod({"testdem", "--mirror", dir + "/source.asc", "--tiles", "3x1", "--out", dir + "/m3"})
+                .status,
+            0);
   const std::string folder = tmp("tiles_folder.db"), listed = tmp("tiles_listed.db");
   ChildRun r = run_terralod({"build", "--input", dir + "/m", "--out", folder, "--block-size", "33"});
   ASSERT_EQ(r.status, 0) << r.err;
@@ -419,6 +422,16 @@ TEST(DatabaseBuild, CliBuildsAFolderOrAListOfTilesAsOneMosaic) {
   // source text each PM records.
   EXPECT_EQ(tb::BlockDatabase::open(folder).info().build_parameters,
             tb::BlockDatabase::open(listed).info().build_parameters);
+  // Two tiles with the middle one missing: the gap (63 x 65 samples) is filled once, by the first
+  // block that meets it, and its values reused by the others (one thread: no two first blocks).
+  const auto gap =
+      tt::run_command(tt::quote(TERRALOD_BINARY) + " build --block-size 33 --threads 1 --input " +
+                      tt::quote(dir + "/m3/tile_0_0.tif") + " --input " +
+                      tt::quote(dir + "/m3/tile_0_2.tif") + " --out " + tt::quote(tmp("tiles_gap.db")));
+  ASSERT_EQ(gap.status, 0) << gap.err;
+  EXPECT_NE(gap.out.find("voids 1 regions solved (4095 samples), "), std::string::npos) << gap.out;
+  EXPECT_EQ(gap.out.find(", 0 times a large filled region was reused"), std::string::npos) << gap.out;
+  EXPECT_EQ(windowed.out.find("regions solved"), std::string::npos) << "no void, no line: " << windowed.out;
   EXPECT_EQ(run_terralod({"build", "--input", dir + "/m/tile_0_0.tif", "--input", dir + "/m/none.tif",
                           "--out", tmp("tiles_missing.db")})
                 .status,

@@ -390,6 +390,42 @@ TEST_F(DemSourceTest, RegionOverTheCapStaysAHoleInEveryWindow) {
   EXPECT_EQ(src->samples_crc(), tb::heightfield_source(hf)->samples_crc());
 }
 
+// A large void region is solved by the first read that holds it; later reads take its values
+// (the same bits) instead of growing to hold it and solving it again. Small voids are solved by
+// every read that meets them. Counted through void_fill_work, native and warped.
+TEST_F(DemSourceTest, LargeFilledRegionsAreSolvedOnceAndReused) {
+  std::vector<double> z(std::size_t(kW) * kH);
+  for (int r = 0; r < kH; ++r)
+    for (int c = 0; c < kW; ++c)
+      z[std::size_t(r) * kW + c] = 200.0 + 0.5 * c + 0.25 * r + 3.0 * std::sin(c * 0.3);
+  for (int r = 60; r < 160; ++r)  // a 120 x 100 void across many 33-sample blocks
+    for (int c = 90; c < 210; ++c) z[std::size_t(r) * kW + c] = kNaN;
+  z[std::size_t(20) * kW + 20] = kNaN;  // and a single one, below the size that is kept
+  const fs::path tif = dir_ / "gap.tif", geo = dir_ / "gap_geo.tif";
+  write_geotiff(tif, kW, kH, z, GDT_Float32, kUtm, 32619);
+  write_geotiff(geo, kW, kH, z, GDT_Float32, kGeographic, 4326);
+  for (const fs::path& p : {tif, geo}) {
+    SCOPED_TRACE(p.string());
+    const Heightfield hf = tb::read_dem(p.string());
+    const auto src = tb::open_dem_source(p.string());
+    ASSERT_FALSE(src->in_memory());
+    const tb::DemSource::VoidFillWork opened = src->void_fill_work();  // measuring the frame reads some
+    const tb::BlockLayout layout = tb::partition(hf.width(), hf.height(), 33);
+    for (int pass = 0; pass < 2; ++pass)
+      for (const tb::BlockKey& k : layout.keys())
+        EXPECT_TRUE(same_block(src->read(layout.rect(k)), tb::block_heightfield(hf, layout.rect(k))))
+            << k.col << "," << k.row;
+    const tb::DemSource::VoidFillWork w = src->void_fill_work();
+    // The gap once in all (at open or by the first block meeting it), the single void once per
+    // read meeting it (one block of the native grid, one or two of the warped one, in each pass).
+    const std::size_t large = (opened.solved_samples >= 12000 ? 0 : 1);
+    EXPECT_GE(w.solved - opened.solved, large + 2);
+    EXPECT_LE(w.solved - opened.solved, large + 8);
+    EXPECT_LT(w.solved_samples, 2 * 12000 + 50) << "the gap was solved twice";
+    EXPECT_GE(w.reused, 2 * 9) << "every later block meeting the gap reuses it";
+  }
+}
+
 TEST_F(DemSourceTest, ConcurrentReadersGetTheSameBlocks) {
   const fs::path tif = dir_ / "c.tif";
   write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Int16, kUtm, 32619);

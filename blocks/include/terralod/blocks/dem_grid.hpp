@@ -63,6 +63,14 @@ class DemSource {
   /// windows smaller than this still reads as samples. 0 when voids stay holes (kept, or
   /// already filled in a grid held in memory).
   virtual std::size_t filled_void_cells() const { return 0; }
+  /// What read() has done so far to fill voids: regions solved (a region solved again by a later
+  /// read counts again) and their samples, and regions whose values a read took from an earlier
+  /// read instead (windowed sources keep large filled regions; see open_dem_source). All zero
+  /// for a grid in memory, whose voids were filled when it was read.
+  struct VoidFillWork {
+    std::size_t solved = 0, solved_samples = 0, reused = 0;
+  };
+  virtual VoidFillWork void_fill_work() const { return {}; }
 
  protected:
   /// Throws std::invalid_argument naming `name` unless `window` is a window of the grid.

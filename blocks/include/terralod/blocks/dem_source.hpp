@@ -42,7 +42,9 @@ namespace terralod::blocks {
 /// without georeference read as Format::Auto, ASCII grids) are read whole by read_dem and held
 /// by the source (in_memory() true).
 /// Windowed: read() reads its window (grown while a void region meeting it is cut by its edge,
-/// then cut back) from the file each time; grid() is read from the header when opening, plus,
+/// then cut back) from the file each time, except the values of filled void regions of 1,024
+/// samples or more, which it keeps (up to 256 MiB, least recently used out first) for the later
+/// reads that meet them (DemSource::void_fill_work counts both); grid() is read from the header when opening, plus,
 /// for a grid with a CRS, the valid samples at read_dem's scale-error points (a 33 x 33 lattice
 /// and the ends of every row, found by reading the edge columns). GDAL's block cache is capped
 /// to 64 MiB while a windowed GDAL source is open, unless the process set GDAL_CACHEMAX

@@ -44,6 +44,7 @@
 // count.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -56,6 +57,19 @@ struct VoidFillOptions {
   std::size_t max_region_cells = std::size_t(4096) * 4096;
   /// Threads solving regions; <= 0: all cores. Results are the same for every value.
   int threads = 0;
+  /// Regions of at least this many void samples that are filled are also returned, with their
+  /// values, in VoidFillStats::kept (0: none), so that a caller reading the grid window by
+  /// window can reuse them instead of solving them again.
+  std::size_t keep_filled_from = 0;
+};
+
+/// A filled region (see VoidFillOptions::keep_filled_from): its samples as runs along rows and
+/// the values they were filled with, run after run. The values are those of any window that
+/// holds the region's box, since they depend on that box alone.
+struct FilledVoidRegion {
+  SampleRect extent;                     ///< bounding box of its samples, grid coordinates
+  std::vector<std::array<int, 3>> runs;  ///< {row, col0, col1}, grid coordinates, row-major order
+  std::vector<double> values;            ///< one per sample of the runs, in their order
 };
 
 /// A void region that a window cuts inside the grid: it was not filled.
@@ -77,6 +91,8 @@ struct VoidFillStats {
   double residual = 0;               ///< largest final residual of any region, metres * neighbours
   int sweeps = 0;                    ///< most Gauss-Seidel sweeps after the clip of any region
   double last_change = 0;            ///< largest change in a region's last sweep, metres
+  std::vector<FilledVoidRegion>
+      kept;  ///< filled regions of VoidFillOptions::keep_filled_from samples or more
 };
 
 /// Fills every void region of the width x height grid `z` (a window covering the grid).
