@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <filesystem>
 #include <limits>
 #include <mutex>
@@ -33,8 +34,32 @@ struct GeoTiffWriter::Impl {
   }
 };
 
+namespace {
+
+/// `horizontal` with the vertical datum `datum` (see the header's contract), or unchanged when
+/// no datum is named or it has one already; false when GDAL cannot make the compound CRS.
+bool add_vertical_datum(OGRSpatialReference& horizontal, const std::string& datum) {
+  if (datum.empty() || horizontal.IsCompound() || horizontal.IsVertical()) return true;
+  std::string lower = datum;
+  for (char& ch : lower) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  OGRSpatialReference vertical;
+  const bool known = lower.find("egm96") != std::string::npos || lower.find("egm2008") != std::string::npos;
+  if (known ? vertical.importFromEPSG(lower.find("egm96") != std::string::npos ? 5773 : 3855) != OGRERR_NONE
+            : vertical.SetVertCS(datum.c_str(), datum.c_str()) != OGRERR_NONE)
+    return false;
+  OGRSpatialReference compound;
+  const std::string name = std::string(horizontal.GetName() ? horizontal.GetName() : "unnamed") + " + " +
+                           (vertical.GetName() ? vertical.GetName() : datum.c_str());
+  if (compound.SetCompoundCS(name.c_str(), &horizontal, &vertical) != OGRERR_NONE) return false;
+  horizontal = compound;
+  return true;
+}
+
+}  // namespace
+
 GeoTiffWriter::GeoTiffWriter(const std::string& path, std::int64_t width, std::int64_t height,
-                             const pm::GridTransform& t, const std::string& crs_wkt)
+                             const pm::GridTransform& t, const std::string& crs_wkt,
+                             const std::string& vertical_datum)
     : impl_(std::make_unique<Impl>()) {
   if (width < 1 || height < 1 || width > std::numeric_limits<int>::max() ||
       height > std::numeric_limits<int>::max())
@@ -58,7 +83,8 @@ GeoTiffWriter::GeoTiffWriter(const std::string& path, std::int64_t width, std::i
   bool ok = m.ds->SetGeoTransform(gt) == CE_None;
   if (ok && !crs_wkt.empty()) {
     OGRSpatialReference srs;
-    ok = srs.importFromWkt(crs_wkt.c_str()) == OGRERR_NONE && m.ds->SetSpatialRef(&srs) == CE_None;
+    ok = srs.importFromWkt(crs_wkt.c_str()) == OGRERR_NONE && add_vertical_datum(srs, vertical_datum) &&
+         m.ds->SetSpatialRef(&srs) == CE_None;
   }
   ok = ok && m.ds->GetRasterBand(1)->SetNoDataValue(std::numeric_limits<double>::quiet_NaN()) == CE_None;
   if (!ok) {
@@ -112,9 +138,9 @@ void GeoTiffWriter::commit() {
 void write_geotiff(const pm::Heightfield& hf, const std::string& path) {
   // In its CRS when the heightfield knows where its samples lie in it; else the metric frame
   // without a CRS (read back as metres).
-  GeoTiffWriter w = hf.crs_transform
-                        ? GeoTiffWriter(path, hf.width(), hf.height(), *hf.crs_transform, hf.crs_wkt)
-                        : GeoTiffWriter(path, hf.width(), hf.height(), hf.transform);
+  GeoTiffWriter w = hf.crs_transform ? GeoTiffWriter(path, hf.width(), hf.height(), *hf.crs_transform,
+                                                     hf.crs_wkt, hf.vertical_datum)
+                                     : GeoTiffWriter(path, hf.width(), hf.height(), hf.transform);
   std::vector<float> row(std::size_t(hf.width()));
   for (int r = 0; r < hf.height(); ++r) {
     for (int c = 0; c < hf.width(); ++c) {
@@ -184,7 +210,7 @@ MosaicReport write_mirror_mosaic(const std::string& source, int tiles_x, int til
       ti.x0 = x0, ti.y0 = y0;
       const std::string name =
           (fs::path(out_dir) / ("tile_" + std::to_string(j) + "_" + std::to_string(i) + ".tif")).string();
-      GeoTiffWriter out(name, w, h, ti, hf.crs_wkt);
+      GeoTiffWriter out(name, w, h, ti, hf.crs_wkt, hf.vertical_datum);
       out.write_rows(0, h, tile.data());
       out.commit();
       names.push_back(name);

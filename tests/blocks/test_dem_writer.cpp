@@ -128,6 +128,31 @@ TEST(MirrorMosaic, TilesAreMirroredContinuousAndPlacedInTheSourceCrs) {
   EXPECT_FALSE(tb::read_dem((dir / "tile_0_1.tif").string(), keep_voids()).valid(0, 10));
 }
 
+// The heights' vertical datum is written as a compound CRS and read back, by the source file,
+// every tile of its mirror mosaic and the VRT over them: an SRTM tile's mosaic stays above EGM96.
+TEST(MirrorMosaic, TilesKeepTheVerticalDatum) {
+  for (const auto& [datum, read_back] : {std::pair<std::string, std::string>{"EGM96", "EGM96 height"},
+                                         {"EGM2008", "EGM2008 height"},
+                                         {"local survey datum", "local survey datum"},
+                                         {"", ""}}) {
+    SCOPED_TRACE(datum);
+    pm::Heightfield src = geographic_source();
+    src.vertical_datum = datum;
+    const fs::path source = tmp() / "datum.tif", dir = tmp() / "datum_mosaic";
+    fs::remove_all(dir);
+    tb::write_geotiff(src, source.string());
+    EXPECT_EQ(tb::read_dem(source.string(), keep_voids()).vertical_datum, read_back);
+    const tb::MosaicReport m = tb::write_mirror_mosaic(source.string(), 2, 1, dir.string());
+    EXPECT_EQ(tb::read_dem(m.vrt, keep_voids()).vertical_datum, read_back);
+    EXPECT_EQ(tb::read_dem((dir / "tile_0_1.tif").string(), keep_voids()).vertical_datum, read_back);
+    // Placed as before: the datum changes nothing horizontal.
+    const pm::Heightfield mos = tb::read_dem(m.vrt, keep_voids());
+    ASSERT_TRUE(mos.crs_transform.has_value());
+    EXPECT_NEAR(mos.crs_transform->x0, 7.0, 1e-9);
+    EXPECT_NEAR(mos.crs_transform->yr, -1.0 / 24.0, 1e-12);
+  }
+}
+
 TEST(GeoTiffWriter, UncommittedLeavesNothingAndErrorsNameTheFile) {
   const fs::path file = tmp() / "never.tif";
   {

@@ -17,7 +17,10 @@
 // Contract:
 //   - GeoTIFFs are single-band Float32, tiled 256 x 256, deflate, BigTIFF when needed; the
 //     geotransform is the GridTransform's shifted to pixel corners (sample centres at integer
-//     (col, row)); the CRS is written when crs_wkt is not empty; voids are NaN (nodata). Heights
+//     (col, row)); the CRS is written when crs_wkt is not empty, as a compound CRS with the
+//     heights' vertical datum when one is named and crs_wkt has none (EGM96 and EGM2008 as
+//     their EPSG vertical CRSs 5773 and 3855, read back as "EGM96 height" and "EGM2008 height";
+//     any other name as a vertical CRS of that name); voids are NaN (nodata). Heights
 //     round to float: exact for whole metres and for 1/16 m below 2^19 m.
 //   - Everything is written to "<path>.tmp.tif" and renamed onto path by commit(); a writer
 //     destroyed without commit() removes its temporary, so no half-written file is left under
@@ -48,7 +51,8 @@ namespace terralod::blocks {
 class GeoTiffWriter {
  public:
   GeoTiffWriter(const std::string& path, std::int64_t width, std::int64_t height,
-                const pm::GridTransform& transform, const std::string& crs_wkt = "");
+                const pm::GridTransform& transform, const std::string& crs_wkt = "",
+                const std::string& vertical_datum = "");
   ~GeoTiffWriter();
   GeoTiffWriter(const GeoTiffWriter&) = delete;
   GeoTiffWriter& operator=(const GeoTiffWriter&) = delete;
@@ -62,7 +66,8 @@ class GeoTiffWriter {
 };
 
 /// Writes hf as a GeoTIFF (see the contract): with hf.crs_transform, in its CRS (hf.crs_wkt) with
-/// that transform, so read_dem gives back the same frame; without, hf.transform and no CRS.
+/// that transform and hf.vertical_datum, so read_dem gives back the same frame and datum;
+/// without, hf.transform and no CRS.
 void write_geotiff(const pm::Heightfield& hf, const std::string& path);
 
 /// Writes every sample of `field` to `path` in strips of 256 rows computed by `threads` threads
