@@ -291,6 +291,9 @@ class WindowedSource : public DemSource {
   bool fill_;
   mutable CappedVoids capped_;
   mutable FilledVoids filled_;
+  /// Void regions whose box has more cells than this are solved one read at a time (load()).
+  static constexpr std::size_t kUnsharedSolveCells = 64 * 64;
+  mutable std::mutex large_fill_mutex_;
   mutable std::mutex work_mutex_;
   mutable VoidFillWork work_;
 };
@@ -346,19 +349,30 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
     if (held.col0 == 0 && held.row0 == 0 && held.col1 == width - 1 && held.row1 == height - 1 &&
         std::none_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); }))
       throw DemError(path_, "has no valid sample (all " + std::to_string(z.size()) + " are void)");
-    const std::size_t reused = filled_.apply(held, z);
-    if (reused > 0) {
+    const auto count = [&](std::size_t reused, const VoidFillStats* stats) {
       std::lock_guard lock(work_mutex_);
       work_.reused += reused;
-    }
+      if (stats) work_.solved += stats->filled_regions, work_.solved_samples += stats->filled;
+    };
+    count(filled_.apply(held, z), nullptr);
     if (all_finite()) break;
-    VoidFillStats stats = fill_voids_in_window(z, held, width, height, fill);
-    if (stats.filled_regions > 0) {
-      std::lock_guard lock(work_mutex_);
-      work_.solved += stats.filled_regions;
-      work_.solved_samples += stats.filled;
-    }
+    // Small regions first, on this thread alone; larger ones (capped by `small`) one read at a
+    // time, after taking what another read may have just kept: two readers meeting the same gap
+    // would otherwise both solve it, with the solver's memory (about 170 bytes a void sample)
+    // twice over. The bits are the same either way: regions are never 4-adjacent, so filling
+    // the small ones first changes no larger region's neighbours.
+    VoidFillOptions small = fill;
+    small.max_region_cells = kUnsharedSolveCells;
+    VoidFillStats stats = fill_voids_in_window(z, held, width, height, small);
+    count(0, &stats);
     filled_.add(stats.kept);
+    if (stats.capped_regions > 0) {
+      std::lock_guard lock(large_fill_mutex_);
+      count(filled_.apply(held, z), nullptr);
+      stats = all_finite() ? VoidFillStats{} : fill_voids_in_window(z, held, width, height, fill);
+      count(0, &stats);
+      filled_.add(stats.kept);
+    }
     SampleRect next = held;
     if (stats.capped_regions == 0 && capped_.empty()) {
       for (const OpenVoidRegion& o : stats.open)

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <latch>
 #include <limits>
 #include <random>
 #include <string>
@@ -424,6 +425,39 @@ TEST_F(DemSourceTest, LargeFilledRegionsAreSolvedOnceAndReused) {
     EXPECT_LT(w.solved_samples, 2 * 12000 + 50) << "the gap was solved twice";
     EXPECT_GE(w.reused, 2 * 9) << "every later block meeting the gap reuses it";
   }
+}
+
+// Readers meeting a wide gap at once: one solves it, the others wait and take its values (the
+// solver holds about 170 bytes a void sample: readers solving one gap together multiply that).
+TEST_F(DemSourceTest, ReadersMeetingAGapAtOnceSolveItOnce) {
+  const int n = 1000;
+  std::vector<double> z(std::size_t(n) * n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c)
+      z[std::size_t(r) * n + c] = 50.0 + 0.1 * c - 0.05 * r + 2.0 * std::sin(r * 0.2);
+  for (int r = 150; r < 850; ++r)  // 700 x 700 samples: about half a second to solve
+    for (int c = 150; c < 850; ++c) z[std::size_t(r) * n + c] = kNaN;
+  const fs::path tif = dir_ / "wide_gap.tif";
+  write_geotiff(tif, n, n, z, GDT_Float32, {0, 1, 0, 0, 0, -1}, 0);  // no CRS: no reads at open
+  const Heightfield hf = tb::read_dem(tif.string());
+  const auto src = tb::open_dem_source(tif.string());
+  ASSERT_EQ(src->void_fill_work().solved, 0u);
+  std::latch start(4);
+  std::vector<int> failures(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      const tb::SampleRect inside{300 + 100 * t, 400, 364 + 100 * t, 464},
+          across{100 + 200 * t, 120, 164 + 200 * t, 184};
+      start.arrive_and_wait();
+      for (const tb::SampleRect& r : {inside, across})
+        if (!same_block(src->read(r), tb::block_heightfield(hf, r))) ++failures[std::size_t(t)];
+    });
+  for (std::thread& t : threads) t.join();
+  for (int f : failures) EXPECT_EQ(f, 0);
+  const tb::DemSource::VoidFillWork w = src->void_fill_work();
+  EXPECT_EQ(w.solved_samples, std::size_t(700 * 700)) << "readers solved the gap together";
+  EXPECT_GE(w.reused, 4u);
 }
 
 TEST_F(DemSourceTest, ConcurrentReadersGetTheSameBlocks) {
