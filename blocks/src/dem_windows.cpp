@@ -173,14 +173,14 @@ class CappedVoids {
 /// and solving it again. The bits are the same, since a region's values depend on its box alone
 /// (void_fill.hpp). Without it, every block (and every small read that measures the frame) meeting
 /// a wide gap between a mosaic's tiles solved the whole gap: a 4 x 4 degree band mosaic whose
-/// gaps are three SRTM tiles each spent minutes opening. Held up to kBudget bytes, the least
-/// recently used region leaving first; a region larger than that is solved by every read.
+/// gaps are three SRTM tiles each spent minutes opening. Held up to `budget` bytes
+/// (DemOptions::filled_void_cache_bytes; the default holds one region of the largest size filled,
+/// 128 MiB of values, and as much again), the least recently used region leaving first; a region
+/// larger than that is solved by every read.
 class FilledVoids {
  public:
   static constexpr std::size_t kKeepFrom = 1024;
-  /// One region of the largest size filled (VoidFillOptions::max_region_cells, 128 MiB of
-  /// values) and as much again.
-  static constexpr std::size_t kBudget = std::size_t(256) << 20;
+  explicit FilledVoids(std::size_t budget) : budget_(budget) {}
 
   /// Writes the values of the kept regions into the void samples of z (the samples of `held`)
   /// they cover; returns how many regions it used.
@@ -210,8 +210,8 @@ class FilledVoids {
       if (r.runs.empty()) continue;
       const std::size_t bytes =
           r.values.size() * sizeof(double) + r.runs.size() * (sizeof(r.runs[0]) + sizeof(Ref));
-      if (bytes > kBudget || known(r.runs.front())) continue;  // too large, or another read kept it
-      while (bytes_ + bytes > kBudget) evict_oldest();
+      if (bytes > budget_ || known(r.runs.front())) continue;  // too large, or another read kept it
+      while (bytes_ + bytes > budget_) evict_oldest();
       const std::uint64_t id = next_id_++;
       std::size_t offset = 0;
       for (const auto& [row, c0, c1] : r.runs) {
@@ -253,6 +253,7 @@ class FilledVoids {
     regions_.erase(oldest);
   }
 
+  std::size_t budget_;
   mutable std::mutex mutex_;
   mutable std::map<std::uint64_t, Entry> regions_;  // by id
   std::map<int, std::vector<Ref>> rows_;            // runs by row
@@ -275,7 +276,7 @@ class WindowedSource : public DemSource {
 
  protected:
   WindowedSource(std::string path, const DemOptions& options)
-      : path_(std::move(path)), fill_(options.fill_voids) {}
+      : path_(std::move(path)), fill_(options.fill_voids), filled_(options.filled_void_cache_bytes) {}
   /// The samples of `window` with voids filled (holes NaN) into z, which holds the returned
   /// window: `window` grown while a void region meeting it was cut by its edge.
   SampleRect load(SampleRect window, std::vector<double>& z) const;

@@ -427,6 +427,42 @@ TEST_F(DemSourceTest, LargeFilledRegionsAreSolvedOnceAndReused) {
   }
 }
 
+// A cache smaller than the gaps met: regions leave it, least recently used first, and are solved
+// again when met again, with the same bits; with no cache every read meeting a gap solves it.
+TEST_F(DemSourceTest, FilledRegionsLeaveASmallCacheAndAreSolvedAgainTheSame) {
+  std::vector<double> z(std::size_t(kW) * kH);
+  for (int r = 0; r < kH; ++r)
+    for (int c = 0; c < kW; ++c)
+      z[std::size_t(r) * kW + c] = 80.0 + 0.3 * c + 0.2 * r + 4.0 * std::cos(c * 0.11);
+  for (int g = 0; g < 6; ++g)  // six 40 x 40 gaps (1,600 samples, 12.8 kB of values each)
+    for (int r = 20 + 100 * (g / 3); r < 60 + 100 * (g / 3); ++r)
+      for (int c = 20 + 95 * (g % 3); c < 60 + 95 * (g % 3); ++c) z[std::size_t(r) * kW + c] = kNaN;
+  const fs::path tif = dir_ / "gaps.tif";
+  write_geotiff(tif, kW, kH, z, GDT_Float32, {0, 1, 0, 0, 0, -1}, 0);
+  const Heightfield hf = tb::read_dem(tif.string());
+  // A window inside each gap, read round and round: gaps 0, 1, ..., 5, 0, 1, ...
+  std::vector<tb::SampleRect> inside;
+  for (int g = 0; g < 6; ++g) {
+    const int c = 35 + 95 * (g % 3), r = 35 + 100 * (g / 3);
+    inside.push_back({c, r, c + 9, r + 9});
+  }
+  for (const std::size_t budget : {std::size_t(0), std::size_t(30000), std::size_t(1) << 20}) {
+    SCOPED_TRACE(budget);
+    tb::DemOptions o;
+    o.filled_void_cache_bytes = budget;
+    const auto src = tb::open_dem_source(tif.string(), o);
+    for (int round = 0; round < 3; ++round)
+      for (const tb::SampleRect& r : inside)
+        for (int twice = 0; twice < 2; ++twice)
+          EXPECT_TRUE(same_block(src->read(r), tb::block_heightfield(hf, r)));
+    const tb::DemSource::VoidFillWork w = src->void_fill_work();
+    EXPECT_EQ(w.solved + w.reused, 36u);
+    // 0: nothing kept; 30 kB: two gaps at most, so each is gone before the round comes back to
+    // it, but read again at once it is there; 1 MiB: all kept.
+    EXPECT_EQ(w.solved, budget == 0 ? 36u : budget == 30000 ? 18u : 6u);
+  }
+}
+
 // Readers meeting a wide gap at once: one solves it, the others wait and take its values (the
 // solver holds about 170 bytes a void sample: readers solving one gap together multiply that).
 TEST_F(DemSourceTest, ReadersMeetingAGapAtOnceSolveItOnce) {

@@ -151,6 +151,10 @@ struct DemOptions {
   /// Defaults to "native" so that a file is read as it is and databases built from it before
   /// this option existed resume; `terralod` commands default to "auto". Not empty.
   std::string crs = "native";
+  /// open_dem_source only: bytes of filled void regions (of 1,024 samples or more) a windowed
+  /// source keeps, with their values, for later reads that meet them, the least recently used
+  /// leaving first (0: none kept; every read meeting a region solves it).
+  std::size_t filled_void_cache_bytes = std::size_t(256) << 20;
 };
 
 /// Bad data: the message is always "<path>: <problem>".

@@ -43,16 +43,17 @@ namespace terralod::blocks {
 /// by the source (in_memory() true).
 /// Windowed: read() reads its window (grown while a void region meeting it is cut by its edge,
 /// then cut back) from the file each time, except the values of filled void regions of 1,024
-/// samples or more, which it keeps (up to 256 MiB, least recently used out first) for the later
-/// reads that meet them (DemSource::void_fill_work counts both); grid() is read from the header when opening, plus,
-/// for a grid with a CRS, the valid samples at read_dem's scale-error points (a 33 x 33 lattice
-/// and the ends of every row, found by reading the edge columns). GDAL's block cache is capped
-/// to 64 MiB while a windowed GDAL source is open, unless the process set GDAL_CACHEMAX
-/// (environment or config option). samples_crc streams bands of rows through read(), one pass.
-/// Unlike read_dem, a windowed source has no 2^30-sample limit, and does not check when opening
-/// that the grid has a valid sample. DemError as read_dem; read() throws DemError naming the
-/// file when it was removed or truncated since it was opened, std::invalid_argument for a
-/// window outside the grid.
+/// samples or more, which it keeps (DemOptions::filled_void_cache_bytes, 256 MiB by default; least
+/// recently used out first) for the later reads that meet them, and regions wider than 64 x 64
+/// samples, which it fills one read at a time, so that readers meeting a gap together solve it
+/// once (DemSource::void_fill_work counts what was solved and reused); grid() is read from the header when
+/// opening, plus, for a grid with a CRS, the valid samples at read_dem's scale-error points (a 33 x 33
+/// lattice and the ends of every row, found by reading the edge columns). GDAL's block cache is capped to 64
+/// MiB while a windowed GDAL source is open, unless the process set GDAL_CACHEMAX (environment or config
+/// option). samples_crc streams bands of rows through read(), one pass. Unlike read_dem, a windowed source
+/// has no 2^30-sample limit, and does not check when opening that the grid has a valid sample. DemError as
+/// read_dem; read() throws DemError naming the file when it was removed or truncated since it was opened,
+/// std::invalid_argument for a window outside the grid.
 std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOptions& options = {});
 
 }  // namespace terralod::blocks
