@@ -359,7 +359,7 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
     if (all_finite()) break;
     // Small regions first, on this thread alone; larger ones (capped by `small`) one read at a
     // time, after taking what another read may have just kept: two readers meeting the same gap
-    // would otherwise both solve it, with the solver's memory (about 170 bytes a void sample)
+    // would otherwise both solve it, with the solver's memory (about 115 bytes a void sample)
     // twice over. The bits are the same either way: regions are never 4-adjacent, so filling
     // the small ones first changes no larger region's neighbours.
     VoidFillOptions small = fill;

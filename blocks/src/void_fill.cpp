@@ -22,7 +22,7 @@
 // coarsest level). Iterations hardly grow with the void's size (measured: 17 for 8e3 voids, 24
 // for 1.1e6 in a 1200-wide disc) where plain CG needs O(D) and Gauss-Seidel O(D^2) for a void D
 // samples across. Time: about 0.8 us per void sample for large voids (1.1e6 voids: 0.9 s).
-// Memory: about 170 bytes per void sample over all levels, plus 4 bytes per sample of the
+// Memory: about 115 bytes per void sample over all levels and the solver's vectors, plus 4 bytes per sample of the
 // window (labels) and of the region's box (unknown numbers) while it is solved.
 #include "terralod/blocks/void_fill.hpp"
 
@@ -55,28 +55,46 @@ constexpr std::size_t kCoarsest = 48;
 // should be; 1.9 restores it (measured: 17-24 CG iterations from 8e3 to 1.1e6 voids, against
 // 30-103 at 1.0) and stays below 2, where the V-cycle could stop being positive definite.
 constexpr double kOverCorrection = 1.9;
+// 1 / n for the finest level's diagonal n = 0 .. 4, as 1.0 / double(n) computes it.
+constexpr double kInverse[5] = {std::numeric_limits<double>::infinity(), 1.0 / 1.0, 1.0 / 2.0, 1.0 / 3.0,
+                                1.0 / 4.0};
 
 // One level of the multigrid hierarchy: a sparse symmetric matrix on a grid of w x h cells,
 // row k = diag_k x_k - sum_d weight_k,d x_{nb_k,d} (d: west, east, north, south). A missing
 // neighbour points at the sentinel entry size() of every vector, which holds 0, with weight 0:
-// no branches in the inner loops. All entries are small integers, exact in float.
+// no branches in the inner loops. All entries are small integers, exact in float. The finest
+// level's weights are all 1 (0 at the sentinel), so it stores none (`unit`): with the sentinel
+// at 0, its sums are bit for bit those of stored weights, and its diagonal (the neighbours inside
+// the grid, 0 to 4) is a byte: 31 bytes less a void sample.
 struct Level {
   int w = 0, h = 0;
-  std::vector<std::uint32_t> pos;  // cell index in this level's grid
-  std::vector<double> diag, inv_diag;
+  bool unit = false;                             // every weight 1 where a neighbour exists; `weight` empty
+  std::vector<std::uint32_t> pos;                // cell index in this level's grid; freed once coarsened
+  std::vector<double> diag, inv_diag;            // empty when unit: `count` instead
+  std::vector<std::uint8_t> count;               // unit: neighbours inside the grid, the diagonal
   std::vector<std::array<std::uint32_t, 4>> nb;  // size(): no unknown there
   std::vector<std::array<float, 4>> weight;
   std::vector<std::uint32_t> parent;  // unknown of the next level
   std::vector<double> e, r;           // V-cycle work space, size() + 1 entries
-  std::size_t size() const { return pos.size(); }
-  void allocate(std::size_t m) {
-    diag.assign(m, 0.0);
+  std::size_t size() const { return nb.size(); }
+  double diag_of(std::size_t k) const { return unit ? double(count[k]) : diag[k]; }
+  double inv_diag_of(std::size_t k) const { return unit ? kInverse[count[k]] : inv_diag[k]; }
+  float weight_of(std::size_t k, int d) const {
+    return unit ? (nb[k][std::size_t(d)] == size() ? 0.0f : 1.0f) : weight[k][std::size_t(d)];
+  }
+  void allocate(std::size_t m, bool unit_weights = false) {
+    unit = unit_weights;
+    if (unit)
+      count.assign(m, 0);
+    else
+      diag.assign(m, 0.0);
     nb.assign(m, {std::uint32_t(m), std::uint32_t(m), std::uint32_t(m), std::uint32_t(m)});
-    weight.assign(m, {0.0f, 0.0f, 0.0f, 0.0f});
+    if (!unit) weight.assign(m, {0.0f, 0.0f, 0.0f, 0.0f});
     e.assign(m + 1, 0.0);
     r.assign(m + 1, 0.0);
   }
   void finish() {
+    if (unit) return;
     inv_diag.resize(diag.size());
     for (std::size_t k = 0; k < diag.size(); ++k) inv_diag[k] = 1.0 / diag[k];
   }
@@ -84,6 +102,7 @@ struct Level {
 
 inline double neighbour_sum(const Level& L, std::size_t k, const std::vector<double>& x) {
   const auto& n = L.nb[k];
+  if (L.unit) return x[n[0]] + x[n[1]] + x[n[2]] + x[n[3]];  // 1 * v is v; the sentinel holds 0
   const auto& wt = L.weight[k];
   return double(wt[0]) * x[n[0]] + double(wt[1]) * x[n[1]] + double(wt[2]) * x[n[2]] +
          double(wt[3]) * x[n[3]];
@@ -91,12 +110,12 @@ inline double neighbour_sum(const Level& L, std::size_t k, const std::vector<dou
 
 /// (A x)_k; x needs the sentinel entry.
 inline double row_product(const Level& L, std::size_t k, const std::vector<double>& x) {
-  return L.diag[k] * x[k] - neighbour_sum(L, k, x);
+  return L.diag_of(k) * x[k] - neighbour_sum(L, k, x);
 }
 
 inline void gauss_seidel_step(const Level& L, std::size_t k, const std::vector<double>& rhs,
                               std::vector<double>& x) {
-  x[k] = (rhs[k] + neighbour_sum(L, k, x)) * L.inv_diag[k];
+  x[k] = (rhs[k] + neighbour_sum(L, k, x)) * L.inv_diag_of(k);
 }
 
 /// Sorts grid cells red first (even col + row), then black, each row-major. Neighbours have
@@ -131,21 +150,21 @@ Level coarsen(Level& fine) {
     fine.parent[k] = cell;
   }
   red_black_order(coarse.pos, coarse.w);
-  for (std::size_t K = 0; K < coarse.size(); ++K) index[coarse.pos[K]] = std::uint32_t(K);
+  for (std::size_t K = 0; K < coarse.pos.size(); ++K) index[coarse.pos[K]] = std::uint32_t(K);
   for (std::size_t k = 0; k < mf; ++k) fine.parent[k] = index[fine.parent[k]];
-  coarse.allocate(coarse.size());
+  coarse.allocate(coarse.pos.size());
   for (std::size_t k = 0; k < mf; ++k) {
     const std::uint32_t I = fine.parent[k];
-    coarse.diag[I] += fine.diag[k];
+    coarse.diag[I] += fine.diag_of(k);
     for (int d = 0; d < 4; ++d) {
       const std::uint32_t j = fine.nb[k][d];
       if (j == mf) continue;
       const std::uint32_t J = fine.parent[j];
       if (J == I) {
-        coarse.diag[I] -= fine.weight[k][d];  // an edge inside the block
+        coarse.diag[I] -= fine.weight_of(k, d);  // an edge inside the block
       } else {
         coarse.nb[I][d] = J;  // blocks are 2 x 2, so J lies in the same direction d
-        coarse.weight[I][d] += fine.weight[k][d];
+        coarse.weight[I][d] += fine.weight_of(k, d);
       }
     }
   }
@@ -158,9 +177,9 @@ std::vector<double> cholesky(const Level& L) {
   const std::size_t m = L.size();
   std::vector<double> a(m * m, 0.0);
   for (std::size_t k = 0; k < m; ++k) {
-    a[k * m + k] = L.diag[k];
+    a[k * m + k] = L.diag_of(k);
     for (int d = 0; d < 4; ++d) {
-      if (L.nb[k][d] != m) a[k * m + L.nb[k][d]] -= L.weight[k][d];
+      if (L.nb[k][d] != m) a[k * m + L.nb[k][d]] -= L.weight_of(k, d);
     }
   }
   for (std::size_t j = 0; j < m; ++j) {
@@ -182,6 +201,7 @@ class Multigrid {
     levels_.push_back(std::move(finest));
     while (levels_.back().size() > kCoarsest && (levels_.back().w > 1 || levels_.back().h > 1)) {
       levels_.push_back(coarsen(levels_.back()));
+      std::vector<std::uint32_t>().swap(levels_[levels_.size() - 2].pos);
     }
     factor_ = cholesky(levels_.back());
   }
@@ -300,18 +320,17 @@ RegionSolve solve_region(std::vector<double>& z, std::size_t ww, const std::vect
   finest.w = int(bw);
   finest.h = int(bh);
   finest.pos = order;
-  finest.allocate(m);
+  finest.allocate(m, /*unit_weights=*/true);
   std::vector<double> b(m, 0.0), x(m + 1, 0.0);  // x[m]: the sentinel
   for (std::size_t k = 0; k < m; ++k) {
     neighbours(order[k], at);
     int valid = 0;
     for (int d = 0; d < 4; ++d) {
       if (at[d] < 0) continue;
-      finest.diag[k] += 1.0;
+      ++finest.count[k];
       const std::uint32_t s = slot[std::size_t(at[d])];
       if (s != kNone) {
-        finest.nb[k][d] = s;
-        finest.weight[k][d] = 1.0f;
+        finest.nb[k][d] = s;  // weight 1 (unit)
       } else {
         b[k] += z[window_index(std::size_t(at[d]))];
         ++valid;
@@ -337,7 +356,9 @@ RegionSolve solve_region(std::vector<double>& z, std::size_t ww, const std::vect
   if (rmax > tolerance) {
     mg.emplace(std::move(finest));
     A = &mg->finest();
-    std::vector<double> p(m + 1, 0.0), q(m), ap(m);
+    // q (the preconditioned residual) and A p share one vector: A p is dead once r is updated.
+    std::vector<double> p(m + 1, 0.0), q(m);
+    std::vector<double>& ap = q;
     mg->precondition(r, q);
     std::copy(q.begin(), q.end(), p.begin());
     double rq = dot(r, q, m);
@@ -371,7 +392,7 @@ RegionSolve solve_region(std::vector<double>& z, std::size_t ww, const std::vect
   do {
     change = 0.0;
     for (std::size_t k = 0; k < m; ++k) {
-      const double next = std::clamp((b[k] + neighbour_sum(*A, k, x)) / A->diag[k], lo, hi);
+      const double next = std::clamp((b[k] + neighbour_sum(*A, k, x)) / A->diag_of(k), lo, hi);
       change = std::max(change, std::abs(next - x[k]));
       x[k] = next;
     }

@@ -464,7 +464,7 @@ TEST_F(DemSourceTest, FilledRegionsLeaveASmallCacheAndAreSolvedAgainTheSame) {
 }
 
 // Readers meeting a wide gap at once: one solves it, the others wait and take its values (the
-// solver holds about 170 bytes a void sample: readers solving one gap together multiply that).
+// solver holds about 115 bytes a void sample: readers solving one gap together multiply that).
 TEST_F(DemSourceTest, ReadersMeetingAGapAtOnceSolveItOnce) {
   const int n = 1000;
   std::vector<double> z(std::size_t(n) * n);
