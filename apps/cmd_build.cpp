@@ -113,6 +113,12 @@ int cmd_build(const Args& a) {
   auto open = [&] {
     const auto t = std::chrono::steady_clock::now();
     inputs.emplace(a.get_all("--input"));
+    // Opening reads samples to measure the frame, and fills the void regions they meet: on a
+    // mosaic with wide gaps that takes seconds, so say what is going on.
+    if (launched_rank() == 0) {
+      std::fprintf(stderr, "read  %s: opening...\n", inputs->description().c_str());
+      std::fflush(stderr);
+    }
     std::unique_ptr<blocks::DemSource> src = blocks::open_dem_source(inputs->path(), dem);
     src->set_source(inputs->description());
     const blocks::DemGrid& g = src->grid();
