@@ -22,8 +22,9 @@
 // coarsest level). Iterations hardly grow with the void's size (measured: 17 for 8e3 voids, 24
 // for 1.1e6 in a 1200-wide disc) where plain CG needs O(D) and Gauss-Seidel O(D^2) for a void D
 // samples across. Time: about 0.8 us per void sample for large voids (1.1e6 voids: 0.9 s).
-// Memory: about 115 bytes per void sample over all levels and the solver's vectors, plus 4 bytes per sample of the
-// window (labels) and of the region's box (unknown numbers) while it is solved.
+// Memory: about 115 bytes per void sample over all levels and the solver's vectors, plus 4
+// bytes per sample of the window (labels) and of the region's box (unknown numbers) while it is
+// solved.
 #include "terralod/blocks/void_fill.hpp"
 
 #include <algorithm>
