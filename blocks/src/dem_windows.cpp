@@ -183,7 +183,7 @@ class FilledVoids {
   explicit FilledVoids(std::size_t budget) : budget_(budget) {}
 
   /// Writes the values of the kept regions into the void samples of z (the samples of `held`)
-  /// they cover; returns how many regions it used.
+  /// they cover; returns how many regions gave a value.
   std::size_t apply(SampleRect held, std::vector<double>& z) const {
     std::lock_guard lock(mutex_);
     if (rows_.empty()) return 0;
@@ -196,9 +196,11 @@ class FilledVoids {
         const Entry& e = regions_.at(ref.id);
         double* out = z.data() + std::size_t(it->first - held.row0) * w + std::size_t(c0 - held.col0);
         const double* in = e.region.values.data() + ref.offset + std::size_t(c0 - ref.col0);
+        bool wrote = false;
         for (int c = c0; c <= c1; ++c, ++out, ++in)
-          if (!std::isfinite(*out)) *out = *in;  // a valid sample there would be a changed file: kept
-        if (std::find(used.begin(), used.end(), ref.id) == used.end()) used.push_back(ref.id);
+          if (!std::isfinite(*out))
+            *out = *in, wrote = true;  // a valid sample there (a changed file) is kept
+        if (wrote && std::find(used.begin(), used.end(), ref.id) == used.end()) used.push_back(ref.id);
       }
     for (const std::uint64_t id : used) regions_.at(id).last_use = ++clock_;
     return used.size();
