@@ -52,10 +52,13 @@ CommandSpec build_spec() {
       "and measure their exact error in 513 x 513 windows, GDAL's cache is capped at 64 MiB, so\n"
       "memory does not grow with the samples, and by about 1 kB a block with the number of blocks\n"
       "(each block's stand-in record goes through the database into the block_summaries blob;\n"
-      "measured in blocks of 33: 283 MB peak for 16,384 blocks, 337 MB for 65,536). Heightmap\n"
-      "images and ASCII grids are held in memory (8 bytes a sample and more). The first line\n"
-      "says which ('read window by window' or 'held in memory'); the last one gives the peak\n"
-      "resident memory of the build.";
+      "measured in blocks of 33: 283 MB peak for 16,384 blocks, 337 MB for 65,536). Filling a\n"
+      "void region takes about 115 bytes a void sample while it is solved (regions within 4096 x\n"
+      "4096 samples are filled, wide ones one at a time); filled regions of 1,024 samples or more\n"
+      "are kept, up to 256 MiB, for the other blocks that meet them (the 'voids' line counts what\n"
+      "was solved and reused). Heightmap images and ASCII grids are held in memory (8 bytes a\n"
+      "sample and more). The first line says which ('read window by window' or 'held in\n"
+      "memory'); the last one gives the peak resident memory of the build.";
   s.options = {
       {"--input", "DEM",
        "elevation file (.hgt, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one mosaic", true,
