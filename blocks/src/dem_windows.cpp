@@ -95,15 +95,12 @@ class CacheCap {
   }
 };
 
-/// Runs of columns [col0, col1] in grid rows.
-using Runs = std::vector<std::array<int, 3>>;  // {row, col0, col1}
-
 /// The void samples left in `z` (the samples of `held`), one 4-connected region at a time: its
 /// bounding box in grid coordinates and its samples as runs along rows.
-std::vector<std::pair<SampleRect, Runs>> void_regions(const std::vector<double>& z, SampleRect held) {
+std::vector<std::pair<SampleRect, SampleRuns>> void_regions(const std::vector<double>& z, SampleRect held) {
   const int w = held.width(), h = held.height();
   std::vector<std::uint8_t> seen(z.size(), 0);
-  std::vector<std::pair<SampleRect, Runs>> out;
+  std::vector<std::pair<SampleRect, SampleRuns>> out;
   std::vector<std::uint32_t> stack, cells;
   for (std::size_t start = 0; start < z.size(); ++start) {
     if (seen[start] || std::isfinite(z[start])) continue;
@@ -123,17 +120,9 @@ std::vector<std::pair<SampleRect, Runs>> void_regions(const std::vector<double>&
       visit(c - 1, r), visit(c + 1, r), visit(c, r - 1), visit(c, r + 1);
     }
     std::sort(cells.begin(), cells.end());
-    SampleRect box{held.col1, held.row1, held.col0, held.row0};
-    Runs runs;
-    for (const std::uint32_t k : cells) {
-      const int c = held.col0 + int(k % std::uint32_t(w)), r = held.row0 + int(k / std::uint32_t(w));
-      box = {std::min(box.col0, c), std::min(box.row0, r), std::max(box.col1, c), std::max(box.row1, r)};
-      if (!runs.empty() && runs.back()[0] == r && runs.back()[2] + 1 == c) {
-        runs.back()[2] = c;
-      } else {
-        runs.push_back({r, c, c});
-      }
-    }
+    SampleRuns runs = runs_of(cells, held);
+    SampleRect box{held.col1, runs.front()[0], held.col0, runs.back()[0]};
+    for (const auto& [r, c0, c1] : runs) box.col0 = std::min(box.col0, c0), box.col1 = std::max(box.col1, c1);
     out.emplace_back(box, std::move(runs));
   }
   return out;
@@ -148,7 +137,7 @@ class CappedVoids {
     return rows_.empty();
   }
   /// Whether any sample of `runs` is a known capped void.
-  bool holds(const Runs& runs) const {
+  bool holds(const SampleRuns& runs) const {
     std::shared_lock lock(mutex_);
     for (const auto& [r, c0, c1] : runs) {
       const auto it = rows_.find(r);
@@ -158,7 +147,7 @@ class CappedVoids {
     }
     return false;
   }
-  void add(const Runs& runs) {
+  void add(const SampleRuns& runs) {
     std::unique_lock lock(mutex_);
     for (const auto& [r, c0, c1] : runs) rows_[r].emplace_back(c0, c1);
   }
@@ -236,7 +225,7 @@ class FilledVoids {
     std::uint64_t id;
     std::size_t offset;  // of its first value in the region's values
   };
-  bool known(const std::array<int, 3>& run) const {
+  bool known(const SampleRuns::value_type& run) const {
     const auto it = rows_.find(run[0]);
     if (it == rows_.end()) return false;
     return std::any_of(it->second.begin(), it->second.end(),

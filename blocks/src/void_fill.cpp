@@ -490,23 +490,28 @@ VoidFillStats fill_voids_in_window(std::vector<double>& z, SampleRect window, in
     const Region& g = regions[closed[k]];
     if (options.keep_filled_from == 0 || g.count < options.keep_filled_from) continue;
     FilledVoidRegion& kept = stats.kept.emplace_back();
-    kept.extent = SampleRect{g.bbox.col0 + window.col0, g.bbox.row0 + window.row0, g.bbox.col1 + window.col0,
-                             g.bbox.row1 + window.row0};
     std::vector<std::uint32_t> at(cells.begin() + std::ptrdiff_t(g.first),
                                   cells.begin() + std::ptrdiff_t(g.first + g.count));
     std::sort(at.begin(), at.end());
+    kept.runs = runs_of(at, window);
     kept.values.reserve(at.size());
-    for (const std::uint32_t i : at) {
-      const int c = int(i % ww) + window.col0, r = int(i / ww) + window.row0;
-      if (!kept.runs.empty() && kept.runs.back()[0] == r && kept.runs.back()[2] + 1 == c) {
-        kept.runs.back()[2] = c;
-      } else {
-        kept.runs.push_back({r, c, c});
-      }
-      kept.values.push_back(z[i]);
-    }
+    for (const std::uint32_t i : at) kept.values.push_back(z[i]);
   }
   return stats;
+}
+
+SampleRuns runs_of(const std::vector<std::uint32_t>& cells, SampleRect window) {
+  const std::uint32_t w = std::uint32_t(window.width());
+  SampleRuns runs;
+  for (const std::uint32_t i : cells) {
+    const int c = window.col0 + int(i % w), r = window.row0 + int(i / w);
+    if (!runs.empty() && runs.back()[0] == r && runs.back()[2] + 1 == c) {
+      runs.back()[2] = c;
+    } else {
+      runs.push_back({r, c, c});
+    }
+  }
+  return runs;
 }
 
 VoidFillStats fill_voids(std::vector<double>& z, int width, int height, const VoidFillOptions& options) {

@@ -46,6 +46,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "terralod/blocks/sample_rect.hpp"
@@ -63,13 +64,18 @@ struct VoidFillOptions {
   std::size_t keep_filled_from = 0;
 };
 
+/// Samples as runs along rows: {row, col0, col1} in grid coordinates, in row-major order.
+using SampleRuns = std::vector<std::array<int, 3>>;
+
+/// The runs of the samples of `window` at `cells`: row-major indices into the window, ascending.
+SampleRuns runs_of(const std::vector<std::uint32_t>& cells, SampleRect window);
+
 /// A filled region (see VoidFillOptions::keep_filled_from): its samples as runs along rows and
 /// the values they were filled with, run after run. The values are those of any window that
 /// holds the region's box, since they depend on that box alone.
 struct FilledVoidRegion {
-  SampleRect extent;                     ///< bounding box of its samples, grid coordinates
-  std::vector<std::array<int, 3>> runs;  ///< {row, col0, col1}, grid coordinates, row-major order
-  std::vector<double> values;            ///< one per sample of the runs, in their order
+  SampleRuns runs;
+  std::vector<double> values;  ///< one per sample of the runs, in their order
 };
 
 /// A void region that a window cuts inside the grid: it was not filled.
