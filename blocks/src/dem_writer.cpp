@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cctype>
 #include <filesystem>
 #include <limits>
 #include <mutex>
@@ -40,12 +39,12 @@ namespace {
 /// no datum is named or it has one already; false when GDAL cannot make the compound CRS.
 bool add_vertical_datum(OGRSpatialReference& horizontal, const std::string& datum) {
   if (datum.empty() || horizontal.IsCompound() || horizontal.IsVertical()) return true;
-  std::string lower = datum;
-  for (char& ch : lower) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  // The exporters' reading of the name (detail::vertical_crs); any other name, ellipsoidal ones
+  // included, as a vertical CRS of that name, so that it reads back as written.
+  const std::string crs = detail::vertical_crs(datum);
   OGRSpatialReference vertical;
-  const bool known = lower.find("egm96") != std::string::npos || lower.find("egm2008") != std::string::npos;
-  if (known ? vertical.importFromEPSG(lower.find("egm96") != std::string::npos ? 5773 : 3855) != OGRERR_NONE
-            : vertical.SetVertCS(datum.c_str(), datum.c_str()) != OGRERR_NONE)
+  if (crs.rfind("EPSG:", 0) == 0 ? vertical.SetFromUserInput(crs.c_str()) != OGRERR_NONE
+                                 : vertical.SetVertCS(datum.c_str(), datum.c_str()) != OGRERR_NONE)
     return false;
   OGRSpatialReference compound;
   const std::string name = std::string(horizontal.GetName() ? horizontal.GetName() : "unnamed") + " + " +

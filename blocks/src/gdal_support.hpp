@@ -1,15 +1,29 @@
 // Private to terralod::blocks: GDAL registered once per process, whoever asks first; its error
-// messages taken instead of printed; VRT mosaics.
+// messages taken instead of printed; VRT mosaics; height datums' vertical CRSs.
 #pragma once
 
 #include <gdal_priv.h>
 #include <gdal_utils.h>
 
+#include <algorithm>
+#include <cctype>
 #include <mutex>
 #include <string>
 #include <vector>
 
 namespace terralod::blocks::detail {
+
+/// The vertical CRS of a height datum's name, as PROJ and GDAL take it: "EPSG:5773" for EGM96
+/// (and for no name: the datum SRTM and most DEMs use), "EPSG:3855" for EGM2008, "" for
+/// ellipsoidal heights, else the name itself.
+inline std::string vertical_crs(const std::string& datum) {
+  std::string d = datum;
+  std::transform(d.begin(), d.end(), d.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (d == "ellipsoid" || d == "wgs84" || d == "wgs 84") return "";
+  if (d.find("egm2008") != std::string::npos || d.find("egm08") != std::string::npos) return "EPSG:3855";
+  if (d.empty() || d.find("egm96") != std::string::npos) return "EPSG:5773";
+  return datum;
+}
 
 inline void register_gdal() {
   static std::once_flag once;

@@ -21,20 +21,6 @@
 namespace terralod::blocks {
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
-
-/// The PROJ vertical CRS of a datum name; "" for ellipsoidal heights.
-std::string vertical_crs(const std::string& datum) {
-  const std::string d = lower(datum);
-  if (d == "ellipsoid" || d == "wgs84" || d == "wgs 84") return "";
-  if (d.find("egm2008") != std::string::npos || d.find("egm08") != std::string::npos) return "EPSG:3855";
-  if (d.empty() || d.find("egm96") != std::string::npos) return "EPSG:5773";
-  return datum;
-}
-
 /// A PROJ context and the operation (lon, lat, H in the datum) -> (lon, lat, ellipsoidal h), for
 /// one thread.
 class GeoidOperation {
@@ -168,7 +154,7 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
 std::vector<double> geoid_undulations(const std::string& vertical_datum, const std::vector<double>& lon,
                                       const std::vector<double>& lat, const std::string& what) {
   std::vector<double> n(lon.size(), 0.0);
-  const std::string v = vertical_crs(vertical_datum);
+  const std::string v = detail::vertical_crs(vertical_datum);
   if (v.empty() || lon.empty()) return n;
   const std::size_t threads =
       std::clamp<std::size_t>(lon.size() / 65536, 1, std::size_t(pm::thread_count(0)));
@@ -205,7 +191,7 @@ GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_dat
     g = warp_to_lonlat(hf, what);
   }
   const std::string requested = vertical_datum.empty() ? hf.vertical_datum : vertical_datum;
-  const std::string v = vertical_crs(requested);
+  const std::string v = detail::vertical_crs(requested);
   g.vertical_datum = v.empty()          ? "WGS 84 ellipsoid"
                      : v == "EPSG:5773" ? "EGM96"
                      : v == "EPSG:3855" ? "EGM2008"

@@ -18,9 +18,10 @@
 //   - GeoTIFFs are single-band Float32, tiled 256 x 256, deflate, BigTIFF when needed; the
 //     geotransform is the GridTransform's shifted to pixel corners (sample centres at integer
 //     (col, row)); the CRS is written when crs_wkt is not empty, as a compound CRS with the
-//     heights' vertical datum when one is named and crs_wkt has none (EGM96 and EGM2008 as
-//     their EPSG vertical CRSs 5773 and 3855, read back as "EGM96 height" and "EGM2008 height";
-//     any other name as a vertical CRS of that name); voids are NaN (nodata). Heights
+//     heights' vertical datum when one is named and crs_wkt has none (names the exporters read
+//     as EGM96 or EGM2008 as their EPSG vertical CRSs 5773 and 3855, read back as "EGM96 height"
+//     and "EGM2008 height"; any other name as a vertical CRS of that name); voids are NaN
+//     (nodata). Heights
 //     round to float: exact for whole metres and for 1/16 m below 2^19 m.
 //   - Everything is written to "<path>.tmp.tif" and renamed onto path by commit(); a writer
 //     destroyed without commit() removes its temporary, so no half-written file is left under
