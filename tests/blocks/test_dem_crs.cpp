@@ -337,9 +337,6 @@ TEST(DemCrs, AutoFollowsADiagonalStripThroughItsValidSamples) {
   EXPECT_LE(worst, *scale + 1e-5);
 }
 
-// The same judgement through GDAL's data coverage, as the build reads a mosaic: a VRT of ten
-// 2 x 2 degree tiles on the diagonal of a 20 x 20 degree extent, opened window by window with
-// its voids kept. The empty cells are known without reading them, and the frame follows the tiles.
 /// A VRT of ten 2 x 2 degree tiles of n x n samples (NaN nodata) on the diagonal of a 20 x 20
 /// degree extent.
 fs::path write_diagonal_mosaic(const std::string& name, int n) {
@@ -358,6 +355,9 @@ fs::path write_diagonal_mosaic(const std::string& name, int n) {
   return vrt;
 }
 
+// The same judgement through GDAL's data coverage, as the build reads a mosaic: a VRT of ten
+// 2 x 2 degree tiles on the diagonal of a 20 x 20 degree extent, opened window by window with
+// its voids kept. The empty cells are known without reading them, and the frame follows the tiles.
 TEST(DemCrs, AutoFollowsTheTilesOfAMosaicThroughGdalsDataCoverage) {
   const fs::path vrt = write_diagonal_mosaic("diag", 41);
   tb::DemOptions o;
