@@ -56,7 +56,9 @@ CommandSpec build_spec() {
       "void region takes about 115 bytes a void sample while it is solved (regions within 4096 x\n"
       "4096 samples are filled, wide ones one at a time); filled regions of 1,024 samples or more\n"
       "are kept, up to 256 MiB, for the other blocks that meet them (the 'voids' line counts what\n"
-      "was solved and reused). Heightmap images and ASCII grids are held in memory (8 bytes a\n"
+      "was solved and reused; a region of 2^20 samples or more, about a second to solve, is told\n"
+      "on stderr before and after: 'voids filling a region of N samples (input cols, rows)...').\n"
+      "Heightmap images and ASCII grids are held in memory (8 bytes a\n"
       "sample and more). The first line says which ('read window by window' or 'held in\n"
       "memory'); the last one gives the peak resident memory of the build.";
   s.options = {
@@ -109,6 +111,7 @@ int cmd_build(const Args& a) {
   blocks::DemOptions dem;
   dem.fill_voids = !a.has("--keep-voids");
   dem.crs = crs_from(a);
+  if (launched_rank() == 0) tell_void_fills(dem);  // under MPI every rank reads; rank 0 speaks
 
   const int ranks = launched_ranks();
   // The input stays open while the build reads its windows (a mosaic's VRT lives in `inputs`).

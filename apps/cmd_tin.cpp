@@ -129,6 +129,7 @@ int cmd_tin(const Args& a) {
   blocks::DemOptions dem;
   dem.fill_voids = !a.has("--keep-voids");
   dem.crs = crs_from(a);
+  tell_void_fills(dem);
   const pm::Heightfield hf = blocks::read_dem(input, dem);
   print_line(strf("read  %s: %d x %d samples, %s", input.c_str(), hf.width(), hf.height(),
                   format_duration(ms_since(t)).c_str()));

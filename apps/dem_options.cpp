@@ -1,6 +1,8 @@
 // The DEM and build option groups of the terralod commands (see dem_options.hpp).
 #include "dem_options.hpp"
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -17,7 +19,10 @@ const char* const kDemFormats =
     "long, in any direction; a continent cannot: the frame states its scale error; 'terralod info\n"
     "DEM' prints it); --crs native keeps the local equirectangular frame of earlier versions\n"
     "(their databases resume with it); --crs EPSG:32619 (any projected CRS GDAL knows) warps to\n"
-    "that CRS. Projected DEMs stay in their own CRS unless --crs names another.";
+    "that CRS. Projected DEMs stay in their own CRS unless --crs names another. Voids are filled\n"
+    "from their surroundings unless --keep-voids (regions within 4096 x 4096 samples; wider ones\n"
+    "stay holes); a region of 2^20 samples or more takes a second or so, told on stderr as\n"
+    "'voids filling a region of N samples (input cols C0-C1, rows R0-R1)...' and '... filled'.";
 
 std::vector<OptionSpec> dem_option_specs() {
   return {
@@ -72,9 +77,25 @@ blocks::DemOptions dem_options_from(const Args& a) {
   o.vertical_scale = a.get_double("--vertical-scale", o.vertical_scale);
   o.heightmap_spacing = a.get_double("--spacing", o.heightmap_spacing);
   o.crs = crs_from(a);
+  tell_void_fills(o);
   if (o.vertical_scale == 0.0) throw UsageError("option '--vertical-scale' must not be 0");
   if (o.heightmap_spacing <= 0.0) throw UsageError("option '--spacing' must be > 0");
   return o;
+}
+
+void tell_void_fills(blocks::DemOptions& dem) {
+  dem.on_large_void = [](const blocks::VoidSolveNotice& n) {
+    // On a terminal a progress line may be open: clear it (it is redrawn at its next update).
+    const char* clear = isatty(fileno(stderr)) ? "\r\033[K" : "";
+    const blocks::SampleRect& e = n.extent;
+    if (n.seconds < 0)
+      std::fprintf(stderr, "%svoids filling a region of %zu samples (input cols %d-%d, rows %d-%d)...\n",
+                   clear, n.samples, e.col0, e.col1, e.row0, e.row1);
+    else
+      std::fprintf(stderr, "%svoids filled the region at input cols %d-%d, rows %d-%d in %s\n", clear, e.col0,
+                   e.col1, e.row0, e.row1, format_duration(n.seconds * 1000.0).c_str());
+    std::fflush(stderr);
+  };
 }
 
 pm::BuildOptions build_options_from(const Args& a) {

@@ -34,6 +34,10 @@ std::string crs_from(const Args& a);
 /// Prints a warning on stderr when hf's world frame has a scale error over 0.1 %
 /// (blocks::frame_scale_error): distances in it are then off by more than the README promises.
 void warn_about_frame(const blocks::DemGrid& grid);
+/// Sets dem.on_large_void to say on stderr when a void region of 2^20 samples or more is being
+/// filled and when it is done (each takes about a second or more, during which a read is
+/// otherwise silent). dem_options_from sets it; commands with their own DemOptions call it.
+void tell_void_fills(blocks::DemOptions& dem);
 /// --metric NAME, --threads N.
 std::vector<OptionSpec> build_option_specs();
 

@@ -161,6 +161,7 @@ std::unique_ptr<LodSource> open_terrain(const Args& a) {
   }
   blocks::DemOptions dem;
   dem.crs = crs_from(a);
+  tell_void_fills(dem);
   return open_pm_source(a.get("--input"), size, o, dem);
 }
 

@@ -686,7 +686,11 @@ pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& op
   pm::Heightfield hf(r.width, r.height);
   hf.transform = transform;
   hf.voids.voids = voids;
-  if (voids > 0 && options.fill_voids) hf.voids.filled = fill_voids(r.z, r.width, r.height).filled;
+  if (voids > 0 && options.fill_voids) {
+    VoidFillOptions fill;
+    fill.on_solve = options.on_large_void;
+    hf.voids.filled = fill_voids(r.z, r.width, r.height, fill).filled;
+  }
   if (hf.voids.filled < voids) {  // not filling, or regions over VoidFillOptions::max_region_cells
     std::vector<std::uint8_t> mask(r.z.size(), 1);
     for (std::size_t i = 0; i < r.z.size(); ++i) {

@@ -267,7 +267,10 @@ class WindowedSource : public DemSource {
 
  protected:
   WindowedSource(std::string path, const DemOptions& options)
-      : path_(std::move(path)), fill_(options.fill_voids), filled_(options.filled_void_cache_bytes) {}
+      : path_(std::move(path)),
+        fill_(options.fill_voids),
+        filled_(options.filled_void_cache_bytes),
+        on_large_void_(options.on_large_void) {}
   /// The samples of `window` with voids filled (holes NaN) into z, which holds the returned
   /// window: `window` grown while a void region meeting it was cut by its edge.
   SampleRect load(SampleRect window, std::vector<double>& z) const;
@@ -288,6 +291,7 @@ class WindowedSource : public DemSource {
   mutable std::mutex large_fill_mutex_;
   mutable std::mutex work_mutex_;
   mutable VoidFillWork work_;
+  std::function<void(const VoidSolveNotice&)> on_large_void_;  // DemOptions::on_large_void
 };
 
 void WindowedSource::set_grid(int width, int height, const detail::Georef& geo, const DemOptions& options,
@@ -330,6 +334,7 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
   VoidFillOptions fill;
   fill.threads = 1;  // readers run in parallel already; the bits do not depend on it
   fill.keep_filled_from = FilledVoids::kKeepFrom;
+  fill.on_solve = on_large_void_;
   const auto all_finite = [&] {
     return std::all_of(z.begin(), z.end(), [](double v) { return std::isfinite(v); });
   };

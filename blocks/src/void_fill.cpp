@@ -30,6 +30,7 @@
 #include <algorithm>
 #include <array>
 #include <cassert>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -476,7 +477,18 @@ VoidFillStats fill_voids_in_window(std::vector<double>& z, SampleRect window, in
     const Region& g = regions[id];
     const SampleRect box{std::max(g.bbox.col0 - 1, 0), std::max(g.bbox.row0 - 1, 0),
                          std::min(g.bbox.col1 + 1, int(ww) - 1), std::min(g.bbox.row1 + 1, int(wh) - 1)};
+    const bool tell = options.on_solve && g.count >= options.notify_from;
+    const VoidSolveNotice notice{SampleRect{g.bbox.col0 + window.col0, g.bbox.row0 + window.row0,
+                                            g.bbox.col1 + window.col0, g.bbox.row1 + window.row0},
+                                 g.count, -1.0};
+    if (tell) options.on_solve(notice);
+    const auto t0 = std::chrono::steady_clock::now();
     solved[k] = solve_region(z, ww, label, id, cells.data() + g.first, g.count, box);
+    if (tell) {
+      VoidSolveNotice done = notice;
+      done.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      options.on_solve(done);
+    }
   });
   for (std::size_t k = 0; k < closed.size(); ++k) {
     const RegionSolve& s = solved[k];

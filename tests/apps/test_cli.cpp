@@ -386,6 +386,37 @@ TEST(cli_voids, VoidsAreReportedFilledOrKept) {
   EXPECT_EQ(json_number(i.out, "vertices"), double(kW * kH - 1)) << i.out;
 }
 
+// A void region of 2^20 samples or more takes a second or so to fill: every command reading the
+// DEM says so on stderr before and after, with where it is; a small one is filled silently.
+TEST(cli_voids, AWideGapIsToldWhileItIsFilled) {
+  const int w = 1100, h = 1060;
+  const fs::path dem = tmp_dir() / "wide_gap.asc";
+  {
+    std::ofstream f(dem);
+    f << "ncols " << w << "\nnrows " << h << "\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+    char buf[32];
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        // 1023 x 1026 void samples (just over 2^20), and a 10 x 10 one
+        const bool wide = r >= 20 && r <= 1045 && c >= 30 && c <= 1052, small = r < 10 && c < 10;
+        std::snprintf(buf, sizeof buf, "%s%.0f", c ? " " : "",
+                      wide || small ? -9999.0 : 100.0 + (c + 2 * r) % 50);
+        f << buf;
+      }
+      f << "\n";
+    }
+    ASSERT_TRUE(f.good()) << dem;
+  }
+  const CliResult r = terralod("info " + quote(dem.string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("voids filling a region of 1049598 samples (input cols 30-1052, rows 20-1045)...\n"
+                       "voids filled the region at input cols 30-1052, rows 20-1045 in "),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("voids filling a region of 100 samples"), std::string::npos) << r.err;
+  EXPECT_EQ(json_number(r.out, "filled"), double(1023 * 1026 + 100)) << r.out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // --crs: the world frame of geographic DEMs
 

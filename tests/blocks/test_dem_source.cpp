@@ -14,6 +14,7 @@
 #include <fstream>
 #include <latch>
 #include <limits>
+#include <mutex>
 #include <random>
 #include <string>
 #include <thread>
@@ -515,6 +516,50 @@ TEST_F(DemSourceTest, ReadersMeetingAGapAtOnceSolveItOnce) {
   const tb::DemSource::VoidFillWork w = src->void_fill_work();
   EXPECT_EQ(w.solved_samples, std::size_t(700 * 700)) << "readers solved the gap together";
   EXPECT_EQ(w.reused, 7u);  // the seven other reads, each once
+}
+
+// A wide gap takes a second or more to fill, during which a read (opening a mosaic, a block) is
+// silent: DemOptions::on_large_void tells before and after each solve of 2^20 samples or more,
+// whole-grid reads and windowed sources alike, and nothing of smaller regions or of reuses.
+TEST_F(DemSourceTest, WideGapsAreToldBeforeAndAfterTheirSolve) {
+  const int w = 1100, h = 1060;
+  std::vector<double> z(std::size_t(w) * h);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c)
+      z[std::size_t(r) * w + c] = 120.0 + 0.2 * c + 0.1 * r + 5.0 * std::sin(c * 0.05);
+  const tb::SampleRect gap{30, 20, 1052, 1045};  // 1023 x 1026 = 1,049,598 samples, just over 2^20
+  for (int r = gap.row0; r <= gap.row1; ++r)
+    for (int c = gap.col0; c <= gap.col1; ++c) z[std::size_t(r) * w + c] = kNaN;
+  for (int r = 2; r < 12; ++r)  // and a small one, filled without a word
+    for (int c = 2; c < 12; ++c) z[std::size_t(r) * w + c] = kNaN;
+  const fs::path tif = dir_ / "told_gap.tif";
+  write_geotiff(tif, w, h, z, GDT_Float32, {0, 1, 0, 0, 0, -1}, 0);  // no CRS: no reads at open
+  std::mutex m;
+  std::vector<tb::VoidSolveNotice> told;
+  tb::DemOptions o;
+  o.on_large_void = [&](const tb::VoidSolveNotice& n) {
+    std::lock_guard lock(m);
+    told.push_back(n);
+  };
+  const auto expect_one_solve_told = [&] {
+    ASSERT_EQ(told.size(), 2u);
+    EXPECT_LT(told[0].seconds, 0.0) << "told first before the solve";
+    EXPECT_GT(told[1].seconds, 0.0) << "then after it, with its time";
+    for (const tb::VoidSolveNotice& n : told) {
+      EXPECT_EQ(n.extent, gap);
+      EXPECT_EQ(n.samples, gap.samples());
+    }
+  };
+  const Heightfield hf = tb::read_dem(tif.string(), o);
+  expect_one_solve_told();
+  told.clear();
+  const auto src = tb::open_dem_source(tif.string(), o);
+  EXPECT_TRUE(told.empty());
+  const tb::SampleRect inside{500, 500, 532, 532}, beside{1040, 1000, 1072, 1032};
+  for (const tb::SampleRect& r : {inside, beside, inside})  // then reused: nothing more to tell
+    EXPECT_TRUE(same_block(src->read(r), tb::block_heightfield(hf, r)));
+  expect_one_solve_told();
+  EXPECT_EQ(src->void_fill_work().reused, 2u);
 }
 
 TEST_F(DemSourceTest, ConcurrentReadersGetTheSameBlocks) {

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <mutex>
 #include <random>
 #include <vector>
 
@@ -210,6 +211,48 @@ TEST(void_fill, ThreadCountDoesNotChangeBits) {
   four.threads = 4;
   const std::vector<double> a = filled(g, one), b = filled(g, four);
   for (std::size_t i = 0; i < a.size(); ++i) ASSERT_TRUE(same_bits(a[i], b[i])) << "sample " << i;
+}
+
+// on_solve: a pair of calls (before, after) for each region of notify_from samples or more,
+// from whichever thread solves it, and none for smaller regions or regions left void.
+TEST(void_fill, LargeRegionsAreToldBeforeAndAfterTheirSolve) {
+  const int w = 60, h = 40;
+  std::vector<double> z(std::size_t(w) * h);
+  for (std::size_t i = 0; i < z.size(); ++i) z[i] = 10.0 + double(i % 7);
+  const auto hole = [&](tb::SampleRect r) {
+    for (int y = r.row0; y <= r.row1; ++y)
+      for (int x = r.col0; x <= r.col1; ++x) z[std::size_t(y) * w + x] = std::nan("");
+  };
+  const tb::SampleRect a{2, 2, 11, 11}, b{20, 5, 29, 14}, small{40, 2, 48, 12}, capped{2, 20, 57, 38};
+  for (const tb::SampleRect& r : {a, b, small, capped}) hole(r);  // 100, 100, 99 and 1,064 samples
+  std::mutex m;
+  std::vector<tb::VoidSolveNotice> told;
+  tb::VoidFillOptions o;
+  o.threads = 3;
+  o.notify_from = 100;
+  o.max_region_cells = 1000;  // the 56 x 19 region stays void
+  o.on_solve = [&](const tb::VoidSolveNotice& n) {
+    std::lock_guard lock(m);
+    told.push_back(n);
+  };
+  const tb::VoidFillStats s = tb::fill_voids(z, w, h, o);
+  EXPECT_EQ(s.filled_regions, 3u);
+  ASSERT_EQ(told.size(), 4u);
+  for (const tb::SampleRect& r : {a, b}) {
+    int before = 0, after = 0;
+    for (const tb::VoidSolveNotice& n : told) {
+      if (!(n.extent == r)) continue;
+      EXPECT_EQ(n.samples, 100u);
+      if (n.seconds < 0) {
+        ++before;
+      } else {
+        ++after;
+        EXPECT_EQ(before, 1) << "the solve was told of after it ran";
+      }
+    }
+    EXPECT_EQ(before, 1);
+    EXPECT_EQ(after, 1);
+  }
 }
 
 TEST(void_fill, RegionBitsDoNotDependOnTheWindow) {

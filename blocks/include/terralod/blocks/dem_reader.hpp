@@ -119,12 +119,14 @@
 //   +-inf, ASCII grid NODATA_value.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "terralod/blocks/dem_grid.hpp"  // frame_scale_error
+#include "terralod/blocks/dem_grid.hpp"   // frame_scale_error
+#include "terralod/blocks/void_fill.hpp"  // VoidSolveNotice
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks {
@@ -155,6 +157,10 @@ struct DemOptions {
   /// source keeps, with their values, for later reads that meet them, the least recently used
   /// leaving first (0: none kept; every read meeting a region solves it).
   std::size_t filled_void_cache_bytes = std::size_t(256) << 20;
+  /// Told before and after the solve of each void region of 2^20 samples or more (about a
+  /// second each; VoidFillOptions::on_solve, whose thread-safety it needs): what a read that
+  /// seems to hang is doing. Extents are in the input's own grid, before any warp. Empty: silent.
+  std::function<void(const VoidSolveNotice&)> on_large_void = {};
 };
 
 /// Bad data: the message is always "<path>: <problem>".

@@ -47,11 +47,20 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "terralod/blocks/sample_rect.hpp"
 
 namespace terralod::blocks {
+
+/// A region being solved (VoidFillOptions::on_solve): told before its solve, with seconds < 0,
+/// and after it, with the seconds it took.
+struct VoidSolveNotice {
+  SampleRect extent;        ///< bounding box of its void samples, grid coordinates
+  std::size_t samples = 0;  ///< its void samples
+  double seconds = -1;      ///< < 0: about to be solved; otherwise the solve's wall time
+};
 
 struct VoidFillOptions {
   /// Regions whose bounding box has more cells than this are not filled (they stay holes).
@@ -62,6 +71,12 @@ struct VoidFillOptions {
   /// values, in VoidFillStats::kept (0: none), so that a caller reading the grid window by
   /// window can reuse them instead of solving them again.
   std::size_t keep_filled_from = 0;
+  /// Called before and after the solve of every region of at least `notify_from` void samples,
+  /// on the thread that solves it (regions are solved in parallel: it must be thread-safe).
+  /// At about 0.8 us a void sample, the default 2^20 samples tells of every solve that takes
+  /// a second or so, so that a caller can show what a long read is doing. Empty: not called.
+  std::function<void(const VoidSolveNotice&)> on_solve = {};
+  std::size_t notify_from = std::size_t(1) << 20;
 };
 
 /// Samples as runs along rows: {row, col0, col1} in grid coordinates, in row-major order.
