@@ -533,6 +533,25 @@ TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {
     o.loader_threads = 3;  // the threads started when it opened
     EXPECT_THROW(rt.set_options(o), std::invalid_argument);
   }
+  // A budget that the tree and the summaries alone pass: no block could ever be resident, and
+  // resident_bytes <= budget_bytes would be false from the first frame. Refused, naming both.
+  {
+    tb::TerrainRuntime rt(terrain().db);
+    const std::size_t fixed = rt.stats().resident_bytes;  // before a frame: nothing but them
+    ASSERT_GT(fixed, 0u);
+    o = {};
+    o.budget_bytes = fixed;
+    EXPECT_NO_THROW(tb::TerrainRuntime(terrain().db, o));
+    o.budget_bytes = fixed - 1;
+    try {
+      tb::TerrainRuntime small(terrain().db, o);
+      FAIL() << "opened with a budget of " << o.budget_bytes << " bytes, under its " << fixed
+             << " fixed bytes";
+    } catch (const tb::DatabaseError& e) {
+      EXPECT_NE(std::string(e.what()).find("tree and block summaries need"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(terrain().db), std::string::npos) << e.what();
+    }
+  }
   const std::string missing = std::string(TERRALOD_TEST_TMP) + "/no_such_runtime.db";
   try {
     tb::TerrainRuntime rt(missing);

@@ -103,7 +103,9 @@
 //
 // Contract: the database is a complete blocked database (require_complete_build), opened
 // read-only on the constructor's thread and by each loader thread; DatabaseError /
-// TreeFormatError / BuildError name the file. Options are checked by the constructor and
+// TreeFormatError / BuildError name the file; a budget_bytes under what the tree and the
+// summaries need resident is a DatabaseError saying both sizes (stats() before the first frame
+// reports that need as resident_bytes). Options are checked by the constructor and
 // set_options (std::invalid_argument). update() times must not decrease (std::invalid_argument);
 // a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
 // and the block. Not thread-safe: one frame thread; the loader threads are internal.
