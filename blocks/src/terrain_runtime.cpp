@@ -131,15 +131,16 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   }
   // The tree and the block summaries stay resident. A budget they already pass leaves no room
   // for any block, and resident_bytes <= budget_bytes would be false from the first frame.
-  if (fixed_bytes() > opt_.budget_bytes) {
+  const std::size_t fixed = fixed_bytes();
+  if (fixed > opt_.budget_bytes) {
     char what[200];
     std::snprintf(what, sizeof what,
                   "its approximation tree and block summaries need %.3g MB resident, more than the memory "
                   "budget of %.3g MB: give a larger budget",
-                  double(fixed_bytes()) / 1e6, double(opt_.budget_bytes) / 1e6);
+                  double(fixed) / 1e6, double(opt_.budget_bytes) / 1e6);
     throw DatabaseError(db_path, what);
   }
-  stats_.resident_bytes = stats_.peak_resident_bytes = fixed_bytes();  // what stats() says before a frame
+  stats_.resident_bytes = stats_.peak_resident_bytes = fixed;  // what stats() says before a frame
   prep_options_ = refinement_options(opt_, tau_);
   loader_ = std::make_unique<BlockLoader>(
       blocks ? std::move(blocks) : database_source(db_path), grid_,
