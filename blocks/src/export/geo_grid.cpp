@@ -8,7 +8,6 @@
 #include <proj_experimental.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <limits>
 #include <memory>
