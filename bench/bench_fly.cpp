@@ -1,7 +1,7 @@
 // Dynamic-loading benchmark (not a test): a scripted 60-second flight over a block database of
 // N44W072, replayed in real time through blocks::TerrainRuntime with flight-path prediction on
-// and off: frame time (median, 99th percentile, worst), prefetch misses, peak resident memory,
-// bytes read.
+// and off: frame time (median, 99th percentile, worst), prefetch misses, peak resident memory
+// (and how far the heap the process gained ever was above it: glibc's mallinfo2), bytes read.
 //
 // Usage: terralod-bench-fly [DB] [--block-size N] [--tau PX] [--budget MB] [--partial F]
 //                           [--loader-threads N]
@@ -14,6 +14,8 @@
 //   --partial: RuntimeOptions::partial_load_factor (default 4: far blocks hold only the coarse
 //   end of their PM; 0 loads every block whole).
 //   --loader-threads: RuntimeOptions::loader_threads (default 2).
+
+#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
@@ -154,6 +156,14 @@ int main(int argc, char** argv) {
       opt.budget_bytes = std::size_t(budget_mb * 1e6);
       opt.partial_load_factor = partial;
       opt.loader_threads = loader_threads;
+      // The heap the process gains while the runtime is open, against what it counts
+      // (resident_bytes): sampled after every frame, so blocks being decoded are caught midway.
+      const auto heap = [] {
+        const struct mallinfo2 m = mallinfo2();
+        return double(m.uordblks) + double(m.hblkhd);
+      };
+      const double heap0 = heap();
+      double heap_over = -1e300;
       tb::TerrainRuntime rt(db_path, opt);
       std::vector<double> ms, bounds;
       std::size_t cold_misses = 0, cold_needed = 0;  // the first 2 s: every block is missing then
@@ -166,6 +176,7 @@ int main(int argc, char** argv) {
         rt.fit_clip_planes(cam);
         const tb::RuntimeFrameStats& st = rt.update(pm::View(cam), double(f) / 60.0);
         ms.push_back(st.update_ms);
+        heap_over = std::max(heap_over, heap() - heap0 - double(st.resident_bytes));
         if (st.update_ms > 1000.0 / 60) ++slow_frames;
         if (st.missing_in_view > 0) ++missing_frames;
         triangles = std::max(triangles, st.triangles);
@@ -186,14 +197,16 @@ int main(int argc, char** argv) {
           "prefetch misses %zu of %zu blocks needed in view (after the first 2 s: %zu of %zu), %zu frames "
           "with a block missing in view; peak resident %.1f MB (budget %.0f MB), %.1f MB read, %zu evicted, "
           "%zu dropped, %zu reloaded finer; "
-          "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB\n",
+          "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB, heap at most %.2f "
+          "MB "
+          "above resident\n",
           prefetch ? "on" : "off", pct(ms, 0.5), pct(ms, 0.99), pct(ms, 1.0), slow_frames,
           st.prefetch_misses_total, st.prefetch_hits_total + st.prefetch_misses_total,
           st.prefetch_misses_total - cold_misses,
           st.prefetch_hits_total + st.prefetch_misses_total - cold_needed, missing_frames,
           double(st.peak_resident_bytes) / 1e6, double(opt.budget_bytes) / 1e6,
           double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, st.reloads_total, triangles,
-          pct(bounds, 0.5), bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0));
+          pct(bounds, 0.5), bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0), heap_over / 1e6);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod-bench-fly: %s\n", e.what());

@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "terralod/pm/byte_io.hpp"
+#include "terralod/pm/memory_bytes.hpp"
 
 namespace terralod::blocks {
 
@@ -50,6 +51,15 @@ int ApproximationTree::depth() const {
   int d = 0;
   for (const TreeNode& n : nodes_) d = std::max(d, n.level + 1);
   return d;
+}
+
+std::size_t ApproximationTree::memory_bytes() const {
+  std::size_t n = pm::capacity_bytes(nodes_);
+  for (const TreeNode& t : nodes_)
+    n += pm::capacity_bytes(t.children) + pm::capacity_bytes(t.surface.points) +
+         pm::capacity_bytes(t.surface.triangles) + pm::capacity_bytes(t.surface.cols) +
+         pm::capacity_bytes(t.surface.rows);
+  return n;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -375,6 +375,24 @@ BlockDatabase BlockDatabase::open(const std::string& path, Mode mode) {
 }
 
 const std::string& BlockDatabase::path() const { return impl_->path; }
+
+void BlockDatabase::set_cache_limit(std::size_t bytes) {
+  assert(impl_);
+  impl_->exec(("PRAGMA cache_size = -" + std::to_string(std::max<std::size_t>(1, bytes >> 10))).c_str(),
+              "cannot set the cache size");
+}
+
+std::size_t BlockDatabase::memory_bytes() const {
+  assert(impl_);
+  Impl& d = *impl_;
+  // cache_size: pages when positive, KiB when negative.
+  OneOff cache(d, "PRAGMA cache_size", "cache_size");
+  OneOff page(d, "PRAGMA page_size", "page_size");
+  const std::int64_t n = sqlite3_step(cache) == SQLITE_ROW ? sqlite3_column_int64(cache, 0) : -2000;
+  const std::int64_t page_bytes = sqlite3_step(page) == SQLITE_ROW ? sqlite3_column_int64(page, 0) : 4096;
+  const std::int64_t cache_bytes = n < 0 ? -n * 1024 : n * page_bytes;
+  return std::size_t(cache_bytes) + (std::size_t(128) << 10);
+}
 const DatabaseInfo& BlockDatabase::info() const { return impl_->info; }
 BlockDatabase::Mode BlockDatabase::mode() const { return impl_->mode; }
 int BlockDatabase::format_version() const { return impl_->format_version; }

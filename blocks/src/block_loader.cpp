@@ -54,8 +54,11 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
 BlockLoader::BlockLoader(BlockSourceFactory factory, const BlockGrid& grid, PrepareFn prepare, int threads)
     : factory_(std::move(factory)), grid_(grid), prepare_(std::move(prepare)) {
   if (threads < 1) throw std::invalid_argument("BlockLoader: threads must be >= 1");
-  // Started last: every member the threads read exists.
+  // Started last: every member the threads read exists. Each opens its source first; waiting
+  // for them makes held_bytes() (their caches' bound) the same from the first frame on.
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { run(); });
+  std::unique_lock lock(mutex_);
+  cv_.wait(lock, [&] { return opened_ == threads; });
 }
 
 BlockLoader::~BlockLoader() {
@@ -103,6 +106,12 @@ bool BlockLoader::busy(BlockKey k) const {
   return std::any_of(queue_.begin(), queue_.end(), [&](const Request& r) { return r.key == k; });
 }
 
+bool BlockLoader::holds(BlockKey k) const {
+  std::lock_guard lock(mutex_);
+  return std::find(in_flight_.begin(), in_flight_.end(), k) != in_flight_.end() ||
+         std::any_of(results_.begin(), results_.end(), [&](const LoadResult& r) { return r.key == k; });
+}
+
 std::size_t BlockLoader::pending() const {
   std::lock_guard lock(mutex_);
   return queue_.size() + in_flight_.size();
@@ -118,6 +127,13 @@ std::uint64_t BlockLoader::bytes_read() const {
   return bytes_read_;
 }
 
+std::size_t BlockLoader::held_bytes() const {
+  std::lock_guard lock(mutex_);
+  std::size_t n = in_flight_bytes_ + source_bytes_;
+  for (const LoadResult& r : results_) n += r.block ? r.block->memory_bytes : 0;
+  return n;
+}
+
 void BlockLoader::run() {
   pthread_setname_np(pthread_self(), "terralod-loader");  // for profilers and debuggers
   std::unique_ptr<BlockSource> source;
@@ -127,14 +143,20 @@ void BlockLoader::run() {
   } catch (const std::exception& e) {
     open_error = e.what();
   }
+  const std::size_t source_bytes = source ? source->memory_bytes() : 0;
   std::unique_lock lock(mutex_);
+  source_bytes_ += source_bytes;
+  ++opened_;
+  cv_.notify_all();
   for (;;) {
     cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
     if (stop_) return;
     const BlockKey k = queue_.front().key;
     const double floor_m = queue_.front().floor_m;
+    const std::size_t planned = queue_.front().bytes;
     queue_.erase(queue_.begin());
     in_flight_.push_back(k);
+    in_flight_bytes_ += planned;
     lock.unlock();
     LoadResult r;
     r.key = k;
@@ -158,6 +180,7 @@ void BlockLoader::run() {
     }
     lock.lock();
     in_flight_.erase(std::find(in_flight_.begin(), in_flight_.end(), k));
+    in_flight_bytes_ -= planned;
     bytes_read_ += bytes;
     results_.push_back(std::move(r));
   }

@@ -11,9 +11,14 @@ namespace {
 class DatabaseSource final : public BlockSource {
  public:
   explicit DatabaseSource(const std::string& path)
-      : db_(BlockDatabase::open(path, BlockDatabase::Mode::ReadOnly)) {}
+      : db_(BlockDatabase::open(path, BlockDatabase::Mode::ReadOnly)) {
+    // Each blob is read once: pages kept beyond the b-tree's inner ones would only take room
+    // from the blocks in the runtime's budget (memory_bytes counts the limit).
+    db_.set_cache_limit(std::size_t(256) << 10);
+  }
   std::vector<std::uint8_t> read(BlockKey k) override { return db_.read_block(k); }
   std::string name() const override { return db_.path(); }
+  std::size_t memory_bytes() const override { return db_.memory_bytes(); }
 
  private:
   BlockDatabase db_;

@@ -18,6 +18,7 @@
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/memory_bytes.hpp"
 #include "terralod/pm/timing.hpp"
 
 namespace terralod::blocks {
@@ -88,7 +89,6 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   if (!tree_blob) throw DatabaseError(db_path, "no approximation tree (blob 'tree')");
   tree_ = decode_tree(*tree_blob, db_path + ": tree");
   if (tree_.size() == 0) throw DatabaseError(db_path, "the approximation tree is empty");
-  tree_bytes_ = tree_blob->size() * 3;  // decoded: doubles for the points, about 3x the blob
   // Block summaries with their stand-ins, when the build stored them (databases built before
   // blocks with holes had stand-ins may lack them). Without them no block is drawn as its
   // stand-in, and a missing PmBlock root leaves nothing to draw until it arrives. An empty block
@@ -103,7 +103,6 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   } else {
     sums_.assign(grid_.block_count(), BlockSummary{});
   }
-  for (const BlockSummary& s : sums_) summary_bytes_ += 160 + s.points.size() * 16 + s.triangles.size() * 20;
   for (const TreeNode& n : tree_.nodes()) {
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
       throw DatabaseError(db_path,
@@ -131,7 +130,11 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   }
   // The tree and the block summaries stay resident. A budget they already pass leaves no room
   // for any block, and resident_bytes <= budget_bytes would be false from the first frame.
-  const std::size_t fixed = fixed_bytes();
+  fixed_bytes_ = tree_.memory_bytes() + pm::capacity_bytes(sums_) + pm::capacity_bytes(block_vertices_);
+  for (const BlockSummary& s : sums_)
+    fixed_bytes_ += pm::capacity_bytes(s.points) + pm::capacity_bytes(s.triangles) +
+                    pm::capacity_bytes(s.triangle_errors);
+  const std::size_t fixed = fixed_bytes_;
   if (fixed > opt_.budget_bytes) {
     char what[200];
     std::snprintf(what, sizeof what,
@@ -466,8 +469,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.blocks_loading = loader_->pending();
   s.bytes_read_total = loader_->bytes_read();
   s.bytes_read = s.bytes_read_total - prev.bytes_read_total;
-  s.resident_bytes = fixed_bytes();
-  for (const auto& [k, b] : blocks_) s.resident_bytes += b->data->memory_bytes;
+  s.resident_bytes = resident_bytes();
   s.peak_resident_bytes = std::max(s.peak_resident_bytes, s.resident_bytes);
   s.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   s.update_cpu_ms = thread_cpu_ms() - cpu0;

@@ -15,6 +15,7 @@
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
+#include "terralod/pm/memory_bytes.hpp"
 
 namespace terralod::blocks {
 
@@ -61,14 +62,44 @@ std::size_t TerrainRuntime::estimate_bytes(BlockKey k) const {
   return std::size_t(double(block_vertices_[grid_.index(k)]) * per_vertex);
 }
 
-std::size_t TerrainRuntime::fixed_bytes() const {
-  return tree_bytes_ + summary_bytes_ + mesh_.memory_bytes() +
-         4 * (height_index_.start.capacity() + height_index_.tris.capacity());
+std::size_t TerrainRuntime::block_bytes(const Block& b) const {
+  using pm::capacity_bytes;
+  // The DAG and refinement as measured now, or the reservation the block was admitted with
+  // (LoadedBlock::memory_bytes: its refinement at full resolution) while that is larger, so
+  // that a block never needs more room than it was given when it refines further.
+  const std::size_t data = std::max(b.data->memory_bytes, sizeof(LoadedBlock) + b.data->dag->memory_bytes() +
+                                                              (b.sel ? b.sel->memory_bytes() : 0));
+  return data + pm::malloc_chunk_bytes(sizeof(Block)) + capacity_bytes(b.rm.samples) +
+         capacity_bytes(b.rm.positions) + capacity_bytes(b.rm.triangles) + capacity_bytes(b.rm.errors) +
+         capacity_bytes(b.old) + capacity_bytes(b.old_z);
+}
+
+std::size_t TerrainRuntime::frame_bytes() const {
+  using pm::capacity_bytes;
+  std::size_t n = mesh_.memory_bytes() + capacity_bytes(patches_);
+  for (const Patch& p : patches_)
+    n += capacity_bytes(p.sp.vertices) + capacity_bytes(p.sp.triangles) + capacity_bytes(p.rest_z) +
+         capacity_bytes(p.display_z) + capacity_bytes(p.tri_error);
+  const HeightIndex& ix = height_index_;
+  n += capacity_bytes(ix.start) + capacity_bytes(ix.tris) + capacity_bytes(ix.box) + capacity_bytes(ix.fill);
+  const Scratch& sc = *scratch_;
+  n += capacity_bytes(sc.original_vertices) + capacity_bytes(sc.sps) + capacity_bytes(sc.border) +
+       capacity_bytes(sc.rest) + capacity_bytes(sc.display) + capacity_bytes(sc.allowed) +
+       capacity_bytes(sc.gidx) + capacity_bytes(sc.eval) + capacity_bytes(sc.moving) +
+       capacity_bytes(sc.piece);
+  for (const StitchPatch& p : sc.sps) n += capacity_bytes(p.vertices) + capacity_bytes(p.triangles);
+  return n + capacity_bytes(blocks_) + capacity_bytes(needed_prev_) + capacity_bytes(missing_) +
+         capacity_bytes(drawn_as_) + capacity_bytes(standins_prev_);
+}
+
+std::size_t TerrainRuntime::resident_bytes() const {
+  std::size_t n = fixed_bytes_ + frame_bytes() + loader_->held_bytes();
+  for (const auto& [k, b] : blocks_) n += block_bytes(*b);
+  return n;
 }
 
 void TerrainRuntime::make_room(std::size_t bytes, const std::set<BlockKey>& keep) {
-  std::size_t resident = fixed_bytes();
-  for (const auto& [k, b] : blocks_) resident += b->data->memory_bytes;
+  std::size_t resident = resident_bytes();
   while (resident + bytes > opt_.budget_bytes) {
     auto victim = blocks_.end();
     for (auto it = blocks_.begin(); it != blocks_.end(); ++it) {
@@ -76,7 +107,7 @@ void TerrainRuntime::make_room(std::size_t bytes, const std::set<BlockKey>& keep
       if (victim == blocks_.end() || it->second->last_used < victim->second->last_used) victim = it;
     }
     if (victim == blocks_.end()) return;
-    resident -= victim->second->data->memory_bytes;
+    resident -= block_bytes(*victim->second);
     blocks_.erase(victim);
     ++stats_.blocks_evicted;
   }
@@ -100,12 +131,10 @@ void TerrainRuntime::take_loads() {
     if (nv > 0 && r.block->dag->skipped() == 0)  // whole blocks only: estimate_bytes is for them
       loaded_bytes_ += double(r.block->memory_bytes), loaded_vertices_ += double(nv);
     // A finer copy replaces the resident one: only the difference needs room.
-    const std::size_t old_bytes = old != blocks_.end() ? old->second->data->memory_bytes : 0;
+    const std::size_t old_bytes = old != blocks_.end() ? block_bytes(*old->second) : 0;
     keep.insert(k);
     make_room(r.block->memory_bytes > old_bytes ? r.block->memory_bytes - old_bytes : 0, keep);
-    std::size_t resident = fixed_bytes();
-    for (const auto& [kk, b] : blocks_) resident += b->data->memory_bytes;
-    if (resident - old_bytes + r.block->memory_bytes > opt_.budget_bytes) {
+    if (resident_bytes() - old_bytes + r.block->memory_bytes > opt_.budget_bytes) {
       ++stats_.dropped_total;
       continue;
     }
@@ -155,9 +184,10 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   std::vector<BlockLoader::Request> req;
   std::map<BlockKey, std::size_t> queued;  // index in req
   std::set<BlockKey> seen;                 // counted in `planned`
-  std::size_t planned = fixed_bytes();
+  // What the loader holds (blocks being read or waiting to be taken) is already spent.
+  std::size_t planned = fixed_bytes_ + frame_bytes() + loader_->held_bytes();
   for (const auto& [k, b] : blocks_)
-    if (b->last_used == frame_) planned += b->data->memory_bytes, seen.insert(k);
+    if (b->last_used == frame_) planned += block_bytes(*b), seen.insert(k);
   // The floor a block is loaded at when `need` is the coarsest its view can use (see
   // RuntimeOptions::partial_load_factor).
   const auto load_floor = [&](double need) {
@@ -174,15 +204,16 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
     const auto it = blocks_.find(k);
     const bool resident = it != blocks_.end(), covered = resident && covers(*it->second, need);
     if (covered && seen.count(k)) return true;
-    std::size_t bytes = !resident || seen.count(k) ? 0 : it->second->data->memory_bytes;
-    if (!covered) bytes += estimate_bytes(k);  // whole-block estimate: an upper bound of any copy
+    std::size_t bytes = !resident || seen.count(k) ? 0 : block_bytes(*it->second);
+    // Whole-block estimate, an upper bound of any copy; a block the loader holds is counted.
+    if (!covered && !loader_->holds(k)) bytes += estimate_bytes(k);
     if (planned + bytes > opt_.budget_bytes) return false;
     planned += bytes;
     seen.insert(k);
     if (resident) it->second->last_used = frame_;  // keep what the policy wants
     if (!covered) {
       queued[k] = req.size();
-      req.push_back({k, priority, load_floor(need)});
+      req.push_back({k, priority, load_floor(need), estimate_bytes(k)});
     }
     return true;
   };

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "terralod/pm/linf_error.hpp"
+#include "terralod/pm/memory_bytes.hpp"
 
 namespace terralod::pm {
 namespace {
@@ -279,12 +280,13 @@ CollapseDag::CollapseDag(const ProgressiveMesh& pm, const DagOptions& options)
 }
 
 std::size_t CollapseDag::memory_bytes() const {
-  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return sizeof(*this) + hf_.size() * sizeof(double) + hf_.mask().size() + bytes(collapses_) +
-         bytes(saturated_) + bytes(pred_off_) + bytes(preds_) + bytes(succ_off_) + bytes(succs_) +
-         bytes(boxes_) + bytes(spheres_) + bytes(faces_) + bytes(creator_) + bytes(remover_) +
-         bytes(removed_off_) + bytes(removed_) + bytes(created_off_) + bytes(full_faces_) +
-         bytes(removed_by_) + bytes(leaf_error_);
+  return sizeof(*this) + hf_.size() * sizeof(double) + hf_.mask().size() + capacity_bytes(collapses_) +
+         capacity_bytes(saturated_) + capacity_bytes(pred_off_) + capacity_bytes(preds_) +
+         capacity_bytes(succ_off_) + capacity_bytes(succs_) + capacity_bytes(boxes_) +
+         capacity_bytes(spheres_) + capacity_bytes(faces_) + capacity_bytes(creator_) +
+         capacity_bytes(remover_) + capacity_bytes(removed_off_) + capacity_bytes(removed_) +
+         capacity_bytes(created_off_) + capacity_bytes(full_faces_) + capacity_bytes(removed_by_) +
+         capacity_bytes(leaf_error_);
 }
 
 }  // namespace terralod::pm

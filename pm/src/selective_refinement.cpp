@@ -17,6 +17,7 @@
 #include <string>
 
 #include "selective_refinement_frame.hpp"
+#include "terralod/pm/memory_bytes.hpp"
 
 namespace terralod::pm {
 
@@ -365,6 +366,19 @@ const FrameStats& SelectiveRefinement::update(const View& view, double time_s) {
   st.bound_ms = std::chrono::duration<double, std::milli>(t_end - t_bound).count();
   stats_ = st;
   return stats_;
+}
+
+std::size_t SelectiveRefinement::memory_bytes() const {
+  std::size_t n = sizeof(*this) + capacity_bytes(in_s_) + capacity_bytes(preds_out_) +
+                  capacity_bytes(succs_in_) + capacity_bytes(active_) + capacity_bytes(face_pos_) +
+                  capacity_bytes(face_rec_) + capacity_bytes(ferr_) + capacity_bytes(morphs_) +
+                  capacity_bytes(morph_of_) + capacity_bytes(vfaces_) + capacity_bytes(riders_) +
+                  capacity_bytes(cluster_) + capacity_bytes(work_) + capacity_bytes(work_verdict_) +
+                  capacity_bytes(appeared_) + capacity_bytes(undone_now_) + capacity_bytes(scratch_index_);
+  for (const IndexSet* s : {&tops_, &frontier_})
+    n += capacity_bytes(s->items) + capacity_bytes(s->pos) + capacity_bytes(s->recs);
+  for (const auto& b : fbox_) n += capacity_bytes(b);
+  return n;
 }
 
 }  // namespace terralod::pm

@@ -130,6 +130,8 @@ class ApproximationTree {
   /// Nodes per Strategy (index = the enum's value).
   std::array<std::size_t, kStrategyCount> count_by_strategy() const;
   int depth() const;  ///< largest level + 1 (0 for an empty tree)
+  /// Heap bytes the decoded tree holds (its nodes' arrays' capacities).
+  std::size_t memory_bytes() const;
 
  private:
   Parameters params_;

@@ -181,6 +181,13 @@ class BlockDatabase {
   const DatabaseInfo& info() const;
   Mode mode() const;
   int format_version() const;  ///< of the file (<= kFormatVersion)
+  /// The most heap the connection holds: its page cache's limit (PRAGMA cache_size, 2 MB by
+  /// default) plus 128 kB for SQLite's own structures, schema and statements (about 100 kB
+  /// measured on a loader's connection). Fixed while it is open, whatever it has read.
+  std::size_t memory_bytes() const;
+  /// Sets the page cache's limit (PRAGMA cache_size), bytes; a connection that reads each blob
+  /// once (the runtime's loaders) needs little more than the b-tree's inner pages.
+  void set_cache_limit(std::size_t bytes);
 
   // Blobs: each put is atomic (its own transaction unless inside a Transaction) and replaces
   // any previous value; every read verifies size and checksum and throws DatabaseError naming

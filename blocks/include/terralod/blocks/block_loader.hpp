@@ -54,6 +54,9 @@ class BlockSource {
   virtual std::vector<std::uint8_t> read(BlockKey k) = 0;
   /// Name for error messages (the database path).
   virtual std::string name() const = 0;
+  /// The most heap the source holds between reads (a database connection's cache limit and
+  /// structures), fixed once it is open; 0 by default.
+  virtual std::size_t memory_bytes() const { return 0; }
 };
 using BlockSourceFactory = std::function<std::unique_ptr<BlockSource>()>;
 
@@ -104,6 +107,9 @@ class BlockLoader {
     BlockKey key;
     double priority = 0;  ///< lower is read first; ties in queue order
     double floor_m = 0;   ///< decode_block's floor: the coarsest leaves the caller can use
+    /// What the caller plans for the block once loaded; held_bytes() counts it while the block
+    /// is read and decoded.
+    std::size_t bytes = 0;
   };
 
   /// `threads` (>= 1, std::invalid_argument otherwise) reading threads, each with its own source.
@@ -118,12 +124,18 @@ class BlockLoader {
   std::vector<LoadResult> take_results();
   /// True when k is queued or being read.
   bool busy(BlockKey k) const;
+  /// True when k is being read or finished and not yet taken: held_bytes() counts it.
+  bool holds(BlockKey k) const;
   /// Requests queued plus those being read.
   std::size_t pending() const;
   /// Finished blocks and errors that take_results() has not returned yet.
   std::size_t finished() const;
   /// Total blob bytes read so far.
   std::uint64_t bytes_read() const;
+  /// Heap bytes the loader holds now: Request::bytes of each block being read, the
+  /// LoadedBlock::memory_bytes of each finished block not yet taken, and its sources' bounds
+  /// (BlockSource::memory_bytes; the constructor waits until every thread has opened its source).
+  std::size_t held_bytes() const;
 
  private:
   void run();
@@ -136,6 +148,8 @@ class BlockLoader {
   std::vector<BlockKey> in_flight_;  // being read, one per busy thread
   std::vector<LoadResult> results_;
   std::uint64_t bytes_read_ = 0;
+  std::size_t in_flight_bytes_ = 0, source_bytes_ = 0;  // Request::bytes being read; sources' bounds
+  int opened_ = 0;  // threads that opened (or failed to open) their source
   bool stop_ = false;
   std::vector<std::thread> threads_;
 };

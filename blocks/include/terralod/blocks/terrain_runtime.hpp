@@ -62,8 +62,14 @@
 //      Blocks not needed are
 //      evicted least-recently-used first whenever the resident bytes would pass the budget, and
 //      a block that arrives without room is dropped: resident_bytes <= budget_bytes at the end
-//      of every frame (the budget counts the blocks with their refinements, the tree, the
-//      summaries and the drawn mesh).
+//      of every frame. resident_bytes is measured from what is held (the capacities of the
+//      arrays): the tree, the summaries, each block's DAG, refinement, displayed mesh and blend
+//      state (a block counts at least the reservation it was admitted with, its refinement at
+//      full resolution), the frame's patches, seam buffers, height index and drawn mesh, and
+//      what the loader holds (each block being read at its estimate, finished blocks not yet
+//      taken, each connection's SQLite cache limit and structures), which the queue's plan
+//      counts as spent. Not counted: malloc's headers; test_terrain_runtime checks the heap the
+//      process gains against resident_bytes after every frame of a flight.
 //   4. Seams: stitch_seams() (seam_stitch.hpp) over every selected patch: coarse node beside
 //      coarse node of any strategy and level, beside a PM block's front, PM beside PM. Every
 //      patch gets the border vertices of its neighbours; a terrain sample is one vertex of the
@@ -110,10 +116,10 @@
 // a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
 // and the block. Not thread-safe: one frame thread; the loader threads are internal.
 // Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
-// blocks (LoadedBlock::memory_bytes each: DAG and refinement, about 25 MB for 257 x 257
+// blocks (at least LoadedBlock::memory_bytes each: DAG and refinement, about 25 MB for 257 x 257
 // samples read whole, in proportion to the collapses kept for a partial block, plus about 30
 // bytes a sample), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of
-// the frame (about as much again).
+// the frame (about as much again); all of it is in resident_bytes (step 3).
 #pragma once
 
 #include <cstdint>
@@ -285,7 +291,9 @@ class TerrainRuntime {
   bool covers(const Block& b, double floor_m) const;
   void take_loads();
   void make_room(std::size_t bytes, const std::set<BlockKey>& keep);
-  std::size_t fixed_bytes() const;
+  std::size_t block_bytes(const Block& b) const;  // what b holds, or was admitted with when more
+  std::size_t frame_bytes() const;                // the frame's buffers: meshes, seams, indexes, sets
+  std::size_t resident_bytes() const;             // fixed_bytes_ + frame_bytes() + every block's
   void assemble(const pm::View& view, double tau, std::size_t patch_count, RuntimeFrameStats& s);
   std::size_t estimate_bytes(BlockKey k) const;
 
@@ -295,7 +303,7 @@ class TerrainRuntime {
   ApproximationTree tree_;
   std::vector<BlockSummary> sums_;
   std::vector<std::uint64_t> block_vertices_;  // per block index: PM vertices (from the build's meta)
-  std::size_t tree_bytes_ = 0, summary_bytes_ = 0;
+  std::size_t fixed_bytes_ = 0;  // the tree, the summaries and the vertex counts, measured at opening
   // Bytes per PM vertex of a decoded whole block, learnt from the whole blocks loaded so far:
   // a ratio of sums, so that it does not depend on the order the loader threads finish in.
   double loaded_bytes_ = 0, loaded_vertices_ = 0;

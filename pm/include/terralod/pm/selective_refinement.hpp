@@ -235,6 +235,10 @@ class SelectiveRefinement {
   /// plain pass over every face (update() gets the same number faster; this is its reference).
   double bound_px(const View& view) const;
 
+  /// Heap bytes this refinement holds now (its arrays' capacities; the DAG's are
+  /// CollapseDag::memory_bytes). It grows as the mesh is refined and morphs start.
+  std::size_t memory_bytes() const;
+
  private:
   using Packed = CollapseDag::PackedBox;  // box relative to (x0, y0, 0), saturated error
   // A set of collapses with O(1) insert/erase; with boxes, each item's packed test record is
