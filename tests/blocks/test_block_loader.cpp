@@ -122,6 +122,51 @@ TEST(BlockLoader, SeveralThreadsReadEveryBlockOnce) {
                std::invalid_argument);
 }
 
+// held_bytes: a block being read counts at its request's bytes, a finished one not yet taken
+// at its LoadedBlock::memory_bytes, and nothing once taken; a database source adds its
+// connection's bound (cache limit and structures) from the moment the loader is constructed.
+TEST(BlockLoader, HeldBytesFollowABlockFromReadToTaken) {
+  MemoryStore store;
+  store.terrain = &terrain();
+  store.set_stalled(true);
+  tb::BlockLoader loader(terralod::test::memory_source(store), terrain().grid);
+  const terralod::test::ReleaseAtExit release{store};
+  EXPECT_EQ(loader.held_bytes(), 0u);
+  loader.set_queue({{{1, 1}, 0.0, 0.0, 12345}, {{2, 2}, 1.0, 0.0, 777}});
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (loader.held_bytes() != 12345 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(loader.held_bytes(), 12345u) << "the block being read counts at its request's bytes";
+  EXPECT_TRUE(loader.holds({1, 1}));
+  EXPECT_FALSE(loader.holds({2, 2})) << "a queued block is not held";
+  store.set_stalled(false);
+  while (loader.finished() < 2 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_EQ(loader.finished(), 2u);
+  EXPECT_TRUE(loader.holds({2, 2}));
+  const std::size_t held = loader.held_bytes();
+  const std::vector<tb::LoadResult> r = loader.take_results();
+  ASSERT_EQ(r.size(), 2u);
+  ASSERT_TRUE(r[0].block && r[1].block);
+  EXPECT_EQ(held, r[0].block->memory_bytes + r[1].block->memory_bytes);
+  EXPECT_EQ(loader.held_bytes(), 0u);
+  EXPECT_FALSE(loader.holds({1, 1}));
+
+  const std::string path = std::string(TERRALOD_TEST_TMP) + "/loader_held.db";
+  for (const char* ext : {"", "-wal", "-shm"}) std::remove((path + ext).c_str());
+  tb::DatabaseInfo info;
+  info.grid_width = terrain().hf.width();
+  info.grid_height = terrain().hf.height();
+  info.transform = terrain().hf.transform;
+  info.block_size = terrain().grid.block_size();
+  { tb::BlockDatabase::create(path, info).put_block({0, 0}, terrain().blobs.at({0, 0})); }
+  tb::BlockLoader db_loader(tb::database_source(path), terrain().grid, {}, /*threads=*/2);
+  const std::size_t bound = tb::BlockDatabase::open(path).memory_bytes();
+  EXPECT_GT(bound, std::size_t(128) << 10);
+  // The loader's connections limit their cache to 256 kB: two of them, each with its structures.
+  EXPECT_EQ(db_loader.held_bytes(), 2 * ((std::size_t(256) << 10) + (std::size_t(128) << 10)));
+}
+
 TEST(BlockLoader, ErrorsNameTheSourceAndTheBlock) {
   BlockedTerrain t = terrain();
   t.blobs.erase({3, 4});
