@@ -15,8 +15,6 @@
 //   end of their PM; 0 loads every block whole).
 //   --loader-threads: RuntimeOptions::loader_threads (default 2).
 
-#include <malloc.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -158,11 +156,7 @@ int main(int argc, char** argv) {
       opt.loader_threads = loader_threads;
       // The heap the process gains while the runtime is open, against what it counts
       // (resident_bytes): sampled after every frame, so blocks being decoded are caught midway.
-      const auto heap = [] {
-        const struct mallinfo2 m = mallinfo2();
-        return double(m.uordblks) + double(m.hblkhd);
-      };
-      const double heap0 = heap();
+      const double heap0 = pm::heap_in_use_bytes();
       double heap_over = -1e300;
       tb::TerrainRuntime rt(db_path, opt);
       std::vector<double> ms, bounds;
@@ -176,7 +170,7 @@ int main(int argc, char** argv) {
         rt.fit_clip_planes(cam);
         const tb::RuntimeFrameStats& st = rt.update(pm::View(cam), double(f) / 60.0);
         ms.push_back(st.update_ms);
-        heap_over = std::max(heap_over, heap() - heap0 - double(st.resident_bytes));
+        heap_over = std::max(heap_over, pm::heap_in_use_bytes() - heap0 - double(st.resident_bytes));
         if (st.update_ms > 1000.0 / 60) ++slow_frames;
         if (st.missing_in_view > 0) ++missing_frames;
         triangles = std::max(triangles, st.triangles);
@@ -197,9 +191,8 @@ int main(int argc, char** argv) {
           "prefetch misses %zu of %zu blocks needed in view (after the first 2 s: %zu of %zu), %zu frames "
           "with a block missing in view; peak resident %.1f MB (budget %.0f MB), %.1f MB read, %zu evicted, "
           "%zu dropped, %zu reloaded finer; "
-          "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB, heap at most %.2f "
-          "MB "
-          "above resident\n",
+          "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB, heap at most "
+          "%.2f MB above resident\n",
           prefetch ? "on" : "off", pct(ms, 0.5), pct(ms, 0.99), pct(ms, 1.0), slow_frames,
           st.prefetch_misses_total, st.prefetch_hits_total + st.prefetch_misses_total,
           st.prefetch_misses_total - cold_misses,

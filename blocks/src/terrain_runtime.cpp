@@ -134,16 +134,15 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   for (const BlockSummary& s : sums_)
     fixed_bytes_ += pm::capacity_bytes(s.points) + pm::capacity_bytes(s.triangles) +
                     pm::capacity_bytes(s.triangle_errors);
-  const std::size_t fixed = fixed_bytes_;
-  if (fixed > opt_.budget_bytes) {
+  if (fixed_bytes_ > opt_.budget_bytes) {
     char what[200];
     std::snprintf(what, sizeof what,
                   "its approximation tree and block summaries need %.3g MB resident, more than the memory "
                   "budget of %.3g MB: give a larger budget",
-                  double(fixed) / 1e6, double(opt_.budget_bytes) / 1e6);
+                  double(fixed_bytes_) / 1e6, double(opt_.budget_bytes) / 1e6);
     throw DatabaseError(db_path, what);
   }
-  stats_.resident_bytes = stats_.peak_resident_bytes = fixed;  // what stats() says before a frame
+  stats_.resident_bytes = stats_.peak_resident_bytes = fixed_bytes_;  // what stats() says before a frame
   prep_options_ = refinement_options(opt_, tau_);
   loader_ = std::make_unique<BlockLoader>(
       blocks ? std::move(blocks) : database_source(db_path), grid_,

@@ -206,14 +206,15 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
     if (covered && seen.count(k)) return true;
     std::size_t bytes = !resident || seen.count(k) ? 0 : block_bytes(*it->second);
     // Whole-block estimate, an upper bound of any copy; a block the loader holds is counted.
-    if (!covered && !loader_->holds(k)) bytes += estimate_bytes(k);
+    const std::size_t estimate = covered ? 0 : estimate_bytes(k);
+    if (!covered && !loader_->holds(k)) bytes += estimate;
     if (planned + bytes > opt_.budget_bytes) return false;
     planned += bytes;
     seen.insert(k);
     if (resident) it->second->last_used = frame_;  // keep what the policy wants
     if (!covered) {
       queued[k] = req.size();
-      req.push_back({k, priority, load_floor(need), estimate_bytes(k)});
+      req.push_back({k, priority, load_floor(need), estimate});
     }
     return true;
   };

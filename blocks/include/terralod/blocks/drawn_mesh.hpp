@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "terralod/pm/memory_bytes.hpp"
 #include "terralod/pm/view.hpp"
 
 namespace terralod::blocks {
@@ -30,8 +31,8 @@ struct DrawnMesh {
   std::vector<std::int64_t> triangle_node;
 
   std::size_t memory_bytes() const {
-    return positions.capacity() * sizeof(pm::Vec3) + samples.capacity() * 8 + triangles.capacity() * 12 +
-           triangle_node.capacity() * 8;
+    return pm::capacity_bytes(positions) + pm::capacity_bytes(samples) + pm::capacity_bytes(triangles) +
+           pm::capacity_bytes(triangle_node);
   }
 };
 

@@ -21,8 +21,14 @@
 //   median(v)       quantile(v, 0.5): the lower middle element for an even count.
 //   peak_resident_bytes() the process's peak resident set so far (getrusage's ru_maxrss, which
 //                   Linux keeps in KiB), bytes: what a build reports as its peak memory.
+//   heap_in_use_bytes() (glibc only) the bytes malloc has handed out and not taken back, over
+//                   every arena (mallinfo2: in-use chunks plus mmapped ones): what the runtime's
+//                   memory accounts are checked against.
 #pragma once
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <sys/resource.h>
 #include <time.h>
 
@@ -45,6 +51,13 @@ inline std::uint64_t peak_resident_bytes() {
   getrusage(RUSAGE_SELF, &ru);
   return std::uint64_t(ru.ru_maxrss) * 1024u;
 }
+
+#if defined(__GLIBC__)
+inline double heap_in_use_bytes() {
+  const struct mallinfo2 m = mallinfo2();
+  return double(m.uordblks) + double(m.hblkhd);
+}
+#endif
 
 inline double thread_cpu_ms() {
   timespec ts{};
