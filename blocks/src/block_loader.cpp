@@ -18,11 +18,17 @@ using pm::ms_since;
 std::string block_name(BlockKey k) {
   return "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
 }
+// LoadedBlock::memory_bytes: the block with its DAG and a full-resolution refinement.
+std::size_t reserved_bytes(const pm::CollapseDag& dag, const pm::RefinementOptions& refinement) {
+  return sizeof(LoadedBlock) + dag.memory_bytes() +
+         pm::SelectiveRefinement::full_memory_bytes(dag, refinement);
+}
 }  // namespace
 
 std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey k,
                                                 std::span<const std::uint8_t> blob,
-                                                const std::string& source_name, double floor_m) {
+                                                const std::string& source_name, double floor_m,
+                                                const pm::RefinementOptions& refinement) {
   assert(grid.contains(k));
   const std::string name = source_name + ": " + block_name(k);
   const auto t = std::chrono::steady_clock::now();
@@ -41,12 +47,7 @@ std::shared_ptr<const LoadedBlock> decode_block(const BlockGrid& grid, BlockKey 
         pm, pm::DagOptions{.skip = floor_m > 0 ? pm::CollapseDag::skip_for_floor(pm, floor_m) : 0});
   }
   b->blob_bytes = blob.size();
-  const pm::CollapseDag& dag = *b->dag;
-  const std::size_t collapses = dag.collapse_count(), samples = dag.heightfield().size();
-  // DAG + a SelectiveRefinement (selective_refinement.hpp: 18 bytes per collapse, its boxes
-  // being the DAG's, 8 per sample, 4 per face id, ~2 active triangles of 48 bytes per vertex).
-  b->memory_bytes = sizeof(LoadedBlock) + dag.memory_bytes() + collapses * 18 + samples * 8 +
-                    dag.face_id_count() * 4 + dag.full_vertex_count() * 96;
+  b->memory_bytes = reserved_bytes(*b->dag, refinement);
   b->decode_ms = ms_since(t);
   return b;
 }
@@ -172,6 +173,8 @@ void BlockLoader::run() {
         auto b = std::const_pointer_cast<LoadedBlock>(decode_block(grid_, k, blob, source->name(), floor_m));
         b->read_ms = read_ms;
         if (prepare_) r.selection = prepare_(*b);
+        if (r.selection)  // reserved for the options the refinement was made with
+          b->memory_bytes = reserved_bytes(*b->dag, r.selection->options());
         r.block = std::move(b);
       } catch (const std::exception& e) {
         r.error = e.what();

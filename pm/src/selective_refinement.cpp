@@ -9,6 +9,7 @@
 #include "terralod/pm/selective_refinement.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -67,6 +68,11 @@ SelectiveRefinement::SelectiveRefinement(const CollapseDag& dag, const Refinemen
   }
   morph_of_.assign(dag.heightfield().size(), kNone);
   scratch_index_.assign(dag.heightfield().size(), kNone);
+  // No selection has more faces than the full-resolution mesh (every collapse removes one or
+  // two), which the constructor starts from: those arrays get exactly that room.
+  const std::size_t full = dag.full_faces().size();
+  active_.reserve(full);
+  face_rec_.reserve(full);
   // The float boxes of the faces, and the records beside the tops and the frontier, are made
   // once, for the base mesh, not for everything that appears on the way there.
   defer_boxes_ = true;
@@ -366,6 +372,38 @@ const FrameStats& SelectiveRefinement::update(const View& view, double time_s) {
   st.bound_ms = std::chrono::duration<double, std::milli>(t_end - t_bound).count();
   stats_ = st;
   return stats_;
+}
+
+std::size_t SelectiveRefinement::full_memory_bytes(const CollapseDag& dag, const RefinementOptions& options) {
+  const std::size_t n = dag.collapse_count(), samples = dag.heightfield().size(),
+                    faces = dag.full_faces().size();
+  // As the constructor sizes them: per collapse in_s_ and undone_now_ (a byte each), preds_out_,
+  // succs_in_ and both lists' positions (4 bytes each); face_pos_; per sample morph_of_ and
+  // scratch_index_; active_ and face_rec_, reserved for the full-resolution faces; the faces'
+  // float boxes and errors, grown by doubling from the base mesh's.
+  std::size_t bytes = sizeof(SelectiveRefinement) + n * (2 + 4 * sizeof(std::uint32_t)) +
+                      dag.face_id_count() * sizeof(std::uint32_t) + samples * 2 * sizeof(std::uint32_t) +
+                      faces * (sizeof(std::uint32_t) + sizeof(FaceRec)) +
+                      std::bit_ceil(faces) * 7 * sizeof(float);
+  // Fully refined, the frontier is every collapse without predecessors, each with its record
+  // (the list grows by doubling). No collapse is a top then, but the tops' list keeps the room
+  // of the selections on the way, counted here as the frontier's: measured on N44W072's blocks
+  // of 257, refined from the base mesh, both lists ended at 8192 records. An update's work
+  // list (an item and a verdict each) is loaded from one of them.
+  std::size_t first = 0;
+  for (std::uint32_t c = 0; c < n; ++c) first += dag.preds(c).empty();
+  bytes += std::bit_ceil(first) *
+           (2 * (sizeof(std::uint32_t) + (dag.packed_boxes().empty() ? 0 : sizeof(Packed))) +
+            sizeof(std::uint32_t) + sizeof(std::int8_t));
+  if (options.morph_seconds > 0.0 && options.morph_mode == MorphMode::Full) {
+    // Each sample's list of its faces (grown by doubling) and of its riders (empty without morphs).
+    std::vector<std::uint32_t> degree(samples, 0);
+    for (std::uint32_t f : dag.full_faces())
+      for (std::uint32_t s : dag.face(f)) ++degree[s];
+    bytes += samples * 2 * sizeof(std::vector<std::uint32_t>);
+    for (std::uint32_t d : degree) bytes += std::bit_ceil(d) * sizeof(std::uint32_t);
+  }
+  return bytes;
 }
 
 std::size_t SelectiveRefinement::memory_bytes() const {

@@ -78,10 +78,11 @@ TEST(BlockLoader, ReadsInPriorityOrderAndDecodesExactly) {
     EXPECT_TRUE(is_dag_of(*x.block, pm::decode_pm(blob, "blob")));
     EXPECT_EQ(x.block->blob_bytes, blob.size());
     EXPECT_GT(x.block->memory_bytes, x.block->dag->memory_bytes());
-    // What README and terrain_runtime.hpp say a resident block counts: about 380 bytes a vertex
-    // (the DAG's boxes held once, no copy of the decoded PM).
+    // What README and terrain_runtime.hpp say a resident block counts: about 540 bytes a vertex
+    // (the DAG's boxes held once, no copy of the decoded PM, a refinement at full resolution
+    // with Full geomorphs' lists; test_block_memory checks it against the heap).
     const double per_vertex = double(x.block->memory_bytes) / double(x.block->dag->full_vertex_count());
-    EXPECT_LT(per_vertex, 400.0);
+    EXPECT_LT(per_vertex, 560.0);
     bytes += blob.size();
   }
   EXPECT_EQ(loader.bytes_read(), bytes);

@@ -238,6 +238,12 @@ class SelectiveRefinement {
   /// Heap bytes this refinement holds now (its arrays' capacities; the DAG's are
   /// CollapseDag::memory_bytes). It grows as the mesh is refined and morphs start.
   std::size_t memory_bytes() const;
+  /// What memory_bytes() comes to for a refinement of `dag` with `options` at full resolution,
+  /// its largest selection, with no geomorph running: what a caller reserves for one. It can
+  /// be passed while geomorphs run (80 bytes a morphing vertex) and by lists that kept the
+  /// capacity of a coarser selection (the tops; with Full geomorphs, a vertex's faces: 1.2 %
+  /// more on blocks of 257 refined from the base mesh, test_block_memory).
+  static std::size_t full_memory_bytes(const CollapseDag& dag, const RefinementOptions& options);
 
  private:
   using Packed = CollapseDag::PackedBox;  // box relative to (x0, y0, 0), saturated error
