@@ -18,6 +18,12 @@
 // neighbour changed meets mostly the same ones again. Vertices are numbered in tile_order.hpp's
 // order, so that the data a collapse touches lies close together, and the live elements are
 // compacted as the mesh shrinks (compact). The mesh and its operations are collapse_mesh.hpp's.
+// Where the time goes (N44W072 in blocks of 257, one thread, counted per strip): the first
+// halving of the vertices (errors up to about 1 m) is half of the build and the second a
+// quarter, the other 15 halvings the rest. In the first, a collapse costs 10.8 evaluations (5.6
+// of its neighbours, 3.2 of popped lower bounds), 86 % of which stop at their cutoff and leave a
+// lower bound. A build twice as fast has to evaluate less while errors are small, e.g. by
+// collapsing independent local minima in sweeps of the grid, which would give up the exact order.
 // Memory: OpenMesh connectivity (~180 bytes per vertex), every vertex's ring of halfedges (64
 // bytes, CollapseMesh::Ring), queue entry, position and state (44 bytes per vertex), edge
 // errors (8 bytes per edge); the large arrays (OpenMesh's included) on transparent huge pages
