@@ -112,7 +112,7 @@ void SelectiveRefinement::add_face(std::uint32_t f) {
   face_rec_.push_back(FaceRec{{t[0], t[1], t[2]}, {hf[t[0]], hf[t[1]], hf[t[2]]}, dag_->face_error(f)});
   if (!defer_boxes_) push_face_box(face_rec_.back());
   if (!vfaces_.empty())
-    for (std::uint32_t s : dag_->face(f)) vfaces_[s].push_back(f);
+    for (std::uint32_t s : dag_->face(f)) link_face(s, f);
 }
 
 // The records tops_ and frontier_ keep beside their items: none while the constructor
@@ -156,11 +156,7 @@ void SelectiveRefinement::remove_face(std::uint32_t f) {
   }
   face_pos_[f] = kNone;
   if (!vfaces_.empty())
-    for (std::uint32_t s : dag_->face(f)) {
-      std::vector<std::uint32_t>& v = vfaces_[s];
-      *std::find(v.begin(), v.end(), f) = v.back();
-      v.pop_back();
-    }
+    for (std::uint32_t s : dag_->face(f)) unlink_face(s, f);
 }
 
 void SelectiveRefinement::perform(std::uint32_t c) {
@@ -396,12 +392,18 @@ std::size_t SelectiveRefinement::full_memory_bytes(const CollapseDag& dag, const
            (2 * (sizeof(std::uint32_t) + (dag.packed_boxes().empty() ? 0 : sizeof(Packed))) +
             sizeof(std::uint32_t) + sizeof(std::int8_t));
   if (options.morph_seconds > 0.0 && options.morph_mode == MorphMode::Full) {
-    // Each sample's list of its faces (grown by doubling) and of its riders (empty without morphs).
+    // Each sample's faces: kInlineFaces in place, the rest in a map node with a list (grown by
+    // doubling) and a bucket. No rider without morphs.
     std::vector<std::uint32_t> degree(samples, 0);
     for (std::uint32_t f : dag.full_faces())
       for (std::uint32_t s : dag.face(f)) ++degree[s];
-    bytes += samples * 2 * sizeof(std::vector<std::uint32_t>);
-    for (std::uint32_t d : degree) bytes += std::bit_ceil(d) * sizeof(std::uint32_t);
+    bytes += samples * sizeof(SampleFaces);
+    for (std::uint32_t d : degree)
+      if (d > kInlineFaces)
+        bytes += 2 * sizeof(void*) +
+                 malloc_chunk_bytes(sizeof(void*) +
+                                    sizeof(std::pair<const std::uint32_t, std::vector<std::uint32_t>>)) +
+                 std::bit_ceil(d - kInlineFaces) * sizeof(std::uint32_t);
   }
   return bytes;
 }
@@ -410,9 +412,10 @@ std::size_t SelectiveRefinement::memory_bytes() const {
   std::size_t n = sizeof(*this) + capacity_bytes(in_s_) + capacity_bytes(preds_out_) +
                   capacity_bytes(succs_in_) + capacity_bytes(active_) + capacity_bytes(face_pos_) +
                   capacity_bytes(face_rec_) + capacity_bytes(ferr_) + capacity_bytes(morphs_) +
-                  capacity_bytes(morph_of_) + capacity_bytes(vfaces_) + capacity_bytes(riders_) +
-                  capacity_bytes(cluster_) + capacity_bytes(work_) + capacity_bytes(work_verdict_) +
-                  capacity_bytes(appeared_) + capacity_bytes(undone_now_) + capacity_bytes(scratch_index_);
+                  capacity_bytes(morph_of_) + capacity_bytes(vfaces_) + capacity_bytes(vfaces_more_) +
+                  capacity_bytes(riders_) + capacity_bytes(cluster_) + capacity_bytes(work_) +
+                  capacity_bytes(work_verdict_) + capacity_bytes(appeared_) + capacity_bytes(undone_now_) +
+                  capacity_bytes(scratch_index_);
   for (const IndexSet* s : {&tops_, &frontier_})
     n += capacity_bytes(s->items) + capacity_bytes(s->pos) + capacity_bytes(s->recs);
   for (const auto& b : fbox_) n += capacity_bytes(b);

@@ -22,13 +22,45 @@ constexpr std::uint32_t kNone = CollapseDag::kNone;
 void SelectiveRefinement::track_adjacency() {
   const bool need = opt_.morph_seconds > 0.0 && opt_.morph_mode == MorphMode::Full;
   if (need == !vfaces_.empty()) return;
-  vfaces_.clear();
-  riders_.clear();
+  vfaces_ = {};
+  vfaces_more_ = {};
+  riders_ = {};
   if (!need) return;
   vfaces_.resize(dag_->heightfield().size());
-  riders_.resize(dag_->heightfield().size());
   for (std::uint32_t f : active_)
-    for (std::uint32_t s : dag_->face(f)) vfaces_[s].push_back(f);
+    for (std::uint32_t s : dag_->face(f)) link_face(s, f);
+}
+
+void SelectiveRefinement::link_face(std::uint32_t s, std::uint32_t f) {
+  SampleFaces& l = vfaces_[s];
+  if (l.n < kInlineFaces)
+    l.f[l.n] = f;
+  else
+    vfaces_more_[s].push_back(f);
+  ++l.n;
+}
+
+// Removes f from s's faces; the last one takes its place.
+void SelectiveRefinement::unlink_face(std::uint32_t s, std::uint32_t f) {
+  SampleFaces& l = vfaces_[s];
+  std::uint32_t last;
+  if (l.n > kInlineFaces) {
+    const auto more = vfaces_more_.find(s);
+    last = more->second.back();
+    more->second.pop_back();
+    if (more->second.empty()) vfaces_more_.erase(more);
+  } else {
+    last = l.f[l.n - 1];
+  }
+  --l.n;
+  if (last == f) return;
+  const auto in = std::find(l.f.begin(), l.f.begin() + std::min(l.n, kInlineFaces), f);
+  if (in != l.f.begin() + std::min(l.n, kInlineFaces)) {
+    *in = last;
+    return;
+  }
+  std::vector<std::uint32_t>& more = vfaces_more_.at(s);
+  *std::find(more.begin(), more.end(), f) = last;
 }
 
 // Ends every geomorph at once: vertices jump to their samples, pending ecols are dropped
@@ -36,7 +68,7 @@ void SelectiveRefinement::track_adjacency() {
 void SelectiveRefinement::stop_morphs() {
   for (const Morph& m : morphs_) morph_of_[m.sample] = kNone;
   morphs_.clear();
-  for (auto& r : riders_) r.clear();
+  riders_.clear();
 }
 
 std::array<double, 3> SelectiveRefinement::rest(std::uint32_t s) const {
@@ -219,57 +251,62 @@ bool SelectiveRefinement::can_slide(std::uint32_t s, const std::array<double, 3>
                                     const std::array<double, 3>& to) const {
   cluster_.assign(1, s);
   for (std::size_t i = 0; i < cluster_.size(); ++i)
-    for (std::uint32_t r : riders_[cluster_[i]]) cluster_.push_back(r);
+    if (const auto r = riders_.find(cluster_[i]); r != riders_.end())
+      cluster_.insert(cluster_.end(), r->second.begin(), r->second.end());
   const Track mine{from[0], from[1], to[0], to[1], time_, time_ + opt_.morph_seconds, false};
   auto at = [](const Track& k, double t, double& x, double& y) {
     const double a = k.t1 > k.t0 ? std::clamp((t - k.t0) / (k.t1 - k.t0), 0.0, 1.0) : 1.0;
     x = k.ax + (k.bx - k.ax) * a, y = k.ay + (k.by - k.ay) * a;
   };
-  for (std::uint32_t v : cluster_)
-    for (std::uint32_t f : vfaces_[v]) {
-      Track k[3];
-      int in_cluster = 0;
-      for (int j = 0; j < 3; ++j) {
-        const std::uint32_t x = dag_->face(f)[j];
-        if (std::find(cluster_.begin(), cluster_.end(), x) != cluster_.end()) {
-          k[j] = mine;
-          ++in_cluster;
-        } else {
-          k[j] = track(x);
-          if (k[j].blocking) return false;
-        }
-      }
-      if (in_cluster >= 2) continue;  // degenerate all along: two corners at one place
-      // Pieces of [now, the last end]: every planned motion is linear between breakpoints.
-      double tend = mine.t1;
-      for (const Track& q : k) tend = std::max(tend, q.t1);
-      std::array<double, 5> ts = {time_, mine.t1, std::clamp(k[0].t1, time_, tend),
-                                  std::clamp(k[1].t1, time_, tend), std::clamp(k[2].t1, time_, tend)};
-      std::sort(ts.begin(), ts.end());
-      ts[4] = tend;
-      const int n = 5;
-      for (int p = 0; p + 1 < n; ++p) {
-        if (!(ts[p + 1] > ts[p])) continue;
-        double x0[3], y0[3], x1[3], y1[3];
-        for (int j = 0; j < 3; ++j) at(k[j], ts[p], x0[j], y0[j]), at(k[j], ts[p + 1], x1[j], y1[j]);
-        // Corner j at s in [0, 1]: (x0 + s (x1 - x0), y0 + s (y1 - y0)); area2(s) = A + B s + C s^2.
-        const double dx1 = x0[1] - x0[0], dy1 = y0[1] - y0[0], dx2 = x0[2] - x0[0], dy2 = y0[2] - y0[0];
-        const double ex1 = (x1[1] - x0[1]) - (x1[0] - x0[0]), ey1 = (y1[1] - y0[1]) - (y1[0] - y0[0]);
-        const double ex2 = (x1[2] - x0[2]) - (x1[0] - x0[0]), ey2 = (y1[2] - y0[2]) - (y1[0] - y0[0]);
-        const double A = dx1 * dy2 - dy1 * dx2, B = dx1 * ey2 + ex1 * dy2 - dy1 * ex2 - ey1 * dx2,
-                     C = ex1 * ey2 - ey1 * ex2;
-        double lo = std::min(A, A + B + C);
-        if (C > 0 && -B > 0 && -B < 2 * C) lo = std::min(lo, A - B * B / (4 * C));
-        if (lo < -1e-9) return false;
+  const auto face_ok = [&](std::uint32_t f) {
+    Track k[3];
+    int in_cluster = 0;
+    for (int j = 0; j < 3; ++j) {
+      const std::uint32_t x = dag_->face(f)[j];
+      if (std::find(cluster_.begin(), cluster_.end(), x) != cluster_.end()) {
+        k[j] = mine;
+        ++in_cluster;
+      } else {
+        k[j] = track(x);
+        if (k[j].blocking) return false;
       }
     }
+    if (in_cluster >= 2) return true;  // degenerate all along: two corners at one place
+    // Pieces of [now, the last end]: every planned motion is linear between breakpoints.
+    double tend = mine.t1;
+    for (const Track& q : k) tend = std::max(tend, q.t1);
+    std::array<double, 5> ts = {time_, mine.t1, std::clamp(k[0].t1, time_, tend),
+                                std::clamp(k[1].t1, time_, tend), std::clamp(k[2].t1, time_, tend)};
+    std::sort(ts.begin(), ts.end());
+    ts[4] = tend;
+    const int n = 5;
+    for (int p = 0; p + 1 < n; ++p) {
+      if (!(ts[p + 1] > ts[p])) continue;
+      double x0[3], y0[3], x1[3], y1[3];
+      for (int j = 0; j < 3; ++j) at(k[j], ts[p], x0[j], y0[j]), at(k[j], ts[p + 1], x1[j], y1[j]);
+      // Corner j at s in [0, 1]: (x0 + s (x1 - x0), y0 + s (y1 - y0)); area2(s) = A + B s + C s^2.
+      const double dx1 = x0[1] - x0[0], dy1 = y0[1] - y0[0], dx2 = x0[2] - x0[0], dy2 = y0[2] - y0[0];
+      const double ex1 = (x1[1] - x0[1]) - (x1[0] - x0[0]), ey1 = (y1[1] - y0[1]) - (y1[0] - y0[0]);
+      const double ex2 = (x1[2] - x0[2]) - (x1[0] - x0[0]), ey2 = (y1[2] - y0[2]) - (y1[0] - y0[0]);
+      const double A = dx1 * dy2 - dy1 * dx2, B = dx1 * ey2 + ex1 * dy2 - dy1 * ex2 - ey1 * dx2,
+                   C = ex1 * ey2 - ey1 * ex2;
+      double lo = std::min(A, A + B + C);
+      if (C > 0 && -B > 0 && -B < 2 * C) lo = std::min(lo, A - B * B / (4 * C));
+      if (lo < -1e-9) return false;
+    }
+    return true;
+  };
+  for (std::uint32_t v : cluster_)
+    if (!for_each_face_at(v, face_ok)) return false;
   return true;
 }
 
 void SelectiveRefinement::drop_rider(std::uint32_t anchor, std::uint32_t s) {
-  std::vector<std::uint32_t>& v = riders_[anchor];
+  const auto r = riders_.find(anchor);
+  std::vector<std::uint32_t>& v = r->second;
   *std::find(v.begin(), v.end(), s) = v.back();
   v.pop_back();
+  if (v.empty()) riders_.erase(r);
 }
 
 void SelectiveRefinement::end_morph(std::uint32_t s) {

@@ -117,7 +117,7 @@
 // and the block. Not thread-safe: one frame thread; the loader threads are internal.
 // Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
 // blocks (at least LoadedBlock::memory_bytes each: DAG and refinement at full resolution, about
-// 36 MB for 257 x 257 samples read whole, in proportion to the collapses kept for a partial block, plus about
+// 30 MB for 257 x 257 samples read whole, in proportion to the collapses kept for a partial block, plus about
 // 30 bytes a sample), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of the
 // frame (about as much again); all of it is in resident_bytes (step 3).
 #pragma once

@@ -45,6 +45,16 @@ std::size_t capacity_bytes(const std::unordered_map<K, V, H, E, A>& m) {
          m.size() * malloc_chunk_bytes(sizeof(void*) + sizeof(std::pair<const K, V>));
 }
 
+/// The same, with each value's list (a map of lists).
+template <class K, class T, class VA, class H, class E, class A>
+std::size_t capacity_bytes(const std::unordered_map<K, std::vector<T, VA>, H, E, A>& m) {
+  std::size_t n =
+      m.bucket_count() * sizeof(void*) +
+      m.size() * malloc_chunk_bytes(sizeof(void*) + sizeof(std::pair<const K, std::vector<T, VA>>));
+  for (const auto& [k, v] : m) n += capacity_bytes(v);
+  return n;
+}
+
 /// Red-black tree nodes: three pointers and a colour before the value.
 template <class K, class C, class A>
 std::size_t capacity_bytes(const std::set<K, C, A>& s) {

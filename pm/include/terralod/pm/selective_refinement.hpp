@@ -101,8 +101,8 @@
 // Memory: about 18 bytes per collapse (state, list positions; its box and error are the DAG's),
 // 32 more per top and per frontier collapse (its box beside the list), 4 per face id, 8 per
 // sample, 76 per active triangle (48 for the exact bound, 28 for its float box and error), 80
-// per morphing vertex, and with Full geomorphs two lists per sample (48 bytes) plus 4 bytes
-// per active triangle corner.
+// per morphing vertex, and with Full geomorphs 32 bytes per sample (its first seven faces) plus
+// a list for a vertex of more faces.
 // Time: per update O(tops + frontier + changes) for the selection plus one streaming pass
 // over the active triangles (16 bytes each) for the reported bound; measured at 1280 x 720,
 // tau = 1 px on a 100 m/s flight: 0.23 ms median (0.10 ms of it the bound; 1.28 and 0.56
@@ -113,8 +113,10 @@
 // (14k vsplits) takes about 14 ms instead of 9.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "terralod/pm/collapse_dag.hpp"
@@ -241,8 +243,8 @@ class SelectiveRefinement {
   /// What memory_bytes() comes to for a refinement of `dag` with `options` at full resolution,
   /// its largest selection, with no geomorph running: what a caller reserves for one. It can
   /// be passed while geomorphs run (80 bytes a morphing vertex) and by lists that kept the
-  /// capacity of a coarser selection (the tops; with Full geomorphs, a vertex's faces: 1.2 %
-  /// more on blocks of 257 refined from the base mesh, test_block_memory).
+  /// capacity of a coarser selection (the tops; with Full geomorphs, the faces of a vertex
+  /// beyond its seventh); test_block_memory refines blocks to full resolution against it.
   static std::size_t full_memory_bytes(const CollapseDag& dag, const RefinementOptions& options);
 
  private:
@@ -344,9 +346,32 @@ class SelectiveRefinement {
   void push_face_box(const FaceRec& r);
   const std::vector<Packed>& list_records() const;
   std::vector<Morph> morphs_;
-  std::vector<std::uint32_t> morph_of_;                          // per sample: index into morphs_, or kNone
-  std::vector<std::vector<std::uint32_t>> vfaces_;               // per sample: active faces (Full mode only)
-  std::vector<std::vector<std::uint32_t>> riders_;               // per sample: vertices riding on it (Full)
+  std::vector<std::uint32_t> morph_of_;  // per sample: index into morphs_, or kNone
+  // Full mode only: each sample's active faces, the first kInlineFaces in place and the rest
+  // in vfaces_more_ (a vertex of a coarse selection can have many); and the vertices riding on
+  // each anchor, kept only while they morph. A vector per sample held 24 bytes of header and a
+  // heap block beside each list: 5.3 MB of a 257 x 257 block's refinement, now 2.1 MB.
+  static constexpr std::uint32_t kInlineFaces = 7;
+  struct SampleFaces {
+    std::uint32_t n = 0;  // faces in all
+    std::array<std::uint32_t, kInlineFaces> f;
+  };
+  std::vector<SampleFaces> vfaces_;
+  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> vfaces_more_;
+  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> riders_;
+  void link_face(std::uint32_t s, std::uint32_t f);
+  void unlink_face(std::uint32_t s, std::uint32_t f);
+  // Calls fn(f) for each active face f at sample s until it returns false; false then.
+  template <class Fn>
+  bool for_each_face_at(std::uint32_t s, Fn&& fn) const {
+    const SampleFaces& l = vfaces_[s];
+    for (std::uint32_t i = 0; i < std::min(l.n, kInlineFaces); ++i)
+      if (!fn(l.f[i])) return false;
+    if (l.n > kInlineFaces)
+      for (std::uint32_t f : vfaces_more_.at(s))
+        if (!fn(f)) return false;
+    return true;
+  }
   mutable std::vector<std::uint32_t> cluster_;                   // scratch of can_slide
   void prefilter(Frame& fr, const IndexSet& set, bool want_ok);  // loads work_ (see update)
   std::vector<std::uint32_t> work_;
