@@ -104,10 +104,10 @@ struct Csv {
     ADD_FAILURE() << "no column " << name;
     return 0;
   }
-  // Every row without the columns holding wall times (*_ms).
-  // Every column but the times and resident_bytes: the runtime counts the capacities its
-  // buffers hold, which keep the largest size any update gave them, and a frame's inner updates
-  // (waiting for its loads) differ with the moment each block arrives.
+  // Every row without the columns holding wall times (*_ms) and resident_bytes: the runtime
+  // counts the capacities its buffers hold, which keep the largest size any update gave them,
+  // and a frame's inner updates (waiting for its loads) differ with the moment each block
+  // arrives.
   std::vector<std::string> without_times() const {
     std::vector<std::string> out;
     for (const auto& r : rows) {

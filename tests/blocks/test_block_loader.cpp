@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "block_fixture.hpp"
+#include "terrain_runtime_internal.hpp"  // private: the runtime's refinement options
 #include "terralod/blocks/block_cache.hpp"
 #include "terralod/blocks/block_loader.hpp"
 
@@ -84,9 +85,7 @@ TEST(BlockLoader, ReadsInPriorityOrderAndDecodesExactly) {
     // PM, a refinement at full resolution; test_block_memory checks both against the heap).
     const double nv = double(x.block->dag->full_vertex_count());
     EXPECT_LT(double(x.block->memory_bytes) / nv, 520.0);
-    pm::RefinementOptions runtime;
-    runtime.morph_seconds = 0.5;
-    runtime.morph_mode = pm::MorphMode::Vertical;
+    const pm::RefinementOptions runtime = tb::detail::refinement_options(tb::RuntimeOptions{}, 1.0);
     const double runtime_per_vertex =
         double(sizeof(tb::LoadedBlock) + x.block->dag->memory_bytes() +
                pm::SelectiveRefinement::full_memory_bytes(*x.block->dag, runtime)) /

@@ -14,6 +14,7 @@
 #include <new>
 
 #include "block_fixture.hpp"
+#include "terrain_runtime_internal.hpp"  // private: the runtime's refinement options
 #include "terralod/blocks/block_loader.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 
@@ -70,10 +71,8 @@ TEST(BlockMemory, DecodingPeaksWithinTheWholeBlocksReservation) {
 #endif
   const auto& t = terrain();
   ASSERT_EQ(t.blobs.size(), 4u);
-  // The runtime's refinements (terrain_runtime_internal.hpp): vertical geomorphs, no lists.
-  pm::RefinementOptions runtime;
-  runtime.morph_seconds = 0.5;
-  runtime.morph_mode = pm::MorphMode::Vertical;
+  // The runtime's refinements (vertical geomorphs: no lists).
+  const pm::RefinementOptions runtime = tb::detail::refinement_options(tb::RuntimeOptions{}, 1.0);
   for (const auto& [k, blob] : t.blobs) {
     SCOPED_TRACE("block " + std::to_string(k.col) + "," + std::to_string(k.row));
     std::size_t whole = 0;

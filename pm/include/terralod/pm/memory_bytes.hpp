@@ -37,20 +37,26 @@ std::size_t capacity_bytes(const std::vector<std::vector<T, A>, B>& v) {
   return n;
 }
 
-/// Buckets plus one chunk per node (the value and the next pointer; the cached hash too, which
-/// libstdc++ keeps unless the hash is marked fast, as std::hash of integers is).
+namespace detail {
+// Buckets plus one chunk per node (the value and the next pointer; the cached hash too, which
+// libstdc++ keeps unless the hash is marked fast, as std::hash of integers is).
 template <class K, class V, class H, class E, class A>
-std::size_t capacity_bytes(const std::unordered_map<K, V, H, E, A>& m) {
+std::size_t hash_map_bytes(const std::unordered_map<K, V, H, E, A>& m) {
   return m.bucket_count() * sizeof(void*) +
          m.size() * malloc_chunk_bytes(sizeof(void*) + sizeof(std::pair<const K, V>));
+}
+}  // namespace detail
+
+/// Buckets plus one chunk per node.
+template <class K, class V, class H, class E, class A>
+std::size_t capacity_bytes(const std::unordered_map<K, V, H, E, A>& m) {
+  return detail::hash_map_bytes(m);
 }
 
 /// The same, with each value's list (a map of lists).
 template <class K, class T, class VA, class H, class E, class A>
 std::size_t capacity_bytes(const std::unordered_map<K, std::vector<T, VA>, H, E, A>& m) {
-  std::size_t n =
-      m.bucket_count() * sizeof(void*) +
-      m.size() * malloc_chunk_bytes(sizeof(void*) + sizeof(std::pair<const K, std::vector<T, VA>>));
+  std::size_t n = detail::hash_map_bytes(m);
   for (const auto& [k, v] : m) n += capacity_bytes(v);
   return n;
 }
