@@ -161,7 +161,8 @@ int main(int argc, char** argv) {
       tb::TerrainRuntime rt(db_path, opt);
       std::vector<double> ms, bounds;
       std::size_t cold_misses = 0, cold_needed = 0;  // the first 2 s: every block is missing then
-      std::size_t slow_frames = 0, triangles = 0, missing_frames = 0;
+      std::size_t slow_frames = 0, triangles = 0, missing_frames = 0, standins = 0;
+      const double fixed_mb = double(rt.stats().resident_bytes) / 1e6;  // before a frame: what opening holds
       double bound = 0;
       const auto t0 = Clock::now();
       for (std::size_t f = 0; f < path.size(); ++f) {
@@ -174,6 +175,7 @@ int main(int argc, char** argv) {
         if (st.update_ms > 1000.0 / 60) ++slow_frames;
         if (st.missing_in_view > 0) ++missing_frames;
         triangles = std::max(triangles, st.triangles);
+        standins = std::max(standins, st.standins_held);
         bound = std::max(bound, st.bound_px);
         bounds.push_back(st.bound_px);
         if (f + 1 == 120) {
@@ -192,14 +194,15 @@ int main(int argc, char** argv) {
           "with a block missing in view; peak resident %.1f MB (budget %.0f MB), %.1f MB read, %zu evicted, "
           "%zu dropped, %zu reloaded finer; "
           "max %zu triangles, bound median %.2f px, max %.2f px; process peak RSS %.0f MB, heap at most "
-          "%.2f MB above resident\n",
+          "%.2f MB above resident; held from opening %.2f MB, stand-ins held at most %zu, %zu read\n",
           prefetch ? "on" : "off", pct(ms, 0.5), pct(ms, 0.99), pct(ms, 1.0), slow_frames,
           st.prefetch_misses_total, st.prefetch_hits_total + st.prefetch_misses_total,
           st.prefetch_misses_total - cold_misses,
           st.prefetch_hits_total + st.prefetch_misses_total - cold_needed, missing_frames,
           double(st.peak_resident_bytes) / 1e6, double(opt.budget_bytes) / 1e6,
           double(st.bytes_read_total) / 1e6, st.evicted_total, st.dropped_total, st.reloads_total, triangles,
-          pct(bounds, 0.5), bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0), heap_over / 1e6);
+          pct(bounds, 0.5), bound, double(pm::peak_resident_bytes()) / (1024.0 * 1024.0), heap_over / 1e6,
+          fixed_mb, standins, st.standin_reads_total);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "terralod-bench-fly: %s\n", e.what());

@@ -196,7 +196,7 @@ BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey /*k*/, cons
 
 namespace {
 
-constexpr std::uint32_t kMagic = 0x53424C54u;  // "TLBS"
+constexpr std::uint32_t kMagic = kBlockSummariesMagic;
 constexpr std::size_t kRecordV1 = 7 * 8 + 8;
 
 using pm::load_f32;
@@ -432,6 +432,16 @@ const std::uint8_t* decode_record(const BlockGrid& grid, std::uint32_t version, 
 }
 
 }  // namespace
+
+std::size_t block_summary_record_bytes(std::span<const std::uint8_t, 40> header) {
+  const std::uint8_t* p = header.data();
+  const std::uint8_t kind = p[32], flags = p[33];
+  const std::size_t n = load_u16(p + 34), m = load_u16(p + 36);
+  if (kind > 3 || flags > 2 || load_u16(p + 38) != 0) return 0;
+  if (flags == 2) return 40;
+  if (n < 4 || m < 1) return 0;
+  return 40 + 12 * n + (3 * (n <= 256 ? 1 : 2) + 4) * m;
+}
 
 BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t index,
                                          std::span<const std::uint8_t> record,

@@ -89,20 +89,12 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   if (!tree_blob) throw DatabaseError(db_path, "no approximation tree (blob 'tree')");
   tree_ = decode_tree(*tree_blob, db_path + ": tree");
   if (tree_.size() == 0) throw DatabaseError(db_path, "the approximation tree is empty");
-  // Block summaries with their stand-ins, when the build stored them (databases built before
-  // blocks with holes had stand-ins may lack them). Without them no block is drawn as its
-  // stand-in, and a missing PmBlock root leaves nothing to draw until it arrives. An empty block
-  // (no valid sample) has no stand-in.
-  if (db.read_blob(kBlockSummariesBlob)) {
-    sums_ = read_block_summaries(db, grid_);
-    for (std::size_t i = 0; i < sums_.size(); ++i)  // a summary without a surface: its two triangles
-      if (sums_[i].triangles.empty() && !sums_[i].empty) {
-        const SampleRect d = grid_.domain(grid_.key(i));
-        set_two_triangle_standin(sums_[i], d.width(), d.height());
-      }
-  } else {
-    sums_.assign(grid_.block_count(), BlockSummary{});
-  }
+  // Block summaries, when the build stored them (databases built before blocks with holes had
+  // stand-ins may lack them): every block's fields are held, its stand-in is read when a frame
+  // first looks at it (summary_store.hpp). Without them no block is drawn as its stand-in, and
+  // a missing PmBlock root leaves nothing to draw until it arrives. An empty block (no valid
+  // sample) has no stand-in.
+  sums_ = std::make_unique<detail::SummaryStore>(db_path, grid_);
   for (const TreeNode& n : tree_.nodes()) {
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
       throw DatabaseError(db_path,
@@ -130,10 +122,7 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   }
   // The tree and the block summaries stay resident. A budget they already pass leaves no room
   // for any block, and resident_bytes <= budget_bytes would be false from the first frame.
-  fixed_bytes_ = tree_.memory_bytes() + pm::capacity_bytes(sums_) + pm::capacity_bytes(block_vertices_);
-  for (const BlockSummary& s : sums_)
-    fixed_bytes_ += pm::capacity_bytes(s.points) + pm::capacity_bytes(s.triangles) +
-                    pm::capacity_bytes(s.triangle_errors);
+  fixed_bytes_ = tree_.memory_bytes() + sums_->fixed_bytes() + pm::capacity_bytes(block_vertices_);
   if (fixed_bytes_ > opt_.budget_bytes) {
     char what[200];
     std::snprintf(what, sizeof what,
@@ -260,7 +249,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   const std::vector<std::int64_t>&coarse = sel.coarse, &pms = sel.pms;
   const std::vector<Need>& needed = sel.needed;
   // A PmBlock root that is missing is drawn as its stand-in (no ancestor exists).
-  const bool root_standin = !root_ok && !sums_[grid_.index(*tree_.root().block)].triangles.empty();
+  const bool root_standin = !root_ok && sums_->has_standin(grid_.index(*tree_.root().block));
   s.needed_in_view = needed.size();
   std::set<BlockKey> needed_now;
   for (const Need& nd : needed) {
@@ -333,7 +322,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
         const TreeNode& a = tree_.node(it->second);
         NodeSurface standin;
         if (a.strategy == Strategy::PmBlock) {  // the stand-in, in whole-grid coordinates
-          const BlockSummary& sum = sums_[grid_.index(*a.block)];
+          const BlockSummary& sum = sums_->summary(grid_.index(*a.block), frame_);
           for (const StandinPoint& q : sum.points)
             standin.points.push_back({double(a.domain.col0 + q.col), double(a.domain.row0 + q.row), q.z});
           standin.triangles = sum.triangles;
@@ -429,7 +418,7 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   }
   s.coarse_nodes = coarse.size();
   auto add_standin = [&](const TreeNode& n) {
-    const BlockSummary& sum = sums_[grid_.index(*n.block)];
+    const BlockSummary& sum = sums_->summary(grid_.index(*n.block), frame_);
     std::vector<std::array<double, 3>> pts;
     pts.reserve(sum.points.size());
     for (const StandinPoint& q : sum.points)
@@ -455,6 +444,8 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.seams_ms = lap();
 
   // Eviction: within the budget at the end of every frame; blocks drawn this frame go last.
+  // Stand-ins this frame and the last kKeepFrames did not look at go first.
+  sums_->trim(frame_);
   {
     std::set<BlockKey> keep;
     for (const auto& [k, b] : blocks_)
@@ -468,6 +459,8 @@ const RuntimeFrameStats& TerrainRuntime::update(const pm::View& view, double tim
   s.blocks_loading = loader_->pending();
   s.bytes_read_total = loader_->bytes_read();
   s.bytes_read = s.bytes_read_total - prev.bytes_read_total;
+  s.standins_held = sums_->held_count();
+  s.standin_reads_total = sums_->reads();
   s.resident_bytes = resident_bytes();
   s.peak_resident_bytes = std::max(s.peak_resident_bytes, s.resident_bytes);
   s.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "grid_triangle.hpp"
+#include "summary_store.hpp"
 #include "terralod/blocks/seam_stitch.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 

@@ -93,7 +93,7 @@ std::size_t TerrainRuntime::frame_bytes() const {
 }
 
 std::size_t TerrainRuntime::resident_bytes() const {
-  std::size_t n = fixed_bytes_ + frame_bytes() + loader_->held_bytes();
+  std::size_t n = fixed_bytes_ + sums_->held_bytes() + frame_bytes() + loader_->held_bytes();
   for (const auto& [k, b] : blocks_) n += block_bytes(*b);
   return n;
 }
@@ -185,7 +185,7 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   std::map<BlockKey, std::size_t> queued;  // index in req
   std::set<BlockKey> seen;                 // counted in `planned`
   // What the loader holds (blocks being read or waiting to be taken) is already spent.
-  std::size_t planned = fixed_bytes_ + frame_bytes() + loader_->held_bytes();
+  std::size_t planned = fixed_bytes_ + sums_->held_bytes() + frame_bytes() + loader_->held_bytes();
   for (const auto& [k, b] : blocks_)
     if (b->last_used == frame_) planned += block_bytes(*b), seen.insert(k);
   // The floor a block is loaded at when `need` is the coarsest its view can use (see
@@ -227,7 +227,7 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   const pm::Vec3 eye = view.eye();
   const double scale = 1.0 / (grid_.block_extent_m() * double(2 * opt_.region.n_max + 3));
   auto dist = [&](BlockKey k) {
-    const pm::Box b = block_box(grid_, k, sums_[grid_.index(k)]);
+    const pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
     const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}),
                  dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
     return std::min(0.99, std::hypot(dx, dy) * scale);
@@ -235,7 +235,7 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   // The floor a view from `centre` (this view's lens) needs over block k at its nearest.
   const double limit = detail::kSelectShare * tau_;
   auto need_from = [&](const pm::Vec3& centre, BlockKey k) {
-    const pm::Box b = block_box(grid_, k, sums_[grid_.index(k)]);
+    const pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
     const double d = std::hypot(std::max({b.lo.x - centre.x, 0.0, centre.x - b.hi.x}),
                                 std::max({b.lo.y - centre.y, 0.0, centre.y - b.hi.y}),
                                 std::max({b.lo.z - centre.z, 0.0, centre.z - b.hi.z}));
@@ -245,7 +245,7 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   // priorities base + spread * distance (distance scaled into [0, 0.99]), with the floor a view
   // from `centre` needs.
   auto want_region = [&](const pm::Vec3& centre, double base, double spread) {
-    const ActiveRegion r = active_region(grid_, sums_, centre, opt_.region);
+    const ActiveRegion r = active_region(grid_, sums_->fields(), centre, opt_.region);
     std::vector<std::pair<double, BlockKey>> around;
     for (BlockKey k : r.inner) around.push_back({dist(k), k});
     std::sort(around.begin(), around.end());

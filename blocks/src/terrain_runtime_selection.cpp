@@ -35,9 +35,11 @@ bool TerrainRuntime::visit(const pm::View& view, double tau, std::int64_t id, Se
   const double limit = kSelectShare * tau;
   if (n.strategy == Strategy::PmBlock) {
     // The stand-in, when it meets tau / 2: the whole box first, then triangle by triangle.
-    const BlockSummary& sum = sums_[grid_.index(*n.block)];
-    if (!sum.triangles.empty() && (view.vertical_error_px(n.bbox, sum.standin_error) <= limit ||
-                                   standin_bound_px(grid_, *n.block, sum, view) <= limit)) {
+    // The box test needs the summary's fields only; the stand-in is read for the finer one.
+    const std::size_t i = grid_.index(*n.block);
+    if (sums_->has_standin(i) &&
+        (view.vertical_error_px(n.bbox, sums_->fields()[i].standin_error) <= limit ||
+         standin_bound_px(grid_, *n.block, sums_->summary(i, frame_), view) <= limit)) {
       sel.standins.push_back(id);
       return true;
     }
@@ -74,8 +76,9 @@ void TerrainRuntime::needed_at(const pm::View& view, double tau, std::int64_t id
   if (view.outside(n.bbox)) return;
   const double limit = kSelectShare * tau;
   if (n.strategy == Strategy::PmBlock) {
-    const BlockSummary& sum = sums_[grid_.index(*n.block)];
-    if (!sum.triangles.empty() && view.vertical_error_px(n.bbox, sum.standin_error) <= limit) return;
+    const std::size_t i = grid_.index(*n.block);
+    if (sums_->has_standin(i) && view.vertical_error_px(n.bbox, sums_->fields()[i].standin_error) <= limit)
+      return;
     out.push_back({-parent_px, *n.block, floor_for(view, n.bbox, limit)});
     return;
   }

@@ -162,6 +162,7 @@ void set_two_triangle_standin(BlockSummary& s, int width, int height);
 /// decoded: its blocks get two-triangle stand-ins). Stand-in coordinates need block_size <=
 /// 65537 (std::invalid_argument otherwise).
 inline constexpr std::uint32_t kBlockSummariesVersion = 2;
+inline constexpr std::uint32_t kBlockSummariesMagic = 0x53424C54u;  ///< "TLBS" in memory
 std::vector<std::uint8_t> encode_block_summaries(const BlockGrid& grid, std::span<const BlockSummary> s);
 /// One block's record of the blob (about 1.6 kB for a 64-point TIN stand-in, half a BlockSummary
 /// in memory) and back; decoding checks it as decode_block_summaries does (DatabaseError).
@@ -169,11 +170,17 @@ std::vector<std::uint8_t> encode_block_summary_record(const BlockSummary& s);
 BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t index,
                                          std::span<const std::uint8_t> record,
                                          const std::string& name_for_errors);
+/// Bytes of the version 2 record that starts with these 40 header bytes (its stand-in's size
+/// follows from n and m), or 0 when the header is not one decode_block_summary_record accepts.
+/// Lets a reader find record boundaries without decoding (the runtime's summary store).
+std::size_t block_summary_record_bytes(std::span<const std::uint8_t, 40> header);
+/// Offset of the first record in the blob (after its 16-byte header).
+inline constexpr std::size_t kBlockSummariesHeader = 16;
 /// The blob, written piece by piece through write(): the header, record(i) for every block in
 /// BlockGrid::index order, the CRC. Its size is kBlockSummariesFraming plus the records'. A build
 /// stores each block's record as the block is built and streams them into the database at the
 /// end (BlockDatabase::put_blob_in_pieces), so it never holds the blob.
-inline constexpr std::size_t kBlockSummariesFraming = 16 + 4;
+inline constexpr std::size_t kBlockSummariesFraming = kBlockSummariesHeader + 4;
 void join_block_summary_records(const BlockGrid& grid,
                                 const std::function<std::vector<std::uint8_t>(std::size_t)>& record,
                                 const std::function<void(std::span<const std::uint8_t>)>& write);

@@ -37,7 +37,8 @@
 //      View::vertical_error_px(box, error) <= tau / 2 (half of tau: the seams may add as much
 //      again, see the bound) or when it is a leaf; otherwise its children are visited. A PmBlock
 //      leaf reached this way is first tried as its stand-in (the block's TIN of at most 64
-//      samples in the database's block summaries, always resident, exact error per triangle):
+//      samples in the database's block summaries, exact error per triangle; read from the
+//      database when a frame first tries it, see blocks/src/summary_store.hpp):
 //      when that meets tau / 2 the block is drawn with it and need not be loaded. Otherwise the
 //      block is needed, with the coarsest leaf error that meets tau / 2 over its box (its
 //      floor: tau / 2 over View::vertical_error_px(box, 1 m)). When resident it is drawn by its
@@ -115,7 +116,9 @@
 // set_options (std::invalid_argument). update() times must not decrease (std::invalid_argument);
 // a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
 // and the block. Not thread-safe: one frame thread; the loader threads are internal.
-// Memory: the tree (approximation_tree.hpp), the summaries (~3.6 KB per block), the resident
+// Memory: the tree (approximation_tree.hpp), every block's summary fields (176 bytes a block
+// with its record's place) and one SQLite connection for the stand-ins (under 0.4 MB), the stand-ins that the
+// last frames looked at (about 3.5 kB each), the resident
 // blocks (at least LoadedBlock::memory_bytes each: DAG and refinement at full resolution, about
 // 30 MB for 257 x 257 samples read whole, in proportion to the collapses kept for a partial block, plus about
 // 30 bytes a sample), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of the
@@ -140,6 +143,10 @@
 #include "terralod/pm/selective_refinement.hpp"
 
 namespace terralod::blocks {
+
+namespace detail {
+class SummaryStore;  // summary_store.hpp
+}  // namespace detail
 
 struct RuntimeOptions {
   double tolerance_px = 1.0;  ///< tau, pixels, > 0: the bound of what is drawn (start value in budget mode)
@@ -196,6 +203,9 @@ struct RuntimeFrameStats {
   std::size_t prefetch_misses_total = 0;  ///< blocks needed before they were resident
   std::uint64_t bytes_read = 0, bytes_read_total = 0;  ///< blob bytes this frame / in total
   std::size_t resident_bytes = 0, peak_resident_bytes = 0;
+  /// Stand-in surfaces held (read from the database when a frame first looks at their block,
+  /// dropped some frames after its last look), and read so far.
+  std::size_t standins_held = 0, standin_reads_total = 0;
   std::size_t morphing_blocks = 0;          ///< PM blocks with vertices still moving (incl. swap-in blends)
   std::size_t moving_vertices = 0;          ///< drawn vertices off their true height
   std::size_t clamped_vertices = 0;         ///< of those, held back by the bound
@@ -301,9 +311,9 @@ class TerrainRuntime {
   RuntimeOptions opt_;
   BlockGrid grid_;
   ApproximationTree tree_;
-  std::vector<BlockSummary> sums_;
-  std::vector<std::uint64_t> block_vertices_;  // per block index: PM vertices (from the build's meta)
-  std::size_t fixed_bytes_ = 0;  // the tree, the summaries and the vertex counts, measured at opening
+  std::unique_ptr<detail::SummaryStore> sums_;  // every block's fields; stand-ins on demand
+  std::vector<std::uint64_t> block_vertices_;   // per block index: PM vertices (from the build's meta)
+  std::size_t fixed_bytes_ = 0;  // the tree, the summaries' fields and the vertex counts, at opening
   // Bytes per PM vertex of a decoded whole block, learnt from the whole blocks loaded so far:
   // a ratio of sums, so that it does not depend on the order the loader threads finish in.
   double loaded_bytes_ = 0, loaded_vertices_ = 0;
