@@ -18,6 +18,9 @@
 // and records each record's CRC-32, which every later read is checked against (DatabaseError
 // naming the file and the block otherwise). A version 1 blob (two-triangle summaries, 64 bytes
 // a block) is decoded whole and held, as are databases without summaries.
+// The open handle holds a read transaction: the store reads the database as it was when it
+// opened (its WAL snapshot), whatever another connection writes afterwards; such writes still
+// commit, but the WAL is not checkpointed past the snapshot until the store closes.
 //
 // Usage (one thread, the runtime's update()):
 //   SummaryStore store(db_path, grid);
