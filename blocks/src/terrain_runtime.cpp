@@ -120,7 +120,7 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
     else
       block_vertices_[i] = std::uint64_t(grid_.domain(k).width()) * std::uint64_t(grid_.domain(k).height());
   }
-  // The tree and the block summaries stay resident. A budget they already pass leaves no room
+  // The tree and the summaries' fields stay resident. A budget they already pass leaves no room
   // for any block, and resident_bytes <= budget_bytes would be false from the first frame.
   fixed_bytes_ = tree_.memory_bytes() + sums_->fixed_bytes() + pm::capacity_bytes(block_vertices_);
   if (fixed_bytes_ > opt_.budget_bytes) {

@@ -117,12 +117,12 @@
 // a loader error (corrupt block) is rethrown by update() as std::runtime_error naming the file
 // and the block. Not thread-safe: one frame thread; the loader threads are internal.
 // Memory: the tree (approximation_tree.hpp), every block's summary fields (176 bytes a block
-// with its record's place) and one SQLite connection for the stand-ins (under 0.2 MB), the stand-ins that the
-// last frames looked at (about 3.5 kB each), the resident
-// blocks (at least LoadedBlock::memory_bytes each: DAG and refinement at full resolution, about
-// 30 MB for 257 x 257 samples read whole, in proportion to the collapses kept for a partial block, plus about
-// 30 bytes a sample), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the per-patch meshes of the
-// frame (about as much again); all of it is in resident_bytes (step 3).
+// with its record's place), one SQLite connection for the stand-ins (under 0.2 MB), the
+// stand-ins the last frames looked at (about 3.5 kB each), the resident blocks (at least
+// LoadedBlock::memory_bytes each: DAG and refinement at full resolution, about 30 MB for
+// 257 x 257 samples read whole, in proportion to the collapses kept for a partial block, plus
+// about 30 bytes a sample), the drawn mesh (~40 bytes per vertex, 20 per triangle) and the
+// per-patch meshes of the frame (about as much again); all of it is in resident_bytes (step 3).
 #pragma once
 
 #include <cstdint>
