@@ -9,7 +9,7 @@ packages=(
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb fonts-dejavu-core libfreetype-dev clang-format
-  chromium proj-bin
+  chromium proj-bin gdal-bin
   openmpi-bin libopenmpi-dev
   "$@"
 )
@@ -18,7 +18,8 @@ for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 # chromium: the headless browser of the CesiumJS client check (tools/cesium); proj-bin: PROJ's cs2cs,
-# which gives that test the EGM96 geoid undulation (with proj-data's egm96_15.gtx). Open MPI: the
+# which gives that test the EGM96 geoid undulation (with proj-data's egm96_15.gtx); gdal-bin: gdaldem,
+# the reference test_topographic_texture's hillshade is compared with (skipped without it). Open MPI: the
 # distributed 'mpirun -np N terralod build' and its tests.
 # Node.js runs the glTF validator and the CesiumJS check of the tests (tools/gltf, tools/cesium): any
 # node >= 18.18 on the PATH will do (Debian 12's nodejs is 18.20), so the Debian packages are only
