@@ -196,7 +196,6 @@ BlockSummary summarize_block(const pm::ProgressiveMesh& pm, BlockKey /*k*/, cons
 
 namespace {
 
-constexpr std::uint32_t kMagic = kBlockSummariesMagic;
 constexpr std::size_t kRecordV1 = 7 * 8 + 8;
 
 using pm::load_f32;
@@ -248,7 +247,7 @@ void check_summary_grid(const BlockGrid& grid) {
 }
 
 void write_header(pm::ByteWriter& o, const BlockGrid& grid) {
-  o.u32(kMagic);
+  o.u32(kBlockSummariesMagic);
   o.u32(kBlockSummariesVersion);
   o.u32(std::uint32_t(grid.cols()));
   o.u32(std::uint32_t(grid.rows()));
@@ -443,6 +442,25 @@ std::size_t block_summary_record_bytes(std::span<const std::uint8_t, 40> header)
   return 40 + 12 * n + (3 * (n <= 256 ? 1 : 2) + 4) * m;
 }
 
+std::uint32_t check_block_summaries_header(const BlockGrid& grid, std::span<const std::uint8_t> head,
+                                           std::uint64_t blob_size, const std::string& name_for_errors) {
+  auto fail = [&](const std::string& what) {
+    throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
+  };
+  if (blob_size < kBlockSummariesFraming || head.size() < kBlockSummariesHeader)
+    fail("truncated (" + std::to_string(blob_size) + " bytes)");
+  const std::uint8_t* p = head.data();
+  if (load_u32(p) != kBlockSummariesMagic) fail("bad magic");
+  const std::uint32_t version = load_u32(p + 4);
+  if (version != 1 && version != kBlockSummariesVersion)
+    fail("unsupported version " + std::to_string(version));
+  if (load_u32(p + 8) != std::uint32_t(grid.cols()) || load_u32(p + 12) != std::uint32_t(grid.rows()))
+    fail("block grid " + std::to_string(load_u32(p + 8)) + " x " + std::to_string(load_u32(p + 12)) +
+         " does not match the database's " + std::to_string(grid.cols()) + " x " +
+         std::to_string(grid.rows()));
+  return version;
+}
+
 BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t index,
                                          std::span<const std::uint8_t> record,
                                          const std::string& name_for_errors) {
@@ -463,15 +481,7 @@ void for_each_block_summary(const BlockGrid& grid, std::span<const std::uint8_t>
   auto fail = [&](const std::string& what) {
     throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
   };
-  if (bytes.size() < 20) fail("truncated (" + std::to_string(bytes.size()) + " bytes)");
-  if (load_u32(bytes.data()) != kMagic) fail("bad magic");
-  const std::uint32_t version = load_u32(bytes.data() + 4);
-  if (version != 1 && version != 2) fail("unsupported version " + std::to_string(version));
-  if (load_u32(bytes.data() + 8) != std::uint32_t(grid.cols()) ||
-      load_u32(bytes.data() + 12) != std::uint32_t(grid.rows()))
-    fail("block grid " + std::to_string(load_u32(bytes.data() + 8)) + " x " +
-         std::to_string(load_u32(bytes.data() + 12)) + " does not match the database's " +
-         std::to_string(grid.cols()) + " x " + std::to_string(grid.rows()));
+  const std::uint32_t version = check_block_summaries_header(grid, bytes, bytes.size(), name_for_errors);
   if (version == 1 && bytes.size() != 16 + grid.block_count() * kRecordV1 + 4)
     fail("size " + std::to_string(bytes.size()) + " bytes, expected " +
          std::to_string(16 + grid.block_count() * kRecordV1 + 4));

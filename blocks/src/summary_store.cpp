@@ -106,18 +106,9 @@ void SummaryStore::index_blob(std::uint32_t blob_crc) {
   const auto fail = [&](const std::string& what) {
     throw DatabaseError(path_, std::string(kBlockSummariesBlob) + ": " + what);
   };
-  if (size < kBlockSummariesFraming) fail("truncated (" + std::to_string(size) + " bytes)");
-  std::uint8_t head[kBlockSummariesHeader];
-  blob_->read(0, head, item);
-  if (pm::load_u32(head) != kBlockSummariesMagic) fail("bad magic");
-  const std::uint32_t version = pm::load_u32(head + 4);
-  if (version != 1 && version != kBlockSummariesVersion)
-    fail("unsupported version " + std::to_string(version));
-  if (pm::load_u32(head + 8) != std::uint32_t(grid_.cols()) ||
-      pm::load_u32(head + 12) != std::uint32_t(grid_.rows()))
-    fail("block grid " + std::to_string(pm::load_u32(head + 8)) + " x " +
-         std::to_string(pm::load_u32(head + 12)) + " does not match the database's " +
-         std::to_string(grid_.cols()) + " x " + std::to_string(grid_.rows()));
+  std::uint8_t head[kBlockSummariesHeader] = {};
+  if (size >= kBlockSummariesHeader) blob_->read(0, head, item);
+  const std::uint32_t version = check_block_summaries_header(grid_, head, size, path_);
   if (version == 1) {  // 64 bytes a block: decoded whole, and held
     std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
     blob_->read(0, bytes, item);
@@ -159,8 +150,8 @@ void SummaryStore::index_blob(std::uint32_t blob_crc) {
       const std::span<const std::uint8_t> rec(buf.data() + pos, bytes);
       const BlockSummary b = decode_block_summary_record(grid_, i, rec, path_);
       fields_[i] = fields_of(b);
-      records_[i] = {base + pos, std::uint32_t(bytes), b.empty ? 0u : pm::crc32_of(rec)};
-      if (b.empty) records_[i].size = 0;  // nothing to read: its fields are the whole summary
+      // An empty block has nothing to read: its fields are the whole summary.
+      if (!b.empty) records_[i] = {base + pos, std::uint32_t(bytes), pm::crc32_of(rec)};
       pos += bytes;
       ++i;
     }

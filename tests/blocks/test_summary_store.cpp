@@ -151,6 +151,34 @@ TEST(SummaryStore, ADatabaseChangedUnderItGivesTheSnapshotThenAnErrorNamingTheFi
   }
 }
 
+TEST(SummaryStore, ABlobOfAnotherGridIsAnErrorNamingTheFile) {
+  const std::string copy = (tt::process_temp_dir("summary_store") / "other_grid.db").string();
+  std::filesystem::copy_file(database(), copy, std::filesystem::copy_options::overwrite_existing);
+  tb::BlockGrid grid;
+  decoded(copy, grid);
+  {  // the header's column count (bytes 8..11) made 17, as another grid's blob would say
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(copy.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(
+        sqlite3_exec(
+            db,
+            "UPDATE blobs SET data = CAST(substr(data, 1, 8) || x'11000000' || substr(data, 13) AS BLOB) "
+            "WHERE name = 'block_summaries'",
+            nullptr, nullptr, nullptr),
+        SQLITE_OK);
+    sqlite3_close(db);
+  }
+  try {
+    SummaryStore store(copy, grid);
+    FAIL() << "a blob of another grid was opened";
+  } catch (const tb::DatabaseError& e) {
+    EXPECT_EQ(e.path(), copy);
+    EXPECT_NE(std::string(e.what()).find("block grid 17 x 12 does not match the database's 16 x 12"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(SummaryStore, TheRuntimeHoldsFieldsAtOpeningAndReadsTheStandinsItLooksAt) {
   tb::BlockGrid grid;
   const std::vector<tb::BlockSummary> all = decoded(database(), grid);

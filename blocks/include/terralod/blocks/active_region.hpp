@@ -176,6 +176,11 @@ BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t inde
 std::size_t block_summary_record_bytes(std::span<const std::uint8_t, 40> header);
 /// Offset of the first record in the blob (after its 16-byte header).
 inline constexpr std::size_t kBlockSummariesHeader = 16;
+/// The blob's version (1 or 2) from its first bytes `head` (at least kBlockSummariesHeader) and
+/// its size: DatabaseError("<name>: block_summaries: <problem>") when it is truncated, has a bad
+/// magic or version, or another block grid than `grid`. decode_block_summaries checks the same.
+std::uint32_t check_block_summaries_header(const BlockGrid& grid, std::span<const std::uint8_t> head,
+                                           std::uint64_t blob_size, const std::string& name_for_errors);
 /// The blob, written piece by piece through write(): the header, record(i) for every block in
 /// BlockGrid::index order, the CRC. Its size is kBlockSummariesFraming plus the records'. A build
 /// stores each block's record as the block is built and streams them into the database at the
