@@ -400,9 +400,7 @@ std::size_t SelectiveRefinement::full_memory_bytes(const CollapseDag& dag, const
     bytes += samples * sizeof(SampleFaces);
     for (std::uint32_t d : degree)
       if (d > kInlineFaces)
-        bytes += 2 * sizeof(void*) +
-                 malloc_chunk_bytes(sizeof(void*) +
-                                    sizeof(std::pair<const std::uint32_t, std::vector<std::uint32_t>>)) +
+        bytes += 2 * sizeof(void*) + detail::hash_node_bytes<std::uint32_t, std::vector<std::uint32_t>>() +
                  std::bit_ceil(d - kInlineFaces) * sizeof(std::uint32_t);
   }
   return bytes;

@@ -38,12 +38,16 @@ std::size_t capacity_bytes(const std::vector<std::vector<T, A>, B>& v) {
 }
 
 namespace detail {
-// Buckets plus one chunk per node (the value and the next pointer; the cached hash too, which
-// libstdc++ keeps unless the hash is marked fast, as std::hash of integers is).
+// One node of an unordered_map<K, V>: one chunk for the value and the next pointer (and the
+// cached hash, which libstdc++ keeps unless the hash is marked fast, as std::hash of integers is).
+template <class K, class V>
+constexpr std::size_t hash_node_bytes() {
+  return malloc_chunk_bytes(sizeof(void*) + sizeof(std::pair<const K, V>));
+}
+// Buckets plus one chunk per node.
 template <class K, class V, class H, class E, class A>
 std::size_t hash_map_bytes(const std::unordered_map<K, V, H, E, A>& m) {
-  return m.bucket_count() * sizeof(void*) +
-         m.size() * malloc_chunk_bytes(sizeof(void*) + sizeof(std::pair<const K, V>));
+  return m.bucket_count() * sizeof(void*) + m.size() * hash_node_bytes<K, V>();
 }
 }  // namespace detail
 
