@@ -87,7 +87,11 @@ struct BlockDatabaseImpl {
   /// Binds the blob (size, crc, data) at parameters first, first+1, first+2.
   void bind_blob(sqlite3_stmt* st, int first, std::span<const std::uint8_t> blob, const std::string& item);
   void step_write(sqlite3_stmt* st, const std::string& item);
+  /// Binds s without copying it (SQLITE_STATIC): s must outlive the statement's step.
   void bind_text(sqlite3_stmt* st, int i, const std::string& s, const std::string& item);
+  /// A temporary (a std::string made from a const char*, say) would be gone before the step:
+  /// the caller names the string instead.
+  void bind_text(sqlite3_stmt* st, int i, std::string&& s, const std::string& item) = delete;
   /// Per-connection settings, before anything is read.
   void configure();
 };

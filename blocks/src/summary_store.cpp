@@ -70,11 +70,11 @@ SummaryStore::SummaryStore(const std::string& db_path, const BlockGrid& grid) : 
   BlockDatabase db = BlockDatabase::open(db_path);
   db.set_cache_limit(kCacheLimit);
   BlockDatabaseImpl& d = ImplAccess::of(db);
-  const std::string item = blob_item(kBlockSummariesBlob);
+  const std::string name = kBlockSummariesBlob, item = blob_item(name);
   std::int64_t rowid = 0, size = 0, crc = 0;
   {
     OneOff st(d, "SELECT rowid, size, crc32 FROM blobs WHERE name = ?1", item);
-    d.bind_text(st, 1, kBlockSummariesBlob, item);
+    d.bind_text(st, 1, name, item);
     const int rc = sqlite3_step(st);
     if (rc == SQLITE_DONE) {  // no summaries: no stand-ins
       fields_.assign(grid_.block_count(), BlockSummary{});
