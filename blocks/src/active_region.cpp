@@ -432,7 +432,7 @@ const std::uint8_t* decode_record(const BlockGrid& grid, std::uint32_t version, 
 
 }  // namespace
 
-std::size_t block_summary_record_bytes(std::span<const std::uint8_t, 40> header) {
+std::size_t block_summary_record_bytes(std::span<const std::uint8_t, kBlockSummaryRecordHeader> header) {
   const std::uint8_t* p = header.data();
   const std::uint8_t kind = p[32], flags = p[33];
   const std::size_t n = load_u16(p + 34), m = load_u16(p + 36);
@@ -485,8 +485,10 @@ void for_each_block_summary(const BlockGrid& grid, std::span<const std::uint8_t>
   if (version == 1 && bytes.size() != 16 + grid.block_count() * kRecordV1 + 4)
     fail("size " + std::to_string(bytes.size()) + " bytes, expected " +
          std::to_string(16 + grid.block_count() * kRecordV1 + 4));
-  // A v2 record takes >= 40 + 4 x 12 + 3 + 4 bytes: check before allocating the summaries.
-  if (version == 2 && (bytes.size() - 20) / 95 < grid.block_count())
+  // A v2 record takes at least its header (an empty block's record is no more): check before
+  // allocating the summaries.
+  if (version == 2 &&
+      (bytes.size() - kBlockSummariesFraming) / kBlockSummaryRecordHeader < grid.block_count())
     fail("size " + std::to_string(bytes.size()) + " bytes, too small for " +
          std::to_string(grid.block_count()) + " block records");
   if (crc(bytes.data(), bytes.size() - 4) != load_u32(bytes.data() + bytes.size() - 4))

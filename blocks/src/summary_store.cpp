@@ -117,8 +117,8 @@ void SummaryStore::index_blob(std::uint32_t blob_crc) {
     return;
   }
   const std::size_t blocks = grid_.block_count();
-  // Every record takes at least 40 bytes: check before allocating a huge grid's fields.
-  if ((size - kBlockSummariesFraming) / 40 < blocks)
+  // Every record takes at least its header: check before allocating a huge grid's fields.
+  if ((size - kBlockSummariesFraming) / kBlockSummaryRecordHeader < blocks)
     fail("size " + std::to_string(size) + " bytes, too small for " + std::to_string(blocks) +
          " block records");
   fields_.resize(blocks);
@@ -140,9 +140,10 @@ void SummaryStore::index_blob(std::uint32_t blob_crc) {
     body = pm::crc32_of({buf.data() + at, in_body}, body);
     read += n;
     // The records now whole in buf.
-    while (i < blocks && base + pos + 40 <= std::min(read, records_end)) {
+    while (i < blocks && base + pos + kBlockSummaryRecordHeader <= std::min(read, records_end)) {
       const std::size_t bytes =
-          block_summary_record_bytes(std::span<const std::uint8_t, 40>(buf.data() + pos, 40));
+          block_summary_record_bytes(std::span<const std::uint8_t, kBlockSummaryRecordHeader>(
+              buf.data() + pos, kBlockSummaryRecordHeader));
       if (bytes == 0) fail("block record " + std::to_string(i) + ": bad kind, flags or stand-in size");
       if (base + pos + bytes > records_end)
         fail("block record " + std::to_string(i) + ": truncated stand-in");

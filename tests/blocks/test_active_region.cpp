@@ -103,6 +103,32 @@ TEST(BlockSummary, BlobRoundTripAndCorruption) {
                tb::DatabaseError);
 }
 
+// An all-void block's record is its 40-byte header alone, so a terrain that is mostly void (a
+// coastline tile, a mosaic with missing tiles) has a blob of about 40 bytes a block: it decodes.
+// The decoder's size check once assumed 95 bytes a record and refused such a blob as too small.
+TEST(BlockSummary, MostlyEmptyBlocksDecode) {
+  tb::StandinOptions two;
+  two.kind = tb::StandinKind::TwoTriangles;
+  const terralod::test::BlockedTerrain t =
+      terralod::test::make_blocked_terrain(65, 49, 17, /*seed=*/3, 30.0, 1200.0, {two});
+  std::vector<tb::BlockSummary> s(t.summaries.size());
+  for (tb::BlockSummary& b : s) b.empty = true;
+  s[5] = t.summaries[5];
+  const std::vector<std::uint8_t> blob = tb::encode_block_summaries(t.grid, s);
+  ASSERT_EQ(s[5].points.size(), 4u);
+  EXPECT_EQ(blob.size(), 16 + 4 + 11 * tb::kBlockSummaryRecordHeader + (40 + 12 * 4 + 7 * 2));
+  EXPECT_LT(blob.size(), 20 + 95 * s.size());  // below the old check's floor
+  EXPECT_EQ(tb::decode_block_summaries(t.grid, blob, "t.db"), s);
+  // Still refused when it cannot hold a header a block.
+  const std::vector<std::uint8_t> cut(blob.begin(), blob.begin() + 20 + 40 * 11);
+  try {
+    tb::decode_block_summaries(t.grid, cut, "t.db");
+    FAIL() << "a blob too small for its grid was accepted";
+  } catch (const tb::DatabaseError& e) {
+    EXPECT_NE(std::string(e.what()).find("too small for 12 block records"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ActiveRegion, InnerRadiusFollowsTheHeightRule) {
   // b = a cot(theta); n = ceil(b / L), clamped to [n_min, n_max].
   tb::ActiveRegionOptions o;

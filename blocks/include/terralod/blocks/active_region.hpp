@@ -170,10 +170,12 @@ std::vector<std::uint8_t> encode_block_summary_record(const BlockSummary& s);
 BlockSummary decode_block_summary_record(const BlockGrid& grid, std::size_t index,
                                          std::span<const std::uint8_t> record,
                                          const std::string& name_for_errors);
-/// Bytes of the version 2 record that starts with these 40 header bytes (its stand-in's size
+/// A version 2 record's fixed header; an empty (all-void) block's record is only this.
+inline constexpr std::size_t kBlockSummaryRecordHeader = 40;
+/// Bytes of the version 2 record that starts with these header bytes (its stand-in's size
 /// follows from n and m), or 0 when the header is not one decode_block_summary_record accepts.
 /// Lets a reader find record boundaries without decoding (the runtime's summary store).
-std::size_t block_summary_record_bytes(std::span<const std::uint8_t, 40> header);
+std::size_t block_summary_record_bytes(std::span<const std::uint8_t, kBlockSummaryRecordHeader> header);
 /// Offset of the first record in the blob (after its 16-byte header).
 inline constexpr std::size_t kBlockSummariesHeader = 16;
 /// The blob's version (1 or 2) from its first bytes `head` (at least kBlockSummariesHeader) and
