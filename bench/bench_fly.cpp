@@ -113,8 +113,11 @@ int main(int argc, char** argv) {
     }
     const tb::BlockDatabase db = tb::BlockDatabase::open(db_path);
     const tb::BlockGrid grid = tb::BlockGrid::from_info(db.info());
-    double zmax = 0;
-    for (const tb::BlockSummary& s : tb::read_block_summaries(db, grid)) zmax = std::max(zmax, s.zmax);
+    // The highest sample: the top of the tree root's box (its surface's heights are samples), not
+    // a decode of every block summary, which would hold them all outside the runtime's count.
+    const auto tree_blob = db.read_blob("tree");
+    if (!tree_blob) throw tb::DatabaseError(db_path, "no approximation tree (blob 'tree')");
+    const double zmax = tb::decode_tree(*tree_blob, db_path + ": tree").root().bbox.hi.z;
 
     // The flight: 60 s at 60 fps, 400 m/s, an S-curve across the tile (a right then a left
     // turn of radius 12 km), 700 m above the highest sample, looking ahead 20 deg down.
