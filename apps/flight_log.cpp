@@ -15,7 +15,7 @@ std::string flight_log_header(bool drawing) {
       "evicted,"
       "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_"
       "nodes,"
-      "moving_vertices,clamped_vertices,seam_triangles";
+      "moving_vertices,clamped_vertices,seam_triangles,standins_held,standin_reads";
   if (drawing) h += ",vertices,draw_ms,upload_ms,wait_ms,texture_bytes,texture_patches,textures_from_parent";
   return h;
 }
@@ -41,13 +41,14 @@ void FlightLog::row(const FlightRow& r) {
   std::fprintf(f_,
                "%zu,%.6f,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%zu,%.17g,%zu,%.6f,%.6f,%zu,%zu,%zu,%zu,%"
                "zu,0,0,%zu,"
-               "%llu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu",
+               "%llu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu,%zu",
                r.frame, r.time_s, c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg, s.tolerance_px,
                s.triangles, s.bound_px, s.missing_in_view, s.update_ms, s.update_cpu_ms, s.resident_bytes,
                s.blocks_resident, s.blocks_loading, s.blocks_evicted, s.nodes_resident,
                s.prefetch_misses_total, static_cast<unsigned long long>(s.bytes_read_total), s.nodes_visited,
                s.nodes_culled, s.coarse_nodes, s.pm_blocks, s.standin_blocks, s.fallback_nodes,
-               s.moving_vertices, s.clamped_vertices, s.seam_triangles);
+               s.moving_vertices, s.clamped_vertices, s.seam_triangles, s.standins_held,
+               s.standin_reads_total);
   if (drawing_)
     std::fprintf(f_, ",%zu,%.4f,%.4f,%.4f,%zu,%zu,%zu", r.vertices, r.draw_ms, r.upload_ms, r.wait_ms,
                  r.texture_bytes, r.texture_patches, r.textures_from_parent);

@@ -129,7 +129,9 @@ const std::vector<std::string> kColumns = {"frame",
                                            "fallback_nodes",
                                            "moving_vertices",
                                            "clamped_vertices",
-                                           "seam_triangles"};
+                                           "seam_triangles",
+                                           "standins_held",
+                                           "standin_reads"};
 
 /// frames.csv as rows of numbers, asserting the header and that every field is a finite number.
 std::vector<std::vector<double>> read_frames(const fs::path& csv) {
@@ -188,7 +190,7 @@ TEST(CmdFly, FramesCsvAndDumpedMeshesAreCompleteWatertightAndWithinTheBound) {
 
   const std::vector<std::vector<double>> rows = read_frames(out / "frames.csv");
   ASSERT_EQ(rows.size(), std::size_t(kFrames));
-  double last_bytes = 0, last_misses = 0, worst_ratio = 0;
+  double last_bytes = 0, last_misses = 0, last_standin_reads = 0, worst_ratio = 0;
   for (int i = 0; i < kFrames; ++i) {
     SCOPED_TRACE("frame " + std::to_string(i));
     const std::vector<double>& row = rows[std::size_t(i)];
@@ -213,9 +215,15 @@ TEST(CmdFly, FramesCsvAndDumpedMeshesAreCompleteWatertightAndWithinTheBound) {
     // Cumulative counters never decrease; 16 blocks at most in any count of blocks.
     EXPECT_GE(col(row, "bytes_read"), last_bytes);
     EXPECT_GE(col(row, "prefetch_misses"), last_misses);
+    EXPECT_GE(col(row, "standin_reads"), last_standin_reads);
     last_bytes = col(row, "bytes_read");
     last_misses = col(row, "prefetch_misses");
-    for (const char* k : {"blocks_resident", "blocks_loading", "missing_in_view", "pm_blocks"}) {
+    last_standin_reads = col(row, "standin_reads");
+    // A stand-in drawn this frame was read and is held; every one held was read.
+    EXPECT_LE(col(row, "standin_blocks"), col(row, "standins_held"));
+    EXPECT_LE(col(row, "standins_held"), col(row, "standin_reads"));
+    for (const char* k :
+         {"blocks_resident", "blocks_loading", "missing_in_view", "pm_blocks", "standins_held"}) {
       EXPECT_GE(col(row, k), 0.0) << k;
       EXPECT_LE(col(row, k), 16.0) << k;
     }

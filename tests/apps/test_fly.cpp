@@ -118,7 +118,8 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
       "evicted,"
       "prefetch_misses,bytes_read,nodes_visited,nodes_culled,coarse_nodes,pm_blocks,standin_blocks,fallback_"
       "nodes,"
-      "moving_vertices,clamped_vertices,seam_triangles,vertices,draw_ms,upload_ms,wait_ms,texture_bytes,"
+      "moving_vertices,clamped_vertices,seam_triangles,standins_held,standin_reads,vertices,draw_ms,upload_"
+      "ms,wait_ms,texture_bytes,"
       "texture_patches,textures_from_parent");
   int rows = 0;
   while (std::getline(in, line)) {
@@ -126,7 +127,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     std::stringstream ss(line);
     std::string x;
     while (std::getline(ss, x, ',')) f.push_back(x);
-    ASSERT_EQ(f.size(), 39u) << line;
+    ASSERT_EQ(f.size(), 41u) << line;
     EXPECT_LE(std::stod(f[10]), std::stod(f[8])) << "frame " << f[0] << ": bound above tau";
     EXPECT_GT(std::stoul(f[9]), 0u) << "frame " << f[0] << ": no triangles";
     // One PM: one block resident, none loading or missing; no evictions, misses or reads.
@@ -134,7 +135,8 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     EXPECT_EQ(f[15] + "," + f[16] + "," + f[17], "1,0,0") << line;
     EXPECT_EQ(f[21] + "," + f[22], "0,0") << line;
     EXPECT_EQ(f[26], "1") << line;
-    EXPECT_EQ(std::stod(f[35]), 0.0) << "frame " << f[0] << ": a single PM never waits";
+    EXPECT_EQ(f[32] + "," + f[33], "0,0") << line;  // no stand-ins held or read
+    EXPECT_EQ(std::stod(f[37]), 0.0) << "frame " << f[0] << ": a single PM never waits";  // wait_ms
     ++rows;
   }
   EXPECT_EQ(rows, 40);
