@@ -476,11 +476,14 @@ WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> n
     throw DemError(path, "no transformation from its CRS '" + name_of(source) + "' to '" + name_of(target) +
                              "': " + gdal_message("PROJ found none"));
 
-  // The footprint (pixel edges, every sample along each side) and the spacing at the centre.
+  // The footprint (pixel edges, every sample along each side) and the spacing at the centre. A
+  // geographic DEM whose outer samples lie on a pole has its pixel edges half a pixel beyond it,
+  // which no projection maps: they are taken at the pole.
+  const bool geographic = source.IsGeographic();
   std::vector<double> x, y;
   auto add = [&](double c, double r) {
     const auto [px, py] = st.to_world(c, r);
-    x.push_back(px), y.push_back(py);
+    x.push_back(px), y.push_back(geographic ? std::clamp(py, -90.0, 90.0) : py);
   };
   add(0.5 * (w - 1), 0.5 * (h - 1));
   add(0.5 * (w - 1) + 1.0, 0.5 * (h - 1));

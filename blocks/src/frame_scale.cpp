@@ -36,21 +36,27 @@ bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vec
 std::optional<std::pair<double, double>> scale_range(
     const std::vector<double>& lon, const std::vector<double>& lat, double a, double e2,
     const std::function<bool(std::vector<double>&, std::vector<double>&)>& to_frame) {
-  // Four neighbours at +-step degrees, through to_frame.
+  // Four neighbours at +-step degrees, through to_frame. Points within 0.1 degree of a pole are
+  // left out: the east metres per degree vanish there, and a neighbour beyond the pole (a pixel
+  // edge of a DEM that reaches 90 degrees lies half a pixel past it) is no point of any frame.
   constexpr double step = 1e-3;
+  std::vector<std::size_t> at;
   std::vector<double> x, y;
   for (std::size_t i = 0; i < lon.size(); ++i) {
+    if (!(std::abs(lat[i]) <= 89.9)) continue;
+    at.push_back(i);
     x.insert(x.end(), {lon[i] + step, lon[i] - step, lon[i], lon[i]});
     y.insert(y.end(), {lat[i], lat[i], lat[i] + step, lat[i] - step});
   }
+  if (at.empty()) return std::pair{1.0, 1.0};  // no point away from the poles
   if (!to_frame(x, y)) return std::nullopt;
   double lo = 1e300, hi = -1e300;
-  for (std::size_t i = 0; i < lon.size(); ++i) {
+  for (std::size_t j = 0; j < at.size(); ++j) {
+    const std::size_t i = at[j];
     const double phi = lat[i] * kDeg, s = std::sin(phi);
-    if (std::abs(lat[i]) > 89.9) continue;  // the east metres per degree vanish at a pole
     const double n = a / std::sqrt(1.0 - e2 * s * s), m = n * (1.0 - e2) / (1.0 - e2 * s * s);
     const double east = n * std::cos(phi) * kDeg * 2.0 * step, north = m * kDeg * 2.0 * step;
-    const std::size_t k = 4 * i;
+    const std::size_t k = 4 * j;
     const double ex = (x[k] - x[k + 1]) / east, ey = (y[k] - y[k + 1]) / east;
     const double nx = (x[k + 2] - x[k + 3]) / north, ny = (y[k + 2] - y[k + 3]) / north;
     const double t = ex * ex + ey * ey + nx * nx + ny * ny, d = std::abs(ex * ny - nx * ey);
@@ -58,7 +64,6 @@ std::optional<std::pair<double, double>> scale_range(
     const double s1 = std::sqrt(0.5 * (t + root)), s2 = std::sqrt(std::max(0.0, 0.5 * (t - root)));
     lo = std::min(lo, s2), hi = std::max(hi, s1);
   }
-  if (lo > hi) return std::pair{1.0, 1.0};  // no point away from the poles
   return std::pair{lo, hi};
 }
 

@@ -272,6 +272,34 @@ TEST(DemCrs, AutoSaysWhenAContinentIsBeyondATenthOfAPercent) {
   EXPECT_LE(distance_errors(hf, 0.0, 30.0, 30.0, 60.0).short_pairs, *scale + 1e-5);
 }
 
+// A geographic DEM whose last row lies on a pole (global and Arctic mosaics reach 90 degrees):
+// its pixel edges lie half a pixel beyond the pole, and measuring the frames' scale there made
+// every projection fail ("GDAL cannot make any of the projections"). Auto now skips what lies
+// within 0.1 degree of the pole, as it always did for the measurement itself, and keeps
+// distances true within 0.1 % below it.
+class AtAPole : public ::testing::TestWithParam<double> {};
+
+TEST_P(AtAPole, AutoMakesAFrameAndKeepsDistancesTrue) {
+  const double lat0 = GetParam(), lon0 = 10.0;  // 4 x 2 degrees, a row on the pole
+  const fs::path path =
+      write_geographic("pole_" + std::to_string(int(lat0)) + ".tif", lon0, lat0, 81, 41, 0.05);
+  tb::DemOptions o;
+  o.crs = "auto";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  std::printf("%s\n", hf.frame.c_str());
+  EXPECT_NE(hf.frame.find("azimuthal equidistant"), std::string::npos) << hf.frame;
+  const std::optional<double> scale = tb::frame_scale_error(hf);
+  ASSERT_TRUE(scale);
+  EXPECT_LE(*scale, 0.001);
+  const double lat_lo = lat0 < 0 ? -89.9 : lat0, lat_hi = lat0 < 0 ? lat0 + 2.0 : 89.9;
+  EXPECT_LE(worst_distance_error(hf, lon0, lon0 + 4.0, lat_lo, lat_hi), 0.001);
+  std::size_t valid = 0;
+  for (std::size_t i = 0; i < hf.size(); ++i) valid += hf.valid(i) ? 1 : 0;
+  EXPECT_GT(valid, hf.size() / 4) << "the warped grid holds the DEM's samples";
+}
+
+INSTANTIATE_TEST_SUITE_P(NorthAndSouth, AtAPole, ::testing::Values(88.0, -90.0));
+
 // A strip along a great circle at 45 degrees (30 degrees long, 5 wide) inside a 30 x 30 degree
 // raster whose other samples are voids, kept as holes: auto judges the frame by the valid
 // samples (the raster's mask) and takes the oblique Mercator along the strip. Every distance of
