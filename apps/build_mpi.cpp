@@ -19,10 +19,13 @@ namespace terralod::cli {
 namespace {
 
 // Protocol, per worker thread ("slot") s of rank r >= 1, on tag s + 1 between r and 0:
-//   r -> 0  READY (one byte)        then, after each block,  r -> 0  key + encoded PM
+//   r -> 0  READY (one byte)        then, after each block,  r -> 0  the block (below)
 //   0 -> r  key (two int32: col, row) of the next block to build, or an empty message: stop.
-// Rank 0 serves every slot from one thread (RemoteBuilder), receiving from any rank.
+// A block (blocks::BuiltBlock, as build_block makes it): int32 col, row; f64 base error; u64
+// vertices; u32 summary record bytes S; the S bytes; the encoded PM (the rest). Rank 0 serves
+// every slot from one thread (RemoteBuilder), receiving from any rank; it writes what it gets.
 constexpr int kReady = 0x52;
+constexpr std::size_t kBlockHeader = 8 + 8 + 8 + 4;
 
 /// A message from (source, tag), waiting without spinning: Open MPI's blocking receive polls,
 /// which would take a core from the builders on an oversubscribed machine.
@@ -64,14 +67,20 @@ blocks::RemoteBuilder serve_ranks(std::vector<int> slots) {
       int from = 0, tag = 0;
       std::vector<char> m = receive(MPI_ANY_SOURCE, MPI_ANY_TAG, &from, &tag);
       if (!(m.size() == 1 && m[0] == kReady)) {
-        if (m.size() < 8)
+        std::uint32_t summary = 0;
+        if (m.size() >= kBlockHeader) std::memcpy(&summary, m.data() + 24, 4);
+        if (m.size() < kBlockHeader || m.size() - kBlockHeader < summary)
           throw blocks::BuildError("a message of " + std::to_string(m.size()) + " bytes from rank " +
                                    std::to_string(from) + " is not a block");
         blocks::BuiltBlock b;
         std::int32_t key[2];
         std::memcpy(key, m.data(), 8);
         b.key = {key[0], key[1]};
-        b.pm.assign(m.begin() + 8, m.end());
+        std::memcpy(&b.base_error, m.data() + 8, 8);
+        std::memcpy(&b.vertices, m.data() + 16, 8);
+        const auto body = m.begin() + std::ptrdiff_t(kBlockHeader);
+        b.summary.assign(body, body + std::ptrdiff_t(summary));
+        b.pm.assign(body + std::ptrdiff_t(summary), m.end());
         deliver(std::move(b));
       }
       if (const std::optional<blocks::BlockKey> k = claim()) {
@@ -100,10 +109,15 @@ void work_for_rank0(const blocks::DemSource& src, const blocks::DatabaseBuildOpt
           if (m.empty()) break;
           std::int32_t key[2];
           std::memcpy(key, m.data(), 8);
-          const std::vector<std::uint8_t> blob = blocks::build_block_blob(src, {key[0], key[1]}, opt);
-          std::vector<char> out(8 + blob.size());
+          const blocks::BuiltBlock b = blocks::build_block(src, {key[0], key[1]}, opt);
+          const auto summary = std::uint32_t(b.summary.size());
+          std::vector<char> out(kBlockHeader + b.summary.size() + b.pm.size());
           std::memcpy(out.data(), key, 8);
-          std::memcpy(out.data() + 8, blob.data(), blob.size());
+          std::memcpy(out.data() + 8, &b.base_error, 8);
+          std::memcpy(out.data() + 16, &b.vertices, 8);
+          std::memcpy(out.data() + 24, &summary, 4);
+          std::memcpy(out.data() + kBlockHeader, b.summary.data(), b.summary.size());
+          std::memcpy(out.data() + kBlockHeader + b.summary.size(), b.pm.data(), b.pm.size());
           send(0, tag, out.data(), out.size());
         }
       } catch (const std::exception& e) {

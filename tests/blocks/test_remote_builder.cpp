@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
+#include <functional>
 #include <filesystem>
 #include <mutex>
 #include <stdexcept>
@@ -61,7 +63,7 @@ tb::RemoteBuilder remote(const pm::Heightfield& hf, const tb::DatabaseBuildOptio
               k = claim();
             }
             if (!k) break;
-            tb::BuiltBlock b{*k, tb::build_block_blob(hf, *k, opt)};
+            tb::BuiltBlock b = tb::build_block(hf, *k, opt);
             std::lock_guard<std::mutex> lock(m);
             if (fail_after > 0 && delivered >= fail_after) throw std::runtime_error("remote rank lost");
             deliver(std::move(b));
@@ -143,7 +145,11 @@ TEST(RemoteBuilder, ABlockOutsideTheTerrainIsRefused) {
   const pm::Heightfield hf = terrain();
   tb::DatabaseBuildOptions opt = options();
   opt.remote_builders.push_back([&](const auto& claim, const auto& deliver) {
-    if (claim()) deliver(tb::BuiltBlock{tb::BlockKey{10, 0}, tb::build_block_blob(hf, {0, 0}, opt)});
+    if (claim()) {
+      tb::BuiltBlock b = tb::build_block(hf, {0, 0}, opt);
+      b.key = {10, 0};
+      deliver(std::move(b));
+    }
   });
   try {
     tb::build_database(hf, (tmp() / "outside.db").string(), opt);
@@ -151,5 +157,36 @@ TEST(RemoteBuilder, ABlockOutsideTheTerrainIsRefused) {
   } catch (const tb::BuildError& e) {
     EXPECT_NE(std::string(e.what()).find("not a block of this terrain"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(tb::build_block_blob(hf, {0, 8}, opt), tb::BuildError);
+  EXPECT_THROW(tb::build_block(hf, {0, 8}, opt), tb::BuildError);
+}
+
+// The writer writes a delivered block without decoding its PM; what it does check, a bad
+// summary record or build record, stops the build with an error naming the block.
+TEST(RemoteBuilder, ABadSummaryOrRecordFromARemoteIsRefused) {
+  const pm::Heightfield hf = terrain();
+  const tb::DatabaseBuildOptions base = options();
+  const tb::BuiltBlock good = tb::build_block(hf, {2, 1}, base);
+  const std::vector<std::function<void(tb::BuiltBlock&)>> spoil = {
+      [](tb::BuiltBlock& b) { b.summary.resize(10); },
+      [](tb::BuiltBlock& b) { b.summary[32] = 9; },  // the record's stand-in kind
+      [](tb::BuiltBlock& b) { b.base_error = std::nan(""); },
+      [](tb::BuiltBlock& b) { b.pm.clear(); },
+  };
+  for (std::size_t i = 0; i < spoil.size(); ++i) {
+    SCOPED_TRACE("spoiled " + std::to_string(i));
+    tb::DatabaseBuildOptions opt = base;
+    opt.remote_builders.push_back([&](const auto& claim, const auto& deliver) {
+      if (!claim()) return;
+      tb::BuiltBlock b = good;
+      spoil[i](b);
+      deliver(std::move(b));
+    });
+    try {
+      tb::build_database(hf, (tmp() / ("spoiled" + std::to_string(i) + ".db")).string(), opt);
+      FAIL() << "a spoiled block was written";
+    } catch (const tb::BuildError& e) {
+      EXPECT_NE(std::string(e.what()).find("block (2,1) from a remote builder"), std::string::npos)
+          << e.what();
+    }
+  }
 }

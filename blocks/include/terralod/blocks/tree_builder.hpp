@@ -86,11 +86,17 @@ ApproximationTree build_tree(const DemSource& source, const BlockLayout& layout,
                              const TreeBuildOptions& options, std::span<const double> block_errors = {},
                              const std::function<void(double)>& progress = {});
 
-/// A block built away from the database's writer (another process, another machine): its key
-/// and its PM encoded by pm::encode_pm, as build_block_blob makes it.
+/// A block as build_database writes it, made by build_block in any process (another rank,
+/// another machine) or by the build's own threads: its PM encoded by pm::encode_pm, its record of
+/// the block_summaries blob (encode_block_summary_record of its stand-in), and its build record
+/// (the PM's base mesh error and full-resolution vertex count). The writer only writes it: it
+/// never decodes a block it is given.
 struct BuiltBlock {
   BlockKey key;
   std::vector<std::uint8_t> pm;
+  std::vector<std::uint8_t> summary;
+  double base_error = 0;
+  std::uint64_t vertices = 0;
 };
 
 /// Builds blocks beside build_database's own threads, for instance on the other ranks of an MPI
@@ -139,13 +145,11 @@ struct DatabaseBuildOptions {
   std::vector<RemoteBuilder> remote_builders = {};
 };
 
-/// The encoded PM of block `key` of hf cut into opt.block_size blocks, exactly what
-/// build_database writes for it (deterministic: any process on any machine makes the same bytes
-/// from the same samples and options).
-std::vector<std::uint8_t> build_block_blob(const pm::Heightfield& hf, BlockKey key,
-                                           const DatabaseBuildOptions& opt);
-std::vector<std::uint8_t> build_block_blob(const DemSource& source, BlockKey key,
-                                           const DatabaseBuildOptions& opt);
+/// Block `key` of hf cut into opt.block_size blocks, exactly what build_database writes for it
+/// (deterministic: any process on any machine makes the same bytes from the same samples and
+/// options). BuildError when key is not a block of the layout.
+BuiltBlock build_block(const pm::Heightfield& hf, BlockKey key, const DatabaseBuildOptions& opt);
+BuiltBlock build_block(const DemSource& source, BlockKey key, const DatabaseBuildOptions& opt);
 
 /// A build that cannot proceed: what() = "<file>: <problem>".
 class BuildError : public std::runtime_error {
