@@ -258,18 +258,20 @@ TEST(FuzzRegressions, SummariesV1CornerOutsideHeightRangeIsRejected) {
 
 TEST(FuzzRegressions, SummariesV2TooShortForTheGridIsRejectedBeforeAllocating) {
   // 2^20 + 1 by 2^10 + 1 samples in 3-sample blocks: 2^19 x 2^9 = 2^28 blocks (36 GB of
-  // summaries); a v2 record takes >= 95 bytes, a 20-byte blob holds none.
+  // summaries); a v2 record takes >= 40 bytes (an empty block's is its header alone), a 20-byte
+  // blob holds none.
   const terralod::blocks::BlockGrid g((1 << 20) + 1, (1 << 10) + 1, 3, pm::GridTransform::identity());
   EXPECT_EQ(summaries_error(g, summaries_blob(2, 1u << 19, 1u << 9, {})),
             "t.db: block_summaries: size 20 bytes, too small for 268435456 block records");
-  // 2 blocks need >= 20 + 2 x 95 = 210 bytes: 16 + 22 x 8 + 4 = 196 are too few, whatever
-  // they hold; 16 + 24 x 8 + 4 = 212 pass this check and fail on the first record (all zero:
-  // 0 stand-in points).
+  // 2 blocks need >= 20 + 2 x 40 = 100 bytes: 16 + 9 x 8 + 4 = 92 are too few, whatever
+  // they hold; 16 + 10 x 8 + 4 = 100 pass this check and fail on the first record (all zero:
+  // 0 stand-in points), as do 16 + 24 x 8 + 4 = 212.
   const terralod::blocks::BlockGrid two(5, 3, 3, pm::GridTransform::identity());
-  EXPECT_EQ(summaries_error(two, summaries_blob(2, 2, 1, std::vector<double>(22, 0.0))),
-            "t.db: block_summaries: size 196 bytes, too small for 2 block records");
-  EXPECT_EQ(summaries_error(two, summaries_blob(2, 2, 1, std::vector<double>(24, 0.0))),
-            "t.db: block_summaries: block record 0: truncated stand-in");
+  EXPECT_EQ(summaries_error(two, summaries_blob(2, 2, 1, std::vector<double>(9, 0.0))),
+            "t.db: block_summaries: size 92 bytes, too small for 2 block records");
+  for (std::size_t n : {10, 24})
+    EXPECT_EQ(summaries_error(two, summaries_blob(2, 2, 1, std::vector<double>(n, 0.0))),
+              "t.db: block_summaries: block record 0: truncated stand-in");
 }
 
 }  // namespace
