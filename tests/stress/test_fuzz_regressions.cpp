@@ -31,7 +31,8 @@
 //     Fix: decode_block_summaries rejects it ("a corner outside zmin..zmax").
 //   fuzz_block_summaries/v2-huge-grid-allocates-before-size-check: a 20-byte version 2 blob for
 //     a grid of 2^32 blocks made the decoder allocate every summary (600 GB) before reading a
-//     record. Fix: it first checks the blob can hold the records (>= 95 bytes each).
+//     record. Fix: it first checks the blob can hold the records (>= 40 bytes each, a record's
+//     header; the check said 95 until an all-void block's 40-byte record was found refused).
 //   fuzz_mesh_reader/* (found by review while writing the target, kept as seeds of the failure
 //     classes the readers guard against): an ascii PLY declaring 4e9 vertices and faces in a
 //     few bytes (refused before allocating: every ascii value takes >= 2 bytes), a big-endian
