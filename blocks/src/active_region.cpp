@@ -458,6 +458,15 @@ std::uint32_t check_block_summaries_header(const BlockGrid& grid, std::span<cons
     fail("block grid " + std::to_string(load_u32(p + 8)) + " x " + std::to_string(load_u32(p + 12)) +
          " does not match the database's " + std::to_string(grid.cols()) + " x " +
          std::to_string(grid.rows()));
+  // The blob's size against the grid's, before anything is allocated for its blocks: version 1
+  // records are 64 bytes; a version 2 record takes at least its header (an empty block's record
+  // is no more).
+  if (version == 1 && blob_size != 16 + grid.block_count() * kRecordV1 + 4)
+    fail("size " + std::to_string(blob_size) + " bytes, expected " +
+         std::to_string(16 + grid.block_count() * kRecordV1 + 4));
+  if (version == 2 && (blob_size - kBlockSummariesFraming) / kBlockSummaryRecordHeader < grid.block_count())
+    fail("size " + std::to_string(blob_size) + " bytes, too small for " + std::to_string(grid.block_count()) +
+         " block records");
   return version;
 }
 
@@ -482,15 +491,6 @@ void for_each_block_summary(const BlockGrid& grid, std::span<const std::uint8_t>
     throw DatabaseError(name_for_errors, std::string(kBlockSummariesBlob) + ": " + what);
   };
   const std::uint32_t version = check_block_summaries_header(grid, bytes, bytes.size(), name_for_errors);
-  if (version == 1 && bytes.size() != 16 + grid.block_count() * kRecordV1 + 4)
-    fail("size " + std::to_string(bytes.size()) + " bytes, expected " +
-         std::to_string(16 + grid.block_count() * kRecordV1 + 4));
-  // A v2 record takes at least its header (an empty block's record is no more): check before
-  // allocating the summaries.
-  if (version == 2 &&
-      (bytes.size() - kBlockSummariesFraming) / kBlockSummaryRecordHeader < grid.block_count())
-    fail("size " + std::to_string(bytes.size()) + " bytes, too small for " +
-         std::to_string(grid.block_count()) + " block records");
   if (crc(bytes.data(), bytes.size() - 4) != load_u32(bytes.data() + bytes.size() - 4))
     fail("checksum mismatch");
   const std::uint8_t* p = bytes.data() + 16;

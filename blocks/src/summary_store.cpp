@@ -116,11 +116,7 @@ void SummaryStore::index_blob(std::uint32_t blob_crc) {
     fields_ = decode_block_summaries(grid_, bytes, path_);
     return;
   }
-  const std::size_t blocks = grid_.block_count();
-  // Every record takes at least its header: check before allocating a huge grid's fields.
-  if ((size - kBlockSummariesFraming) / kBlockSummaryRecordHeader < blocks)
-    fail("size " + std::to_string(size) + " bytes, too small for " + std::to_string(blocks) +
-         " block records");
+  const std::size_t blocks = grid_.block_count();  // the header check held the blob's size to it
   fields_.resize(blocks);
   records_.resize(blocks);
   std::vector<std::uint8_t> buf;  // blob bytes from `base` on, not yet taken

@@ -180,7 +180,9 @@ std::size_t block_summary_record_bytes(std::span<const std::uint8_t, kBlockSumma
 inline constexpr std::size_t kBlockSummariesHeader = 16;
 /// The blob's version (1 or 2) from its first bytes `head` (at least kBlockSummariesHeader) and
 /// its size: DatabaseError("<name>: block_summaries: <problem>") when it is truncated, has a bad
-/// magic or version, or another block grid than `grid`. decode_block_summaries checks the same.
+/// magic or version, another block grid than `grid`, or a size that cannot hold the grid's
+/// records (checked before a reader allocates anything per block). decode_block_summaries checks
+/// the same.
 std::uint32_t check_block_summaries_header(const BlockGrid& grid, std::span<const std::uint8_t> head,
                                            std::uint64_t blob_size, const std::string& name_for_errors);
 /// The blob, written piece by piece through write(): the header, record(i) for every block in
