@@ -54,7 +54,8 @@ ViewCamera view_camera_options(const Args& a) {
   ViewCamera v;
   v.tau = tau_option(a);
   const auto [width, height] = image_size_option(a, {1024, 768});
-  v.camera = pm::Camera{c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg, width, height};
+  v.camera = c;
+  v.camera.width_px = width, v.camera.height_px = height;
   return v;
 }
 

@@ -68,7 +68,8 @@ pm::Camera flight_camera(const pm::Heightfield& hf, int frame, int frames) {
                     .width_px = 1280,
                     .height_px = 720,
                     .near_m = 1.0,
-                    .far_m = 200000.0};
+                    .far_m = 200000.0,
+                    .ground = {}};
 }
 
 struct Row {

@@ -93,7 +93,8 @@ std::vector<pm::Camera> flight(const pm::Heightfield& hf, int frames) {
                               .width_px = 1280,
                               .height_px = 720,
                               .near_m = 1.0,
-                              .far_m = 1.0e6});
+                              .far_m = 1.0e6,
+                              .ground = {}});
     x += step * std::sin(yaw * kDeg);
     y += step * std::cos(yaw * kDeg);
   }

@@ -303,13 +303,7 @@ std::optional<PickResult> ObjectPlacer::pick(const TerrainRuntime& rt, const pm:
 
 std::optional<PickResult> ObjectPlacer::pick_pixel(const TerrainRuntime& rt, double px, double py) const {
   assert(view_ && "pick_pixel() after place()");
-  const pm::View& v = *view_;
-  const pm::Camera& c = v.camera();
-  const double a = (px - 0.5 * c.width_px) / v.focal_px(), b = (0.5 * c.height_px - py) / v.focal_px();
-  const pm::Vec3 dir{v.forward().x + a * v.right().x + b * v.up().x,
-                     v.forward().y + a * v.right().y + b * v.up().y,
-                     v.forward().z + a * v.right().z + b * v.up().z};
-  return pick(rt, v.eye(), dir);
+  return pick(rt, view_->eye(), view_->pixel_direction(px, py));
 }
 
 }  // namespace terralod::blocks

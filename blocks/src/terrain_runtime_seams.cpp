@@ -175,7 +175,7 @@ void TerrainRuntime::assemble(const pm::View& view, double tau, std::size_t coun
     }
     return false;
   };
-  const pm::Vec3 fwd = view.forward();
+  const pm::Vec3 fwd = view.depth_gradient();
   const double eye_depth = pm::dot(view.eye(), fwd);
   auto min_depth = [&](const Prism& q) {
     double d = 1e300;

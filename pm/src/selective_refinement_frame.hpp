@@ -17,7 +17,7 @@ struct SelectiveRefinement::Frame {
   double kf = 0.0;             // K * vertical_factor / tau: ok when E * kf <= max(zmin, near)
   double kvf = 0.0;            // K * vertical_factor
   double near = 0.0;
-  double fz = 0.0;  // |forward.z|: depth change per metre of height
+  double fz = 0.0;  // |depth_gradient.z|: depth change per metre of height
   // depth(col, row, z) = d0 + dc col + dr row + dz z (the transform is affine).
   double d0 = 0.0, dc = 0.0, dr = 0.0, dz = 0.0, inv_w = 0.0;
   double floor = -1.0;  // face_bound_px skips the plane tests below this value
@@ -28,9 +28,9 @@ struct SelectiveRefinement::Frame {
     kvf = v.focal_px() * v.vertical_factor();
     kf = kvf / tau;
     near = v.camera().near_m;
-    fz = std::abs(v.forward().z);
+    fz = std::abs(v.depth_gradient().z);
     const GridTransform& t = hf.transform;
-    const Vec3& f = v.forward();
+    const Vec3& f = v.depth_gradient();
     d0 = (t.x0 - v.eye().x) * f.x + (t.y0 - v.eye().y) * f.y - v.eye().z * f.z;
     dc = t.xc * f.x + t.yc * f.y;
     dr = t.xr * f.x + t.yr * f.y;
@@ -45,7 +45,7 @@ struct SelectiveRefinement::Frame {
   void set_cull(const View& c, const Heightfield& hf) {
     cull = &c;
     const Vec3 o{hf.transform.x0, hf.transform.y0, 0.0};
-    const Vec3& f = view->forward();
+    const Vec3& f = view->depth_gradient();
     pf[0] = f.x, pf[1] = f.y, pf[2] = f.z;
     pd0 = dot(o, f) - dot(view->eye(), f);
     for (int k = 0; k < 6; ++k) {

@@ -41,6 +41,16 @@ void require(bool ok, const char* what) {
 
 }  // namespace
 
+double GroundScale::min_scale() const {
+  const double m = 0.5 * (xx + yy), r = std::hypot(0.5 * (xx - yy), xy);
+  return m - r;
+}
+
+double GroundScale::max_scale() const {
+  const double m = 0.5 * (xx + yy), r = std::hypot(0.5 * (xx - yy), xy);
+  return m + r;
+}
+
 double tolerance_px_from_fraction(double fraction, int height_px) {
   if (!(fraction > 0.0) || !std::isfinite(fraction))
     throw std::invalid_argument("tolerance: the fraction of the screen height must be > 0");
@@ -56,6 +66,10 @@ View::View(const Camera& c) : cam_(c) {
   require(c.width_px >= 1 && c.height_px >= 1, "width_px and height_px must be >= 1");
   require(c.near_m > 0.0 && std::isfinite(c.near_m), "near_m must be > 0");
   require(c.far_m > c.near_m && std::isfinite(c.far_m), "far_m must be finite and > near_m");
+  const GroundScale& g = c.ground;
+  require(std::isfinite(g.xx) && std::isfinite(g.xy) && std::isfinite(g.yy) && g.min_scale() >= 0.5 &&
+              g.max_scale() <= 2.0,
+          "the ground scale must be finite with singular values in [0.5, 2]");
   eye_ = {c.x, c.y, c.z};
   const double yaw = c.yaw_deg * kDeg, pitch = c.pitch_deg * kDeg;
   const double cp = std::cos(pitch), sp = std::sin(pitch);
@@ -70,23 +84,31 @@ View::View(const Camera& c) : cam_(c) {
   vfactor_ = 0.0;
   for (double X : {-tanx_, tanx_})
     for (double Y : {-tany_, tany_}) vfactor_ = std::max(vfactor_, std::hypot(X * cf, cu - Y * cf));
-  const double e = dot(eye_, fwd_);
-  planes_[0] = {fwd_, -e - c.near_m};
-  planes_[1] = {mul(fwd_, -1.0), e + c.far_m};
-  const Vec3 side[4] = {add(right_, mul(fwd_, tanx_)), add(mul(right_, -1.0), mul(fwd_, tanx_)),
-                        add(up_, mul(fwd_, tany_)), add(mul(up_, -1.0), mul(fwd_, tany_))};
+  // Camera coordinates of p are dot(p - eye, G' axis): G' is symmetric. A plane of the seen
+  // space with normal n has the world normal G' n, normalised here so that distance() is metres.
+  dfwd_ = g.apply(fwd_), dright_ = g.apply(right_), dup_ = g.apply(up_);
+  const double lf = std::sqrt(dot(dfwd_, dfwd_)), e = dot(eye_, dfwd_);
+  planes_[0] = {mul(dfwd_, 1.0 / lf), (-e - c.near_m) / lf};
+  planes_[1] = {mul(dfwd_, -1.0 / lf), (e + c.far_m) / lf};
+  const Vec3 side[4] = {add(dright_, mul(dfwd_, tanx_)), add(mul(dright_, -1.0), mul(dfwd_, tanx_)),
+                        add(dup_, mul(dfwd_, tany_)), add(mul(dup_, -1.0), mul(dfwd_, tany_))};
   for (int k = 0; k < 4; ++k) {
     const Vec3 n = normalized(side[k]);
     planes_[2 + k] = {n, -dot(n, eye_)};
   }
 }
 
+Vec3 View::pixel_direction(double px, double py) const {
+  const double X = (px - 0.5 * cam_.width_px) / focal_, Y = (0.5 * cam_.height_px - py) / focal_;
+  return normalized(cam_.ground.inverse_apply(add(fwd_, add(mul(right_, X), mul(up_, Y)))));
+}
+
 bool View::project(const Vec3& p, double& px, double& py) const {
   const Vec3 d = sub(p, eye_);
-  const double z = dot(d, fwd_);
+  const double z = dot(d, dfwd_);
   if (!(z > 0.0)) return false;
-  px = 0.5 * cam_.width_px + focal_ * dot(d, right_) / z;
-  py = 0.5 * cam_.height_px - focal_ * dot(d, up_) / z;
+  px = 0.5 * cam_.width_px + focal_ * dot(d, dright_) / z;
+  py = 0.5 * cam_.height_px - focal_ * dot(d, dup_) / z;
   return true;
 }
 
@@ -111,10 +133,12 @@ bool View::outside(const Sphere& s) const {
 
 double View::min_depth(const Box& b) const {
   const Vec3 c = mul(add(b.lo, b.hi), 0.5), h = mul(sub(b.hi, b.lo), 0.5);
-  return dot(sub(c, eye_), fwd_) - dot(absv(fwd_), h);
+  return dot(sub(c, eye_), dfwd_) - dot(absv(dfwd_), h);
 }
 
-double View::min_depth(const Sphere& s) const { return dot(sub(s.center, eye_), fwd_) - s.radius; }
+double View::min_depth(const Sphere& s) const {
+  return dot(sub(s.center, eye_), dfwd_) - s.radius * std::sqrt(dot(dfwd_, dfwd_));
+}
 
 double View::vertical_error_px_at_depth(double min_depth_m, double error_m) const {
   return error_m * focal_ * vfactor_ / std::max(min_depth_m, cam_.near_m);
@@ -129,8 +153,8 @@ double View::vertical_error_px(const Sphere& s, double error_m) const {
 }
 
 std::array<double, 16> View::view_matrix() const {
-  // Rows: right, up, -forward; translation -R eye. Column-major: m[col * 4 + row].
-  const Vec3 r[3] = {right_, up_, mul(fwd_, -1.0)};
+  // Rows: G' right, G' up, -G' forward; translation -R eye. Column-major: m[col * 4 + row].
+  const Vec3 r[3] = {dright_, dup_, mul(dfwd_, -1.0)};
   std::array<double, 16> m{};
   for (int row = 0; row < 3; ++row) {
     m[0 * 4 + row] = r[row].x;

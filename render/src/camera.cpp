@@ -50,7 +50,10 @@ glm::dvec3 camera_up(const Camera& c) { return glm::cross(camera_right(c), camer
 
 glm::dmat4 view_matrix(const Camera& c) {
   check(c);
-  const glm::dvec3 r = camera_right(c), u = camera_up(c), f = camera_forward(c), p = camera_position(c);
+  // The seen space's axes pulled back through the ground scale (pm/view.hpp): rows G' r, G' u,
+  // -G' f, so that the eye coordinates of p are those of eye + G' (p - eye).
+  const glm::dvec3 r = c.ground.apply(camera_right(c)), u = c.ground.apply(camera_up(c)),
+                   f = c.ground.apply(camera_forward(c)), p = camera_position(c);
   glm::dmat4 v(1.0);  // column-major: v[column][row]
   v[0][0] = r.x, v[1][0] = r.y, v[2][0] = r.z, v[3][0] = -glm::dot(r, p);
   v[0][1] = u.x, v[1][1] = u.y, v[2][1] = u.z, v[3][1] = -glm::dot(u, p);
@@ -86,7 +89,8 @@ glm::dvec3 pixel_ray(const Camera& c, double px, double py) {
   check(c);
   const double t = std::tan(0.5 * c.fovy_deg * kDeg);
   const double nx = 2.0 * px / c.width_px - 1.0, ny = 1.0 - 2.0 * py / c.height_px;
-  return glm::normalize(camera_forward(c) + camera_right(c) * (nx * t * aspect(c)) + camera_up(c) * (ny * t));
+  return glm::normalize(c.ground.inverse_apply(camera_forward(c) + camera_right(c) * (nx * t * aspect(c)) +
+                                               camera_up(c) * (ny * t)));
 }
 
 double distance_to_box(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {

@@ -424,7 +424,8 @@ ObjectDrawStats ObjectRenderer::draw_icons(FrameSource& frame, std::span<const I
   gl.UseProgram(impl_->icon_program);
   const glm::mat4 mvp = camera_relative_mvp(f);
   gl.UniformMatrix4fv(impl_->loc(impl_->icon_program, "u_mvp"), 1, GL_FALSE, &mvp[0][0]);
-  const glm::dvec3 right = camera_right(f.camera);
+  // The world offset that the view (through the ground scale) shows along the image's right.
+  const glm::dvec3 right = f.camera.ground.inverse_apply(camera_right(f.camera));
   gl.Uniform2f(impl_->loc(impl_->icon_program, "u_cam_right"), float(right.x), float(right.y));
   gl.Uniform1f(impl_->loc(impl_->icon_program, "u_cutoff"), options_.icon_alpha_cutoff);
   gl.Uniform1i(impl_->loc(impl_->icon_program, "u_image"), 0);

@@ -154,7 +154,8 @@ pm::Camera camera_at(const pm::Heightfield& hf, double col, double row, double d
                     .width_px = 800,
                     .height_px = 600,
                     .near_m = 0.5,
-                    .far_m = 1e7};
+                    .far_m = 1e7,
+                    .ground = {}};
 }
 
 }  // namespace

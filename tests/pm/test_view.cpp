@@ -31,6 +31,8 @@ pm::Camera random_camera(std::mt19937_64& rng) {
   c.height_px = 100 + int(U(rng) * 1200);
   c.near_m = 0.5 + U(rng) * 5;
   c.far_m = c.near_m + 1e3 + U(rng) * 1e5;
+  // Every other camera has a ground scale, stretching far more than a map projection's.
+  if (U(rng) < 0.5) c.ground = tt::random_ground_scale(rng);
   return c;
 }
 
@@ -222,6 +224,62 @@ TEST(View, VerticalErrorBoundHolds) {
   EXPECT_NEAR(tt::ScreenProjector(c).vertical_segment_px(0, 300, -2, 2), v.vertical_error_px(b, 4.0), 1e-9);
 }
 
+// The ground scale: a world point p is seen at eye + G (p - eye). project() of p is the plain
+// view's projection of that seen point; depth_gradient() gives the seen depth; the ray through a
+// pixel, pixel_direction(), projects back onto that pixel; the singular values are G's.
+TEST(View, GroundScaleShowsTheWorldStretchedAboutTheEye) {
+  std::mt19937_64 rng(14);
+  std::printf("seed 14\n");
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::size_t compared = 0;
+  for (int k = 0; k < 100; ++k) {
+    pm::Camera c = random_camera(rng);
+    c.ground = {1.1 + 0.1 * U(rng), 0.1 * U(rng), 0.9 + 0.05 * U(rng)};
+    pm::Camera plain = c;
+    plain.ground = {};
+    const pm::View v(c), p0(plain);
+    for (int i = 0; i < 20; ++i) {
+      const pm::Vec3 p{c.x + U(rng) * 5000, c.y + U(rng) * 5000, c.z + U(rng) * 2000};
+      const pm::Vec3 seen{c.x + c.ground.xx * (p.x - c.x) + c.ground.xy * (p.y - c.y),
+                          c.y + c.ground.xy * (p.x - c.x) + c.ground.yy * (p.y - c.y), p.z};
+      EXPECT_NEAR(v.depth(p), p0.depth(seen), 1e-9 * (1 + std::abs(v.depth(p))));
+      double px, py, sx, sy;
+      const bool ok = v.project(p, px, py);
+      ASSERT_EQ(ok, p0.project(seen, sx, sy));
+      if (!ok) continue;
+      ++compared;
+      EXPECT_NEAR(px, sx, 1e-7 * (1 + std::abs(px)));
+      EXPECT_NEAR(py, sy, 1e-7 * (1 + std::abs(py)));
+      EXPECT_EQ(v.contains(p), p0.contains(seen));
+    }
+    // min_depth of a sphere and of a box: no point of it is shallower, and one reaches it.
+    const pm::Vec3 m{c.x + U(rng) * 2000, c.y + U(rng) * 2000, c.z + U(rng) * 500};
+    const pm::Sphere sphere{m, 300.0};
+    const pm::Vec3& f = v.depth_gradient();
+    const double lf = std::sqrt(pm::dot(f, f));
+    EXPECT_NEAR(v.min_depth(sphere),
+                v.depth({m.x - 300 * f.x / lf, m.y - 300 * f.y / lf, m.z - 300 * f.z / lf}),
+                1e-9 * (1 + std::abs(v.min_depth(sphere))));
+    const pm::Box box{{m.x - 200, m.y - 100, m.z - 50}, {m.x + 200, m.y + 100, m.z + 50}};
+    double corner = 1e300;
+    for (int j = 0; j < 8; ++j)
+      corner = std::min(corner, v.depth({j & 1 ? box.hi.x : box.lo.x, j & 2 ? box.hi.y : box.lo.y,
+                                         j & 4 ? box.hi.z : box.lo.z}));
+    EXPECT_NEAR(v.min_depth(box), corner, 1e-9 * (1 + std::abs(corner)));
+    const double qx = (0.5 + 0.4 * U(rng)) * c.width_px, qy = (0.5 + 0.4 * U(rng)) * c.height_px;
+    const pm::Vec3 d = v.pixel_direction(qx, qy);
+    EXPECT_NEAR(pm::dot(d, d), 1.0, 1e-12);
+    double rx, ry;
+    ASSERT_TRUE(v.project({c.x + 100 * d.x, c.y + 100 * d.y, c.z + 100 * d.z}, rx, ry));
+    EXPECT_NEAR(rx, qx, 1e-6);
+    EXPECT_NEAR(ry, qy, 1e-6);
+  }
+  EXPECT_GT(compared, 300u);
+  const pm::GroundScale g{1.2, 0.1, 0.9};  // eigenvalues 1.05 +- sqrt(0.0325)
+  EXPECT_NEAR(g.min_scale(), 1.05 - std::sqrt(0.0325), 1e-12);
+  EXPECT_NEAR(g.max_scale(), 1.05 + std::sqrt(0.0325), 1e-12);
+}
+
 TEST(View, ToleranceAsFractionOfScreenHeight) {
   EXPECT_DOUBLE_EQ(pm::tolerance_px_from_fraction(0.002, 720), 1.44);
   EXPECT_DOUBLE_EQ(pm::tolerance_px_from_fraction(1.0 / 1080, 1080), 1.0);
@@ -253,4 +311,10 @@ TEST(View, BadCameraIsRejectedWithTheFieldName) {
   EXPECT_NE(msg(c).find("position"), std::string::npos);
   c = {}, c.yaw_deg = INFINITY;
   EXPECT_NE(msg(c).find("yaw_deg"), std::string::npos);
+  c = {}, c.ground = {3.0, 0.0, 1.0};
+  EXPECT_NE(msg(c).find("ground scale"), std::string::npos);
+  c = {}, c.ground = {1.0, 1.0, 1.0};  // singular
+  EXPECT_NE(msg(c).find("ground scale"), std::string::npos);
+  c = {}, c.ground = {1.0, NAN, 1.0};
+  EXPECT_NE(msg(c).find("ground scale"), std::string::npos);
 }

@@ -77,7 +77,8 @@ Camera scene_camera() {
                 .width_px = 320,
                 .height_px = 240,
                 .near_m = 1.0,
-                .far_m = 5000.0};
+                .far_m = 5000.0,
+                .ground = {}};
 }
 
 glm::dvec3 on_ground(double dx, double dy) { return {kX0 + dx, kY0 + dy, ground(kX0 + dx, kY0 + dy)}; }
@@ -379,7 +380,8 @@ IconView view_icon(Stage& st, render::IconStyleId style, double from_deg) {
                    .width_px = 320,
                    .height_px = 240,
                    .near_m = 1.0,
-                   .far_m = 5000.0};
+                   .far_m = 5000.0,
+                   .ground = {}};
   st.terrain.options().sky_color = {0.0f, 0.0f, 0.0f};
   st.terrain.draw(cam, std::span<const render::DrawItem>());
   st.objects.draw_icons(st.terrain, {{anchor, style, 40.0}});
@@ -473,7 +475,8 @@ TEST(Depth, IconBehindTheHillIsHiddenByTheTerrain) {
                    .width_px = 320,
                    .height_px = 240,
                    .near_m = 1.0,
-                   .far_m = 5000.0};
+                   .far_m = 5000.0,
+                   .ground = {}};
   const std::vector<render::IconInstance> hidden = {{on_ground(256, 426), marker, 60.0}};
   const auto changed_pixels = [&](bool terrain) {
     const std::vector<render::DrawItem> items = {{st.hill, 0.0f}};

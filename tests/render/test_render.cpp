@@ -94,7 +94,8 @@ Camera plane_camera() {
                 .width_px = 320,
                 .height_px = 240,
                 .near_m = 1.0,
-                .far_m = 5000.0};
+                .far_m = 5000.0,
+                .ground = {}};
 }
 
 /// A rough generated terrain (relief 300 m, 30 m spacing) at a UTM-sized origin.
@@ -120,7 +121,8 @@ Camera terrain_camera(int n, int width = 320, int height = 240) {
                 .width_px = width,
                 .height_px = height,
                 .near_m = 5.0,
-                .far_m = 4.0 * L + 2000.0};
+                .far_m = 4.0 * L + 2000.0,
+                .ground = {}};
 }
 
 /// Fraction of pixels that are not the sky colour.
@@ -226,7 +228,8 @@ TEST(Camera, ProjectionAndPixelRaysAgree) {
                  .width_px = 640,
                  .height_px = 360,
                  .near_m = 2.0,
-                 .far_m = 3000.0};
+                 .far_m = 3000.0,
+                 .ground = {}};
   const glm::dmat4 pv = render::projection_matrix(c) * render::view_matrix(c);
   const glm::dmat4 rpv = render::reverse_z_projection_matrix(c) * render::view_matrix(c);
   // The centre ray is the view direction.
@@ -254,6 +257,37 @@ TEST(Camera, ProjectionAndPixelRaysAgree) {
   const double k = render::focal_length_pixels(c);
   EXPECT_NEAR(k, 180.0 / std::tan(22.5 * kDeg), 1e-9);
   EXPECT_GE(render::max_pixels_per_radian(c), k);
+}
+
+// With a ground scale the GPU's matrices are pm::View's (the selection's), and a pixel's ray
+// projects back onto the pixel.
+TEST(Camera, GroundScaleMatricesAndRaysAreTheSelections) {
+  Camera c{.x = kX0,
+           .y = kY0,
+           .z = 500.0,
+           .yaw_deg = 200.0,
+           .pitch_deg = -40.0,
+           .fovy_deg = 45.0,
+           .width_px = 640,
+           .height_px = 360,
+           .near_m = 2.0,
+           .far_m = 3000.0,
+           .ground = {1.02, -0.015, 0.985}};
+  const pm::View v(c);
+  const glm::dmat4 vm = render::view_matrix(c);
+  const std::array<double, 16> pv = v.view_matrix();
+  for (int col = 0; col < 4; ++col)
+    for (int row = 0; row < 4; ++row) EXPECT_NEAR(vm[col][row], pv[std::size_t(col * 4 + row)], 1e-9);
+  const glm::dmat4 m = render::projection_matrix(c) * vm;
+  for (const auto& [px, py] :
+       std::vector<std::pair<double, double>>{{0, 0}, {639.5, 0.5}, {100.25, 300.75}}) {
+    const glm::dvec3 r = render::pixel_ray(c, px, py);
+    const pm::Vec3 d = v.pixel_direction(px, py);
+    expect_near(r, glm::dvec3(d.x, d.y, d.z), 1e-12, "ray");
+    const glm::dvec4 clip = m * glm::dvec4(render::camera_position(c) + 123.0 * r, 1.0);
+    EXPECT_NEAR((clip.x / clip.w + 1.0) * 0.5 * c.width_px, px, 1e-6);
+    EXPECT_NEAR((1.0 - clip.y / clip.w) * 0.5 * c.height_px, py, 1e-6);
+  }
 }
 
 TEST(Camera, MaxPixelsPerRadianBoundsTheProjectionEverywhere) {

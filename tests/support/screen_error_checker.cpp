@@ -38,7 +38,14 @@ ScreenProjector::ScreenProjector(const pm::Camera& cam) : cam_(cam) {
   const glm::dmat4 view = glm::lookAt(eye, eye + fwd, up);
   const glm::dmat4 proj = glm::perspective(
       glm::radians(cam.fovy_deg), double(cam.width_px) / double(cam.height_px), cam.near_m, cam.far_m);
-  const glm::dmat4 m = proj * view;
+  // The ground scale (pm/view.hpp): a world point p is seen at eye + G (p - eye), G acting on
+  // x and y. Built here as its own matrix, not through pm::GroundScale's helpers.
+  glm::dmat4 ground(1.0);  // column-major: ground[column][row]
+  ground[0][0] = cam.ground.xx, ground[1][0] = cam.ground.xy;
+  ground[0][1] = cam.ground.xy, ground[1][1] = cam.ground.yy;
+  const glm::dmat4 about_eye =
+      glm::translate(glm::dmat4(1.0), eye) * ground * glm::translate(glm::dmat4(1.0), -eye);
+  const glm::dmat4 m = proj * view * about_eye;
   for (int c = 0; c < 4; ++c)
     for (int r = 0; r < 4; ++r) m_[c * 4 + r] = m[c][r];
 }
@@ -193,6 +200,13 @@ SurfaceSamples surface_at_samples(const pm::Heightfield& hf, const std::vector<s
 }
 
 double ground_height(const pm::Heightfield& hf, double x, double y) { return pm::bilinear_height(hf, x, y); }
+
+pm::GroundScale random_ground_scale(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  const double s1 = 0.8 + 0.45 * U(rng), s2 = 0.8 + 0.45 * U(rng), a = U(rng) * std::numbers::pi;
+  const double ca = std::cos(a), sa = std::sin(a);
+  return {s1 * ca * ca + s2 * sa * sa, (s1 - s2) * ca * sa, s1 * sa * sa + s2 * ca * ca};
+}
 
 pm::Camera random_pose(const pm::Heightfield& hf, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> U(0.0, 1.0);

@@ -100,6 +100,10 @@ double ground_height(const pm::Heightfield& hf, double x, double y);
 /// pitch in [-90, 15], fovy in [30, 90], viewport 1280 x 720 or 640 x 480, near 1 m.
 pm::Camera random_pose(const pm::Heightfield& hf, std::mt19937_64& rng);
 
+/// A random ground scale (pm/view.hpp): singular values uniform in [0.8, 1.25] along a direction
+/// uniform in [0, 180) degrees (a map projection's are within a few per cent of 1).
+pm::GroundScale random_ground_scale(std::mt19937_64& rng);
+
 /// A scripted low flight: an ellipse inside the extent at `height_m` above the ground ahead,
 /// looking along the path and down by `pitch_deg`, one pose per frame, 1280 x 720, fovy 60.
 std::vector<pm::Camera> scripted_flight(const pm::Heightfield& hf, int frames, double height_m = 150.0,

@@ -16,7 +16,8 @@ inline pm::Camera square_down_camera() {
                     .width_px = 64,
                     .height_px = 64,
                     .near_m = 1.0,
-                    .far_m = 1000.0};
+                    .far_m = 1000.0,
+                    .ground = {}};
 }
 
 }  // namespace terralod::test

@@ -36,13 +36,45 @@
 // (X, Y the corner's tangent coordinates, p the pitch): 1 for a level camera, at most
 // sqrt(1 + tan^2(fovx/2) + tan^2(fovy/2)) in general.
 //
-// Memory: View is about 400 bytes; nothing is allocated.
+// Ground scale (Camera::ground, identity by default): a symmetric 2 x 2 map G of horizontal
+// offsets about the eye, applied before the view. The camera sees a world point p at
+//     eye + G' (p - eye),   G' = [G 0; 0 1]  (x, y mapped by G, z unchanged),
+// and every member below (depth, projection, planes, matrices, the bound) is of that seen
+// point. A runtime sets G to its frame's ground scale at the eye (blocks::TerrainRuntime::
+// fit_camera): a map projection's x, y are metres only at its true-scale points, and G makes
+// offsets near the eye ground metres again, so a continent-wide frame looks true where the
+// camera is. G is positive definite, so the seen world is the world stretched by at most its
+// singular values about the eye; the bound's derivation holds unchanged in the seen space
+// (vertical segments stay vertical and keep their length, as G' leaves z alone).
+//
+// Memory: View is about 500 bytes; nothing is allocated.
 #pragma once
 
 #include <array>
 #include <cstdint>
 
 namespace terralod::pm {
+
+/// The ground scale of a camera (see above): the symmetric matrix [xx xy; xy yy], positive
+/// definite with singular values in [0.5, 2] (View refuses others). Identity by default.
+struct GroundScale {
+  double xx = 1.0, xy = 0.0, yy = 1.0;
+  bool operator==(const GroundScale&) const = default;
+  /// G' v: (xx x + xy y, xy x + yy y, z).
+  template <class V>
+  V apply(const V& v) const {
+    return V{xx * v.x + xy * v.y, xy * v.x + yy * v.y, v.z};
+  }
+  /// G'^-1 v.
+  template <class V>
+  V inverse_apply(const V& v) const {
+    const double det = xx * yy - xy * xy;
+    return V{(yy * v.x - xy * v.y) / det, (xx * v.y - xy * v.x) / det, v.z};
+  }
+  /// Smallest and largest singular value of G (its eigenvalues: G is symmetric).
+  double min_scale() const;
+  double max_scale() const;
+};
 
 /// Camera pose and lens; see the conventions above. Defaults are a valid 1280 x 720 view.
 struct Camera {
@@ -54,6 +86,7 @@ struct Camera {
   int height_px = 720;                  ///< viewport height, >= 1
   double near_m = 1.0;                  ///< near clip depth, > 0
   double far_m = 1.0e6;                 ///< far clip depth, > near_m
+  GroundScale ground;                   ///< identity unless a runtime fits it (see above)
 };
 
 struct Vec3 {
@@ -93,9 +126,17 @@ class View {
 
   const Camera& camera() const { return cam_; }
   const Vec3& eye() const { return eye_; }
-  const Vec3& forward() const { return fwd_; }  ///< unit view direction
-  const Vec3& right() const { return right_; }  ///< unit, horizontal
-  const Vec3& up() const { return up_; }        ///< unit, right x forward: the image's up
+  /// The camera's axes in the seen space (unit): the view direction, the image's right
+  /// (horizontal) and its up (right x forward).
+  const Vec3& forward() const { return fwd_; }
+  const Vec3& right() const { return right_; }
+  const Vec3& up() const { return up_; }
+  /// depth(p) = dot(p - eye, depth_gradient()): G' forward, forward itself when the ground
+  /// scale is the identity.
+  const Vec3& depth_gradient() const { return dfwd_; }
+  /// Unit world direction of the ray from the eye through pixel (px, py) (image coordinates
+  /// as above: a pixel's centre is at +0.5): G'^-1 of the seen ray.
+  Vec3 pixel_direction(double px, double py) const;
   /// K: pixels per unit of tangent, height / (2 tan(fovy / 2)).
   double focal_px() const { return focal_; }
   double tan_half_fovx() const { return tanx_; }
@@ -107,7 +148,7 @@ class View {
   const std::array<Plane, 6>& planes() const { return planes_; }
 
   /// Distance of p along forward from the eye (negative behind the eye).
-  double depth(const Vec3& p) const { return dot(p, fwd_) - dot(eye_, fwd_); }
+  double depth(const Vec3& p) const { return dot(p, dfwd_) - dot(eye_, dfwd_); }
   /// Pixel coordinates of p (conventions above); false when depth(p) <= 0.
   bool project(const Vec3& p, double& px, double& py) const;
   /// True when p is inside the closed frustum.
@@ -136,6 +177,7 @@ class View {
  private:
   Camera cam_;
   Vec3 eye_, fwd_, right_, up_;
+  Vec3 dfwd_, dright_, dup_;  // G' of the axes: camera coordinates of p are dot(p - eye, .)
   double focal_ = 0, tanx_ = 0, tany_ = 0, vfactor_ = 1;
   std::array<Plane, 6> planes_{};
 };

@@ -39,14 +39,16 @@ using Camera = pm::Camera;
 /// The eye position as a glm vector.
 inline glm::dvec3 camera_position(const Camera& c) { return {c.x, c.y, c.z}; }
 
-/// Unit view direction in the world frame: (sin yaw cos pitch, cos yaw cos pitch, sin pitch).
+/// Unit view direction in the seen space (the world itself when c.ground is the identity; see
+/// pm/view.hpp's ground scale): (sin yaw cos pitch, cos yaw cos pitch, sin pitch).
 glm::dvec3 camera_forward(const Camera& c);
-/// Unit image-right direction in the world frame: (cos yaw, -sin yaw, 0).
+/// Unit image-right direction in the seen space: (cos yaw, -sin yaw, 0).
 glm::dvec3 camera_right(const Camera& c);
-/// Unit image-up direction in the world frame: right x forward.
+/// Unit image-up direction in the seen space: right x forward.
 glm::dvec3 camera_up(const Camera& c);
 
-/// World -> eye (OpenGL convention, looking along -z).
+/// World -> eye (OpenGL convention, looking along -z), through the ground scale: the eye
+/// coordinates of p are those of the seen point eye + G' (p - eye), as pm::View's.
 glm::dmat4 view_matrix(const Camera& c);
 /// Eye -> clip, OpenGL depth convention (near -> -1, far -> +1 in NDC).
 glm::dmat4 projection_matrix(const Camera& c);
@@ -65,7 +67,7 @@ double focal_length_pixels(const Camera& c);
 double max_pixels_per_radian(const Camera& c);
 
 /// Unit world direction of the ray from the camera through image point (px, py) (pixels,
-/// top-left origin; a pixel's centre is at +0.5).
+/// top-left origin; a pixel's centre is at +0.5): the seen ray pulled back through G'^-1.
 glm::dvec3 pixel_ray(const Camera& c, double px, double py);
 
 /// Euclidean distance from p to the axis-aligned box [lo, hi] (0 inside). lo <= hi per axis.
