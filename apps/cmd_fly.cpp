@@ -183,7 +183,7 @@ int cmd_fly(const Args& a) {
     cam.fovy_deg = r.fovy;
     cam.width_px = width;
     cam.height_px = height;
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const blocks::RuntimeFrameStats& s = rt.update(pm::View(cam), double(f) / 60.0);
     ms.push_back(s.update_ms);
     cpu.push_back(s.update_cpu_ms);

@@ -52,7 +52,7 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
   // picture's, so the bound is true of the picture).
   pm::Camera pc = camera;
   const int width = camera.width_px, height = camera.height_px;
-  rt.fit_clip_planes(pc);
+  rt.fit_camera(pc);
   const pm::View view(pc);
   t = Clock::now();
   const tb::RuntimeFrameStats first = rt.update_until_loaded(view, 0.0);

@@ -72,7 +72,7 @@ class DbSource final : public LodSource {
   // The highest sample under (x, y) that the tree knows without loading anything.
   double ceiling(double x, double y) const override { return rt_->max_height_at(x, y); }
   std::span<const std::int64_t> triangle_nodes() const override { return rt_->drawn_mesh().triangle_node; }
-  void fit_clip(pm::Camera& c) const override { rt_->fit_clip_planes(c); }
+  void fit_camera(pm::Camera& c) const override { rt_->fit_camera(c); }
   const blocks::TerrainRuntime* runtime() const override { return rt_.get(); }
 
   bool update(const pm::Camera& c, double time_s, bool wait, FrameRecord& r, render::DrawMesh& dm) override {

@@ -102,7 +102,7 @@ int run_headless(const Args& a) {
   std::size_t complete = 0;
   for (long long k = 0; k < frames; ++k) {
     pm::Camera c = path[std::size_t(k)];
-    t->fit_clip(c);
+    t->fit_camera(c);
     const FrameRecord r = p.frame(c, double(k) / 60.0, /*wait=*/true);
     if (objects && t->runtime()) {
       objects->place(*t->runtime(), pm::View(c));

@@ -55,7 +55,7 @@ class PmSource final : public LodSource {
   double ground(double x, double y) const override { return ground_of(pm_.heightfield(), x, y, ext_.zmin); }
   double ceiling(double x, double y) const override { return ground(x, y); }
   // Clip planes: reverse-Z depth keeps precision with a near plane close to the eye.
-  void fit_clip(pm::Camera& c) const override {
+  void fit_camera(pm::Camera& c) const override {
     const double above = c.z - ground(c.x, c.y);
     c.near_m = std::clamp(0.25 * std::max(above, 0.0), 0.1, 100.0);
     const double extent = ext_.transform.spacing_x() * ext_.width + ext_.transform.spacing_y() * ext_.height;

@@ -65,9 +65,11 @@ class LodSource {
   // A height at or above the terrain under world (x, y) known without loading anything (the
   // built-in flight's reference: it never goes underground).
   virtual double ceiling(double x, double y) const = 0;
-  // Sets the camera's near and far planes for this terrain (the selection and the picture use
-  // the same frustum, so the bound is true of the picture).
-  virtual void fit_clip(pm::Camera& c) const = 0;
+  // Sets the camera's near and far planes and its ground scale for this terrain (the selection
+  // and the picture use the same camera, so the bound is true of the picture). A database's
+  // runtime sets the ground scale at the eye (TerrainRuntime::fit_camera); one PM keeps the
+  // identity.
+  virtual void fit_camera(pm::Camera& c) const = 0;
   // Runs this frame's selection at time_s; fills r's level-of-detail fields; rewrites `mesh`
   // (origin = extent().origin, CCW from above) and returns true when the drawn mesh changed.
   // wait: finish the loads this frame asks for before returning (headless determinism).

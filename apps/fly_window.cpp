@@ -248,7 +248,7 @@ int run_window(const Args& a) {
     int fw = 1, fh = 1;
     glfwGetFramebufferSize(gw, &fw, &fh);
     cam.width_px = std::max(1, fw), cam.height_px = std::max(1, fh);
-    t->fit_clip(cam);
+    t->fit_camera(cam);
     if (ctl.recording) recorded.push_back(cam);
     if (layers && layers->lens().enabled) {  // the lens follows the centre, or the mouse (right button)
       double sx = 0, sy = 0;

@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
     tb::ObjectMesh mesh;
     for (long f = 0; f < frames; ++f) {
       pm::Camera c = flight.next();
-      rt.fit_clip_planes(c);
+      rt.fit_camera(c);
       rt.update_until_loaded(pm::View(c), double(f) / 60.0);
       double t0 = pm::thread_cpu_ms();
       rt.drawn_height(c.x, c.y);  // the frame's first height query builds the bucket index

@@ -171,7 +171,7 @@ int main(int argc, char** argv) {
       for (std::size_t f = 0; f < path.size(); ++f) {
         std::this_thread::sleep_until(t0 + std::chrono::duration<double>(double(f) / 60.0));
         pm::Camera cam = path[f];
-        rt.fit_clip_planes(cam);
+        rt.fit_camera(cam);
         const tb::RuntimeFrameStats& st = rt.update(pm::View(cam), double(f) / 60.0);
         ms.push_back(st.update_ms);
         heap_over = std::max(heap_over, pm::heap_in_use_bytes() - heap0 - double(st.resident_bytes));

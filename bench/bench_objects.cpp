@@ -140,7 +140,7 @@ int main(int argc, char** argv) {
     std::vector<double> pipeline_ms, ruled_place_ms, ruled_tested, ruled_placed, labels_shown;
     for (long f = 0; f < frames; ++f) {
       pm::Camera c = flight.next();
-      rt.fit_clip_planes(c);
+      rt.fit_camera(c);
       const pm::View view(c);
       rt.update_until_loaded(view, double(f) / 60.0);
       double t0 = pm::thread_cpu_ms();

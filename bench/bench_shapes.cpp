@@ -138,7 +138,7 @@ int main(int argc, char** argv) {
     std::vector<double> extrude_ms, count, tris, drawn;
     for (long f = 0; f < frames; ++f) {
       pm::Camera c = flight.next();
-      rt.fit_clip_planes(c);
+      rt.fit_camera(c);
       const pm::View view(c);
       rt.update_until_loaded(view, double(f) / 60.0);
       const std::vector<tb::PlacedObject>& placed = placer.place(rt, view);

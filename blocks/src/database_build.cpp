@@ -150,7 +150,9 @@ std::string DatabaseSummary::to_json() const {
             quote(
                 "sample (col,row) -> CRS coordinates of the source: X = crs_transform[0] + col * [1] + row * "
                 "[2], Y = [3] + col * [4] + row * [5] (degrees for a geographic CRS); the runtime's world "
-                "frame is the metric map of the build (the 'frame' member describes it); "
+                "frame is the metric map of the build (the 'frame' member describes it), and its view "
+                "stretches world offsets about the camera by the frame's ground scale there "
+                "(TerrainRuntime::fit_camera), so that they are ground metres near the camera; "
                 "'terralod export' places samples through this map and converts heights from "
                 "vertical_datum to the WGS 84 ellipsoid") +
             "}");

@@ -84,7 +84,9 @@ std::string scale_error_note(std::optional<double> e, bool automatic) {
   if (!e) return "";
   std::string note = "; scale error within +-" + format("%.3f", *e * 100.0) + " %";
   if (automatic && *e > 0.001)
-    note += " (over 0.1 %: the best of the projections auto tries; name a CRS with --crs)";
+    note +=
+        " (over 0.1 %: the best of the projections auto tries; name a CRS with --crs; the runtime's "
+        "view corrects it about the camera)";
   return note;
 }
 

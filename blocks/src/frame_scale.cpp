@@ -6,6 +6,7 @@
 #include <ogr_spatialref.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <numbers>
@@ -117,6 +118,57 @@ std::optional<double> scale_error(const std::string& crs_wkt,
   if (!range) return std::nullopt;
   // |s - 1| over the points is largest at the smallest or the largest scale.
   return std::max(std::abs(range->first - 1.0), std::abs(range->second - 1.0));
+}
+
+std::optional<GroundFrame> GroundFrame::open(const std::string& crs_wkt,
+                                             const pm::GridTransform& crs_transform,
+                                             const pm::GridTransform& world) {
+  if (crs_wkt.empty()) return std::nullopt;
+  register_gdal();
+  QuietGdal quiet;
+  OGRSpatialReference crs;
+  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
+  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
+  if (!geog) return std::nullopt;
+  geog->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  GroundFrame g;
+  g.to_geog_.reset(OGRCreateCoordinateTransformation(&crs, geog.get()));
+  if (!g.to_geog_) return std::nullopt;
+  g.crs_ = Affine{crs_transform}, g.world_ = Affine{world};
+  const double a = crs.GetSemiMajor(), b = crs.GetSemiMinor();
+  g.a_ = a, g.e2_ = 1.0 - (b * b) / (a * a);
+  if (!(a > 0) || !std::isfinite(g.e2_)) return std::nullopt;
+  return g;
+}
+
+std::optional<pm::GroundScale> GroundFrame::at(double x, double y) const {
+  constexpr double h = 10.0;  // metres of world offset
+  std::vector<double> px{x + h, x - h, x, x}, py{y, y, y + h, y - h};
+  for (std::size_t k = 0; k < px.size(); ++k) {
+    const auto [c, r] = world_.inverse(px[k], py[k]);
+    std::tie(px[k], py[k]) = crs_.t.to_world(c, r);
+  }
+  QuietGdal quiet;
+  if (!transform(*to_geog_, px, py)) return std::nullopt;
+  // Earth-centred coordinates of the points on the ellipsoid.
+  std::array<std::array<double, 3>, 4> p;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const double lam = px[k] * kDeg, phi = py[k] * kDeg, s = std::sin(phi);
+    const double n = a_ / std::sqrt(1.0 - e2_ * s * s);
+    p[k] = {n * std::cos(phi) * std::cos(lam), n * std::cos(phi) * std::sin(lam), n * (1.0 - e2_) * s};
+  }
+  double dx[3], dy[3];
+  for (int i = 0; i < 3; ++i) dx[i] = (p[0][i] - p[1][i]) / (2 * h), dy[i] = (p[2][i] - p[3][i]) / (2 * h);
+  // J^T J and its square root: sqrt(M) = (M + sqrt(det M) I) / sqrt(tr M + 2 sqrt(det M)).
+  const double mxx = dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2];
+  const double mxy = dx[0] * dy[0] + dx[1] * dy[1] + dx[2] * dy[2];
+  const double myy = dy[0] * dy[0] + dy[1] * dy[1] + dy[2] * dy[2];
+  const double sd = std::sqrt(std::max(0.0, mxx * myy - mxy * mxy)), t = std::sqrt(mxx + myy + 2.0 * sd);
+  if (!(t > 0) || !std::isfinite(t)) return std::nullopt;
+  const pm::GroundScale g{(mxx + sd) / t, mxy / t, (myy + sd) / t};
+  if (!(g.min_scale() >= 0.5 && g.max_scale() <= 2.0)) return std::nullopt;
+  return g;
 }
 
 }  // namespace detail

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "terralod/pm/heightfield.hpp"
+#include "terralod/pm/view.hpp"
 
 class OGRCoordinateTransformation;
 
@@ -54,5 +55,27 @@ std::optional<double> scale_error(const std::string& crs_wkt,
                                   const pm::GridTransform& world, int w, int h,
                                   const std::function<bool(int, int)>& valid,
                                   const std::function<std::pair<int, int>(int)>& row_ends);
+
+/// The ground scale of a georeferenced world frame (pm/view.hpp's GroundScale): at a world
+/// point (x, y), the symmetric positive part of the Jacobian of world offsets -> ground metres
+/// on the CRS's ellipsoid, sqrt(J^T J). |G v| = |J v|, so G maps a small world offset to its
+/// length on the ground, and leaves out J's rotation (the projection's convergence), which
+/// would turn the view about the eye. J^T J is measured as the metric of the ellipsoid's
+/// surface in Earth-centred coordinates, by central differences over +-10 m of world offset:
+/// no singularity at a pole. Not thread-safe (one GDAL transformation).
+class GroundFrame {
+ public:
+  /// nullopt when the frame has no CRS, or GDAL cannot map the CRS to its geographic CRS.
+  static std::optional<GroundFrame> open(const std::string& crs_wkt, const pm::GridTransform& crs_transform,
+                                         const pm::GridTransform& world);
+  /// G at world (x, y); nullopt when the point cannot be transformed (beyond the projection's
+  /// domain) or G's scales leave [0.5, 2] (a frame no view can take).
+  std::optional<pm::GroundScale> at(double x, double y) const;
+
+ private:
+  Transform to_geog_;
+  Affine crs_, world_;
+  double a_ = 0, e2_ = 0;
+};
 
 }  // namespace terralod::blocks::detail

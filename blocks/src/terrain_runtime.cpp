@@ -15,6 +15,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "frame_scale.hpp"
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -95,6 +96,9 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   // a missing PmBlock root leaves nothing to draw until it arrives. An empty block (no valid
   // sample) has no stand-in.
   sums_ = std::make_unique<detail::SummaryStore>(db_path, grid_);
+  if (const auto geo = db.georeference())
+    if (auto g = detail::GroundFrame::open(db.info().crs_wkt, geo->crs_transform, db.info().transform))
+      ground_ = std::make_unique<detail::GroundFrame>(std::move(*g));
   for (const TreeNode& n : tree_.nodes()) {
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
       throw DatabaseError(db_path,
@@ -166,16 +170,29 @@ void TerrainRuntime::set_options(const RuntimeOptions& options) {
   if (refine_changed) tau_ = opt_.tolerance_px;
 }
 
-void TerrainRuntime::fit_clip_planes(pm::Camera& cam) const {
+pm::GroundScale TerrainRuntime::ground_scale(double x, double y) const {
+  if (!ground_) return {};
+  const pm::Box& box = terrain_box();
+  // Beyond the terrain the scale at its nearest point: the frame is known to hold there, and
+  // the scale changes continuously as the camera leaves the box.
+  const std::optional<pm::GroundScale> g =
+      ground_->at(std::clamp(x, box.lo.x, box.hi.x), std::clamp(y, box.lo.y, box.hi.y));
+  return g ? *g : pm::GroundScale{};
+}
+
+void TerrainRuntime::fit_camera(pm::Camera& cam) const {
+  cam.ground = ground_scale(cam.x, cam.y);
+  // Seen distances are world distances scaled by at most the ground scale's extremes.
+  const double lo = std::min(1.0, cam.ground.min_scale()), hi = std::max(1.0, cam.ground.max_scale());
   const pm::Box& box = terrain_box();
   const double dx = std::max({box.lo.x - cam.x, 0.0, cam.x - box.hi.x}),
                dy = std::max({box.lo.y - cam.y, 0.0, cam.y - box.hi.y}),
                dz = std::max({box.lo.z - cam.z, 0.0, cam.z - box.hi.z});
-  const double dmin = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double dmin = lo * std::sqrt(dx * dx + dy * dy + dz * dz);
   const double fx = std::max(std::abs(cam.x - box.lo.x), std::abs(cam.x - box.hi.x)),
                fy = std::max(std::abs(cam.y - box.lo.y), std::abs(cam.y - box.hi.y)),
                fz = std::max(std::abs(cam.z - box.lo.z), std::abs(cam.z - box.hi.z));
-  const double dmax = std::sqrt(fx * fx + fy * fy + fz * fz);
+  const double dmax = hi * std::sqrt(fx * fx + fy * fy + fz * fz);
   cam.near_m = std::clamp(0.5 * dmin, 0.05, 1000.0);
   cam.far_m = std::max(cam.near_m * 2.0, 1.01 * dmax + 1.0);
 }

@@ -234,11 +234,13 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   };
   // The floor a view from `centre` (this view's lens) needs over block k at its nearest.
   const double limit = detail::kSelectShare * tau_;
+  // Seen distances are at least the world's times the ground scale's smallest singular value.
+  const double seen_scale = std::min(1.0, view.camera().ground.min_scale());
   auto need_from = [&](const pm::Vec3& centre, BlockKey k) {
     const pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
-    const double d = std::hypot(std::max({b.lo.x - centre.x, 0.0, centre.x - b.hi.x}),
-                                std::max({b.lo.y - centre.y, 0.0, centre.y - b.hi.y}),
-                                std::max({b.lo.z - centre.z, 0.0, centre.z - b.hi.z}));
+    const double d = seen_scale * std::hypot(std::max({b.lo.x - centre.x, 0.0, centre.x - b.hi.x}),
+                                             std::max({b.lo.y - centre.y, 0.0, centre.y - b.hi.y}),
+                                             std::max({b.lo.z - centre.z, 0.0, centre.z - b.hi.z}));
     return limit / view.vertical_error_px_at_depth(d, 1.0);
   };
   // The inner blocks of the active region around `centre`, nearest the eye first, at

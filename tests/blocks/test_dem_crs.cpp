@@ -24,6 +24,8 @@
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/geo_grid.hpp"
+#include "terralod/blocks/terrain_runtime.hpp"
+#include "terralod/blocks/tree_builder.hpp"
 
 namespace {
 
@@ -270,6 +272,70 @@ TEST(DemCrs, AutoSaysWhenAContinentIsBeyondATenthOfAPercent) {
   EXPECT_NE(hf.frame.find("over 0.1 %: the best of the projections auto tries"), std::string::npos)
       << hf.frame;
   EXPECT_LE(distance_errors(hf, 0.0, 30.0, 30.0, 60.0).short_pairs, *scale + 1e-5);
+}
+
+// No flat frame keeps a continent's distances within 0.1 % (above), so the runtime's view does
+// it where the camera is: TerrainRuntime::fit_camera sets the camera's ground scale G at the eye,
+// and the view shows eye + G (p - eye). Checked at 49 eyes over the 30 x 30 degrees (corners
+// included), against geodesics of 1 to 300 km in 16 directions from each: |G (q - p)| is the
+// geodesic within 0.1 %, where the world distance |q - p| is off by more than 0.5 % somewhere.
+TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
+  const fs::path path = write_geographic("continent_view.tif", 0.0, 30.0, 121, 0.25);
+  tb::DemOptions o;
+  o.crs = "auto";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  const fs::path db = temp_dir() / "continent_view.db";
+  fs::remove(db);
+  tb::DatabaseBuildOptions bo;
+  bo.block_size = 65;
+  bo.threads = 1;
+  tb::build_database(hf, db.string(), bo);
+  tb::TerrainRuntime rt(db.string());
+  geod_geodesic g;
+  geod_init(&g, 6378137.0, 1.0 / 298.257223563);
+  const WorldOf world(hf);
+  double worst_seen = 0.0, worst_world = 0.0;
+  for (int i = 0; i <= 6; ++i)
+    for (int j = 0; j <= 6; ++j) {
+      const double lon = 30.0 * i / 6.0, lat = 30.0 + 30.0 * j / 6.0;
+      const auto [x, y] = world(lon, lat);
+      terralod::pm::Camera cam;
+      cam.x = x, cam.y = y, cam.z = 3000.0;
+      rt.fit_camera(cam);
+      const terralod::pm::GroundScale& G = cam.ground;
+      EXPECT_EQ(G, rt.ground_scale(x, y));
+      EXPECT_NO_THROW(terralod::pm::View{cam});
+      for (double s : {1000.0, 20000.0, 70000.0, 300000.0})
+        for (int k = 0; k < 16; ++k) {
+          double la2 = 0.0, lo2 = 0.0;
+          geod_direct(&g, lat, lon, 22.5 * k, s, &la2, &lo2, nullptr);
+          const auto [x2, y2] = world(lo2, la2);
+          const terralod::pm::Vec3 d = G.apply(terralod::pm::Vec3{x2 - x, y2 - y, 0.0});
+          worst_seen = std::max(worst_seen, std::abs(std::hypot(d.x, d.y) / s - 1.0));
+          worst_world = std::max(worst_world, std::abs(std::hypot(x2 - x, y2 - y) / s - 1.0));
+        }
+    }
+  std::printf("worst |distance / geodesic - 1| within 300 km of the eye: seen %.5f %%, world %.5f %%\n",
+              worst_seen * 100.0, worst_world * 100.0);
+  EXPECT_GT(worst_world, 0.005);
+  EXPECT_LE(worst_seen, 0.001);
+  // What it costs a frame (information, not a test: four points through PROJ).
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int k = 0; k < 1000; ++k) {
+    terralod::pm::Camera cam;
+    cam.x = 1000.0 * k, cam.y = 0.0;
+    rt.fit_camera(cam);
+  }
+  std::printf("fit_camera: %.1f us a call\n",
+              std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / 1000.0);
+  // Without a CRS the view is the world itself.
+  Heightfield plain = hf;
+  plain.crs_wkt.clear();
+  plain.crs_transform.reset();
+  const fs::path db2 = temp_dir() / "continent_view_plain.db";
+  fs::remove(db2);
+  tb::build_database(plain, db2.string(), bo);
+  EXPECT_EQ(tb::TerrainRuntime(db2.string()).ground_scale(0.0, 0.0), terralod::pm::GroundScale{});
 }
 
 // A geographic DEM whose last row lies on a pole (global and Arctic mosaics reach 90 degrees):

@@ -272,7 +272,7 @@ TEST(ObjectDrape, RibbonsLieOnTheDrawnMeshWithoutGapsAlongAFlightWithGeomorphsAn
   std::size_t morph_frames = 0, missing_frames = 0, samples = 0, triangles = 0;
   for (int f = 0; f < 10; ++f) {
     tp::Camera cam = camera_at(s, 15 + 9 * f, 120 - 8 * f, 500.0 + 60 * f, 30.0 + 12 * f, -35.0);
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const tp::View view(cam);
     const tb::RuntimeFrameStats st =
         f % 3 == 2 ? rt.update(view, f / 60.0) : rt.update_until_loaded(view, f / 60.0);
@@ -311,7 +311,7 @@ TEST(ObjectDrape, StraightRibbonsHaveTheirAreaAndJoinsTheirSector) {
   const Scene& s = scene();
   tb::TerrainRuntime rt(s.db);
   tp::Camera cam = camera_at(s, 64, 64, 9000.0, 0.0, -90.0);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   rt.update_until_loaded(tp::View(cam), 0.0);
   const tb::DrawnMesh& m = rt.drawn_mesh();
   double drawn = 0;
@@ -355,7 +355,7 @@ TEST(ObjectDrape, DrawnTrianglesInReturnsEveryTriangleUnderABox) {
   const Scene& s = scene();
   tb::TerrainRuntime rt(s.db);
   tp::Camera cam = camera_at(s, 20, 110, 600.0, 45.0, -30.0);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   rt.update_until_loaded(tp::View(cam), 0.0);
   const tb::DrawnMesh& m = rt.drawn_mesh();
   ASSERT_GT(m.triangles.size(), 100u);

@@ -182,7 +182,7 @@ TEST(ObjectPlacement, AnchorsFollowTheDrawnMeshAlongAFlightWithGeomorphsAndLoads
   for (int f = 0; f < 24; ++f) {
     // Low over the terrain, heading north-east then turning: blocks load and morph in.
     tp::Camera cam = camera_at(s, 15 + 3.5 * f, 110 - 3.0 * f, 250.0 + 20 * f, 45.0 + 4 * f, -20.0);
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const tp::View view(cam);
     const double t = f / 60.0;
     const tb::RuntimeFrameStats st = f % 3 == 2 ? rt.update(view, t) : rt.update_until_loaded(view, t);
@@ -228,7 +228,7 @@ TEST(ObjectPlacement, ObjectsOutsideTheFrustumAreNotTested) {
   tb::TerrainRuntime rt(s.db);
   // Looking out of the terrain from its west edge: nothing is in view.
   tp::Camera cam = camera_at(s, 0, 64, 300.0, 270.0, 0.0);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   rt.update_until_loaded(tp::View(cam), 0.0);
   EXPECT_TRUE(placer.place(rt, tp::View(cam)).empty());
   EXPECT_EQ(placer.stats().objects_tested, 0u);
@@ -242,7 +242,7 @@ TEST(ObjectPlacement, PickReturnsTheObjectUnderThePixelElseTheDrawnGround) {
   tb::TerrainRuntime rt(s.db);
   // Above the Summit, looking steeply down from the south.
   tp::Camera cam = camera_at(s, 64.5, 80, 900.0, 0.0, -60.0);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   const tp::View view(cam);
   rt.update_until_loaded(view, 0.0);
   placer.place(rt, view);
@@ -356,7 +356,7 @@ TEST(ObjectPlacement, RulesChooseTheDrawingAndObjectsBeyondThemCostNothing) {
   std::size_t icons = 0, labels = 0, beyond = 0, tested = 0;
   for (int f = 0; f < 6; ++f) {
     tp::Camera cam = camera_at(s, 10 + 20 * f, 120 - 18 * f, 150.0, 30.0 + 50 * f, -15.0);
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const tp::View view(cam);
     rt.update_until_loaded(view, f);
     std::map<const tb::MapObject*, tb::Representation> got;

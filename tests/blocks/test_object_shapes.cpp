@@ -565,7 +565,7 @@ TEST(ShapeExtrusion, BuildingsStandOnTheDrawnTerrainAlongAFlightWithGeomorphsAnd
   for (int f = 0; f < 24; ++f) {
     // Low over the terrain, heading north-east then turning: blocks load and morph in.
     tp::Camera cam = camera_at(s, 15 + 3.5 * f, 110 - 3.0 * f, 250.0 + 20 * f, 45.0 + 4 * f, -20.0);
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const tp::View view(cam);
     const double t = f / 60.0;
     const tb::RuntimeFrameStats st = f % 3 == 2 ? rt.update(view, t) : rt.update_until_loaded(view, t);
@@ -634,7 +634,7 @@ TEST(ShapeExtrusion, FootprintsOverNothingDrawnAreSkippedAndCounted) {
   tb::TerrainRuntime rt(s.db);
   // 360 m east of the west edge, looking west and down at Edge (anchor on the edge, half off it).
   tp::Camera cam = camera_at(s, 12, 61, 400.0, 270.0, -50.0);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   const tp::View view(cam);
   rt.update_until_loaded(view, 0.0);
   const std::vector<tb::PlacedObject>& placed = placer.place(rt, view);

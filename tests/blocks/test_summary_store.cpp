@@ -200,7 +200,7 @@ TEST(SummaryStore, TheRuntimeHoldsFieldsAtOpeningAndReadsTheStandinsItLooksAt) {
   const auto [x, y] = grid.transform().to_world(256, 192);
   c.x = x, c.y = y, c.z = 6000;
   c.pitch_deg = -30;
-  rt.fit_clip_planes(c);
+  rt.fit_camera(c);
   const tb::RuntimeFrameStats& s = rt.update(tp::View(c), 0.0);
   EXPECT_GT(s.standin_blocks, 0u);
   EXPECT_GE(s.standins_held, s.standin_blocks);

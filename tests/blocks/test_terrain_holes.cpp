@@ -151,7 +151,7 @@ TEST(TerrainHoles, FlightDrawsWithinTheBoundAndCoversEveryExistingSample) {
     std::size_t standins = 0, complete = 0;
     for (std::size_t f = 0; f < path.size(); ++f) {
       tp::Camera cam = path[f];
-      rt.fit_clip_planes(cam);
+      rt.fit_camera(cam);
       const tb::RuntimeFrameStats* s = &rt.update(tp::View(cam), double(f) / 60.0);
       for (int i = 0; i < 400 && s->missing_in_view > 0 && rt.loading(); ++i) {
         rt.wait_for_loader(0.05);

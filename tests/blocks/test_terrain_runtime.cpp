@@ -121,7 +121,7 @@ FlightResult fly(tb::TerrainRuntime& rt, const std::vector<tp::Camera>& path, do
   const tp::Heightfield& hf = ter.hf;
   for (std::size_t f = 0; f < path.size(); ++f) {
     tp::Camera cam = path[f];
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const double t = t0 + double(f) / 60.0;
     const tb::RuntimeFrameStats* s = &rt.update(tp::View(cam), t);
     if (wait && f % 5 != 0)
@@ -394,7 +394,7 @@ TEST(TerrainRuntime, ResidentBytesCoverTheHeapTheRuntimeHolds) {
       const std::vector<tp::Camera> path = tt::scripted_flight(ter.hf, 90, 80.0, -5.0);
       for (std::size_t f = 0; f < path.size(); ++f) {
         tp::Camera cam = path[f];
-        rt.fit_clip_planes(cam);
+        rt.fit_camera(cam);
         rt.update_until_loaded(tp::View(cam), double(f) / 60.0);
         const tb::RuntimeFrameStats& s = rt.stats();
         blending_frames += s.morphing_blocks > 0;
@@ -437,7 +437,7 @@ TEST(TerrainRuntime, FarBlocksHoldOnlyTheirCoarseEndAndFinerCopiesReplaceThem) {
     o.partial_load_factor = factor;
     tb::TerrainRuntime rt(terrain().db, o);
     tp::Camera cam = high();
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     rt.update_until_loaded(tp::View(cam), 0.0, 60.0);
     const tb::RuntimeFrameStats s = rt.stats();  // the last frame, with everything loaded
     ASSERT_EQ(s.missing_in_view, 0u);
@@ -478,7 +478,7 @@ TEST(TerrainRuntime, FinishedBlocksCountAsLoadingUntilAnUpdateTakesThem) {
   o.morph_seconds = 0;
   tb::TerrainRuntime rt(terrain().db, o);
   tp::Camera cam = pose(hf, 200, 300, 400.0, 30, -20);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   const std::size_t missing = rt.update(tp::View(cam), 0.0).missing_in_view;
   ASSERT_GT(missing, 0u) << "the first frame has nothing resident";
   while (rt.wait_for_loader(1.0)) {
@@ -494,7 +494,7 @@ TEST(TerrainRuntime, ChangingTauMidFlightReadsNoBlock) {
   o.morph_seconds = 0.25;
   tb::TerrainRuntime rt(terrain().db, o);
   tp::Camera cam = pose(hf, 200, 300, 400.0, 30, -20);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   double t = 0;
   for (int i = 0; i < 2000 && (i < 5 || rt.loading() || rt.stats().missing_in_view > 0); ++i, t += 1.0 / 60) {
     rt.update(tp::View(cam), t);
@@ -548,7 +548,7 @@ TEST(TerrainRuntime, DrawnHeightIsTheDrawnSurface) {
   std::mt19937_64 rng(5);
   for (const auto& [col, row, yaw] : {std::array{200.0, 300.0, 30.0}, std::array{60.0, 80.0, 200.0}}) {
     tp::Camera cam = pose(hf, col, row, 400.0, yaw, -20);
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     rt.update_until_loaded(tp::View(cam), 0.0);
     std::uniform_real_distribution<double> uc(0, hf.width() - 1), ur(0, hf.height() - 1);
     int drawn = 0;
@@ -616,7 +616,7 @@ TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {
   }
   tb::TerrainRuntime rt(terrain().db);
   tp::Camera cam;
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   rt.update(tp::View(cam), 1.0);
   EXPECT_THROW(rt.update(tp::View(cam), 0.5), std::invalid_argument);
 }
@@ -671,7 +671,7 @@ std::size_t runtime_misses(const std::vector<tp::Camera>& path, bool prefetch, s
   std::size_t cold_misses = 0, cold_needed = 0;
   for (std::size_t f = 0; f < path.size(); ++f) {
     tp::Camera cam = path[f];
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const tb::RuntimeFrameStats& st = rt.update(tp::View(cam), double(f) / 60.0);
     store.advance_frame();
     std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the loader gets a core
@@ -785,7 +785,7 @@ TEST(TerrainRuntimeLoading, StalledReaderNeverBlocksAFrame) {
   tb::TerrainRuntime rt(pt.ter.db, o, terralod::test::memory_source(store));
   const terralod::test::ReleaseAtExit release{store};
   tp::Camera cam = loading_pose(190, 190, 300);
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   int frame = 0;
   for (; frame < 30; ++frame) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -833,7 +833,7 @@ TEST(TerrainRuntimeLoading, LoaderErrorsAreRethrownByUpdate) {
   terralod::test::MemoryStore store;
   store.terrain = &t;
   tb::TerrainRuntime rt(pt.ter.db, {}, terralod::test::memory_source(store));
-  rt.fit_clip_planes(cam);
+  rt.fit_camera(cam);
   const std::string expect =
       "memory: block (" + std::to_string(k.col) + "," + std::to_string(k.row) + "): not in the database";
   try {
@@ -859,7 +859,7 @@ TEST(TerrainRuntimeLoading, EvictedBlocksComeBackAndDrawTheSameMesh) {
   tb::TerrainRuntime rt(pt.ter.db, o);
   double t = 0;
   auto settle = [&](tp::Camera cam, const char* where) {
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     for (int i = 0; i < 5000; ++i, t += 1.0 / 60) {
       const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), t);
       if (s.missing_in_view == 0 && !rt.loading()) break;
@@ -913,7 +913,7 @@ LoadingCounts fly_while_loading(const std::string& db, const tp::Heightfield& hf
   LoadingCounts n;
   for (std::size_t f = 0; f < path.size(); ++f) {
     tp::Camera cam = path[f];
-    rt.fit_clip_planes(cam);
+    rt.fit_camera(cam);
     const tb::RuntimeFrameStats& s = rt.update(tp::View(cam), double(f) / 60.0);
     store.advance_frame();
     std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the loader gets the processor too

@@ -12,7 +12,7 @@
 //   terralod::blocks::TerrainRuntime rt("terrain.db", opt);
 //   for (int f = 0;; ++f) {
 //     terralod::pm::Camera cam = ...;                       // any pose, any altitude
-//     rt.fit_clip_planes(cam);                              // far plane beyond the whole terrain
+//     rt.fit_camera(cam);                              // clip planes, ground scale at the eye
 //     const auto& s = rt.update(terralod::pm::View(cam), f / 60.0);
 //     const terralod::blocks::DrawnMesh& m = rt.drawn_mesh();   // within s.bound_px, as drawn
 //     // s.missing_in_view == 0  =>  s.bound_px <= s.tolerance_px
@@ -146,6 +146,7 @@ namespace terralod::blocks {
 
 namespace detail {
 class SummaryStore;  // summary_store.hpp
+class GroundFrame;   // frame_scale.hpp
 }  // namespace detail
 
 struct RuntimeOptions {
@@ -243,10 +244,16 @@ class TerrainRuntime {
   const RuntimeFrameStats& stats() const { return stats_; }
   const DrawnMesh& drawn_mesh() const { return mesh_; }
 
-  /// Sets camera.near_m and far_m from the terrain's box: far beyond its farthest corner (so
-  /// whatever terrain is in the frustum is drawn, at any altitude), near half the distance to
-  /// the box (clamped to [0.05, 1000] m).
-  void fit_clip_planes(pm::Camera& camera) const;
+  /// Fits the camera to the terrain; call it before every frame's View. Sets camera.ground to
+  /// the world frame's ground scale at the eye (pm/view.hpp; at the nearest point of the
+  /// terrain's box when the eye is outside it), so that what the view shows near the camera is
+  /// in ground metres wherever the camera is, even in a frame that spans a continent: the
+  /// identity when the database has no CRS. Then camera.near_m and far_m from the terrain's box
+  /// as seen: far beyond its farthest corner (so whatever terrain is in the frustum is drawn,
+  /// at any altitude), near half the distance to the box (clamped to [0.05, 1000] m).
+  void fit_camera(pm::Camera& camera) const;
+  /// The ground scale fit_camera sets at world (x, y): the identity without a CRS.
+  pm::GroundScale ground_scale(double x, double y) const;
   /// True while the loader has requests queued or in flight, or finished blocks that the next
   /// update() takes (set_queue never asks again for those: counting them is what keeps a
   /// caller waiting for a block that finished between update()'s take and its queue).
@@ -311,8 +318,9 @@ class TerrainRuntime {
   RuntimeOptions opt_;
   BlockGrid grid_;
   ApproximationTree tree_;
-  std::unique_ptr<detail::SummaryStore> sums_;  // every block's fields; stand-ins on demand
-  std::vector<std::uint64_t> block_vertices_;   // per block index: PM vertices (from the build's meta)
+  std::unique_ptr<detail::SummaryStore> sums_;   // every block's fields; stand-ins on demand
+  std::unique_ptr<detail::GroundFrame> ground_;  // the frame's ground scale; null without a CRS
+  std::vector<std::uint64_t> block_vertices_;    // per block index: PM vertices (from the build's meta)
   std::size_t fixed_bytes_ = 0;  // the tree, the summaries' fields and the vertex counts, at opening
   // Bytes per PM vertex of a decoded whole block, learnt from the whole blocks loaded so far:
   // a ratio of sums, so that it does not depend on the order the loader threads finish in.
