@@ -17,7 +17,7 @@ std::string flight_log_header(bool drawing) {
       "nodes,"
       "moving_vertices,clamped_vertices,seam_triangles,standins_held,standin_reads";
   if (drawing) h += ",vertices,draw_ms,upload_ms,wait_ms,texture_bytes,texture_patches,textures_from_parent";
-  return h;
+  return h + ",ground_xx,ground_xy,ground_yy";
 }
 
 FlightLog::FlightLog(const std::string& dir, bool drawing)
@@ -52,7 +52,7 @@ void FlightLog::row(const FlightRow& r) {
   if (drawing_)
     std::fprintf(f_, ",%zu,%.4f,%.4f,%.4f,%zu,%zu,%zu", r.vertices, r.draw_ms, r.upload_ms, r.wait_ms,
                  r.texture_bytes, r.texture_patches, r.textures_from_parent);
-  std::fputc('\n', f_);
+  std::fprintf(f_, ",%.17g,%.17g,%.17g\n", c.ground.xx, c.ground.xy, c.ground.yy);
 }
 
 void FlightLog::commit() {

@@ -70,7 +70,9 @@ CommandSpec fly_spec() {
       "statistics; a single PM fills them as one PM block), then vertices, draw_ms, upload_ms (the\n"
       "drawn mesh converted and sent to the GPU), wait_ms (the wait for loads), texture_bytes (resident\n"
       "in the texture cache), texture_patches (wanted this frame) and textures_from_parent (those\n"
-      "drawn with an ancestor's texture while they load; headless frames wait for them).\n"
+      "drawn with an ancestor's texture while they load; headless frames wait for them), and last\n"
+      "the view's ground scale, ground_xx, ground_xy and ground_yy, as 'terralod fly' writes them\n"
+      "(1, 0, 1 for a single PM).\n"
       "PATH.csv: a header x,y,z,yaw,pitch,fovy and one row per frame (conventions of\n"
       "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).";
   s.options = {

@@ -131,7 +131,10 @@ const std::vector<std::string> kColumns = {"frame",
                                            "clamped_vertices",
                                            "seam_triangles",
                                            "standins_held",
-                                           "standin_reads"};
+                                           "standin_reads",
+                                           "ground_xx",
+                                           "ground_xy",
+                                           "ground_yy"};
 
 /// frames.csv as rows of numbers, asserting the header and that every field is a finite number.
 std::vector<std::vector<double>> read_frames(const fs::path& csv) {
@@ -265,7 +268,10 @@ TEST(CmdFly, FramesCsvAndDumpedMeshesAreCompleteWatertightAndWithinTheBound) {
     // The independent checker: measured error of what is drawn <= the bound, the whole view
     // covered, watertight. The runner's clip planes: far beyond the terrain, near from the
     // distance to its box; the eye is far above it, so near 0.5 m clips nothing more.
+    // The ground scale as logged (this DEM has no CRS: the identity) is the view's.
     pm::Camera cam = c;
+    cam.ground = {col(row, "ground_xx"), col(row, "ground_xy"), col(row, "ground_yy")};
+    EXPECT_EQ(cam.ground, pm::GroundScale{});
     cam.width_px = 320;
     cam.height_px = 240;
     cam.near_m = 0.5;

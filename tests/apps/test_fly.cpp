@@ -120,14 +120,14 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
       "nodes,"
       "moving_vertices,clamped_vertices,seam_triangles,standins_held,standin_reads,vertices,draw_ms,upload_"
       "ms,wait_ms,texture_bytes,"
-      "texture_patches,textures_from_parent");
+      "texture_patches,textures_from_parent,ground_xx,ground_xy,ground_yy");
   int rows = 0;
   while (std::getline(in, line)) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     std::string x;
     while (std::getline(ss, x, ',')) f.push_back(x);
-    ASSERT_EQ(f.size(), 41u) << line;
+    ASSERT_EQ(f.size(), 44u) << line;
     EXPECT_LE(std::stod(f[10]), std::stod(f[8])) << "frame " << f[0] << ": bound above tau";
     EXPECT_GT(std::stoul(f[9]), 0u) << "frame " << f[0] << ": no triangles";
     // One PM: one block resident, none loading or missing; no evictions, misses or reads.
@@ -136,6 +136,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     EXPECT_EQ(f[21] + "," + f[22], "0,0") << line;
     EXPECT_EQ(f[26], "1") << line;
     EXPECT_EQ(f[32] + "," + f[33], "0,0") << line;  // no stand-ins held or read
+    EXPECT_EQ(f[41] + "," + f[42] + "," + f[43], "1,0,1") << line;  // one PM: no ground scale
     EXPECT_EQ(std::stod(f[37]), 0.0) << "frame " << f[0] << ": a single PM never waits";  // wait_ms
     ++rows;
   }
