@@ -326,8 +326,9 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
     cam.x = 1000.0 * k, cam.y = 0.0;
     rt.fit_camera(cam);
   }
-  std::printf("fit_camera: %.1f us a call\n",
-              std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / 1000.0);
+  std::printf(
+      "fit_camera: %.1f us a call\n",
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / 1000.0);
   // Without a CRS the view is the world itself.
   Heightfield plain = hf;
   plain.crs_wkt.clear();
