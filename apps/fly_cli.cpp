@@ -72,7 +72,7 @@ CommandSpec fly_spec() {
       "in the texture cache), texture_patches (wanted this frame) and textures_from_parent (those\n"
       "drawn with an ancestor's texture while they load; headless frames wait for them), and last\n"
       "the view's ground scale, ground_xx, ground_xy and ground_yy, as 'terralod fly' writes them\n"
-      "(1, 0, 1 for a single PM).\n"
+      "(1, 0, 1 without a CRS).\n"
       "PATH.csv: a header x,y,z,yaw,pitch,fovy and one row per frame (conventions of\n"
       "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).";
   s.options = {

@@ -13,6 +13,7 @@
 #include "cli_common.hpp"
 #include "fly_source.hpp"
 #include "terrain_input.hpp"
+#include "terralod/blocks/ground_scale.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/height_query.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
@@ -37,7 +38,8 @@ double ground_of(const pm::Heightfield& hf, double x, double y, double fallback)
 // One progressive mesh of the whole terrain, refined by pm::SelectiveRefinement.
 class PmSource final : public LodSource {
  public:
-  PmSource(pm::ProgressiveMesh mesh, const pm::RefinementOptions& o) : pm_(std::move(mesh)) {
+  PmSource(pm::ProgressiveMesh mesh, const pm::RefinementOptions& o)
+      : pm_(std::move(mesh)), ground_(blocks::GroundScaleMap::of(pm_.heightfield())) {
     dag_ = std::make_unique<pm::CollapseDag>(pm_);
     sel_ = std::make_unique<pm::SelectiveRefinement>(*dag_, o);
     const pm::Heightfield& hf = pm_.heightfield();
@@ -54,8 +56,11 @@ class PmSource final : public LodSource {
   const Extent& extent() const override { return ext_; }
   double ground(double x, double y) const override { return ground_of(pm_.heightfield(), x, y, ext_.zmin); }
   double ceiling(double x, double y) const override { return ground(x, y); }
-  // Clip planes: reverse-Z depth keeps precision with a near plane close to the eye.
+  // The frame's ground scale at the eye (as a database's runtime sets it), then the clip
+  // planes: reverse-Z depth keeps precision with a near plane close to the eye; the far plane
+  // is twice the extent, beyond what the ground scale (within a few per cent of 1) stretches.
   void fit_camera(pm::Camera& c) const override {
+    c.ground = ground_.at(c.x, c.y);
     const double above = c.z - ground(c.x, c.y);
     c.near_m = std::clamp(0.25 * std::max(above, 0.0), 0.1, 100.0);
     const double extent = ext_.transform.spacing_x() * ext_.width + ext_.transform.spacing_y() * ext_.height;
@@ -89,6 +94,7 @@ class PmSource final : public LodSource {
 
  private:
   pm::ProgressiveMesh pm_;
+  blocks::GroundScaleMap ground_;  // of the PM's heightfield: the identity without a CRS
   std::unique_ptr<pm::CollapseDag> dag_;
   std::unique_ptr<pm::SelectiveRefinement> sel_;
   std::vector<float> normals_;  // per sample, world frame

@@ -66,9 +66,9 @@ class LodSource {
   // built-in flight's reference: it never goes underground).
   virtual double ceiling(double x, double y) const = 0;
   // Sets the camera's near and far planes and its ground scale for this terrain (the selection
-  // and the picture use the same camera, so the bound is true of the picture). A database's
-  // runtime sets the ground scale at the eye (TerrainRuntime::fit_camera); one PM keeps the
-  // identity.
+  // and the picture use the same camera, so the bound is true of the picture). Both set the
+  // frame's ground scale at the eye (TerrainRuntime::fit_camera, blocks::GroundScaleMap): the
+  // identity without a CRS.
   virtual void fit_camera(pm::Camera& c) const = 0;
   // Runs this frame's selection at time_s; fills r's level-of-detail fields; rewrites `mesh`
   // (origin = extent().origin, CCW from above) and returns true when the drawn mesh changed.

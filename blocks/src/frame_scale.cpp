@@ -14,6 +14,7 @@
 
 #include "gdal_support.hpp"
 #include "terralod/blocks/dem_grid.hpp"
+#include "terralod/blocks/ground_scale.hpp"
 
 namespace terralod::blocks {
 
@@ -172,6 +173,38 @@ std::optional<pm::GroundScale> GroundFrame::at(double x, double y) const {
 }
 
 }  // namespace detail
+
+GroundScaleMap::GroundScaleMap() = default;
+GroundScaleMap::GroundScaleMap(GroundScaleMap&&) noexcept = default;
+GroundScaleMap& GroundScaleMap::operator=(GroundScaleMap&&) noexcept = default;
+GroundScaleMap::~GroundScaleMap() = default;
+
+GroundScaleMap::GroundScaleMap(const std::string& crs_wkt,
+                               const std::optional<pm::GridTransform>& crs_transform,
+                               const pm::GridTransform& world, const pm::Box& box)
+    : box_(box) {
+  if (!crs_transform) return;
+  if (auto g = detail::GroundFrame::open(crs_wkt, *crs_transform, world))
+    frame_ = std::make_unique<detail::GroundFrame>(std::move(*g));
+}
+
+GroundScaleMap GroundScaleMap::of(const pm::Heightfield& hf) {
+  pm::Box box{{1e300, 1e300, 0.0}, {-1e300, -1e300, 0.0}};
+  for (const auto& [c, r] :
+       {std::pair{0, 0}, {hf.width() - 1, 0}, {0, hf.height() - 1}, {hf.width() - 1, hf.height() - 1}}) {
+    const auto [x, y] = hf.transform.to_world(c, r);
+    box.lo.x = std::min(box.lo.x, x), box.lo.y = std::min(box.lo.y, y);
+    box.hi.x = std::max(box.hi.x, x), box.hi.y = std::max(box.hi.y, y);
+  }
+  return GroundScaleMap(hf.crs_wkt, hf.crs_transform, hf.transform, box);
+}
+
+pm::GroundScale GroundScaleMap::at(double x, double y) const {
+  if (!frame_) return {};
+  const std::optional<pm::GroundScale> g =
+      frame_->at(std::clamp(x, box_.lo.x, box_.hi.x), std::clamp(y, box_.lo.y, box_.hi.y));
+  return g ? *g : pm::GroundScale{};
+}
 
 std::optional<double> frame_scale_error(const pm::Heightfield& hf) {
   const int w = hf.width();

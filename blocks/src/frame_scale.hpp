@@ -56,20 +56,14 @@ std::optional<double> scale_error(const std::string& crs_wkt,
                                   const std::function<bool(int, int)>& valid,
                                   const std::function<std::pair<int, int>(int)>& row_ends);
 
-/// The ground scale of a georeferenced world frame (pm/view.hpp's GroundScale): at a world
-/// point (x, y), the symmetric positive part of the Jacobian of world offsets -> ground metres
-/// on the CRS's ellipsoid, sqrt(J^T J). |G v| = |J v|, so G maps a small world offset to its
-/// length on the ground, and leaves out J's rotation (the projection's convergence), which
-/// would turn the view about the eye. J^T J is measured as the metric of the ellipsoid's
-/// surface in Earth-centred coordinates, by central differences over +-10 m of world offset:
-/// no singularity at a pole. Not thread-safe (one GDAL transformation).
+/// The implementation of GroundScaleMap (ground_scale.hpp, which says what G is).
 class GroundFrame {
  public:
   /// nullopt when the frame has no CRS, or GDAL cannot map the CRS to its geographic CRS.
   static std::optional<GroundFrame> open(const std::string& crs_wkt, const pm::GridTransform& crs_transform,
                                          const pm::GridTransform& world);
   /// G at world (x, y); nullopt when the point cannot be transformed (beyond the projection's
-  /// domain) or G's scales leave [0.5, 2] (a frame no view can take).
+  /// domain) or G's scales leave [0.5, 2] (a frame no view can take). Not thread-safe.
   std::optional<pm::GroundScale> at(double x, double y) const;
 
  private:

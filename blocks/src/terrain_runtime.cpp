@@ -15,7 +15,6 @@
 #include <limits>
 #include <stdexcept>
 
-#include "frame_scale.hpp"
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -96,9 +95,9 @@ TerrainRuntime::TerrainRuntime(const std::string& db_path, const RuntimeOptions&
   // a missing PmBlock root leaves nothing to draw until it arrives. An empty block (no valid
   // sample) has no stand-in.
   sums_ = std::make_unique<detail::SummaryStore>(db_path, grid_);
+  // Beyond the terrain the scale at its nearest point: the frame is known to hold there.
   if (const auto geo = db.georeference())
-    if (auto g = detail::GroundFrame::open(db.info().crs_wkt, geo->crs_transform, db.info().transform))
-      ground_ = std::make_unique<detail::GroundFrame>(std::move(*g));
+    ground_ = GroundScaleMap(db.info().crs_wkt, geo->crs_transform, db.info().transform, terrain_box());
   for (const TreeNode& n : tree_.nodes()) {
     if (n.strategy == Strategy::PmBlock && (!n.block || !grid_.contains(*n.block)))
       throw DatabaseError(db_path,
@@ -168,16 +167,6 @@ void TerrainRuntime::set_options(const RuntimeOptions& options) {
   if (!(options.predictor == opt_.predictor)) predictor_ = FlightPredictor(options.predictor);
   opt_ = options;
   if (refine_changed) tau_ = opt_.tolerance_px;
-}
-
-pm::GroundScale TerrainRuntime::ground_scale(double x, double y) const {
-  if (!ground_) return {};
-  const pm::Box& box = terrain_box();
-  // Beyond the terrain the scale at its nearest point: the frame is known to hold there, and
-  // the scale changes continuously as the camera leaves the box.
-  const std::optional<pm::GroundScale> g =
-      ground_->at(std::clamp(x, box.lo.x, box.hi.x), std::clamp(y, box.lo.y, box.hi.y));
-  return g ? *g : pm::GroundScale{};
 }
 
 void TerrainRuntime::fit_camera(pm::Camera& cam) const {

@@ -136,7 +136,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     EXPECT_EQ(f[21] + "," + f[22], "0,0") << line;
     EXPECT_EQ(f[26], "1") << line;
     EXPECT_EQ(f[32] + "," + f[33], "0,0") << line;                  // no stand-ins held or read
-    EXPECT_EQ(f[41] + "," + f[42] + "," + f[43], "1,0,1") << line;  // one PM: no ground scale
+    EXPECT_EQ(f[41] + "," + f[42] + "," + f[43], "1,0,1") << line;  // no CRS: no ground scale
     EXPECT_EQ(std::stod(f[37]), 0.0) << "frame " << f[0] << ": a single PM never waits";  // wait_ms
     ++rows;
   }

@@ -24,6 +24,7 @@
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/geo_grid.hpp"
+#include "terralod/blocks/ground_scale.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 
@@ -291,6 +292,8 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
   bo.threads = 1;
   tb::build_database(hf, db.string(), bo);
   tb::TerrainRuntime rt(db.string());
+  const tb::GroundScaleMap map = tb::GroundScaleMap::of(hf);
+  EXPECT_TRUE(map.georeferenced());
   geod_geodesic g;
   geod_init(&g, 6378137.0, 1.0 / 298.257223563);
   const WorldOf world(hf);
@@ -304,6 +307,7 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
       rt.fit_camera(cam);
       const terralod::pm::GroundScale& G = cam.ground;
       EXPECT_EQ(G, rt.ground_scale(x, y));
+      EXPECT_EQ(G, map.at(x, y)) << "a single mesh's view (GroundScaleMap::of) is the runtime's";
       EXPECT_NO_THROW(terralod::pm::View{cam});
       for (double s : {1000.0, 20000.0, 70000.0, 300000.0})
         for (int k = 0; k < 16; ++k) {
@@ -337,6 +341,8 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
   fs::remove(db2);
   tb::build_database(plain, db2.string(), bo);
   EXPECT_EQ(tb::TerrainRuntime(db2.string()).ground_scale(0.0, 0.0), terralod::pm::GroundScale{});
+  EXPECT_FALSE(tb::GroundScaleMap::of(plain).georeferenced());
+  EXPECT_EQ(tb::GroundScaleMap::of(plain).at(0.0, 0.0), terralod::pm::GroundScale{});
 }
 
 // A geographic DEM whose last row lies on a pole (global and Arctic mosaics reach 90 degrees):

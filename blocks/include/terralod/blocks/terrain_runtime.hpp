@@ -140,13 +140,13 @@
 #include "terralod/blocks/block_loader.hpp"
 #include "terralod/blocks/drawn_mesh.hpp"
 #include "terralod/blocks/flight_predictor.hpp"
+#include "terralod/blocks/ground_scale.hpp"
 #include "terralod/pm/selective_refinement.hpp"
 
 namespace terralod::blocks {
 
 namespace detail {
 class SummaryStore;  // summary_store.hpp
-class GroundFrame;   // frame_scale.hpp
 }  // namespace detail
 
 struct RuntimeOptions {
@@ -252,8 +252,9 @@ class TerrainRuntime {
   /// as seen: far beyond its farthest corner (so whatever terrain is in the frustum is drawn,
   /// at any altitude), near half the distance to the box (clamped to [0.05, 1000] m).
   void fit_camera(pm::Camera& camera) const;
-  /// The ground scale fit_camera sets at world (x, y): the identity without a CRS.
-  pm::GroundScale ground_scale(double x, double y) const;
+  /// The ground scale fit_camera sets at world (x, y) (ground_scale.hpp): the identity without
+  /// a CRS.
+  pm::GroundScale ground_scale(double x, double y) const { return ground_.at(x, y); }
   /// True while the loader has requests queued or in flight, or finished blocks that the next
   /// update() takes (set_queue never asks again for those: counting them is what keeps a
   /// caller waiting for a block that finished between update()'s take and its queue).
@@ -318,9 +319,9 @@ class TerrainRuntime {
   RuntimeOptions opt_;
   BlockGrid grid_;
   ApproximationTree tree_;
-  std::unique_ptr<detail::SummaryStore> sums_;   // every block's fields; stand-ins on demand
-  std::unique_ptr<detail::GroundFrame> ground_;  // the frame's ground scale; null without a CRS
-  std::vector<std::uint64_t> block_vertices_;    // per block index: PM vertices (from the build's meta)
+  std::unique_ptr<detail::SummaryStore> sums_;  // every block's fields; stand-ins on demand
+  GroundScaleMap ground_;                       // the frame's ground scale (identity without a CRS)
+  std::vector<std::uint64_t> block_vertices_;   // per block index: PM vertices (from the build's meta)
   std::size_t fixed_bytes_ = 0;  // the tree, the summaries' fields and the vertex counts, at opening
   // Bytes per PM vertex of a decoded whole block, learnt from the whole blocks loaded so far:
   // a ratio of sums, so that it does not depend on the order the loader threads finish in.
