@@ -288,7 +288,7 @@ TEST(SelectiveRefinement, GuaranteeOnRandomPosesThroughAGroundScale) {
   std::printf("seed 32\n");
   pm::SelectiveRefinement sel(t.dag);
   Tally tally;
-  for (int k = 0; k < 120; ++k) {
+  for (int k = 0; k < 60; ++k) {
     pm::RefinementOptions o;
     o.tolerance_px = k % 2 ? 0.5 : 2.0;
     sel.set_options(o);
