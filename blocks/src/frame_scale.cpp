@@ -35,6 +35,24 @@ bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vec
   return std::all_of(ok.begin(), ok.end(), [](int v) { return v != 0; });
 }
 
+std::optional<GeographicOf> geographic_of(const std::string& crs_wkt) {
+  register_gdal();
+  OGRSpatialReference crs;
+  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
+  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
+  if (!geog) return std::nullopt;
+  geog->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  GeographicOf g;
+  g.to_geog.reset(OGRCreateCoordinateTransformation(&crs, geog.get()));
+  g.to_crs.reset(OGRCreateCoordinateTransformation(geog.get(), &crs));
+  if (!g.to_geog || !g.to_crs) return std::nullopt;
+  const double b = crs.GetSemiMinor();
+  g.a = crs.GetSemiMajor(), g.e2 = 1.0 - (b * b) / (g.a * g.a);
+  if (!(g.a > 0) || !std::isfinite(g.e2)) return std::nullopt;
+  return g;
+}
+
 std::optional<std::pair<double, double>> scale_range(
     const std::vector<double>& lon, const std::vector<double>& lat, double a, double e2,
     const std::function<bool(std::vector<double>&, std::vector<double>&)>& to_frame) {
@@ -75,18 +93,12 @@ std::optional<double> scale_error(const std::string& crs_wkt,
                                   const std::function<bool(int, int)>& valid,
                                   const std::function<std::pair<int, int>(int)>& row_ends) {
   if (crs_wkt.empty() || !crs_transform) return std::nullopt;
-  register_gdal();
   QuietGdal quiet;
-  OGRSpatialReference crs;
-  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
-  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
-  if (!geog) return std::nullopt;
-  geog->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  Transform to_geog(OGRCreateCoordinateTransformation(&crs, geog.get()));
-  Transform to_crs(OGRCreateCoordinateTransformation(geog.get(), &crs));
-  if (!to_geog || !to_crs) return std::nullopt;
-  const double a = crs.GetSemiMajor(), b = crs.GetSemiMinor(), e2 = 1.0 - (b * b) / (a * a);
+  std::optional<GeographicOf> geo = geographic_of(crs_wkt);
+  if (!geo) return std::nullopt;
+  Transform& to_geog = geo->to_geog;
+  Transform& to_crs = geo->to_crs;
+  const double a = geo->a, e2 = geo->e2;
 
   // Where to measure: a 33 x 33 lattice and both ends of every row, valid samples only.
   std::vector<double> cols, rows;
@@ -125,21 +137,13 @@ std::optional<GroundFrame> GroundFrame::open(const std::string& crs_wkt,
                                              const pm::GridTransform& crs_transform,
                                              const pm::GridTransform& world) {
   if (crs_wkt.empty()) return std::nullopt;
-  register_gdal();
   QuietGdal quiet;
-  OGRSpatialReference crs;
-  if (crs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
-  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRSpatialReference> geog(crs.CloneGeogCS());
-  if (!geog) return std::nullopt;
-  geog->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::optional<GeographicOf> geo = geographic_of(crs_wkt);
+  if (!geo) return std::nullopt;
   GroundFrame g;
-  g.to_geog_.reset(OGRCreateCoordinateTransformation(&crs, geog.get()));
-  if (!g.to_geog_) return std::nullopt;
+  g.to_geog_ = std::move(geo->to_geog);
   g.crs_ = Affine{crs_transform}, g.world_ = Affine{world};
-  const double a = crs.GetSemiMajor(), b = crs.GetSemiMinor();
-  g.a_ = a, g.e2_ = 1.0 - (b * b) / (a * a);
-  if (!(a > 0) || !std::isfinite(g.e2_)) return std::nullopt;
+  g.a_ = geo->a, g.e2_ = geo->e2;
   return g;
 }
 

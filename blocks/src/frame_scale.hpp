@@ -28,6 +28,15 @@ using Transform = std::unique_ptr<OGRCoordinateTransformation, TransformDeleter>
 /// Transforms the points in place; false when any fails.
 bool transform(OGRCoordinateTransformation& ct, std::vector<double>& x, std::vector<double>& y);
 
+/// A CRS's geographic CRS (longitude, latitude in degrees, GIS order) and its ellipsoid: the
+/// transformations both ways, the semi-major axis a and the squared eccentricity e2. nullopt
+/// when GDAL cannot read the WKT or make either transformation. Registers GDAL's drivers.
+struct GeographicOf {
+  Transform to_geog, to_crs;
+  double a = 0, e2 = 0;
+};
+std::optional<GeographicOf> geographic_of(const std::string& crs_wkt);
+
 /// (col, row) -> (x, y) of an affine map and back.
 struct Affine {
   pm::GridTransform t;

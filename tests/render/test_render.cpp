@@ -218,18 +218,23 @@ TEST(Camera, ViewMatrixPutsTheCameraAtTheOriginLookingDownMinusZ) {
               {0, 1, 0}, 1e-9, "up -> +y_eye");
 }
 
+/// An oblique 640 x 360 camera over the test grid's corner, looking south-west and down.
+Camera oblique_camera(const pm::GroundScale& ground = {}) {
+  return Camera{.x = kX0,
+                .y = kY0,
+                .z = 500.0,
+                .yaw_deg = 200.0,
+                .pitch_deg = -40.0,
+                .fovy_deg = 45.0,
+                .width_px = 640,
+                .height_px = 360,
+                .near_m = 2.0,
+                .far_m = 3000.0,
+                .ground = ground};
+}
+
 TEST(Camera, ProjectionAndPixelRaysAgree) {
-  const Camera c{.x = kX0,
-                 .y = kY0,
-                 .z = 500.0,
-                 .yaw_deg = 200.0,
-                 .pitch_deg = -40.0,
-                 .fovy_deg = 45.0,
-                 .width_px = 640,
-                 .height_px = 360,
-                 .near_m = 2.0,
-                 .far_m = 3000.0,
-                 .ground = {}};
+  const Camera c = oblique_camera();
   const glm::dmat4 pv = render::projection_matrix(c) * render::view_matrix(c);
   const glm::dmat4 rpv = render::reverse_z_projection_matrix(c) * render::view_matrix(c);
   // The centre ray is the view direction.
@@ -262,17 +267,7 @@ TEST(Camera, ProjectionAndPixelRaysAgree) {
 // With a ground scale the GPU's matrices are pm::View's (the selection's), and a pixel's ray
 // projects back onto the pixel.
 TEST(Camera, GroundScaleMatricesAndRaysAreTheSelections) {
-  Camera c{.x = kX0,
-           .y = kY0,
-           .z = 500.0,
-           .yaw_deg = 200.0,
-           .pitch_deg = -40.0,
-           .fovy_deg = 45.0,
-           .width_px = 640,
-           .height_px = 360,
-           .near_m = 2.0,
-           .far_m = 3000.0,
-           .ground = {1.02, -0.015, 0.985}};
+  const Camera c = oblique_camera({1.02, -0.015, 0.985});
   const pm::View v(c);
   const glm::dmat4 vm = render::view_matrix(c);
   const std::array<double, 16> pv = v.view_matrix();
