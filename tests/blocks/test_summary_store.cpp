@@ -26,24 +26,26 @@ using tb::detail::SummaryStore;
 namespace {
 
 // 513 x 385 samples in blocks of 33: 16 x 12 blocks with 64-point TIN stand-ins, and a void
-// over the whole of block (3, 2), which has no stand-in (an empty record).
+// over the whole of block (3, 2), which has no stand-in (an empty record). Built once for every
+// test of this executable (each runs as a process of its own); the tests only read it, and copy
+// it to change it.
 std::string database() {
-  static const std::string path = [] {
-    tp::TerrainOptions to;
-    to.width = 513, to.height = 385, to.seed = 5, to.spacing = 30.0, to.relief = 900.0;
-    to.quantize_to_metres = true;
-    tp::Heightfield hf = tp::generate_terrain(to);
-    std::vector<std::uint8_t> mask(hf.size(), 1);
-    for (int r = 64; r <= 96; ++r)
-      for (int c = 96; c <= 128; ++c) mask[std::size_t(r) * 513 + std::size_t(c)] = 0;
-    hf.set_mask(std::move(mask));
-    const std::string p = (tt::process_temp_dir("summary_store") / "s.db").string();
-    tb::DatabaseBuildOptions o;
-    o.block_size = 33;
-    o.threads = 2;
-    tb::build_database(hf, p, o);
-    return p;
-  }();
+  static const std::string path = tt::shared_file("summary_store.db", [](const std::filesystem::path& p) {
+                                    tp::TerrainOptions to;
+                                    to.width = 513, to.height = 385, to.seed = 5, to.spacing = 30.0,
+                                    to.relief = 900.0;
+                                    to.quantize_to_metres = true;
+                                    tp::Heightfield hf = tp::generate_terrain(to);
+                                    std::vector<std::uint8_t> mask(hf.size(), 1);
+                                    for (int r = 64; r <= 96; ++r)
+                                      for (int c = 96; c <= 128; ++c)
+                                        mask[std::size_t(r) * 513 + std::size_t(c)] = 0;
+                                    hf.set_mask(std::move(mask));
+                                    tb::DatabaseBuildOptions o;
+                                    o.block_size = 33;
+                                    o.threads = 2;
+                                    tb::build_database(hf, p.string(), o);
+                                  }).string();
   return path;
 }
 
