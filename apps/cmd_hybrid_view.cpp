@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/ground_scale.hpp"
 #include "terralod/blocks/hybrid/hybrid_tree.hpp"
 #include "terralod/pm/mesh_io.hpp"
 #include "terralod/pm/view.hpp"
@@ -42,10 +43,13 @@ int view_hybrid(const std::string& path, const pm::Camera& camera, double tau, c
   print_line(strf("read %s: hybrid tree of %zu nodes over %d x %d coarsest cells, %s", path.c_str(),
                   tree.tree().size(), tree.cells_x(), tree.cells_y(), format_duration(ms_since(t)).c_str()));
 
-  // Clip planes from the root's box, as for 'view --input'.
+  // The frame's ground scale at the eye and clip planes from the root's box, as for 'view --input'.
   const pm::Box& box = tree.tree().root().bbox;
   const glm::dvec3 lo(box.lo.x, box.lo.y, box.lo.z), hi(box.hi.x, box.hi.y, box.hi.z);
   render::Camera cam = camera;
+  if (const auto geo = db.georeference())
+    cam.ground = blocks::GroundScaleMap(db.info().crs_wkt, geo->crs_transform, db.info().transform, box)
+                     .at(cam.x, cam.y);
   fit_clip_to_box(cam, lo, hi);
   const int width = cam.width_px, height = cam.height_px;
 

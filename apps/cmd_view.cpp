@@ -20,6 +20,7 @@
 #include "layer_options.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/ground_scale.hpp"
 #include "terralod/pm/collapse_dag.hpp"
 #include "terralod/pm/geomorph.hpp"
 #include "terralod/pm/mesh_io.hpp"
@@ -63,13 +64,16 @@ CommandSpec view_spec() {
           "to more than bound_px <= --tau pixels (the near and far planes are those of the render).\n"
           "--uniform restores the earlier UNIFORM extraction at the largest error E that no part of\n"
           "the terrain can show larger than --tau pixels: E = TAU * d_min / K_max, where d_min is the\n"
-          "distance from the camera to the nearest point of the terrain's bounding box and\n"
+          "distance from the camera to the nearest point of the terrain's bounding box (as seen) and\n"
           "K_max = K (1 + r^2/K^2) bounds the pixels per radian anywhere in the image\n"
           "(K = H / (2 tan(FOVY/2)), r = half the image diagonal in pixels): conservative, distant\n"
           "terrain keeps more triangles than it needs.\n\n"
           "--stats writes JSON: the selection, the triangle and active vertex counts, the guaranteed\n"
           "error bound (pixels: bound_px; metres), tau and the time of every stage; for the\n"
-          "view-dependent selection also the vsplits and ecols of the update and its time.\n\n"
+          "view-dependent selection also the vsplits and ecols of the update and its time.\n"
+          "A terrain with a CRS is seen through the camera's ground scale, the frame's at the eye: world\n"
+          "offsets about the eye are stretched so that they are ground metres near it, however wide\n"
+          "the frame (--stats gives it as the camera's ground_xx, ground_xy, ground_yy).\n\n"
           "--morph-to (with --input): a smooth transition between two viewpoints. M^A is the mesh\n"
           "selected for --camera and M^B the one for --morph-to (same --tau and options); their\n"
           "static geomorph M^G(a) (pm/geomorph.hpp: the plan-view overlay of both, heights blended\n"
@@ -205,7 +209,10 @@ struct MorphJob {
 int view_morph(const MorphJob& job, const pm::ProgressiveMesh& mesh) {
   const pm::Heightfield& hf = mesh.heightfield();
   const auto [lo, hi] = terrain_box(hf);
+  // Every camera sees the frame in ground metres near its eye, as a flight does.
+  const blocks::GroundScaleMap ground = blocks::GroundScaleMap::of(hf);
   pm::Camera cam_a = job.from, cam_b = job.to;
+  cam_a.ground = ground.at(cam_a.x, cam_a.y), cam_b.ground = ground.at(cam_b.x, cam_b.y);
   fit_clip_to_box(cam_a, lo, hi);
   fit_clip_to_box(cam_b, lo, hi);
 
@@ -273,6 +280,7 @@ int view_morph(const MorphJob& job, const pm::ProgressiveMesh& mesh) {
     const auto t_frame = Clock::now();
     const double alpha = double(k) / double(job.frames - 1);  // exactly 0 and 1 at the ends
     pm::Camera cam = interpolate_camera(job.from, job.to, alpha);
+    cam.ground = ground.at(cam.x, cam.y);
     fit_clip_to_box(cam, lo, hi);
     const bool end_a = k == 0, end_b = k == job.frames - 1;
     std::optional<pm::RenderMesh> blend;
@@ -403,14 +411,18 @@ int cmd_view(const Args& a) {
     return view_morph(job, mesh);
   }
 
+  // The frame in ground metres near the eye, as a flight sees it (the identity without a CRS).
   render::Camera cam = view.camera;
+  cam.ground = blocks::GroundScaleMap::of(hf).at(cam.x, cam.y);
 
   // The terrain's bounding box: the clip planes of the render (and of the selection's view),
   // and, for --uniform, the conservative uniform error for tau: every point of a vertical error
-  // segment lies in the box, hence at least d_min from the camera, so it covers at most
+  // segment lies in the box, hence at least d_min from the camera as seen (the world distance
+  // times the ground scale's smallest singular value, when under 1), so it covers at most
   // E * K_max / d_min pixels anywhere in the image.
   const auto [lo, hi] = terrain_box(hf);
-  const double d_min = render::distance_to_box(render::camera_position(cam), lo, hi);
+  const double d_min =
+      std::min(1.0, cam.ground.min_scale()) * render::distance_to_box(render::camera_position(cam), lo, hi);
   const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
   fit_clip_to_box(cam, lo, hi);
 

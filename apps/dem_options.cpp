@@ -53,9 +53,9 @@ void warn_about_frame(const blocks::DemGrid& g) {
       stderr,
       "warning: %s: distances in the world frame are off by up to %.3f %% (over 0.1 %%); --crs auto "
       "takes the truest of five kinds of projection, and an extent wider than about 7 degrees both ways "
-      "is beyond any flat frame; a CRS named with --crs may suit its shape better. A flight (terralod "
-      "fly, terralod-fly) and terralod view --db correct it about the camera: their view is in ground "
-      "metres there; terralod view of a DEM or a .pm does not\n",
+      "is beyond any flat frame; a CRS named with --crs may suit its shape better. Every view "
+      "(terralod fly, terralod-fly, terralod view) corrects it about the camera: what it shows is in "
+      "ground metres there\n",
       g.source.c_str(), *e * 100.0);
 }
 

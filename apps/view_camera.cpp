@@ -81,9 +81,11 @@ pm::Camera interpolate_camera(const pm::Camera& a, const pm::Camera& b, double a
 }
 
 void fit_clip_to_box(pm::Camera& c, const glm::dvec3& lo, const glm::dvec3& hi) {
-  c.near_m = std::clamp(0.5 * render::distance_to_box(render::camera_position(c), lo, hi), 0.05, 1000.0);
-  c.far_m =
-      std::max(c.near_m * 2.0, 1.01 * render::max_distance_to_box(render::camera_position(c), lo, hi) + 1.0);
+  // Seen distances are world distances scaled by at most the ground scale's extremes.
+  const double in = std::min(1.0, c.ground.min_scale()), out = std::max(1.0, c.ground.max_scale());
+  c.near_m = std::clamp(0.5 * in * render::distance_to_box(render::camera_position(c), lo, hi), 0.05, 1000.0);
+  c.far_m = std::max(c.near_m * 2.0,
+                     1.01 * out * render::max_distance_to_box(render::camera_position(c), lo, hi) + 1.0);
 }
 
 void write_view_json(JsonWriter& j, const pm::Camera& c, double tau) {
@@ -95,7 +97,10 @@ void write_view_json(JsonWriter& j, const pm::Camera& c, double tau) {
                              {"pitch", c.pitch_deg},
                              {"fovy", c.fovy_deg},
                              {"near", c.near_m},
-                             {"far", c.far_m}})
+                             {"far", c.far_m},
+                             {"ground_xx", c.ground.xx},
+                             {"ground_xy", c.ground.xy},
+                             {"ground_yy", c.ground.yy}})
     j.field(k, v);
   j.end_object();
   j.field("width", c.width_px);

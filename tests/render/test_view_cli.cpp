@@ -269,6 +269,55 @@ TEST(ViewCli, RendersADemFile) {
   EXPECT_GT(non_sky_fraction(img), 0.2);
 }
 
+// A DEM with a CRS is seen through the frame's ground scale at the eye (pm/view.hpp), as a
+// flight sees it; --stats gives it. A 33 x 33 geographic grid of 30 x 30 degrees (an Esri ASCII
+// grid with a WGS 84 .prj) reads under --crs auto into an azimuthal frame about 1 % off at its
+// edges; the ridge above, without a CRS, is seen as it is.
+TEST(ViewCli, ADemWithACrsIsSeenThroughItsGroundScale) {
+  const fs::path asc = tmp_dir() / "continent.asc", png = tmp_dir() / "continent.png",
+                 json = tmp_dir() / "continent.json";
+  {
+    std::ofstream f(asc);
+    f << "ncols 33\nnrows 33\nxllcorner 0\nyllcorner 30\ncellsize 0.9375\nNODATA_value -9999\n";
+    for (int r = 0; r < 33; ++r) {
+      for (int c = 0; c < 33; ++c)
+        f << (c ? " " : "") << 500.0 + 300.0 * std::sin(0.3 * c) * std::cos(0.2 * r);
+      f << "\n";
+    }
+    std::ofstream prj(tmp_dir() / "continent.prj");
+    prj << "GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563]],"
+           "PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]]";
+  }
+  // 1200 km south of the frame's centre, 50 km up, looking north and down.
+  const CliResult r = terralod("view --input " + quote(asc.string()) +
+                               " --camera 0,-1200000,50000,0,-20,60 --size 128x96 --out " +
+                               quote(png.string()) + " --stats " + quote(json.string()));
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const std::string stats = slurp(json);
+  const double xx = json_number(stats, "ground_xx"), xy = json_number(stats, "ground_xy"),
+               yy = json_number(stats, "ground_yy");
+  std::printf("ground scale at the eye: %.6f %.6f %.6f\n", xx, xy, yy);
+  EXPECT_GT(std::abs(xx - 1.0) + std::abs(yy - 1.0), 1e-3) << stats;
+  EXPECT_LT(std::abs(xx - 1.0) + std::abs(xy) + std::abs(yy - 1.0), 0.05) << stats;
+  EXPECT_LE(json_number(stats, "screen_error_bound"), 1.0) << stats;
+  EXPECT_GT(non_sky_fraction(render::read_image(png.string())), 0.2);
+
+  const fs::path ridge = tmp_dir() / "ridge_plain.asc", rjson = tmp_dir() / "ridge_plain.json";
+  {
+    std::ofstream f(ridge);
+    f << "ncols 9\nnrows 9\nxllcorner 1000\nyllcorner 2000\ncellsize 10\nNODATA_value -9999\n";
+    for (int k = 0; k < 81; ++k) f << 100.0 + 3.0 * (k % 9) << (k % 9 == 8 ? "\n" : " ");
+  }
+  const CliResult p = terralod(
+      "view --input " + quote(ridge.string()) + " --camera 1040,1900,200,0,-30,60 --size 64x48 --out " +
+      quote((tmp_dir() / "ridge_plain.png").string()) + " --stats " + quote(rjson.string()));
+  ASSERT_EQ(p.status, 0) << p.err << p.out;
+  const std::string plain = slurp(rjson);
+  EXPECT_EQ(json_number(plain, "ground_xx"), 1.0) << plain;
+  EXPECT_EQ(json_number(plain, "ground_xy"), 0.0) << plain;
+  EXPECT_EQ(json_number(plain, "ground_yy"), 1.0) << plain;
+}
+
 TEST(ViewCli, BadCommandLinesAreRefusedWithExitCode2) {
   const std::string in = quote(pm_fixture().path.string()), out = quote((tmp_dir() / "bad.png").string());
   struct Case {
