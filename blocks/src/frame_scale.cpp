@@ -15,6 +15,7 @@
 #include "gdal_support.hpp"
 #include "terralod/blocks/dem_grid.hpp"
 #include "terralod/blocks/ground_scale.hpp"
+#include "terralod/pm/geodesy.hpp"
 
 namespace terralod::blocks {
 
@@ -156,13 +157,9 @@ std::optional<pm::GroundScale> GroundFrame::at(double x, double y) const {
   }
   QuietGdal quiet;
   if (!transform(*to_geog_, px, py)) return std::nullopt;
-  // Earth-centred coordinates of the points on the ellipsoid.
-  std::array<std::array<double, 3>, 4> p;
-  for (std::size_t k = 0; k < 4; ++k) {
-    const double lam = px[k] * kDeg, phi = py[k] * kDeg, s = std::sin(phi);
-    const double n = a_ / std::sqrt(1.0 - e2_ * s * s);
-    p[k] = {n * std::cos(phi) * std::cos(lam), n * std::cos(phi) * std::sin(lam), n * (1.0 - e2_) * s};
-  }
+  // Earth-centred coordinates of the points on the CRS's ellipsoid.
+  std::array<pm::Ecef, 4> p;
+  for (std::size_t k = 0; k < 4; ++k) p[k] = pm::ecef_from_geodetic({px[k], py[k], 0.0}, a_, e2_);
   double dx[3], dy[3];
   for (int i = 0; i < 3; ++i) dx[i] = (p[0][i] - p[1][i]) / (2 * h), dy[i] = (p[2][i] - p[3][i]) / (2 * h);
   // J^T J and its square root: sqrt(M) = (M + sqrt(det M) I) / sqrt(tr M + 2 sqrt(det M)).

@@ -21,12 +21,14 @@ Ecef scaled(const Ecef& p) { return {p[0] / kWgs84A, p[1] / kWgs84A, p[2] / kWgs
 
 }  // namespace
 
-Ecef ecef_from_geodetic(const Geodetic& g) {
+Ecef ecef_from_geodetic(const Geodetic& g) { return ecef_from_geodetic(g, kWgs84A, kE2); }
+
+Ecef ecef_from_geodetic(const Geodetic& g, double a, double e2) {
   const double lon = g.lon_deg * kDeg, lat = g.lat_deg * kDeg;
   const double s = std::sin(lat), c = std::cos(lat);
-  const double n = kWgs84A / std::sqrt(1.0 - kE2 * s * s);
+  const double n = a / std::sqrt(1.0 - e2 * s * s);
   return {(n + g.height) * c * std::cos(lon), (n + g.height) * c * std::sin(lon),
-          (n * (1.0 - kE2) + g.height) * s};
+          (n * (1.0 - e2) + g.height) * s};
 }
 
 Geodetic geodetic_from_ecef(const Ecef& p) {

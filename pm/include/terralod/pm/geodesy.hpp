@@ -46,6 +46,8 @@ inline constexpr double kWgs84F = 1.0 / 298.257223563;
 inline constexpr double kWgs84B = kWgs84A * (1.0 - kWgs84F);
 
 Ecef ecef_from_geodetic(const Geodetic& g);
+/// The same on the ellipsoid of semi-major axis a and squared eccentricity e2 (a CRS's own).
+Ecef ecef_from_geodetic(const Geodetic& g, double a, double e2);
 Geodetic geodetic_from_ecef(const Ecef& p);
 /// The outward unit normal of the ellipsoid at (lon, lat).
 Ecef geodetic_surface_normal(double lon_deg, double lat_deg);
