@@ -422,7 +422,7 @@ int cmd_view(const Args& a) {
   // E * K_max / d_min pixels anywhere in the image.
   const auto [lo, hi] = terrain_box(hf);
   const double d_min =
-      std::min(1.0, cam.ground.min_scale()) * render::distance_to_box(render::camera_position(cam), lo, hi);
+      cam.ground.min_distance_scale() * render::distance_to_box(render::camera_position(cam), lo, hi);
   const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
   fit_clip_to_box(cam, lo, hi);
 

@@ -81,11 +81,7 @@ pm::Camera interpolate_camera(const pm::Camera& a, const pm::Camera& b, double a
 }
 
 void fit_clip_to_box(pm::Camera& c, const glm::dvec3& lo, const glm::dvec3& hi) {
-  // Seen distances are world distances scaled by at most the ground scale's extremes.
-  const double in = std::min(1.0, c.ground.min_scale()), out = std::max(1.0, c.ground.max_scale());
-  c.near_m = std::clamp(0.5 * in * render::distance_to_box(render::camera_position(c), lo, hi), 0.05, 1000.0);
-  c.far_m = std::max(c.near_m * 2.0,
-                     1.01 * out * render::max_distance_to_box(render::camera_position(c), lo, hi) + 1.0);
+  pm::fit_clip_planes(c, pm::Box{{lo.x, lo.y, lo.z}, {hi.x, hi.y, hi.z}});
 }
 
 void write_view_json(JsonWriter& j, const pm::Camera& c, double tau) {

@@ -40,10 +40,9 @@ pm::Camera camera_option(const Args& a, const std::string& option, const pm::Cam
 /// it may leave [0, 360); exactly `a` at 0 and `b` at 1. Image size and clip planes are a's.
 pm::Camera interpolate_camera(const pm::Camera& a, const pm::Camera& b, double alpha);
 
-/// Sets the clip planes of `c` around the box [lo, hi] (world metres) as `c` sees it through its
-/// ground scale (set c.ground first): near at half the distance from the eye to the box, clamped
-/// to [0.05, 1000] m (reverse-Z keeps depth precise even so close), far just beyond the box's
-/// farthest point and at least twice near.
+/// pm::fit_clip_planes(c, the box [lo, hi]): the clip planes of `c` around the box (world
+/// metres) as `c` sees it through its ground scale (set c.ground first); near may be as close
+/// as 0.05 m because reverse-Z keeps depth precise even so close.
 void fit_clip_to_box(pm::Camera& c, const glm::dvec3& lo, const glm::dvec3& hi);
 
 /// The fields of --stats about what was asked: "camera" {x, y, z, yaw, pitch, fovy, near, far, ground_xx,

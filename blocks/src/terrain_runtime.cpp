@@ -171,19 +171,7 @@ void TerrainRuntime::set_options(const RuntimeOptions& options) {
 
 void TerrainRuntime::fit_camera(pm::Camera& cam) const {
   cam.ground = ground_scale(cam.x, cam.y);
-  // Seen distances are world distances scaled by at most the ground scale's extremes.
-  const double lo = std::min(1.0, cam.ground.min_scale()), hi = std::max(1.0, cam.ground.max_scale());
-  const pm::Box& box = terrain_box();
-  const double dx = std::max({box.lo.x - cam.x, 0.0, cam.x - box.hi.x}),
-               dy = std::max({box.lo.y - cam.y, 0.0, cam.y - box.hi.y}),
-               dz = std::max({box.lo.z - cam.z, 0.0, cam.z - box.hi.z});
-  const double dmin = lo * std::sqrt(dx * dx + dy * dy + dz * dz);
-  const double fx = std::max(std::abs(cam.x - box.lo.x), std::abs(cam.x - box.hi.x)),
-               fy = std::max(std::abs(cam.y - box.lo.y), std::abs(cam.y - box.hi.y)),
-               fz = std::max(std::abs(cam.z - box.lo.z), std::abs(cam.z - box.hi.z));
-  const double dmax = hi * std::sqrt(fx * fx + fy * fy + fz * fz);
-  cam.near_m = std::clamp(0.5 * dmin, 0.05, 1000.0);
-  cam.far_m = std::max(cam.near_m * 2.0, 1.01 * dmax + 1.0);
+  pm::fit_clip_planes(cam, terrain_box());
 }
 
 RuntimeFrameStats TerrainRuntime::update_until_loaded(const pm::View& view, double time_s, double timeout_s) {

@@ -234,8 +234,7 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
   };
   // The floor a view from `centre` (this view's lens) needs over block k at its nearest.
   const double limit = detail::kSelectShare * tau_;
-  // Seen distances are at least the world's times the ground scale's smallest singular value.
-  const double seen_scale = std::min(1.0, view.camera().ground.min_scale());
+  const double seen_scale = view.camera().ground.min_distance_scale();
   auto need_from = [&](const pm::Vec3& centre, BlockKey k) {
     const pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
     const double d = seen_scale * std::hypot(std::max({b.lo.x - centre.x, 0.0, centre.x - b.hi.x}),

@@ -51,6 +51,23 @@ double GroundScale::max_scale() const {
   return m + r;
 }
 
+double GroundScale::min_distance_scale() const { return std::min(1.0, min_scale()); }
+
+double GroundScale::max_distance_scale() const { return std::max(1.0, max_scale()); }
+
+void fit_clip_planes(Camera& c, const Box& b) {
+  const double dx = std::max({b.lo.x - c.x, 0.0, c.x - b.hi.x}),
+               dy = std::max({b.lo.y - c.y, 0.0, c.y - b.hi.y}),
+               dz = std::max({b.lo.z - c.z, 0.0, c.z - b.hi.z});
+  const double fx = std::max(std::abs(c.x - b.lo.x), std::abs(c.x - b.hi.x)),
+               fy = std::max(std::abs(c.y - b.lo.y), std::abs(c.y - b.hi.y)),
+               fz = std::max(std::abs(c.z - b.lo.z), std::abs(c.z - b.hi.z));
+  const double nearest = c.ground.min_distance_scale() * std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double farthest = c.ground.max_distance_scale() * std::sqrt(fx * fx + fy * fy + fz * fz);
+  c.near_m = std::clamp(0.5 * nearest, 0.05, 1000.0);
+  c.far_m = std::max(c.near_m * 2.0, 1.01 * farthest + 1.0);
+}
+
 double tolerance_px_from_fraction(double fraction, int height_px) {
   if (!(fraction > 0.0) || !std::isfinite(fraction))
     throw std::invalid_argument("tolerance: the fraction of the screen height must be > 0");

@@ -2,6 +2,7 @@
 // projected vertical segments, against hand-derived fixtures and the independent GLM projector.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -278,6 +279,52 @@ TEST(View, GroundScaleShowsTheWorldStretchedAboutTheEye) {
   const pm::GroundScale g{1.2, 0.1, 0.9};  // eigenvalues 1.05 +- sqrt(0.0325)
   EXPECT_NEAR(g.min_scale(), 1.05 - std::sqrt(0.0325), 1e-12);
   EXPECT_NEAR(g.max_scale(), 1.05 + std::sqrt(0.0325), 1e-12);
+  EXPECT_EQ(g.min_distance_scale(), g.min_scale());  // under 1
+  EXPECT_EQ(g.max_distance_scale(), g.max_scale());
+  const pm::GroundScale up{1.2, 0.0, 1.1}, down{0.8, 0.0, 0.9};
+  EXPECT_EQ(up.min_distance_scale(), 1.0);  // z is not scaled: a vertical offset keeps its length
+  EXPECT_EQ(down.max_distance_scale(), 1.0);
+}
+
+// fit_clip_planes: every point of the box is seen (through the ground scale) between near and
+// far, and the planes are tight: near is half the nearest seen distance (unless clamped), far
+// about the farthest.
+TEST(View, ClipPlanesHoldTheBoxAsSeen) {
+  std::mt19937_64 rng(15);
+  std::uniform_real_distribution<double> U(-1.0, 1.0), U01(0.0, 1.0);
+  for (int k = 0; k < 200; ++k) {
+    pm::Camera c = random_camera(rng);
+    if (k % 2) c.ground = {1.0 + 0.3 * U(rng), 0.2 * U(rng), 1.0 + 0.3 * U(rng)};
+    const pm::Vec3 m{c.x + U(rng) * 20000, c.y + U(rng) * 20000, c.z + U(rng) * 3000};
+    const pm::Box box{{m.x - 3000 * U01(rng), m.y - 3000 * U01(rng), m.z - 500 * U01(rng)},
+                      {m.x + 3000 * U01(rng), m.y + 3000 * U01(rng), m.z + 500 * U01(rng)}};
+    pm::fit_clip_planes(c, box);
+    ASSERT_NO_THROW(pm::View{c});
+    const auto seen_distance = [&](const pm::Vec3& p) {
+      const double dx = p.x - c.x, dy = p.y - c.y;
+      return std::hypot(c.ground.xx * dx + c.ground.xy * dy, c.ground.xy * dx + c.ground.yy * dy, p.z - c.z);
+    };
+    double nearest = 1e300, farthest = 0.0;
+    for (int i = 0; i < 4000; ++i) {
+      // Corners, the point nearest the eye in world metres, and points all over the box.
+      pm::Vec3 p{box.lo.x + (box.hi.x - box.lo.x) * U01(rng), box.lo.y + (box.hi.y - box.lo.y) * U01(rng),
+                 box.lo.z + (box.hi.z - box.lo.z) * U01(rng)};
+      if (i < 8) p = {i & 1 ? box.hi.x : box.lo.x, i & 2 ? box.hi.y : box.lo.y, i & 4 ? box.hi.z : box.lo.z};
+      if (i == 8)
+        p = {std::clamp(c.x, box.lo.x, box.hi.x), std::clamp(c.y, box.lo.y, box.hi.y),
+             std::clamp(c.z, box.lo.z, box.hi.z)};
+      const double d = seen_distance(p);
+      nearest = std::min(nearest, d), farthest = std::max(farthest, d);
+    }
+    EXPECT_LE(c.near_m, std::max(0.05, 0.5 * nearest) * (1 + 1e-12)) << k;
+    EXPECT_GE(c.far_m, farthest) << k;
+    // Tight: within the ground scale's spread of the sampled extremes.
+    const double spread = c.ground.max_distance_scale() / c.ground.min_distance_scale();
+    if (0.5 * nearest > 0.05 && 0.5 * nearest < 1000.0) {
+      EXPECT_GE(c.near_m, 0.5 * nearest / spread) << k;
+    }
+    EXPECT_LE(c.far_m, std::max(2.0 * c.near_m, 1.01 * farthest * spread + 1.0) * (1 + 1e-12)) << k;
+  }
 }
 
 TEST(View, ToleranceAsFractionOfScreenHeight) {

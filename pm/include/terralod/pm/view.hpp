@@ -74,6 +74,11 @@ struct GroundScale {
   /// Smallest and largest singular value of G (its eigenvalues: G is symmetric).
   double min_scale() const;
   double max_scale() const;
+  /// A seen distance is the world distance times a factor in [min_distance_scale(),
+  /// max_distance_scale()]: G' scales horizontal offsets by G's singular values and leaves z
+  /// alone, so these are min(1, min_scale()) and max(1, max_scale()).
+  double min_distance_scale() const;
+  double max_distance_scale() const;
 };
 
 /// Camera pose and lens; see the conventions above. Defaults are a valid 1280 x 720 view.
@@ -115,6 +120,13 @@ struct Plane {
   double d = 0.0;
   double distance(const Vec3& p) const { return dot(n, p) + d; }
 };
+
+/// Sets camera.near_m and far_m so that the whole box (the terrain's, world metres) lies between
+/// them as seen through camera.ground: near is half the smallest seen distance from the eye to
+/// the box, clamped to [0.05, 1000] m, far 1.01 times the largest (to its farthest corner) plus
+/// 1 m, and at least twice near. A runtime calls it with the ground scale already set
+/// (blocks::TerrainRuntime::fit_camera).
+void fit_clip_planes(Camera& camera, const Box& box);
 
 /// Converts the PM paper's tolerance (a fraction of the screen height, > 0) to pixels.
 double tolerance_px_from_fraction(double fraction, int height_px);
