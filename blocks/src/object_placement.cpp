@@ -180,12 +180,13 @@ void ObjectPlacer::visit(const TerrainRuntime& rt, const pm::View& view, int i0,
                          double zlo, double zhi) {
   const pm::Box box{{x0_ + i0 * cell_w_, y0_ + j0 * cell_h_, zlo},
                     {x0_ + i1 * cell_w_, y0_ + j1 * cell_h_, zhi}};
-  // The box's distance from the eye: nothing in it is nearer.
+  // The box's distance from the eye as the camera sees it (through its ground scale: at least
+  // the world distance times min_distance_scale): nothing in it is nearer.
   const pm::Vec3& e = view.eye();
   const double dx = std::max({box.lo.x - e.x, 0.0, e.x - box.hi.x});
   const double dy = std::max({box.lo.y - e.y, 0.0, e.y - box.hi.y});
   const double dz = std::max({box.lo.z - e.z, 0.0, e.z - box.hi.z});
-  const double distance = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double distance = view.camera().ground.min_distance_scale() * std::sqrt(dx * dx + dy * dy + dz * dz);
   if (distance > max_reach_ || view.outside(box)) {
     ++stats_.regions_culled;
     return;
@@ -205,6 +206,7 @@ void ObjectPlacer::visit(const TerrainRuntime& rt, const pm::View& view, int i0,
 void ObjectPlacer::place_cell(const TerrainRuntime& rt, const pm::View& view, std::size_t cell,
                               double cell_distance) {
   const pm::Vec3& e = view.eye();
+  const pm::GroundScale& g = view.camera().ground;
   const double focal = view.focal_px();
   for (std::size_t l = 0; l < layers_.size(); ++l) {
     if (!(reach_[l] >= cell_distance)) continue;  // hidden (-inf), or its rules end nearer
@@ -212,7 +214,9 @@ void ObjectPlacer::place_cell(const TerrainRuntime& rt, const pm::View& view, st
     for (std::uint32_t k = start_[l][cell]; k < start_[l][cell + 1]; ++k) {
       const WorldPoint& a = item_anchors_[l][k];  // contiguous: the object itself only when placed
       ++stats_.objects_tested;
-      const double px = a.x - e.x, py = a.y - e.y;
+      // The plan offset as seen (G of the world offset: ground metres on a continent-wide frame).
+      const double wx = a.x - e.x, wy = a.y - e.y;
+      const double px = g.xx * wx + g.xy * wy, py = g.xy * wx + g.yy * wy;
       if (px * px + py * py > reach2) {  // the plan distance alone is beyond the rules
         ++stats_.beyond_rules;
         continue;

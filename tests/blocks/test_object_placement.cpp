@@ -357,6 +357,9 @@ TEST(ObjectPlacement, RulesChooseTheDrawingAndObjectsBeyondThemCostNothing) {
   for (int f = 0; f < 6; ++f) {
     tp::Camera cam = camera_at(s, 10 + 20 * f, 120 - 18 * f, 150.0, 30.0 + 50 * f, -15.0);
     rt.fit_camera(cam);
+    // Every other frame through a strong ground scale (singular values 0.82 and 1.28): the rules
+    // take the distance the camera sees, which is ground metres on a continent-wide frame.
+    if (f % 2) cam.ground = {1.25, 0.12, 0.85};
     const tp::View view(cam);
     rt.update_until_loaded(view, f);
     std::map<const tb::MapObject*, tb::Representation> got;
@@ -365,7 +368,9 @@ TEST(ObjectPlacement, RulesChooseTheDrawingAndObjectsBeyondThemCostNothing) {
     for (const tb::MapObject& m : placer.objects()) {
       const double h = mesh_height(rt.drawn_mesh(), m.anchor.x, m.anchor.y);
       const tp::Vec3 p{m.anchor.x, m.anchor.y, h};
-      const double d = std::sqrt(tp::dot(tp::sub(p, view.eye()), tp::sub(p, view.eye())));
+      const double wx = p.x - cam.x, wy = p.y - cam.y;
+      const double d = std::hypot(cam.ground.xx * wx + cam.ground.xy * wy,
+                                  cam.ground.xy * wx + cam.ground.yy * wy, p.z - cam.z);
       tb::Representation want = tb::Representation::None;
       if (m.layer == 0)
         want = d <= 1000 ? tb::Representation::Icon : d <= 2000 ? tb::Representation::Label : want;
@@ -377,13 +382,14 @@ TEST(ObjectPlacement, RulesChooseTheDrawingAndObjectsBeyondThemCostNothing) {
       icons += want == tb::Representation::Icon, labels += want == tb::Representation::Label;
       beyond += !std::isnan(h) && view.contains(p) && want == tb::Representation::None;
     }
-    // Nothing beyond the reach (2000 m, sized_reach) plus a cell's diagonal is tested.
+    // Nothing beyond the reach (2000 m, sized_reach, as seen: over the ground scale's smallest
+    // singular value in world metres) plus a cell's diagonal is tested.
     const double cell = std::hypot(s.hf.width() * 30.0, s.hf.height() * 30.0) /
                         std::ceil(std::sqrt(placer.objects().size() / 8.0));
     std::size_t reachable = 0;
     for (const tb::MapObject& m : placer.objects())
-      reachable +=
-          std::hypot(m.anchor.x - cam.x, m.anchor.y - cam.y) <= (m.layer == 0 ? 2000 : sized_reach) + cell;
+      reachable += std::hypot(m.anchor.x - cam.x, m.anchor.y - cam.y) <=
+                   (m.layer == 0 ? 2000 : sized_reach) / cam.ground.min_distance_scale() + cell;
     EXPECT_LE(placer.stats().objects_tested, reachable) << "frame " << f;
     tested += placer.stats().objects_tested;
   }

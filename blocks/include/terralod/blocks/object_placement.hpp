@@ -36,9 +36,11 @@
 //              layer whose anchor the runtime draws (rt.drawn_height(x, y) is not NaN: objects
 //              over nothing drawn, e.g. outside the terrain, are skipped), whose anchor at that
 //              height lies in the view's closed frustum (pm::View::contains), and whose rules
-//              draw it at its distance d = |anchor - eye| (draw = rules.choose(d, size on screen)
-//              is not None). anchor.z is that drawn height, so objects never float or sink as the
-//              level of detail changes.
+//              draw it at its distance d (draw = rules.choose(d, size on screen) is not None):
+//              d = |G' (anchor - eye)|, the distance as the view's camera sees it through its
+//              ground scale (pm/view.hpp; TerrainRuntime::fit_camera sets it), which is ground
+//              metres on a continent-wide frame, not the frame's metres. anchor.z is that drawn
+//              height, so objects never float or sink as the level of detail changes.
 //              Order: by grid cell (in the order the quadrant traversal below visits them), then
 //              layer, then feature id: the same input gives the same order.
 //   cost       place(): grid cells are culled by quadrants against the frustum and against the
@@ -99,7 +101,7 @@ struct PlacedObject {
   const MapObject* object = nullptr;           ///< owned by the placer
   pm::Vec3 anchor;                             ///< x, y: object->anchor; z: the drawn height there
   Representation draw = Representation::None;  ///< what its layer's rules draw it as (never None)
-  double distance = 0.0;                       ///< |anchor - eye|, metres
+  double distance = 0.0;                       ///< |G' (anchor - eye)|, metres as seen (see place)
 };
 
 /// What the last place() did.
