@@ -7,12 +7,12 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <exception>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/parallel.hpp"
 
 namespace terralod::cli {
@@ -21,15 +21,44 @@ namespace {
 // Protocol, per worker thread ("slot") s of rank r >= 1, on tag s + 1 between r and 0:
 //   r -> 0  READY (one byte)        then, after each block,  r -> 0  the block (below)
 //   0 -> r  key (two int32: col, row) of the next block to build, or an empty message: stop.
-// A block (blocks::BuiltBlock, as build_block makes it): int32 col, row; f64 base error; u64
-// vertices; u32 summary record bytes S; the S bytes; the encoded PM (the rest). Rank 0 serves
-// every slot from one thread (RemoteBuilder), receiving from any rank; it writes what it gets.
+// A block (blocks::BuiltBlock, as build_block makes it), in pm/byte_io.hpp's little-endian
+// codec whatever the ranks' byte order: i32 col, row; f64 base error; u64 vertices; u32 summary
+// record bytes S; the S bytes; the encoded PM (the rest). Rank 0 serves every slot from one
+// thread (RemoteBuilder), receiving from any rank; it writes what it gets.
 constexpr int kReady = 0x52;
-constexpr std::size_t kBlockHeader = 8 + 8 + 8 + 4;
+
+std::vector<std::uint8_t> encode_block(const blocks::BuiltBlock& b) {
+  pm::ByteWriter w;
+  w.bytes.reserve(28 + b.summary.size() + b.pm.size());
+  w.i32(b.key.col), w.i32(b.key.row);
+  w.f64(b.base_error);
+  w.u64(b.vertices);
+  w.u32(std::uint32_t(b.summary.size()));
+  w.raw(b.summary);
+  w.raw(b.pm);
+  return std::move(w.bytes);
+}
+
+blocks::BuiltBlock decode_block(const std::vector<std::uint8_t>& m, int from) {
+  pm::ByteReader r(m, [&](const pm::ByteReadFailure& f) {
+    throw blocks::BuildError("a message of " + std::to_string(m.size()) + " bytes from rank " +
+                             std::to_string(from) + " is not a block: truncated " + f.what + " at byte " +
+                             std::to_string(f.position));
+  });
+  blocks::BuiltBlock b;
+  b.key.col = r.i32("block key"), b.key.row = r.i32("block key");
+  b.base_error = r.f64("base error");
+  b.vertices = r.u64("vertex count");
+  const auto summary = r.raw(r.u32("summary size"), "summary record");
+  b.summary.assign(summary.begin(), summary.end());
+  const auto pm = r.raw(r.left(), "progressive mesh");
+  b.pm.assign(pm.begin(), pm.end());
+  return b;
+}
 
 /// A message from (source, tag), waiting without spinning: Open MPI's blocking receive polls,
 /// which would take a core from the builders on an oversubscribed machine.
-std::vector<char> receive(int source, int tag, int* from = nullptr, int* tag_out = nullptr) {
+std::vector<std::uint8_t> receive(int source, int tag, int* from = nullptr, int* tag_out = nullptr) {
   MPI_Message msg;
   MPI_Status st;
   for (int flag = 0;;) {
@@ -39,7 +68,7 @@ std::vector<char> receive(int source, int tag, int* from = nullptr, int* tag_out
   }
   int n = 0;
   MPI_Get_count(&st, MPI_BYTE, &n);
-  std::vector<char> bytes(static_cast<std::size_t>(n));
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(n));
   MPI_Mrecv(bytes.data(), n, MPI_BYTE, &msg, MPI_STATUS_IGNORE);
   if (from) *from = st.MPI_SOURCE;
   if (tag_out) *tag_out = st.MPI_TAG;
@@ -65,27 +94,12 @@ blocks::RemoteBuilder serve_ranks(std::vector<int> slots) {
     for (int s : slots) open += s;
     while (open > 0) {
       int from = 0, tag = 0;
-      std::vector<char> m = receive(MPI_ANY_SOURCE, MPI_ANY_TAG, &from, &tag);
-      if (!(m.size() == 1 && m[0] == kReady)) {
-        std::uint32_t summary = 0;
-        if (m.size() >= kBlockHeader) std::memcpy(&summary, m.data() + 24, 4);
-        if (m.size() < kBlockHeader || m.size() - kBlockHeader < summary)
-          throw blocks::BuildError("a message of " + std::to_string(m.size()) + " bytes from rank " +
-                                   std::to_string(from) + " is not a block");
-        blocks::BuiltBlock b;
-        std::int32_t key[2];
-        std::memcpy(key, m.data(), 8);
-        b.key = {key[0], key[1]};
-        std::memcpy(&b.base_error, m.data() + 8, 8);
-        std::memcpy(&b.vertices, m.data() + 16, 8);
-        const auto body = m.begin() + std::ptrdiff_t(kBlockHeader);
-        b.summary.assign(body, body + std::ptrdiff_t(summary));
-        b.pm.assign(body + std::ptrdiff_t(summary), m.end());
-        deliver(std::move(b));
-      }
+      const std::vector<std::uint8_t> m = receive(MPI_ANY_SOURCE, MPI_ANY_TAG, &from, &tag);
+      if (!(m.size() == 1 && m[0] == kReady)) deliver(decode_block(m, from));
       if (const std::optional<blocks::BlockKey> k = claim()) {
-        const std::int32_t key[2] = {k->col, k->row};
-        send(from, tag, key, sizeof key);
+        pm::ByteWriter key;
+        key.i32(k->col), key.i32(k->row);
+        send(from, tag, key.bytes.data(), key.bytes.size());
       } else {
         send(from, tag, nullptr, 0);
         --open;
@@ -105,19 +119,15 @@ void work_for_rank0(const blocks::DemSource& src, const blocks::DatabaseBuildOpt
         const char ready = char(kReady);
         send(0, tag, &ready, 1);
         for (;;) {
-          const std::vector<char> m = receive(0, tag);
+          const std::vector<std::uint8_t> m = receive(0, tag);
           if (m.empty()) break;
-          std::int32_t key[2];
-          std::memcpy(key, m.data(), 8);
-          const blocks::BuiltBlock b = blocks::build_block(src, {key[0], key[1]}, opt);
-          const auto summary = std::uint32_t(b.summary.size());
-          std::vector<char> out(kBlockHeader + b.summary.size() + b.pm.size());
-          std::memcpy(out.data(), key, 8);
-          std::memcpy(out.data() + 8, &b.base_error, 8);
-          std::memcpy(out.data() + 16, &b.vertices, 8);
-          std::memcpy(out.data() + 24, &summary, 4);
-          std::memcpy(out.data() + kBlockHeader, b.summary.data(), b.summary.size());
-          std::memcpy(out.data() + kBlockHeader + b.summary.size(), b.pm.data(), b.pm.size());
+          pm::ByteReader r(m, [&](const pm::ByteReadFailure& f) {
+            throw blocks::BuildError("a message of " + std::to_string(m.size()) +
+                                     " bytes from rank 0 is not a block key: truncated " + f.what);
+          });
+          blocks::BlockKey key;
+          key.col = r.i32("block key"), key.row = r.i32("block key");
+          const std::vector<std::uint8_t> out = encode_block(blocks::build_block(src, key, opt));
           send(0, tag, out.data(), out.size());
         }
       } catch (const std::exception& e) {
