@@ -133,8 +133,8 @@ asan() {
 # ConcurrentReadersGetTheSameBlocks).
 # Only their executables are built. "Strip" also matches the serial build without strips
 # (WithoutParallelStrips: one thread, 28 s under TSan), which is left out.
-tsan_tests=(test_lazy_openimageio test_progressive_mesh test_dem_reader test_dem_source test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime test_remote_builder)
-tsan_regex='LazyOpenImageIO|RemoteBuilder|Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
+tsan_tests=(test_lazy_libraries test_progressive_mesh test_dem_reader test_dem_source test_stress_pm test_texture_cache test_topographic_texture test_block_database test_block_loader test_terrain_runtime test_remote_builder)
+tsan_regex='LazyLibraries.OpenImageIOFirstCalled|RemoteBuilder|Parallel|Strip|WhiteMountainsCrop|KauaiVoidsFilledCrop|dem_reader|TextureCache|ConcurrentReaders|test_block_loader|TerrainRuntimeLoading.(Stalled|LoaderErrors|Evicted|RandomFlights)'
 tsan() {
   # -O1 -g1 as for ASan: line tables for the reports, a faster compile than -O2 -g.
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=None -DTERRALOD_BUILD_BENCH=OFF \

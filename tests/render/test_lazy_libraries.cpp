@@ -1,32 +1,38 @@
-// OpenImageIO is loaded on the first call of one of its functions (cmake/lazy/lazy_library.cmake),
-// not when a process starts: a process that reads a GeoTIFF DEM never maps it; reading a PNG
-// heightmap maps it and reads the heights exactly; four threads making that first call at once
-// all get the same heights (the resolver stores each function once, whoever comes first).
-// Each check lives in one test body: ctest runs every test in a process of its own, which is
-// what makes "not yet loaded" observable.
+// OpenImageIO and OSMesa are loaded on the first call of one of their functions
+// (cmake/lazy/lazy_library.cmake), not when a process starts: a process that reads a GeoTIFF DEM
+// maps neither; reading a PNG heightmap maps OpenImageIO and reads the heights exactly; four
+// threads making that first call at once all get the same heights (the resolver stores each
+// function once, whoever comes first); making an offscreen context maps OSMesa, which then
+// draws. Each check lives in one test body: ctest runs every test in a process of its own, which
+// is what makes "not yet loaded" observable.
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/render/gl_context.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 namespace tb = terralod::blocks;
 
-bool openimageio_mapped() {
+// Whether a library whose file name contains `name` is mapped into this process.
+bool mapped(const char* name) {
   std::ifstream maps("/proc/self/maps");
   for (std::string line; std::getline(maps, line);)
-    if (line.find("libOpenImageIO") != std::string::npos) return true;
+    if (line.find(name) != std::string::npos) return true;
   return false;
 }
+bool openimageio_mapped() { return mapped("libOpenImageIO"); }
+bool osmesa_mapped() { return mapped("libOSMesa"); }
 
 fs::path scratch(const std::string& name) {
   const fs::path dir = fs::path(TERRALOD_TEST_TMP) / ("lazy_openimageio_" + name);
@@ -63,20 +69,20 @@ void expect_grid(const terralod::pm::Heightfield& hf, int w, int h, const std::s
       ASSERT_EQ(hf.at(i, j), 7.0 * i + 13.0 * j + 100.0) << what << " at " << i << "," << j;
 }
 
-// Whether the process started with OpenImageIO mapped (it is linked outright): read while the
+// Whether the process started with either library mapped (linked outright): read while the
 // executable's statics are made, before any test.
-const bool kMappedAtStart = openimageio_mapped();
+const bool kOpenImageIOAtStart = openimageio_mapped(), kOSMesaAtStart = osmesa_mapped();
 
-// Fails when OpenImageIO came with the process; a test run after another in the same process
-// (the executable run by hand) finds it loaded by that one and has nothing to observe.
-bool already_loaded() {
-  EXPECT_FALSE(kMappedAtStart) << "OpenImageIO was loaded when the process started";
-  return kMappedAtStart || openimageio_mapped();
+// Fails when the library came with the process; a test run after another in the same process
+// (the executable run by hand) may find it loaded by that one and then has nothing to observe.
+bool already_loaded(bool at_start, bool now, const char* library) {
+  EXPECT_FALSE(at_start) << library << " was loaded when the process started";
+  return at_start || now;
 }
+constexpr const char* kAlone = "loaded already: run this test in a process of its own";
 
-TEST(LazyOpenImageIO, LoadedOnlyWhenAnImageIsRead) {
-  if (already_loaded())
-    GTEST_SKIP() << "OpenImageIO is loaded already: run this test in a process of its own";
+TEST(LazyLibraries, OpenImageIOOnlyWhenAnImageIsRead) {
+  if (already_loaded(kOpenImageIOAtStart, openimageio_mapped(), "OpenImageIO")) GTEST_SKIP() << kAlone;
   const fs::path dir = scratch("read");
   write_grid(dir / "a.tif", "GTiff", 9, 6);
   write_grid(dir / "a.png", "PNG", 9, 6);
@@ -86,12 +92,12 @@ TEST(LazyOpenImageIO, LoadedOnlyWhenAnImageIsRead) {
   opt.heightmap_spacing = 30.0;
   expect_grid(tb::read_dem((dir / "a.png").string(), opt), 9, 6, "PNG heightmap");
   EXPECT_TRUE(openimageio_mapped()) << "a PNG heightmap was read without OpenImageIO?";
+  EXPECT_FALSE(osmesa_mapped()) << "reading a DEM loaded OSMesa";
 }
 
-TEST(LazyOpenImageIO, FirstCallsFromFourThreadsAtOnce) {
+TEST(LazyLibraries, OpenImageIOFirstCalledFromFourThreadsAtOnce) {
   const fs::path dir = scratch("threads");
-  if (already_loaded())
-    GTEST_SKIP() << "OpenImageIO is loaded already: run this test in a process of its own";
+  if (already_loaded(kOpenImageIOAtStart, openimageio_mapped(), "OpenImageIO")) GTEST_SKIP() << kAlone;
   write_grid(dir / "b.png", "PNG", 17, 11);
   tb::DemOptions opt;
   opt.heightmap_spacing = 10.0;
@@ -102,6 +108,20 @@ TEST(LazyOpenImageIO, FirstCallsFromFourThreadsAtOnce) {
   for (auto& t : threads) t.join();
   for (int t = 0; t < 4; ++t) expect_grid(got[t], 17, 11, "thread " + std::to_string(t));
   EXPECT_TRUE(openimageio_mapped());
+  EXPECT_FALSE(osmesa_mapped()) << "reading an image loaded OSMesa";
+}
+
+TEST(LazyLibraries, OSMesaOnlyWhenAnOffscreenContextIsMade) {
+  if (already_loaded(kOSMesaAtStart, osmesa_mapped(), "OSMesa")) GTEST_SKIP() << kAlone;
+  std::unique_ptr<terralod::render::GlContext> ctx;
+  try {
+    ctx = terralod::render::create_offscreen_context({16, 8});
+  } catch (const terralod::render::RenderError& e) {
+    GTEST_SKIP() << "no OSMesa context: " << e.what();
+  }
+  EXPECT_TRUE(osmesa_mapped());
+  EXPECT_EQ(ctx->framebuffer_width(), 16);
+  EXPECT_EQ(ctx->framebuffer_height(), 8);
 }
 
 }  // namespace
