@@ -13,11 +13,15 @@
 # up, stores it in the slot and jumps to it with the caller's argument registers intact. A
 # library that cannot be loaded or lacks the function ends the process with a message naming
 # both. Data symbols are not forwarded: code that used one would fail to link, not misbehave.
-# x86-64 SysV only (the trampolines are assembly); elsewhere, or with nm or readelf missing,
-# TARGET is an interface library that links IMPORTED as usual.
+# x86-64 SysV only (the trampolines are assembly); elsewhere, with nm or readelf missing, with
+# TERRALOD_LAZY_LIBRARIES off, or when the flags ask for UBSan's vptr checks (-fsanitize=undefined
+# or vptr: they need the libraries' classes' type_info, which is data), TARGET is an interface
+# library that links IMPORTED as usual.
 #
 # Cost: one indirect jump per call once resolved; the names of the forwarded functions (about
 # 200 kB for OpenImageIO) in the binary.
+option(TERRALOD_LAZY_LIBRARIES "Load OpenImageIO and OSMesa on their first call (x86-64)" ON)
+
 function(terralod_lazy_library target imported pattern)
   get_target_property(links ${imported} INTERFACE_LINK_LIBRARIES)
   set(libs "")
@@ -28,9 +32,10 @@ function(terralod_lazy_library target imported pattern)
   endforeach()
   find_program(TERRALOD_NM nm)
   find_program(TERRALOD_READELF readelf)
-  if(NOT CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$" OR NOT libs OR NOT TERRALOD_NM
-     OR NOT TERRALOD_READELF)
-    message(STATUS "${target}: ${imported} is linked as usual (no lazy loading here)")
+  set(flags "${CMAKE_CXX_FLAGS} ${TERRALOD_SANITIZE}")
+  if(NOT TERRALOD_LAZY_LIBRARIES OR NOT CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$" OR NOT libs
+     OR NOT TERRALOD_NM OR NOT TERRALOD_READELF OR flags MATCHES "-fsanitize=[^ ;]*(undefined|vptr)")
+    message(STATUS "${target}: ${imported} is linked as usual (no lazy loading in this build)")
     add_library(${target} INTERFACE)
     target_link_libraries(${target} INTERFACE ${imported})
     return()
