@@ -422,7 +422,8 @@ int cmd_view(const Args& a) {
   // E * K_max / d_min pixels anywhere in the image.
   const auto [lo, hi] = terrain_box(hf);
   const double d_min =
-      cam.ground.min_distance_scale() * render::distance_to_box(render::camera_position(cam), lo, hi);
+      cam.ground.min_distance_scale() *
+      pm::distance_to_box({cam.x, cam.y, cam.z}, pm::Box{{lo.x, lo.y, lo.z}, {hi.x, hi.y, hi.z}});
   const double k = render::focal_length_pixels(cam), k_max = render::max_pixels_per_radian(cam);
   fit_clip_to_box(cam, lo, hi);
 

@@ -182,11 +182,7 @@ void ObjectPlacer::visit(const TerrainRuntime& rt, const pm::View& view, int i0,
                     {x0_ + i1 * cell_w_, y0_ + j1 * cell_h_, zhi}};
   // The box's distance from the eye as the camera sees it (through its ground scale: at least
   // the world distance times min_distance_scale): nothing in it is nearer.
-  const pm::Vec3& e = view.eye();
-  const double dx = std::max({box.lo.x - e.x, 0.0, e.x - box.hi.x});
-  const double dy = std::max({box.lo.y - e.y, 0.0, e.y - box.hi.y});
-  const double dz = std::max({box.lo.z - e.z, 0.0, e.z - box.hi.z});
-  const double distance = view.camera().ground.min_distance_scale() * std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double distance = view.camera().ground.min_distance_scale() * pm::distance_to_box(view.eye(), box);
   if (distance > max_reach_ || view.outside(box)) {
     ++stats_.regions_culled;
     return;

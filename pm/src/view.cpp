@@ -20,6 +20,7 @@
 #include "terralod/pm/view.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -55,15 +56,25 @@ double GroundScale::min_distance_scale() const { return std::min(1.0, min_scale(
 
 double GroundScale::max_distance_scale() const { return std::max(1.0, max_scale()); }
 
+double distance_to_box(const Vec3& p, const Box& b) {
+  assert(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z && "distance_to_box needs lo <= hi");
+  const double dx = std::max({b.lo.x - p.x, 0.0, p.x - b.hi.x}),
+               dy = std::max({b.lo.y - p.y, 0.0, p.y - b.hi.y}),
+               dz = std::max({b.lo.z - p.z, 0.0, p.z - b.hi.z});
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+double max_distance_to_box(const Vec3& p, const Box& b) {
+  const double fx = std::max(std::abs(p.x - b.lo.x), std::abs(p.x - b.hi.x)),
+               fy = std::max(std::abs(p.y - b.lo.y), std::abs(p.y - b.hi.y)),
+               fz = std::max(std::abs(p.z - b.lo.z), std::abs(p.z - b.hi.z));
+  return std::sqrt(fx * fx + fy * fy + fz * fz);
+}
+
 void fit_clip_planes(Camera& c, const Box& b) {
-  const double dx = std::max({b.lo.x - c.x, 0.0, c.x - b.hi.x}),
-               dy = std::max({b.lo.y - c.y, 0.0, c.y - b.hi.y}),
-               dz = std::max({b.lo.z - c.z, 0.0, c.z - b.hi.z});
-  const double fx = std::max(std::abs(c.x - b.lo.x), std::abs(c.x - b.hi.x)),
-               fy = std::max(std::abs(c.y - b.lo.y), std::abs(c.y - b.hi.y)),
-               fz = std::max(std::abs(c.z - b.lo.z), std::abs(c.z - b.hi.z));
-  const double nearest = c.ground.min_distance_scale() * std::sqrt(dx * dx + dy * dy + dz * dz);
-  const double farthest = c.ground.max_distance_scale() * std::sqrt(fx * fx + fy * fy + fz * fz);
+  const Vec3 eye{c.x, c.y, c.z};
+  const double nearest = c.ground.min_distance_scale() * distance_to_box(eye, b);
+  const double farthest = c.ground.max_distance_scale() * max_distance_to_box(eye, b);
   c.near_m = std::clamp(0.5 * nearest, 0.05, 1000.0);
   c.far_m = std::max(c.near_m * 2.0, 1.01 * farthest + 1.0);
 }

@@ -93,15 +93,4 @@ glm::dvec3 pixel_ray(const Camera& c, double px, double py) {
                                                camera_up(c) * (ny * t)));
 }
 
-double distance_to_box(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
-  assert(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z && "distance_to_box needs lo <= hi");
-  const glm::dvec3 q = glm::clamp(p, lo, hi);
-  return glm::length(p - q);
-}
-
-double max_distance_to_box(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
-  const glm::dvec3 d = glm::max(glm::abs(p - lo), glm::abs(p - hi));
-  return glm::length(d);
-}
-
 }  // namespace terralod::render

@@ -327,6 +327,14 @@ TEST(View, ClipPlanesHoldTheBoxAsSeen) {
   }
 }
 
+TEST(View, DistanceToBox) {
+  const pm::Box b{{0, 0, 0}, {10, 20, 5}};
+  EXPECT_EQ(pm::distance_to_box({5, 5, 1}, b), 0.0);
+  EXPECT_DOUBLE_EQ(pm::distance_to_box({13, 24, 5}, b), 5.0);  // 3-4-5 off a vertical edge
+  EXPECT_DOUBLE_EQ(pm::distance_to_box({5, 5, 105}, b), 100.0);
+  EXPECT_DOUBLE_EQ(pm::max_distance_to_box({0, 0, 0}, b), std::sqrt(100.0 + 400.0 + 25.0));
+}
+
 TEST(View, ToleranceAsFractionOfScreenHeight) {
   EXPECT_DOUBLE_EQ(pm::tolerance_px_from_fraction(0.002, 720), 1.44);
   EXPECT_DOUBLE_EQ(pm::tolerance_px_from_fraction(1.0 / 1080, 1080), 1.0);

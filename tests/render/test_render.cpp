@@ -317,14 +317,6 @@ TEST(Camera, MaxPixelsPerRadianBoundsTheProjectionEverywhere) {
   EXPECT_GT(worst, render::focal_length_pixels(c));
 }
 
-TEST(Camera, DistanceToBox) {
-  const glm::dvec3 lo(0, 0, 0), hi(10, 20, 5);
-  EXPECT_EQ(render::distance_to_box({5, 5, 1}, lo, hi), 0.0);
-  EXPECT_DOUBLE_EQ(render::distance_to_box({13, 24, 5}, lo, hi), 5.0);  // 3-4-5 off a vertical edge
-  EXPECT_DOUBLE_EQ(render::distance_to_box({5, 5, 105}, lo, hi), 100.0);
-  EXPECT_DOUBLE_EQ(render::max_distance_to_box({0, 0, 0}, lo, hi), std::sqrt(100.0 + 400.0 + 25.0));
-}
-
 // ---------------------------------------------------------------------------------------------
 // DrawMesh (no GL)
 

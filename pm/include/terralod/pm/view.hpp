@@ -121,6 +121,11 @@ struct Plane {
   double distance(const Vec3& p) const { return dot(n, p) + d; }
 };
 
+/// Euclidean distance from p to the nearest point of the box (0 inside), and to its farthest
+/// point (a corner). lo <= hi per axis.
+double distance_to_box(const Vec3& p, const Box& b);
+double max_distance_to_box(const Vec3& p, const Box& b);
+
 /// Sets camera.near_m and far_m so that the whole box (the terrain's, world metres) lies between
 /// them as seen through camera.ground: near is half the smallest seen distance from the eye to
 /// the box, clamped to [0.05, 1000] m, far 1.01 times the largest (to its farthest corner) plus

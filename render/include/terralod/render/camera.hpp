@@ -70,9 +70,4 @@ double max_pixels_per_radian(const Camera& c);
 /// top-left origin; a pixel's centre is at +0.5): the seen ray pulled back through G'^-1.
 glm::dvec3 pixel_ray(const Camera& c, double px, double py);
 
-/// Euclidean distance from p to the axis-aligned box [lo, hi] (0 inside). lo <= hi per axis.
-double distance_to_box(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi);
-/// Largest distance from p to a point of the box [lo, hi] (to its farthest corner).
-double max_distance_to_box(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi);
-
 }  // namespace terralod::render
