@@ -226,21 +226,17 @@ void TerrainRuntime::queue_loads(const pm::View& view, const std::vector<Need>& 
     room = want(order[i].key, double(i) / double(order.size() + 1), order[i].floor_m);
   const pm::Vec3 eye = view.eye();
   const double scale = 1.0 / (grid_.block_extent_m() * double(2 * opt_.region.n_max + 3));
-  auto dist = [&](BlockKey k) {
-    const pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
-    const double dx = std::max({b.lo.x - eye.x, 0.0, eye.x - b.hi.x}),
-                 dy = std::max({b.lo.y - eye.y, 0.0, eye.y - b.hi.y});
-    return std::min(0.99, std::hypot(dx, dy) * scale);
+  auto dist = [&](BlockKey k) {  // in plan view: the box flattened to the eye's height
+    pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
+    b.lo.z = b.hi.z = eye.z;
+    return std::min(0.99, pm::distance_to_box(eye, b) * scale);
   };
   // The floor a view from `centre` (this view's lens) needs over block k at its nearest.
   const double limit = detail::kSelectShare * tau_;
   const double seen_scale = view.camera().ground.min_distance_scale();
   auto need_from = [&](const pm::Vec3& centre, BlockKey k) {
     const pm::Box b = block_box(grid_, k, sums_->fields()[grid_.index(k)]);
-    const double d = seen_scale * std::hypot(std::max({b.lo.x - centre.x, 0.0, centre.x - b.hi.x}),
-                                             std::max({b.lo.y - centre.y, 0.0, centre.y - b.hi.y}),
-                                             std::max({b.lo.z - centre.z, 0.0, centre.z - b.hi.z}));
-    return limit / view.vertical_error_px_at_depth(d, 1.0);
+    return limit / view.vertical_error_px_at_depth(seen_scale * pm::distance_to_box(centre, b), 1.0);
   };
   // The inner blocks of the active region around `centre`, nearest the eye first, at
   // priorities base + spread * distance (distance scaled into [0, 0.99]), with the floor a view
