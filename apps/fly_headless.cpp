@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
+#include <map>
 #include <memory>
 #include <numbers>
 #include <optional>
@@ -36,19 +38,87 @@ using namespace terralod::cli;
 
 namespace {
 
-// The flight used when no --path is given: a circle of radius 30% of the extent around the
-// terrain's centre, 200 m above the ground under the camera (with --db: above the highest
-// sample of the block under it, as no block is loaded yet), looking along the path and 15
-// degrees down, one lap in 20 s (1200 frames at 60 fps) or slower, so that the speed is at most
-// 500 m/s (large terrains).
-std::vector<pm::Camera> default_flight(const LodSource& t, int frames, int w, int h) {
+// The built-in flight's circle, in world metres, flown counter-clockwise from its east point,
+// one lap in 20 s (1200 frames at 60 fps) or slower, so that the speed is at most 500 m/s (large
+// terrains).
+struct Circle {
+  double cx = 0, cy = 0, radius = 0;
+  double angle(double frame) const {
+    return 2.0 * std::numbers::pi * frame / std::max(1200.0, 60.0 * 2.0 * std::numbers::pi * radius / 500.0);
+  }
+};
+
+// Flat ground, as LodSource::ceiling sees it without loading anything: the height bin (1 m, or
+// 1/1000 of the height range when larger) that holds the most of a 32 x 32 lattice of points
+// over the terrain, when it holds a quarter of them or more: the sea of a coastal tile (Kauai
+// fills a tenth of N22W160), a lake, a filled void. NaN when there is none.
+double flat_height(const LodSource& t) {
   const Extent& e = t.extent();
+  const double bin = std::max(1.0, 1e-3 * (e.zmax - e.zmin));
+  std::map<long long, int> count;
+  for (int j = 0; j < 32; ++j)
+    for (int i = 0; i < 32; ++i) {
+      const auto [x, y] =
+          e.transform.to_world((e.width - 1) * (i + 0.5) / 32.0, (e.height - 1) * (j + 0.5) / 32.0);
+      ++count[std::llround(t.ceiling(x, y) / bin)];
+    }
+  const auto mode = std::max_element(count.begin(), count.end(),
+                                     [](const auto& a, const auto& b) { return a.second < b.second; });
+  return mode->second * 4 >= 32 * 32 ? double(mode->first) * bin : std::numeric_limits<double>::quiet_NaN();
+}
+
+// Share of the flight's `frames` frames along the circle over flat ground at height `flat`
+// (flat_height), judged at 64 of them.
+double flat_share(const LodSource& t, const Circle& c, int frames, double flat) {
+  const double bin = std::max(1.0, 1e-3 * (t.extent().zmax - t.extent().zmin));
+  int n = 0;
+  for (int k = 0; k < 64; ++k) {
+    const double a = c.angle(frames * k / 64.0);
+    n += std::llround(t.ceiling(c.cx + c.radius * std::cos(a), c.cy + c.radius * std::sin(a)) / bin) ==
+         std::llround(flat / bin);
+  }
+  return n / 64.0;
+}
+
+// The circle of radius 30% of the extent around the terrain's centre, unless more than a quarter
+// of the flight's `frames` frames along it are over flat ground (flat_height). Then the circle of
+// radius 30%, 20% or 10% of the extent, centred on a 9 x 9 lattice of the places where it fits
+// in the terrain, with the smallest share of flat ground (ties: the larger circle, then the
+// earlier centre): a demo flight shows the land. With --db, ceiling() knows the highest sample of
+// each block only, so a block that holds some land counts as land.
+Circle default_circle(const LodSource& t, int frames) {
+  const Extent& e = t.extent();
+  const double side = std::min(e.side_x(), e.side_y());
   const auto [cx, cy] = e.centre();
-  const double radius = 0.3 * std::min(e.side_x(), e.side_y());
-  const double lap_frames = std::max(1200.0, 60.0 * 2.0 * std::numbers::pi * radius / 500.0);
+  Circle best{cx, cy, 0.3 * side};
+  const double flat = flat_height(t);
+  if (std::isnan(flat)) return best;
+  double best_flat = flat_share(t, best, frames, flat);
+  if (best_flat <= 0.25) return best;
+  for (const double f : {0.3, 0.2, 0.1}) {
+    const double r = f * side;
+    // Centres from r to side - r in from the terrain's edges, in grid units along each axis.
+    const double mx = r / e.transform.spacing_x(), my = r / e.transform.spacing_y();
+    for (int j = 0; j <= 8; ++j)
+      for (int i = 0; i <= 8; ++i) {
+        const auto [x, y] = e.transform.to_world(mx + (e.width - 1 - 2.0 * mx) * i / 8.0,
+                                                 my + (e.height - 1 - 2.0 * my) * j / 8.0);
+        const Circle c{x, y, r};
+        if (const double share = flat_share(t, c, frames, flat); share < best_flat)
+          best = c, best_flat = share;
+      }
+  }
+  return best;
+}
+
+// The flight used when no --path is given: `frames` frames along `circle` (default_circle()),
+// 200 m above the ground under the camera (with --db: above the highest sample of the block under
+// it, as no block is loaded yet), looking along the path and 15 degrees down.
+std::vector<pm::Camera> default_flight(const LodSource& t, const Circle& circle, int frames, int w, int h) {
+  const auto [cx, cy, radius] = circle;
   std::vector<pm::Camera> path;
   for (int k = 0; k < frames; ++k) {
-    const double a = 2.0 * std::numbers::pi * k / lap_frames;
+    const double a = circle.angle(k);
     pm::Camera c;
     c.x = cx + radius * std::cos(a), c.y = cy + radius * std::sin(a);
     c.z = t.ceiling(c.x, c.y) + 200.0;
@@ -74,11 +144,13 @@ int run_headless(const Args& a) {
   std::optional<blocks::ObjectPlacer> objects = fly_objects(a);
   const std::unique_ptr<LodSource> t = open_terrain(a);
   if (path.empty()) {
-    path = default_flight(*t, int(a.get_int("--frames", 240, 1, 1000000)), w, h);
+    const int frames = int(a.get_int("--frames", 240, 1, 1000000));
+    const Circle circle = default_circle(*t, frames);
+    path = default_flight(*t, circle, frames, w, h);
     std::printf(
-        "path: built-in flight, %zu frames (a circle 200 m above the ground, with --db above its block's "
-        "highest sample, looking 15 degrees down)\n",
-        path.size());
+        "path: built-in flight, %zu frames (a circle of radius %.0f m around x %.0f, y %.0f, 200 m above the "
+        "ground, with --db above its block's highest sample, looking 15 degrees down)\n",
+        path.size(), circle.radius, circle.cx, circle.cy);
   }
   const long long frames = a.get_int("--frames", (long long)path.size(), 1, (long long)path.size());
   std::error_code ec;

@@ -4,6 +4,7 @@
 // identical images and identical meshes).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -141,6 +142,48 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
     ++rows;
   }
   EXPECT_EQ(rows, 40);
+}
+
+// Without --path, the built-in flight circles where the land is: over a coastal terrain (sea at
+// 0 m, an island in the south-west quarter, away from the circle around the centre), most of
+// its frames are above the island.
+TEST(FlyHeadless, BuiltInFlightFliesOverTheLand) {
+  fs::create_directories(kTmp);
+  const fs::path dem = kTmp / "coast.asc", out = kTmp / "coast_out", log = kTmp / "coast.log";
+  {
+    std::ofstream f(dem);
+    f << "ncols 129\nnrows 129\nxllcorner 0\nyllcorner 0\ncellsize 30\n";
+    for (int r = 0; r < 129; ++r) {  // row 0 is the north edge
+      for (int c = 0; c < 129; ++c) {
+        const double d2 = (c - 25.0) * (c - 25.0) + (r - 100.0) * (r - 100.0);
+        const double h = 400.0 * std::exp(-d2 / 288.0);
+        f << (c ? " " : "") << (h < 1.0 ? 0.0 : std::round(h));
+      }
+      f << "\n";
+    }
+    ASSERT_TRUE(f.good()) << dem;
+  }
+  fs::remove_all(out);
+  const std::string cmd = std::string(TERRALOD_FLY) + " --headless --input " + dem.string() +
+                          " --frames 240 --size 160x100 --out " + out.string() + " > " + log.string() +
+                          " 2>&1";
+  ASSERT_EQ(run(cmd), 0) << cmd << "\n" << slurp(log);
+  std::ifstream in(out / "frames.csv");
+  std::string line;
+  std::getline(in, line);
+  int frames = 0, over_land = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string x;
+    while (std::getline(ss, x, ',')) f.push_back(x);
+    ASSERT_GT(f.size(), 4u) << line;
+    ++frames;
+    over_land += std::stod(f[4]) > 201.0;  // z: 200 m above the ground under the camera
+  }
+  EXPECT_EQ(frames, 240);
+  EXPECT_GE(over_land * 4, frames * 3) << over_land << " of " << frames << " frames above the island\n"
+                                       << slurp(log);
 }
 
 TEST(FlyHeadless, BadPathIsAClearError) {
