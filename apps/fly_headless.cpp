@@ -43,6 +43,9 @@ namespace {
 // terrains).
 struct Circle {
   double cx = 0, cy = 0, radius = 0;
+  // Height above the ground: 200 m, or a quarter of the radius on a terrain so small that from
+  // 200 m, looking 15 degrees down, it would lie below the view (a 100 m patch of lidar).
+  double clearance() const { return std::min(200.0, 0.25 * radius); }
   double angle(double frame) const {
     return 2.0 * std::numbers::pi * frame / std::max(1200.0, 60.0 * 2.0 * std::numbers::pi * radius / 500.0);
   }
@@ -112,8 +115,8 @@ Circle default_circle(const LodSource& t, int frames) {
 }
 
 // The flight used when no --path is given: `frames` frames along `circle` (default_circle()),
-// 200 m above the ground under the camera (with --db: above the highest sample of the block under
-// it, as no block is loaded yet), looking along the path and 15 degrees down.
+// circle.clearance() above the ground under the camera (with --db: above the highest sample of the block
+// under it, as no block is loaded yet), looking along the path and 15 degrees down.
 std::vector<pm::Camera> default_flight(const LodSource& t, const Circle& circle, int frames, int w, int h) {
   const auto [cx, cy, radius] = circle;
   std::vector<pm::Camera> path;
@@ -121,7 +124,7 @@ std::vector<pm::Camera> default_flight(const LodSource& t, const Circle& circle,
     const double a = circle.angle(k);
     pm::Camera c;
     c.x = cx + radius * std::cos(a), c.y = cy + radius * std::sin(a);
-    c.z = t.ceiling(c.x, c.y) + 200.0;
+    c.z = t.ceiling(c.x, c.y) + circle.clearance();
     // Moving counter-clockwise: the direction of motion is (-sin a, cos a); yaw from north.
     c.yaw_deg = std::atan2(-std::sin(a), std::cos(a)) * 180.0 / std::numbers::pi;
     c.pitch_deg = -15.0, c.fovy_deg = 60.0, c.width_px = w, c.height_px = h;
@@ -148,9 +151,10 @@ int run_headless(const Args& a) {
     const Circle circle = default_circle(*t, frames);
     path = default_flight(*t, circle, frames, w, h);
     std::printf(
-        "path: built-in flight, %zu frames (a circle of radius %.0f m around x %.0f, y %.0f, 200 m above the "
+        "path: built-in flight, %zu frames (a circle of radius %.0f m around x %.0f, y %.0f, %.3g m above "
+        "the "
         "ground, with --db above its block's highest sample, looking 15 degrees down)\n",
-        path.size(), circle.radius, circle.cx, circle.cy);
+        path.size(), circle.radius, circle.cx, circle.cy, circle.clearance());
   }
   const long long frames = a.get_int("--frames", (long long)path.size(), 1, (long long)path.size());
   std::error_code ec;
