@@ -427,6 +427,11 @@ class WarpedSource final : public DemSource {
   int nw_ = 0, nh_ = 0;  ///< native grid size
   Affine native_crs_;    ///< native (col, row) <-> native CRS
   Transform to_native_;  ///< target CRS -> native CRS; cloned for each concurrent reader
+  /// A geographic native CRS: the longitude of the native grid's centre. PROJ returns longitudes
+  /// in [-180, 180]; a grid that crosses the antimeridian (a DEM of Fiji or the Aleutians from
+  /// 179.5 to 180.5) has longitudes beyond, so positions() takes each longitude within 180
+  /// degrees of this one (NaN: a projected native CRS).
+  double native_lon_ = std::numeric_limits<double>::quiet_NaN();
   mutable std::mutex mutex_;
   mutable std::vector<Transform> pool_;  ///< clones no read is using
 };
@@ -482,6 +487,7 @@ WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> n
   // geographic DEM whose outer samples lie on a pole has its pixel edges half a pixel beyond it,
   // which no projection maps: they are taken at the pole.
   const bool geographic = source.IsGeographic();
+  if (geographic) native_lon_ = st.to_world(0.5 * (w - 1), 0.5 * (h - 1)).first;
   std::vector<double> x, y;
   auto add = [&](double c, double r) {
     const auto [px, py] = st.to_world(c, r);
@@ -549,6 +555,7 @@ void WarpedSource::positions(SampleRect window, int step, std::vector<Pos>& out)
   std::vector<Pos> node(x.size());
   for (std::size_t k = 0; k < x.size(); ++k) {
     if (ok[k]) {
+      if (!std::isnan(native_lon_)) x[k] = native_lon_ + std::remainder(x[k] - native_lon_, 360.0);
       const auto [c, r] = native_crs_.inverse(x[k], y[k]);
       node[k] = {c, r};
     } else {

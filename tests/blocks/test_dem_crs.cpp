@@ -636,6 +636,35 @@ TEST(DemCrs, BadCrsIsAnErrorNamingTheFileAndTheOption) {
   EXPECT_THROW(tb::read_dem(path.string(), o), std::invalid_argument);
 }
 
+// A geographic DEM across the antimeridian (longitudes 179.6 to 180.4, as GDAL writes a grid of
+// Fiji): PROJ gives the warp's source positions in [-180, 180], and east of 180 they fell outside
+// the source, so half the terrain was holes. It keeps as many samples as the same grid a degree
+// west, and its heights east of 180 are the file's.
+TEST(DemCrs, AutoWarpsAGridAcrossTheAntimeridian) {
+  tb::DemOptions o;
+  o.crs = "auto";
+  auto valid = [](const Heightfield& hf) {
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < hf.size(); ++i) n += hf.valid(i);
+    return n;
+  };
+  const Heightfield across =
+      tb::read_dem(write_geographic("antimeridian.tif", 179.6, -17.4, 101, 0.008).string(), o);
+  const Heightfield west =
+      tb::read_dem(write_geographic("before_it.tif", 178.6, -17.4, 101, 0.008).string(), o);
+  EXPECT_EQ(across.size(), west.size());
+  EXPECT_NEAR(double(valid(across)), double(valid(west)), 0.01 * double(valid(west)));
+  const WorldOf world(across);
+  for (const double lon : {179.7, 180.1, 180.3}) {
+    const auto [c, r] = world.samples(lon, -17.0);
+    const std::size_t i =
+        std::size_t(std::lround(r)) * std::size_t(across.width()) + std::size_t(std::lround(c));
+    ASSERT_TRUE(across.valid(i)) << "longitude " << lon << " is a hole";
+    // Within a sample's change (0.008 degrees of a 400 m sine of period 9 degrees: 2.2 m).
+    EXPECT_NEAR(across[i], smooth_height(lon, -17.0), 2.5) << "longitude " << lon;
+  }
+}
+
 TEST(DemCrs, AutoLeavesProjectedAndUnreferencedInputsNative) {
   const fs::path path = temp_dir() / "projected.tif";
   {
