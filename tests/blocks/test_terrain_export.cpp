@@ -505,4 +505,94 @@ TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
   EXPECT_LT(diff[diff.size() * 9 / 10], 25.0) << "90th percentile";
 }
 
+// A DEM across the antimeridian (a geographic GeoTIFF from 179.8 to 180.2 degrees, as GDAL writes
+// one of Fiji's islands): built (warped to its azimuthal frame) and exported, its tiles lie on both
+// ends of the tiling (x = 0 and x = 2^(z+1) - 1), every sample is drawn within the last level's
+// bound (plus the two bilinear resamplings of a smooth surface, millimetres), and the two tiles of
+// the antimeridian share their edge vertices. Before, the warp back to longitude/latitude spanned
+// the whole Earth with the terrain cut in two, and no tile was written.
+TEST(TerrainExportAntimeridian, TilesOnBothSidesDrawTheTerrainSeamlessly) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  const std::string tif = (dir / "antimeridian.tif").string(), db = (dir / "antimeridian.db").string();
+  constexpr int kW = 241, kH = 121;
+  constexpr double kStep = 1.0 / 600.0, kWest = 179.8, kNorth = -16.9;
+  auto height = [](double lon, double lat) {
+    return 500.0 +
+           200.0 * std::sin(2.0 * M_PI * (lon - 179.8) / 0.4) * std::cos(2.0 * M_PI * (lat + 17.0) / 0.2);
+  };
+  {
+    GDALAllRegister();
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), kW, kH, 1,
+                                                                                     GDT_Float64, nullptr));
+    ASSERT_TRUE(ds);
+    double gt[6] = {kWest - 0.5 * kStep, kStep, 0.0, kNorth + 0.5 * kStep, 0.0, -kStep};
+    ds->SetGeoTransform(gt);
+    OGRSpatialReference srs;
+    srs.importFromEPSG(4326);
+    ds->SetSpatialRef(&srs);
+    std::vector<double> z(std::size_t(kW) * kH);
+    for (int r = 0; r < kH; ++r)
+      for (int c = 0; c < kW; ++c) z[std::size_t(r) * kW + c] = height(kWest + c * kStep, kNorth - r * kStep);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, kW, kH, z.data(), kW, kH, GDT_Float64, 0, 0),
+              CE_None);
+  }
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  tb::build_database(tb::read_dem(tif), db, o);
+  const fs::path out = dir / "antimeridian-tiles";
+  const tb::ExportReport r = tb::export_terrain(db, out.string(), {.max_level = 11});
+  EXPECT_GT(r.bounds.west, 179.0);
+  EXPECT_LT(r.bounds.east, -179.0);
+  const Tileset t = read_tileset(out);
+  const int z = 11, nx = 2 << z;
+  std::set<int> columns;
+  for (const auto& [id, d] : t.tiles)
+    if (id[0] == z) columns.insert(id[1]);
+  ASSERT_FALSE(columns.empty());
+  EXPECT_EQ(*columns.begin(), 0);
+  EXPECT_EQ(*columns.rbegin(), nx - 1);
+  for (const auto& [id, d] : t.tiles)  // layer.json lists the tiles on both sides
+    EXPECT_TRUE(available(t, id[0], id[1], id[2])) << id[0] << "/" << id[1] << "/" << id[2];
+  // Every 4th sample, through the tile of the last level that holds it.
+  std::vector<std::array<double, 2>> lonlat;
+  std::vector<double> want;
+  for (int row = 0; row < kH; row += 4)
+    for (int c = 0; c < kW; c += 4) {
+      const double lon = kWest + c * kStep, lat = kNorth - row * kStep;
+      lonlat.push_back({std::remainder(lon, 360.0), lat});
+      want.push_back(height(lon, lat));
+    }
+  const std::vector<double> n = egm96(lonlat);
+  std::size_t east_of_180 = 0;
+  for (std::size_t i = 0; i < lonlat.size(); ++i) {
+    const auto [lon, lat] = lonlat[i];
+    const int x = std::clamp(int(std::floor((lon + 180.0) / 180.0 * (1 << z))), 0, nx - 1),
+              y = std::clamp(int(std::floor((lat + 90.0) / 180.0 * (1 << z))), 0, (1 << z) - 1);
+    const auto it = t.tiles.find({z, x, y});
+    ASSERT_NE(it, t.tiles.end()) << "no tile " << z << "/" << x << "/" << y << " over longitude " << lon;
+    const tb::GeoRect rect = tb::tile_rect({z, x, y});
+    const double h = interpolate(it->second, (lon - rect.west) / (rect.east - rect.west) * kQ,
+                                 (lat - rect.south) / (rect.north - rect.south) * kQ);
+    ASSERT_TRUE(std::isfinite(h)) << "longitude " << lon << ": no triangle";
+    EXPECT_NEAR(h, want[i] + n[i], t.bound[z] + 0.05) << "longitude " << lon << ", latitude " << lat;
+    east_of_180 += lon < 0;
+  }
+  EXPECT_GE(east_of_180, lonlat.size() / 3);
+  // The antimeridian: the east edge of x = nx - 1 is the west edge of x = 0.
+  std::size_t pairs = 0;
+  for (const auto& [id, a] : t.tiles) {
+    if (id[0] != z || id[1] != nx - 1) continue;
+    const auto it = t.tiles.find({z, 0, id[2]});
+    ASSERT_NE(it, t.tiles.end()) << "no tile " << z << "/0/" << id[2];
+    const auto &ea = a.edges[2], &eb = it->second.edges[0];
+    ASSERT_EQ(ea.size(), eb.size()) << "row " << id[2];
+    for (std::size_t k = 0; k < ea.size(); ++k) {
+      EXPECT_EQ(a.v[ea[k]], it->second.v[eb[k]]);
+      EXPECT_NEAR(decoded_height(a, ea[k]), decoded_height(it->second, eb[k]), 1e-9);
+    }
+    ++pairs;
+  }
+  EXPECT_GE(pairs, 1u);
+}
+
 }  // namespace

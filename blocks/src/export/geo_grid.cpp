@@ -118,8 +118,23 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
   wgs84.SetWellKnownGeogCS("WGS84");
   char* dst_wkt = nullptr;
   wgs84.exportToWkt(&dst_wkt);
-  const std::string dst = dst_wkt != nullptr ? dst_wkt : "";
+  std::string dst = dst_wkt != nullptr ? dst_wkt : "";
   CPLFree(dst_wkt);
+  // Far from Greenwich, longitudes run continuously around the terrain's centre (PROJ's
+  // lon_wrap): a terrain across the antimeridian would otherwise land on both edges of
+  // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
+  {
+    OGRSpatialReference src;
+    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    auto [x, y] = t.to_world(0.5 * (hf.width() - 1), 0.5 * (hf.height() - 1));
+    const std::unique_ptr<OGRCoordinateTransformation, void (*)(OGRCoordinateTransformation*)> ct(
+        src.importFromWkt(hf.crs_wkt.c_str()) == OGRERR_NONE ? OGRCreateCoordinateTransformation(&src, &wgs84)
+                                                             : nullptr,
+        OGRCoordinateTransformation::DestroyCT);
+    if (ct && ct->Transform(1, &x, &y) && std::abs(x) > 90.0)
+      dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
+  }
   std::string error;
   const detail::WarpGrid w = detail::warp_grid(src, hf.crs_wkt, dst, /*target=*/nullptr, error);
   if (!error.empty())
@@ -201,7 +216,8 @@ GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_dat
   std::vector<double> lon(g.heights.size()), lat(g.heights.size());
   for (int r = 0; r < g.height; ++r)
     for (int c = 0; c < g.width; ++c) {
-      lon[std::size_t(r) * g.width + c] = g.lon(c);
+      lon[std::size_t(r) * g.width + c] =
+          std::remainder(g.lon(c), 360.0);  // past 180 across the antimeridian
       lat[std::size_t(r) * g.width + c] = g.lat(r);
     }
   const std::vector<double> n = geoid_undulations(requested.empty() ? "egm96" : requested, lon, lat, what);

@@ -38,10 +38,20 @@ std::string num(double v) {
   return s.str();
 }
 
-/// Tiles of level z that overlap [west, east] x [south, north] with a positive area (level 0:
-/// both, as CesiumJS always asks for them).
-TileRange tiles_over(int z, const GeoRect& b) {
-  if (z == 0) return {0, 0, 1, 0};
+/// The terrain's rectangle as parts within [-180, 180] degrees of longitude: itself, or, for a
+/// terrain across the antimeridian (whose GeoGrid runs past 180 or -180 to stay continuous), the
+/// parts on either side of it.
+std::vector<GeoRect> wrapped_parts(const GeoRect& b) {
+  if (b.east - b.west >= 360.0) return {{-180.0, b.south, 180.0, b.north}};
+  if (b.east > 180.0) return {{b.west, b.south, 180.0, b.north}, {-180.0, b.south, b.east - 360.0, b.north}};
+  if (b.west < -180.0) return {{b.west + 360.0, b.south, 180.0, b.north}, {-180.0, b.south, b.east, b.north}};
+  return {b};
+}
+
+/// Tiles of level z that overlap a part of the terrain (wrapped_parts) with a positive area, one
+/// range a part (level 0: both tiles, as CesiumJS always asks for them).
+std::vector<TileRange> tiles_over(int z, const std::vector<GeoRect>& parts) {
+  if (z == 0) return {{0, 0, 1, 0}};
   const double w = 180.0 / std::ldexp(1.0, z);
   const int nx = 2 << z, ny = 1 << z;
   auto first = [&](double v, double origin, int n) {
@@ -50,26 +60,43 @@ TileRange tiles_over(int z, const GeoRect& b) {
   auto last = [&](double v, double origin, int n) {
     return std::clamp(int(std::ceil((v - origin) / w)) - 1, 0, n - 1);
   };
-  return {first(b.west, -180.0, nx), first(b.south, -90.0, ny), last(b.east, -180.0, nx),
-          last(b.north, -90.0, ny)};
+  std::vector<TileRange> ranges;
+  for (const GeoRect& b : parts)
+    if (b.east > b.west)
+      ranges.push_back({first(b.west, -180.0, nx), first(b.south, -90.0, ny), last(b.east, -180.0, nx),
+                        last(b.north, -90.0, ny)});
+  return ranges;
 }
 
-bool overlaps(const TileId& id, const GeoRect& b) {
+bool overlaps(const TileId& id, const std::vector<GeoRect>& parts) {
   const GeoRect r = tile_rect(id);
-  return r.west < b.east && b.west < r.east && r.south < b.north && b.south < r.north;
+  for (const GeoRect& b : parts)
+    if (r.west < b.east && b.west < r.east && r.south < b.north && b.south < r.north) return true;
+  return false;
+}
+
+/// Where a tile's rectangle lies in the GeoGrid's longitudes: the tile's own, or, for a terrain
+/// across the antimeridian, the same place 360 degrees east or west (tile edges never cross
+/// +-180, so one of the three holds all of the tile's terrain). Vertices placed there have the
+/// same ECEF positions and the same positions within the tile.
+GeoRect rect_in_grid(const GeoRect& r, const GeoGrid& g) {
+  const double centre = g.lon(0.5 * (g.width - 1)), mid = 0.5 * (r.west + r.east);
+  const double shift = 360.0 * std::round((centre - mid) / 360.0);
+  return {r.west + shift, r.south, r.east + shift, r.north};
 }
 
 /// The tiles of each level. Quantized-mesh: those over the terrain (clients upsample the rest
 /// from the parent). 3D Tiles: every child of a tile over the terrain, since REPLACE refinement
 /// draws the children instead of the parent and a missing child would leave a hole.
-std::vector<std::vector<TileId>> level_tiles(ExportFormat format, int max_level, const GeoRect& terrain) {
+std::vector<std::vector<TileId>> level_tiles(ExportFormat format, int max_level,
+                                             const std::vector<GeoRect>& terrain) {
   std::vector<std::vector<TileId>> tiles(std::size_t(max_level) + 1);
   tiles[0] = {{0, 0, 0}, {0, 1, 0}};
   for (int z = 1; z <= max_level; ++z) {
     if (format == ExportFormat::QuantizedMesh) {
-      const TileRange r = tiles_over(z, terrain);
-      for (int y = r.start_y; y <= r.end_y; ++y)
-        for (int x = r.start_x; x <= r.end_x; ++x) tiles[std::size_t(z)].push_back({z, x, y});
+      for (const TileRange& r : tiles_over(z, terrain))
+        for (int y = r.start_y; y <= r.end_y; ++y)
+          for (int x = r.start_x; x <= r.end_x; ++x) tiles[std::size_t(z)].push_back({z, x, y});
     } else {
       for (const TileId& p : tiles[std::size_t(z) - 1])
         if (overlaps(p, terrain))
@@ -87,18 +114,24 @@ constexpr int kMetadataLevels = 10;
 
 /// `"available": [...], ` for a tile at a multiple of kMetadataLevels: for each of the next
 /// kMetadataLevels levels (to max_level), the tiles of its subtree over the terrain; "" otherwise.
-std::string subtree_availability(const TileId& id, int max_level, const GeoRect& terrain) {
+std::string subtree_availability(const TileId& id, int max_level, const std::vector<GeoRect>& terrain) {
   if (id.z % kMetadataLevels != 0 || id.z >= max_level) return "";
   std::string a = "\"available\":[";
   for (int k = 1; k <= kMetadataLevels && id.z + k <= max_level; ++k) {
-    const TileRange all = tiles_over(id.z + k, terrain);
     const int n = 1 << k;
-    const TileRange mine = {std::max(all.start_x, id.x * n), std::max(all.start_y, id.y * n),
-                            std::min(all.end_x, id.x * n + n - 1), std::min(all.end_y, id.y * n + n - 1)};
     a += k > 1 ? ",[" : "[";
-    if (mine.start_x <= mine.end_x && mine.start_y <= mine.end_y)
-      a += "{\"startX\":" + std::to_string(mine.start_x) + ",\"startY\":" + std::to_string(mine.start_y) +
-           ",\"endX\":" + std::to_string(mine.end_x) + ",\"endY\":" + std::to_string(mine.end_y) + "}";
+    bool first = true;
+    for (const TileRange& all : tiles_over(id.z + k, terrain)) {
+      const TileRange mine = {std::max(all.start_x, id.x * n), std::max(all.start_y, id.y * n),
+                              std::min(all.end_x, id.x * n + n - 1), std::min(all.end_y, id.y * n + n - 1)};
+      if (mine.start_x > mine.end_x || mine.start_y > mine.end_y) continue;
+      if (!first) a += ",";
+      a += "{\"startX\":" + std::to_string(mine.start_x);
+      a += ",\"startY\":" + std::to_string(mine.start_y);
+      a += ",\"endX\":" + std::to_string(mine.end_x);
+      a += ",\"endY\":" + std::to_string(mine.end_y) + "}";
+      first = false;
+    }
     a += "]";
   }
   return a + "],";
@@ -374,10 +407,13 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   ExportReport report;
   report.vertical_datum = grid.vertical_datum;
   report.horizontal = grid.horizontal;
-  report.bounds = {grid.lon(0), grid.lat(grid.height - 1), grid.lon(grid.width - 1), grid.lat(0)};
+  // Across the antimeridian the bounds' west is then east of their east (as in a CesiumJS
+  // Rectangle).
+  report.bounds = {std::remainder(grid.lon(0), 360.0), grid.lat(grid.height - 1),
+                   std::remainder(grid.lon(grid.width - 1), 360.0), grid.lat(0)};
   constexpr int pad = detail::GeoField::kPad;  // the tiles over the terrain include its rings
-  const GeoRect ringed = {grid.lon(-pad), grid.lat(grid.height - 1 + pad), grid.lon(grid.width - 1 + pad),
-                          grid.lat(-pad)};
+  const std::vector<GeoRect> ringed = wrapped_parts(
+      {grid.lon(-pad), grid.lat(grid.height - 1 + pad), grid.lon(grid.width - 1 + pad), grid.lat(-pad)});
   int max_level = options.max_level;
   if (max_level < 0) {
     const double spacing = std::max(grid.dlon, grid.dlat);
@@ -393,7 +429,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   std::size_t total = 0;
   report.levels.resize(tiles.size());
   for (int z = 0; z <= max_level; ++z) {
-    available[std::size_t(z)] = {tiles_over(z, ringed)};
+    available[std::size_t(z)] = tiles_over(z, ringed);
     total += tiles[std::size_t(z)].size();
     ExportLevel& L = report.levels[std::size_t(z)];
     L.z = z;
@@ -403,7 +439,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
     // hold exactly (|height| / step < 2^23).
     std::vector<std::pair<double, double>> ranges(tiles[std::size_t(z)].size());
     pm::parallel_for(ranges.size(), options.threads, [&](std::size_t i) {
-      ranges[i] = tile_height_range(field, tile_rect(tiles[std::size_t(z)][i]));
+      ranges[i] = tile_height_range(field, rect_in_grid(tile_rect(tiles[std::size_t(z)][i]), grid));
     });
     double span = 0, extent = 1;
     for (const auto& [lo, hi] : ranges)
@@ -460,7 +496,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
         rec[i] = *had;
         reused[i] = 1;
       } else {
-        const GeoRect rect = tile_rect(id);
+        const GeoRect rect = rect_in_grid(tile_rect(id), grid);
         TileRecord& r = rec[i];
         QuantizedMeshTile tile = make_tile(field, rect, L, sag, normal_step, r.max_error);
         r.min_height = std::numeric_limits<double>::infinity(), r.max_height = -r.min_height;
