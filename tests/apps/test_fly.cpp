@@ -54,6 +54,14 @@ fs::path write_path(int frames) {
   return p;
 }
 
+// The comma-separated fields of a line of frames.csv.
+std::vector<std::string> fields(const std::string& line) {
+  std::vector<std::string> f;
+  std::stringstream ss(line);
+  for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+  return f;
+}
+
 // frames.csv without the columns that hold wall times.
 std::vector<std::string> stats_without_times(const fs::path& csv) {
   std::ifstream in(csv);
@@ -62,10 +70,7 @@ std::vector<std::string> stats_without_times(const fs::path& csv) {
   std::vector<int> keep;
   bool header = true;
   while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    std::string x;
-    while (std::getline(ss, x, ',')) f.push_back(x);
+    const std::vector<std::string> f = fields(line);
     if (header) {
       for (int i = 0; i < int(f.size()); ++i)
         if (f[std::size_t(i)].find("_ms") == std::string::npos) keep.push_back(i);
@@ -124,10 +129,7 @@ TEST(FlyHeadless, IsDeterministicAndWritesEveryOutput) {
       "texture_patches,textures_from_parent,ground_xx,ground_xy,ground_yy");
   int rows = 0;
   while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    std::string x;
-    while (std::getline(ss, x, ',')) f.push_back(x);
+    const std::vector<std::string> f = fields(line);
     ASSERT_EQ(f.size(), 44u) << line;
     EXPECT_LE(std::stod(f[10]), std::stod(f[8])) << "frame " << f[0] << ": bound above tau";
     EXPECT_GT(std::stoul(f[9]), 0u) << "frame " << f[0] << ": no triangles";
@@ -173,10 +175,7 @@ TEST(FlyHeadless, BuiltInFlightFliesOverTheLand) {
   std::getline(in, line);
   int frames = 0, over_land = 0;
   while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    std::string x;
-    while (std::getline(ss, x, ',')) f.push_back(x);
+    const std::vector<std::string> f = fields(line);
     ASSERT_GT(f.size(), 4u) << line;
     ++frames;
     over_land += std::stod(f[4]) > 201.0;  // z: 200 m above the ground under the camera

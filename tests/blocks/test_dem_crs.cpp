@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "geographic_tiff.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/geo_grid.hpp"
@@ -52,25 +53,9 @@ double smooth_height(double lon, double lat) {
 fs::path write_geographic(const std::string& name, double lon0, double lat0, int cols, int rows, double step,
                           const std::function<bool(double, double)>& in_void) {
   const fs::path path = temp_dir() / name;
-  GDALAllRegister();
-  GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), cols, rows,
-                                                                                   1, GDT_Float64, nullptr));
-  EXPECT_TRUE(ds);
-  const double north = lat0 + (rows - 1) * step;
-  double gt[6] = {lon0 - 0.5 * step, step, 0.0, north + 0.5 * step, 0.0, -step};
-  ds->SetGeoTransform(gt);
-  OGRSpatialReference srs;
-  srs.importFromEPSG(4326);
-  ds->SetSpatialRef(&srs);
-  std::vector<double> z(std::size_t(cols) * rows);
-  for (int r = 0; r < rows; ++r)
-    for (int c = 0; c < cols; ++c) {
-      const double lon = lon0 + c * step, lat = north - r * step;
-      z[std::size_t(r) * cols + c] = in_void(lon, lat) ? kNaN : smooth_height(lon, lat);
-    }
-  GDALRasterBand* band = ds->GetRasterBand(1);
-  band->SetNoDataValue(kNaN);
-  EXPECT_EQ(band->RasterIO(GF_Write, 0, 0, cols, rows, z.data(), cols, rows, GDT_Float64, 0, 0), CE_None);
+  terralod::test::write_geographic_tiff(
+      path.string(), lon0, lat0 + (rows - 1) * step, cols, rows, step,
+      [&](double lon, double lat) { return in_void(lon, lat) ? kNaN : smooth_height(lon, lat); });
   return path;
 }
 

@@ -17,6 +17,7 @@
 #include <set>
 #include <sstream>
 
+#include "geographic_tiff.hpp"
 #include "quantized_mesh_reader.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/dem_reader.hpp"
@@ -520,22 +521,7 @@ TEST(TerrainExportAntimeridian, TilesOnBothSidesDrawTheTerrainSeamlessly) {
     return 500.0 +
            200.0 * std::sin(2.0 * M_PI * (lon - 179.8) / 0.4) * std::cos(2.0 * M_PI * (lat + 17.0) / 0.2);
   };
-  {
-    GDALAllRegister();
-    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), kW, kH, 1,
-                                                                                     GDT_Float64, nullptr));
-    ASSERT_TRUE(ds);
-    double gt[6] = {kWest - 0.5 * kStep, kStep, 0.0, kNorth + 0.5 * kStep, 0.0, -kStep};
-    ds->SetGeoTransform(gt);
-    OGRSpatialReference srs;
-    srs.importFromEPSG(4326);
-    ds->SetSpatialRef(&srs);
-    std::vector<double> z(std::size_t(kW) * kH);
-    for (int r = 0; r < kH; ++r)
-      for (int c = 0; c < kW; ++c) z[std::size_t(r) * kW + c] = height(kWest + c * kStep, kNorth - r * kStep);
-    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, kW, kH, z.data(), kW, kH, GDT_Float64, 0, 0),
-              CE_None);
-  }
+  ASSERT_NO_FATAL_FAILURE(tt::write_geographic_tiff(tif, kWest, kNorth, kW, kH, kStep, height));
   tb::DatabaseBuildOptions o;
   o.block_size = 65;
   tb::build_database(tb::read_dem(tif), db, o);
