@@ -115,8 +115,8 @@ Circle default_circle(const LodSource& t, int frames) {
 }
 
 // The flight used when no --path is given: `frames` frames along `circle` (default_circle()),
-// circle.clearance() above the ground under the camera (with --db: above the highest sample of the block
-// under it, as no block is loaded yet), looking along the path and 15 degrees down.
+// circle.clearance() above the ground under the camera (with --db: above the highest sample of
+// the block under it, as no block is loaded yet), looking along the path and 15 degrees down.
 std::vector<pm::Camera> default_flight(const LodSource& t, const Circle& circle, int frames, int w, int h) {
   const auto [cx, cy, radius] = circle;
   std::vector<pm::Camera> path;
@@ -151,9 +151,8 @@ int run_headless(const Args& a) {
     const Circle circle = default_circle(*t, frames);
     path = default_flight(*t, circle, frames, w, h);
     std::printf(
-        "path: built-in flight, %zu frames (a circle of radius %.0f m around x %.0f, y %.0f, %.3g m above "
-        "the "
-        "ground, with --db above its block's highest sample, looking 15 degrees down)\n",
+        "path: built-in flight, %zu frames (a circle of radius %.0f m around x %.0f, y %.0f, %.3g m "
+        "above the ground, with --db above its block's highest sample, looking 15 degrees down)\n",
         path.size(), circle.radius, circle.cx, circle.cy, circle.clearance());
   }
   const long long frames = a.get_int("--frames", (long long)path.size(), 1, (long long)path.size());
