@@ -1,5 +1,7 @@
 // Several DEM files, or a folder of them, as one raster (see DemInputs in dem_reader.hpp).
 #include <gdal_priv.h>
+#include <gdal_utils.h>
+#include <ogr_spatialref.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -26,6 +28,67 @@ bool is_raster_name(const fs::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   return kExtensions.count(ext) != 0;
+}
+
+/// Geographic tiles on both sides of the antimeridian (Fiji's S17E179 and S17W180) would mosaic
+/// into a raster 360 degrees wide, nearly all void, that takes minutes to open and spans the
+/// Earth. When every file is a north-up geographic raster and moving the western-hemisphere ones
+/// 360 degrees east shortens the mosaic's longitude span below 180 degrees, each of those is
+/// replaced by an in-memory VRT of it with its georeference moved (the samples are the file's),
+/// named `prefix` + k; their names are added to `shifted`.
+std::vector<std::string> across_antimeridian(const std::vector<std::string>& files, const std::string& prefix,
+                                             std::vector<std::string>& shifted) {
+  struct Extent {
+    double west, east, north, south;
+  };
+  std::vector<Extent> ext;
+  for (const std::string& f : files) {
+    GDALDatasetUniquePtr ds(GDALDataset::Open(f.c_str(), GDAL_OF_RASTER));
+    double gt[6];
+    const OGRSpatialReference* srs = ds ? ds->GetSpatialRef() : nullptr;
+    if (!ds || srs == nullptr || !srs->IsGeographic() || ds->GetGeoTransform(gt) != CE_None || gt[2] != 0.0 ||
+        gt[4] != 0.0 || gt[1] <= 0.0)
+      return files;
+    ext.push_back({gt[0], gt[0] + gt[1] * ds->GetRasterXSize(), gt[3], gt[3] + gt[5] * ds->GetRasterYSize()});
+  }
+  double w0 = 1e300, e0 = -1e300, w1 = 1e300, e1 = -1e300;  // spans as they are, and moved
+  for (const Extent& x : ext) {
+    const double s = 0.5 * (x.west + x.east) < 0.0 ? 360.0 : 0.0;
+    w0 = std::min(w0, x.west), e0 = std::max(e0, x.east);
+    w1 = std::min(w1, x.west + s), e1 = std::max(e1, x.east + s);
+  }
+  if (e0 - w0 <= 180.0 || e1 - w1 >= e0 - w0 || e1 - w1 > 180.0) return files;
+  std::vector<std::string> out;
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    const Extent& x = ext[k];
+    if (0.5 * (x.west + x.east) >= 0.0) {
+      out.push_back(files[k]);
+      continue;
+    }
+    const std::string name = prefix + std::to_string(k) + ".vrt";
+    const std::vector<std::string> args = {"-of",
+                                           "VRT",
+                                           "-a_ullr",
+                                           std::to_string(x.west + 360.0),
+                                           std::to_string(x.north),
+                                           std::to_string(x.east + 360.0),
+                                           std::to_string(x.south)};
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    GDALTranslateOptions* opt = GDALTranslateOptionsNew(argv.data(), nullptr);
+    GDALDatasetUniquePtr src(GDALDataset::Open(files[k].c_str(), GDAL_OF_RASTER));
+    GDALDatasetH moved =
+        opt && src ? GDALTranslate(name.c_str(), GDALDataset::ToHandle(src.get()), opt, nullptr) : nullptr;
+    GDALTranslateOptionsFree(opt);
+    if (moved == nullptr)
+      throw DemError(files[k], "cannot move it 360 degrees east to join the tiles across the antimeridian (" +
+                                   detail::gdal_message("GDALTranslate failed") + ")");
+    GDALClose(moved);
+    shifted.push_back(name);
+    out.push_back(name);
+  }
+  return out;
 }
 
 }  // namespace
@@ -59,7 +122,9 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
     if (!fs::exists(f)) throw DemError(f, "no such file");
   static std::atomic<int> serial{0};
   path_ = "/vsimem/terralod_inputs_" + std::to_string(::getpid()) + "_" + std::to_string(serial++) + ".vrt";
-  if (const std::string why = detail::build_vrt(path_, files); !why.empty())
+  detail::register_gdal();
+  if (const std::string why = detail::build_vrt(path_, across_antimeridian(files, path_ + ".east", shifted_));
+      !why.empty())
     throw DemError(folder.empty() ? files[0] : folder, "cannot mosaic the " + std::to_string(files.size()) +
                                                            " inputs into one raster (" + why + ")");
   owned_ = true;
@@ -72,6 +137,7 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
 
 DemInputs::~DemInputs() {
   if (owned_) VSIUnlink(path_.c_str());
+  for (const std::string& s : shifted_) VSIUnlink(s.c_str());
 }
 
 }  // namespace terralod::blocks

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "geographic_tiff.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/dem_reader.hpp"
@@ -222,4 +223,42 @@ TEST(DemInputs, TilesWithVoidsAcrossTheirBordersBuildAsTheMosaicInOneFile) {
     EXPECT_NE(std::string(e.what()).find("empty"), std::string::npos) << e.what();
   }
   EXPECT_THROW(tb::DemInputs({tiles[0], (tmp() / "missing.tif").string()}), tb::DemError);
+}
+
+// Geographic tiles on both sides of the antimeridian (as S17E179 and S17W180 hold Fiji's Taveuni):
+// their mosaic joins them east of 180 degrees, 2 degrees wide with every sample the tiles', instead
+// of a raster around the whole Earth (432001 columns of void: 'opening...' ran for over 10 minutes).
+TEST(DemInputs, TilesAcrossTheAntimeridianJoinEastOf180) {
+  constexpr int kN = 120;
+  constexpr double kStep = 1.0 / kN;
+  const auto height = [](double lon, double lat) {
+    const double east = lon < 0.0 ? lon + 360.0 : lon;  // continuous across 180
+    return 300.0 + 200.0 * std::sin((east - 179.0) * 3.0) * std::cos((lat + 16.5) * 5.0);
+  };
+  const std::string west_tile = (tmp() / "S17E179.tif").string(),
+                    east_tile = (tmp() / "S17W180.tif").string();
+  ASSERT_NO_FATAL_FAILURE(terralod::test::write_geographic_tiff(west_tile, 179.0 + 0.5 * kStep,
+                                                                -16.0 - 0.5 * kStep, kN, kN, kStep, height));
+  ASSERT_NO_FATAL_FAILURE(terralod::test::write_geographic_tiff(east_tile, -180.0 + 0.5 * kStep,
+                                                                -16.0 - 0.5 * kStep, kN, kN, kStep, height));
+  const tb::DemInputs in({east_tile, west_tile});
+  EXPECT_NE(in.description().find("S17W180.tif"), std::string::npos) << in.description();
+  tb::DemOptions native;
+  native.crs = "native";
+  const pm::Heightfield hf = tb::read_dem(in.path(), native);
+  ASSERT_EQ(hf.width(), 2 * kN);
+  ASSERT_EQ(hf.height(), kN);
+  ASSERT_TRUE(hf.crs_transform.has_value());
+  EXPECT_NEAR(hf.crs_transform->x0, 179.0 + 0.5 * kStep, 1e-9);
+  EXPECT_FALSE(hf.has_holes());
+  for (int c = 0; c < 2 * kN; c += 7)
+    for (int r = 0; r < kN; r += 11)
+      ASSERT_NEAR(hf.at(c, r), height(179.0 + (c + 0.5) * kStep, -16.0 - (r + 0.5) * kStep), 1e-9)
+          << "column " << c << ", row " << r;
+  // The auto frame warps the joined tiles whole: about their samples.
+  tb::DemOptions automatic;
+  automatic.crs = "auto";
+  const pm::Heightfield warped = tb::read_dem(in.path(), automatic);
+  EXPECT_NEAR(double(warped.width()), 2.0 * kN, 0.05 * kN);
+  EXPECT_NEAR(double(warped.height()), double(kN), 0.05 * kN);
 }

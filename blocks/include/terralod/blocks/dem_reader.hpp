@@ -189,7 +189,9 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {}
 /// (GDALBuildVRT) in GDAL's in-memory file system, which lives as long as this object. The
 /// files must share one CRS and resolution; where they overlap, later names win. Voids are read
 /// (and filled) on the mosaic, not file by file, so a void that crosses a file boundary is
-/// filled as if the mosaic were one file.
+/// filled as if the mosaic were one file. Geographic tiles on both sides of the antimeridian
+/// (S17E179 and S17W180) join east of 180 degrees: the western ones are read through in-memory
+/// VRTs moved 360 degrees east, so the mosaic is 2 degrees wide, not the whole Earth.
 /// DemError naming the file or folder: a missing path, an empty folder, files GDAL cannot
 /// mosaic (another CRS, another resolution, not a raster).
 class DemInputs {
@@ -209,6 +211,7 @@ class DemInputs {
   std::string path_, description_;
   std::size_t files_ = 0;
   bool owned_ = false;
+  std::vector<std::string> shifted_;  ///< in-memory VRTs of tiles moved by 360 degrees (antimeridian)
 };
 
 }  // namespace terralod::blocks
