@@ -63,8 +63,9 @@ CommandSpec build_spec() {
       "resident memory of the build.";
   s.options = {
       {"--input", "DEM",
-       "elevation file (.hgt, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one mosaic", true,
-       true},
+       "elevation file (.hgt, .hgt.zip, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one "
+       "mosaic",
+       true, true},
       {"--out", "DB", "database file to create or resume (.db)", true},
       {"--block-size", "N", "samples per block side, 2^k + 1 (default 257)"},
       {"--threads", "N", "blocks built in parallel, 0 = all cores (default 0)"},

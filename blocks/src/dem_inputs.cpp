@@ -25,9 +25,12 @@ bool is_raster_name(const fs::path& p) {
   // (a VRT is given as an --input of its own).
   static const std::set<std::string> kExtensions = {".tif", ".tiff", ".hgt", ".asc",
                                                     ".img", ".dem",  ".bil", ".flt"};
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return kExtensions.count(ext) != 0;
+  std::string name = p.filename().string();
+  std::transform(name.begin(), name.end(), name.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  // SRTM tiles as they are downloaded (N44W072.SRTMGL1.hgt.zip): GDAL reads them zipped.
+  if (name.size() > 8 && name.compare(name.size() - 8, 8, ".hgt.zip") == 0) return true;
+  return kExtensions.count(fs::path(name).extension().string()) != 0;
 }
 
 /// Geographic tiles on both sides of the antimeridian (Fiji's S17E179 and S17W180) would mosaic
@@ -105,7 +108,8 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
         if (e.is_regular_file() && is_raster_name(e.path())) found.push_back(e.path().string());
       if (ec) throw DemError(in, "cannot list the folder: " + ec.message());
       if (found.empty())
-        throw DemError(in, "the folder holds no elevation file (.tif .tiff .hgt .asc .img .dem .bil .flt)");
+        throw DemError(
+            in, "the folder holds no elevation file (.tif .tiff .hgt .hgt.zip .asc .img .dem .bil .flt)");
       std::sort(found.begin(), found.end());
       files.insert(files.end(), found.begin(), found.end());
       folder = in;
@@ -128,7 +132,7 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
     throw DemError(folder.empty() ? files[0] : folder, "cannot mosaic the " + std::to_string(files.size()) +
                                                            " inputs into one raster (" + why + ")");
   owned_ = true;
-  description_ = "mosaic of " + std::to_string(files.size()) + " files: ";
+  description_ = "mosaic of " + std::to_string(files.size()) + (files.size() == 1 ? " file: " : " files: ");
   for (std::size_t i = 0; i < files.size() && i < 4; ++i)
     description_ += (i ? ", " : "") + fs::path(files[i]).filename().string();
   if (files.size() > 4) description_ += ", ...";

@@ -1,5 +1,6 @@
 // The DEM writers (blocks/dem_writer.hpp): every file is read back through read_dem and compared
 // sample by sample with what it stands for.
+#include <cpl_vsi.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -261,4 +262,33 @@ TEST(DemInputs, TilesAcrossTheAntimeridianJoinEastOf180) {
   const pm::Heightfield warped = tb::read_dem(in.path(), automatic);
   EXPECT_NEAR(double(warped.width()), 2.0 * kN, 0.05 * kN);
   EXPECT_NEAR(double(warped.height()), double(kN), 0.05 * kN);
+}
+
+// A folder of SRTM tiles as they are downloaded, zipped (N44W072.hgt.zip): `--input FOLDER` reads
+// them through GDAL, which opens .hgt.zip files directly.
+TEST(DemInputs, AFolderOfZippedSrtmTilesIsReadAsItsTiles) {
+  const fs::path dir = tmp() / "zipped";
+  fs::create_directories(dir);
+  constexpr int kN = 1201;
+  const std::string inner = "/vsizip/" + (dir / "N44W072.hgt.zip").string() + "/N44W072.hgt";
+  {
+    std::vector<std::uint8_t> bytes(std::size_t(kN) * kN * 2);
+    for (int r = 0; r < kN; ++r)
+      for (int c = 0; c < kN; ++c) {  // big-endian int16
+        const int h = 100 + (r * 7 + c * 3) % 900;
+        bytes[(std::size_t(r) * kN + c) * 2] = std::uint8_t(h >> 8);
+        bytes[(std::size_t(r) * kN + c) * 2 + 1] = std::uint8_t(h & 0xff);
+      }
+    VSILFILE* f = VSIFOpenL(inner.c_str(), "wb");
+    ASSERT_NE(f, nullptr) << inner;
+    ASSERT_EQ(VSIFWriteL(bytes.data(), 1, bytes.size(), f), bytes.size());
+    ASSERT_EQ(VSIFCloseL(f), 0);
+  }
+  const tb::DemInputs in({dir.string()});
+  EXPECT_EQ(in.files(), 1u);
+  const pm::Heightfield hf = tb::read_dem(in.path());
+  ASSERT_EQ(hf.width(), kN);
+  ASSERT_EQ(hf.height(), kN);
+  for (int r = 0; r < kN; r += 97)
+    for (int c = 0; c < kN; c += 89) ASSERT_EQ(hf.at(c, r), 100 + (r * 7 + c * 3) % 900) << c << ", " << r;
 }

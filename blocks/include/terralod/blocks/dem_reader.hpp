@@ -184,14 +184,14 @@ class DemError : public std::runtime_error {
 pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {});
 
 /// The inputs of `terralod build --input` as one raster for read_dem: a single file as it is;
-/// several files, or a folder (its raster files: .tif .tiff .hgt .asc .img .dem .bil .flt, sorted
-/// by name; not .vrt, which a folder of tiles often holds over them), as one VRT mosaic of them
-/// (GDALBuildVRT) in GDAL's in-memory file system, which lives as long as this object. The
-/// files must share one CRS and resolution; where they overlap, later names win. Voids are read
-/// (and filled) on the mosaic, not file by file, so a void that crosses a file boundary is
-/// filled as if the mosaic were one file. Geographic tiles on both sides of the antimeridian
-/// (S17E179 and S17W180) join east of 180 degrees: the western ones are read through in-memory
-/// VRTs moved 360 degrees east, so the mosaic is 2 degrees wide, not the whole Earth.
+/// several files, or a folder (its raster files: .tif .tiff .hgt .hgt.zip .asc .img .dem .bil
+/// .flt, sorted by name; not .vrt, which a folder of tiles often holds over them), as one VRT
+/// mosaic of them (GDALBuildVRT) in GDAL's in-memory file system, which lives as long as this
+/// object. The files must share one CRS and resolution; where they overlap, later names win.
+/// Voids are read (and filled) on the mosaic, not file by file, so a void that crosses a file
+/// boundary is filled as if the mosaic were one file. Geographic tiles on both sides of the
+/// antimeridian (S17E179 and S17W180) join east of 180 degrees: the western ones are read through
+/// in-memory VRTs moved 360 degrees east, so the mosaic is 2 degrees wide, not the whole Earth.
 /// DemError naming the file or folder: a missing path, an empty folder, files GDAL cannot
 /// mosaic (another CRS, another resolution, not a raster).
 class DemInputs {
