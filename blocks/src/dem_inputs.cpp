@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cstdio>
 #include <filesystem>
 #include <set>
 #include <string>
@@ -69,13 +70,14 @@ std::vector<std::string> across_antimeridian(const std::vector<std::string>& fil
       continue;
     }
     const std::string name = prefix + std::to_string(k) + ".vrt";
-    const std::vector<std::string> args = {"-of",
-                                           "VRT",
-                                           "-a_ullr",
-                                           std::to_string(x.west + 360.0),
-                                           std::to_string(x.north),
-                                           std::to_string(x.east + 360.0),
-                                           std::to_string(x.south)};
+    const auto exact = [](double v) {  // every digit: the moved tile must align with the others
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.17g", v);
+      return std::string(buf);
+    };
+    const std::vector<std::string> args = {
+        "-of",         "VRT", "-a_ullr", exact(x.west + 360.0), exact(x.north), exact(x.east + 360.0),
+        exact(x.south)};
     std::vector<char*> argv;
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -127,10 +129,16 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
   static std::atomic<int> serial{0};
   path_ = "/vsimem/terralod_inputs_" + std::to_string(::getpid()) + "_" + std::to_string(serial++) + ".vrt";
   detail::register_gdal();
-  if (const std::string why = detail::build_vrt(path_, across_antimeridian(files, path_ + ".east", shifted_));
-      !why.empty())
-    throw DemError(folder.empty() ? files[0] : folder, "cannot mosaic the " + std::to_string(files.size()) +
-                                                           " inputs into one raster (" + why + ")");
+  try {
+    if (const std::string why =
+            detail::build_vrt(path_, across_antimeridian(files, path_ + ".east", shifted_));
+        !why.empty())
+      throw DemError(folder.empty() ? files[0] : folder, "cannot mosaic the " + std::to_string(files.size()) +
+                                                             " inputs into one raster (" + why + ")");
+  } catch (...) {  // no destructor runs: the moved tiles' VRTs go here
+    for (const std::string& s : shifted_) VSIUnlink(s.c_str());
+    throw;
+  }
   owned_ = true;
   description_ = "mosaic of " + std::to_string(files.size()) + (files.size() == 1 ? " file: " : " files: ");
   for (std::size_t i = 0; i < files.size() && i < 4; ++i)
