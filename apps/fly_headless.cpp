@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
 #include <map>
 #include <memory>
 #include <numbers>
@@ -51,40 +50,44 @@ struct Circle {
   }
 };
 
-// Flat ground, as LodSource::ceiling sees it without loading anything: the height bin (1 m, or
-// 1/1000 of the height range when larger) that holds the most of a 32 x 32 lattice of points
-// over the terrain, when it holds a quarter of them or more: the sea of a coastal tile (Kauai
-// fills a tenth of N22W160), a lake, a filled void. NaN when there is none.
-double flat_height(const LodSource& t) {
+// The height bin of `ceiling()` heights: 1 m, or 1/1000 of the terrain's height range when larger.
+long long height_bin(const LodSource& t, double z) {
   const Extent& e = t.extent();
-  const double bin = std::max(1.0, 1e-3 * (e.zmax - e.zmin));
+  return std::llround(z / std::max(1.0, 1e-3 * (e.zmax - e.zmin)));
+}
+
+// Flat ground, as LodSource::ceiling sees it without loading anything: the height bin that holds
+// the most of a 32 x 32 lattice of points over the terrain, when it holds a quarter of them or
+// more: the sea of a coastal tile (Kauai fills a tenth of N22W160), a lake, a filled void.
+// nullopt when there is none.
+std::optional<long long> flat_bin(const LodSource& t) {
+  const Extent& e = t.extent();
   std::map<long long, int> count;
   for (int j = 0; j < 32; ++j)
     for (int i = 0; i < 32; ++i) {
       const auto [x, y] =
           e.transform.to_world((e.width - 1) * (i + 0.5) / 32.0, (e.height - 1) * (j + 0.5) / 32.0);
-      ++count[std::llround(t.ceiling(x, y) / bin)];
+      ++count[height_bin(t, t.ceiling(x, y))];
     }
   const auto mode = std::max_element(count.begin(), count.end(),
                                      [](const auto& a, const auto& b) { return a.second < b.second; });
-  return mode->second * 4 >= 32 * 32 ? double(mode->first) * bin : std::numeric_limits<double>::quiet_NaN();
+  if (mode->second * 4 < 32 * 32) return std::nullopt;
+  return mode->first;
 }
 
-// Share of the flight's `frames` frames along the circle over flat ground at height `flat`
-// (flat_height), judged at 64 of them.
-double flat_share(const LodSource& t, const Circle& c, int frames, double flat) {
-  const double bin = std::max(1.0, 1e-3 * (t.extent().zmax - t.extent().zmin));
+// Share of the flight's `frames` frames along the circle over the flat ground of bin `flat`
+// (flat_bin), judged at 64 of them.
+double flat_share(const LodSource& t, const Circle& c, int frames, long long flat) {
   int n = 0;
   for (int k = 0; k < 64; ++k) {
     const double a = c.angle(frames * k / 64.0);
-    n += std::llround(t.ceiling(c.cx + c.radius * std::cos(a), c.cy + c.radius * std::sin(a)) / bin) ==
-         std::llround(flat / bin);
+    n += height_bin(t, t.ceiling(c.cx + c.radius * std::cos(a), c.cy + c.radius * std::sin(a))) == flat;
   }
   return n / 64.0;
 }
 
 // The circle of radius 30% of the extent around the terrain's centre, unless more than a quarter
-// of the flight's `frames` frames along it are over flat ground (flat_height). Then the circle of
+// of the flight's `frames` frames along it are over flat ground (flat_bin). Then the circle of
 // radius 30%, 20% or 10% of the extent, centred on a 9 x 9 lattice of the places where it fits
 // in the terrain, with the smallest share of flat ground (ties: the larger circle, then the
 // earlier centre): a demo flight shows the land. With --db, ceiling() knows the highest sample of
@@ -94,9 +97,9 @@ Circle default_circle(const LodSource& t, int frames) {
   const double side = std::min(e.side_x(), e.side_y());
   const auto [cx, cy] = e.centre();
   Circle best{cx, cy, 0.3 * side};
-  const double flat = flat_height(t);
-  if (std::isnan(flat)) return best;
-  double best_flat = flat_share(t, best, frames, flat);
+  const std::optional<long long> flat = flat_bin(t);
+  if (!flat) return best;
+  double best_flat = flat_share(t, best, frames, *flat);
   if (best_flat <= 0.25) return best;
   for (const double f : {0.3, 0.2, 0.1}) {
     const double r = f * side;
@@ -107,7 +110,7 @@ Circle default_circle(const LodSource& t, int frames) {
         const auto [x, y] = e.transform.to_world(mx + (e.width - 1 - 2.0 * mx) * i / 8.0,
                                                  my + (e.height - 1 - 2.0 * my) * j / 8.0);
         const Circle c{x, y, r};
-        if (const double share = flat_share(t, c, frames, flat); share < best_flat)
+        if (const double share = flat_share(t, c, frames, *flat); share < best_flat)
           best = c, best_flat = share;
       }
   }

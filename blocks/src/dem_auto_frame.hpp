@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <string>
 
-#include "terralod/blocks/dem_grid.hpp"
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks {

@@ -12,7 +12,9 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 
+#include "../frame_scale.hpp"
 #include "../gdal_support.hpp"
 #include "../gdal_warp.hpp"
 #include "terralod/pm/parallel.hpp"
@@ -123,16 +125,9 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
   // Far from Greenwich, longitudes run continuously around the terrain's centre (PROJ's
   // lon_wrap): a terrain across the antimeridian would otherwise land on both edges of
   // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
-  {
-    OGRSpatialReference src;
-    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(hf.crs_wkt)) {
     auto [x, y] = t.to_world(0.5 * (hf.width() - 1), 0.5 * (hf.height() - 1));
-    const std::unique_ptr<OGRCoordinateTransformation, void (*)(OGRCoordinateTransformation*)> ct(
-        src.importFromWkt(hf.crs_wkt.c_str()) == OGRERR_NONE ? OGRCreateCoordinateTransformation(&src, &wgs84)
-                                                             : nullptr,
-        OGRCoordinateTransformation::DestroyCT);
-    if (ct && ct->Transform(1, &x, &y) && std::abs(x) > 90.0)
+    if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
       dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
   }
   std::string error;
