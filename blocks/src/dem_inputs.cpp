@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <set>
@@ -96,6 +97,15 @@ std::vector<std::string> across_antimeridian(const std::vector<std::string>& fil
   return out;
 }
 
+/// Whether the raster at `path` is geographic and wider than 180 degrees of longitude.
+bool spans_half_the_earth(const std::string& path) {
+  GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
+  double gt[6];
+  const OGRSpatialReference* srs = ds ? ds->GetSpatialRef() : nullptr;
+  return srs != nullptr && srs->IsGeographic() && ds->GetGeoTransform(gt) == CE_None &&
+         std::abs(gt[1] * ds->GetRasterXSize()) + std::abs(gt[2] * ds->GetRasterYSize()) > 180.0;
+}
+
 }  // namespace
 
 DemInputs::DemInputs(const std::vector<std::string>& inputs) {
@@ -129,12 +139,20 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
   static std::atomic<int> serial{0};
   path_ = "/vsimem/terralod_inputs_" + std::to_string(::getpid()) + "_" + std::to_string(serial++) + ".vrt";
   detail::register_gdal();
-  try {
-    if (const std::string why =
-            detail::build_vrt(path_, across_antimeridian(files, path_ + ".east", shifted_));
-        !why.empty())
+  const auto mosaic = [&](const std::vector<std::string>& sources) {
+    if (const std::string why = detail::build_vrt(path_, sources); !why.empty())
       throw DemError(folder.empty() ? files[0] : folder, "cannot mosaic the " + std::to_string(files.size()) +
                                                              " inputs into one raster (" + why + ")");
+  };
+  try {
+    // The files are looked at one by one (each opened once more) only when the mosaic spans
+    // more than half the Earth: a folder of thousands of tiles opens in the time GDALBuildVRT
+    // takes, and only tiles across the antimeridian pay for finding it out.
+    mosaic(files);
+    if (spans_half_the_earth(path_)) {
+      const std::vector<std::string> moved = across_antimeridian(files, path_ + ".east", shifted_);
+      if (!shifted_.empty()) mosaic(moved);
+    }
   } catch (...) {  // no destructor runs: the moved tiles' VRTs go here
     for (const std::string& s : shifted_) VSIUnlink(s.c_str());
     throw;

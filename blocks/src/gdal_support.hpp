@@ -25,9 +25,19 @@ inline std::string vertical_crs(const std::string& datum) {
   return datum;
 }
 
+/// Registers GDAL's drivers, and unless the user's environment says otherwise, keeps GDAL from
+/// listing a file's folder each time it opens one (GDAL_DISABLE_READDIR_ON_OPEN): sidecar files
+/// (.prj, .hdr, .aux.xml) are then looked for by name. A mosaic opens every tile once to build its
+/// VRT and again, through the VRT's pool of open files, as block windows are read; with the
+/// listing, each open reads the whole folder, which grows with the square of the tiles in it
+/// (900 tiles: the build's opening took 1.2 s, 0.87 s without; a quarter of it in ext4_readdir).
 inline void register_gdal() {
   static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
+  std::call_once(once, [] {
+    if (CPLGetConfigOption("GDAL_DISABLE_READDIR_ON_OPEN", nullptr) == nullptr)
+      CPLSetConfigOption("GDAL_DISABLE_READDIR_ON_OPEN", "TRUE");
+    GDALAllRegister();
+  });
 }
 
 /// Silences GDAL's error printing for the current thread while alive: its messages are taken
