@@ -7,6 +7,7 @@
 #include <gdal_priv.h>
 
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,15 @@
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks::detail {
+
+/// Heights further than this from the datum are no terrain (the Earth's radius is 6.4e6 m): they
+/// are fill values a file does not declare as its nodata, such as -3.4e38 (the least float) in
+/// rasters exported without a nodata tag. Every reader takes them as voids, as it does NaN: kept
+/// as heights they became a root error of 3.4e38 m and a terrain no view could frame.
+constexpr double kMaxHeightMetres = 1e7;
+
+/// Whether `metres` is a height (finite and within kMaxHeightMetres of the datum).
+inline bool is_height(double metres) { return std::abs(metres) <= kMaxHeightMetres; }
 
 /// A file's georeferencing, as every reader finds it.
 struct Georef {
@@ -56,7 +66,7 @@ struct GdalBand {
 GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size);
 
 /// The samples of `window` of band 1 of `ds` into `z` (resized, row-major), in metres, voids
-/// (nodata, mask band, NaN, +-inf) NaN. DemError naming `path` when GDAL cannot read them.
+/// (nodata, mask band, NaN, +-inf, beyond kMaxHeightMetres) NaN. DemError naming `path` when GDAL cannot read them.
 void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& band, SampleRect window,
                       std::vector<double>& z);
 

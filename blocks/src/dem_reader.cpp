@@ -346,8 +346,9 @@ void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& 
       if (mask[i] == 0) z[i] = nan;
     }
   }
-  if (b.factor != 1.0 || b.shift != 0.0) {
-    for (double& v : z) v = v * b.factor + b.shift;
+  for (double& v : z) {
+    v = v * b.factor + b.shift;
+    if (!is_height(v)) v = nan;
   }
 }
 
@@ -430,7 +431,10 @@ Raster read_heightmap(const std::string& path, const DemOptions& options) {
                      "pixel type " + std::string(spec.format.c_str()) + " is not supported for heightmaps");
   }
   in->close();
-  for (double& v : r.z) v = v * options.vertical_scale + options.vertical_offset;
+  for (double& v : r.z) {
+    v = v * options.vertical_scale + options.vertical_offset;
+    if (!detail::is_height(v)) v = std::numeric_limits<double>::quiet_NaN();
+  }
   r.geo.kind = Georef::Kind::None;
   if (options.vertical_scale != 1.0 || options.vertical_offset != 0.0) {
     r.height_note = "; heights = raw * " + format_number(options.vertical_scale) + " + " +
@@ -579,7 +583,7 @@ Raster read_ascii_grid(const std::string& path) {
     }
     const std::optional<double> v = parse_double(t);
     if (!v) throw DemError(path, line_prefix(tokens.line()) + "'" + std::string(t) + "' is not a number");
-    r.z[i] = (nodata && *v == *nodata) ? nan : *v;
+    r.z[i] = (nodata && *v == *nodata) || !detail::is_height(*v) ? nan : *v;
   }
   if (const std::string_view extra = tokens.next(); !extra.empty()) {
     throw DemError(path, line_prefix(tokens.line()) + "more values than ncols x nrows = " +

@@ -40,10 +40,12 @@
 //              degrees. CRS: WGS 84 geographic.
 //   Gdal       Any single-band raster GDAL opens. Band 1 is read as double; band scale/offset
 //              are applied; a band in feet is converted to metres. The band's nodata value,
-//              its mask band (when it has a real one), NaN and +-inf are voids. The geotransform
+//              its mask band (when it has a real one), NaN, +-inf and heights beyond 10,000 km
+//              (fills a file does not declare, such as -3.4e38) are voids. The geotransform
 //              is taken in GDAL's corner convention and converted to sample centres.
 //   Heightmap  Single-channel image read with OpenImageIO: 8/16/32-bit integers are read as
-//              raw integers (never normalised), floats as is (NaN/inf = void).
+//              raw integers (never normalised), floats as is (NaN/inf and beyond 10,000 km =
+//              void).
 //   AsciiGrid  Esri ASCII grid: header keys ncols, nrows, xllcorner|xllcenter,
 //              yllcorner|yllcenter, cellsize (or dx and dy), optional NODATA_value, any
 //              order, case-insensitive; then nrows x ncols numbers, north row first. A
@@ -116,7 +118,8 @@
 //   run); the first call in a process adds about 25 ms of GDAL driver registration. With
 //   fill_voids = false the Heightfield gets a mask (1 valid, 0 void) and void samples hold 0.
 //   Voids are: SRTM -32768, the band's nodata value, samples outside a GDAL mask band, NaN and
-//   +-inf, ASCII grid NODATA_value.
+//   +-inf, ASCII grid NODATA_value, and in every format heights more than 1e7 m from the datum
+//   (no terrain: a fill value the file does not declare, most often -3.4e38).
 #pragma once
 
 #include <functional>
