@@ -66,7 +66,8 @@ struct GdalBand {
 GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size);
 
 /// The samples of `window` of band 1 of `ds` into `z` (resized, row-major), in metres, voids
-/// (nodata, mask band, NaN, +-inf, beyond kMaxHeightMetres) NaN. DemError naming `path` when GDAL cannot read them.
+/// (nodata, mask band, NaN, +-inf, beyond kMaxHeightMetres) NaN. DemError naming `path` when
+/// GDAL cannot read them.
 void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& band, SampleRect window,
                       std::vector<double>& z);
 
