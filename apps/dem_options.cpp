@@ -36,7 +36,8 @@ std::vector<OptionSpec> dem_option_specs() {
 OptionSpec crs_option_spec() {
   return {"--crs", "CRS",
           "world frame: auto (default; geographic DEMs to a balanced azimuthal equidistant projection, or to "
-          "the truest of five kinds of projection over its data beyond about 9 x 9 degrees), "
+          "the truest of five kinds of projection over its data beyond about 9 x 9 degrees; a DEM far "
+          "past a hemisphere keeps its own grid), "
           "native (the source's own frame) or a projected CRS, e.g. EPSG:32619"};
 }
 

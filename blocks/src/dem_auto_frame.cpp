@@ -226,7 +226,8 @@ AutoFrame auto_frame(const std::string& path, const OGRSpatialReference& source,
   if (first && first->error <= 0.001)
     return AutoFrame{
         first->crs, first->k0,
-        aeqd.name + " (auto) on " + name_of(source) + ", " + aeqd.where + tail + format("%.12g", first->k0)};
+        aeqd.name + " (auto) on " + name_of(source) + ", " + aeqd.where + tail + format("%.12g", first->k0),
+        first->error};
 
   // Beyond it: when some cells are known to be empty, the corners and centres of the covered
   // cells instead of the whole footprint.
@@ -278,6 +279,7 @@ AutoFrame auto_frame(const std::string& path, const OGRSpatialReference& source,
       best_error = m->error;
       best.crs = m->crs;
       best.k0 = m->k0;
+      best.error = m->error;
       best.description =
           cand.name + " (auto) on " + name_of(source) + ", " + cand.where + tail + format("%.12g", m->k0);
       if (!is_first)

@@ -22,7 +22,16 @@ struct AutoFrame {
   OGRSpatialReference crs;
   double k0 = 1.0;
   std::string description;
+  /// Its balanced scale error where it was measured (0.01: every scale within 1 +- 1 %).
+  double error = 0.0;
 };
+
+/// The balanced scale error beyond which no flat frame represents a DEM: its largest scale three
+/// times its smallest, an extent that reaches about 130 degrees from its centre (a hemisphere's
+/// azimuthal frame is within +-22 %). A global DEM's azimuthal frame had k0 = 1.1e-5 and turned
+/// 720 x 360 samples into 2 x 723; "auto" keeps such a DEM in its native grid instead
+/// (warped_source), whose distances the runtime's view corrects about the camera.
+constexpr double kFlatFrameLimit = 0.5;
 
 /// Chooses the "auto" frame of a geographic DEM (see dem_auto_frame.cpp); DemError naming `path`
 /// when GDAL can make none of its projections.

@@ -100,8 +100,9 @@ void for_each_band(const DemSource& src, const std::function<void(int, const pm:
 /// be square: every transform downstream is affine.
 class WarpedSource final : public DemSource {
  public:
+  /// `frame`: for crs "auto", the frame auto_frame chose (warped_source looks at it first).
   WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
-               const std::string& height_note);
+               const std::string& height_note, std::optional<AutoFrame> frame);
   pm::Heightfield read(SampleRect window) const override;
   std::uint32_t samples_crc() const override;
   bool in_memory() const override { return native_->in_memory(); }
@@ -150,18 +151,55 @@ class WarpedSource final : public DemSource {
   mutable std::vector<Transform> pool_;  ///< clones no read is using
 };
 
-WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
-                           const std::string& height_note)
-    : path_(path), native_(std::move(native)) {
-  const DemGrid& ng = native_->grid();
-  const bool automatic = crs == "auto";
-  register_gdal();
-  QuietGdal quiet;
+/// The CRS of a native grid that is to be warped to the frame `crs`; DemError naming `path` when
+/// it has none.
+OGRSpatialReference warp_source_crs(const std::string& path, const DemGrid& ng, const std::string& crs) {
   OGRSpatialReference source;
   if (!read_crs(ng.crs_wkt, ng.crs_transform.has_value(), source))
     throw DemError(path, "has no CRS, so it cannot be warped to the CRS '" + crs +
                              "' asked for (--crs, DemOptions::crs); use --crs native or auto");
   source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return source;
+}
+
+/// A native source that "auto" keeps as it is (beyond kFlatFrameLimit): its samples and grid,
+/// with a frame description that says why and gives the native frame's measured scale error.
+class NativeKept final : public DemSource {
+ public:
+  NativeKept(std::unique_ptr<DemSource> native, const AutoFrame& best, const std::string& height_note)
+      : native_(std::move(native)) {
+    grid_ = native_->grid();
+    grid_.scale_error = scale_error_by_reads(grid_, [this](SampleRect r) { return native_->read(r); });
+    grid_.frame += " (--crs auto keeps the DEM's own grid: no flat projection holds its extent within +-" +
+                   format("%.0f", kFlatFrameLimit * 100.0) + " %; the truest, " +
+                   best.description.substr(0, best.description.find(" (auto)")) + ", is within +-" +
+                   format("%.3f", best.error * 100.0) +
+                   " %; the runtime's view corrects distances about the camera)" +
+                   scale_error_note(grid_.scale_error, false) + height_note;
+  }
+  pm::Heightfield read(SampleRect window) const override {
+    pm::Heightfield b = native_->read(window);
+    b.frame = grid_.frame;
+    return b;
+  }
+  std::uint32_t samples_crc() const override { return native_->samples_crc(); }
+  bool in_memory() const override { return native_->in_memory(); }
+  bool may_have_data(SampleRect window) const override { return native_->may_have_data(window); }
+  std::size_t filled_void_cells() const override { return native_->filled_void_cells(); }
+  VoidFillWork void_fill_work() const override { return native_->void_fill_work(); }
+
+ private:
+  std::unique_ptr<DemSource> native_;
+};
+
+WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
+                           const std::string& height_note, std::optional<AutoFrame> frame)
+    : path_(path), native_(std::move(native)) {
+  const DemGrid& ng = native_->grid();
+  const bool automatic = crs == "auto";
+  register_gdal();
+  QuietGdal quiet;
+  const OGRSpatialReference source = warp_source_crs(path, ng, crs);
   const pm::GridTransform& st = *ng.crs_transform;
   nw_ = ng.width, nh_ = ng.height;
   native_crs_ = Affine{st};
@@ -173,11 +211,10 @@ WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> n
   double k0 = 1.0;
   std::string description;
   if (automatic) {
-    AutoFrame f = auto_frame(path, source, st, w, h, *native_);
-    target = f.crs;
+    target = frame.value().crs;
     target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // a copy may not keep it
-    k0 = f.k0;
-    description = std::move(f.description);
+    k0 = frame->k0;
+    description = std::move(frame->description);
   } else {
     if (target.SetFromUserInput(crs.c_str()) != OGRERR_NONE || target.IsEmpty())
       throw DemError(path, "the CRS '" + crs +
@@ -512,7 +549,16 @@ std::optional<double> scale_error_by_reads(const DemGrid& grid,
 
 std::unique_ptr<DemSource> warped_source(const std::string& path, std::unique_ptr<DemSource> native,
                                          const std::string& crs, const std::string& height_note) {
-  return std::make_unique<WarpedSource>(path, std::move(native), crs, height_note);
+  std::optional<AutoFrame> frame;
+  if (crs == "auto") {
+    register_gdal();
+    QuietGdal quiet;
+    const DemGrid& ng = native->grid();
+    frame = auto_frame(path, warp_source_crs(path, ng, crs), *ng.crs_transform, ng.width, ng.height, *native);
+    if (frame->error > kFlatFrameLimit)
+      return std::make_unique<NativeKept>(std::move(native), *frame, height_note);
+  }
+  return std::make_unique<WarpedSource>(path, std::move(native), crs, height_note, std::move(frame));
 }
 
 }  // namespace detail

@@ -330,6 +330,72 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
   EXPECT_EQ(tb::GroundScaleMap::of(plain).at(0.0, 0.0), terralod::pm::GroundScale{});
 }
 
+// A global DEM (every longitude, pole to pole) is beyond every flat frame: the azimuthal one had
+// k0 = 1.1e-5 and turned 720 x 360 samples into 2 x 723. Auto keeps such a DEM in its own grid,
+// says why, and the runtime's view keeps distances true around the camera, as it does for a
+// continent (above). A hemisphere still gets its azimuthal frame.
+TEST(DemCrs, AutoKeepsAGlobalDemInItsOwnGridAndItsViewTrue) {
+  const fs::path path = write_geographic("globe.tif", -177.5, -87.5, 72, 36, 5.0);
+  tb::DemOptions o;
+  o.crs = "auto";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  tb::DemOptions n;
+  n.crs = "native";
+  const Heightfield native = tb::read_dem(path.string(), n);
+  std::printf("%s\n", hf.frame.c_str());
+  ASSERT_EQ(hf.width(), 72);
+  ASSERT_EQ(hf.height(), 36);
+  EXPECT_NE(hf.frame.find("--crs auto keeps the DEM's own grid"), std::string::npos) << hf.frame;
+  EXPECT_EQ(hf.samples(), native.samples());
+  EXPECT_EQ(hf.transform.xc, native.transform.xc);
+  EXPECT_EQ(hf.transform.yr, native.transform.yr);
+  // Window by window, as the build reads it.
+  const std::unique_ptr<tb::DemSource> src = tb::open_dem_source(path.string(), o);
+  ASSERT_EQ(src->grid().width, 72);
+  ASSERT_EQ(src->grid().height, 36);
+  EXPECT_EQ(src->grid().frame, hf.frame);
+  EXPECT_EQ(src->read(tb::SampleRect{0, 0, 71, 35}).samples(), native.samples());
+
+  const Heightfield hemisphere =
+      tb::read_dem(write_geographic("hemisphere.tif", -87.5, -87.5, 36, 5.0).string(), o);
+  EXPECT_NE(hemisphere.frame.find("azimuthal equidistant (auto)"), std::string::npos) << hemisphere.frame;
+  EXPECT_NEAR(hemisphere.width(), 36, 2);
+  EXPECT_NEAR(hemisphere.height(), 36, 2);
+
+  // The view about eyes from 60 S to 60 N: distances of 1 to 20 km within 0.1 % of geodesics.
+  const fs::path db = temp_dir() / "globe.db";
+  fs::remove(db);
+  tb::DatabaseBuildOptions bo;
+  bo.block_size = 33;
+  bo.threads = 1;
+  tb::build_database(hf, db.string(), bo);
+  tb::TerrainRuntime rt(db.string());
+  geod_geodesic g;
+  geod_init(&g, 6378137.0, 1.0 / 298.257223563);
+  const WorldOf world(hf);
+  double worst_seen = 0.0, worst_world = 0.0;
+  for (const double lat : {-60.0, -20.0, 0.0, 45.0, 60.0})
+    for (const double lon : {-120.0, 0.0, 150.0}) {
+      const auto [x, y] = world(lon, lat);
+      terralod::pm::Camera cam;
+      cam.x = x, cam.y = y, cam.z = 3000.0;
+      rt.fit_camera(cam);
+      for (double s : {1000.0, 20000.0})
+        for (int k = 0; k < 16; ++k) {
+          double la2 = 0.0, lo2 = 0.0;
+          geod_direct(&g, lat, lon, 22.5 * k, s, &la2, &lo2, nullptr);
+          const auto [x2, y2] = world(lo2, la2);
+          const terralod::pm::Vec3 d = cam.ground.apply(terralod::pm::Vec3{x2 - x, y2 - y, 0.0});
+          worst_seen = std::max(worst_seen, std::abs(std::hypot(d.x, d.y) / s - 1.0));
+          worst_world = std::max(worst_world, std::abs(std::hypot(x2 - x, y2 - y) / s - 1.0));
+        }
+    }
+  std::printf("worst |distance / geodesic - 1| within 20 km of the eye: seen %.5f %%, world %.5f %%\n",
+              worst_seen * 100.0, worst_world * 100.0);
+  EXPECT_GT(worst_world, 0.5);
+  EXPECT_LE(worst_seen, 0.001);
+}
+
 // A geographic DEM whose last row lies on a pole (global and Arctic mosaics reach 90 degrees):
 // its pixel edges lie half a pixel beyond the pole, and measuring the frames' scale there made
 // every projection fail ("GDAL cannot make any of the projections"). Auto now skips what lies

@@ -92,7 +92,9 @@
 //     that the void fill fills, DemSource::filled_void_cells), balanced by
 //     k0 = 2 / (min + max): strips about 7 degrees wide stay within 0.1 % however long, in any
 //     direction; an extent wide both ways (a continent) is beyond every flat frame, and the
-//     frame's text says so. A CRS of the user's choice may do better. Projected inputs, and
+//     frame's text says so. When even the truest is beyond +-50 % (kFlatFrameLimit in
+//     dem_auto_frame.hpp: a global DEM), the DEM keeps its native grid and frame, and the frame's
+//     text says why. A CRS of the user's choice may do better. Projected inputs, and
 //     inputs without a CRS, stay native. hf.crs_wkt is the target CRS and hf.crs_transform maps
 //     samples to it.
 //   - DemOptions::crs = any CRS GDAL's SetFromUserInput accepts ("EPSG:32619", a PROJ string,
@@ -151,7 +153,8 @@ struct DemOptions {
   enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
   /// The world frame (see the header comment): "native" (the source's own frame, local
   /// equirectangular for geographic DEMs), "auto" (geographic DEMs warped to a balanced azimuthal
-  /// equidistant projection, or beyond about 9 x 9 degrees the truest of five kinds over its data)
+  /// equidistant projection, or beyond about 9 x 9 degrees the truest of five kinds over its data;
+  /// "native" when none is within +-50 %, a DEM far past a hemisphere)
   /// or a projected CRS GDAL understands ("EPSG:32619", PROJ, WKT).
   /// Defaults to "native" so that a file is read as it is and databases built from it before
   /// this option existed resume; `terralod` commands default to "auto". Not empty.
