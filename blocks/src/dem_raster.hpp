@@ -56,6 +56,7 @@ struct GdalBand {
   double nodata = 0.0;      ///< compared in the band's type (float for Float32 bands)
   bool nodata_as_float = false;
   bool mask_band = false;            ///< a real mask band: its 0 samples are voids
+  bool alpha_band = false;           ///< band 2 is alpha: its 0 samples are voids
   double factor = 1.0, shift = 0.0;  ///< metres = raw * factor + shift (scale, offset, unit)
   std::string height_note;           ///< appended to the frame description when not empty
   Georef geo;

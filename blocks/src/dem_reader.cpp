@@ -264,10 +264,14 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
 
 GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
   QuietGdal quiet;
+  // One band, or two when the second is an alpha band (gdalwarp -dstalpha writes them): its 0
+  // samples are voids. It is read itself: GDAL makes it the first band's mask only when it is
+  // Byte or UInt16, and gdalwarp gives it the heights' type (Int16 for SRTM).
   const int bands = ds.GetRasterCount();
-  if (bands != 1) {
-    throw DemError(
-        path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") + "; a DEM must have one");
+  const bool alpha = bands == 2 && ds.GetRasterBand(2)->GetColorInterpretation() == GCI_AlphaBand;
+  if (bands != 1 && !alpha) {
+    throw DemError(path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") +
+                             "; a DEM must have one (and may have an alpha band besides)");
   }
   GDALRasterBand* band = ds.GetRasterBand(1);
   const GDALDataType type = band->GetRasterDataType();
@@ -290,7 +294,8 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
   b.has_nodata = has_nodata && !std::isnan(b.nodata);
   b.nodata_as_float = type == GDT_Float32;
   const int mask_flags = band->GetMaskFlags();
-  b.mask_band = !(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA);
+  b.alpha_band = alpha;
+  b.mask_band = !alpha && !(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA);
 
   // Heights: band scale and offset, then the vertical unit.
   int has_scale = 0, has_offset = 0;
@@ -334,6 +339,16 @@ void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& 
     const float nodata_f = float(b.nodata);
     for (double& v : z) {
       if (b.nodata_as_float ? float(v) == nodata_f : v == b.nodata) v = nan;
+    }
+  }
+  if (b.alpha_band) {
+    std::vector<double> alpha(z.size());
+    if (ds.GetRasterBand(2)->RasterIO(GF_Read, window.col0, window.row0, w, h, alpha.data(), w, h,
+                                      GDT_Float64, 0, 0) != CE_None) {
+      throw DemError(path, "cannot read the alpha band: " + gdal_message("GDAL read error"));
+    }
+    for (std::size_t i = 0; i < alpha.size(); ++i) {
+      if (alpha[i] == 0.0) z[i] = nan;
     }
   }
   if (b.mask_band) {

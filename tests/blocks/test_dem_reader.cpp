@@ -583,6 +583,53 @@ TEST(dem_reader_voids, UndeclaredFloatFillsAreVoids) {
   expect_read(tb::read_dem((dir / "fill_image.tif").string(), holes), "float heightmap");
 }
 
+// gdalwarp -dstalpha writes a DEM as two bands, heights and alpha: the alpha's 0 samples are
+// voids, whole and window by window. A second band that is not alpha is still refused.
+TEST(dem_reader_voids, AnAlphaBandMarksVoids) {
+  const fs::path dir = scratch();
+  const fs::path tif = dir / "alpha.tif";
+  {
+    GDALAllRegister();
+    GDALDatasetUniquePtr ds(
+        GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), 6, 5, 2, GDT_Int16, nullptr));
+    ASSERT_TRUE(ds);
+    double gt[6] = {500000, 30, 0, 4900000, 0, -30};
+    ds->SetGeoTransform(gt);
+    OGRSpatialReference srs;
+    srs.importFromEPSG(32619);
+    ds->SetSpatialRef(&srs);
+    std::vector<std::int16_t> z(30), a(30, 255);
+    for (int i = 0; i < 30; ++i) z[std::size_t(i)] = std::int16_t(200 + i);
+    a[7] = a[8] = a[29] = 0;
+    z[7] = z[8] = z[29] = 0;  // what gdalwarp leaves under alpha 0
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 6, 5, z.data(), 6, 5, GDT_Int16, 0, 0), CE_None);
+    ASSERT_EQ(ds->GetRasterBand(2)->SetColorInterpretation(GCI_AlphaBand), CE_None);
+    ASSERT_EQ(ds->GetRasterBand(2)->RasterIO(GF_Write, 0, 0, 6, 5, a.data(), 6, 5, GDT_Int16, 0, 0), CE_None);
+  }
+  tb::DemOptions holes;
+  holes.fill_voids = false;
+  const auto expect_read = [](const Heightfield& hf, const std::string& what) {
+    for (std::size_t i = 0; i < 30; ++i) {
+      const bool void_sample = i == 7 || i == 8 || i == 29;
+      EXPECT_EQ(hf.valid(i), !void_sample) << what << " sample " << i;
+      if (!void_sample) {
+        EXPECT_EQ(hf[i], 200.0 + double(i)) << what << " sample " << i;
+      }
+    }
+  };
+  expect_read(tb::read_dem(tif.string(), holes), "read whole");
+  const std::unique_ptr<tb::DemSource> src = tb::open_dem_source(tif.string(), holes);
+  expect_read(src->read(tb::SampleRect{0, 0, 5, 4}), "window");
+  const Heightfield filled = tb::read_dem(tif.string());
+  EXPECT_EQ(filled.voids.filled, 3u);
+  for (double v : filled.samples()) EXPECT_GE(v, 200.0);
+
+  const fs::path two = dir / "two.tif";
+  write_geotiff(two, 4, 3, std::vector<double>(12, 1.0), GDT_Int16, {0, 1, 0, 3, 0, -1}, 32633, std::nullopt,
+                2);
+  expect_dem_error(two, "has 2 bands; a DEM must have one (and may have an alpha band besides)");
+}
+
 TEST(dem_reader_voids, LargeVoidReproducesDiscreteHarmonicFunction) {
   // z = 300 + 0.5 x + 0.3 y + 0.01 (x^2 - y^2) is discrete-harmonic (the 5-point Laplacian of
   // x^2 - y^2 is 2 - 2 = 0), so the exact harmonic fill of a void inside the grid is z itself.

@@ -38,7 +38,8 @@
 //              n x n samples with n*n*2 == file size, -32768 = void. The file name gives the
 //              south-west corner (N44W072.hgt: latitude 44, longitude -72); spacing 1/(n-1)
 //              degrees. CRS: WGS 84 geographic.
-//   Gdal       Any single-band raster GDAL opens. Band 1 is read as double; band scale/offset
+//   Gdal       Any single-band raster GDAL opens, or one with an alpha band besides (0 =
+//              void; gdalwarp -dstalpha). Band 1 is read as double; band scale/offset
 //              are applied; a band in feet is converted to metres. The band's nodata value,
 //              its mask band (when it has a real one), NaN, +-inf and heights beyond 10,000 km
 //              (fills a file does not declare, such as -3.4e38) are voids. The geotransform
@@ -119,9 +120,10 @@
 //   (measured with the former joint solve; the per-region fill measured no slower in the same
 //   run); the first call in a process adds about 25 ms of GDAL driver registration. With
 //   fill_voids = false the Heightfield gets a mask (1 valid, 0 void) and void samples hold 0.
-//   Voids are: SRTM -32768, the band's nodata value, samples outside a GDAL mask band, NaN and
-//   +-inf, ASCII grid NODATA_value, and in every format heights more than 1e7 m from the datum
-//   (no terrain: a fill value the file does not declare, most often -3.4e38).
+//   Voids are: SRTM -32768, the band's nodata value, samples outside a GDAL mask band or under
+//   a 0 of an alpha band, NaN and +-inf, ASCII grid NODATA_value, and in every format heights
+//   more than 1e7 m from the datum (no terrain: a fill value the file does not declare, most
+//   often -3.4e38).
 #pragma once
 
 #include <functional>
