@@ -481,11 +481,14 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
     errors[i] = r->error;
     vertices += r->vertices;
   }
-  // A windowed source does not scan its samples before the build: an all-void DEM shows here.
+  // A windowed source does not scan its samples before the build: an all-void DEM shows here,
+  // and so does one whose valid samples (voids kept) have no valid neighbours to make a triangle.
   if (vertices == 0) {
     written = 0;  // nothing but empty blocks: nothing worth keeping either
     discard_if_new_and_empty();
-    throw BuildError(source + ": every sample is void; there is no terrain to build");
+    throw BuildError(source +
+                     ": no triangle of valid samples (every sample is void, or no valid sample has two valid "
+                     "neighbours to make one with); there is no terrain to build");
   }
   TreeBuildOptions topt = opt.tree;
   topt.pm_leaves = true;

@@ -363,6 +363,22 @@ TEST(DatabaseBuild, BadInputNamesTheFile) {
   expect_error(dir + "/database_build_1x1.asc", "1 x 1 grid");
   write_asc(dir + "/database_build_void.asc", terrain(9, 9, 1), /*all_void=*/true);
   expect_error(dir + "/database_build_void.asc", "all voids");
+  {  // One valid sample, voids kept: no triangle, and the message does not say that all are void.
+    pm::Heightfield lone = terrain(9, 9, 1);
+    std::vector<std::uint8_t> mask(lone.size(), 0);
+    mask[4 * 9 + 4] = 1;
+    lone.set_mask(std::move(mask));
+    const std::string input = dir + "/database_build_lone.asc";
+    std::ofstream f(input);
+    f << "ncols 9\nnrows 9\nxllcorner 0\nyllcorner 0\ncellsize 30\nNODATA_value -9999\n";
+    for (std::size_t i = 0; i < lone.size(); ++i)
+      f << (lone.valid(i) ? lone[i] : -9999.0) << (i % 9 == 8 ? '\n' : ' ');
+    f.close();
+    const ChildRun r = run_terralod({"build", "--keep-voids", "--input", input, "--out", out});
+    EXPECT_EQ(r.status, 1) << r.err;
+    EXPECT_NE(r.err.find(input + ": no triangle of valid samples"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out));
+  }
   // The library refuses them too, naming the source.
   pm::Heightfield one(1, 1);
   one.source = "one.asc";
