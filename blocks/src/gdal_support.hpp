@@ -65,9 +65,9 @@ inline std::string gdal_message(const std::string& fallback) {
 /// failure, not a hole in the mosaic.
 inline std::string build_vrt(const std::string& dest, const std::vector<std::string>& files) {
   register_gdal();
+  QuietGdal quiet;  // its messages go into ours, not to stderr as well
   std::vector<const char*> list;
   for (const std::string& f : files) list.push_back(f.c_str());
-  CPLErrorReset();
   int usage_error = 0;
   GDALDatasetH vrt =
       GDALBuildVRT(dest.c_str(), int(list.size()), nullptr, list.data(), nullptr, &usage_error);
