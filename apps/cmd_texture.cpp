@@ -16,6 +16,7 @@
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
+#include "terralod/blocks/image_warp.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/pm_io.hpp"
@@ -113,15 +114,33 @@ int texture_add(const Args& a, const std::string& path) {
     rec.georef = tr::GeoRect{g[0], g[1], g[2], g[3]};
     if (!(rec.georef.width() > 0 && rec.georef.height() > 0))
       throw UsageError("option '--georef' must be minx,miny,maxx,maxy with minx < maxx and miny < maxy");
-  } else {
-    rec.georef = tr::grid_georef(db.info().transform, db.info().grid_width, db.info().grid_height);
   }
   auto t = Clock::now();
+  // A georeferenced image (an orthophoto, a map) is warped into the terrain's frame and placed
+  // where it lies; any other image covers the terrain.
+  const std::string warped = pyramid_file(path, rec.name) + ".warp.tif";
+  const RemoveFile remove_warped{warped};
+  std::string image = rec.source;
+  if (!a.has("--georef")) {
+    const std::optional<tb::WorldImage> w = tb::warp_image_to_terrain(
+        rec.source, db, warped, [](double f) { std::fprintf(stderr, "\rwarp %3d%%", int(f * 100.0)); });
+    if (w) {
+      std::fprintf(stderr, "\r");
+      std::printf("warp %s -> the terrain's frame, %d x %d pixels over x %.3f..%.3f, y %.3f..%.3f m, %s\n",
+                  rec.source.c_str(), w->width, w->height, w->minx, w->maxx, w->miny, w->maxy,
+                  format_duration(ms_since(t)).c_str());
+      rec.georef = tr::GeoRect{w->minx, w->miny, w->maxx, w->maxy};
+      image = warped;
+      t = Clock::now();
+    } else {
+      rec.georef = tr::grid_georef(db.info().transform, db.info().grid_width, db.info().grid_height);
+    }
+  }
   const std::string pyr = pyramid_file(path, rec.name);
   const RemoveFile remove_pyramid{pyr};
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
-  tr::ImagePyramid::convert(rec.source, pyr, po);
+  tr::ImagePyramid::convert(image, pyr, po);
   std::printf("pyramid %s -> tiled MIP-mapped TIFF, %s\n", rec.source.c_str(),
               format_duration(ms_since(t)).c_str());
   store(db, rec, pyr);
@@ -311,8 +330,12 @@ CommandSpec texture_spec() {
       "the finest level that covers its domain within the maximum texture size. Both are stored\n"
       "as tiles in the database; the layer's description is JSON metadata.\n"
       "  add     --layer NAME --image FILE [--georef minx,miny,maxx,maxy]: any image OpenImageIO\n"
-      "          reads, any size (converted through a tiled MIP-mapped file, never all in memory);\n"
-      "          without --georef it covers the terrain, one texel per sample at its full size.\n"
+      "          reads, any size (converted through a tiled MIP-mapped file, never all in memory).\n"
+      "          A georeferenced 8-bit image (an orthophoto or map GDAL reads with a CRS: grey,\n"
+      "          RGB, RGBA or a colour table) is warped into the terrain's frame (bilinear, at\n"
+      "          about its own resolution, transparent beyond it) and placed where it lies;\n"
+      "          another image covers the terrain, one texel per sample at its full size.\n"
+      "          --georef places either on that world box instead.\n"
       "  shade   --layer NAME [--light AZ,ALT] [--shadows] [--method M] [--gpu]: a shading texture\n"
       "          of the full-resolution terrain, one texel per DEM sample (azimuth clockwise from\n"
       "          north, altitude above the horizon, default 315,45; lambert without shadows is the\n"

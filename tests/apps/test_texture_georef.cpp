@@ -1,0 +1,147 @@
+// terralod texture add of a georeferenced image: an orthophoto in longitude/latitude over part of
+// a UTM terrain is warped into the terrain's frame and placed where it lies, checked texel by
+// texel against the image's own georeference through OGR/PROJ (an independent path); a plain
+// image still covers the terrain; an image beside the terrain is refused naming it.
+#include <gdal_priv.h>
+#include <gtest/gtest.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli_utm_database.hpp"
+#include "run_command.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/render/texture_store.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace tb = terralod::blocks;
+using namespace terralod::render;
+using terralod::test::quote;
+
+const terralod::test::CliRunner cli{TERRALOD_CLI};
+
+// The test terrain: UTM 33N, 65 x 65 samples of 30 m from (500000, 5000000): sample centres
+// 500015..501935 east, 5000015..5001935 north.
+constexpr double kEast0 = 500000.0, kNorth0 = 5000000.0, kSide = 65 * 30.0;
+
+struct Deleter {
+  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
+};
+using Transform = std::unique_ptr<OGRCoordinateTransformation, Deleter>;
+
+Transform transform(int from, int to) {
+  OGRSpatialReference a, b;
+  a.importFromEPSG(from);
+  b.importFromEPSG(to);
+  a.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  b.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return Transform(OGRCreateCoordinateTransformation(&a, &b));
+}
+
+/// An RGB GeoTIFF in longitude/latitude: red west of `split`, blue east of it.
+void write_ortho(const fs::path& path, double west, double south, double east, double north, double split) {
+  constexpr int w = 120, h = 90;
+  GDALAllRegister();
+  GDALDatasetUniquePtr ds(
+      GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), w, h, 3, GDT_Byte, nullptr));
+  ASSERT_TRUE(ds);
+  double gt[6] = {west, (east - west) / w, 0, north, 0, -(north - south) / h};
+  ds->SetGeoTransform(gt);
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  ds->SetSpatialRef(&wgs84);
+  for (int b = 1; b <= 3; ++b) {
+    std::vector<std::uint8_t> v(std::size_t(w) * h);
+    for (int r = 0; r < h; ++r)
+      for (int c = 0; c < w; ++c) {
+        const bool red = west + (c + 0.5) * gt[1] < split;
+        v[std::size_t(r) * w + c] = std::uint8_t(b == 1 ? (red ? 255 : 0) : b == 3 ? (red ? 0 : 255) : 0);
+      }
+    ASSERT_EQ(ds->GetRasterBand(b)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Byte, 0, 0), CE_None);
+  }
+}
+
+TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
+  terralod::test::TempDir dir("texture-georef");
+  const fs::path d = dir.path();
+  terralod::test::build_utm_cli_database(cli, d);
+  if (HasFatalFailure()) return;
+  const std::string db = quote((d / "t.db").string());
+
+  // The ortho covers the terrain's north-east part and beyond: its south-west corner is the
+  // terrain's centre, its north-east corner 1 km past the terrain's.
+  const Transform to_lonlat = transform(32633, 4326), to_utm = transform(4326, 32633);
+  double x[2] = {kEast0 + kSide / 2, kEast0 + kSide + 1000},
+         y[2] = {kNorth0 + kSide / 2, kNorth0 + kSide + 1000};
+  ASSERT_TRUE(to_lonlat->Transform(2, x, y));
+  const double west = x[0], south = y[0], east = x[1], north = y[1];
+  const double split = 0.5 * (west + east);
+  write_ortho(d / "ortho.tif", west, south, east, north, split);
+  std::string text;
+  ASSERT_EQ(
+      cli.run("texture add " + db + " --layer ortho --image " + quote((d / "ortho.tif").string()), &text), 0);
+  EXPECT_NE(text.find("warp "), std::string::npos) << text;
+
+  const tb::BlockDatabase opened = tb::BlockDatabase::open((d / "t.db").string());
+  const LayerRecord rec = read_layer_record(opened, "ortho");
+  const RgbaImage img = read_layer_level(opened, rec, 0);
+  // Placed over the terrain's part of the ortho: from about the terrain's centre (the ortho's
+  // south-west corner; its west and south edges bow by well under a texel over 1 km) to the
+  // terrain's north-east corner.
+  const double texel = rec.georef.width() / img.width;
+  EXPECT_NEAR(rec.georef.minx, kEast0 + kSide / 2, 2 * texel);
+  EXPECT_NEAR(rec.georef.miny, kNorth0 + kSide / 2, 2 * texel);
+  EXPECT_NEAR(rec.georef.maxx, kEast0 + kSide, 1e-6);
+  EXPECT_NEAR(rec.georef.maxy, kNorth0 + kSide, 1e-6);
+  // Every texel: red west of the split, blue east of it, transparent outside the ortho; texels
+  // within 1.5 texels of an edge are not judged (bilinear blends them).
+  int judged = 0, wrong = 0;
+  const double lon_texel = 1.5 * texel / (111320.0 * std::cos(south * M_PI / 180.0));
+  const double lat_texel = 1.5 * texel / 110574.0;
+  for (int r = 0; r < img.height; ++r)
+    for (int c = 0; c < img.width; ++c) {
+      double px = rec.georef.minx + (c + 0.5) * rec.georef.width() / img.width;
+      double py = rec.georef.maxy - (r + 0.5) * rec.georef.height() / img.height;
+      ASSERT_TRUE(to_lonlat->Transform(1, &px, &py));
+      const bool inside =
+          px > west + lon_texel && px < east - lon_texel && py > south + lat_texel && py < north - lat_texel;
+      const bool outside = px < west - lon_texel || py < south - lat_texel;
+      if (!inside && !outside) continue;
+      if (inside && std::abs(px - split) < lon_texel) continue;
+      const auto v = img.get(c, r);
+      const bool ok =
+          outside ? v[3] == 0
+                  : v[3] == 255 && (px < split ? (v[0] == 255 && v[2] == 0) : (v[0] == 0 && v[2] == 255));
+      ++judged;
+      if (!ok && ++wrong <= 5)
+        ADD_FAILURE() << "texel " << c << ", " << r << " at lon " << px << ", lat " << py << ": rgba "
+                      << int(v[0]) << " " << int(v[1]) << " " << int(v[2]) << " " << int(v[3]);
+    }
+  EXPECT_GT(judged, img.width * img.height / 2);
+  EXPECT_EQ(wrong, 0);
+
+  // A plain image (no georeference) still covers the terrain, one texel per sample.
+  write_layer_image(RgbaImage(65, 65), (d / "plain.png").string());
+  ASSERT_EQ(cli.run("texture add " + db + " --layer plain --image " + quote((d / "plain.png").string())), 0);
+  EXPECT_EQ(read_layer_record(tb::BlockDatabase::open((d / "t.db").string()), "plain").georef,
+            grid_georef(opened.info().transform, 65, 65));
+
+  // An ortho 10 km east of the terrain is refused, naming it; the database keeps its layers.
+  double fx[2] = {kEast0 + 10000, kEast0 + 11000}, fy[2] = {kNorth0, kNorth0 + 1000};
+  ASSERT_TRUE(to_lonlat->Transform(2, fx, fy));
+  write_ortho(d / "far.tif", fx[0], fy[0], fx[1], fy[1], fx[0]);
+  EXPECT_EQ(cli.run("texture add " + db + " --layer far --image " + quote((d / "far.tif").string()), &text),
+            1);
+  EXPECT_NE(text.find((d / "far.tif").string() + ": does not overlap the terrain"), std::string::npos)
+      << text;
+  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 2u);
+  EXPECT_FALSE(fs::exists(d / "t.db.texture-far.tx.warp.tif"));
+}
+
+}  // namespace
