@@ -122,8 +122,11 @@ int texture_add(const Args& a, const std::string& path) {
   const RemoveFile remove_warped{warped};
   std::string image = rec.source;
   if (!a.has("--georef")) {
-    const std::optional<tb::WorldImage> w = tb::warp_image_to_terrain(
-        rec.source, db, warped, [](double f) { std::fprintf(stderr, "\rwarp %3d%%", int(f * 100.0)); });
+    int shown = -1;
+    const std::optional<tb::WorldImage> w =
+        tb::warp_image_to_terrain(rec.source, db, warped, [&shown](double f) {
+          if (const int pct = int(f * 100.0); pct != shown) std::fprintf(stderr, "\rwarp %3d%%", shown = pct);
+        });
     if (w) {
       std::fprintf(stderr, "\r");
       std::printf("warp %s -> the terrain's frame, %d x %d pixels over x %.3f..%.3f, y %.3f..%.3f m, %s\n",
