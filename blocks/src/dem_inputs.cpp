@@ -8,7 +8,6 @@
 #include <atomic>
 #include <cctype>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <set>
 #include <string>
@@ -71,18 +70,14 @@ std::vector<std::string> across_antimeridian(const std::vector<std::string>& fil
       continue;
     }
     const std::string name = prefix + std::to_string(k) + ".vrt";
-    const auto exact = [](double v) {  // every digit: the moved tile must align with the others
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "%.17g", v);
-      return std::string(buf);
-    };
-    const std::vector<std::string> args = {
-        "-of",         "VRT", "-a_ullr", exact(x.west + 360.0), exact(x.north), exact(x.east + 360.0),
-        exact(x.south)};
-    std::vector<char*> argv;
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    GDALTranslateOptions* opt = GDALTranslateOptionsNew(argv.data(), nullptr);
+    const std::vector<std::string> args = {"-of",
+                                           "VRT",
+                                           "-a_ullr",
+                                           detail::gdal_number(x.west + 360.0),
+                                           detail::gdal_number(x.north),
+                                           detail::gdal_number(x.east + 360.0),
+                                           detail::gdal_number(x.south)};
+    GDALTranslateOptions* opt = detail::gdal_options(args, GDALTranslateOptionsNew);
     GDALDatasetUniquePtr src(GDALDataset::Open(files[k].c_str(), GDAL_OF_RASTER));
     GDALDatasetH moved =
         opt && src ? GDALTranslate(name.c_str(), GDALDataset::ToHandle(src.get()), opt, nullptr) : nullptr;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -38,6 +39,24 @@ inline void register_gdal() {
       CPLSetConfigOption("GDAL_DISABLE_READDIR_ON_OPEN", "TRUE");
     GDALAllRegister();
   });
+}
+
+/// A number with every digit (%.17g), as GDAL's utilities take coordinates: six decimals can
+/// misalign a tile and make GDAL resample it.
+inline std::string gdal_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+/// The options of a GDAL utility (GDALTranslateOptionsNew, GDALWarpAppOptionsNew, ...) from its
+/// command-line arguments; nullptr when GDAL rejects them (gdal_message says why).
+template <typename Make>
+auto gdal_options(const std::vector<std::string>& args, Make make) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  return make(argv.data(), nullptr);
 }
 
 /// Silences GDAL's error printing for the current thread while alive: its messages are taken

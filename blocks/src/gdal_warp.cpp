@@ -12,16 +12,6 @@
 
 namespace terralod::blocks::detail {
 
-namespace {
-
-std::string number(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
-}  // namespace
-
 WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::string& dst_wkt,
                    const WarpGrid* target, std::string& error) {
   register_gdal();
@@ -60,14 +50,11 @@ WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::s
     const double x0 = t[0], x1 = t[0] + target->width * t[1];
     const double y0 = t[3] + target->height * t[5], y1 = t[3];
     for (const std::string& s :
-         {std::string("-te"), number(x0), number(y0), number(x1), number(y1), std::string("-ts"),
-          std::to_string(target->width), std::to_string(target->height)})
+         {std::string("-te"), gdal_number(x0), gdal_number(y0), gdal_number(x1), gdal_number(y1),
+          std::string("-ts"), std::to_string(target->width), std::to_string(target->height)})
       args.push_back(s);
   }
-  std::vector<char*> argv;
-  for (std::string& s : args) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  GDALWarpAppOptions* options = GDALWarpAppOptionsNew(argv.data(), nullptr);
+  GDALWarpAppOptions* options = gdal_options(args, GDALWarpAppOptionsNew);
   if (options == nullptr) {
     error = gdal_message("GDAL rejected the warp options");
     return {};

@@ -29,21 +29,6 @@ struct Box {
   bool empty() const { return !(minx < maxx && miny < maxy); }
 };
 
-/// GDAL's utilities take their options as argv.
-template <typename Options, typename New>
-Options* options_of(const std::vector<std::string>& args, New make) {
-  std::vector<char*> argv;
-  for (const std::string& s : args) argv.push_back(const_cast<char*>(s.c_str()));
-  argv.push_back(nullptr);
-  return make(argv.data(), nullptr);
-}
-
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
 int progress_of(double done, const char*, void* data) {
   const auto* f = static_cast<const std::function<void(double)>*>(data);
   if (*f) (*f)(std::clamp(done, 0.0, 1.0));
@@ -108,7 +93,7 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
   if (!layout.empty()) {
     std::vector<std::string> args = {"-of", "VRT"};
     args.insert(args.end(), layout.begin(), layout.end());
-    GDALTranslateOptions* o = options_of<GDALTranslateOptions>(args, GDALTranslateOptionsNew);
+    GDALTranslateOptions* o = detail::gdal_options(args, GDALTranslateOptionsNew);
     expanded.reset(GDALDataset::FromHandle(o ? GDALTranslate(rgb.c_str(), input, o, nullptr) : nullptr));
     GDALTranslateOptionsFree(o);
     if (!expanded)
@@ -155,10 +140,10 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                                    "-t_srs",
                                    info.crs_wkt,
                                    "-te",
-                                   number(cut.minx),
-                                   number(cut.miny),
-                                   number(cut.maxx),
-                                   number(cut.maxy),
+                                   detail::gdal_number(cut.minx),
+                                   detail::gdal_number(cut.miny),
+                                   detail::gdal_number(cut.maxx),
+                                   detail::gdal_number(cut.maxy),
                                    "-r",
                                    "bilinear",
                                    "-co",
@@ -172,7 +157,7 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                                    "NUM_THREADS=ALL_CPUS",
                                    "-overwrite"};
   if (bands != 2 && bands != 4) args.push_back("-dstalpha");
-  GDALWarpAppOptions* o = options_of<GDALWarpAppOptions>(args, GDALWarpAppOptionsNew);
+  GDALWarpAppOptions* o = detail::gdal_options(args, GDALWarpAppOptionsNew);
   if (o) GDALWarpAppOptionsSetProgress(o, progress_of, const_cast<std::function<void(double)>*>(&progress));
   int usage = 0;
   GDALDatasetUniquePtr warped(

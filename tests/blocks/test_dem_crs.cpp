@@ -108,6 +108,39 @@ class WorldOf {
   std::unique_ptr<OGRCoordinateTransformation, Deleter> ct_;
 };
 
+/// hf built, on one thread in blocks of block_size, into a fresh database `name` in the test folder.
+fs::path built_database(const Heightfield& hf, const std::string& name, int block_size) {
+  const fs::path db = temp_dir() / name;
+  fs::remove(db);
+  tb::DatabaseBuildOptions bo;
+  bo.block_size = block_size;
+  bo.threads = 1;
+  tb::build_database(hf, db.string(), bo);
+  return db;
+}
+
+/// The largest |distance / geodesic - 1| of the view about an eye at (lon, lat), whose ground
+/// scale is G (seen), and of the world frame itself (world), over geodesics of the given lengths
+/// in 16 directions from the eye; kept as maxima across calls.
+struct ViewErrors {
+  double seen = 0.0, world = 0.0;
+  void add(const WorldOf& to_world, double lon, double lat, const terralod::pm::GroundScale& G,
+           std::initializer_list<double> lengths) {
+    geod_geodesic g;
+    geod_init(&g, 6378137.0, 1.0 / 298.257223563);
+    const auto [x, y] = to_world(lon, lat);
+    for (double s : lengths)
+      for (int k = 0; k < 16; ++k) {
+        double la2 = 0.0, lo2 = 0.0;
+        geod_direct(&g, lat, lon, 22.5 * k, s, &la2, &lo2, nullptr);
+        const auto [x2, y2] = to_world(lo2, la2);
+        const terralod::pm::Vec3 d = G.apply(terralod::pm::Vec3{x2 - x, y2 - y, 0.0});
+        seen = std::max(seen, std::abs(std::hypot(d.x, d.y) / s - 1.0));
+        world = std::max(world, std::abs(std::hypot(x2 - x, y2 - y) / s - 1.0));
+      }
+  }
+};
+
 /// The largest |world distance / geodesic distance - 1| over seeded random pairs in the box
 /// [lon0, lon1] x [lat0, lat1]: 3000 short pairs (2-6 km, anywhere, corners included) and 1000
 /// long ones (any two points).
@@ -270,19 +303,11 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
   tb::DemOptions o;
   o.crs = "auto";
   const Heightfield hf = tb::read_dem(path.string(), o);
-  const fs::path db = temp_dir() / "continent_view.db";
-  fs::remove(db);
-  tb::DatabaseBuildOptions bo;
-  bo.block_size = 65;
-  bo.threads = 1;
-  tb::build_database(hf, db.string(), bo);
-  tb::TerrainRuntime rt(db.string());
+  tb::TerrainRuntime rt(built_database(hf, "continent_view.db", 65).string());
   const tb::GroundScaleMap map = tb::GroundScaleMap::of(hf);
   EXPECT_TRUE(map.georeferenced());
-  geod_geodesic g;
-  geod_init(&g, 6378137.0, 1.0 / 298.257223563);
   const WorldOf world(hf);
-  double worst_seen = 0.0, worst_world = 0.0;
+  ViewErrors errors;
   for (int i = 0; i <= 6; ++i)
     for (int j = 0; j <= 6; ++j) {
       const double lon = 30.0 * i / 6.0, lat = 30.0 + 30.0 * j / 6.0;
@@ -294,20 +319,12 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
       EXPECT_EQ(G, rt.ground_scale(x, y));
       EXPECT_EQ(G, map.at(x, y)) << "a single mesh's view (GroundScaleMap::of) is the runtime's";
       EXPECT_NO_THROW(terralod::pm::View{cam});
-      for (double s : {1000.0, 20000.0, 70000.0, 300000.0})
-        for (int k = 0; k < 16; ++k) {
-          double la2 = 0.0, lo2 = 0.0;
-          geod_direct(&g, lat, lon, 22.5 * k, s, &la2, &lo2, nullptr);
-          const auto [x2, y2] = world(lo2, la2);
-          const terralod::pm::Vec3 d = G.apply(terralod::pm::Vec3{x2 - x, y2 - y, 0.0});
-          worst_seen = std::max(worst_seen, std::abs(std::hypot(d.x, d.y) / s - 1.0));
-          worst_world = std::max(worst_world, std::abs(std::hypot(x2 - x, y2 - y) / s - 1.0));
-        }
+      errors.add(world, lon, lat, G, {1000.0, 20000.0, 70000.0, 300000.0});
     }
   std::printf("worst |distance / geodesic - 1| within 300 km of the eye: seen %.5f %%, world %.5f %%\n",
-              worst_seen * 100.0, worst_world * 100.0);
-  EXPECT_GT(worst_world, 0.005);
-  EXPECT_LE(worst_seen, 0.001);
+              errors.seen * 100.0, errors.world * 100.0);
+  EXPECT_GT(errors.world, 0.005);
+  EXPECT_LE(errors.seen, 0.001);
   // What it costs a frame (information, not a test: four points through PROJ).
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < 1000; ++k) {
@@ -322,10 +339,9 @@ TEST(DemCrs, AContinentsViewIsTrueWithinATenthOfAPercentAroundTheCamera) {
   Heightfield plain = hf;
   plain.crs_wkt.clear();
   plain.crs_transform.reset();
-  const fs::path db2 = temp_dir() / "continent_view_plain.db";
-  fs::remove(db2);
-  tb::build_database(plain, db2.string(), bo);
-  EXPECT_EQ(tb::TerrainRuntime(db2.string()).ground_scale(0.0, 0.0), terralod::pm::GroundScale{});
+  EXPECT_EQ(tb::TerrainRuntime(built_database(plain, "continent_view_plain.db", 65).string())
+                .ground_scale(0.0, 0.0),
+            terralod::pm::GroundScale{});
   EXPECT_FALSE(tb::GroundScaleMap::of(plain).georeferenced());
   EXPECT_EQ(tb::GroundScaleMap::of(plain).at(0.0, 0.0), terralod::pm::GroundScale{});
 }
@@ -363,37 +379,21 @@ TEST(DemCrs, AutoKeepsAGlobalDemInItsOwnGridAndItsViewTrue) {
   EXPECT_NEAR(hemisphere.height(), 36, 2);
 
   // The view about eyes from 60 S to 60 N: distances of 1 to 20 km within 0.1 % of geodesics.
-  const fs::path db = temp_dir() / "globe.db";
-  fs::remove(db);
-  tb::DatabaseBuildOptions bo;
-  bo.block_size = 33;
-  bo.threads = 1;
-  tb::build_database(hf, db.string(), bo);
-  tb::TerrainRuntime rt(db.string());
-  geod_geodesic g;
-  geod_init(&g, 6378137.0, 1.0 / 298.257223563);
+  tb::TerrainRuntime rt(built_database(hf, "globe.db", 33).string());
   const WorldOf world(hf);
-  double worst_seen = 0.0, worst_world = 0.0;
+  ViewErrors errors;
   for (const double lat : {-60.0, -20.0, 0.0, 45.0, 60.0})
     for (const double lon : {-120.0, 0.0, 150.0}) {
       const auto [x, y] = world(lon, lat);
       terralod::pm::Camera cam;
       cam.x = x, cam.y = y, cam.z = 3000.0;
       rt.fit_camera(cam);
-      for (double s : {1000.0, 20000.0})
-        for (int k = 0; k < 16; ++k) {
-          double la2 = 0.0, lo2 = 0.0;
-          geod_direct(&g, lat, lon, 22.5 * k, s, &la2, &lo2, nullptr);
-          const auto [x2, y2] = world(lo2, la2);
-          const terralod::pm::Vec3 d = cam.ground.apply(terralod::pm::Vec3{x2 - x, y2 - y, 0.0});
-          worst_seen = std::max(worst_seen, std::abs(std::hypot(d.x, d.y) / s - 1.0));
-          worst_world = std::max(worst_world, std::abs(std::hypot(x2 - x, y2 - y) / s - 1.0));
-        }
+      errors.add(world, lon, lat, cam.ground, {1000.0, 20000.0});
     }
   std::printf("worst |distance / geodesic - 1| within 20 km of the eye: seen %.5f %%, world %.5f %%\n",
-              worst_seen * 100.0, worst_world * 100.0);
-  EXPECT_GT(worst_world, 0.5);
-  EXPECT_LE(worst_seen, 0.001);
+              errors.seen * 100.0, errors.world * 100.0);
+  EXPECT_GT(errors.world, 0.5);
+  EXPECT_LE(errors.seen, 0.001);
 }
 
 // A geographic DEM whose last row lies on a pole (global and Arctic mosaics reach 90 degrees):
