@@ -69,19 +69,21 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
       throw fail(std::string("is georeferenced but its bands are ") +
                  GDALGetDataTypeName(src->GetRasterBand(1)->GetRasterDataType()) +
                  "; texture layers warp 8-bit images (gdal_translate -ot Byte -scale makes one)");
+  // A last band is alpha only when it says so: a fourth band is often near infrared.
+  const bool alpha =
+      (bands == 2 || bands == 4) && src->GetRasterBand(bands)->GetColorInterpretation() == GCI_AlphaBand;
   std::vector<std::string> layout;  // gdal_translate arguments, empty: as it is
-  const bool palette = bands == 1 && src->GetRasterBand(1)->GetColorTable() != nullptr;
-  if (palette)
+  if (bands == 1 && src->GetRasterBand(1)->GetColorTable() != nullptr)
     layout = {"-expand", "rgb"};
-  else if (bands == 1)
-    layout = {"-b", "1", "-b", "1", "-b", "1"};
-  else if (bands == 2)
-    layout = {"-b", "1", "-b", "1", "-b", "1", "-b", "2", "-colorinterp", "red,green,blue,alpha"};
-  else if (bands == 4)
-    layout = {"-colorinterp", "red,green,blue,alpha"};
-  else if (bands != 3)
-    throw fail("has " + std::to_string(bands) +
-               " bands; texture layers warp grey, grey + alpha, RGB, RGBA or colour-table images");
+  else if (bands <= 2)  // grey, and its alpha
+    layout = alpha ? std::vector<std::string>{"-b",           "1",
+                                              "-b",           "1",
+                                              "-b",           "1",
+                                              "-b",           "2",
+                                              "-colorinterp", "red,green,blue,alpha"}
+                   : std::vector<std::string>{"-b", "1", "-b", "1", "-b", "1"};
+  else if (bands > 3 && !alpha)  // RGB and more (RGBI): the first three
+    layout = {"-b", "1", "-b", "2", "-b", "3"};
   static std::atomic<int> serial{0};
   const std::string rgb = "/vsimem/terralod_image_" + std::to_string(serial++) + ".vrt";
   struct Unlink {
@@ -156,7 +158,7 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                                    "-wo",
                                    "NUM_THREADS=ALL_CPUS",
                                    "-overwrite"};
-  if (bands != 2 && bands != 4) args.push_back("-dstalpha");
+  if (!alpha) args.push_back("-dstalpha");  // else the source's alpha becomes the output's
   GDALWarpAppOptions* o = detail::gdal_options(args, GDALWarpAppOptionsNew);
   if (o) GDALWarpAppOptionsSetProgress(o, progress_of, const_cast<std::function<void(double)>*>(&progress));
   int usage = 0;

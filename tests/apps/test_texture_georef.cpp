@@ -44,24 +44,28 @@ Transform transform(int from, int to) {
   return Transform(OGRCreateCoordinateTransformation(&a, &b));
 }
 
-/// An RGB GeoTIFF in longitude/latitude: red west of `split`, blue east of it.
-void write_ortho(const fs::path& path, double west, double south, double east, double north, double split) {
+/// An RGB GeoTIFF in longitude/latitude: red west of `split`, blue east of it; with 4 bands the
+/// fourth (near infrared, not alpha) is 255 west of the split and 0 east of it.
+void write_ortho(const fs::path& path, double west, double south, double east, double north, double split,
+                 int bands = 3) {
   constexpr int w = 120, h = 90;
   GDALAllRegister();
   GDALDatasetUniquePtr ds(
-      GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), w, h, 3, GDT_Byte, nullptr));
+      GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), w, h, bands, GDT_Byte, nullptr));
   ASSERT_TRUE(ds);
   double gt[6] = {west, (east - west) / w, 0, north, 0, -(north - south) / h};
   ds->SetGeoTransform(gt);
   OGRSpatialReference wgs84;
   wgs84.importFromEPSG(4326);
   ds->SetSpatialRef(&wgs84);
-  for (int b = 1; b <= 3; ++b) {
+  for (int b = 1; b <= bands; ++b) {
     std::vector<std::uint8_t> v(std::size_t(w) * h);
     for (int r = 0; r < h; ++r)
       for (int c = 0; c < w; ++c) {
         const bool red = west + (c + 0.5) * gt[1] < split;
-        v[std::size_t(r) * w + c] = std::uint8_t(b == 1 ? (red ? 255 : 0) : b == 3 ? (red ? 0 : 255) : 0);
+        v[std::size_t(r) * w + c] = std::uint8_t(b == 1 || b == 4 ? (red ? 255 : 0)
+                                                 : b == 3         ? (red ? 0 : 255)
+                                                                  : 0);
       }
     ASSERT_EQ(ds->GetRasterBand(b)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Byte, 0, 0), CE_None);
   }
@@ -126,6 +130,14 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
   EXPECT_GT(judged, img.width * img.height / 2);
   EXPECT_EQ(wrong, 0);
 
+  // The same ortho with a near-infrared fourth band: it is not taken as alpha (that would make
+  // the blue half transparent), the layer is the same.
+  write_ortho(d / "rgbi.tif", west, south, east, north, split, 4);
+  ASSERT_EQ(cli.run("texture add " + db + " --layer rgbi --image " + quote((d / "rgbi.tif").string())), 0);
+  const LayerRecord rgbi = read_layer_record(tb::BlockDatabase::open((d / "t.db").string()), "rgbi");
+  EXPECT_EQ(rgbi.georef, rec.georef);
+  EXPECT_EQ(read_layer_level(tb::BlockDatabase::open((d / "t.db").string()), rgbi, 0), img);
+
   // A plain image (no georeference) still covers the terrain, one texel per sample.
   write_layer_image(RgbaImage(65, 65), (d / "plain.png").string());
   ASSERT_EQ(cli.run("texture add " + db + " --layer plain --image " + quote((d / "plain.png").string())), 0);
@@ -140,7 +152,7 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
             1);
   EXPECT_NE(text.find((d / "far.tif").string() + ": does not overlap the terrain"), std::string::npos)
       << text;
-  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 2u);
+  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 3u);
   EXPECT_FALSE(fs::exists(d / "t.db.texture-far.tx.warp.tif"));
 }
 

@@ -9,7 +9,9 @@
 //   warp_image_to_terrain(image, db, out, progress)
 //     image    any raster GDAL reads. Without a geotransform or a CRS it is not georeferenced:
 //              nullopt, nothing written (texture layers then stretch it over the terrain).
-//              Bands: 8-bit grey, grey + alpha, RGB, RGBA or a colour table (expanded to RGB).
+//              Bands: 8-bit grey, grey + alpha, RGB, RGBA or a colour table (expanded to RGB);
+//              a last band is alpha when its colour interpretation says so, and of more bands
+//              than that (RGB + near infrared) the first three are RGB.
 //     db       a database whose terrain has a CRS and a georeference (DatabaseInfo::crs_wkt,
 //              BlockDatabase::georeference) and north-up transforms (no rotation), so that a
 //              box of its CRS is a box of its world frame.
@@ -19,9 +21,9 @@
 //              not. Written beside its final name and renamed into place: never half-written.
 //     returns  the world extent of out's pixels (metres; minx < maxx, miny < maxy) and its size.
 //     progress called with the fraction warped (0..1), from the calling thread; may be empty.
-//     errors   ImageWarpError "<image>: <problem>": not 8-bit, an unsupported band layout, no
-//              overlap with the terrain, a terrain without CRS or georeference, a rotated frame,
-//              GDAL's reason when it cannot transform or write.
+//     errors   ImageWarpError "<image>: <problem>": not 8-bit, no overlap with the terrain, a
+//              terrain without CRS or georeference, a rotated frame, GDAL's reason when it cannot
+//              transform or write.
 //   Cost: one GDAL warp of the overlapping part (about the image's pixel count), on all cores.
 #pragma once
 
