@@ -100,9 +100,11 @@ void for_each_band(const DemSource& src, const std::function<void(int, const pm:
 /// be square: every transform downstream is affine.
 class WarpedSource final : public DemSource {
  public:
-  /// `frame`: for crs "auto", the frame auto_frame chose (warped_source looks at it first).
+  /// `source`: the native grid's CRS (warp_source_crs); `frame`: for crs "auto", the frame
+  /// auto_frame chose (warped_source looks at it first).
   WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
-               const std::string& height_note, std::optional<AutoFrame> frame);
+               const std::string& height_note, const OGRSpatialReference& source,
+               std::optional<AutoFrame> frame);
   pm::Heightfield read(SampleRect window) const override;
   std::uint32_t samples_crc() const override;
   bool in_memory() const override { return native_->in_memory(); }
@@ -193,13 +195,12 @@ class NativeKept final : public DemSource {
 };
 
 WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> native, const std::string& crs,
-                           const std::string& height_note, std::optional<AutoFrame> frame)
+                           const std::string& height_note, const OGRSpatialReference& source,
+                           std::optional<AutoFrame> frame)
     : path_(path), native_(std::move(native)) {
   const DemGrid& ng = native_->grid();
   const bool automatic = crs == "auto";
-  register_gdal();
   QuietGdal quiet;
-  const OGRSpatialReference source = warp_source_crs(path, ng, crs);
   const pm::GridTransform& st = *ng.crs_transform;
   nw_ = ng.width, nh_ = ng.height;
   native_crs_ = Affine{st};
@@ -549,16 +550,17 @@ std::optional<double> scale_error_by_reads(const DemGrid& grid,
 
 std::unique_ptr<DemSource> warped_source(const std::string& path, std::unique_ptr<DemSource> native,
                                          const std::string& crs, const std::string& height_note) {
+  register_gdal();
+  QuietGdal quiet;
+  const DemGrid& ng = native->grid();
+  const OGRSpatialReference source = warp_source_crs(path, ng, crs);
   std::optional<AutoFrame> frame;
   if (crs == "auto") {
-    register_gdal();
-    QuietGdal quiet;
-    const DemGrid& ng = native->grid();
-    frame = auto_frame(path, warp_source_crs(path, ng, crs), *ng.crs_transform, ng.width, ng.height, *native);
+    frame = auto_frame(path, source, *ng.crs_transform, ng.width, ng.height, *native);
     if (frame->error > kFlatFrameLimit)
       return std::make_unique<NativeKept>(std::move(native), *frame, height_note);
   }
-  return std::make_unique<WarpedSource>(path, std::move(native), crs, height_note, std::move(frame));
+  return std::make_unique<WarpedSource>(path, std::move(native), crs, height_note, source, std::move(frame));
 }
 
 }  // namespace detail

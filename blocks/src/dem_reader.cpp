@@ -341,26 +341,19 @@ void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& 
       if (b.nodata_as_float ? float(v) == nodata_f : v == b.nodata) v = nan;
     }
   }
-  if (b.alpha_band) {
-    std::vector<double> alpha(z.size());
-    if (ds.GetRasterBand(2)->RasterIO(GF_Read, window.col0, window.row0, w, h, alpha.data(), w, h,
-                                      GDT_Float64, 0, 0) != CE_None) {
-      throw DemError(path, "cannot read the alpha band: " + gdal_message("GDAL read error"));
+  // Voids where a band reads 0: the alpha band, as doubles (bytes would round a float alpha
+  // below 0.5 to 0), or the mask band, as bytes.
+  const auto void_where_zero = [&](GDALRasterBand* m, auto zero, GDALDataType type, const char* what) {
+    std::vector<decltype(zero)> v(z.size());
+    if (m->RasterIO(GF_Read, window.col0, window.row0, w, h, v.data(), w, h, type, 0, 0) != CE_None)
+      throw DemError(path,
+                     std::string("cannot read the ") + what + " band: " + gdal_message("GDAL read error"));
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (v[i] == zero) z[i] = nan;
     }
-    for (std::size_t i = 0; i < alpha.size(); ++i) {
-      if (alpha[i] == 0.0) z[i] = nan;
-    }
-  }
-  if (b.mask_band) {
-    std::vector<std::uint8_t> mask(z.size());
-    if (band->GetMaskBand()->RasterIO(GF_Read, window.col0, window.row0, w, h, mask.data(), w, h, GDT_Byte, 0,
-                                      0) != CE_None) {
-      throw DemError(path, "cannot read the mask band: " + gdal_message("GDAL read error"));
-    }
-    for (std::size_t i = 0; i < mask.size(); ++i) {
-      if (mask[i] == 0) z[i] = nan;
-    }
-  }
+  };
+  if (b.alpha_band) void_where_zero(ds.GetRasterBand(2), 0.0, GDT_Float64, "alpha");
+  if (b.mask_band) void_where_zero(band->GetMaskBand(), std::uint8_t(0), GDT_Byte, "mask");
   for (double& v : z) {
     v = v * b.factor + b.shift;
     if (!is_height(v)) v = nan;

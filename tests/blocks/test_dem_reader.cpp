@@ -624,6 +624,28 @@ TEST(dem_reader_voids, AnAlphaBandMarksVoids) {
   EXPECT_EQ(filled.voids.filled, 3u);
   for (double v : filled.samples()) EXPECT_GE(v, 200.0);
 
+  // The same voids through a GDAL mask band (a per-dataset internal mask, 0 = void).
+  const fs::path masked = dir / "masked.tif";
+  {
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(masked.c_str(), 6, 5, 1,
+                                                                                     GDT_Int16, nullptr));
+    ASSERT_TRUE(ds);
+    double gt[6] = {500000, 30, 0, 4900000, 0, -30};
+    ds->SetGeoTransform(gt);
+    std::vector<std::int16_t> z(30);
+    std::vector<std::uint8_t> m(30, 255);
+    for (int i = 0; i < 30; ++i) z[std::size_t(i)] = std::int16_t(200 + i);
+    m[7] = m[8] = m[29] = 0;
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 6, 5, z.data(), 6, 5, GDT_Int16, 0, 0), CE_None);
+    ASSERT_EQ(ds->CreateMaskBand(GMF_PER_DATASET), CE_None);
+    ASSERT_EQ(
+        ds->GetRasterBand(1)->GetMaskBand()->RasterIO(GF_Write, 0, 0, 6, 5, m.data(), 6, 5, GDT_Byte, 0, 0),
+        CE_None);
+  }
+  expect_read(tb::read_dem(masked.string(), holes), "mask band, read whole");
+  expect_read(tb::open_dem_source(masked.string(), holes)->read(tb::SampleRect{0, 0, 5, 4}),
+              "mask band, window");
+
   const fs::path two = dir / "two.tif";
   write_geotiff(two, 4, 3, std::vector<double>(12, 1.0), GDT_Int16, {0, 1, 0, 3, 0, -1}, 32633, std::nullopt,
                 2);
