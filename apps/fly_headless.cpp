@@ -146,6 +146,7 @@ int run_headless(const Args& a) {
   std::vector<pm::Camera> path;
   if (a.has("--path")) path = pm::read_camera_path(a.get("--path"), po);
   const bool dump = a.has("--dump-meshes"), hud = a.has("--hud");
+  std::optional<render::TextRasterizer> hud_text;  // opened at the first frame with the HUD
   std::optional<LayerSetup> layers = layer_setup(a);
   std::optional<blocks::ObjectPlacer> objects = fly_objects(a);
   const std::unique_ptr<LodSource> t = open_terrain(a);
@@ -213,7 +214,8 @@ int run_headless(const Args& a) {
       std::vector<std::string> lines = lod_lines(r, t->options(), /*timings=*/false);
       lines[0] = strf("frame %lld   ", k) + lines[0];
       if (objects) lines.insert(lines.end(), {objects_line(*objects), drawn_line(drawn)});
-      overlay_text(img, render::rasterize_text(lines), render::HudOptions{}.margin);
+      if (!hud_text) hud_text.emplace();
+      overlay_text(img, hud_text->rasterize(lines), render::HudOptions{}.margin);
     }
     render::write_png(img, (fs::path(out) / (std::string(name) + ".png")).string());
     if (dump)

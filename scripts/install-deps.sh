@@ -8,7 +8,8 @@ packages=(
   libopenmesh-dev libgdal-dev libproj-dev proj-data libmeshoptimizer-dev libopenimageio-dev libsqlite3-dev
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  xvfb fonts-dejavu-core libfreetype-dev clang-format
+  xvfb fonts-dejavu-core libfreetype-dev libharfbuzz-dev libfribidi-dev libfontconfig-dev
+  fonts-noto-core fonts-wqy-zenhei clang-format
   chromium proj-bin gdal-bin
   openmpi-bin libopenmpi-dev
   "$@"

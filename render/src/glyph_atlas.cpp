@@ -1,9 +1,6 @@
 // FreeType glyph rasterisation with a dilated halo, shelf-packed into a two-channel atlas.
 #include "glyph_atlas.hpp"
 
-#include <ft2build.h>
-#include FT_FREETYPE_H
-
 #include <algorithm>
 #include <cassert>
 #include <climits>
@@ -12,54 +9,10 @@
 
 namespace terralod::render::detail {
 
-std::vector<char32_t> decode_utf8(std::string_view text) {
-  std::vector<char32_t> out;
-  std::size_t i = 0;
-  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
-  while (i < text.size()) {
-    const unsigned char c = byte(i);
-    int extra = c < 0x80 ? 0 : (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xE ? 2 : (c >> 3) == 0x1E ? 3 : -1;
-    if (extra < 0) {
-      out.push_back(0xFFFD), ++i;
-      continue;
-    }
-    char32_t cp = extra == 0 ? c : (c & (0x3F >> extra));
-    bool ok = true;
-    for (int k = 1; ok && k <= extra; ++k) {
-      if (i + k >= text.size() || (byte(i + k) & 0xC0) != 0x80) {
-        ok = false;
-        break;
-      }
-      cp = (cp << 6) | (byte(i + k) & 0x3F);
-    }
-    if (!ok || cp > 0x10FFFF) {
-      out.push_back(0xFFFD), ++i;
-      continue;
-    }
-    out.push_back(cp);
-    i += std::size_t(extra) + 1;
-  }
-  return out;
-}
-
-GlyphAtlas::GlyphAtlas(const std::string& font_path, int halo_px) : font_(font_path), halo_(halo_px) {
-  FT_Library lib = nullptr;
-  if (FT_Init_FreeType(&lib) != 0) throw std::runtime_error(font_path + ": FreeType does not initialise");
-  FT_Face face = nullptr;
-  if (const FT_Error e = FT_New_Face(lib, font_path.c_str(), 0, &face); e != 0) {
-    FT_Done_FreeType(lib);
-    throw std::runtime_error(font_path + ": FreeType cannot load this font (error " + std::to_string(e) +
-                             (e == FT_Err_Cannot_Open_Resource ? ": no such readable file" : "") + ")");
-  }
-  library_ = lib;
-  face_ = face;
+GlyphAtlas::GlyphAtlas(const std::string& font_path, int halo_px)
+    : fonts_(font_path), font_(font_path), halo_(halo_px) {
   height_ = 64;
   texels_.assign(std::size_t(kWidth) * height_ * 2, 0);
-}
-
-GlyphAtlas::~GlyphAtlas() {
-  FT_Done_Face(static_cast<FT_Face>(face_));
-  FT_Done_FreeType(static_cast<FT_Library>(library_));
 }
 
 void GlyphAtlas::place(Glyph& g, const std::vector<std::uint8_t>& two_channel) {
@@ -78,33 +31,21 @@ void GlyphAtlas::place(Glyph& g, const std::vector<std::uint8_t>& two_channel) {
   ++version_;
 }
 
-const GlyphAtlas::Glyph& GlyphAtlas::glyph(char32_t cp, int size_px) {
-  const auto key = std::make_pair(size_px, cp);
+const GlyphAtlas::Glyph& GlyphAtlas::glyph(int face_index, std::uint32_t index, int size_px) {
+  const auto key = std::make_tuple(face_index, size_px, index);
   if (auto it = glyphs_.find(key); it != glyphs_.end()) return it->second;
-  FT_Face face = static_cast<FT_Face>(face_);
-  if (current_size_ != size_px) {
-    if (const FT_Error e = FT_Set_Pixel_Sizes(face, 0, FT_UInt(size_px)); e != 0)
-      throw std::runtime_error(font_ + ": cannot set the pixel size " + std::to_string(size_px) + " (error " +
-                               std::to_string(e) + ")");
-    current_size_ = size_px;
-  }
-  if (const FT_Error e = FT_Load_Char(face, FT_ULong(cp), FT_LOAD_RENDER); e != 0)
-    throw std::runtime_error(font_ + ": cannot render code point U+" + std::to_string(std::uint32_t(cp)) +
-                             " (error " + std::to_string(e) + ")");
-  const FT_GlyphSlot slot = face->glyph;
-  const FT_Bitmap& bm = slot->bitmap;
+  const GlyphBitmap bm = fonts_.render(face_index, index, size_px);
   Glyph g;
-  g.advance = slot->advance.x;
-  const int w = int(bm.width), h = int(bm.rows), r = halo_;
-  if (w > 0 && h > 0 && bm.pixel_mode == FT_PIXEL_MODE_GRAY) {
+  const int w = bm.width, h = bm.height, r = halo_;
+  if (w > 0 && h > 0) {
     // Coverage padded by the halo radius, and the halo: the coverage's maximum over a disc of
     // radius r (a pixel whose centre is within r of an inked pixel's centre).
     g.width = w + 2 * r, g.height = h + 2 * r;
-    g.left = slot->bitmap_left - r, g.top = slot->bitmap_top + r;
+    g.left = bm.left - r, g.top = bm.top + r;
     std::vector<std::uint8_t> cov(std::size_t(g.width) * g.height, 0);
     for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x)
-        cov[std::size_t(y + r) * g.width + (x + r)] = bm.buffer[std::ptrdiff_t(y) * bm.pitch + x];
+      std::copy_n(bm.coverage.begin() + std::ptrdiff_t(y) * w, w,
+                  cov.begin() + std::ptrdiff_t(y + r) * g.width + r);
     std::vector<std::uint8_t> two(cov.size() * 2, 0);
     for (int y = 0; y < g.height; ++y)
       for (int x = 0; x < g.width; ++x) {
@@ -123,23 +64,71 @@ const GlyphAtlas::Glyph& GlyphAtlas::glyph(char32_t cp, int size_px) {
   return glyphs_.emplace(key, g).first->second;
 }
 
-LabelLayout GlyphAtlas::layout(std::string_view text, int size_px) {
+const LabelLayout& GlyphAtlas::layout(std::string_view text, int size_px) {
   assert(size_px >= 1 && "label size must be >= 1 pixel");
+  std::string key = std::to_string(size_px);
+  key.push_back('\0');
+  key.append(text);
+  if (const auto it = layouts_.find(key); it != layouts_.end()) return it->second;
+  // Two generations: when the recent one is full it becomes the older one, and a layout found
+  // there moves back, so what was laid out in the last kLayoutCache calls or so is found.
+  LabelLayout l;
+  if (auto it = older_layouts_.find(key); it != older_layouts_.end())
+    l = std::move(it->second);
+  else
+    l = lay_out(text, size_px);
+  if (layouts_.size() >= kLayoutCache) {
+    older_layouts_.swap(layouts_);
+    layouts_.clear();
+  }
+  return layouts_.emplace(std::move(key), std::move(l)).first->second;
+}
+
+LabelLayout GlyphAtlas::lay_out(std::string_view text, int size_px) {
+  // Lines, and each one's glyphs and advance.
+  std::vector<std::vector<char32_t>> lines(1);
+  const std::vector<char32_t> cps = decode_utf8(text);
+  for (std::size_t i = 0; i < cps.size(); ++i) {
+    const char32_t c = cps[i];
+    if (c == U'\n' || c == U'\r' || c == 0x2028) {
+      if (c == U'\r' && i + 1 < cps.size() && cps[i + 1] == U'\n') ++i;
+      lines.emplace_back();
+    } else {
+      lines.back().push_back(c);
+    }
+  }
+  std::vector<std::vector<ShapedGlyph>> shaped;
+  std::vector<long> advance;  // 26.6
+  long widest = 0;
+  for (const auto& line : lines) {
+    shaped.push_back(fonts_.shape(line, size_px));
+    long a = 0;
+    for (const ShapedGlyph& g : shaped.back()) a += g.x_advance;
+    advance.push_back(a);
+    widest = std::max(widest, a);
+  }
+  const long line_px = (long(fonts_.line_height(size_px)) + 32) >> 6;
+
   LabelLayout out;
-  long pen = 0;  // 26.6
   int lo_x = INT_MAX, lo_y = INT_MAX, hi_x = INT_MIN, hi_y = INT_MIN;
-  for (const char32_t cp : decode_utf8(text)) {
-    const Glyph& g = glyph(cp, size_px);
-    const int origin = int((pen + 32) >> 6);
-    pen += g.advance;
-    if (g.width == 0) continue;
-    PlacedGlyph p;
-    p.x0 = origin + g.left, p.y0 = -g.top;  // y down from the baseline
-    p.x1 = p.x0 + g.width, p.y1 = p.y0 + g.height;
-    p.atlas_x = g.atlas_x, p.atlas_y = g.atlas_y;
-    lo_x = std::min(lo_x, p.x0), lo_y = std::min(lo_y, p.y0);
-    hi_x = std::max(hi_x, p.x1), hi_y = std::max(hi_y, p.y1);
-    out.glyphs.push_back(p);
+  const std::size_t n_lines = shaped.size();
+  for (std::size_t k = 0; k < n_lines; ++k) {
+    long pen = (widest - advance[k]) / 2;  // 26.6, centred on the widest line
+    const int baseline = -int(long(n_lines - 1 - k) * line_px);
+    for (const ShapedGlyph& sg : shaped[k]) {
+      const Glyph& g = glyph(sg.face, sg.glyph, size_px);
+      const int origin_x = int((pen + sg.x_offset + 32) >> 6);
+      const int origin_y = baseline - int((long(sg.y_offset) + 32) >> 6);  // y down on screen
+      pen += sg.x_advance;
+      if (g.width == 0) continue;
+      PlacedGlyph p;
+      p.x0 = origin_x + g.left, p.y0 = origin_y - g.top;
+      p.x1 = p.x0 + g.width, p.y1 = p.y0 + g.height;
+      p.atlas_x = g.atlas_x, p.atlas_y = g.atlas_y;
+      lo_x = std::min(lo_x, p.x0), lo_y = std::min(lo_y, p.y0);
+      hi_x = std::max(hi_x, p.x1), hi_y = std::max(hi_y, p.y1);
+      out.glyphs.push_back(p);
+    }
   }
   if (out.glyphs.empty()) return out;
   for (PlacedGlyph& p : out.glyphs) p.x0 -= lo_x, p.x1 -= lo_x, p.y0 -= lo_y, p.y1 -= lo_y;

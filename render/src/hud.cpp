@@ -1,46 +1,74 @@
-// The heads-up text overlay: OpenImageIO's render_text into an RGBA block, drawn as one
-// alpha-blended textured quad over the default framebuffer.
+// The heads-up text overlay: text shaped and rasterised by the labels' font chain into an RGBA
+// block, drawn as one alpha-blended textured quad over the default framebuffer.
 #include "terralod/render/hud.hpp"
-
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
 
 #include <algorithm>
 #include <filesystem>
+#include <map>
 #include <stdexcept>
+#include <utility>
 
+#include "font_chain.hpp"
 #include "gl_api.hpp"
 
 namespace terralod::render {
 
-TextImage rasterize_text(const std::vector<std::string>& lines, const HudOptions& o) {
-  if (o.pixel_size < 6 || o.pixel_size > 128)
+struct TextRasterizer::Glyphs {
+  std::map<std::pair<int, std::uint32_t>, detail::GlyphBitmap> drawn;  // (face, glyph) at the size
+};
+
+TextRasterizer::TextRasterizer(const HudOptions& options)
+    : opt_(options), glyphs_(std::make_unique<Glyphs>()) {
+  if (opt_.pixel_size < 6 || opt_.pixel_size > 128)
     throw std::invalid_argument("hud: pixel_size must be in [6, 128]");
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(o.font, ec))
-    throw std::runtime_error(o.font + ": font file not found");
-  const int line_h = o.pixel_size * 5 / 4, pad = o.pixel_size / 3;
-  int width = 1;
+  if (!std::filesystem::is_regular_file(opt_.font, ec))
+    throw std::runtime_error(opt_.font + ": font file not found");
+  fonts_ = std::make_unique<detail::FontChain>(opt_.font);
+}
+
+TextRasterizer::~TextRasterizer() = default;
+
+TextImage TextRasterizer::rasterize(const std::vector<std::string>& lines) {
+  const int px = opt_.pixel_size, line_h = px * 5 / 4, pad = px / 3;
+  std::vector<std::vector<detail::ShapedGlyph>> shaped;
+  long widest = 64;  // 26.6: at least one pixel
   for (const std::string& l : lines) {
-    const OIIO::ROI r = OIIO::ImageBufAlgo::text_size(l, o.pixel_size, o.font);
-    if (r.defined()) width = std::max(width, r.width());
+    shaped.push_back(fonts_->shape(detail::decode_utf8(l), px));
+    long advance = 0;
+    for (const detail::ShapedGlyph& g : shaped.back()) advance += g.x_advance;
+    widest = std::max(widest, advance);
   }
   TextImage t;
-  t.width = width + 2 * pad;
+  t.width = int((widest + 63) >> 6) + 2 * pad;
   t.height = std::max(1, int(lines.size())) * line_h + 2 * pad;
-  OIIO::ImageBuf buf(OIIO::ImageSpec(t.width, t.height, 4, OIIO::TypeDesc::UINT8));
-  const float backing[4] = {0.0f, 0.0f, 0.0f, 0.55f};
-  OIIO::ImageBufAlgo::fill(buf, backing);
-  const float white[4] = {1.0f, 1.0f, 1.0f, 1.0f};
-  for (std::size_t i = 0; i < lines.size(); ++i) {
-    if (lines[i].empty()) continue;
-    const int baseline = pad + int(i) * line_h + o.pixel_size;
-    if (!OIIO::ImageBufAlgo::render_text(buf, pad, baseline, lines[i], o.pixel_size, o.font, white))
-      throw std::runtime_error(o.font + ": cannot render text (" + buf.geterror() + ")");
-  }
+  // The backing (black, 55 % opaque), and white text blended over it by its coverage (every
+  // channel, alpha included, moves towards opaque white).
   t.rgba.resize(std::size_t(t.width) * t.height * 4);
-  if (!buf.get_pixels(OIIO::ROI(0, t.width, 0, t.height, 0, 1, 0, 4), OIIO::TypeDesc::UINT8, t.rgba.data()))
-    throw std::runtime_error("hud: cannot read the text image back (" + buf.geterror() + ")");
+  for (std::size_t p = 0; p < t.rgba.size(); p += 4)
+    t.rgba[p] = t.rgba[p + 1] = t.rgba[p + 2] = 0, t.rgba[p + 3] = 140;
+  for (std::size_t i = 0; i < shaped.size(); ++i) {
+    const int baseline = pad + int(i) * line_h + px;
+    long pen = 0;
+    for (const detail::ShapedGlyph& sg : shaped[i]) {
+      auto it = glyphs_->drawn.find({sg.face, sg.glyph});
+      if (it == glyphs_->drawn.end())
+        it = glyphs_->drawn.emplace(std::make_pair(sg.face, sg.glyph), fonts_->render(sg.face, sg.glyph, px))
+                 .first;
+      const detail::GlyphBitmap& bm = it->second;
+      const int x0 = pad + int((pen + sg.x_offset + 32) >> 6) + bm.left;
+      const int y0 = baseline - int((long(sg.y_offset) + 32) >> 6) - bm.top;
+      pen += sg.x_advance;
+      for (int y = 0; y < bm.height; ++y)
+        for (int x = 0; x < bm.width; ++x) {
+          const int X = x0 + x, Y = y0 + y;
+          const unsigned a = bm.coverage[std::size_t(y) * bm.width + x];
+          if (a == 0 || X < 0 || Y < 0 || X >= t.width || Y >= t.height) continue;
+          std::uint8_t* d = &t.rgba[(std::size_t(Y) * t.width + X) * 4];
+          for (int c = 0; c < 4; ++c) d[c] = std::uint8_t((255 * a + d[c] * (255 - a) + 127) / 255);
+        }
+    }
+  }
   return t;
 }
 
@@ -72,7 +100,8 @@ void main() { color = texture(tex, uv); }
 Hud::Hud(GlContext& context, const HudOptions& options)
     : ctx_(context), opt_(options), gl_(std::make_unique<Gl>()) {
   try {
-    rasterize_text({"terralod"}, opt_);
+    text_ = std::make_unique<TextRasterizer>(opt_);
+    text_->rasterize({"terralod"});
   } catch (const std::exception& e) {
     font_error_ = e.what();
     return;
@@ -115,7 +144,7 @@ void Hud::draw() {
   gl.ActiveTexture(GL_TEXTURE0);
   gl.BindTexture(GL_TEXTURE_2D, gl_->texture);
   if (dirty_) {
-    image_ = rasterize_text(lines_, opt_);
+    image_ = text_->rasterize(lines_);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
     gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, image_.width, image_.height, 0, GL_RGBA, GL_UNSIGNED_BYTE,
                   image_.rgba.data());

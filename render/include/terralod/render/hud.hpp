@@ -7,11 +7,13 @@
 //   renderer.present(/*swap=*/false);  hud.draw();  window->swap_buffers();
 //
 // Contract:
-//   - Text is rasterised on the CPU by OpenImageIO's render_text (FreeType) with a TrueType
-//     font: HudOptions::font, by default DejaVu Sans Mono (Debian package fonts-dejavu-core).
+//   - Text is rasterised on the CPU by FreeType with a TrueType font: HudOptions::font, by
+//     default DejaVu Sans Mono (Debian package fonts-dejavu-core), and the system's fonts for
+//     the characters it lacks, shaped as the 3D labels are (any script, right-to-left ones in
+//     visual order: render/src/font_chain.hpp), so a picked object's name reads as its label.
 //     When the font cannot be loaded, has_font() is false, draw() draws nothing and
 //     font_error() says why; nothing throws for a missing font (the demo still flies).
-//   - rasterize_text is GL-free: white text with a translucent dark backing, RGBA8, top row
+//   - TextRasterizer is GL-free: white text with a translucent dark backing, RGBA8, top row
 //     first, width = longest line, one line every `pixel_size * 1.25` pixels.
 //   - draw() renders one textured, alpha-blended quad at the top-left corner of the context's
 //     default framebuffer (in pixels, not scaled with the window), restoring the blend and
@@ -28,6 +30,10 @@
 
 namespace terralod::render {
 
+namespace detail {
+class FontChain;
+}
+
 struct HudOptions {
   std::string font = "/usr/share/fonts/truetype/dejavu/DejaVuSansMono.ttf";
   int pixel_size = 16;  ///< font size, pixels, 6..128
@@ -40,8 +46,25 @@ struct TextImage {
   std::vector<std::uint8_t> rgba;
 };
 
-/// Rasterises the lines (GL-free). Throws std::runtime_error naming the font on failure.
-TextImage rasterize_text(const std::vector<std::string>& lines, const HudOptions& options = {});
+/// Rasterises lines of UTF-8 text (GL-free). Keeps the fonts open and the glyphs it drew; not
+/// thread-safe.
+class TextRasterizer {
+ public:
+  /// std::invalid_argument for a pixel size outside [6, 128]; std::runtime_error naming the
+  /// font when it cannot be loaded.
+  explicit TextRasterizer(const HudOptions& options = {});
+  ~TextRasterizer();
+  TextRasterizer(const TextRasterizer&) = delete;
+  TextRasterizer& operator=(const TextRasterizer&) = delete;
+
+  TextImage rasterize(const std::vector<std::string>& lines);
+
+ private:
+  struct Glyphs;
+  HudOptions opt_;
+  std::unique_ptr<detail::FontChain> fonts_;
+  std::unique_ptr<Glyphs> glyphs_;
+};
 
 class Hud {
  public:
@@ -60,6 +83,7 @@ class Hud {
   GlContext& ctx_;
   HudOptions opt_;
   std::unique_ptr<Gl> gl_;
+  std::unique_ptr<TextRasterizer> text_;
   std::vector<std::string> lines_;
   TextImage image_;
   bool dirty_ = false;
