@@ -114,7 +114,8 @@ CommandSpec objects_spec() {
       {"--layer", "NAME", "add: object layer name (unique in the database)"},
       {"--input", "FILE", "add: the vector file"},
       {"--kind", "K", "add: icon, label, shape or line (default: from the geometry)"},
-      {"--label-field", "F", "add: the attribute that labels a feature"},
+      {"--label-field", "F",
+       "add: the attribute that labels a feature (default name; a feature without one gets no label)"},
       {"--height-field", "F", "add: the numeric attribute that gives a shape's height"},
       {"--rules", "FILE", "add: design rules by level of detail (JSON; errors name the file, line, column)"},
   };

@@ -66,7 +66,7 @@ ObjectDrawStats ObjectDrawing::draw(render::FrameSource& frame, const blocks::Ob
         break;
       case blocks::Representation::Label: {
         double px = 0, py = 0;
-        if (!view.project(p.anchor, px, py)) break;
+        if (!m.named || !view.project(p.anchor, px, py)) break;  // unnamed: no label
         const int size = std::max(1, int(std::lround(rules.label_size_px())));
         const render::PixelBox r = renderer_.label_rect({px, py}, m.name, size);
         if (r.empty()) break;

@@ -64,9 +64,9 @@ WorldPoint anchor_of(const ObjectFeature& f) {
   return {o.x + cx / (3.0 * area), o.y + cy / (3.0 * area)};
 }
 
-std::string name_of(const ObjectFeature& f, const ObjectLayerInfo& layer) {
+std::string label_of(const ObjectFeature& f, const ObjectLayerInfo& layer) {
   const ObjectAttribute* a = f.attribute(layer.label_field.empty() ? std::string("name") : layer.label_field);
-  return a && !a->value.empty() ? a->value : std::to_string(f.id);
+  return a ? a->value : std::string();
 }
 
 }  // namespace
@@ -95,7 +95,9 @@ ObjectPlacer::ObjectPlacer(const BlockDatabase& db, const std::vector<std::strin
       MapObject m;
       m.layer = layers_.size() - 1;
       m.kind = info->kind;
-      m.name = name_of(f, *info);
+      m.name = label_of(f, *info);
+      m.named = !m.name.empty();
+      if (!m.named) m.name = std::to_string(f.id);
       m.anchor = anchor_of(f);
       m.extent_m = f.geometry == GeometryType::Point ? rules.icon_size_m()
                                                      : std::max({f.max.x - f.min.x, f.max.y - f.min.y, 1e-3});

@@ -190,6 +190,35 @@ TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
   EXPECT_NE(out.find("name,kind,x,y,z,ground_z"), std::string::npos) << out;
 }
 
+// A label layer whose label field is empty or missing for some features labels the others only:
+// an unnamed feature is not labelled with its id (it still counts as placed, and is picked by it).
+TEST_F(ObjectsCli, UnnamedFeaturesGetNoLabel) {
+  std::ofstream(file("peaks.geojson")) << R"({"type": "FeatureCollection", "features": [
+  {"type": "Feature", "id": 1, "properties": {"peak": "Hut"},
+   "geometry": {"type": "Point", "coordinates": [15.0114513341, 45.1615781192]}},
+  {"type": "Feature", "id": 2, "properties": {"peak": ""},
+   "geometry": {"type": "Point", "coordinates": [15.005, 45.155]}},
+  {"type": "Feature", "id": 3, "properties": {"peak": null},
+   "geometry": {"type": "Point", "coordinates": [15.008, 45.158]}}]})";
+  ASSERT_EQ(
+      cli_.run("objects add " + quote(db()) + " --layer peaks --kind label --label-field peak --input " +
+               quote(file("peaks.geojson"))),
+      0);
+  {
+    std::ofstream f(file("path.csv"));
+    f << "x,y,z,yaw,pitch,fovy\n";
+    for (int k = 0; k < 3; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
+  }
+  const CliRunner fly{TERRALOD_FLY};
+  std::string out;
+  ASSERT_EQ(fly.run("--headless --db " + quote(db()) + " --size 320x240 --path " + quote(file("path.csv")) +
+                        " --out " + quote(file("h")) + " --objects peaks",
+                    &out),
+            0);
+  EXPECT_NE(out.find("headless: objects in view median 3, max 3 (of 3)"), std::string::npos) << out;
+  EXPECT_NE(out.find("0 icons, 1 of 1 labels (decluttered)"), std::string::npos) << out;
+}
+
 // terralod view --db --objects: the frame with the objects drawn (the summary line counts them,
 // the PNG differs from the same view without them, --stats records them); --objects needs --db.
 TEST_F(ObjectsCli, ViewDrawsObjectLayers) {

@@ -26,7 +26,9 @@
 //              minus its holes (it may lie outside a concave polygon), or the mean of the
 //              exterior ring's vertices when that area is 0.
 //   name       the value of the layer's label field when it has one, else of the attribute
-//              "name"; when that is missing or empty, the feature id in decimal.
+//              "name"; when that is missing or empty, the feature id in decimal, and `named` is
+//              false: such an object gets no label where its rules draw a label (a layer of
+//              peaks, some unnamed, labels the named ones), and is still picked by its id.
 //   rules      each layer's design rules (object_rules.hpp): its stored rules file, else the
 //              default rule (everything drawn as the layer's kind). An object's extent is
 //              icon_size_m for a point, else the larger side of its features' plan box (at least
@@ -90,6 +92,7 @@ struct MapObject {
   std::size_t layer = 0;  ///< index into ObjectPlacer::layers()
   ObjectKind kind = ObjectKind::Icon;
   std::string name;       ///< see the contract
+  bool named = false;     ///< the name is the feature's (false: its id; no label is drawn)
   WorldPoint anchor;      ///< plan point, world frame (see the contract)
   double extent_m = 0;    ///< size for screen-size rules, metres (see the contract)
   double priority = 0;    ///< for decluttering labels (see the contract)
