@@ -15,6 +15,8 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -52,6 +54,36 @@ std::string shortest(double v) {
   std::array<char, 32> buf{};
   const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
   return std::string(buf.data(), r.ptr);
+}
+
+/// A date, time or date-time field in ISO 8601 (2024-05-01, 13:05:09, 2024-05-01T13:05:09.250Z,
+/// ...+02:00), as GeoJSON and GeoPackage write them; OGR's own string is 2024/05/01.
+std::string iso8601(OGRFeature& f, int field, AttributeType type) {
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, tz = 0;
+  float sec = 0.0f;
+  if (!f.GetFieldAsDateTime(field, &y, &mo, &d, &h, &mi, &sec, &tz)) return f.GetFieldAsString(field);
+  std::string out;
+  char buf[64];
+  if (type != AttributeType::Time) {
+    std::snprintf(buf, sizeof buf, "%04d-%02d-%02d", y, mo, d);
+    out = buf;
+  }
+  if (type == AttributeType::Date) return out;
+  if (type == AttributeType::DateTime) out += 'T';
+  const int whole = int(sec), ms = int(std::lround((double(sec) - whole) * 1000.0));
+  if (ms > 0 && ms < 1000)
+    std::snprintf(buf, sizeof buf, "%02d:%02d:%02d.%03d", h, mi, whole, ms);
+  else
+    std::snprintf(buf, sizeof buf, "%02d:%02d:%02d", h, mi, int(std::lround(sec)));
+  out += buf;
+  if (tz == 100) {  // OGR's time zone flag: 100 is UTC, 100 + k is k quarter hours east of it
+    out += 'Z';
+  } else if (tz > 1) {
+    const int q = std::abs(tz - 100);
+    std::snprintf(buf, sizeof buf, "%c%02d:%02d", tz > 100 ? '+' : '-', q / 4, q % 4 * 15);
+    out += buf;
+  }
+  return out;
 }
 
 AttributeType attribute_type(OGRFieldType t) {
@@ -429,8 +461,13 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
       a.name = fd.GetNameRef();
       if (!feat->IsFieldSetAndNotNull(i)) continue;
       a.type = attribute_type(fd.GetType());
-      a.value =
-          a.type == AttributeType::Real ? shortest(feat->GetFieldAsDouble(i)) : feat->GetFieldAsString(i);
+      if (a.type == AttributeType::Real)
+        a.value = shortest(feat->GetFieldAsDouble(i));
+      else if (a.type == AttributeType::Date || a.type == AttributeType::Time ||
+               a.type == AttributeType::DateTime)
+        a.value = iso8601(*feat, i, a.type);
+      else
+        a.value = feat->GetFieldAsString(i);
     }
     for (std::size_t k = 0; k < raw.size(); ++k) {
       if (geometry && *geometry != raw[k].geometry)

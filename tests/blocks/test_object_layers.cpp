@@ -214,6 +214,29 @@ TEST(ObjectLayers, GeoJsonInWgs84IsProjectedToUtmWithItsAttributes) {
   EXPECT_GE(ir.items_checked, 3u);
 }
 
+TEST(ObjectLayers, DatesAndTimesKeepTheirIso8601Form) {
+  // OGR's own string for a date is 2024/05/01; the file (and a user's label) says 2024-05-01.
+  TempDir t;
+  const std::string db_path = t / "t.db", json = t / "d.geojson";
+  make_db(db_path, 32633, kUtm, kUtm);
+  write_text(json, R"({"type": "FeatureCollection", "features": [
+    {"type": "Feature", "properties": {"day": "2024-05-01", "at": "13:05:09",
+     "utc": "2024-05-01T13:05:09.250Z", "east": "2024-05-01T13:05:09+05:30"},
+     "geometry": {"type": "Point", "coordinates": [15.0114513341, 45.1615781192]}}]})");
+  auto db = tb::BlockDatabase::open(db_path, tb::BlockDatabase::Mode::ReadWrite);
+  tb::ObjectLayerOptions o;
+  o.name = "dates";
+  o.input = json;
+  tb::add_object_layer(db, o);
+  const std::vector<tb::ObjectFeature> f = tb::object_features(db, "dates");
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_EQ(f[0].attributes, (std::vector<tb::ObjectAttribute>{
+                                 {"day", tb::AttributeType::Date, "2024-05-01"},
+                                 {"at", tb::AttributeType::Time, "13:05:09"},
+                                 {"utc", tb::AttributeType::DateTime, "2024-05-01T13:05:09.250Z"},
+                                 {"east", tb::AttributeType::DateTime, "2024-05-01T13:05:09+05:30"}}));
+}
+
 TEST(ObjectLayers, GeographicTerrainUsesTheLocalEquirectangularFrame) {
   TempDir t;
   const std::string db_path = t / "g.db", json = t / "p.geojson";
