@@ -16,6 +16,7 @@
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/greedy_tin.hpp"
 #include "terralod/pm/mesh_io.hpp"
+#include "terralod/pm/text.hpp"
 
 namespace terralod::cli {
 namespace {
@@ -34,7 +35,7 @@ std::vector<std::array<double, 2>> read_polygon_csv(const std::string& path) {
   std::string text;
   bool header = false;
   for (int line_no = 1; std::getline(in, text); ++line_no) {
-    const std::string l = trim(text);
+    const std::string l = trim(line_no == 1 ? std::string(pm::without_utf8_bom(text)) : text);
     if (l.empty() || l[0] == '#') continue;
     const auto comma = l.find(',');
     const std::string a = comma == std::string::npos ? l : trim(l.substr(0, comma));

@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "terralod/pm/atomic_file.hpp"
+#include "terralod/pm/text.hpp"
 
 namespace terralod::pm {
 
@@ -54,7 +55,7 @@ std::vector<Camera> parse_camera_path(std::string_view text, const std::string& 
   static const char* const kNames[6] = {"x", "y", "z", "yaw", "pitch", "fovy"};
   std::vector<Camera> path;
   bool header = false;
-  std::size_t line_no = 0, pos = 0;
+  std::size_t line_no = 0, pos = text.size() - without_utf8_bom(text).size();
   while (pos < text.size()) {
     std::size_t end = text.find('\n', pos);
     if (end == std::string_view::npos) end = text.size();

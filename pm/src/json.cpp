@@ -9,6 +9,7 @@
 #include <unordered_set>
 
 #include "shortest_decimal.hpp"
+#include "terralod/pm/text.hpp"
 
 namespace terralod::pm {
 namespace {
@@ -44,7 +45,10 @@ void append_utf8(std::string& o, unsigned cp) {
 // Recursive descent over the text; the recursion is bounded by kMaxNesting.
 class Parser {
  public:
-  Parser(std::string_view text, const std::string& where) : s_(text), where_(where) {}
+  // A byte order mark before the value is skipped (RFC 8259 section 8.1 allows it); offsets
+  // and columns still count in `text`.
+  Parser(std::string_view text, const std::string& where)
+      : s_(text), where_(where), i_(text.size() - without_utf8_bom(text).size()) {}
 
   JsonValue document() {
     JsonValue v = value(0);

@@ -48,11 +48,12 @@ fs::path write_dem() {
 }
 
 // The triangle (2,2), (18,3), (5,14) in samples (CCW in (col,row): orient2d = 16*12 - 1*3 = 189),
-// given in world coordinates, with a comment line and CRLF endings. The bump is inside.
+// given in world coordinates, with a comment line, CRLF endings and a UTF-8 byte order mark (as
+// Excel's "CSV UTF-8" writes). The bump is inside.
 fs::path write_polygon(const std::string& name = "area.csv") {
   const fs::path p = tmp_dir() / name;
   std::ofstream f(p, std::ios::binary);
-  f << "x,y\r\n# a triangle\r\n";
+  f << "\xEF\xBB\xBFx,y\r\n# a triangle\r\n";
   for (auto [c, r] : {std::array<int, 2>{2, 2}, {18, 3}, {5, 14}}) {
     const auto w = world(c, r);
     f << w[0] << "," << w[1] << "\r\n";

@@ -42,6 +42,19 @@ TEST(CameraPath, ParsesRowsWithCommentsBlankLinesAndCrLf) {
   EXPECT_EQ(p[1].far_m, 1e4);
 }
 
+TEST(CameraPath, AByteOrderMarkAtTheStartIsIgnored) {
+  // Excel's "CSV UTF-8" starts the file with EF BB BF; the header was refused as '???x'.
+  const pm::CameraPathOptions o{.width_px = 640, .height_px = 480, .near_m = 0.5, .far_m = 1e4};
+  const auto p = pm::parse_camera_path("\xEF\xBB\xBFx,y,z,yaw,pitch,fovy\r\n1,2,3,45,-15,60\r\n", "p.csv", o);
+  ASSERT_EQ(p.size(), 1u);
+  EXPECT_EQ(p[0].z, 3.0);
+  // Only at the start: anywhere else it is junk.
+  EXPECT_THROW(pm::parse_camera_path("x,y,z,yaw,pitch,fovy\n\xEF\xBB\xBF"
+                                     "1,2,3,45,-15,60\n",
+                                     "p.csv", o),
+               std::runtime_error);
+}
+
 TEST(CameraPath, WriteThenReadIsBitExact) {
   std::vector<pm::Camera> path;
   for (int k = 0; k < 50; ++k) {

@@ -184,6 +184,21 @@ TEST(Json, ByteRangesGiveTheRawText) {
   EXPECT_EQ(doc.find("s")->begin, 29u);
 }
 
+TEST(Json, AByteOrderMarkBeforeTheValueIsSkipped) {
+  // A rules file saved by a Windows editor starts with EF BB BF (RFC 8259 8.1 lets a parser skip it).
+  const std::string text = "\xEF\xBB\xBF{\"a\": 1}";
+  const pm::JsonValue doc = pm::parse_json(text, "r");
+  EXPECT_EQ(doc.find("a")->number, 1.0);
+  EXPECT_EQ(doc.raw(text), "{\"a\": 1}");  // ranges still index the text as given
+  try {                                    // columns count its bytes: the error is at the fourth byte
+    pm::parse_json("\xEF\xBB\xBFx", "r");
+    ADD_FAILURE() << "no error";
+  } catch (const pm::JsonError& e) {
+    EXPECT_NE(std::string(e.what()).find("line 1, column 4"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(pm::parse_json("1 \xEF\xBB\xBF", "r"), pm::JsonError);  // only at the start
+}
+
 TEST(Json, QuoteEscapesQuotesBackslashesAndControlCharacters) {
   EXPECT_EQ(pm::json_quote("plain é"), "\"plain é\"");
   EXPECT_EQ(pm::json_quote("a\"b\\c"), R"("a\"b\\c")");

@@ -10,7 +10,8 @@
 // frames 1/60 s apart. Conventions are those of `terralod view` (view.hpp): x east, y north,
 // z up, metres in the world frame of the terrain; yaw in degrees clockwise from north; pitch in
 // degrees above the horizon, in [-90, 90]; fovy the vertical field of view in degrees, in
-// (0, 180). Empty lines and lines starting with '#' are skipped; a trailing '\r' is ignored.
+// (0, 180). Empty lines and lines starting with '#' are skipped; a trailing '\r' and a UTF-8 byte
+// order mark at the start (Excel's "CSV UTF-8") are ignored.
 //
 // Contract:
 //   - read_camera_path returns at least one pose; width/height (>= 1) and near/far (0 < near <

@@ -11,7 +11,7 @@
 //
 // Contract:
 //   - parse_json(text, where) reads exactly one JSON value, with whitespace (space, tab, CR, LF)
-//     around it, and returns it. Strict: no comments, no trailing commas, no single quotes, no
+//     around it (and a UTF-8 byte order mark before it, as Windows editors write), and returns it. Strict: no comments, no trailing commas, no single quotes, no
 //     NaN or Infinity, no leading zeros or '+', no control character (< 0x20) inside a string,
 //     no key twice in one object, and nothing but whitespace after the value. Limits: at most
 //     64 arrays and objects nested inside each other; a number must be finite as a double
