@@ -581,4 +581,49 @@ TEST(TerrainExportAntimeridian, TilesOnBothSidesDrawTheTerrainSeamlessly) {
   EXPECT_GE(pairs, 1u);
 }
 
+// A DEM around the South Pole (polar stereographic, EPSG:3031, as REMA's tiles are) cannot be
+// put on the geographic tiling: the export refuses it naming the pole (it failed with GDAL's
+// "Attempt to create 363x0 dataset is illegal"), and a polar DEM clear of the pole exports.
+TEST(TerrainExportPole, ATerrainAroundAPoleIsRefusedNamingThePole) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  constexpr int kN = 65;
+  constexpr double kStep = 60.0, kHalf = 0.5 * (kN - 1) * kStep;
+  auto write = [&](const std::string& tif, double cx, double cy) {
+    GDALAllRegister();
+    GDALDataset* ds = GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), kN, kN, 1,
+                                                                               GDT_Float64, nullptr);
+    ASSERT_NE(ds, nullptr);
+    double gt[6] = {cx - kHalf - 0.5 * kStep, kStep, 0, cy + kHalf + 0.5 * kStep, 0, -kStep};
+    ds->SetGeoTransform(gt);
+    OGRSpatialReference polar;
+    polar.importFromEPSG(3031);
+    ds->SetSpatialRef(&polar);
+    std::vector<double> z;
+    for (int r = 0; r < kN; ++r)
+      for (int c = 0; c < kN; ++c) z.push_back(500.0 + 100.0 * std::sin(0.1 * c) * std::cos(0.07 * r));
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, kN, kN, z.data(), kN, kN, GDT_Float64, 0, 0),
+              CE_None);
+    GDALClose(ds);
+  };
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  const std::string pole_tif = (dir / "pole.tif").string(), pole_db = (dir / "pole.db").string();
+  ASSERT_NO_FATAL_FAILURE(write(pole_tif, 0.0, 0.0));
+  tb::build_database(tb::read_dem(pole_tif), pole_db, o);
+  try {
+    tb::export_terrain(pole_db, (dir / "pole-tiles").string(), {});
+    ADD_FAILURE() << "exported";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("holds the South Pole"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(pole_db), std::string::npos) << e.what();
+  }
+  // 1,500 km from the pole (76 degrees south): exported.
+  const std::string off_tif = (dir / "off.tif").string(), off_db = (dir / "off.db").string();
+  ASSERT_NO_FATAL_FAILURE(write(off_tif, 0.0, 1.5e6));
+  tb::build_database(tb::read_dem(off_tif), off_db, o);
+  const tb::ExportReport r = tb::export_terrain(off_db, (dir / "off-tiles").string(), {});
+  EXPECT_LT(r.bounds.north, -76.0);
+  for (const tb::ExportLevel& L : r.levels) EXPECT_LE(L.max_error, L.bound) << "level " << L.z;
+}
+
 }  // namespace

@@ -105,6 +105,19 @@ bool is_wgs84_geographic(const std::string& wkt) {
   return srs.IsSameGeogCS(&wgs84) != 0;
 }
 
+/// +1 when the North Pole lies inside the terrain's footprint (its samples' cells), -1 for the
+/// South Pole, 0 for neither.
+int pole_inside(const pm::Heightfield& hf, const detail::GeographicOf& geo) {
+  const detail::Affine grid{*hf.crs_transform};
+  for (const int s : {1, -1}) {
+    double x = 0.0, y = 90.0 * s;
+    if (!geo.to_crs->Transform(1, &x, &y) || !std::isfinite(x) || !std::isfinite(y)) continue;
+    const auto [c, r] = grid.inverse(x, y);
+    if (c >= -0.5 && c <= hf.width() - 0.5 && r >= -0.5 && r <= hf.height() - 0.5) return s;
+  }
+  return 0;
+}
+
 /// hf warped to EPSG:4326 (bilinear, GDAL's choice of resolution), voids and outside as holes.
 GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
   const pm::GridTransform& t = *hf.crs_transform;
@@ -126,6 +139,15 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
   // lon_wrap): a terrain across the antimeridian would otherwise land on both edges of
   // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
   if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(hf.crs_wkt)) {
+    // Around a pole every longitude meets: GDAL suggests no grid (it failed with "Attempt to
+    // create 363x0 dataset"), and one laid out by hand is so anisotropic (a column spans degrees,
+    // a row a second) that the tiles' meshes missed the samples by hundreds of metres. Refused,
+    // naming the pole, until the exporter meshes such tiles.
+    if (const int pole = pole_inside(hf, *geo); pole != 0)
+      throw GeoError(what + ": the terrain holds the " + (pole > 0 ? "North" : "South") +
+                     " Pole, which the geographic tiling of quantized-mesh and of this 3D Tiles "
+                     "export cannot hold yet (every longitude meets there); export a part of the "
+                     "terrain that stays clear of the pole");
     auto [x, y] = t.to_world(0.5 * (hf.width() - 1), 0.5 * (hf.height() - 1));
     if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
       dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
