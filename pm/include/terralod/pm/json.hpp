@@ -11,9 +11,10 @@
 //
 // Contract:
 //   - parse_json(text, where) reads exactly one JSON value, with whitespace (space, tab, CR, LF)
-//     around it (and a UTF-8 byte order mark before it, as Windows editors write), and returns it. Strict: no comments, no trailing commas, no single quotes, no
-//     NaN or Infinity, no leading zeros or '+', no control character (< 0x20) inside a string,
-//     no key twice in one object, and nothing but whitespace after the value. Limits: at most
+//     around it and a UTF-8 byte order mark before it (Windows editors write one), and returns
+//     it. Strict: no comments, no trailing commas, no single quotes, no NaN or Infinity, no
+//     leading zeros or '+', no control character (< 0x20) inside a string, no key twice in one
+//     object, and nothing but whitespace after the value. Limits: at most
 //     64 arrays and objects nested inside each other; a number must be finite as a double
 //     (1e400 is refused; a number too small for a double, like 1e-400, reads as 0 with its
 //     sign). Escapes: \" \\ \/ \b \f \n \r \t and \uXXXX (hex digits either case) decoded to
