@@ -202,9 +202,9 @@ std::int32_t FontChain::line_height(int size_px) {
   return std::int32_t(f.ft->size->metrics.height);
 }
 
-std::vector<ShapedGlyph> FontChain::shape(const std::vector<char32_t>& line, int size_px) {
+ShapedLine FontChain::shape(const std::vector<char32_t>& line, int size_px) {
   const std::size_t n = line.size();
-  std::vector<ShapedGlyph> out;
+  ShapedLine out;
   if (n == 0) return out;
   hb_unicode_funcs_t* ucd = hb_unicode_funcs_get_default();
   std::vector<std::uint32_t> text(line.begin(), line.end());
@@ -294,8 +294,11 @@ std::vector<ShapedGlyph> FontChain::shape(const std::vector<char32_t>& line, int
     unsigned count = 0;
     const hb_glyph_info_t* info = hb_buffer_get_glyph_infos(buf, &count);
     const hb_glyph_position_t* pos = hb_buffer_get_glyph_positions(buf, &count);
-    for (unsigned k = 0; k < count; ++k)
-      out.push_back({face[r.start], info[k].codepoint, pos[k].x_advance, pos[k].x_offset, pos[k].y_offset});
+    for (unsigned k = 0; k < count; ++k) {
+      out.glyphs.push_back(
+          {face[r.start], info[k].codepoint, pos[k].x_advance, pos[k].x_offset, pos[k].y_offset});
+      out.advance += pos[k].x_advance;
+    }
   }
   return out;
 }

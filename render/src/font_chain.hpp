@@ -45,6 +45,23 @@ struct GlyphBitmap {
   std::vector<std::uint8_t> coverage;
 };
 
+/// A shaped line: its glyphs, left to right, and its width.
+struct ShapedLine {
+  std::vector<ShapedGlyph> glyphs;
+  std::int64_t advance = 0;  ///< 26.6 pixels: the glyphs' x_advance summed
+
+  /// Calls f(glyph, x, y) for each glyph with its origin on whole pixels (y down), the pen
+  /// starting at `pen` (26.6 pixels) on the pixel row `baseline`: the one placement of the
+  /// labels and the HUD.
+  template <class F>
+  void place(std::int64_t pen, int baseline, F&& f) const {
+    for (const ShapedGlyph& g : glyphs) {
+      f(g, int((pen + g.x_offset + 32) >> 6), baseline - int((std::int64_t(g.y_offset) + 32) >> 6));
+      pen += g.x_advance;
+    }
+  }
+};
+
 class FontChain {
  public:
   /// Opens the label font; std::runtime_error "<font>: ..." when FreeType cannot load it.
@@ -55,7 +72,7 @@ class FontChain {
 
   /// The glyphs of one line of text (code points; control characters count as spaces) at
   /// `size_px` pixels an em, left to right on screen.
-  std::vector<ShapedGlyph> shape(const std::vector<char32_t>& line, int size_px);
+  ShapedLine shape(const std::vector<char32_t>& line, int size_px);
 
   /// Rasterises glyph `glyph` of face index `face` at `size_px` (hinted, as shape() measures);
   /// std::runtime_error naming the font file when FreeType cannot.

@@ -9,14 +9,14 @@
 
 namespace terralod::render::detail {
 
-GlyphAtlas::GlyphAtlas(const std::string& font_path, int halo_px)
-    : fonts_(font_path), font_(font_path), halo_(halo_px) {
+GlyphAtlas::GlyphAtlas(const std::string& font_path, int halo_px) : fonts_(font_path), halo_(halo_px) {
   height_ = 64;
   texels_.assign(std::size_t(kWidth) * height_ * 2, 0);
 }
 
 void GlyphAtlas::place(Glyph& g, const std::vector<std::uint8_t>& two_channel) {
-  if (g.width > kWidth) throw std::runtime_error(font_ + ": a glyph is wider than the label atlas");
+  if (g.width > kWidth)
+    throw std::runtime_error(fonts_.face_file(0) + ": a glyph is wider than the label atlas");
   if (shelf_x_ + g.width > kWidth) shelf_y_ += shelf_h_, shelf_x_ = 0, shelf_h_ = 0;
   while (shelf_y_ + g.height > height_) {  // grow by doubling, keeping what is there
     height_ *= 2;
@@ -97,38 +97,32 @@ LabelLayout GlyphAtlas::lay_out(std::string_view text, int size_px) {
       lines.back().push_back(c);
     }
   }
-  std::vector<std::vector<ShapedGlyph>> shaped;
-  std::vector<long> advance;  // 26.6
-  long widest = 0;
+  std::vector<ShapedLine> shaped;
+  std::int64_t widest = 0;  // 26.6
   for (const auto& line : lines) {
     shaped.push_back(fonts_.shape(line, size_px));
-    long a = 0;
-    for (const ShapedGlyph& g : shaped.back()) a += g.x_advance;
-    advance.push_back(a);
-    widest = std::max(widest, a);
+    widest = std::max(widest, shaped.back().advance);
   }
-  const long line_px = (long(fonts_.line_height(size_px)) + 32) >> 6;
+  const int line_px = (fonts_.line_height(size_px) + 32) >> 6;
 
   LabelLayout out;
   int lo_x = INT_MAX, lo_y = INT_MAX, hi_x = INT_MIN, hi_y = INT_MIN;
-  const std::size_t n_lines = shaped.size();
-  for (std::size_t k = 0; k < n_lines; ++k) {
-    long pen = (widest - advance[k]) / 2;  // 26.6, centred on the widest line
-    const int baseline = -int(long(n_lines - 1 - k) * line_px);
-    for (const ShapedGlyph& sg : shaped[k]) {
-      const Glyph& g = glyph(sg.face, sg.glyph, size_px);
-      const int origin_x = int((pen + sg.x_offset + 32) >> 6);
-      const int origin_y = baseline - int((long(sg.y_offset) + 32) >> 6);  // y down on screen
-      pen += sg.x_advance;
-      if (g.width == 0) continue;
-      PlacedGlyph p;
-      p.x0 = origin_x + g.left, p.y0 = origin_y - g.top;
-      p.x1 = p.x0 + g.width, p.y1 = p.y0 + g.height;
-      p.atlas_x = g.atlas_x, p.atlas_y = g.atlas_y;
-      lo_x = std::min(lo_x, p.x0), lo_y = std::min(lo_y, p.y0);
-      hi_x = std::max(hi_x, p.x1), hi_y = std::max(hi_y, p.y1);
-      out.glyphs.push_back(p);
-    }
+  const int n_lines = int(shaped.size());
+  for (int k = 0; k < n_lines; ++k) {
+    const ShapedLine& line = shaped[std::size_t(k)];
+    // Centred on the widest line; the last line's baseline is row 0.
+    line.place((widest - line.advance) / 2, -(n_lines - 1 - k) * line_px,
+               [&](const ShapedGlyph& sg, int origin_x, int origin_y) {
+                 const Glyph& g = glyph(sg.face, sg.glyph, size_px);
+                 if (g.width == 0) return;
+                 PlacedGlyph p;
+                 p.x0 = origin_x + g.left, p.y0 = origin_y - g.top;
+                 p.x1 = p.x0 + g.width, p.y1 = p.y0 + g.height;
+                 p.atlas_x = g.atlas_x, p.atlas_y = g.atlas_y;
+                 lo_x = std::min(lo_x, p.x0), lo_y = std::min(lo_y, p.y0);
+                 hi_x = std::max(hi_x, p.x1), hi_y = std::max(hi_y, p.y1);
+                 out.glyphs.push_back(p);
+               });
   }
   if (out.glyphs.empty()) return out;
   for (PlacedGlyph& p : out.glyphs) p.x0 -= lo_x, p.x1 -= lo_x, p.y0 -= lo_y, p.y1 -= lo_y;

@@ -71,7 +71,6 @@ class GlyphAtlas {
   LabelLayout lay_out(std::string_view text, int size_px);
 
   FontChain fonts_;
-  std::string font_;
   int halo_ = 0;
   std::map<std::tuple<int, int, std::uint32_t>, Glyph> glyphs_;           // (face, size, glyph index)
   std::unordered_map<std::string, LabelLayout> layouts_, older_layouts_;  // key: size, '\0', text

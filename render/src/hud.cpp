@@ -31,13 +31,11 @@ TextRasterizer::~TextRasterizer() = default;
 
 TextImage TextRasterizer::rasterize(const std::vector<std::string>& lines) {
   const int px = opt_.pixel_size, line_h = px * 5 / 4, pad = px / 3;
-  std::vector<std::vector<detail::ShapedGlyph>> shaped;
-  long widest = 64;  // 26.6: at least one pixel
+  std::vector<detail::ShapedLine> shaped;
+  std::int64_t widest = 64;  // 26.6: at least one pixel
   for (const std::string& l : lines) {
     shaped.push_back(fonts_->shape(detail::decode_utf8(l), px));
-    long advance = 0;
-    for (const detail::ShapedGlyph& g : shaped.back()) advance += g.x_advance;
-    widest = std::max(widest, advance);
+    widest = std::max(widest, shaped.back().advance);
   }
   TextImage t;
   t.width = int((widest + 63) >> 6) + 2 * pad;
@@ -47,18 +45,14 @@ TextImage TextRasterizer::rasterize(const std::vector<std::string>& lines) {
   t.rgba.resize(std::size_t(t.width) * t.height * 4);
   for (std::size_t p = 0; p < t.rgba.size(); p += 4)
     t.rgba[p] = t.rgba[p + 1] = t.rgba[p + 2] = 0, t.rgba[p + 3] = 140;
-  for (std::size_t i = 0; i < shaped.size(); ++i) {
-    const int baseline = pad + int(i) * line_h + px;
-    long pen = 0;
-    for (const detail::ShapedGlyph& sg : shaped[i]) {
+  for (std::size_t i = 0; i < shaped.size(); ++i)
+    shaped[i].place(0, pad + int(i) * line_h + px, [&](const detail::ShapedGlyph& sg, int ox, int oy) {
       auto it = glyphs_->drawn.find({sg.face, sg.glyph});
       if (it == glyphs_->drawn.end())
         it = glyphs_->drawn.emplace(std::make_pair(sg.face, sg.glyph), fonts_->render(sg.face, sg.glyph, px))
                  .first;
       const detail::GlyphBitmap& bm = it->second;
-      const int x0 = pad + int((pen + sg.x_offset + 32) >> 6) + bm.left;
-      const int y0 = baseline - int((long(sg.y_offset) + 32) >> 6) - bm.top;
-      pen += sg.x_advance;
+      const int x0 = pad + ox + bm.left, y0 = oy - bm.top;
       for (int y = 0; y < bm.height; ++y)
         for (int x = 0; x < bm.width; ++x) {
           const int X = x0 + x, Y = y0 + y;
@@ -67,8 +61,7 @@ TextImage TextRasterizer::rasterize(const std::vector<std::string>& lines) {
           std::uint8_t* d = &t.rgba[(std::size_t(Y) * t.width + X) * 4];
           for (int c = 0; c < 4; ++c) d[c] = std::uint8_t((255 * a + d[c] * (255 - a) + 127) / 255);
         }
-    }
-  }
+    });
   return t;
 }
 

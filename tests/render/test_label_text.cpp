@@ -24,7 +24,7 @@ const std::string kFont = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 constexpr int kSize = 20;
 
 std::vector<ShapedGlyph> shape(FontChain& fonts, const std::string& utf8) {
-  return fonts.shape(decode_utf8(utf8), kSize);
+  return fonts.shape(decode_utf8(utf8), kSize).glyphs;
 }
 
 /// The glyph indices of a shaped line, left to right.
