@@ -127,7 +127,8 @@ int view_blocks(const Args& a, const pm::Camera& camera, double tau) {
     img = r.read_color();
     drawing.reset();  // before its renderer
   }
-  if (objects) print_line(objects_line(*objects) + "; " + drawn_line(drawn));
+  if (objects)
+    print_line(objects_line(*objects, /*timings=*/true) + "; " + drawn_line(drawn, /*timings=*/true));
   rd::write_png(img, out);
   print_line(strf("render %d x %d on %s (draw %s): write %s, %s, %s", width, height,
                   ctx->info().renderer.c_str(), format_duration(draw_ms).c_str(), out.c_str(),

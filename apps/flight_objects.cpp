@@ -48,9 +48,10 @@ void write_objects_csv(const std::vector<blocks::PlacedObject>& placed, const bl
   if (std::fclose(f) != 0) throw std::runtime_error(path + ": cannot write (" + std::strerror(errno) + ")");
 }
 
-std::string objects_line(const blocks::ObjectPlacer& placer) {
-  std::string s =
-      strf("objects %zu in view (%.2f ms)   layers", placer.placed().size(), placer.stats().place_ms);
+std::string objects_line(const blocks::ObjectPlacer& placer, bool timings) {
+  std::string s = strf("objects %zu in view", placer.placed().size());
+  if (timings) s += strf(" (%.2f ms)", placer.stats().place_ms);
+  s += "   layers";
   for (const blocks::ObjectLayerInfo& l : placer.layers())
     s += strf("  %s%s", l.name.c_str(), placer.layer_visible(l.name) ? "" : "(off)");
   return s;

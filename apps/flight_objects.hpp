@@ -38,8 +38,9 @@ std::optional<blocks::ObjectPlacer> object_placer(const Args& a, const std::stri
 void write_objects_csv(const std::vector<blocks::PlacedObject>& placed, const blocks::TerrainRuntime& rt,
                        const std::string& path);
 
-/// One HUD line: the objects placed this frame and the layers, hidden ones marked "(off)".
-std::string objects_line(const blocks::ObjectPlacer& placer);
+/// One HUD line: the objects placed this frame and the layers, hidden ones marked "(off)"; with
+/// `timings`, the placement's time (headless frames leave it out, as lod_lines does).
+std::string objects_line(const blocks::ObjectPlacer& placer, bool timings);
 
 /// HUD lines for a pick: the object's name, kind, layer and attributes (name=value, wrapped at
 /// about `width` characters), or the ground point, or "nothing" for nullopt.

@@ -213,7 +213,9 @@ int run_headless(const Args& a) {
     if (hud) {
       std::vector<std::string> lines = lod_lines(r, t->options(), /*timings=*/false);
       lines[0] = strf("frame %lld   ", k) + lines[0];
-      if (objects) lines.insert(lines.end(), {objects_line(*objects), drawn_line(drawn)});
+      if (objects)
+        lines.insert(lines.end(),
+                     {objects_line(*objects, /*timings=*/false), drawn_line(drawn, /*timings=*/false)});
       if (!hud_text) hud_text.emplace();
       overlay_text(img, hud_text->rasterize(lines), render::HudOptions{}.margin);
     }

@@ -286,8 +286,8 @@ int run_window(const Args& a) {
       lines.push_back(on + (layers->lens().enabled ? "  lens" : ""));
     }
     if (objects) {
-      lines.push_back(objects_line(*objects));
-      lines.push_back(drawn_line(drawn));
+      lines.push_back(objects_line(*objects, /*timings=*/true));
+      lines.push_back(drawn_line(drawn, /*timings=*/true));
       lines.insert(lines.end(), picked.begin(), picked.end());
     }
     hud.set_lines(lines);

@@ -18,9 +18,10 @@ const glm::vec4 kLineColour{0.16f, 0.22f, 0.34f, 1.0f};
 
 }  // namespace
 
-std::string drawn_line(const ObjectDrawStats& s) {
-  return strf("drawn: %zu icons, %zu of %zu labels, %zu line and %zu shape triangles (%.2f ms CPU)", s.icons,
-              s.labels_shown, s.label_candidates, s.line_triangles, s.shape_triangles, s.cpu_ms);
+std::string drawn_line(const ObjectDrawStats& s, bool timings) {
+  return strf("drawn: %zu icons, %zu of %zu labels, %zu line and %zu shape triangles", s.icons,
+              s.labels_shown, s.label_candidates, s.line_triangles, s.shape_triangles) +
+         (timings ? strf(" (%.2f ms CPU)", s.cpu_ms) : std::string());
 }
 
 ObjectDrawing::ObjectDrawing(render::GlContext& ctx, const blocks::ObjectPlacer& placer)

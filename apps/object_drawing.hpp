@@ -38,8 +38,8 @@ struct ObjectDrawStats {
   double cpu_ms = 0.0;  ///< thread CPU of building the frame's instances and meshes
 };
 
-/// One HUD line: what the last draw() drew.
-std::string drawn_line(const ObjectDrawStats& s);
+/// One HUD line: what the last draw() drew; with `timings`, its CPU time.
+std::string drawn_line(const ObjectDrawStats& s, bool timings);
 
 class ObjectDrawing {
  public:

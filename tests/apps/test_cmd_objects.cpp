@@ -1,6 +1,7 @@
 // terralod objects add|list end to end: a 65 x 65 UTM terrain built by 'terralod build', GeoJSON
 // layers added and listed, and each bad input refused with a message naming the file, the exit
 // status of other commands, and the database file unchanged.
+#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -188,6 +189,41 @@ TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
   ASSERT_EQ(cli_.run("fly --help", &out), 0);
   EXPECT_NE(out.find("--objects NAME"), std::string::npos) << out;
   EXPECT_NE(out.find("name,kind,x,y,z,ground_z"), std::string::npos) << out;
+}
+
+// terralod-fly --headless --hud promises identical images for the same path, apart from the
+// HUD's memory figure: its object lines (placed, drawn) carry no timings there (they did, in
+// milliseconds, so two runs differed).
+TEST_F(ObjectsCli, HeadlessHudObjectLinesAreTheSameInEveryRun) {
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
+            0);
+  {
+    std::ofstream f(file("path.csv"));
+    f << "x,y,z,yaw,pitch,fovy\n";
+    for (int k = 0; k < 2; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
+  }
+  const CliRunner fly{TERRALOD_FLY};
+  auto rows = [&](const std::string& dir) {
+    std::string out;
+    EXPECT_EQ(fly.run("--headless --db " + quote(db()) + " --size 640x240 --path " + quote(file("path.csv")) +
+                          " --out " + quote(file(dir)) + " --hud --objects huts",
+                      &out),
+              0)
+        << out;
+    auto in = OIIO::ImageInput::open(file(dir) + "/frame_00001.png");
+    EXPECT_TRUE(in) << OIIO::geterror();
+    if (!in) return std::vector<unsigned char>();
+    const OIIO::ImageSpec& spec = in->spec();
+    std::vector<unsigned char> px(std::size_t(spec.width) * spec.height * 3);
+    EXPECT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data()));
+    // The HUD's lines 6 and 7 (objects, drawn): 16 px text, 20 px apart, 8 px margin, 5 px pad.
+    const std::size_t row = std::size_t(spec.width) * 3;
+    return std::vector<unsigned char>(px.begin() + std::ptrdiff_t((8 + 5 + 5 * 20) * row),
+                                      px.begin() + std::ptrdiff_t((8 + 5 + 7 * 20) * row));
+  };
+  const std::vector<unsigned char> a = rows("hud1"), b = rows("hud2");
+  ASSERT_FALSE(a.empty());
+  EXPECT_TRUE(a == b) << "the HUD's object lines differ between two runs of the same path";
 }
 
 // A label layer whose label field is empty or missing for some features labels the others only:
