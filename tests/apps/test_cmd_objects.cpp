@@ -35,6 +35,14 @@ const char* kPoints = R"({"type": "FeatureCollection", "features": [
    "geometry": {"type": "Point", "coordinates": [15.005, 45.155]}},
   {"type": "Feature", "id": 3, "properties": {"name": "lost"}, "geometry": null}]})";
 
+/// A camera path of `frames` frames south of the terrain, 1.5 km up, looking north and 40 degrees
+/// down at it, moving 20 m east a frame.
+void write_south_path(const std::string& path, int frames) {
+  std::ofstream f(path);
+  f << "x,y,z,yaw,pitch,fovy\n";
+  for (int k = 0; k < frames; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
+}
+
 // The terrain, built once for the suite (each 'terralod' run costs about half a second):
 // 65 x 65 samples of 30 m in UTM zone 33N, lower-left corner (500000, 5000000).
 class ObjectsCli : public testing::Test {
@@ -144,12 +152,7 @@ TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
 TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
   ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
             0);
-  // Five frames south of the terrain, 1.5 km up, looking north and 40 degrees down at it.
-  {
-    std::ofstream f(file("path.csv"));
-    f << "x,y,z,yaw,pitch,fovy\n";
-    for (int k = 0; k < 5; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
-  }
+  write_south_path(file("path.csv"), 5);
   const std::string fly = "fly --db " + quote(db()) + " --path " + quote(file("path.csv")) + " --out " +
                           quote(file("out")) + " --speed-factor 0 --size 320x240";
   std::string out;
@@ -197,11 +200,7 @@ TEST_F(ObjectsCli, FlyDumpsThePlacedObjectsOfEveryFrame) {
 TEST_F(ObjectsCli, HeadlessHudObjectLinesAreTheSameInEveryRun) {
   ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer huts --input " + quote(file("points.geojson"))),
             0);
-  {
-    std::ofstream f(file("path.csv"));
-    f << "x,y,z,yaw,pitch,fovy\n";
-    for (int k = 0; k < 2; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
-  }
+  write_south_path(file("path.csv"), 2);
   const CliRunner fly{TERRALOD_FLY};
   auto rows = [&](const std::string& dir) {
     std::string out;
@@ -240,11 +239,7 @@ TEST_F(ObjectsCli, UnnamedFeaturesGetNoLabel) {
       cli_.run("objects add " + quote(db()) + " --layer peaks --kind label --label-field peak --input " +
                quote(file("peaks.geojson"))),
       0);
-  {
-    std::ofstream f(file("path.csv"));
-    f << "x,y,z,yaw,pitch,fovy\n";
-    for (int k = 0; k < 3; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
-  }
+  write_south_path(file("path.csv"), 3);
   const CliRunner fly{TERRALOD_FLY};
   std::string out;
   ASSERT_EQ(fly.run("--headless --db " + quote(db()) + " --size 320x240 --path " + quote(file("path.csv")) +
@@ -335,11 +330,7 @@ TEST_F(ObjectsCli, FlyDemoPlacesObjects) {
   ASSERT_EQ(demo.run(low + " --out " + quote(file("without")), &drawn), 0);
   EXPECT_NE(bytes_of(file("with/frame_00000.png")), bytes_of(file("without/frame_00000.png")))
       << "the objects must show in the frame";
-  {
-    std::ofstream f(file("path.csv"));
-    f << "x,y,z,yaw,pitch,fovy\n";
-    for (int k = 0; k < 3; ++k) f << 500960 + 20 * k << ",4999000,1500,0,-40,60\n";
-  }
+  write_south_path(file("path.csv"), 3);
   const CliRunner fly{TERRALOD_FLY};
   const std::string base = "--db " + quote(db()) + " --size 160x120 ";
   std::string out;
