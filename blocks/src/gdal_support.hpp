@@ -78,18 +78,22 @@ inline std::string gdal_message(const std::string& fallback) {
   return (msg != nullptr && *msg != '\0') ? std::string(msg) : fallback;
 }
 
-/// Writes `dest` (a file or a /vsimem path) as a VRT mosaic of `files` (GDALBuildVRT, later
-/// files win where they overlap). Returns "" on success, else GDAL's reason, with nothing left
-/// at `dest`; a file GDALBuildVRT would skip with a warning (another CRS or band count) is a
-/// failure, not a hole in the mosaic.
-inline std::string build_vrt(const std::string& dest, const std::vector<std::string>& files) {
+/// Writes `dest` (a file or a /vsimem path) as a VRT mosaic of `files` (GDALBuildVRT with the
+/// command-line arguments `args`; later files win where they overlap). Returns "" on success,
+/// else GDAL's reason, with nothing left at `dest`; a file GDALBuildVRT would skip with a
+/// warning (another CRS or band count) is a failure, not a hole in the mosaic.
+inline std::string build_vrt(const std::string& dest, const std::vector<std::string>& files,
+                             const std::vector<std::string>& args = {}) {
   register_gdal();
   QuietGdal quiet;  // its messages go into ours, not to stderr as well
   std::vector<const char*> list;
   for (const std::string& f : files) list.push_back(f.c_str());
+  GDALBuildVRTOptions* options = args.empty() ? nullptr : gdal_options(args, GDALBuildVRTOptionsNew);
+  if (!args.empty() && options == nullptr) return gdal_message("GDAL rejected the mosaic's options");
   int usage_error = 0;
   GDALDatasetH vrt =
-      GDALBuildVRT(dest.c_str(), int(list.size()), nullptr, list.data(), nullptr, &usage_error);
+      GDALBuildVRT(dest.c_str(), int(list.size()), nullptr, list.data(), options, &usage_error);
+  GDALBuildVRTOptionsFree(options);
   std::string gdal = CPLGetLastErrorMsg();
   if (vrt) GDALClose(vrt);
   const bool skipped = gdal.find("Skipping") != std::string::npos;

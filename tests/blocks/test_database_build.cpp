@@ -392,28 +392,25 @@ TEST(DatabaseBuild, BadInputNamesTheFile) {
   // An empty folder, and a mosaic with a missing tile, are refused naming them.
   fs::create_directories(dir + "/database_build_no_tiles");
   expect_error(dir + "/database_build_no_tiles", "a folder without elevation files");
-  // Tiles in two UTM zones do not mosaic: the error says why once (GDAL's own warning used to be
-  // printed before it as well).
+  // A tile without a CRS beside one with a CRS does not mosaic (tiles in two CRSs do: one is
+  // warped to the other's, see test_dem_writer): the error names both and says why, once
+  // (GDAL's own warning used to be printed before it as well).
   const std::string zones = dir + "/database_build_zones";
   fs::create_directories(zones);
-  for (const int zone : {18, 19}) {
-    const std::string name = zones + "/utm" + std::to_string(zone);
-    write_asc(name + ".asc", terrain(9, 9, 1));
-    std::ofstream(name + ".prj")
-        << "PROJCS[\"WGS 84 / UTM zone " << zone
-        << "N\",GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563]],"
-           "PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]],PROJECTION[\"Transverse_Mercator\"],"
-           "PARAMETER[\"latitude_of_origin\",0],PARAMETER[\"central_meridian\","
-        << 6 * zone - 183
-        << "],PARAMETER[\"scale_factor\",0.9996],PARAMETER[\"false_easting\",500000],"
-           "PARAMETER[\"false_northing\",0],UNIT[\"metre\",1]]";
-  }
-  expect_error(zones, "tiles in two CRSs");
+  write_asc(zones + "/plain.asc", terrain(9, 9, 1));
+  write_asc(zones + "/utm18.asc", terrain(9, 9, 1));
+  std::ofstream(zones + "/utm18.prj")
+      << "PROJCS[\"WGS 84 / UTM zone 18N\",GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,"
+         "298.257223563]],PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]],PROJECTION["
+         "\"Transverse_Mercator\"],PARAMETER[\"latitude_of_origin\",0],PARAMETER[\"central_meridian\",-75],"
+         "PARAMETER[\"scale_factor\",0.9996],PARAMETER[\"false_easting\",500000],PARAMETER[\"false_"
+         "northing\",0],"
+         "UNIT[\"metre\",1]]";
+  expect_error(zones, "a tile without a CRS");
   const ChildRun z = run_terralod({"build", "--input", zones, "--out", out});
-  EXPECT_NE(z.err.find(zones + ": cannot mosaic the 2 inputs"), std::string::npos) << z.err;
-  const std::size_t why = z.err.find("heterogeneous projection");
+  const std::size_t why = z.err.find("plain.asc: it has no CRS while " + zones + "/utm18.asc has one");
   EXPECT_NE(why, std::string::npos) << z.err;
-  EXPECT_EQ(z.err.find("heterogeneous projection", why + 1), std::string::npos) << "said twice: " << z.err;
+  EXPECT_EQ(z.err.find("has no CRS", why + 20), std::string::npos) << "said twice: " << z.err;
 }
 
 // --input FOLDER and repeated --input: the tiles are built as one terrain, the database says so.

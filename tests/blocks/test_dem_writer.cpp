@@ -2,12 +2,17 @@
 // sample by sample with what it stands for.
 #include <cpl_vsi.h>
 #include <gtest/gtest.h>
+#include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <map>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "geographic_tiff.hpp"
@@ -291,4 +296,157 @@ TEST(DemInputs, AFolderOfZippedSrtmTilesIsReadAsItsTiles) {
   ASSERT_EQ(hf.height(), kN);
   for (int r = 0; r < kN; r += 97)
     for (int c = 0; c < kN; c += 89) ASSERT_EQ(hf.at(c, r), 100 + (r * 7 + c * 3) % 900) << c << ", " << r;
+}
+
+namespace {
+
+// A smooth terrain around 44 N, 72 W (waves of 0.25 degrees, about 20 km): bilinear resampling
+// at 90 m moves it by under 0.05 m.
+double rolling(double lon, double lat) {
+  return 800.0 + 300.0 * std::sin(lon * 2.0 * M_PI / 0.25) * std::cos(lat * 2.0 * M_PI / 0.2);
+}
+
+// A point of EPSG:`from` in EPSG:`to` (geographic ones as (lon, lat)). Each pair's transformation
+// is made once: making one costs about a millisecond.
+std::pair<double, double> transform(int from, int to, double x, double y) {
+  static std::map<std::pair<int, int>, std::unique_ptr<OGRCoordinateTransformation>> made;
+  auto& t = made[{from, to}];
+  if (!t) {
+    OGRSpatialReference a, b;
+    a.importFromEPSG(from);
+    b.importFromEPSG(to);
+    a.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    b.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    t.reset(OGRCreateCoordinateTransformation(&a, &b));
+  }
+  EXPECT_TRUE(t && t->Transform(1, &x, &y));
+  return {x, y};
+}
+
+}  // namespace
+
+// Tiles of a national DEM in two UTM zones (west of 72 W in zone 18, east of it in zone 19):
+// GDALBuildVRT refused them ("heterogeneous projection"). The zone-19 tile, with fewer samples, is
+// warped to zone 18 on the zone-18 tile's cells, and the mosaic is the terrain everywhere, across
+// the zone line too.
+TEST(DemInputs, TilesInTwoUtmZonesJoinInTheCrsOfMostSamples) {
+  constexpr double kStep = 90.0;
+  struct Tile {
+    int epsg;
+    double x0, y0;  // the north-west sample
+    int cols, rows;
+    double west, east;  // longitudes it holds
+    // Whether (lon, lat) lies inside it, a sample's width from its edges.
+    bool holds(double lon, double lat) const {
+      const auto [x, y] = transform(4326, epsg, lon, lat);
+      return lon > west + 0.002 && lon < east - 0.002 && x > x0 + kStep && x < x0 + (cols - 2) * kStep &&
+             y < y0 - kStep && y > y0 - (rows - 2) * kStep;
+    }
+    std::string write(const std::string& name) const {
+      const std::string path = (tmp() / name).string();
+      terralod::test::write_tiff(path, epsg, x0, y0, cols, rows, kStep, GDT_Float32, [&](double x, double y) {
+        const auto [lon, lat] = transform(epsg, 4326, x, y);
+        return lon >= west && lon <= east ? rolling(lon, lat) : std::nan("");
+      });
+      return path;
+    }
+  };
+  // Zone 18 (central meridian 75 W): 72.4 W to 72 W is x = 738 to 771 km at 44.1 N; zone 19
+  // (69 W): 72.02 W to 71.75 W is x = 259 to 282 km. They overlap a little at the zone line, as
+  // such tiles do.
+  const Tile z18{32618, 738000.0, 4893000.0, 380, 120, -72.4, -71.99};
+  const Tile z19{32619, 259000.0, 4893000.0, 260, 130, -72.02, -71.75};
+  const tb::DemInputs in({z19.write("z19.tif"), z18.write("z18.tif")});
+  EXPECT_NE(in.description().find("1 warped to WGS 84 / UTM zone 18N"), std::string::npos)
+      << in.description();
+  const pm::Heightfield hf = tb::read_dem(in.path());
+  ASSERT_TRUE(hf.crs_transform.has_value());
+  EXPECT_NE(hf.crs_wkt.find("UTM zone 18N"), std::string::npos);
+  EXPECT_NEAR(hf.crs_transform->spacing_x(), kStep, 1e-9);
+  EXPECT_NEAR(hf.crs_transform->spacing_y(), kStep, 1e-9);
+  // The zone-18 tile's samples are where they were: its cells are the mosaic's.
+  const double fc = (z18.x0 - hf.crs_transform->x0) / kStep, fr = (hf.crs_transform->y0 - z18.y0) / kStep;
+  EXPECT_NEAR(fc, std::round(fc), 1e-9);
+  EXPECT_NEAR(fr, std::round(fr), 1e-9);
+  std::size_t checked = 0, across = 0;
+  double worst = 0.0;
+  for (int r = 0; r < hf.height(); ++r)
+    for (int c = 0; c < hf.width(); ++c) {
+      const auto [x, y] = hf.crs_transform->to_world(c, r);
+      const auto [lon, lat] = transform(32618, 4326, x, y);
+      if (!z18.holds(lon, lat) && !z19.holds(lon, lat)) continue;
+      ++checked;
+      across += lon > -72.01 && lon < -71.995;
+      worst = std::max(worst, std::abs(hf.at(c, r) - rolling(lon, lat)));
+    }
+  EXPECT_GT(checked, 25000u);
+  EXPECT_GT(across, 100u);
+  EXPECT_LT(worst, 0.1) << "metres, over " << checked << " samples";
+}
+
+// SRTM's Int16 tiles beside Float32 ones (Copernicus GLO-30 is Float32): GDALBuildVRT refused them
+// ("heterogeneous band data type"). The Int16 tile is read as Float32, and the mosaic, with a
+// void across the tiles' shared edge (-32768 in one, NaN in the other), reads as the same
+// terrain written as one Float32 file.
+TEST(DemInputs, Int16AndFloat32TilesReadAsOneFloat32File) {
+  constexpr double kStep = 1.0 / 1200.0;
+  constexpr double kWest = -72.1 + 0.5 * kStep, kNorth = 44.2 - 0.5 * kStep;
+  const auto height = [&](double lon, double lat) {
+    const double gap = std::hypot((lon + 72.0) / kStep, (lat - 44.15) / kStep);  // void: 3 samples
+    return gap < 3.0 ? std::nan("") : std::round(rolling(lon, lat));
+  };
+  const std::string west = (tmp() / "int16.tif").string(), east = (tmp() / "float32.tif").string(),
+                    one = (tmp() / "one_float32.tif").string();
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(west, 4326, kWest, kNorth, 120, 100, kStep, GDT_Int16, height));
+  ASSERT_NO_FATAL_FAILURE(terralod::test::write_tiff(east, 4326, kWest + 120 * kStep, kNorth, 120, 100, kStep,
+                                                     GDT_Float32, height));
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(one, 4326, kWest, kNorth, 240, 100, kStep, GDT_Float32, height));
+  const tb::DemInputs in({west, east});
+  EXPECT_NE(in.description().find("1 read as Float32"), std::string::npos) << in.description();
+  const pm::Heightfield got = tb::read_dem(in.path()), want = tb::read_dem(one);
+  ASSERT_EQ(got.width(), want.width());
+  ASSERT_EQ(got.height(), want.height());
+  EXPECT_GE(want.voids.filled, 20u);
+  EXPECT_EQ(got.voids.filled, want.voids.filled);
+  for (int r = 0; r < want.height(); ++r)
+    for (int c = 0; c < want.width(); ++c) ASSERT_EQ(got.at(c, r), want.at(c, r)) << c << ", " << r;
+}
+
+// SRTM at 1 second beside tiles at 3 seconds, or any two spacings: GDALBuildVRT put them all on
+// their mean spacing, dropping detail from the finer ones. The finest is kept, with its samples
+// as they are, and the coarser tile is resampled bilinearly (not into steps).
+TEST(DemInputs, TilesOfDifferentSpacingsKeepTheFinest) {
+  constexpr double kStep = 1.0 / 1200.0;
+  constexpr double kWest = -72.1 + 0.5 * kStep, kNorth = 44.2 - 0.5 * kStep;
+  const std::string fine = (tmp() / "fine.tif").string(), coarse = (tmp() / "coarse.tif").string();
+  const auto height = [](double lon, double lat) { return rolling(lon, lat); };
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(fine, 4326, kWest, kNorth, 120, 100, kStep, GDT_Float32, height));
+  // Cells of two fine ones, east of the fine tile: its first sample is 1.5 fine steps east of the
+  // fine tile's last.
+  ASSERT_NO_FATAL_FAILURE(terralod::test::write_tiff(
+      coarse, 4326, kWest + 120.5 * kStep, kNorth - 0.5 * kStep, 60, 50, 2 * kStep, GDT_Float32, height));
+  const tb::DemInputs in({fine, coarse});
+  EXPECT_NE(in.description().find("finest sample spacing"), std::string::npos) << in.description();
+  tb::DemOptions native;
+  const pm::Heightfield hf = tb::read_dem(in.path(), native);
+  ASSERT_EQ(hf.width(), 240);
+  ASSERT_EQ(hf.height(), 100);
+  ASSERT_TRUE(hf.crs_transform.has_value());
+  EXPECT_NEAR(hf.crs_transform->x0, kWest, 1e-12);
+  EXPECT_NEAR(hf.crs_transform->spacing_x(), kStep, 1e-15);
+  double worst = 0.0;
+  for (int r = 0; r < 100; ++r)
+    for (int c = 0; c < 240; ++c) {
+      const double lon = kWest + c * kStep, lat = kNorth - r * kStep;
+      if (c < 120) {
+        ASSERT_EQ(hf.at(c, r), double(float(rolling(lon, lat)))) << c << ", " << r;
+      } else if (c >= 122 && c < 238 && r >= 2 && r < 98) {
+        worst = std::max(worst, std::abs(hf.at(c, r) - rolling(lon, lat)));
+      }
+    }
+  // Steps (nearest) would be up to 4 m off on these slopes.
+  EXPECT_LT(worst, 0.3) << "metres";
 }

@@ -219,7 +219,9 @@ class DemInputs {
   std::string path_, description_;
   std::size_t files_ = 0;
   bool owned_ = false;
-  std::vector<std::string> shifted_;  ///< in-memory VRTs of tiles moved by 360 degrees (antimeridian)
+  /// In-memory VRTs the mosaic reads some files through: warped to the others' CRS, read as
+  /// their sample type, or moved by 360 degrees to join across the antimeridian.
+  std::vector<std::string> made_;
 };
 
 }  // namespace terralod::blocks
