@@ -259,6 +259,31 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
   QuietGdal quiet;
   GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw DemError(path, "GDAL cannot read it as a raster: " + gdal_message("unknown format"));
+  // Placed by ground control points only (no geotransform: scanned or raw products): read
+  // through a VRT that warps it north-up in the GCPs' CRS (gdalwarp's own choice of grid,
+  // bilinear, exact transformations), void outside its footprint. Read as it is, it was taken
+  // for a heightmap image of 1 m cells, its relief stretched by the true spacing.
+  double gt[6];
+  if (ds->GetGCPCount() >= 3 && ds->GetGeoTransform(gt) != CE_None && ds->GetRasterCount() >= 1) {
+    const GDALDataType type = ds->GetRasterBand(1)->GetRasterDataType();
+    const bool narrow = type == GDT_Byte || type == GDT_Int16 || type == GDT_UInt16 || type == GDT_Float32;
+    GDALWarpAppOptions* options = gdal_options(
+        {"-of", "VRT", "-r", "bilinear", "-et", "0", "-dstnodata", "nan", "-ot", narrow ? "Float32" : "Float64"},
+        GDALWarpAppOptionsNew);
+    GDALDatasetH src = GDALDataset::ToHandle(ds.get());
+    int usage_error = 0;
+    GDALDatasetH warped = options ? GDALWarp("", nullptr, 1, &src, options, &usage_error) : nullptr;
+    GDALWarpAppOptionsFree(options);
+    if (warped == nullptr)
+      throw DemError(path, "it is placed by ground control points that GDAL cannot warp north-up: " +
+                               gdal_message("GDALWarp failed"));
+    // The warped VRT holds a reference to the file's dataset and closes it when it is closed.
+    GDALDereferenceDataset(src);
+    (void)ds.release();
+    GDALDataset* vrt = GDALDataset::FromHandle(warped);
+    vrt->SetMetadataItem("GCP_COUNT", std::to_string(GDALGetGCPCount(src)).c_str(), "terralod");
+    return GDALDatasetUniquePtr(vrt);
+  }
   return ds;
 }
 
@@ -304,12 +329,14 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
   b.shift = has_offset ? offset : 0.0;
   const char* unit_c = band->GetUnitType();
   const std::string unit = unit_c != nullptr ? unit_c : "";
+  if (const char* gcps = ds.GetMetadataItem("GCP_COUNT", "terralod"))  // see open_gdal
+    b.height_note += std::string("; placed north-up by its ") + gcps + " ground control points";
   if (const auto metres = vertical_unit_to_metres(unit)) {
     b.factor *= *metres;
     b.shift *= *metres;
-    if (*metres != 1.0) b.height_note = "; heights converted from '" + unit + "' to metres";
+    if (*metres != 1.0) b.height_note += "; heights converted from '" + unit + "' to metres";
   } else {
-    b.height_note = "; heights in unknown unit '" + unit + "' taken as metres";
+    b.height_note += "; heights in unknown unit '" + unit + "' taken as metres";
   }
 
   // Georeferencing.

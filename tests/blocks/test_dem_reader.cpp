@@ -17,6 +17,8 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "terralod/blocks/dem_reader.hpp"
@@ -410,6 +412,84 @@ TEST(dem_reader_formats, HeightmapScaleOffsetAndUngeoreferencedTiff) {
   const Heightfield hfg = tb::read_dem(tif.string(), gdal);
   expect_heights(hfg, kAW, kAH, kGridA, "plain TIFF via GDAL");
   EXPECT_EQ(hfg.transform, GridTransform::north_up(0.0, 4.0, 1.0, 1.0));
+}
+
+// A DEM placed by ground control points only, no geotransform (scanned maps, raw products): it
+// was read as a heightmap image of 1 m cells. Here its grid is turned 20 degrees from north; it
+// is read north-up in the GCPs' CRS, every sample of the terrain where the grid covers it, and
+// the frame says so.
+TEST(dem_reader_formats, GroundControlPointsPlaceTheGrid) {
+  constexpr int kN = 120;
+  constexpr double kStep = 1.0 / 1200.0, kTurn = 20.0 * kDeg, kLon0 = 8.0, kLat0 = 46.1;
+  const auto height = [](double lon, double lat) {
+    return 1500.0 + 400.0 * std::sin((lon - 8.0) * 40.0) * std::cos((lat - 46.0) * 50.0);
+  };
+  // Pixel/line (corner of the first pixel at (0, 0)) to (lon, lat), and back.
+  const auto place = [&](double p, double l) {
+    return std::pair{kLon0 + (p * std::cos(kTurn) - l * std::sin(kTurn)) * kStep,
+                     kLat0 - (p * std::sin(kTurn) + l * std::cos(kTurn)) * kStep};
+  };
+  const auto unplace = [&](double lon, double lat) {
+    const double x = (lon - kLon0) / kStep, y = (kLat0 - lat) / kStep;
+    return std::pair{x * std::cos(kTurn) + y * std::sin(kTurn), -x * std::sin(kTurn) + y * std::cos(kTurn)};
+  };
+  const fs::path tif = scratch() / "gcps.tif";
+  {
+    GDALAllRegister();
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), kN, kN, 1,
+                                                                                     GDT_Float32, nullptr));
+    ASSERT_TRUE(ds);
+    std::vector<GDAL_GCP> gcps(4);
+    GDALInitGCPs(4, gcps.data());
+    const double corners[4][2] = {{0, 0}, {kN, 0}, {0, kN}, {kN, kN}};
+    for (int k = 0; k < 4; ++k) {
+      gcps[k].dfGCPPixel = corners[k][0], gcps[k].dfGCPLine = corners[k][1];
+      std::tie(gcps[k].dfGCPX, gcps[k].dfGCPY) = place(corners[k][0], corners[k][1]);
+    }
+    OGRSpatialReference wgs84;
+    wgs84.importFromEPSG(4326);
+    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    ASSERT_EQ(ds->SetGCPs(4, gcps.data(), &wgs84), CE_None);
+    GDALDeinitGCPs(4, gcps.data());
+    std::vector<float> z(std::size_t(kN) * kN);
+    for (int l = 0; l < kN; ++l)
+      for (int p = 0; p < kN; ++p) {
+        const auto [lon, lat] = place(p + 0.5, l + 0.5);
+        z[std::size_t(l) * kN + p] = float(height(lon, lat));
+      }
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, kN, kN, z.data(), kN, kN, GDT_Float32, 0, 0),
+              CE_None);
+  }
+  tb::DemOptions native;
+  native.fill_voids = false;
+  const Heightfield hf = tb::read_dem(tif.string(), native);
+  ASSERT_TRUE(hf.crs_transform.has_value());
+  EXPECT_NE(hf.frame.find("placed north-up by its 4 ground control points"), std::string::npos) << hf.frame;
+  EXPECT_EQ(hf.crs_transform->xr, 0.0);  // north-up
+  EXPECT_EQ(hf.crs_transform->yc, 0.0);
+  EXPECT_GT(hf.width(), kN);  // the turned grid's bounding box
+  std::size_t inside = 0, holes = 0;
+  double worst = 0.0;
+  for (int r = 0; r < hf.height(); ++r)
+    for (int c = 0; c < hf.width(); ++c) {
+      const auto [lon, lat] = hf.crs_transform->to_world(c, r);
+      const auto [p, l] = unplace(lon, lat);
+      const bool in = p > 1.0 && p < kN - 1.0 && l > 1.0 && l < kN - 1.0;
+      const bool out = p < -1.0 || p > kN + 1.0 || l < -1.0 || l > kN + 1.0;
+      const bool valid = hf.valid(std::size_t(r) * std::size_t(hf.width()) + std::size_t(c));
+      if (in) {
+        ++inside;
+        ASSERT_TRUE(valid) << c << ", " << r;
+        worst = std::max(worst, std::abs(hf.at(c, r) - height(lon, lat)));
+      }
+      if (out) {
+        ++holes;
+        EXPECT_FALSE(valid) << c << ", " << r;
+      }
+    }
+  EXPECT_GT(inside, std::size_t(kN * kN * 9 / 10));
+  EXPECT_GT(holes, std::size_t(kN * kN / 10));  // the corners of the bounding box
+  EXPECT_LT(worst, 1.0) << "metres (relief 800 m, bilinear at 90 m)";
 }
 
 // ------------------------------------------------------------------------------------------
