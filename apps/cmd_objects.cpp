@@ -34,6 +34,7 @@ int objects_add(const Args& a, const std::string& path) {
   o.input = a.get("--input");
   if (a.has("--kind"))
     o.kind = tb::parse_kind(a.get_choice("--kind", {"icon", "label", "shape", "line"}, "icon"));
+  o.source_layer = a.get("--source-layer");
   o.label_field = a.get("--label-field");
   o.height_field = a.get("--height-field");
   if (a.has("--rules")) {
@@ -94,13 +95,16 @@ CommandSpec objects_spec() {
   s.summary = "Add or list object layers (GIS points, lines, polygons) of a block database.";
   s.description =
       "An object layer holds the features of one vector file (GeoJSON, GeoPackage, Shapefile or any\n"
-      "other source GDAL/OGR reads, with exactly one layer and a known CRS; GeoJSON is WGS 84),\n"
-      "moved into the terrain's world frame, with their attributes, indexed by block. The database\n"
+      "other source GDAL/OGR reads, with a known CRS; GeoJSON and GPX are WGS 84): one layer of it\n"
+      "(--source-layer, or the file's only layer, or its only layer with features: a GPX file's\n"
+      "tracks when it has no waypoints or routes), moved into the terrain's world frame, with their "
+      "attributes, indexed by block. The database\n"
       "must come from a georeferenced DEM. Multi-geometries are split into parts; features without\n"
       "geometry are skipped and counted; a feature wholly outside the terrain is an error. Each\n"
       "add is one transaction: on any error the database is unchanged.\n"
-      "  add   --layer NAME --input FILE [--kind icon|label|shape|line] [--label-field F]\n"
-      "        [--height-field F] [--rules RULES.json]: kind defaults from the geometry (points\n"
+      "  add   --layer NAME --input FILE [--source-layer L] [--kind icon|label|shape|line]\n"
+      "        [--label-field F] [--height-field F] [--rules RULES.json]: kind defaults from the geometry "
+      "(points\n"
       "        icon, lines line, polygons shape; label also takes points). --label-field and\n"
       "        --height-field name fields of the file (the height one numeric). --rules is the\n"
       "        layer's design rules by level of detail, checked and stored with it: for each\n"
@@ -113,6 +117,8 @@ CommandSpec objects_spec() {
   s.options = {
       {"--layer", "NAME", "add: object layer name (unique in the database)"},
       {"--input", "FILE", "add: the vector file"},
+      {"--source-layer", "L",
+       "add: the file's layer to read (default: its only one, or its only one with features)"},
       {"--kind", "K", "add: icon, label, shape or line (default: from the geometry)"},
       {"--label-field", "F",
        "add: the attribute that labels a feature (default name; a feature without one gets no label)"},
@@ -126,7 +132,8 @@ int cmd_objects(const Args& a) {
   const std::string verb = a.positionals()[0], path = a.positionals()[1];
   if (verb == "add") return objects_add(a, path);
   if (verb == "list") {
-    for (const char* o : {"--layer", "--input", "--kind", "--label-field", "--height-field", "--rules"})
+    for (const char* o :
+         {"--layer", "--input", "--source-layer", "--kind", "--label-field", "--height-field", "--rules"})
       if (a.has(o)) throw UsageError(std::string("option '") + o + "' is for 'objects add'");
     return objects_list(path);
   }

@@ -314,6 +314,45 @@ std::vector<ObjectFeature> read_features(BlockDatabaseImpl& d, sqlite3_stmt* st,
   return out;
 }
 
+/// The layer of `ds` (the file `in`) to read: the one named `name`, else its only layer, else its
+/// only layer with features. ObjectLayerError listing the layers otherwise (Cause Option for a
+/// name it does not hold).
+OGRLayer& source_layer(GDALDataset& ds, const std::string& in, const std::string& name) {
+  // GDAL's GPX driver gives every point of the tracks and routes again as layers of points:
+  // those are not a choice of their own.
+  const bool gpx = ds.GetDriver() != nullptr && EQUAL(ds.GetDriver()->GetDescription(), "GPX");
+  const auto counts = [&](OGRLayer* l) {
+    return !(gpx && (EQUAL(l->GetName(), "track_points") || EQUAL(l->GetName(), "route_points")));
+  };
+  const auto listing = [&](bool with_features_only) {
+    std::string list;
+    for (OGRLayer* l : ds.GetLayers()) {
+      const GIntBig n = l->GetFeatureCount(TRUE);
+      if (with_features_only && (n == 0 || !counts(l))) continue;
+      list += (list.empty() ? "" : ", ") + std::string(l->GetName()) + " (" + std::to_string(n) + " " +
+              OGRGeometryTypeToName(l->GetGeomType()) + ")";
+    }
+    return list;
+  };
+  if (!name.empty()) {
+    if (OGRLayer* l = ds.GetLayerByName(name.c_str())) return *l;
+    throw ObjectLayerError(in + ": has no layer '" + name + "'; its layers: " + listing(false),
+                           ObjectLayerError::Cause::Option);
+  }
+  if (ds.GetLayerCount() == 0) throw ObjectLayerError(in + ": has no layer");
+  if (ds.GetLayerCount() == 1) return *ds.GetLayer(0);
+  OGRLayer* only = nullptr;
+  int with_features = 0;
+  for (OGRLayer* l : ds.GetLayers())
+    if (counts(l) && l->GetFeatureCount(TRUE) > 0) ++with_features, only = l;
+  if (with_features == 1) return *only;
+  throw ObjectLayerError(in + ": has " + std::to_string(ds.GetLayerCount()) + " layers, " +
+                             (with_features == 0 ? std::string("none with features: ") + listing(false)
+                                                 : std::to_string(with_features) + " with features: " +
+                                                       listing(true) + "; name one with --source-layer"),
+                         ObjectLayerError::Cause::Input);
+}
+
 void require_layer(BlockDatabaseImpl& d, const BlockDatabase& db, const std::string& layer) {
   const std::vector<ObjectLayerInfo> layers = object_layers(db);
   if (std::none_of(layers.begin(), layers.end(), [&](const ObjectLayerInfo& l) { return l.name == layer; }))
@@ -384,10 +423,7 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
   const GDALDatasetUniquePtr ds(GDALDataset::Open(in.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
   if (!ds)
     throw ObjectLayerError(in + ": not a readable vector file (" + gdal_message("no driver reads it") + ")");
-  if (ds->GetLayerCount() != 1)
-    throw ObjectLayerError(in + ": has " + std::to_string(ds->GetLayerCount()) +
-                           " layers; an object layer is read from a source with exactly one");
-  OGRLayer& layer = *ds->GetLayer(0);
+  OGRLayer& layer = source_layer(*ds, in, o.source_layer);
   const OGRSpatialReference* srs = layer.GetSpatialRef();
   if (srs == nullptr || srs->IsEmpty())
     throw ObjectLayerError(
@@ -397,7 +433,7 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
   ObjectLayerReport report;
   ObjectLayerInfo& info = report.layer;
   info.name = o.name;
-  info.source = in;
+  info.source = ds->GetLayerCount() > 1 ? in + " (layer " + layer.GetName() + ")" : in;
   {
     char* wkt = nullptr;
     if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) info.crs_wkt = wkt;

@@ -457,6 +457,55 @@ TEST(ObjectLayers, EveryBadInputLeavesTheDatabaseByteIdentical) {
   ASSERT_EQ(tb::object_layers(db).size(), 1u);
 }
 
+// A GPX file, what a GPS or a hiking app writes, has five layers (waypoints, routes, tracks and
+// the tracks' and routes' points again): it was refused for not having exactly one. The only
+// layer with features of its own is read; with two (waypoints and a track) the error lists
+// them and --source-layer picks one.
+TEST(ObjectLayers, AGpxFileGivesItsTrackOrTheLayerNamed) {
+  TempDir t;
+  const std::string db_path = t / "t.db";
+  make_db(db_path, 32633, kUtm, kUtm);
+  const std::string track = R"(<trk><name>Ridge</name><trkseg>
+      <trkpt lat="45.1600" lon="15.0114"><ele>300</ele></trkpt>
+      <trkpt lat="45.1608" lon="15.0118"><ele>320</ele></trkpt>
+      <trkpt lat="45.1616" lon="15.0115"><ele>340</ele></trkpt></trkseg></trk>)";
+  const std::string head =
+      R"(<?xml version="1.0"?><gpx version="1.1" creator="t" xmlns="http://www.topografix.com/GPX/1/1">)";
+  write_text(t / "track.gpx", head + track + "</gpx>");
+  write_text(t / "both.gpx", head + R"(<wpt lat="45.1615781192" lon="15.0114513341"><name>Hut</name></wpt>)" +
+                                 track + "</gpx>");
+  auto db = tb::BlockDatabase::open(db_path, tb::BlockDatabase::Mode::ReadWrite);
+  const tb::ObjectLayerReport only = tb::add_object_layer(db, opts("track", t / "track.gpx"));
+  EXPECT_EQ(only.layer.geometry, tb::GeometryType::Line);
+  EXPECT_EQ(only.layer.feature_count, 1);
+  EXPECT_EQ(only.layer.source, t / "track.gpx" + " (layer tracks)");
+  try {
+    tb::add_object_layer(db, opts("both", t / "both.gpx"));
+    ADD_FAILURE() << "a GPX file with waypoints and a track was read without a choice";
+  } catch (const tb::ObjectLayerError& e) {
+    EXPECT_NE(
+        std::string(e.what()).find("2 with features: waypoints (1 Point), tracks (1 Multi Line String); "
+                                   "name one with --source-layer"),
+        std::string::npos)
+        << e.what();
+  }
+  tb::ObjectLayerOptions huts = opts("huts", t / "both.gpx", {}, "name");
+  huts.source_layer = "waypoints";
+  const tb::ObjectLayerReport named = tb::add_object_layer(db, huts);
+  EXPECT_EQ(named.layer.geometry, tb::GeometryType::Point);
+  ASSERT_EQ(tb::object_features(db, "huts").size(), 1u);
+  huts.name = "none", huts.source_layer = "peaks";
+  try {
+    tb::add_object_layer(db, huts);
+    ADD_FAILURE() << "a layer the file does not hold was read";
+  } catch (const tb::ObjectLayerError& e) {
+    EXPECT_EQ(e.cause(), tb::ObjectLayerError::Cause::Option);
+    EXPECT_NE(std::string(e.what()).find("has no layer 'peaks'; its layers: waypoints (1 Point), routes"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ObjectLayers, ADatabaseWithoutObjectTablesHasNoLayersAndCorruptFeaturesAreReported) {
   TempDir t;
   const std::string db_path = t / "t.db", json = t / "p.geojson";

@@ -164,7 +164,7 @@ struct ObjectLayerInfo {
   std::string name;
   ObjectKind kind = ObjectKind::Icon;
   GeometryType geometry = GeometryType::Point;
-  std::string source;   ///< the input file
+  std::string source;   ///< the input file, and "(layer L)" after it when it has several
   std::string crs_wkt;  ///< the input's CRS
   std::int64_t feature_count = 0;
   std::int64_t skipped = 0;               ///< source features without geometry
@@ -173,8 +173,12 @@ struct ObjectLayerInfo {
 };
 
 struct ObjectLayerOptions {
-  std::string name;                       ///< non-empty, unique in the database
-  std::string input;                      ///< the vector file (any OGR source)
+  std::string name;   ///< non-empty, unique in the database
+  std::string input;  ///< the vector file (any OGR source)
+  /// The input's layer to read. "" = its only layer, or its only layer with features (a GPX
+  /// file has five: waypoints, routes, tracks, route_points, track_points); a source with
+  /// several of those is an error that lists them.
+  std::string source_layer;
   std::optional<ObjectKind> kind;         ///< default: from the geometry
   std::string label_field, height_field;  ///< "" = none
   std::optional<std::string> rules_json;  ///< object_rules.hpp text, stored as given
