@@ -267,9 +267,9 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
   if (ds->GetGCPCount() >= 3 && ds->GetGeoTransform(gt) != CE_None && ds->GetRasterCount() >= 1) {
     const GDALDataType type = ds->GetRasterBand(1)->GetRasterDataType();
     const bool narrow = type == GDT_Byte || type == GDT_Int16 || type == GDT_UInt16 || type == GDT_Float32;
-    GDALWarpAppOptions* options = gdal_options(
-        {"-of", "VRT", "-r", "bilinear", "-et", "0", "-dstnodata", "nan", "-ot", narrow ? "Float32" : "Float64"},
-        GDALWarpAppOptionsNew);
+    GDALWarpAppOptions* options = gdal_options({"-of", "VRT", "-r", "bilinear", "-et", "0", "-dstnodata",
+                                                "nan", "-ot", narrow ? "Float32" : "Float64"},
+                                               GDALWarpAppOptionsNew);
     GDALDatasetH src = GDALDataset::ToHandle(ds.get());
     int usage_error = 0;
     GDALDatasetH warped = options ? GDALWarp("", nullptr, 1, &src, options, &usage_error) : nullptr;
