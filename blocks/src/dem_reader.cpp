@@ -259,31 +259,19 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
   QuietGdal quiet;
   GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw DemError(path, "GDAL cannot read it as a raster: " + gdal_message("unknown format"));
-  // Placed by ground control points only (no geotransform: scanned or raw products): read
-  // through a VRT that warps it north-up in the GCPs' CRS (gdalwarp's own choice of grid,
-  // bilinear, exact transformations), void outside its footprint. Read as it is, it was taken
-  // for a heightmap image of 1 m cells, its relief stretched by the true spacing.
-  double gt[6];
-  if (ds->GetGCPCount() >= 3 && ds->GetGeoTransform(gt) != CE_None && ds->GetRasterCount() >= 1) {
-    const GDALDataType type = ds->GetRasterBand(1)->GetRasterDataType();
-    const bool narrow = type == GDT_Byte || type == GDT_Int16 || type == GDT_UInt16 || type == GDT_Float32;
-    GDALWarpAppOptions* options = gdal_options({"-of", "VRT", "-r", "bilinear", "-et", "0", "-dstnodata",
-                                                "nan", "-ot", narrow ? "Float32" : "Float64"},
-                                               GDALWarpAppOptionsNew);
-    GDALDatasetH src = GDALDataset::ToHandle(ds.get());
-    int usage_error = 0;
-    GDALDatasetH warped = options ? GDALWarp("", nullptr, 1, &src, options, &usage_error) : nullptr;
-    GDALWarpAppOptionsFree(options);
-    if (warped == nullptr)
-      throw DemError(path, "it is placed by ground control points that GDAL cannot warp north-up: " +
-                               gdal_message("GDALWarp failed"));
-    // The warped VRT holds a reference to the file's dataset and closes it when it is closed.
-    GDALDereferenceDataset(src);
-    (void)ds.release();
-    GDALDataset* vrt = GDALDataset::FromHandle(warped);
-    vrt->SetMetadataItem("GCP_COUNT", std::to_string(GDALGetGCPCount(src)).c_str(), "terralod");
-    return GDALDatasetUniquePtr(vrt);
-  }
+  // Placed by ground control points alone: read through a warp north-up (bilinear, void outside
+  // its footprint). Read as it is, it was taken for a heightmap image of 1 m cells, its relief
+  // stretched by the true spacing.
+  const GDALDataType type =
+      ds->GetRasterCount() > 0 ? ds->GetRasterBand(1)->GetRasterDataType() : GDT_Float64;
+  const bool narrow = type == GDT_Byte || type == GDT_Int16 || type == GDT_UInt16 || type == GDT_Float32;
+  int gcps = 0;
+  ds = north_up(std::move(ds), {"-r", "bilinear", "-dstnodata", "nan", "-ot", narrow ? "Float32" : "Float64"},
+                gcps);
+  if (!ds)
+    throw DemError(path, "it is placed by ground control points that GDAL cannot warp north-up: " +
+                             gdal_message("GDALWarp failed"));
+  if (gcps > 0) ds->SetMetadataItem("GCP_COUNT", std::to_string(gcps).c_str(), "terralod");  // see gdal_band
   return ds;
 }
 

@@ -102,4 +102,29 @@ inline std::string build_vrt(const std::string& dest, const std::vector<std::str
   return gdal.empty() ? std::string("GDALBuildVRT failed") : gdal;
 }
 
+/// `ds` itself, or, when it is placed by ground control points alone (no geotransform, three
+/// GCPs or more: scanned maps, raw products), a VRT that warps it north-up in the GCPs' CRS
+/// (gdalwarp's own grid, exact transformations, and `args`: resampling, nodata, type) and holds
+/// the file's dataset, closing it when it is closed. `gcps` gets their number (0: `ds` as it was).
+/// nullptr when GDAL cannot warp it (gdal_message says why).
+inline GDALDatasetUniquePtr north_up(GDALDatasetUniquePtr ds, const std::vector<std::string>& args,
+                                     int& gcps) {
+  gcps = 0;
+  double gt[6];
+  if (!ds || ds->GetGCPCount() < 3 || ds->GetGeoTransform(gt) == CE_None || ds->GetRasterCount() < 1)
+    return ds;
+  gcps = ds->GetGCPCount();
+  std::vector<std::string> all = {"-of", "VRT", "-et", "0"};
+  all.insert(all.end(), args.begin(), args.end());
+  GDALWarpAppOptions* options = gdal_options(all, GDALWarpAppOptionsNew);
+  GDALDatasetH src = GDALDataset::ToHandle(ds.get());
+  int usage_error = 0;
+  GDALDatasetH warped = options ? GDALWarp("", nullptr, 1, &src, options, &usage_error) : nullptr;
+  GDALWarpAppOptionsFree(options);
+  if (warped == nullptr) return nullptr;
+  GDALDereferenceDataset(src);  // the VRT's reference is the one left
+  (void)ds.release();
+  return GDALDatasetUniquePtr(GDALDataset::FromHandle(warped));
+}
+
 }  // namespace terralod::blocks::detail

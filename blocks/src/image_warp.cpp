@@ -45,6 +45,13 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
   const auto fail = [&](const std::string& problem) { return ImageWarpError(image + ": " + problem); };
   GDALDatasetUniquePtr src(GDALDataset::Open(image.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!src) return std::nullopt;  // not a raster GDAL reads: OpenImageIO may still read it
+  // Placed by ground control points alone (a scanned map): north-up first, transparent outside
+  // its footprint. It was read as an ungeoreferenced picture and stretched over the terrain.
+  int gcps = 0;
+  src = detail::north_up(std::move(src), {"-r", "bilinear", "-dstalpha"}, gcps);
+  if (!src)
+    throw fail("is placed by ground control points that GDAL cannot warp north-up (" +
+               detail::gdal_message("GDALWarp failed") + ")");
   double gt[6];
   const OGRSpatialReference* image_srs = src->GetSpatialRef();
   if (src->GetGeoTransform(gt) != CE_None || image_srs == nullptr || image_srs->IsEmpty())

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -46,18 +47,32 @@ Transform transform(int from, int to) {
 
 /// An RGB GeoTIFF in longitude/latitude: red west of `split`, blue east of it; with 4 bands the
 /// fourth (near infrared, not alpha) is 255 west of the split and 0 east of it.
+/// With `gcps`, the georeference is four ground control points at the corners instead of a
+/// geotransform (as a scanned map placed by hand has it).
 void write_ortho(const fs::path& path, double west, double south, double east, double north, double split,
-                 int bands = 3) {
+                 int bands = 3, bool gcps = false) {
   constexpr int w = 120, h = 90;
   GDALAllRegister();
   GDALDatasetUniquePtr ds(
       GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), w, h, bands, GDT_Byte, nullptr));
   ASSERT_TRUE(ds);
   double gt[6] = {west, (east - west) / w, 0, north, 0, -(north - south) / h};
-  ds->SetGeoTransform(gt);
   OGRSpatialReference wgs84;
   wgs84.importFromEPSG(4326);
-  ds->SetSpatialRef(&wgs84);
+  if (gcps) {
+    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    std::vector<GDAL_GCP> g(4);
+    GDALInitGCPs(4, g.data());
+    for (int k = 0; k < 4; ++k) {
+      g[k].dfGCPPixel = (k & 1) ? w : 0, g[k].dfGCPLine = (k & 2) ? h : 0;
+      g[k].dfGCPX = (k & 1) ? east : west, g[k].dfGCPY = (k & 2) ? south : north;
+    }
+    ASSERT_EQ(ds->SetGCPs(4, g.data(), &wgs84), CE_None);
+    GDALDeinitGCPs(4, g.data());
+  } else {
+    ds->SetGeoTransform(gt);
+    ds->SetSpatialRef(&wgs84);
+  }
   for (int b = 1; b <= bands; ++b) {
     std::vector<std::uint8_t> v(std::size_t(w) * h);
     for (int r = 0; r < h; ++r)
@@ -138,6 +153,26 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
   EXPECT_EQ(rgbi.georef, rec.georef);
   EXPECT_EQ(read_layer_level(tb::BlockDatabase::open((d / "t.db").string()), rgbi, 0), img);
 
+  // The same ortho placed by ground control points at its corners: it was taken for a plain image
+  // and stretched over the whole terrain. It lies where the other does (read through a warp
+  // north-up first, so resampled twice: texels may differ along the colour split and the edges).
+  write_ortho(d / "gcps.tif", west, south, east, north, split, 3, /*gcps=*/true);
+  ASSERT_EQ(cli.run("texture add " + db + " --layer gcps --image " + quote((d / "gcps.tif").string())), 0);
+  const LayerRecord by_gcps = read_layer_record(tb::BlockDatabase::open((d / "t.db").string()), "gcps");
+  EXPECT_NEAR(by_gcps.georef.minx, rec.georef.minx, 2 * texel);
+  EXPECT_NEAR(by_gcps.georef.miny, rec.georef.miny, 2 * texel);
+  EXPECT_NEAR(by_gcps.georef.maxx, rec.georef.maxx, 2 * texel);
+  EXPECT_NEAR(by_gcps.georef.maxy, rec.georef.maxy, 2 * texel);
+  const RgbaImage gcp_img = read_layer_level(tb::BlockDatabase::open((d / "t.db").string()), by_gcps, 0);
+  int differ = 0;
+  for (int r = 0; r < std::min(img.height, gcp_img.height); ++r)
+    for (int c = 0; c < std::min(img.width, gcp_img.width); ++c) {
+      const auto a = img.get(c, r), b = gcp_img.get(c, r);
+      differ += std::abs(int(a[0]) - int(b[0])) > 64 || std::abs(int(a[2]) - int(b[2])) > 64 ||
+                std::abs(int(a[3]) - int(b[3])) > 64;
+    }
+  EXPECT_LT(differ, img.width * img.height / 20) << "of " << img.width * img.height << " texels";
+
   // A plain image (no georeference) still covers the terrain, one texel per sample.
   write_layer_image(RgbaImage(65, 65), (d / "plain.png").string());
   ASSERT_EQ(cli.run("texture add " + db + " --layer plain --image " + quote((d / "plain.png").string())), 0);
@@ -152,7 +187,7 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
             1);
   EXPECT_NE(text.find((d / "far.tif").string() + ": does not overlap the terrain"), std::string::npos)
       << text;
-  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 3u);
+  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 4u);
   EXPECT_FALSE(fs::exists(d / "t.db.texture-far.tx.warp.tif"));
 }
 
