@@ -411,8 +411,12 @@ Raster read_heightmap(const std::string& path, const DemOptions& options) {
   }
   const OIIO::ImageSpec& spec = in->spec();
   if (spec.deep) throw DemError(path, "is a deep image; a heightmap must be a plain single-channel image");
-  if (spec.nchannels != 1) {
-    throw DemError(path, "has " + std::to_string(spec.nchannels) + " channels; a heightmap must have one");
+  // Grey and alpha (what image tools and GDAL's PNG writer give a heightmap with voids): the
+  // heights are the grey channel, the samples where alpha is 0 are voids.
+  const bool alpha = spec.nchannels == 2 && spec.alpha_channel == 1;
+  if (spec.nchannels != 1 && !alpha) {
+    throw DemError(path, "has " + std::to_string(spec.nchannels) +
+                             " channels; a heightmap must have one (grey), or grey and alpha");
   }
   if (spec.depth > 1) throw DemError(path, "is a volume image; a heightmap must be 2-D");
   check_dimensions(path, spec.width, spec.height);
@@ -453,10 +457,17 @@ Raster read_heightmap(const std::string& path, const DemOptions& options) {
       throw DemError(path,
                      "pixel type " + std::string(spec.format.c_str()) + " is not supported for heightmaps");
   }
+  std::vector<float> opacity;
+  if (alpha) {
+    opacity.resize(r.z.size());
+    if (!in->read_image(0, 0, 1, 2, OIIO::TypeDesc::FLOAT, opacity.data()))
+      throw DemError(path, "cannot read the alpha channel: " + in->geterror());
+  }
   in->close();
-  for (double& v : r.z) {
+  for (std::size_t i = 0; i < r.z.size(); ++i) {
+    double& v = r.z[i];
     v = v * options.vertical_scale + options.vertical_offset;
-    if (!detail::is_height(v)) v = std::numeric_limits<double>::quiet_NaN();
+    if (!detail::is_height(v) || (alpha && opacity[i] == 0.0f)) v = std::numeric_limits<double>::quiet_NaN();
   }
   r.geo.kind = Georef::Kind::None;
   if (options.vertical_scale != 1.0 || options.vertical_offset != 0.0) {

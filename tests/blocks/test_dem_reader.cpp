@@ -396,6 +396,29 @@ TEST(dem_reader_formats, HeightmapScaleOffsetAndUngeoreferencedTiff) {
   EXPECT_EQ(hf8.at(1, 0), 7.0);
   EXPECT_EQ(hf8.at(0, 1), 255.0);
 
+  // 16-bit grey and alpha (GDAL writes a PNG of a DEM with voids so): alpha 0 marks a void. It
+  // was refused for having two channels.
+  const fs::path ga = dir / "grey_alpha.png";
+  {
+    std::vector<std::uint16_t> px = {100, 65535, 200, 0, 300, 65535, 400, 65535};  // grey, alpha
+    auto out = OIIO::ImageOutput::create(ga.string());
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(2, 2, 2, OIIO::TypeDesc::UINT16);
+    spec.channelnames = {"Y", "A"};
+    spec.alpha_channel = 1;
+    ASSERT_TRUE(out->open(ga.string(), spec)) << out->geterror();
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT16, px.data())) << out->geterror();
+    ASSERT_TRUE(out->close());
+  }
+  tb::DemOptions holes;
+  holes.fill_voids = false;
+  const Heightfield hfa = tb::read_dem(ga.string(), holes);
+  EXPECT_EQ(hfa.at(0, 0), 100.0);
+  EXPECT_FALSE(hfa.valid(1));  // (1, 0): alpha 0
+  EXPECT_EQ(hfa.at(0, 1), 300.0);
+  EXPECT_EQ(hfa.at(1, 1), 400.0);
+  EXPECT_EQ(hfa.voids.voids, 1u);
+
   // A TIFF without geotransform or CRS is a heightmap under Auto: vertical_scale applies.
   const fs::path tif = dir / "plain.tif";
   write_geotiff(tif, kAW, kAH, std::vector<double>(kGridA.begin(), kGridA.end()), GDT_UInt16, {}, 0);
