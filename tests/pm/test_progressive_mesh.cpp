@@ -809,6 +809,37 @@ INSTANTIATE_TEST_SUITE_P(
         TerrainCase{"g97x81_s13_holes_samples", 97, 81, 13, true, pm::ErrorMetric::Samples, true}),
     [](const ::testing::TestParamInfo<TerrainCase>& info) { return std::string(info.param.name); });
 
+// Sea at 0 m, a lake at 123.4 m (a height no float holds exactly) and the same coast with holes in
+// the sea: the builder takes a region whose samples all share one height as lying on every
+// triangle and segment inside it, without measuring them (Builder::flat_box). Every extraction
+// stays within its bound at every sample (the independent checker), flat or not, and wholly flat
+// collapses record no error.
+TEST(ProgressiveMesh, SeaAndLakeAreFlatAndWithinTheBound) {
+  pm::TerrainOptions to;
+  to.width = 129, to.height = 97, to.seed = 21, to.relief = 300.0;
+  pm::Heightfield coast = pm::generate_terrain(to);
+  double lo = 1e300, hi = -1e300;
+  for (double z : coast.samples()) lo = std::min(lo, z), hi = std::max(hi, z);
+  const double sea = lo + 0.4 * (hi - lo);
+  for (int r = 0; r < coast.height(); ++r)
+    for (int c = 0; c < coast.width(); ++c) {
+      double& z = coast.at(c, r);
+      z = z < sea ? 0.0 : z - sea;
+      if ((c - 90) * (c - 90) + (r - 30) * (r - 30) < 120) z = 123.4;  // a lake, raised or dug
+    }
+  pm::Heightfield holed = coast;
+  punch_holes(holed);
+  for (const pm::Heightfield* hf : {&coast, &holed}) {
+    const char* name = hf->has_holes() ? "coast with holes" : "coast";
+    std::size_t flat_collapses = 0;
+    const pm::ProgressiveMesh p = timed_build(*hf, name, {});
+    for (const pm::Collapse& c : p.collapses())
+      flat_collapses += (*hf)[c.u] == 0.0 && (*hf)[c.w] == 0.0 && c.error == 0.0;
+    EXPECT_GT(flat_collapses, hf->size() / 4) << name;
+    verify_pm(*hf, p, name);
+  }
+}
+
 // The parallel build (vertical strips, merged, then joined) must give a PM as valid as the
 // sequential one, and the same PM every time. 300 x 260 samples with threads = 2 takes the
 // strip path (it needs >= 65536 samples and >= 128 columns per strip).
