@@ -321,9 +321,8 @@ class Builder {
   // Crossing error of the segment (w, x), measured from the endpoint with the smaller vertex id.
   double spoke_error(std::uint32_t w, std::uint32_t x, double cutoff) {
     const GridPoint a = point(w), b = point(x);
-    if (flat_box(std::min(a.x, b.x), std::min(a.y, b.y), std::max(a.x, b.x), std::max(a.y, b.y),
-                 sites_[w].z) &&
-        sites_[x].z == sites_[w].z)
+    if (sites_[x].z == sites_[w].z &&
+        flat_box(std::min(a.x, b.x), std::min(a.y, b.y), std::max(a.x, b.x), std::max(a.y, b.y), sites_[w].z))
       return 0.0;
     return error_.segment(point(std::min(w, x)), point(std::max(w, x)), cutoff);
   }
