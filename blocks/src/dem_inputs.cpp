@@ -102,7 +102,6 @@ std::vector<std::string> across_antimeridian(const std::vector<std::string>& fil
 
 /// What the mosaic needs to know of one input file.
 struct FileFacts {
-  std::string path;
   OGRSpatialReference srs;  ///< empty when the file has none
   GDALDataType type = GDT_Unknown;
   double gt[6] = {0, 1, 0, 0, 0, 1};
@@ -115,7 +114,6 @@ FileFacts file_facts(const std::string& path) {
   if (!ds || ds->GetRasterCount() < 1)
     throw DemError(path, "GDAL cannot read it as a raster (" + detail::gdal_message("no raster band") + ")");
   FileFacts f;
-  f.path = path;
   if (const OGRSpatialReference* srs = ds->GetSpatialRef()) f.srs = *srs;
   f.type = ds->GetRasterBand(1)->GetRasterDataType();
   if (ds->GetGeoTransform(f.gt) != CE_None)
@@ -128,11 +126,6 @@ bool same_crs(const OGRSpatialReference& a, const OGRSpatialReference& b) {
   const char* const options[] = {"IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES",
                                  "CRITERION=EQUIVALENT_EXCEPT_AXIS_ORDER_GEOGCRS", nullptr};
   return a.IsEmpty() == b.IsEmpty() && (a.IsEmpty() || a.IsSame(&b, options));
-}
-
-/// Whether every height of `t` is exact in a float.
-bool fits_float32(GDALDataType t) {
-  return t == GDT_Byte || t == GDT_Int16 || t == GDT_UInt16 || t == GDT_Float32;
 }
 
 /// GDALBuildVRT joins only files of one CRS and one sample type. Inputs that mix them (tiles of
@@ -194,7 +187,7 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
                                    ": a mosaic needs every file placed on the Earth (gdal_translate -a_srs "
                                    "gives one)");
     // Its footprint in the target CRS, widened to whole target cells.
-    const GDALDataType type = fits_float32(f.type) ? GDT_Float32 : GDT_Float64;
+    const GDALDataType type = detail::fits_float32(f.type) ? GDT_Float32 : GDT_Float64;
     make(k, "warp", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
       const std::string dst = "DST_SRS=" + to_wkt;
       const char* const transform_options[] = {dst.c_str(), nullptr};
@@ -247,7 +240,7 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
   if (mixed) {
     common = GDT_Float32;
     for (GDALDataType t : types)
-      if (!fits_float32(t)) common = GDT_Float64;
+      if (!detail::fits_float32(t)) common = GDT_Float64;
     for (std::size_t k = 0; k < out.size(); ++k) {
       if (types[k] == common) continue;
       make(k, "convert", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
@@ -270,9 +263,9 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
 /// mean sample spacing) are scaled: whether the inputs' spacings differ.
 bool resamples(const std::string& path) {
   CPLXMLNode* root = CPLParseXMLFile(path.c_str());
-  if (root == nullptr) return false;
+  const CPLXMLNode* dataset = root ? CPLGetXMLNode(root, "=VRTDataset") : nullptr;
   bool scaled = false;
-  for (CPLXMLNode* band = CPLGetXMLNode(root, "=VRTDataset")->psChild; band; band = band->psNext) {
+  for (CPLXMLNode* band = dataset ? dataset->psChild : nullptr; band; band = band->psNext) {
     if (band->eType != CXT_Element || std::string(band->pszValue) != "VRTRasterBand") continue;
     for (CPLXMLNode* s = band->psChild; s; s = s->psNext) {
       if (s->eType != CXT_Element) continue;
@@ -286,7 +279,7 @@ bool resamples(const std::string& path) {
         scaled = true;
     }
   }
-  CPLDestroyXMLNode(root);
+  if (root) CPLDestroyXMLNode(root);
   return scaled;
 }
 

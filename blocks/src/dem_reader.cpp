@@ -264,9 +264,9 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
   // stretched by the true spacing.
   const GDALDataType type =
       ds->GetRasterCount() > 0 ? ds->GetRasterBand(1)->GetRasterDataType() : GDT_Float64;
-  const bool narrow = type == GDT_Byte || type == GDT_Int16 || type == GDT_UInt16 || type == GDT_Float32;
   int gcps = 0;
-  ds = north_up(std::move(ds), {"-r", "bilinear", "-dstnodata", "nan", "-ot", narrow ? "Float32" : "Float64"},
+  ds = north_up(std::move(ds),
+                {"-r", "bilinear", "-dstnodata", "nan", "-ot", fits_float32(type) ? "Float32" : "Float64"},
                 gcps);
   if (!ds)
     throw DemError(path, "it is placed by ground control points that GDAL cannot warp north-up: " +

@@ -102,6 +102,11 @@ inline std::string build_vrt(const std::string& dest, const std::vector<std::str
   return gdal.empty() ? std::string("GDALBuildVRT failed") : gdal;
 }
 
+/// Whether every value of the sample type `t` is exact in a float.
+inline bool fits_float32(GDALDataType t) {
+  return t == GDT_Byte || t == GDT_Int16 || t == GDT_UInt16 || t == GDT_Float32;
+}
+
 /// `ds` itself, or, when it is placed by ground control points alone (no geotransform, three
 /// GCPs or more: scanned maps, raw products), a VRT that warps it north-up in the GCPs' CRS
 /// (gdalwarp's own grid, exact transformations, and `args`: resampling, nodata, type) and holds

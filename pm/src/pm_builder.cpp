@@ -16,10 +16,11 @@
 // candidate so far, and large triangles and long spokes are measured through small
 // direct-mapped caches (cached_linf_error.hpp), since re-evaluating a vertex after one
 // neighbour changed meets mostly the same ones again. Where a ring and the samples of its box
-// share one height (sea, lakes), nothing is measured: its error is 0 (flat_box; SRTM's Kauai tile,
-// 91 % sea, built in 7.5 s instead of 12.9 s, the same blocks). Vertices are numbered in tile_order.hpp's
-// order, so that the data a collapse touches lies close together, and the live elements are
-// compacted as the mesh shrinks (compact). The mesh and its operations are collapse_mesh.hpp's.
+// share one height (sea, lakes), nothing is measured: its error is 0 (flat_box; SRTM's Kauai
+// tile, 91 % sea, builds in 0.58x the time, the same blocks). Vertices are numbered in
+// tile_order.hpp's order, so that the data a collapse touches lies close together, and the live
+// elements are compacted as the mesh shrinks (compact). The mesh and its operations are
+// collapse_mesh.hpp's.
 // Where the time goes (N44W072 in blocks of 257, one thread, counted per strip): the first
 // halving of the vertices (errors up to about 1 m) is half of the build and the second a
 // quarter, the other 15 halvings the rest. In the first, a collapse costs 10.8 evaluations (5.6
@@ -28,8 +29,9 @@
 // collapsing independent local minima in sweeps of the grid, which would give up the exact order.
 // Memory: OpenMesh connectivity (~180 bytes per vertex), every vertex's ring of halfedges (64
 // bytes, CollapseMesh::Ring), queue entry, position and state (44 bytes per vertex), edge
-// errors (8 bytes per edge); the large arrays (OpenMesh's included) on transparent huge pages
-// where the OS allows it. Peak for the full N44W072 tile (two strips at once): 760 MB.
+// errors (8 bytes per edge), runs of equal heights (4 bytes per sample, flat_box); the large
+// arrays (OpenMesh's included) on transparent huge pages where the OS allows it. Peak for the
+// full N44W072 tile (two strips at once): 760 MB.
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -327,11 +329,11 @@ class Builder {
     return error_.segment(point(std::min(w, x)), point(std::max(w, x)), cutoff);
   }
 
-  // Whether every sample of the box [x0, x1] x [y0, y1] is valid with the height z: then every triangle and
-  // segment of samples at height z inside it lies on the terrain, with error 0, and need not be
-  // measured. Oceans and lakes are flat (91 % of SRTM's Kauai tile is sea at 0 m), and a flat
-  // region was measured sample by sample like a rugged one: no cutoff ever stops a measurement
-  // of 0. One look per row, through the runs of equal samples (flat_).
+  // Whether every sample of the box [x0, x1] x [y0, y1] is valid with the height z: then every
+  // triangle and segment of samples at height z inside it lies on the terrain, with error 0, and
+  // need not be measured. Oceans and lakes are flat (91 % of SRTM's Kauai tile is sea at 0 m),
+  // and a flat region was measured sample by sample like a rugged one: no cutoff ever stops a
+  // measurement of 0. One look per row, through the runs of equal samples (flat_).
   bool flat_box(int x0, int y0, int x1, int y1, double z) const {
     const double* zs = hf_.samples().data();
     const std::uint32_t need = std::uint32_t(x1 - x0 + 1);
