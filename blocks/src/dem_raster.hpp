@@ -1,7 +1,7 @@
 // Private to terralod::blocks: the parts of read_dem (dem_reader.cpp) that the windowed DEM source
 // (dem_windows.cpp) calls too, so that both read a file's header, georeference, voids and heights
 // the same way: format choice, GDAL band header and windowed sample reads, the .hgt header and
-// windowed row reads, and the native world frame.
+// windowed row reads, and the native world frame; and what read_dem's readers share (Raster).
 #pragma once
 
 #include <gdal_priv.h>
@@ -38,6 +38,25 @@ struct Georef {
   std::string vertical_datum;  ///< Heightfield::vertical_datum
   std::string description;     ///< Metric: what the coordinates are; Geographic: the CRS name
 };
+
+/// What every reader produces before read_dem's common finishing steps (frame, voids).
+struct Raster {
+  int width = 0, height = 0;
+  std::vector<double> z;  ///< row-major; non-finite = void
+  Georef geo;
+  std::string height_note;  ///< appended to the frame description when not empty
+};
+
+/// DemError naming `path` unless it is an existing regular file.
+void require_file(const std::string& path);
+/// DemError naming `path` for a grid under 2 x 2 or over 2^30 samples.
+void check_dimensions(const std::string& path, long long w, long long h);
+/// `v` with 12 significant digits, for frame descriptions.
+std::string format_number(double v);
+
+/// A heightmap image read whole through OpenImageIO (dem_heightmap.cpp): grey, or grey and
+/// alpha (0: a void), heights raw * vertical_scale + vertical_offset, no georeference.
+Raster read_heightmap(const std::string& path, const DemOptions& options);
 
 /// The format read_dem reads `path` as (DemOptions::Format::Auto resolved, never Auto). For Gdal,
 /// `ds` is the opened dataset; a .tif/.tiff without georeference read as Auto is a Heightmap.

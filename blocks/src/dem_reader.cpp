@@ -3,7 +3,6 @@
 // other frames (DemOptions::crs) are dem_frame.cpp's.
 #include "terralod/blocks/dem_reader.hpp"
 
-#include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
@@ -40,47 +39,15 @@ constexpr double kEarthRadius = 6371008.8;
 constexpr std::size_t kMaxSamples = std::size_t(1) << 30;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-// ---------------------------------------------------------------------------------------------
-// What every reader produces before the common finishing steps.
-
+using detail::check_dimensions;
+using detail::format_number;
 using detail::Georef;
-
-struct Raster {
-  int width = 0, height = 0;
-  std::vector<double> z;  ///< row-major; non-finite = void
-  Georef geo;
-  std::string height_note;  ///< appended to the frame description when not empty
-};
-
-std::string format_number(double v) {
-  std::ostringstream s;
-  s.precision(12);
-  s << v;
-  return s.str();
-}
+using detail::Raster;
+using detail::require_file;
 
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   return s;
-}
-
-/// Fails unless `path` is an existing regular file.
-void require_file(const std::string& path) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (!fs::exists(st)) throw DemError(path, "no such file");
-  if (!fs::is_regular_file(st)) throw DemError(path, "not a regular file");
-}
-
-void check_dimensions(const std::string& path, long long w, long long h) {
-  if (w < 2 || h < 2) {
-    throw DemError(path, "grid is " + std::to_string(w) + " x " + std::to_string(h) +
-                             "; at least 2 x 2 samples are needed");
-  }
-  if (double(w) * double(h) > double(kMaxSamples)) {
-    throw DemError(path, "grid is " + std::to_string(w) + " x " + std::to_string(h) +
-                             "; more than 2^30 samples are not supported");
-  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -136,6 +103,31 @@ void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* sr
 }  // namespace
 
 namespace detail {
+
+std::string format_number(double v) {
+  std::ostringstream s;
+  s.precision(12);
+  s << v;
+  return s.str();
+}
+
+void require_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (!fs::exists(st)) throw DemError(path, "no such file");
+  if (!fs::is_regular_file(st)) throw DemError(path, "not a regular file");
+}
+
+void check_dimensions(const std::string& path, long long w, long long h) {
+  if (w < 2 || h < 2) {
+    throw DemError(path, "grid is " + std::to_string(w) + " x " + std::to_string(h) +
+                             "; at least 2 x 2 samples are needed");
+  }
+  if (double(w) * double(h) > double(kMaxSamples)) {
+    throw DemError(path, "grid is " + std::to_string(w) + " x " + std::to_string(h) +
+                             "; more than 2^30 samples are not supported");
+  }
+}
 
 HgtTile hgt_tile(const std::string& path) {
   // South-west corner from the name: [NS]dd[EW]ddd, e.g. N44W072 (case-insensitive).
@@ -387,93 +379,6 @@ Raster read_gdal(const std::string& path, GDALDataset& ds) {
   detail::read_gdal_window(path, ds, b, SampleRect{0, 0, b.width - 1, b.height - 1}, r.z);
   r.height_note = std::move(b.height_note);
   r.geo = std::move(b.geo);
-  return r;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Heightmap images (OpenImageIO)
-
-template <typename T>
-void read_integers(const std::string& path, OIIO::ImageInput& in, OIIO::TypeDesc type, Raster& r) {
-  std::vector<T> raw(r.z.size());
-  if (!in.read_image(0, 0, 0, 1, type, raw.data())) {
-    throw DemError(path, "cannot read the pixels: " + in.geterror());
-  }
-  std::transform(raw.begin(), raw.end(), r.z.begin(), [](T v) { return double(v); });
-}
-
-Raster read_heightmap(const std::string& path, const DemOptions& options) {
-  require_file(path);
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) {
-    std::string msg = OIIO::geterror();
-    throw DemError(path, "OpenImageIO cannot read it as an image: " + (msg.empty() ? "unknown format" : msg));
-  }
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.deep) throw DemError(path, "is a deep image; a heightmap must be a plain single-channel image");
-  // Grey and alpha (what image tools and GDAL's PNG writer give a heightmap with voids): the
-  // heights are the grey channel, the samples where alpha is 0 are voids.
-  const bool alpha = spec.nchannels == 2 && spec.alpha_channel == 1;
-  if (spec.nchannels != 1 && !alpha) {
-    throw DemError(path, "has " + std::to_string(spec.nchannels) +
-                             " channels; a heightmap must have one (grey), or grey and alpha");
-  }
-  if (spec.depth > 1) throw DemError(path, "is a volume image; a heightmap must be 2-D");
-  check_dimensions(path, spec.width, spec.height);
-
-  Raster r;
-  r.width = spec.width;
-  r.height = spec.height;
-  r.z.resize(std::size_t(r.width) * r.height);
-  using B = OIIO::TypeDesc::BASETYPE;
-  // Integers are read in their own type: OpenImageIO would normalise them to [0,1] as floats.
-  switch (B(spec.format.basetype)) {
-    case B::UINT8:
-      read_integers<std::uint8_t>(path, *in, OIIO::TypeDesc::UINT8, r);
-      break;
-    case B::INT8:
-      read_integers<std::int8_t>(path, *in, OIIO::TypeDesc::INT8, r);
-      break;
-    case B::UINT16:
-      read_integers<std::uint16_t>(path, *in, OIIO::TypeDesc::UINT16, r);
-      break;
-    case B::INT16:
-      read_integers<std::int16_t>(path, *in, OIIO::TypeDesc::INT16, r);
-      break;
-    case B::UINT32:
-      read_integers<std::uint32_t>(path, *in, OIIO::TypeDesc::UINT32, r);
-      break;
-    case B::INT32:
-      read_integers<std::int32_t>(path, *in, OIIO::TypeDesc::INT32, r);
-      break;
-    case B::HALF:
-    case B::FLOAT:
-    case B::DOUBLE:
-      if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::DOUBLE, r.z.data())) {
-        throw DemError(path, "cannot read the pixels: " + in->geterror());
-      }
-      break;
-    default:
-      throw DemError(path,
-                     "pixel type " + std::string(spec.format.c_str()) + " is not supported for heightmaps");
-  }
-  std::vector<float> opacity;
-  if (alpha) {
-    opacity.resize(r.z.size());
-    if (!in->read_image(0, 0, 1, 2, OIIO::TypeDesc::FLOAT, opacity.data()))
-      throw DemError(path, "cannot read the alpha channel: " + in->geterror());
-  }
-  in->close();
-  for (std::size_t i = 0; i < r.z.size(); ++i) {
-    double& v = r.z[i];
-    v = v * options.vertical_scale + options.vertical_offset;
-    if (!detail::is_height(v) || (alpha && opacity[i] == 0.0f)) v = std::numeric_limits<double>::quiet_NaN();
-  }
-  r.geo.kind = Georef::Kind::None;
-  if (options.vertical_scale != 1.0 || options.vertical_offset != 0.0) {
-    r.height_note = "; heights = raw * " + format_number(options.vertical_scale) + " + " +
-                    format_number(options.vertical_offset) + " m";
-  }
   return r;
 }
 
@@ -799,7 +704,7 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
       case Format::AsciiGrid:
         return finish(path, read_ascii_grid(path), options);
       case Format::Heightmap:
-        return finish(path, read_heightmap(path, options), options);
+        return finish(path, detail::read_heightmap(path, options), options);
       case Format::Auto:
       case Format::Gdal:
         return finish(path, read_gdal(path, *ds), options);
