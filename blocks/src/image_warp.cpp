@@ -47,10 +47,14 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
   if (!src) return std::nullopt;  // not a raster GDAL reads: OpenImageIO may still read it
   // Placed by ground control points alone (a scanned map): north-up first, transparent outside
   // its footprint. It was read as an ungeoreferenced picture and stretched over the terrain.
-  // Colour indices are not blended.
-  const bool palette = src->GetRasterCount() > 0 && src->GetRasterBand(1)->GetColorTable() != nullptr;
+  // GDAL's warp keeps no colour table: a colour-indexed scan would come out as grey indices.
+  if (src->GetGCPCount() >= 3 && src->GetRasterCount() > 0 &&
+      src->GetRasterBand(1)->GetColorTable() != nullptr)
+    throw fail(
+        "is a colour-indexed image placed by ground control points, which the warp north-up would turn "
+        "grey; give its colours first (gdal_translate -expand rgb)");
   int gcps = 0;
-  src = detail::north_up(std::move(src), {"-r", palette ? "near" : "bilinear", "-dstalpha"}, gcps);
+  src = detail::north_up(std::move(src), {"-r", "bilinear", "-dstalpha"}, gcps);
   if (!src)
     throw fail("is placed by ground control points that GDAL cannot warp north-up (" +
                detail::gdal_message("GDALWarp failed") + ")");

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_utm_database.hpp"
@@ -45,6 +46,23 @@ Transform transform(int from, int to) {
   return Transform(OGRCreateCoordinateTransformation(&a, &b));
 }
 
+/// Places `ds` on (west..east, south..north) degrees by four ground control points at its corners
+/// and no geotransform, as a scanned map placed by hand is.
+void place_by_corners(GDALDataset& ds, double west, double south, double east, double north) {
+  const int w = ds.GetRasterXSize(), h = ds.GetRasterYSize();
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::vector<GDAL_GCP> g(4);
+  GDALInitGCPs(4, g.data());
+  for (int k = 0; k < 4; ++k) {
+    g[k].dfGCPPixel = (k & 1) ? w : 0, g[k].dfGCPLine = (k & 2) ? h : 0;
+    g[k].dfGCPX = (k & 1) ? east : west, g[k].dfGCPY = (k & 2) ? south : north;
+  }
+  ASSERT_EQ(ds.SetGCPs(4, g.data(), &wgs84), CE_None);
+  GDALDeinitGCPs(4, g.data());
+}
+
 /// An RGB GeoTIFF in longitude/latitude: red west of `split`, blue east of it; with 4 bands the
 /// fourth (near infrared, not alpha) is 255 west of the split and 0 east of it.
 /// With `gcps`, the georeference is four ground control points at the corners instead of a
@@ -60,15 +78,7 @@ void write_ortho(const fs::path& path, double west, double south, double east, d
   OGRSpatialReference wgs84;
   wgs84.importFromEPSG(4326);
   if (gcps) {
-    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    std::vector<GDAL_GCP> g(4);
-    GDALInitGCPs(4, g.data());
-    for (int k = 0; k < 4; ++k) {
-      g[k].dfGCPPixel = (k & 1) ? w : 0, g[k].dfGCPLine = (k & 2) ? h : 0;
-      g[k].dfGCPX = (k & 1) ? east : west, g[k].dfGCPY = (k & 2) ? south : north;
-    }
-    ASSERT_EQ(ds->SetGCPs(4, g.data(), &wgs84), CE_None);
-    GDALDeinitGCPs(4, g.data());
+    place_by_corners(*ds, west, south, east, north);
   } else {
     ds->SetGeoTransform(gt);
     ds->SetSpatialRef(&wgs84);
@@ -172,6 +182,38 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
                 std::abs(int(a[3]) - int(b[3])) > 64;
     }
   EXPECT_LT(differ, img.width * img.height / 20) << "of " << img.width * img.height << " texels";
+
+  // A colour-indexed scan placed by ground control points (a scanned map with a palette): GDAL's
+  // warp north-up keeps no colour table, so it would come out as grey indices; it is refused,
+  // naming the file and what to do.
+  {
+    const fs::path indexed = d / "indexed.tif";
+    constexpr int w = 120, h = 90;
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(indexed.c_str(), w, h, 1,
+                                                                                     GDT_Byte, nullptr));
+    ASSERT_TRUE(ds);
+    GDALColorTable table;
+    const GDALColorEntry none{0, 0, 0, 255}, red{255, 0, 0, 255}, green{0, 255, 0, 255}, blue{0, 0, 255, 255};
+    for (const auto& [i, e] : {std::pair{0, none}, {1, red}, {2, green}, {3, blue}})
+      table.SetColorEntry(i, &e);
+    GDALRasterBand* band = ds->GetRasterBand(1);
+    band->SetColorInterpretation(GCI_PaletteIndex);
+    ASSERT_EQ(band->SetColorTable(&table), CE_None);
+    std::vector<std::uint8_t> v(std::size_t(w) * h);
+    for (int r = 0; r < h; ++r)
+      for (int c = 0; c < w; ++c)
+        v[std::size_t(r) * w + c] = west + (c + 0.5) * (east - west) / w < split ? 1 : 3;
+    ASSERT_EQ(band->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Byte, 0, 0), CE_None);
+    place_by_corners(*ds, west, south, east, north);
+  }
+  EXPECT_EQ(
+      cli.run("texture add " + db + " --layer indexed --image " + quote((d / "indexed.tif").string()), &text),
+      1);
+  EXPECT_NE(
+      text.find((d / "indexed.tif").string() + ": is a colour-indexed image placed by ground control points"),
+      std::string::npos)
+      << text;
+  EXPECT_NE(text.find("gdal_translate -expand rgb"), std::string::npos) << text;
 
   // A plain image (no georeference) still covers the terrain, one texel per sample.
   write_layer_image(RgbaImage(65, 65), (d / "plain.png").string());
