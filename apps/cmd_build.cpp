@@ -61,9 +61,10 @@ CommandSpec build_spec() {
       "are kept, up to 256 MiB, for the other blocks that meet them (the 'voids' line counts what\n"
       "was solved and reused; a region of 2^20 samples or more, about a second to solve, is told\n"
       "on stderr before and after: 'voids filling a region of N samples (input cols, rows)...').\n"
-      "Heightmap images and ASCII grids are held in memory (8 bytes a sample and more). The first\n"
-      "line says which ('read window by window' or 'held in memory'); the last one gives the peak\n"
-      "resident memory of the build.";
+      "Heightmap images are decoded once to an unnamed file in TMPDIR (4 bytes a sample, 8 for\n"
+      "32-bit images) and read window by window from it; ASCII grids are held in memory (8 bytes a\n"
+      "sample and more). The first line says which ('read window by window' or 'held in memory');\n"
+      "the last one gives the peak resident memory of the build.";
   s.options = {
       {"--input", "DEM",
        "elevation file (.hgt, .hgt.zip, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one "

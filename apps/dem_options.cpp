@@ -10,21 +10,21 @@
 namespace terralod::cli {
 
 const char* const kDemFormats =
-    "DEM formats: SRTM .hgt, Esri ASCII grid .asc, PNG/TIFF heightmaps, any single-band raster GDAL\n"
-    "reads (an alpha band besides marks voids). Geographic DEMs are warped to a metric frame (x\n"
-    "east, y north, metres): --crs auto (the default) picks an azimuthal equidistant projection\n"
-    "centred on the DEM, scaled so that distances are true to within 0.1 % up to about 9 x 9\n"
-    "degrees; beyond, the azimuthal, transverse Mercator, Lambert conformal conic, Mercator or\n"
-    "oblique Mercator projection whose scale is truest over the DEM's data (a strip about 7 degrees\n"
-    "wide stays within 0.1 % however long, in any direction; a continent cannot: the frame states\n"
-    "its scale error; 'terralod info DEM' prints it; a DEM far past a hemisphere keeps its own\n"
-    "grid); --crs native keeps the local equirectangular frame of earlier versions (their databases\n"
-    "resume with it); --crs EPSG:32619 (any projected CRS GDAL knows) warps to that CRS. Projected\n"
-    "DEMs stay in their own CRS unless --crs names another. Voids (nodata, mask, alpha 0, NaN,\n"
-    "heights beyond 10,000 km such as an undeclared -3.4e38 fill) are filled from their surroundings\n"
-    "unless --keep-voids (regions within 4096 x 4096 samples; wider ones stay holes); a region of\n"
-    "2^20 samples or more takes a second or so, told on stderr as 'voids filling a region of N\n"
-    "samples (input cols C0-C1, rows R0-R1)...' and '... filled'.";
+    "DEM formats: SRTM .hgt, Esri ASCII grid .asc, heightmap images (PNG, TIFF or OpenEXR without\n"
+    "georeference), any single-band raster GDAL reads (an alpha band besides marks voids).\n"
+    "Geographic DEMs are warped to a metric frame (x east, y north, metres): --crs auto (the\n"
+    "default) picks an azimuthal equidistant projection centred on the DEM, scaled so that distances\n"
+    "are true to within 0.1 % up to about 9 x 9 degrees; beyond, the azimuthal, transverse Mercator,\n"
+    "Lambert conformal conic, Mercator or oblique Mercator projection whose scale is truest over the\n"
+    "DEM's data (a strip about 7 degrees wide stays within 0.1 % however long, in any direction; a\n"
+    "continent cannot: the frame states its scale error; 'terralod info DEM' prints it; a DEM far\n"
+    "past a hemisphere keeps its own grid); --crs native keeps the local equirectangular frame of\n"
+    "earlier versions (their databases resume with it); --crs EPSG:32619 (any projected CRS GDAL\n"
+    "knows) warps to that CRS. Projected DEMs stay in their own CRS unless --crs names another.\n"
+    "Voids (nodata, mask, alpha 0, NaN, heights beyond 10,000 km such as an undeclared -3.4e38 fill)\n"
+    "are filled from their surroundings unless --keep-voids (regions within 4096 x 4096 samples;\n"
+    "wider ones stay holes); a region of 2^20 samples or more takes a second or so, told on stderr\n"
+    "as 'voids filling a region of N samples (input cols C0-C1, rows R0-R1)...' and '... filled'.";
 
 std::vector<OptionSpec> dem_option_specs() {
   return {

@@ -4,10 +4,12 @@
 // windowed row reads, and the native world frame; and what read_dem's readers share (Raster).
 #pragma once
 
+#include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 
 #include <array>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -54,8 +56,38 @@ void check_dimensions(const std::string& path, long long w, long long h);
 /// `v` with 12 significant digits, for frame descriptions.
 std::string format_number(double v);
 
-/// A heightmap image read whole through OpenImageIO (dem_heightmap.cpp): grey, or grey and
-/// alpha (0: a void), heights raw * vertical_scale + vertical_offset, no georeference.
+/// A heightmap image (grey, or grey and alpha, 0 marking a void) read through OpenImageIO in bands
+/// of rows from the top (dem_heightmap.cpp): the only order PNG decodes in without starting over.
+/// DemError naming the path when the file is no such image (under 2 x 2 pixels, or over 2^30 when
+/// `limit_size`), or cannot be read.
+class HeightmapRows {
+ public:
+  HeightmapRows(const std::string& path, bool limit_size);
+  ~HeightmapRows();
+  int width() const;
+  int height() const;
+  /// Whether every raw value is a float exactly (8- and 16-bit integers, half, float).
+  bool exact_in_float() const { return exact_in_float_; }
+  /// The next band of whole rows as raw values (NaN where alpha is 0) into `raw`, row-major;
+  /// its number of rows, 0 after the last row.
+  int next(std::vector<double>& raw);
+
+ private:
+  std::string path_;
+  std::unique_ptr<OIIO::ImageInput> in_;
+  OIIO::TypeDesc type_;  ///< what the pixels are read as: integers in their own type, else double
+  bool alpha_ = false, exact_in_float_ = false;
+  int band_rows_ = 1, next_row_ = 0;
+  std::vector<unsigned char> bytes_;
+};
+
+/// The height in metres of a heightmap's raw value: raw * vertical_scale + vertical_offset, NaN
+/// for a void or a value that is no height (is_height).
+double heightmap_metres(double raw, const DemOptions& options);
+/// The frame note of a heightmap read with `options` ("" for scale 1, offset 0).
+std::string heightmap_note(const DemOptions& options);
+
+/// A heightmap image read whole (HeightmapRows, heightmap_metres), no georeference.
 Raster read_heightmap(const std::string& path, const DemOptions& options);
 
 /// The format read_dem reads `path` as (DemOptions::Format::Auto resolved, never Auto). For Gdal,

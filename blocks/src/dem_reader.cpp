@@ -3,6 +3,7 @@
 // other frames (DemOptions::crs) are dem_frame.cpp's.
 #include "terralod/blocks/dem_reader.hpp"
 
+#include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
@@ -667,12 +668,27 @@ Format dem_format(const std::string& path, const DemOptions& options, GDALDatase
   if (options.format == Format::Auto) {
     if (ext == ".hgt") return Format::Hgt;
     if (ext == ".asc") return Format::AsciiGrid;
-    if (ext == ".png") return Format::Heightmap;
   } else if (options.format != Format::Gdal) {
     return options.format;
   }
-  ds = detail::open_gdal(path);
-  if (options.format == Format::Auto && (ext == ".tif" || ext == ".tiff") && !has_georeference(*ds)) {
+  try {
+    ds = detail::open_gdal(path);
+  } catch (const DemError& e) {
+    // An image GDAL has no driver for, such as an OpenEXR heightmap (what World Machine and
+    // Gaea export): OpenImageIO reads it.
+    if (options.format != Format::Auto || !fs::is_regular_file(path)) throw;
+    if (!OIIO::ImageInput::open(path)) {
+      const std::string msg = OIIO::geterror();
+      throw DemError(path, e.problem() + "; OpenImageIO cannot read it as an image either: " +
+                               (msg.empty() ? "unknown format" : msg));
+    }
+    return Format::Heightmap;
+  }
+  // A PNG is a heightmap unless it has a georeference (a world file or GDAL's .aux.xml beside it,
+  // as gdal_translate -of PNG writes): read as a heightmap, its cells became 1 m and its relief
+  // was stretched by the true spacing.
+  if (options.format == Format::Auto && (ext == ".tif" || ext == ".tiff" || ext == ".png") &&
+      !has_georeference(*ds)) {
     ds.reset();
     return Format::Heightmap;
   }

@@ -1,7 +1,8 @@
 // open_dem_source (dem_source.hpp): DemSources that read a GDAL raster or an SRTM .hgt tile window
 // by window, through the header, georeference and sample code of read_dem (dem_raster.hpp),
-// under a warped source (dem_frame.hpp) when the frame warps; and, for the inputs read whole
-// (heightmap images, ASCII grids), read_dem's grid served by heightfield_source.
+// under a warped source (dem_frame.hpp) when the frame warps; heightmap images through a temporary
+// file they are decoded to once (HeightmapSource); and, for ASCII grids, read whole, read_dem's grid
+// served by heightfield_source.
 //
 // read(window): the window's raw samples, then fill_voids_in_window; while a void region that
 // meets the window is cut by the window's edge (VoidFillStats::open), the window grows to hold
@@ -28,12 +29,16 @@
 // sample at all is refused (DemError, read_dem's words) only by a read that grows to the whole
 // grid, which filling voids does (measuring the frame at open reads one); with voids kept, its
 // reads give holes and build_database refuses it after its blocks.
+#include <fcntl.h>
 #include <gdal_priv.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -509,6 +514,113 @@ class HgtSource final : public WindowedSource {
   int n_;
 };
 
+/// An unnamed file in the temporary folder (TMPDIR, else /tmp), removed by the system when it is
+/// closed, even if the process is killed. Errors name `owner` (the input it holds data of).
+class TempFile {
+ public:
+  explicit TempFile(const std::string& owner) : owner_(owner) {
+    const char* tmpdir = std::getenv("TMPDIR");
+    dir_ = tmpdir != nullptr && *tmpdir != '\0' ? tmpdir : "/tmp";
+    fd_ = ::open(dir_.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+    if (fd_ < 0 && (errno == EOPNOTSUPP || errno == EISDIR || errno == EINVAL)) {
+      // A file system without unnamed files: a named one, unlinked at once.
+      std::string name = (fs::path(dir_) / "terralod-XXXXXX").string();
+      fd_ = ::mkostemp(name.data(), O_CLOEXEC);
+      if (fd_ >= 0) ::unlink(name.c_str());
+    }
+    if (fd_ < 0) fail("cannot create");
+  }
+  TempFile(const TempFile&) = delete;
+  TempFile& operator=(const TempFile&) = delete;
+  ~TempFile() { ::close(fd_); }
+
+  void append(const void* data, std::size_t bytes) {
+    const char* p = static_cast<const char*>(data);
+    while (bytes > 0) {
+      const ssize_t n = ::write(fd_, p, bytes);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) fail("cannot write to");
+      p += n, bytes -= std::size_t(n), size_ += std::uint64_t(n);
+    }
+  }
+  void read_at(void* data, std::size_t bytes, std::uint64_t offset) const {
+    char* p = static_cast<char*>(data);
+    while (bytes > 0) {
+      const ssize_t n = ::pread(fd_, p, bytes, off_t(offset));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) fail("cannot read back");
+      p += n, bytes -= std::size_t(n), offset += std::uint64_t(n);
+    }
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& what) const {
+    const int e = errno;
+    throw DemError(owner_, what + " its decoded samples in a temporary file in " + dir_ + " (" +
+                               std::to_string(size_ >> 20) + " MiB written): " + std::strerror(e) +
+                               "; TMPDIR names the folder used");
+  }
+  std::string owner_, dir_;
+  int fd_ = -1;
+  std::uint64_t size_ = 0;
+};
+
+/// A heightmap image (detail::HeightmapRows), decoded once, at opening, into a TempFile of its raw
+/// values (floats where every value is one exactly, as for 8- and 16-bit images; else doubles),
+/// from which windows are read: memory of one band of rows, disk of 4 (or 8) bytes a sample.
+/// Reading the image itself window by window would decode a PNG from its first row again at
+/// every read behind the last one.
+class HeightmapSource final : public WindowedSource {
+ public:
+  HeightmapSource(const std::string& path, const DemOptions& options, bool measure)
+      : WindowedSource(path, options), options_(options), file_(path) {
+    detail::HeightmapRows rows(path, false);
+    width_ = rows.width();
+    doubles_ = !rows.exact_in_float();
+    std::vector<double> raw;
+    std::vector<float> narrow;
+    while (rows.next(raw) > 0) {
+      if (doubles_) {
+        file_.append(raw.data(), raw.size() * sizeof(double));
+      } else {
+        narrow.assign(raw.begin(), raw.end());
+        file_.append(narrow.data(), narrow.size() * sizeof(float));
+      }
+    }
+    set_grid(width_, rows.height(), detail::Georef{}, options, measure ? detail::heightmap_note(options) : "",
+             measure);
+  }
+
+ protected:
+  void raw(SampleRect window, std::vector<double>& z) const override {
+    const std::size_t w = std::size_t(window.width()), size = doubles_ ? sizeof(double) : sizeof(float);
+    z.resize(window.samples());
+    std::vector<unsigned char> row(w * size);
+    for (int r = window.row0; r <= window.row1; ++r) {
+      const std::uint64_t at = (std::uint64_t(r) * std::uint64_t(width_) + std::uint64_t(window.col0)) * size;
+      file_.read_at(row.data(), row.size(), at);
+      double* out = z.data() + std::size_t(r - window.row0) * w;
+      for (std::size_t i = 0; i < w; ++i) {
+        double v;
+        if (doubles_) {
+          std::memcpy(&v, row.data() + i * sizeof(double), sizeof(double));
+        } else {
+          float f;
+          std::memcpy(&f, row.data() + i * sizeof(float), sizeof(float));
+          v = f;
+        }
+        out[i] = detail::heightmap_metres(v, options_);
+      }
+    }
+  }
+
+ private:
+  DemOptions options_;
+  TempFile file_;
+  int width_ = 0;
+  bool doubles_ = false;
+};
+
 }  // namespace
 
 std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOptions& options) {
@@ -533,6 +645,12 @@ std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOpt
       auto native = std::make_unique<GdalSource>(path, options, std::move(ds), std::move(band), !warps);
       if (!warps) return native;
       return detail::warped_source(path, std::move(native), options.crs, height_note);
+    }
+    if (format == Format::Heightmap) {
+      const bool warps = detail::frame_warps("", false, options.crs);
+      auto native = std::make_unique<HeightmapSource>(path, options, !warps);
+      if (!warps) return native;
+      return detail::warped_source(path, std::move(native), options.crs, detail::heightmap_note(options));
     }
     ds.reset();
     return heightfield_source(read_dem(path, options));

@@ -4,20 +4,26 @@
 // by writing 5 to /proc/self/clear_refs, so each peak is that build's own. The DEMs are tiled
 // GeoTIFFs read window by window (open_dem_source); a reader that held the whole raster would
 // need 32 MiB of doubles for the small one and 128 MiB for the large one and fails the bound.
+// HeightmapImagesAreNotHeldWhole does the same for a PNG heightmap's windows.
 // GDAL's block cache is a constant (64 MiB by default while a windowed source is open) that the
 // small DEM's 16 MiB of floats never fill; the test caps it at 8 MiB (GDAL_CACHEMAX) so that both
 // builds fill it and the comparison sees what grows with the DEM.
+#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "run_command.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/dem_writer.hpp"
+#include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -72,6 +78,45 @@ TEST(BuildMemory, FourTimesTheSamplesWithinAQuarterMoreMemory) {
   const std::uint64_t large = peak_of_build(4097);
   EXPECT_LE(double(large), 1.25 * double(small))
       << "4x the samples took " << double(large) / double(small) << "x the peak resident set";
+}
+
+// A 16-bit PNG heightmap (the usual game and tool export) with four times the pixels of another:
+// opening it and reading every block's window peaks within 1.25x. The image is decoded once into
+// a temporary file and read back window by window; held whole as doubles it took 32 MiB for the
+// small one and 128 MiB for the large one.
+TEST(BuildMemory, HeightmapImagesAreNotHeldWhole) {
+  const terralod::test::TempDir dir("heightmap-memory");
+  auto peak_of_reads = [&](int size) {
+    const std::string png = (dir.path() / ("fractal" + std::to_string(size) + ".png")).string();
+    {
+      std::vector<std::uint16_t> px(std::size_t(size) * std::size_t(size));
+      for (int r = 0; r < size; ++r)
+        for (int c = 0; c < size; ++c)
+          px[std::size_t(r) * std::size_t(size) + std::size_t(c)] = std::uint16_t(
+              20000.0 + 3000.0 * std::sin(c * 0.013) * std::cos(r * 0.011) + (c * 7 + r * 13) % 50);
+      auto out = OIIO::ImageOutput::create(png);
+      EXPECT_TRUE(out && out->open(png, OIIO::ImageSpec(size, size, 1, OIIO::TypeDesc::UINT16))) << png;
+      EXPECT_TRUE(out->write_image(OIIO::TypeDesc::UINT16, px.data()) && out->close()) << out->geterror();
+    }
+    reset_peak();
+    const std::uint64_t before = peak_resident();
+    double sum = 0.0;
+    {
+      const std::unique_ptr<tb::DemSource> src = tb::open_dem_source(png);
+      EXPECT_FALSE(src->in_memory()) << png << " should be read window by window";
+      const tb::BlockLayout layout = tb::partition(size, size, 257);
+      for (const tb::BlockKey& k : layout.keys()) sum += src->read(layout.rect(k)).at(0, 0);
+    }
+    EXPECT_GT(sum, 0.0);
+    const std::uint64_t peak = peak_resident();
+    std::printf("%d x %d PNG: resident %.1f MiB before opening it, peak %.1f MiB\n", size, size,
+                double(before) / 1048576.0, double(peak) / 1048576.0);
+    return peak;
+  };
+  const std::uint64_t small = peak_of_reads(2049);
+  const std::uint64_t large = peak_of_reads(4097);
+  EXPECT_LE(double(large), 1.25 * double(small))
+      << "4x the pixels took " << double(large) / double(small) << "x the peak resident set";
 }
 
 // Memory that grows with the number of blocks, with the samples fixed: one 2049^2 DEM built by

@@ -419,6 +419,19 @@ TEST(dem_reader_formats, HeightmapScaleOffsetAndUngeoreferencedTiff) {
   EXPECT_EQ(hfa.at(1, 1), 400.0);
   EXPECT_EQ(hfa.voids.voids, 1u);
 
+  // A PNG with a world file beside it (so does GDAL's .aux.xml) is a raster on its georeference,
+  // 30 m cells here; it was read as a heightmap of 1 m cells whatever its georeference said.
+  const fs::path placed = dir / "placed.png";
+  write_image(placed, 2, 2, 1, raw, OIIO::TypeDesc::UINT16);
+  std::ofstream(dir / "placed.pgw") << "30\n0\n0\n-30\n500015\n4999985\n";
+  const Heightfield hfp = tb::read_dem(placed.string(), opt);
+  const auto [x0, y0] = hfp.transform.to_world(0, 0);
+  const auto [x1, y1] = hfp.transform.to_world(1, 1);
+  EXPECT_EQ(x1 - x0, 30.0);
+  EXPECT_EQ(y0 - y1, 30.0);
+  EXPECT_EQ(hfp.at(1, 0), 1000.0);  // vertical_scale is for heightmaps
+  EXPECT_EQ(tb::open_dem_source(placed.string(), opt)->grid().transform, hfp.transform);
+
   // A TIFF without geotransform or CRS is a heightmap under Auto: vertical_scale applies.
   const fs::path tif = dir / "plain.tif";
   write_geotiff(tif, kAW, kAH, std::vector<double>(kGridA.begin(), kGridA.end()), GDT_UInt16, {}, 0);

@@ -1,6 +1,7 @@
 // Tests for blocks::open_dem_source: windowed reads of GeoTIFFs, VRT mosaics and .hgt tiles give
 // exactly block_heightfield(read_dem(...)), bit for bit, filled or not, from any window and any
-// number of threads, warped to a projected frame or not; the in-memory fallback for heightmaps; errors.
+// number of threads, warped to a projected frame or not; heightmap images decoded once to a
+// temporary file; errors.
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -314,7 +316,79 @@ TEST_F(DemSourceTest, HgtIsWindowedNativeOrWarped) {
   if (fs::exists(real)) expect_like_read_dem(real.string(), {}, false);
 }
 
-TEST_F(DemSourceTest, HeightmapsAreInMemoryNamedCrsIsWindowed) {
+/// Writes `px` (w x h pixels of `channels` values of `type`) with OpenImageIO; tiled when `tile` > 0.
+template <typename T>
+void write_image(const fs::path& path, int w, int h, int channels, OIIO::TypeDesc type,
+                 const std::vector<T>& px, int tile = 0) {
+  auto out = OIIO::ImageOutput::create(path.string());
+  ASSERT_TRUE(out) << path;
+  OIIO::ImageSpec spec(w, h, channels, type);
+  if (channels == 2) spec.alpha_channel = 1;
+  spec.tile_width = spec.tile_height = tile;
+  ASSERT_TRUE(out->open(path.string(), spec)) << out->geterror();
+  ASSERT_TRUE(out->write_image(type, px.data())) << out->geterror();
+  ASSERT_TRUE(out->close());
+}
+
+// Every kind of heightmap the windowed source reads as read_dem does: grey and alpha, integer
+// types that floats hold exactly and those they do not (32-bit: kept as doubles), floats, half
+// floats, and tiled files whose size is no multiple of the tile (read a row of tiles at a time).
+TEST_F(DemSourceTest, HeightmapsOfEveryKindAreReadLikeReadDem) {
+  constexpr int w = 150, h = 97;
+  std::vector<std::uint16_t> grey_alpha(2 * w * h);
+  std::vector<std::int32_t> big(w * h);
+  std::vector<float> floats(w * h);
+  for (int i = 0; i < w * h; ++i) {
+    const int x = i % w, y = i / w;
+    grey_alpha[2 * i] = std::uint16_t(1000 + 30 * x + 7 * y);
+    grey_alpha[2 * i + 1] = (x - 60) * (x - 60) + (y - 40) * (y - 40) < 100 || x == w - 1 ? 0 : 65535;
+    big[i] = 123456789 + 1001 * x - 997 * y;  // over 2^24: not a float
+    floats[i] = (x * y) % 17 == 3 ? kNaN : 0.25f * float(x) - 0.125f * float(y);
+  }
+  write_image(dir_ / "alpha.png", w, h, 2, OIIO::TypeDesc::UINT16, grey_alpha);
+  write_image(dir_ / "big.tif", w, h, 1, OIIO::TypeDesc::INT32, big);
+  write_image(dir_ / "tiled.tif", w, h, 1, OIIO::TypeDesc::FLOAT, floats, 32);
+  write_image(dir_ / "half.exr", w, h, 1, OIIO::TypeDesc::HALF, floats);
+  tb::DemOptions o;
+  o.vertical_scale = 0.001;  // millimetres: the int32 heights' last digits count
+  o.vertical_offset = -100.0;
+  for (const char* name : {"alpha.png", "big.tif", "tiled.tif", "half.exr"}) {
+    SCOPED_TRACE(name);
+    for (const bool fill : {true, false}) {
+      o.fill_voids = fill;
+      expect_like_read_dem((dir_ / name).string(), o, false);
+    }
+  }
+  // No temporary folder: an error that names the image, the folder and the variable that sets it.
+  {
+    const char* was = std::getenv("TMPDIR");
+    const std::string saved = was != nullptr ? was : "";
+    ASSERT_EQ(setenv("TMPDIR", (dir_ / "no such folder").c_str(), 1), 0);
+    try {
+      tb::open_dem_source((dir_ / "alpha.png").string(), o);
+      ADD_FAILURE() << "no error without a temporary folder";
+    } catch (const tb::DemError& e) {
+      EXPECT_EQ(e.path(), (dir_ / "alpha.png").string());
+      EXPECT_NE(e.problem().find("temporary file in " + (dir_ / "no such folder").string()),
+                std::string::npos)
+          << e.what();
+      EXPECT_NE(e.problem().find("TMPDIR"), std::string::npos) << e.what();
+    }
+    if (was != nullptr) {
+      setenv("TMPDIR", saved.c_str(), 1);
+    } else {
+      unsetenv("TMPDIR");
+    }
+  }
+
+  // The int32 heights are kept to the millimetre (as floats they would be off by up to 4 m).
+  o.fill_voids = true;
+  const auto src = tb::open_dem_source((dir_ / "big.tif").string(), o);
+  const Heightfield b = src->read({0, 0, w - 1, h - 1});
+  EXPECT_EQ(b.at(1, 2), double(123456789 + 1001 - 2 * 997) * 0.001 - 100.0);
+}
+
+TEST_F(DemSourceTest, HeightmapsAreDecodedOnceNamedCrsIsWindowed) {
   const fs::path png = dir_ / "island.png";
   std::vector<std::uint16_t> px(64 * 48);
   for (std::size_t i = 0; i < px.size(); ++i) px[i] = std::uint16_t((i * 7919) % 4000);
@@ -325,9 +399,9 @@ TEST_F(DemSourceTest, HeightmapsAreInMemoryNamedCrsIsWindowed) {
   out->close();
   tb::DemOptions o;
   o.vertical_scale = 0.1;
-  expect_like_read_dem(png.string(), o, true);
+  expect_like_read_dem(png.string(), o, false);
 
-  // A .tif without georeference is a heightmap (OpenImageIO), read whole.
+  // A .tif without georeference is a heightmap (OpenImageIO), decoded once like a PNG.
   const fs::path bare = dir_ / "bare.tif";
   GDALAllRegister();
   {
@@ -338,7 +412,7 @@ TEST_F(DemSourceTest, HeightmapsAreInMemoryNamedCrsIsWindowed) {
     ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 40, 30, v.data(), 40, 30, GDT_UInt16, 0, 0),
               CE_None);
   }
-  expect_like_read_dem(bare.string(), {}, true);
+  expect_like_read_dem(bare.string(), {}, false);
 
   const fs::path tif = dir_ / "utm.tif";
   write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);

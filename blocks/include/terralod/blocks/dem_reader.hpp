@@ -18,9 +18,10 @@
 // Contract:
 //   path    UTF-8 file name. Any GDAL path works for GDAL rasters (including /vsi... paths).
 //           The format comes from options.format; Format::Auto picks by extension
-//           (case-insensitive): .hgt -> Hgt, .asc -> AsciiGrid, .png -> Heightmap,
-//           .tif/.tiff -> Gdal, or Heightmap when GDAL finds neither a geotransform nor a CRS;
-//           anything else -> Gdal.
+//           (case-insensitive): .hgt -> Hgt, .asc -> AsciiGrid, .png/.tif/.tiff -> Gdal, or
+//           Heightmap when GDAL finds neither a geotransform nor a CRS (a PNG's may be in a
+//           world file or a .aux.xml beside it); anything else -> Gdal, or Heightmap when GDAL
+//           cannot open it and OpenImageIO can (OpenEXR, say).
 //   options see DemOptions below.
 //   result  A Heightfield of width x height >= 2 x 2 samples. Row 0 is the file's first
 //           (northern) row, column 0 its western column. Heights in metres (heightmaps: raw
@@ -44,9 +45,11 @@
 //              its mask band (when it has a real one), NaN, +-inf and heights beyond 10,000 km
 //              (fills a file does not declare, such as -3.4e38) are voids. The geotransform
 //              is taken in GDAL's corner convention and converted to sample centres.
-//   Heightmap  Single-channel image read with OpenImageIO: 8/16/32-bit integers are read as
-//              raw integers (never normalised), floats as is (NaN/inf and beyond 10,000 km =
-//              void).
+//   Heightmap  Grey image, or grey and alpha (0 = void), read with OpenImageIO: 8/16/32-bit
+//              integers are read as raw integers (never normalised), floats as is (NaN/inf and
+//              beyond 10,000 km = void). open_dem_source decodes it once into an unnamed
+//              temporary file (TMPDIR, 4 bytes a sample, 8 for 32-bit images) and reads its
+//              windows from there.
 //   AsciiGrid  Esri ASCII grid: header keys ncols, nrows, xllcorner|xllcenter,
 //              yllcorner|yllcenter, cellsize (or dx and dy), optional NODATA_value, any
 //              order, case-insensitive; then nrows x ncols numbers, north row first. A
