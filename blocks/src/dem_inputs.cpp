@@ -134,7 +134,8 @@ bool same_crs(const OGRSpatialReference& a, const OGRSpatialReference& b) {
 /// transformations) to it in an in-memory VRT on the finest sample spacing of the files already
 /// in it, its cells aligned to theirs so that the mosaic does not resample them again, and
 /// outside its footprint a void; then, when sample types still differ, the others are read as
-/// Float32 (or Float64 when a type does not fit a float). The VRTs read the files on demand:
+/// Float32 (or Float64 when a type does not fit a float), and band colour interpretations that
+/// differ from the first file's are set to it. The VRTs read the files on demand:
 /// nothing is copied. Names of the VRTs are `prefix` + k and are added to `made`; `note` says
 /// what was done, for the mosaic's description.
 std::vector<std::string> made_alike(const std::vector<std::string>& files, const std::string& prefix,
@@ -232,26 +233,38 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
     types.push_back(type);
     ++warped;
   }
-  // One sample type.
+  // One sample type, and one colour interpretation, which means nothing for heights but which
+  // GDALBuildVRT also wants alike: an SRTM .hgt tile's band is Undefined, a GeoTIFF's Gray.
   GDALDataType common = types[0];
   bool mixed = false;
   for (GDALDataType t : types) mixed |= t != types[0];
-  std::size_t converted = 0;
   if (mixed) {
     common = GDT_Float32;
     for (GDALDataType t : types)
       if (!detail::fits_float32(t)) common = GDT_Float64;
-    for (std::size_t k = 0; k < out.size(); ++k) {
-      if (types[k] == common) continue;
-      make(k, "convert", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
-        GDALTranslateOptions* opt =
-            detail::gdal_options({"-of", "VRT", "-ot", GDALGetDataTypeName(common)}, GDALTranslateOptionsNew);
-        GDALDatasetH vrt = opt ? GDALTranslate(name.c_str(), src, opt, nullptr) : nullptr;
-        GDALTranslateOptionsFree(opt);
-        return vrt;
-      });
-      ++converted;
-    }
+  }
+  const auto interpretation = [&](std::size_t k) {
+    detail::QuietGdal quiet;
+    GDALDatasetUniquePtr ds(GDALDataset::Open(absolute_source(out[k]).c_str(), GDAL_OF_RASTER));
+    return ds && ds->GetRasterCount() > 0 ? ds->GetRasterBand(1)->GetColorInterpretation() : GCI_Undefined;
+  };
+  std::string first_interpretation = GDALGetColorInterpretationName(interpretation(0));
+  std::transform(first_interpretation.begin(), first_interpretation.end(), first_interpretation.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  std::size_t converted = 0;
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    std::vector<std::string> args = {"-of", "VRT"};
+    if (types[k] != common) args.insert(args.end(), {"-ot", GDALGetDataTypeName(common)});
+    if (k > 0 && !EQUAL(GDALGetColorInterpretationName(interpretation(k)), first_interpretation.c_str()))
+      args.insert(args.end(), {"-colorinterp", first_interpretation});
+    if (args.size() == 2) continue;
+    make(k, "convert", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
+      GDALTranslateOptions* opt = detail::gdal_options(args, GDALTranslateOptionsNew);
+      GDALDatasetH vrt = opt ? GDALTranslate(name.c_str(), src, opt, nullptr) : nullptr;
+      GDALTranslateOptionsFree(opt);
+      return vrt;
+    });
+    if (types[k] != common) ++converted;
   }
   if (warped)
     note += "; " + std::to_string(warped) + " warped to " + (to.GetName() ? to.GetName() : "the others' CRS");
@@ -321,7 +334,7 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
     return;
   }
   for (const std::string& f : files)
-    if (!fs::exists(f)) throw DemError(f, "no such file");
+    if (detail::names_a_file(f) && !fs::exists(f)) throw DemError(f, "no such file");
   static std::atomic<int> serial{0};
   path_ = "/vsimem/terralod_inputs_" + std::to_string(::getpid()) + "_" + std::to_string(serial++) + ".vrt";
   detail::register_gdal();

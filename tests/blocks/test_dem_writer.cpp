@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <memory>
@@ -410,6 +411,37 @@ TEST(DemInputs, Int16AndFloat32TilesReadAsOneFloat32File) {
   ASSERT_EQ(got.height(), want.height());
   EXPECT_GE(want.voids.filled, 20u);
   EXPECT_EQ(got.voids.filled, want.voids.filled);
+  for (int r = 0; r < want.height(); ++r)
+    for (int c = 0; c < want.width(); ++c) ASSERT_EQ(got.at(c, r), want.at(c, r)) << c << ", " << r;
+}
+
+// An SRTM .hgt tile beside a GeoTIFF of the same type and spacing (a void-filled tile from
+// elsewhere, say): GDALBuildVRT refused them, because the .hgt band's colour interpretation is
+// Undefined and the GeoTIFF's Gray. The mosaic is the one-file terrain, sample for sample.
+TEST(DemInputs, HgtTileBesideAGeoTiffJoinsIt) {
+  constexpr int n = 1201;  // a size GDAL's SRTM driver knows
+  constexpr double kStep = 1.0 / (n - 1);
+  const auto height = [](double lon, double lat) { return std::round(rolling(lon, lat)); };
+  const std::string hgt = (tmp() / "N44W073.hgt").string(), east = (tmp() / "east.tif").string(),
+                    one = (tmp() / "one.tif").string();
+  {
+    std::string bytes;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        const auto v = std::uint16_t(std::int16_t(height(-73.0 + c * kStep, 45.0 - r * kStep)));
+        bytes += char(v >> 8);
+        bytes += char(v & 0xff);
+      }
+    std::ofstream(hgt, std::ios::binary) << bytes;
+  }
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(east, 4326, -72.0 + kStep, 45.0, n - 1, n, kStep, GDT_Int16, height));
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(one, 4326, -73.0, 45.0, 2 * n - 1, n, kStep, GDT_Int16, height));
+  const tb::DemInputs in({hgt, east});
+  const pm::Heightfield got = tb::read_dem(in.path()), want = tb::read_dem(one);
+  ASSERT_EQ(got.width(), want.width());
+  ASSERT_EQ(got.height(), want.height());
   for (int r = 0; r < want.height(); ++r)
     for (int c = 0; c < want.width(); ++c) ASSERT_EQ(got.at(c, r), want.at(c, r)) << c << ", " << r;
 }
