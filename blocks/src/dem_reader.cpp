@@ -247,7 +247,7 @@ bool has_georeference(GDALDataset& ds) {
 namespace detail {
 
 GDALDatasetUniquePtr open_gdal(const std::string& path) {
-  if (!path.starts_with("/vsi")) require_file(path);
+  if (names_a_file(path)) require_file(path);
   register_gdal();
   QuietGdal quiet;
   GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
@@ -274,6 +274,25 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
   // samples are voids. It is read itself: GDAL makes it the first band's mask only when it is
   // Byte or UInt16, and gdalwarp gives it the heights' type (Int16 for SRTM).
   const int bands = ds.GetRasterCount();
+  if (bands == 0) {
+    // A container of rasters (NetCDF variables, HDF5 datasets, GeoPackage tables): say their
+    // names, which GDAL opens each raster by.
+    std::vector<std::string> names;
+    for (char** m = ds.GetMetadata("SUBDATASETS"); m != nullptr && *m != nullptr; ++m) {
+      const std::string item = *m;
+      const std::size_t eq = item.find('=');
+      if (eq != std::string::npos && item.substr(0, eq).ends_with("_NAME"))
+        names.push_back(item.substr(eq + 1));
+    }
+    if (!names.empty()) {
+      std::string list;
+      for (std::size_t i = 0; i < names.size() && i < 8; ++i) list += (i ? ", '" : "'") + names[i] + "'";
+      if (names.size() > 8) list += " and " + std::to_string(names.size() - 8) + " more";
+      throw DemError(path, "holds " + std::to_string(names.size()) +
+                               " rasters and no band of its own: name the one to read instead of the file (" +
+                               list + ")");
+    }
+  }
   const bool alpha = bands == 2 && ds.GetRasterBand(2)->GetColorInterpretation() == GCI_AlphaBand;
   if (bands != 1 && !alpha) {
     throw DemError(path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") +

@@ -466,7 +466,7 @@ class GdalSource final : public WindowedSource {
  protected:
   void raw(SampleRect window, std::vector<double>& z) const override {
     std::error_code ec;
-    if (!path_.starts_with("/vsi") && !fs::is_regular_file(path_, ec))
+    if (detail::names_a_file(path_) && !fs::is_regular_file(path_, ec))
       throw DemError(path_, "no longer exists (removed while it was being read?)");
     GDALDatasetUniquePtr ds = borrow();
     detail::read_gdal_window(path_, *ds, band_, window, z);

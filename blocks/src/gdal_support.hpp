@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
+#include <filesystem>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -24,6 +25,19 @@ inline std::string vertical_crs(const std::string& datum) {
   if (d.find("egm2008") != std::string::npos || d.find("egm08") != std::string::npos) return "EPSG:3855";
   if (d.empty() || d.find("egm96") != std::string::npos) return "EPSG:5773";
   return datum;
+}
+
+/// Whether `path` names a file of the file system, rather than a GDAL virtual file (/vsizip/...,
+/// /vsicurl/...) or a GDAL dataset name, such as a subdataset of a NetCDF, HDF5 or GeoPackage
+/// file (NETCDF:"dem.nc":z, GPKG:dem.gpkg:table), which only GDAL can check.
+inline bool names_a_file(const std::string& path) {
+  if (path.starts_with("/vsi")) return false;
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec)) return true;
+  const std::size_t colon = path.find(':');
+  return colon == std::string::npos || colon < 2 ||
+         !std::all_of(path.begin(), path.begin() + std::ptrdiff_t(colon),
+                      [](unsigned char c) { return std::isalnum(c) || c == '_'; });
 }
 
 /// Registers GDAL's drivers, and unless the user's environment says otherwise, keeps GDAL from

@@ -669,6 +669,42 @@ TEST_F(DemSourceTest, GdalCacheIsCappedWhileOpen) {
   EXPECT_EQ(GDALGetCacheMax64(), before);
 }
 
+// A GeoPackage with two elevation tables (NetCDF files with several variables and HDF5 files are
+// alike): the file itself has no band, and the error names the rasters in it by the names GDAL
+// opens them by; such a name is read like a file. The name was refused as "no such file", and
+// the file as having "0 bands".
+TEST_F(DemSourceTest, RastersInsideAFileAreNamedAndReadByTheirNames) {
+  const fs::path tif = dir_ / "utm.tif", gpkg = dir_ / "two.gpkg";
+  write_geotiff(tif, kW, kH, terrain(kW, kH), GDT_Float32, kUtm, 32619);
+  GDALDatasetUniquePtr src(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER));
+  ASSERT_TRUE(src);
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GPKG");
+  if (driver == nullptr) GTEST_SKIP() << "GDAL has no GeoPackage driver";
+  for (const char* table : {"first", "second"}) {
+    const std::string name = std::string("RASTER_TABLE=") + table;
+    const char* options[] = {name.c_str(), "TILE_FORMAT=TIFF", "APPEND_SUBDATASET=YES", nullptr};
+    GDALDatasetUniquePtr out(
+        driver->CreateCopy(gpkg.c_str(), src.get(), FALSE, const_cast<char**>(options), nullptr, nullptr));
+    ASSERT_TRUE(out) << CPLGetLastErrorMsg();
+  }
+  const std::string second = "GPKG:" + gpkg.string() + ":second";
+  try {
+    tb::open_dem_source(gpkg.string());
+    ADD_FAILURE() << "a file of two rasters was read as one";
+  } catch (const tb::DemError& e) {
+    EXPECT_NE(e.problem().find("holds 2 rasters"), std::string::npos) << e.what();
+    EXPECT_NE(e.problem().find("'" + second + "'"), std::string::npos) << e.what();
+  }
+  tb::DemOptions holes;
+  holes.fill_voids = false;
+  for (const tb::DemOptions& o : {tb::DemOptions{}, holes}) {
+    const Heightfield from_tif = tb::read_dem(tif.string(), o), from_table = tb::read_dem(second, o);
+    EXPECT_TRUE(same_block(from_table, from_tif, /*metadata=*/false));
+    expect_like_read_dem(second, o, false);
+  }
+  EXPECT_THROW(tb::read_dem("GPKG:" + gpkg.string() + ":third"), tb::DemError);
+}
+
 TEST_F(DemSourceTest, FileRemovedOrTruncatedAfterOpeningIsAnError) {
   const fs::path hgt = dir_ / "N10E010.hgt", tif = dir_ / "gone.tif";
   write_hgt(hgt, std::vector<double>(101 * 101, 5.0));
