@@ -106,6 +106,7 @@ struct FileFacts {
   GDALDataType type = GDT_Unknown;
   double gt[6] = {0, 1, 0, 0, 0, 1};
   int width = 0, height = 0;
+  bool alpha = false;  ///< a second band, alpha (gdalwarp -dstalpha writes heights so)
 };
 
 FileFacts file_facts(const std::string& path) {
@@ -119,6 +120,7 @@ FileFacts file_facts(const std::string& path) {
   if (ds->GetGeoTransform(f.gt) != CE_None)
     throw DemError(path, "it has no georeference, so it has no place in a mosaic of several files");
   f.width = ds->GetRasterXSize(), f.height = ds->GetRasterYSize();
+  f.alpha = ds->GetRasterCount() == 2 && ds->GetRasterBand(2)->GetColorInterpretation() == GCI_AlphaBand;
   return f;
 }
 
@@ -176,6 +178,23 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
     made.push_back(name);
     out[k] = name;
   };
+  // Heights with an alpha band beside files without one (GDALBuildVRT wants one band count):
+  // band 1 read with the alpha band as its mask, which the mosaic keeps (its other files valid
+  // everywhere) and a warp below turns into NaN voids.
+  const bool some_without_alpha =
+      std::any_of(facts.begin(), facts.end(), [](const FileFacts& f) { return !f.alpha; });
+  std::size_t unalpha = 0;
+  for (std::size_t k = 0; k < facts.size(); ++k) {
+    if (!facts[k].alpha || !some_without_alpha) continue;
+    make(k, "read the heights of", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
+      GDALTranslateOptions* opt =
+          detail::gdal_options({"-of", "VRT", "-b", "1", "-mask", "2"}, GDALTranslateOptionsNew);
+      GDALDatasetH vrt = opt ? GDALTranslate(name.c_str(), src, opt, nullptr) : nullptr;
+      GDALTranslateOptionsFree(opt);
+      return vrt;
+    });
+    ++unalpha;
+  }
   for (std::size_t k = 0; k < facts.size(); ++k) {
     const FileFacts& f = facts[k];
     if (same_crs(f.srs, to)) {
@@ -269,6 +288,7 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
   if (warped)
     note += "; " + std::to_string(warped) + " warped to " + (to.GetName() ? to.GetName() : "the others' CRS");
   if (converted) note += "; " + std::to_string(converted) + " read as " + GDALGetDataTypeName(common);
+  if (unalpha) note += "; " + std::to_string(unalpha) + " with its alpha band read as voids";
   return out;
 }
 

@@ -446,6 +446,65 @@ TEST(DemInputs, HgtTileBesideAGeoTiffJoinsIt) {
     for (int c = 0; c < want.width(); ++c) ASSERT_EQ(got.at(c, r), want.at(c, r)) << c << ", " << r;
 }
 
+// A tile whose voids are an alpha band (gdalwarp -dstalpha writes heights so) beside a tile
+// without one: GDALBuildVRT refused the two band counts. The alpha tile's heights are read with
+// its alpha band as their mask: the mosaic, voids kept, is the one-file terrain whose voids are
+// nodata, sample for sample and void for void.
+TEST(DemInputs, ATileWithAnAlphaBandJoinsTilesWithout) {
+  constexpr double kStep = 1.0 / 1200.0;
+  constexpr double kWest = -72.1 + 0.5 * kStep, kNorth = 44.2 - 0.5 * kStep;
+  const auto height = [&](double lon, double lat) {
+    const double gap = std::hypot((lon + 72.05) / kStep, (lat - 44.15) / kStep);  // void: 5 samples
+    return gap < 5.0 ? std::nan("") : std::round(rolling(lon, lat));
+  };
+  const std::string west = (tmp() / "alpha.tif").string(), east = (tmp() / "plain.tif").string(),
+                    one = (tmp() / "one.tif").string();
+  {
+    GDALAllRegister();
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(west.c_str(), 120, 100,
+                                                                                     2, GDT_Int16, nullptr));
+    ASSERT_TRUE(ds);
+    double gt[6] = {kWest - 0.5 * kStep, kStep, 0.0, kNorth + 0.5 * kStep, 0.0, -kStep};
+    ds->SetGeoTransform(gt);
+    OGRSpatialReference srs;
+    srs.importFromEPSG(4326);
+    ds->SetSpatialRef(&srs);
+    std::vector<double> z(120 * 100), alpha(120 * 100);
+    for (int r = 0; r < 100; ++r)
+      for (int c = 0; c < 120; ++c) {
+        const double h = height(kWest + c * kStep, kNorth - r * kStep);
+        z[std::size_t(r) * 120 + std::size_t(c)] = std::isnan(h) ? 0.0 : h;
+        alpha[std::size_t(r) * 120 + std::size_t(c)] = std::isnan(h) ? 0.0 : 32767.0;
+      }
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 120, 100, z.data(), 120, 100, GDT_Float64, 0, 0),
+              CE_None);
+    ASSERT_EQ(
+        ds->GetRasterBand(2)->RasterIO(GF_Write, 0, 0, 120, 100, alpha.data(), 120, 100, GDT_Float64, 0, 0),
+        CE_None);
+    ds->GetRasterBand(2)->SetColorInterpretation(GCI_AlphaBand);
+  }
+  ASSERT_NO_FATAL_FAILURE(terralod::test::write_tiff(east, 4326, kWest + 120 * kStep, kNorth, 120, 100, kStep,
+                                                     GDT_Int16, height));
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(one, 4326, kWest, kNorth, 240, 100, kStep, GDT_Int16, height));
+  const tb::DemInputs in({west, east});
+  EXPECT_NE(in.description().find("1 with its alpha band read as voids"), std::string::npos)
+      << in.description();
+  tb::DemOptions holes;
+  holes.fill_voids = false;
+  const pm::Heightfield got = tb::read_dem(in.path(), holes), want = tb::read_dem(one, holes);
+  ASSERT_EQ(got.width(), want.width());
+  ASSERT_EQ(got.height(), want.height());
+  EXPECT_GE(want.voids.voids, 60u);
+  EXPECT_EQ(got.voids.voids, want.voids.voids);
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    ASSERT_EQ(got.valid(i), want.valid(i)) << i;
+    if (want.valid(i)) {
+      ASSERT_EQ(got.samples()[i], want.samples()[i]) << i;
+    }
+  }
+}
+
 // SRTM at 1 second beside tiles at 3 seconds, or any two spacings: GDALBuildVRT put them all on
 // their mean spacing, dropping detail from the finer ones. The finest is kept, with its samples
 // as they are, and the coarser tile is resampled bilinearly (not into steps).
