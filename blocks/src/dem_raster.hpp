@@ -6,10 +6,13 @@
 
 #include <OpenImageIO/imageio.h>
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
 
 #include <array>
 #include <cmath>
+#include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -89,6 +92,39 @@ std::string heightmap_note(const DemOptions& options);
 
 /// A heightmap image read whole (HeightmapRows, heightmap_metres), no georeference.
 Raster read_heightmap(const std::string& path, const DemOptions& options);
+
+/// An Esri ASCII grid (header keys ncols, nrows, xllcorner|xllcenter, yllcorner|yllcenter,
+/// cellsize or dx and dy, NODATA_value; a sidecar .prj gives the CRS) read from the top in bands of
+/// rows (dem_ascii_grid.cpp). The header is read at opening. DemError naming the path (and the
+/// line) for a malformed grid; over 2^30 values only when `limit_size`.
+class AsciiGridRows {
+ public:
+  AsciiGridRows(const std::string& path, bool limit_size);
+  ~AsciiGridRows();
+  int width() const { return width_; }
+  int height() const { return height_; }
+  const Georef& georef() const { return geo_; }
+  /// The next band of whole rows in metres (NODATA_value and non-heights NaN) into `z`, row-major;
+  /// its number of rows, 0 after the last row. The last band also checks that no value follows.
+  int next(std::vector<double>& z);
+
+ private:
+  class Tokens;
+  std::string path_;
+  std::ifstream in_;
+  std::unique_ptr<Tokens> tokens_;
+  int width_ = 0, height_ = 0, band_rows_ = 1, next_row_ = 0;
+  std::optional<double> nodata_;
+  Georef geo_;
+};
+
+/// An Esri ASCII grid read whole (AsciiGridRows).
+Raster read_ascii_grid(const std::string& path);
+
+/// `srs` as WKT ("" when it cannot be exported).
+std::string wkt_of(const OGRSpatialReference& srs);
+/// geo.kind, a, native and description from a corner-convention geotransform and an optional CRS.
+void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* srs);
 
 /// The format read_dem reads `path` as (DemOptions::Format::Auto resolved, never Auto). For Gdal,
 /// `ds` is the opened dataset; a .tif/.tiff without georeference read as Auto is a Heightmap.

@@ -58,6 +58,13 @@ using detail::gdal_message;
 using detail::QuietGdal;
 using detail::register_gdal;
 
+// ---------------------------------------------------------------------------------------------
+// SRTM .hgt
+
+}  // namespace
+
+namespace detail {
+
 std::string wkt_of(const OGRSpatialReference& srs) {
   char* text = nullptr;
   std::string out;
@@ -66,7 +73,6 @@ std::string wkt_of(const OGRSpatialReference& srs) {
   return out;
 }
 
-/// Fills geo.kind/a/description from a corner-convention geotransform and an optional CRS.
 void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* srs) {
   // GDAL's geotransform maps pixel corners; sample centres sit half a pixel in.
   std::array<double, 6> a = {gt[0] + 0.5 * gt[1] + 0.5 * gt[2], gt[1], gt[2],
@@ -97,13 +103,6 @@ void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* sr
   }
   geo.a = a;
 }
-
-// ---------------------------------------------------------------------------------------------
-// SRTM .hgt
-
-}  // namespace
-
-namespace detail {
 
 std::string format_number(double v) {
   std::ostringstream s;
@@ -403,182 +402,6 @@ Raster read_gdal(const std::string& path, GDALDataset& ds) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Esri ASCII grid
-
-/// Whitespace-separated tokens of a text, each with its 1-based line number.
-class Tokens {
- public:
-  explicit Tokens(std::string_view text) : text_(text) {}
-  /// The next token, or an empty view at the end; line() is then its line (or the last line).
-  std::string_view next() {
-    while (pos_ < text_.size() && std::isspace((unsigned char)text_[pos_])) {
-      if (text_[pos_] == '\n') ++line_;
-      ++pos_;
-    }
-    const std::size_t start = pos_;
-    while (pos_ < text_.size() && !std::isspace((unsigned char)text_[pos_])) ++pos_;
-    return text_.substr(start, pos_ - start);
-  }
-  /// The next token, without consuming it.
-  std::string_view peek() {
-    const std::size_t pos = pos_, line = line_;
-    const std::string_view t = next();
-    pos_ = pos;
-    line_ = line;
-    return t;
-  }
-  std::size_t line() const { return line_; }
-
- private:
-  std::string_view text_;
-  std::size_t pos_ = 0, line_ = 1;
-};
-
-std::optional<double> parse_double(std::string_view t) {
-  if (!t.empty() && t.front() == '+') t.remove_prefix(1);
-  double v = 0.0;
-  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-  if (ec != std::errc() || end != t.data() + t.size() || t.empty()) return std::nullopt;
-  return v;
-}
-
-std::string line_prefix(std::size_t line) { return "line " + std::to_string(line) + ": "; }
-
-Raster read_ascii_grid(const std::string& path) {
-  require_file(path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw DemError(path, "cannot open the file for reading");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw DemError(path, "cannot read the file");
-  if (text.find('\0') != std::string::npos) throw DemError(path, "is a binary file, not an Esri ASCII grid");
-
-  // Header: "key value" pairs, keys case-insensitive, until the first token that is a number.
-  static constexpr std::array<std::string_view, 10> kKeys = {
-      "ncols",     "nrows",    "xllcorner", "xllcenter", "yllcorner",
-      "yllcenter", "cellsize", "dx",        "dy",        "nodata_value"};
-  std::array<std::optional<double>, kKeys.size()> value;
-  Tokens tokens(text);
-  while (true) {
-    const std::string_view t = tokens.peek();
-    if (t.empty() || parse_double(t)) break;
-    tokens.next();
-    const std::size_t line = tokens.line();
-    const std::string key = lower(std::string(t));
-    const auto it = std::find(kKeys.begin(), kKeys.end(), key);
-    if (it == kKeys.end()) {
-      throw DemError(path, line_prefix(line) + "'" + std::string(t) +
-                               "' is not an Esri ASCII grid header key (ncols, nrows, xllcorner, ...)");
-    }
-    auto& slot = value[std::size_t(it - kKeys.begin())];
-    if (slot) throw DemError(path, line_prefix(line) + "header key '" + key + "' appears twice");
-    const std::string_view v = tokens.next();
-    if (v.empty() || tokens.line() != line) {
-      throw DemError(path, line_prefix(line) + "header key '" + key + "' has no value");
-    }
-    slot = parse_double(v);
-    if (!slot || !std::isfinite(*slot)) {
-      throw DemError(
-          path, line_prefix(line) + "value '" + std::string(v) + "' of '" + key + "' is not a finite number");
-    }
-  }
-  auto get = [&](std::string_view key) -> std::optional<double>& {
-    return value[std::size_t(std::find(kKeys.begin(), kKeys.end(), key) - kKeys.begin())];
-  };
-  auto count = [&](std::string_view key) {
-    const auto& v = get(key);
-    if (!v) throw DemError(path, "header lacks '" + std::string(key) + "' (not an Esri ASCII grid?)");
-    if (*v != std::floor(*v) || *v < 1 || *v > double(kMaxSamples)) {
-      throw DemError(path, "header value " + std::string(key) + " = " + format_number(*v) +
-                               " is not a positive whole number");
-    }
-    return (long long)*v;
-  };
-  const long long ncols = count("ncols"), nrows = count("nrows");
-  auto one_of = [&](std::string_view corner, std::string_view centre) {
-    const auto &a = get(corner), &b = get(centre);
-    if (a && b) {
-      throw DemError(path, "header has both '" + std::string(corner) + "' and '" + std::string(centre) + "'");
-    }
-    if (!a && !b) {
-      throw DemError(path, "header lacks '" + std::string(corner) + "' or '" + std::string(centre) + "'");
-    }
-    return std::pair{a ? *a : *b, a.has_value()};
-  };
-  const auto [xll, x_is_corner] = one_of("xllcorner", "xllcenter");
-  const auto [yll, y_is_corner] = one_of("yllcorner", "yllcenter");
-  double dx = 0, dy = 0;
-  if (get("cellsize")) {
-    if (get("dx") || get("dy")) throw DemError(path, "header has both 'cellsize' and 'dx'/'dy'");
-    dx = dy = *get("cellsize");
-  } else if (get("dx") && get("dy")) {
-    dx = *get("dx");
-    dy = *get("dy");
-  } else {
-    throw DemError(path, "header lacks 'cellsize' (or 'dx' and 'dy')");
-  }
-  if (!(dx > 0) || !(dy > 0)) throw DemError(path, "cell size must be positive");
-  check_dimensions(path, ncols, nrows);
-
-  const std::size_t total = std::size_t(ncols) * std::size_t(nrows);
-  // Every value takes at least one byte: refuse a header that promises more than the file can
-  // hold before allocating for the promise (a 60-byte file could otherwise claim 8 GiB).
-  if (total > text.size()) {
-    throw DemError(path, "header declares " + std::to_string(ncols) + " x " + std::to_string(nrows) + " = " +
-                             std::to_string(total) + " values, but the file has only " +
-                             std::to_string(text.size()) + " bytes (truncated?)");
-  }
-  Raster r;
-  r.width = int(ncols);
-  r.height = int(nrows);
-  r.z.resize(total);
-  const std::optional<double> nodata = get("nodata_value");
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (std::size_t i = 0; i < total; ++i) {
-    const std::string_view t = tokens.next();
-    if (t.empty()) {
-      throw DemError(path, line_prefix(tokens.line()) + "data ends after " + std::to_string(i) + " of " +
-                               std::to_string(ncols) + " x " + std::to_string(nrows) + " = " +
-                               std::to_string(total) + " values");
-    }
-    const std::optional<double> v = parse_double(t);
-    if (!v) throw DemError(path, line_prefix(tokens.line()) + "'" + std::string(t) + "' is not a number");
-    r.z[i] = (nodata && *v == *nodata) || !detail::is_height(*v) ? nan : *v;
-  }
-  if (const std::string_view extra = tokens.next(); !extra.empty()) {
-    throw DemError(path, line_prefix(tokens.line()) + "more values than ncols x nrows = " +
-                             std::to_string(total) + " (first extra: '" + std::string(extra) + "')");
-  }
-
-  // Corner (lower-left of the lower-left cell) or centre of the lower-left cell; row 0 is north.
-  const double x0 = x_is_corner ? xll + 0.5 * dx : xll;
-  const double y_south = y_is_corner ? yll + 0.5 * dy : yll;
-  const double gt[6] = {x0 - 0.5 * dx, dx, 0.0, y_south + (double(nrows) - 0.5) * dy, 0.0, -dy};
-
-  // Optional sidecar .prj with the CRS.
-  std::optional<OGRSpatialReference> srs;
-  for (const char* ext : {".prj", ".PRJ"}) {
-    const fs::path prj = fs::path(path).replace_extension(ext);
-    std::error_code ec;
-    if (!fs::is_regular_file(prj, ec)) continue;
-    std::ifstream pin(prj, std::ios::binary);
-    const std::string wkt((std::istreambuf_iterator<char>(pin)), std::istreambuf_iterator<char>());
-    register_gdal();
-    QuietGdal quiet;
-    srs.emplace();
-    srs->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    if (srs->SetFromUserInput(wkt.c_str()) != OGRERR_NONE) {
-      throw DemError(path, "sidecar " + prj.string() +
-                               " holds no CRS GDAL understands: " + gdal_message("unparsable WKT"));
-    }
-    r.geo.crs_wkt = wkt_of(*srs);
-    break;
-  }
-  georeference(r.geo, gt, srs ? &*srs : nullptr);
-  if (!srs) r.geo.description = "Esri ASCII grid coordinates without a .prj, taken as metres";
-  return r;
-}
-
-// ---------------------------------------------------------------------------------------------
 // Common finishing: frame, voids.
 
 }  // namespace
@@ -737,7 +560,7 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
       case Format::Hgt:
         return finish(path, read_hgt(path), options);
       case Format::AsciiGrid:
-        return finish(path, read_ascii_grid(path), options);
+        return finish(path, detail::read_ascii_grid(path), options);
       case Format::Heightmap:
         return finish(path, detail::read_heightmap(path, options), options);
       case Format::Auto:

@@ -1,8 +1,8 @@
 // open_dem_source (dem_source.hpp): DemSources that read a GDAL raster or an SRTM .hgt tile window
 // by window, through the header, georeference and sample code of read_dem (dem_raster.hpp),
-// under a warped source (dem_frame.hpp) when the frame warps; heightmap images through a temporary
-// file they are decoded to once (HeightmapSource); and, for ASCII grids, read whole, read_dem's grid
-// served by heightfield_source.
+// under a warped source (dem_frame.hpp) when the frame warps; heightmap images and ASCII grids,
+// which can only be read from their first row on, through a temporary file they are decoded to
+// once (DecodedSource).
 //
 // read(window): the window's raw samples, then fill_voids_in_window; while a void region that
 // meets the window is cut by the window's edge (VoidFillStats::open), the window grows to hold
@@ -565,30 +565,32 @@ class TempFile {
   std::uint64_t size_ = 0;
 };
 
-/// A heightmap image (detail::HeightmapRows), decoded once, at opening, into a TempFile of its raw
-/// values (floats where every value is one exactly, as for 8- and 16-bit images; else doubles),
-/// from which windows are read: memory of one band of rows, disk of 4 (or 8) bytes a sample.
-/// Reading the image itself window by window would decode a PNG from its first row again at
-/// every read behind the last one.
-class HeightmapSource final : public WindowedSource {
+/// A DEM that can only be read from its first row on (heightmap images: PNG cannot be read from
+/// the middle; ASCII grids: a text), decoded once, at opening, into a TempFile, from which windows
+/// are read: memory of one band of rows, disk of 4 bytes a sample where every value is a float
+/// exactly (8- and 16-bit images), else 8. Reading such a file window by window would decode it
+/// from its first row again at every read behind the last one. `Rows` is detail::HeightmapRows
+/// (raw values, turned into metres at each read by `scale` and `offset` as read_heightmap turns
+/// them) or detail::AsciiGridRows (metres: scale 1, offset 0).
+class DecodedSource final : public WindowedSource {
  public:
-  HeightmapSource(const std::string& path, const DemOptions& options, bool measure)
-      : WindowedSource(path, options), options_(options), file_(path) {
-    detail::HeightmapRows rows(path, false);
-    width_ = rows.width();
-    doubles_ = !rows.exact_in_float();
-    std::vector<double> raw;
+  template <typename Rows>
+  DecodedSource(const std::string& path, const DemOptions& options, Rows& rows, bool floats, double scale,
+                double offset, const detail::Georef& geo, const std::string& height_note, bool measure)
+      : WindowedSource(path, options), file_(path), width_(rows.width()), doubles_(!floats) {
+    metres_.vertical_scale = scale;
+    metres_.vertical_offset = offset;
+    std::vector<double> band;
     std::vector<float> narrow;
-    while (rows.next(raw) > 0) {
+    while (rows.next(band) > 0) {
       if (doubles_) {
-        file_.append(raw.data(), raw.size() * sizeof(double));
+        file_.append(band.data(), band.size() * sizeof(double));
       } else {
-        narrow.assign(raw.begin(), raw.end());
+        narrow.assign(band.begin(), band.end());
         file_.append(narrow.data(), narrow.size() * sizeof(float));
       }
     }
-    set_grid(width_, rows.height(), detail::Georef{}, options, measure ? detail::heightmap_note(options) : "",
-             measure);
+    set_grid(width_, rows.height(), geo, options, measure ? height_note : "", measure);
   }
 
  protected:
@@ -609,16 +611,16 @@ class HeightmapSource final : public WindowedSource {
           std::memcpy(&f, row.data() + i * sizeof(float), sizeof(float));
           v = f;
         }
-        out[i] = detail::heightmap_metres(v, options_);
+        out[i] = detail::heightmap_metres(v, metres_);
       }
     }
   }
 
  private:
-  DemOptions options_;
   TempFile file_;
   int width_ = 0;
   bool doubles_ = false;
+  DemOptions metres_;  ///< only vertical_scale and vertical_offset: heightmap_metres'
 };
 
 }  // namespace
@@ -648,12 +650,22 @@ std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOpt
     }
     if (format == Format::Heightmap) {
       const bool warps = detail::frame_warps("", false, options.crs);
-      auto native = std::make_unique<HeightmapSource>(path, options, !warps);
+      detail::HeightmapRows rows(path, false);
+      const std::string note = detail::heightmap_note(options);
+      auto native =
+          std::make_unique<DecodedSource>(path, options, rows, rows.exact_in_float(), options.vertical_scale,
+                                          options.vertical_offset, detail::Georef{}, note, !warps);
       if (!warps) return native;
-      return detail::warped_source(path, std::move(native), options.crs, detail::heightmap_note(options));
+      return detail::warped_source(path, std::move(native), options.crs, note);
     }
-    ds.reset();
-    return heightfield_source(read_dem(path, options));
+    // An Esri ASCII grid (Format::AsciiGrid).
+    detail::AsciiGridRows rows(path, false);
+    const detail::Georef geo = rows.georef();
+    const bool warps = detail::frame_warps(
+        geo.crs_wkt, !geo.crs_wkt.empty() && geo.kind != detail::Georef::Kind::None, options.crs);
+    auto native = std::make_unique<DecodedSource>(path, options, rows, false, 1.0, 0.0, geo, "", !warps);
+    if (!warps) return native;
+    return detail::warped_source(path, std::move(native), options.crs, "");
   } catch (const fs::filesystem_error& e) {
     throw DemError(path, e.what());
   }

@@ -388,6 +388,44 @@ TEST_F(DemSourceTest, HeightmapsOfEveryKindAreReadLikeReadDem) {
   EXPECT_EQ(b.at(1, 2), double(123456789 + 1001 - 2 * 997) * 0.001 - 100.0);
 }
 
+// An Esri ASCII grid is decoded once too: over 1 MiB of text, so that values straddle the reader's
+// buffer; voids by NODATA_value; metric (UTM .prj) and geographic (warped by "auto").
+TEST_F(DemSourceTest, AsciiGridsAreDecodedOnceAndReadLikeReadDem) {
+  constexpr int w = 400, h = 300;
+  const std::vector<double> z = terrain(w, h);
+  for (const bool geographic : {false, true}) {
+    SCOPED_TRACE(geographic ? "geographic" : "UTM");
+    const fs::path asc = dir_ / (geographic ? "geo.asc" : "utm.asc");
+    {
+      std::ofstream out(asc);
+      out << "ncols " << w << "\nnrows " << h << "\n"
+          << (geographic ? "xllcenter -71.25\nyllcenter 44.25\ncellsize 0.000833333333333\n"
+                         : "xllcorner 300000\nyllcorner 4900000\ncellsize 10\n")
+          << "NODATA_value -9999\n";
+      out.precision(12);
+      for (int r = 0; r < h; ++r) {
+        for (int c = 0; c < w; ++c) {
+          const double v = z[std::size_t(r) * w + std::size_t(c)];
+          out << (std::isfinite(v) ? v + 0.123456789 : -9999.0) << (c + 1 < w ? " " : "\n");
+        }
+      }
+    }
+    ASSERT_GT(fs::file_size(asc), std::uintmax_t(1) << 20);
+    OGRSpatialReference srs;
+    ASSERT_EQ(srs.importFromEPSG(geographic ? 4326 : 32619), OGRERR_NONE);
+    char* wkt = nullptr;
+    srs.exportToWkt(&wkt);
+    std::ofstream(fs::path(asc).replace_extension(".prj")) << wkt;
+    CPLFree(wkt);
+    tb::DemOptions o;
+    o.crs = "auto";
+    for (const bool fill : {true, false}) {
+      o.fill_voids = fill;
+      expect_like_read_dem(asc.string(), o, false);
+    }
+  }
+}
+
 TEST_F(DemSourceTest, HeightmapsAreDecodedOnceNamedCrsIsWindowed) {
   const fs::path png = dir_ / "island.png";
   std::vector<std::uint16_t> px(64 * 48);

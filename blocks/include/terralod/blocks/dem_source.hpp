@@ -38,9 +38,11 @@ namespace terralod::blocks {
 /// rasters (GeoTIFF, VRT mosaics such as DemInputs makes, ...) and SRTM .hgt tiles, in any
 /// frame. A frame that warps (a named CRS, even the DEM's own; "auto" for a geographic CRS) reads,
 /// for each window, the native window under it (dem_frame.hpp's warped_source, which read_dem
-/// warps with too), its grid() measured when opening. Other inputs (heightmap images, a .tif
-/// without georeference read as Format::Auto, ASCII grids) are read whole by read_dem and held
-/// by the source (in_memory() true).
+/// warps with too), its grid() measured when opening. Inputs that can only be read from their
+/// first row on (heightmap images, a .tif without georeference read as Format::Auto, ASCII grids)
+/// are decoded once, when opening, into an unnamed temporary file in TMPDIR (4 bytes a sample
+/// where a float holds every value, else 8), and windows are read from it. in_memory() is false
+/// for every file; heightfield_source's sources hold their grid.
 /// Windowed: read() reads its window (grown while a void region meeting it is cut by its edge,
 /// then cut back) from the file each time, except the values of filled void regions of 1,024
 /// samples or more, which it keeps (DemOptions::filled_void_cache_bytes, 256 MiB by default; least
