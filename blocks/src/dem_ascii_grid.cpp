@@ -141,7 +141,10 @@ AsciiGridRows::AsciiGridRows(const std::string& path, bool limit_size) : path_(p
       throw DemError(path, line_prefix(line) + "header key '" + key + "' has no value");
     }
     slot = parse_double(v);
-    if (!slot || !std::isfinite(*slot)) {
+    // GDAL writes a float raster whose nodata is NaN with "NODATA_value nan": NaN values are
+    // voids anyway.
+    const bool nan_nodata = slot && std::isnan(*slot) && key == "nodata_value";
+    if (!slot || (!std::isfinite(*slot) && !nan_nodata)) {
       throw DemError(
           path, line_prefix(line) + "value '" + std::string(v) + "' of '" + key + "' is not a finite number");
     }

@@ -305,6 +305,20 @@ TEST(dem_reader_formats, SameGridFromGeoTiffPngAndAsciiGrid) {
   expect_heights(from_asc2, kAW, kAH, kGridA, "ASCII grid, centre keys");
   EXPECT_EQ(from_asc2.transform, expected);
 
+  // GDAL exports a float raster whose nodata is NaN with "NODATA_value nan": a void where the
+  // values say nan. It was refused as "not a finite number".
+  const fs::path asc_nan = dir / "a_nan.asc";
+  text = "ncols 7\nnrows 5\nxllcenter 500015\nyllcenter 4900015\ncellsize 30\nNODATA_value  nan\n";
+  for (std::size_t i = 0; i < kGridA.size(); ++i)
+    text += (i == 3 ? std::string("nan") : std::to_string(kGridA[i])) + " ";
+  write_text(asc_nan, text);
+  tb::DemOptions keep;
+  keep.fill_voids = false;
+  const Heightfield from_nan = tb::read_dem(asc_nan.string(), keep);
+  EXPECT_EQ(from_nan.voids.voids, 1u);
+  EXPECT_FALSE(from_nan.valid(3));
+  EXPECT_EQ(from_nan.at(4, 0), double(kGridA[4]));
+
   // 16-bit PNG: no georeferencing, so the frame is north-up with heightmap_spacing and the
   // south-west sample at (0, 0): (0,0) -> (0, 4 * 30).
   const fs::path png = dir / "a.png";
