@@ -446,6 +446,25 @@ TEST(cli_crs, InfoReportsTheFrameItsScaleErrorAndTheVerticalDatum) {
   EXPECT_NE(a.out.find("scale error within +-0.001 %"), std::string::npos) << a.out;
   EXPECT_LT(json_number(a.out, "scale_error"), 2e-5) << a.out;
   EXPECT_NE(a.out.find("\"vertical_datum\": \"\""), std::string::npos) << a.out;  // an .asc states none
+  // Heights and voids are the file's own, whatever the frame: 100 .. 180, none void (the warped
+  // frame's cells outside the footprint were counted as voids, its bilinear heights as the range).
+  EXPECT_EQ(json_number(a.out, "min"), 100.0) << a.out;
+  EXPECT_EQ(json_number(a.out, "max"), 180.0) << a.out;
+  EXPECT_EQ(json_number(a.out, "found"), 0.0) << a.out;
+  // A folder of tiles is described as the mosaic build reads (it was "not a regular file").
+  const fs::path folder = tmp_dir() / "info_tiles";
+  fs::create_directories(folder);
+  for (const auto& [name, lon] : {std::pair{"west", -70.0}, std::pair{"east", -70.0 + 41 * 0.025}}) {
+    const fs::path asc = write_geographic_asc(name, lon, 44.0, 41, 0.025);
+    fs::copy_file(asc, folder / asc.filename(), fs::copy_options::overwrite_existing);
+    fs::copy_file(fs::path(asc).replace_extension(".prj"), folder / (std::string(name) + ".prj"),
+                  fs::copy_options::overwrite_existing);
+  }
+  const CliResult m = terralod("info --crs native " + quote(folder.string()));
+  ASSERT_EQ(m.status, 0) << m.err;
+  EXPECT_EQ(json_number(m.out, "width"), 82.0) << m.out;
+  EXPECT_EQ(json_number(m.out, "height"), 41.0) << m.out;
+  EXPECT_NE(m.out.find("mosaic of 2 files"), std::string::npos) << m.out;
   const CliResult n = terralod("info --crs native " + dem);
   ASSERT_EQ(n.status, 0) << n.err;
   EXPECT_NE(n.out.find("\"frame\": \"local equirectangular"), std::string::npos) << n.out;
