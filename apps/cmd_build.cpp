@@ -82,9 +82,8 @@ CommandSpec build_spec() {
       {"--metric", "NAME", "error metric: continuous (default) or samples"},
       {"--standin", "KIND", "block stand-in surface: tin (default), grid, nonregular or two-triangle"},
       {"--standin-points", "N", "stand-ins have at most N points, 4..4096 (default 64)"},
-      {"--keep-voids", "", "keep DEM voids as holes instead of filling them"},
-      crs_option_spec(),
   };
+  s.options = with_dem_options(std::move(s.options));
   return s;
 }
 
@@ -115,10 +114,8 @@ int cmd_build(const Args& a) {
   opt.standin.kind = blocks::parse_standin_kind(
       a.get_choice("--standin", {"tin", "grid", "nonregular", "two-triangle"}, "tin"));
   opt.standin.max_points = std::size_t(a.get_int("--standin-points", 64, 4, 4096));
-  blocks::DemOptions dem;
-  dem.fill_voids = !a.has("--keep-voids");
-  dem.crs = crs_from(a);
-  if (launched_rank() == 0) tell_void_fills(dem);  // under MPI every rank reads; rank 0 speaks
+  blocks::DemOptions dem = dem_options_from(a);
+  if (launched_rank() != 0) dem.on_large_void = {};  // under MPI every rank reads; rank 0 speaks
 
   const int ranks = launched_ranks();
   // The input stays open while the build reads its windows (a mosaic's VRT lives in `inputs`).

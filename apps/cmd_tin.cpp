@@ -100,8 +100,8 @@ CommandSpec tin_spec() {
       {"--units", "UNITS", "vertex coordinates: world (default) or samples"},
       {"--metric", "NAME", "error metric: continuous (true L-infinity, default) or samples"},
       {"--keep-voids", "", "keep DEM voids as holes instead of filling them (holes are never inserted)"},
-      crs_option_spec(),
   };
+  s.options = with_dem_options(std::move(s.options));
   return s;
 }
 
@@ -127,10 +127,7 @@ int cmd_tin(const Args& a) {
                      std::to_string(world.size()) + " vertices");
 
   auto t = Clock::now();
-  blocks::DemOptions dem;
-  dem.fill_voids = !a.has("--keep-voids");
-  dem.crs = crs_from(a);
-  tell_void_fills(dem);
+  const blocks::DemOptions dem = dem_options_from(a);
   const pm::Heightfield hf = blocks::read_dem(input, dem);
   print_line(strf("read  %s: %d x %d samples, %s", input.c_str(), hf.width(), hf.height(),
                   format_duration(ms_since(t)).c_str()));

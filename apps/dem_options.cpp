@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -32,7 +33,17 @@ std::vector<OptionSpec> dem_option_specs() {
       crs_option_spec(),
       {"--vertical-scale", "S", "heightmaps: metres per raw unit (default 1)"},
       {"--spacing", "M", "heightmaps and rasters without georeferencing: metres between samples (default 1)"},
+      {"--band", "N",
+       "rasters of several bands: the band that holds the heights, 1-based (a last alpha band marks "
+       "voids; default: the only band)"},
   };
+}
+
+std::vector<OptionSpec> with_dem_options(std::vector<OptionSpec> options) {
+  for (OptionSpec& o : dem_option_specs())
+    if (std::none_of(options.begin(), options.end(), [&](const OptionSpec& x) { return x.name == o.name; }))
+      options.push_back(std::move(o));
+  return options;
 }
 
 OptionSpec crs_option_spec() {
@@ -82,6 +93,7 @@ blocks::DemOptions dem_options_from(const Args& a) {
   o.vertical_scale = a.get_double("--vertical-scale", o.vertical_scale);
   o.heightmap_spacing = a.get_double("--spacing", o.heightmap_spacing);
   o.crs = crs_from(a);
+  o.band = int(a.get_int("--band", 0, 1, 1 << 20));
   tell_void_fills(o);
   if (o.vertical_scale == 0.0) throw UsageError("option '--vertical-scale' must not be 0");
   if (o.heightmap_spacing <= 0.0) throw UsageError("option '--spacing' must be > 0");

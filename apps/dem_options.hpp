@@ -1,10 +1,11 @@
-// The option groups of the terralod commands that read a DEM and build its progressive mesh
-// (pm, extract, info, view): their --help rows, the DEM formats paragraph, and their parsing.
+// The option groups of the terralod commands that read a DEM (build, pm, extract, info, view, tin,
+// hybrid, fly): their --help rows, the DEM formats paragraph, and their parsing.
 //
 // Usage:
 //   s.options = concat(concat({{"--input", "DEM", "elevation model to read", true}}, build_option_specs()),
 //                      dem_option_specs());
-//   const blocks::DemOptions dem = dem_options_from(a);  // --keep-voids, --crs, --vertical-scale, --spacing
+//   const blocks::DemOptions dem = dem_options_from(a);  // --keep-voids, --crs, --vertical-scale, --spacing,
+//                                                        // --band
 //   const pm::BuildOptions build = build_options_from(a);  // --metric, --threads
 //
 // Contract: dem_options_from throws UsageError for --vertical-scale 0, --spacing <= 0 or an empty --crs;
@@ -25,9 +26,12 @@ namespace terralod::cli {
 /// The paragraph that closes the --help of every command reading a DEM.
 extern const char* const kDemFormats;
 
-/// --keep-voids, --crs CRS, --vertical-scale S, --spacing M.
+/// --keep-voids, --crs CRS, --vertical-scale S, --spacing M, --band N.
 std::vector<OptionSpec> dem_option_specs();
-/// --crs CRS alone, for commands with their own DEM options ('terralod build', 'terralod tin').
+/// `options` with those of dem_option_specs() it does not name yet appended (a command may word
+/// one of them its own way).
+std::vector<OptionSpec> with_dem_options(std::vector<OptionSpec> options);
+/// --crs CRS alone.
 OptionSpec crs_option_spec();
 /// --crs: "auto" when absent; UsageError when empty.
 std::string crs_from(const Args& a);

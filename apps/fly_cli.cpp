@@ -81,7 +81,6 @@ CommandSpec fly_spec() {
       {"--theta", "DEGREES",
        "--db: the region kept ready around the eye, b = a cot(theta), (0, 90) (default 20)"},
       {"--input", "FILE", "a DEM or a .pm file (default: the built-in generated terrain)"},
-      crs_option_spec(),
       {"--terrain-size", "N", "samples per side of the built-in terrain (default 513, 2..8193)"},
       {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
       {"--morph", "SECONDS", "geomorph time (>= 0, default 0.3; 0 = off)"},
@@ -102,6 +101,7 @@ CommandSpec fly_spec() {
   };
   s.options.push_back(objects_option_spec());
   for (OptionSpec& o : layer_option_specs()) s.options.push_back(std::move(o));
+  s.options = with_dem_options(std::move(s.options));  // for --input: --keep-voids, --crs, ...
   return s;
 }
 
@@ -164,10 +164,7 @@ std::unique_ptr<LodSource> open_terrain(const Args& a) {
     ro.budget_bytes = std::size_t(mb * 1e6);
     return open_db_source(a.get("--db"), o, ro);
   }
-  blocks::DemOptions dem;
-  dem.crs = crs_from(a);
-  tell_void_fills(dem);
-  return open_pm_source(a.get("--input"), size, o, dem);
+  return open_pm_source(a.get("--input"), size, o, dem_options_from(a));
 }
 
 }  // namespace terralod::fly

@@ -143,17 +143,18 @@ struct GdalBand {
   double nodata = 0.0;      ///< compared in the band's type (float for Float32 bands)
   bool nodata_as_float = false;
   bool mask_band = false;            ///< a real mask band: its 0 samples are voids
-  bool alpha_band = false;           ///< band 2 is alpha: its 0 samples are voids
+  int index = 1;                     ///< the band of the heights (1-based)
+  int alpha_index = 0;               ///< an alpha band (0: none): its 0 samples are voids
   double factor = 1.0, shift = 0.0;  ///< metres = raw * factor + shift (scale, offset, unit)
   std::string height_note;           ///< appended to the frame description when not empty
   Georef geo;
 };
 
-/// The header of `ds` (one band, a real type, at least 2 x 2 samples; at most 2^30 when
-/// `limit_size`). DemError naming `path`.
-GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size);
+/// The header of band `index` of `ds` (0: the only band, with an alpha band besides or not), of a
+/// real type, at least 2 x 2 samples (at most 2^30 when `limit_size`). DemError naming `path`.
+GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size, int index);
 
-/// The samples of `window` of band 1 of `ds` into `z` (resized, row-major), in metres, voids
+/// The samples of `window` of the band `band` describes into `z` (resized, row-major), in metres, voids
 /// (nodata, mask band, NaN, +-inf, beyond kMaxHeightMetres) NaN. DemError naming `path` when
 /// GDAL cannot read them.
 void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& band, SampleRect window,

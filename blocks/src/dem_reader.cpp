@@ -267,11 +267,13 @@ GDALDatasetUniquePtr open_gdal(const std::string& path) {
   return ds;
 }
 
-GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
+GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size, int index) {
   QuietGdal quiet;
   // One band, or two when the second is an alpha band (gdalwarp -dstalpha writes them): its 0
   // samples are voids. It is read itself: GDAL makes it the first band's mask only when it is
-  // Byte or UInt16, and gdalwarp gives it the heights' type (Int16 for SRTM).
+  // Byte or UInt16, and gdalwarp gives it the heights' type (Int16 for SRTM). With `index`, that
+  // band of any number (a BAG's elevation beside its uncertainty), and the last band as alpha
+  // when it is one.
   const int bands = ds.GetRasterCount();
   if (bands == 0) {
     // A container of rasters (NetCDF variables, HDF5 datasets, GeoPackage tables): say their
@@ -292,12 +294,19 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
                                list + ")");
     }
   }
-  const bool alpha = bands == 2 && ds.GetRasterBand(2)->GetColorInterpretation() == GCI_AlphaBand;
-  if (bands != 1 && !alpha) {
-    throw DemError(path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") +
-                             "; a DEM must have one (and may have an alpha band besides)");
+  const bool last_is_alpha = bands >= 2 && ds.GetRasterBand(bands)->GetColorInterpretation() == GCI_AlphaBand;
+  if (index > 0 && index > bands) {
+    throw DemError(path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") + "; band " +
+                             std::to_string(index) + " was asked for");
   }
-  GDALRasterBand* band = ds.GetRasterBand(1);
+  if (index == 0 && bands != 1 && !(bands == 2 && last_is_alpha)) {
+    throw DemError(path, "has " + std::to_string(bands) + " band" + (bands == 1 ? "" : "s") +
+                             "; a DEM must have one (and may have an alpha band besides), or the band that "
+                             "holds the heights must be named (--band N)");
+  }
+  if (index == 0) index = 1;
+  const bool alpha = last_is_alpha && index != bands;
+  GDALRasterBand* band = ds.GetRasterBand(index);
   const GDALDataType type = band->GetRasterDataType();
   if (GDALDataTypeIsComplex(type)) {
     throw DemError(path, std::string("band type ") + GDALGetDataTypeName(type) +
@@ -318,7 +327,8 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
   b.has_nodata = has_nodata && !std::isnan(b.nodata);
   b.nodata_as_float = type == GDT_Float32;
   const int mask_flags = band->GetMaskFlags();
-  b.alpha_band = alpha;
+  b.index = index;
+  b.alpha_index = alpha ? bands : 0;
   b.mask_band = !alpha && !(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA);
 
   // Heights: band scale and offset, then the vertical unit.
@@ -354,7 +364,7 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size) {
 void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& b, SampleRect window,
                       std::vector<double>& z) {
   QuietGdal quiet;
-  GDALRasterBand* band = ds.GetRasterBand(1);
+  GDALRasterBand* band = ds.GetRasterBand(b.index);
   const int w = window.width(), h = window.height();
   z.resize(window.samples());
   if (band->RasterIO(GF_Read, window.col0, window.row0, w, h, z.data(), w, h, GDT_Float64, 0, 0) != CE_None) {
@@ -378,7 +388,7 @@ void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& 
       if (v[i] == zero) z[i] = nan;
     }
   };
-  if (b.alpha_band) void_where_zero(ds.GetRasterBand(2), 0.0, GDT_Float64, "alpha");
+  if (b.alpha_index > 0) void_where_zero(ds.GetRasterBand(b.alpha_index), 0.0, GDT_Float64, "alpha");
   if (b.mask_band) void_where_zero(band->GetMaskBand(), std::uint8_t(0), GDT_Byte, "mask");
   for (double& v : z) {
     v = v * b.factor + b.shift;
@@ -390,8 +400,8 @@ void read_gdal_window(const std::string& path, GDALDataset& ds, const GdalBand& 
 
 namespace {
 
-Raster read_gdal(const std::string& path, GDALDataset& ds) {
-  detail::GdalBand b = detail::gdal_band(path, ds, true);
+Raster read_gdal(const std::string& path, GDALDataset& ds, int band) {
+  detail::GdalBand b = detail::gdal_band(path, ds, true, band);
   Raster r;
   r.width = b.width;
   r.height = b.height;
@@ -501,11 +511,8 @@ pm::Heightfield finish(const std::string& path, Raster&& r, const DemOptions& op
   return hf;
 }
 
-}  // namespace
-
-namespace detail {
-
-Format dem_format(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr& ds) {
+/// The format of `path` (Auto resolved), `ds` opened for Gdal.
+Format format_of(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr& ds) {
   const std::string ext = lower(fs::path(path).extension().string());
   if (options.format == Format::Auto) {
     if (ext == ".hgt") return Format::Hgt;
@@ -526,15 +533,34 @@ Format dem_format(const std::string& path, const DemOptions& options, GDALDatase
     }
     return Format::Heightmap;
   }
-  // A PNG is a heightmap unless it has a georeference (a world file or GDAL's .aux.xml beside it,
-  // as gdal_translate -of PNG writes): read as a heightmap, its cells became 1 m and its relief
-  // was stretched by the true spacing.
-  if (options.format == Format::Auto && (ext == ".tif" || ext == ".tiff" || ext == ".png") &&
-      !has_georeference(*ds)) {
-    ds.reset();
-    return Format::Heightmap;
+  // An image without georeference (PNG, TIFF, PGM, ...) is a heightmap, read by OpenImageIO with
+  // --vertical-scale; one with a georeference (for a PNG, a world file or GDAL's .aux.xml beside
+  // it, as gdal_translate -of PNG writes) is a raster on it: read as a heightmap, a georeferenced
+  // PNG's cells became 1 m and its relief was stretched by the true spacing.
+  if (options.format == Format::Auto && !has_georeference(*ds) && detail::names_a_file(path)) {
+    bool image = ext == ".tif" || ext == ".tiff" || ext == ".png";
+    if (!image) {
+      image = OIIO::ImageInput::open(path) != nullptr;
+      if (!image) OIIO::geterror();  // not an image: a raster without georeference, read by GDAL
+    }
+    if (image) {
+      ds.reset();
+      return Format::Heightmap;
+    }
   }
   return Format::Gdal;
+}
+
+}  // namespace
+
+namespace detail {
+
+Format dem_format(const std::string& path, const DemOptions& options, GDALDatasetUniquePtr& ds) {
+  const Format f = format_of(path, options, ds);
+  if (f != Format::Gdal && options.band > 1)
+    throw DemError(path, "has one band (it is not read through GDAL); band " + std::to_string(options.band) +
+                             " was asked for");
+  return f;
 }
 
 void check_options(const DemOptions& o) {
@@ -546,6 +572,7 @@ void check_options(const DemOptions& o) {
   if (!std::isfinite(o.heightmap_spacing) || !(o.heightmap_spacing > 0.0)) {
     throw std::invalid_argument("DemOptions::heightmap_spacing must be finite and positive");
   }
+  if (o.band < 0) throw std::invalid_argument("DemOptions::band must be >= 0");
   if (o.crs.empty())
     throw std::invalid_argument("DemOptions::crs must be 'native', 'auto' or a CRS, not empty");
 }
@@ -565,7 +592,7 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options) {
         return finish(path, detail::read_heightmap(path, options), options);
       case Format::Auto:
       case Format::Gdal:
-        return finish(path, read_gdal(path, *ds), options);
+        return finish(path, read_gdal(path, *ds, options.band), options);
     }
     throw DemError(path, "unknown format");
   } catch (const fs::filesystem_error& e) {

@@ -448,7 +448,7 @@ class GdalSource final : public WindowedSource {
              detail::GdalBand band, bool measure)
       : WindowedSource(path, options), band_(std::move(band)) {
     int has_nodata = 0;
-    ds->GetRasterBand(1)->GetNoDataValue(&has_nodata);
+    ds->GetRasterBand(band_.index)->GetNoDataValue(&has_nodata);
     empty_is_void_ = has_nodata != 0;
     pool_.push_back(std::move(ds));
     set_grid(band_.width, band_.height, band_.geo, options, measure ? band_.height_note : "", measure);
@@ -457,8 +457,9 @@ class GdalSource final : public WindowedSource {
   bool may_have_data(SampleRect window) const override {
     if (!empty_is_void_) return true;  // a VRT without nodata reads 0 where it has no tile
     GDALDatasetUniquePtr ds = borrow();
-    const int status = ds->GetRasterBand(1)->GetDataCoverageStatus(window.col0, window.row0, window.width(),
-                                                                   window.height(), 0, nullptr);
+    const int status =
+        ds->GetRasterBand(band_.index)
+            ->GetDataCoverageStatus(window.col0, window.row0, window.width(), window.height(), 0, nullptr);
     give_back(std::move(ds));
     return status != GDAL_DATA_COVERAGE_STATUS_EMPTY;
   }
@@ -640,7 +641,7 @@ std::unique_ptr<DemSource> open_dem_source(const std::string& path, const DemOpt
       return detail::warped_source(path, std::move(native), options.crs, "");
     }
     if (format == Format::Gdal) {
-      detail::GdalBand band = detail::gdal_band(path, *ds, false);
+      detail::GdalBand band = detail::gdal_band(path, *ds, false, options.band);
       const bool has_crs_transform = !band.geo.crs_wkt.empty() && band.geo.kind != detail::Georef::Kind::None;
       const bool warps = detail::frame_warps(band.geo.crs_wkt, has_crs_transform, options.crs);
       const std::string height_note = band.height_note;

@@ -10,7 +10,9 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -474,3 +476,72 @@ TEST(DatabaseBuild, CliBuildsAFolderOrAListOfTilesAsOneMosaic) {
 }
 
 }  // namespace
+
+// The heightmap and band options reach the build: a 16-bit PGM built with --vertical-scale and
+// --spacing (build had neither: a game heightmap's raw units became metres on 1 m cells), and a
+// raster of two bands (heights, then a constant uncertainty, as in a BAG), refused without --band
+// and built from the band it names.
+TEST(DatabaseBuild, CliTakesHeightmapScalingAndTheBandOfTheHeights) {
+  namespace tt = terralod::test;
+  const std::string dir = std::string(TERRALOD_TEST_TMP) + "/build_heightmap_options";
+  fs::create_directories(dir);
+  {
+    std::ofstream pgm(dir + "/h.pgm", std::ios::binary);
+    pgm << "P5\n65 65\n65535\n";
+    for (int r = 0; r < 65; ++r)
+      for (int c = 0; c < 65; ++c) {
+        const int v = 1000 + 40 * c + 25 * r + (c * r) % 17;
+        pgm << char(v >> 8) << char(v & 0xff);
+      }
+  }
+  std::ofstream(dir + "/two.vrt")
+      << "<VRTDataset rasterXSize=\"65\" rasterYSize=\"65\">\n"
+         "  <GeoTransform>500000, 30, 0, 4900000, 0, -30</GeoTransform>\n"
+         "  <VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource>\n"
+         "    <SourceFilename relativeToVRT=\"1\">h.pgm</SourceFilename><SourceBand>1</SourceBand>\n"
+         "  </SimpleSource></VRTRasterBand>\n"
+         "  <VRTRasterBand dataType=\"Float32\" band=\"2\"><ComplexSource>\n"
+         "    <SourceFilename relativeToVRT=\"1\">h.pgm</SourceFilename><SourceBand>1</SourceBand>\n"
+         "    <ScaleOffset>7</ScaleOffset><ScaleRatio>0</ScaleRatio>\n"
+         "  </ComplexSource></VRTRasterBand>\n"
+         "</VRTDataset>\n";
+  const auto json_number = [](const std::string& json, const std::string& key) {
+    const std::size_t at = json.find("\"" + key + "\": ");
+    return at == std::string::npos ? std::nan("") : std::strtod(json.c_str() + at + key.size() + 4, nullptr);
+  };
+  const auto info = [&](const std::string& db) {
+    const tt::CommandResult r = tt::run_command(tt::quote(TERRALOD_BINARY) + " info " + tt::quote(db));
+    EXPECT_EQ(r.status, 0) << r.err;
+    return r.out;
+  };
+  const std::string scaled = dir + "/scaled.db";
+  fs::remove(scaled);
+  ChildRun r = run_terralod({"build", "--input", dir + "/h.pgm", "--out", scaled, "--block-size", "33",
+                             "--vertical-scale", "0.5", "--spacing", "30"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string s = info(scaled);
+  EXPECT_NE(s.find("spacing 30 m"), std::string::npos) << s;
+  EXPECT_NE(s.find("heights = raw * 0.5 + 0 m"), std::string::npos) << s;
+
+  const std::string banded = dir + "/banded.db";
+  fs::remove(banded);
+  r = run_terralod({"build", "--input", dir + "/two.vrt", "--out", banded, "--block-size", "33"});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("has 2 bands"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--band N"), std::string::npos) << r.err;
+  r = run_terralod(
+      {"build", "--input", dir + "/two.vrt", "--out", banded, "--block-size", "33", "--band", "3"});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("band 3 was asked for"), std::string::npos) << r.err;
+  r = run_terralod(
+      {"build", "--input", dir + "/two.vrt", "--out", banded, "--block-size", "33", "--band", "2"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string flat = info(banded);
+  EXPECT_EQ(json_number(flat, "root_error"), 0.0) << flat;  // the constant band
+  const std::string first = dir + "/first.db";
+  fs::remove(first);
+  r = run_terralod(
+      {"build", "--input", dir + "/two.vrt", "--out", first, "--block-size", "33", "--band", "1"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_GT(json_number(info(first), "root_error"), 8.0);  // the noise of up to 16 m on a plane
+}

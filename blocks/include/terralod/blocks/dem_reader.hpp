@@ -18,10 +18,10 @@
 // Contract:
 //   path    UTF-8 file name. Any GDAL path works for GDAL rasters (including /vsi... paths).
 //           The format comes from options.format; Format::Auto picks by extension
-//           (case-insensitive): .hgt -> Hgt, .asc -> AsciiGrid, .png/.tif/.tiff -> Gdal, or
+//           (case-insensitive): .hgt -> Hgt, .asc -> AsciiGrid; anything else -> Gdal, or
 //           Heightmap when GDAL finds neither a geotransform nor a CRS (a PNG's may be in a
-//           world file or a .aux.xml beside it); anything else -> Gdal, or Heightmap when GDAL
-//           cannot open it and OpenImageIO can (OpenEXR, say).
+//           world file or a .aux.xml beside it) and the file is an image OpenImageIO reads
+//           (PNG, TIFF, PGM, ...), or when GDAL cannot open it and OpenImageIO can (OpenEXR).
 //   options see DemOptions below.
 //   result  A Heightfield of width x height >= 2 x 2 samples. Row 0 is the file's first
 //           (northern) row, column 0 its western column. Heights in metres (heightmaps: raw
@@ -154,6 +154,11 @@ struct DemOptions {
   /// Metres between samples of rasters without georeferencing (plain images, GDAL rasters
   /// with no geotransform). Finite, > 0.
   double heightmap_spacing = 1.0;
+  /// GDAL rasters: the band that holds the heights, 1-based (a BAG's elevation beside its
+  /// uncertainty, one band of several in a GeoTIFF); a last band that is alpha marks voids. 0: the
+  /// only band, or the first of two whose second is alpha. Other formats have one band: > 1 is
+  /// an error there. >= 0.
+  int band = 0;
   /// File format; Auto chooses by extension (see the header comment).
   enum class Format { Auto, Hgt, Gdal, Heightmap, AsciiGrid } format = Format::Auto;
   /// The world frame (see the header comment): "native" (the source's own frame, local
