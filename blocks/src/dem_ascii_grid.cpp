@@ -260,12 +260,7 @@ int AsciiGridRows::next(std::vector<double>& z) {
 
 Raster read_ascii_grid(const std::string& path) {
   AsciiGridRows rows(path, true);
-  Raster r;
-  r.width = rows.width();
-  r.height = rows.height();
-  r.z.reserve(std::size_t(r.width) * std::size_t(r.height));
-  std::vector<double> band;
-  while (rows.next(band) > 0) r.z.insert(r.z.end(), band.begin(), band.end());
+  Raster r = read_all_rows(rows, [](double v) { return v; });
   r.geo = rows.georef();
   return r;
 }

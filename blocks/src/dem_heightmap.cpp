@@ -132,13 +132,7 @@ std::string heightmap_note(const DemOptions& options) {
 
 Raster read_heightmap(const std::string& path, const DemOptions& options) {
   HeightmapRows rows(path, true);
-  Raster r;
-  r.width = rows.width();
-  r.height = rows.height();
-  r.z.reserve(std::size_t(r.width) * std::size_t(r.height));
-  std::vector<double> raw;
-  while (rows.next(raw) > 0)
-    for (double v : raw) r.z.push_back(heightmap_metres(v, options));
+  Raster r = read_all_rows(rows, [&](double raw) { return heightmap_metres(raw, options); });
   r.geo.kind = Georef::Kind::None;
   r.height_note = heightmap_note(options);
   return r;

@@ -121,6 +121,20 @@ class AsciiGridRows {
 /// An Esri ASCII grid read whole (AsciiGridRows).
 Raster read_ascii_grid(const std::string& path);
 
+/// The Raster of every band `rows` (HeightmapRows, AsciiGridRows) gives, each value through
+/// `metres`; georeference not set.
+template <typename Rows, typename Metres>
+Raster read_all_rows(Rows& rows, Metres metres) {
+  Raster r;
+  r.width = rows.width();
+  r.height = rows.height();
+  r.z.reserve(std::size_t(r.width) * std::size_t(r.height));
+  std::vector<double> band;
+  while (rows.next(band) > 0)
+    for (double v : band) r.z.push_back(metres(v));
+  return r;
+}
+
 /// `srs` as WKT ("" when it cannot be exported).
 std::string wkt_of(const OGRSpatialReference& srs);
 /// geo.kind, a, native and description from a corner-convention geotransform and an optional CRS.
