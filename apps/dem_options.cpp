@@ -31,7 +31,8 @@ std::vector<OptionSpec> dem_option_specs() {
   return {
       {"--keep-voids", "", "keep DEM voids as holes instead of filling them"},
       crs_option_spec(),
-      {"--vertical-scale", "S", "heightmaps: metres per raw unit (default 1)"},
+      {"--vertical-scale", "S",
+       "heightmap images only (other files are refused): metres per raw unit (default 1)"},
       {"--spacing", "M", "heightmaps and rasters without georeferencing: metres between samples (default 1)"},
       {"--band", "N",
        "rasters of several bands: the band that holds the heights, 1-based (a last alpha band marks "

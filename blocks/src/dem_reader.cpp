@@ -560,6 +560,12 @@ Format dem_format(const std::string& path, const DemOptions& options, GDALDatase
   if (f != Format::Gdal && options.band > 1)
     throw DemError(path, "has one band (it is not read through GDAL); band " + std::to_string(options.band) +
                              " was asked for");
+  // The scale was silently ignored for other files: their heights come in a unit of their own.
+  if (f != Format::Heightmap && (options.vertical_scale != 1.0 || options.vertical_offset != 0.0))
+    throw DemError(path,
+                   "is no heightmap image: a vertical scale and offset apply to heightmaps only, whose raw "
+                   "values have no unit; this file's heights are in its own unit (a GeoTIFF's band scale "
+                   "and unit are applied: gdal_edit.py -scale S -offset O sets them)");
   return f;
 }
 

@@ -438,13 +438,17 @@ TEST(dem_reader_formats, HeightmapScaleOffsetAndUngeoreferencedTiff) {
   const fs::path placed = dir / "placed.png";
   write_image(placed, 2, 2, 1, raw, OIIO::TypeDesc::UINT16);
   std::ofstream(dir / "placed.pgw") << "30\n0\n0\n-30\n500015\n4999985\n";
-  const Heightfield hfp = tb::read_dem(placed.string(), opt);
+  // A vertical scale is for heightmaps only: given for this raster, it is refused (it was
+  // silently ignored).
+  EXPECT_THROW(tb::read_dem(placed.string(), opt), tb::DemError);
+  EXPECT_THROW(tb::open_dem_source(placed.string(), opt), tb::DemError);
+  const Heightfield hfp = tb::read_dem(placed.string());
   const auto [x0, y0] = hfp.transform.to_world(0, 0);
   const auto [x1, y1] = hfp.transform.to_world(1, 1);
   EXPECT_EQ(x1 - x0, 30.0);
   EXPECT_EQ(y0 - y1, 30.0);
-  EXPECT_EQ(hfp.at(1, 0), 1000.0);  // vertical_scale is for heightmaps
-  EXPECT_EQ(tb::open_dem_source(placed.string(), opt)->grid().transform, hfp.transform);
+  EXPECT_EQ(hfp.at(1, 0), 1000.0);
+  EXPECT_EQ(tb::open_dem_source(placed.string())->grid().transform, hfp.transform);
 
   // A TIFF without geotransform or CRS is a heightmap under Auto: vertical_scale applies.
   const fs::path tif = dir / "plain.tif";
@@ -456,9 +460,16 @@ TEST(dem_reader_formats, HeightmapScaleOffsetAndUngeoreferencedTiff) {
   EXPECT_EQ(hft.at(0, 4), 18.0);
   EXPECT_EQ(hft.transform, GridTransform::north_up(0.0, 4.0, 1.0, 1.0));
 
-  // The same TIFF forced through GDAL: heights unscaled (vertical_scale is for heightmaps).
+  // The same TIFF forced through GDAL: a vertical scale is refused (it is for heightmaps).
   tb::DemOptions gdal = twice;
   gdal.format = Format::Gdal;
+  try {
+    tb::read_dem(tif.string(), gdal);
+    ADD_FAILURE() << "a vertical scale was taken for a raster read through GDAL";
+  } catch (const tb::DemError& e) {
+    EXPECT_NE(e.problem().find("heightmaps only"), std::string::npos) << e.what();
+  }
+  gdal.vertical_scale = 1.0;
   const Heightfield hfg = tb::read_dem(tif.string(), gdal);
   expect_heights(hfg, kAW, kAH, kGridA, "plain TIFF via GDAL");
   EXPECT_EQ(hfg.transform, GridTransform::north_up(0.0, 4.0, 1.0, 1.0));

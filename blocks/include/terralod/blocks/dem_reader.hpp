@@ -147,7 +147,8 @@ struct DemOptions {
   /// void regions over the size cap (see the header comment), which stay holes under a mask.
   /// false: keep voids as holes (hf.has_holes(), void samples hold 0, hf.voids.filled == 0).
   bool fill_voids = true;
-  /// Metres per raw unit, heightmaps (Format::Heightmap) only. Finite, non-zero.
+  /// Metres per raw unit, heightmaps (Format::Heightmap) only: other files are refused
+  /// (DemError) unless it is 1 and vertical_offset 0. Finite, non-zero.
   double vertical_scale = 1.0;
   /// Metres added after scaling, heightmaps only. Finite.
   double vertical_offset = 0.0;
