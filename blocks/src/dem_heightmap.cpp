@@ -119,8 +119,8 @@ int HeightmapRows::next(std::vector<double>& raw) {
   return y1 - y0;
 }
 
-double heightmap_metres(double raw, const DemOptions& options) {
-  const double v = raw * options.vertical_scale + options.vertical_offset;
+double heightmap_metres(double raw, double scale, double offset) {
+  const double v = raw * scale + offset;
   return is_height(v) ? v : std::numeric_limits<double>::quiet_NaN();
 }
 
@@ -132,7 +132,9 @@ std::string heightmap_note(const DemOptions& options) {
 
 Raster read_heightmap(const std::string& path, const DemOptions& options) {
   HeightmapRows rows(path, true);
-  Raster r = read_all_rows(rows, [&](double raw) { return heightmap_metres(raw, options); });
+  Raster r = read_all_rows(rows, [&](double raw) {
+    return heightmap_metres(raw, options.vertical_scale, options.vertical_offset);
+  });
   r.geo.kind = Georef::Kind::None;
   r.height_note = heightmap_note(options);
   return r;

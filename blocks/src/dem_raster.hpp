@@ -84,9 +84,9 @@ class HeightmapRows {
   std::vector<unsigned char> bytes_;
 };
 
-/// The height in metres of a heightmap's raw value: raw * vertical_scale + vertical_offset, NaN
-/// for a void or a value that is no height (is_height).
-double heightmap_metres(double raw, const DemOptions& options);
+/// The height in metres of a heightmap's raw value: raw * scale + offset (DemOptions'
+/// vertical_scale and vertical_offset), NaN for a void or a value that is no height (is_height).
+double heightmap_metres(double raw, double scale, double offset);
 /// The frame note of a heightmap read with `options` ("" for scale 1, offset 0).
 std::string heightmap_note(const DemOptions& options);
 

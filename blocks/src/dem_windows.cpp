@@ -578,9 +578,12 @@ class DecodedSource final : public WindowedSource {
   template <typename Rows>
   DecodedSource(const std::string& path, const DemOptions& options, Rows& rows, bool floats, double scale,
                 double offset, const detail::Georef& geo, const std::string& height_note, bool measure)
-      : WindowedSource(path, options), file_(path), width_(rows.width()), doubles_(!floats) {
-    metres_.vertical_scale = scale;
-    metres_.vertical_offset = offset;
+      : WindowedSource(path, options),
+        file_(path),
+        width_(rows.width()),
+        doubles_(!floats),
+        scale_(scale),
+        offset_(offset) {
     std::vector<double> band;
     std::vector<float> narrow;
     while (rows.next(band) > 0) {
@@ -612,7 +615,7 @@ class DecodedSource final : public WindowedSource {
           std::memcpy(&f, row.data() + i * sizeof(float), sizeof(float));
           v = f;
         }
-        out[i] = detail::heightmap_metres(v, metres_);
+        out[i] = detail::heightmap_metres(v, scale_, offset_);
       }
     }
   }
@@ -621,7 +624,7 @@ class DecodedSource final : public WindowedSource {
   TempFile file_;
   int width_ = 0;
   bool doubles_ = false;
-  DemOptions metres_;  ///< only vertical_scale and vertical_offset: heightmap_metres'
+  double scale_ = 1.0, offset_ = 0.0;  ///< heightmap_metres' (1 and 0 for ASCII grids)
 };
 
 }  // namespace
