@@ -11,8 +11,9 @@
 namespace terralod::cli {
 
 const char* const kDemFormats =
-    "DEM formats: SRTM .hgt, Esri ASCII grid .asc, heightmap images (PNG, TIFF or OpenEXR without\n"
-    "georeference), any single-band raster GDAL reads (an alpha band besides marks voids).\n"
+    "DEM formats: SRTM .hgt, Esri ASCII grid .asc, heightmap images without georeference (PNG,\n"
+    "TIFF, PGM, OpenEXR or any image OpenImageIO reads), any raster GDAL reads (one band, or the\n"
+    "one --band names; an alpha band besides marks voids).\n"
     "Geographic DEMs are warped to a metric frame (x east, y north, metres): --crs auto (the\n"
     "default) picks an azimuthal equidistant projection centred on the DEM, scaled so that distances\n"
     "are true to within 0.1 % up to about 9 x 9 degrees; beyond, the azimuthal, transverse Mercator,\n"
