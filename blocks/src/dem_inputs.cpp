@@ -6,14 +6,19 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "dem_raster.hpp"
 #include "gdal_support.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 
@@ -22,17 +27,66 @@ namespace {
 
 namespace fs = std::filesystem;
 
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
 bool is_raster_name(const fs::path& p) {
   // Not .vrt: a folder of tiles often holds a VRT over them too, which would count them twice
-  // (a VRT is given as an --input of its own).
-  static const std::set<std::string> kExtensions = {".tif", ".tiff", ".hgt", ".asc",
-                                                    ".img", ".dem",  ".bil", ".flt"};
-  std::string name = p.filename().string();
-  std::transform(name.begin(), name.end(), name.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
+  // (a VRT is given as an --input of its own). .dt0 .dt1 .dt2: DTED, level 0, 1 and 2.
+  static const std::set<std::string> kExtensions = {".tif", ".tiff", ".hgt", ".asc", ".img", ".dem",
+                                                    ".bil", ".flt",  ".dt0", ".dt1", ".dt2"};
+  const std::string name = lower(p.filename().string());
   // SRTM tiles as they are downloaded (N44W072.SRTMGL1.hgt.zip): GDAL reads them zipped.
   if (name.size() > 8 && name.compare(name.size() - 8, 8, ".hgt.zip") == 0) return true;
   return kExtensions.count(fs::path(name).extension().string()) != 0;
+}
+
+/// Layers that elevation products ship beside each tile's heights, on the same cells, which a
+/// folder of tiles must not mosaic as heights: ASTER GDEM's count of scenes per sample
+/// (ASTGTMV003_N44W072_num.tif beside ..._dem.tif) and Copernicus DEM's masks (..._EDM, _FLM,
+/// _HEM, _WBM.tif, in each tile's AUXFILES folder).
+bool is_quality_layer(const fs::path& p) {
+  const std::string stem = lower(p.stem().string());
+  for (const char* suffix : {"_num", "_edm", "_flm", "_hem", "_wbm"})
+    if (stem.size() > 4 && stem.compare(stem.size() - 4, 4, suffix) == 0) return true;
+  return false;
+}
+
+/// The elevation files of a folder, sorted: its own, or when it holds none, those of its
+/// subfolders at any depth (Copernicus DEM keeps each tile in a folder of its own, DTED in a
+/// folder per longitude), without Copernicus's AUXFILES folders and quality layers
+/// (is_quality_layer), which are counted in `skipped`. Symbolic links to folders are not followed.
+std::vector<std::string> folder_tiles(const std::string& folder, std::size_t& skipped) {
+  std::vector<std::string> found;
+  std::error_code ec;
+  const auto take = [&](const fs::directory_entry& e) {
+    if (!e.is_regular_file(ec) || !is_raster_name(e.path())) return;
+    if (is_quality_layer(e.path()))
+      ++skipped;
+    else
+      found.push_back(e.path().string());
+  };
+  for (const auto& e : fs::directory_iterator(folder, ec)) take(e);
+  if (ec) throw DemError(folder, "cannot list the folder: " + ec.message());
+  if (found.empty()) {
+    skipped = 0;
+    fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec), end;
+    for (; !ec && it != end; it.increment(ec)) {
+      if (it->is_directory(ec) && lower(it->path().filename().string()) == "auxfiles") {
+        it.disable_recursion_pending();
+        std::error_code aux_ec;  // only counted: an unreadable one is left out all the same
+        for (const auto& e : fs::directory_iterator(it->path(), aux_ec))
+          skipped += e.is_regular_file(aux_ec) && is_raster_name(e.path());
+        continue;
+      }
+      take(*it);
+    }
+    if (ec) throw DemError(folder, "cannot list the folder: " + ec.message());
+  }
+  std::sort(found.begin(), found.end());
+  return found;
 }
 
 /// A path that a VRT in /vsimem can name its source by (a relative one would be taken as
@@ -106,7 +160,8 @@ struct FileFacts {
   GDALDataType type = GDT_Unknown;
   double gt[6] = {0, 1, 0, 0, 0, 1};
   int width = 0, height = 0;
-  bool alpha = false;  ///< a second band, alpha (gdalwarp -dstalpha writes heights so)
+  bool alpha = false;           ///< a second band, alpha (gdalwarp -dstalpha writes heights so)
+  detail::HeightScale heights;  ///< how its samples become metres
 };
 
 FileFacts file_facts(const std::string& path) {
@@ -121,7 +176,26 @@ FileFacts file_facts(const std::string& path) {
     throw DemError(path, "it has no georeference, so it has no place in a mosaic of several files");
   f.width = ds->GetRasterXSize(), f.height = ds->GetRasterYSize();
   f.alpha = ds->GetRasterCount() == 2 && ds->GetRasterBand(2)->GetColorInterpretation() == GCI_AlphaBand;
+  f.heights = detail::height_scale(*ds->GetRasterBand(1));
   return f;
+}
+
+/// Whether every file's samples become metres alike (band scale, offset and vertical unit:
+/// detail::height_scale); `first` is the first file's. GDALBuildVRT keeps none of them, so a
+/// mosaic of tiles in feet read as metres, 3.28 times too high, and one of tiles in metres and
+/// in feet mixed the two. Opens every file once more (900 GeoTIFF tiles: within the noise of the
+/// mosaic's opening).
+bool heights_alike(const std::vector<std::string>& files, detail::HeightScale& first) {
+  bool alike = true;
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    detail::QuietGdal quiet;
+    GDALDatasetUniquePtr ds(GDALDataset::Open(files[k].c_str(), GDAL_OF_RASTER));
+    if (!ds || ds->GetRasterCount() < 1) continue;  // GDALBuildVRT or file_facts say why
+    const detail::HeightScale h = detail::height_scale(*ds->GetRasterBand(1));
+    if (k == 0) first = h;
+    alike = alike && h == first;
+  }
+  return alike;
 }
 
 bool same_crs(const OGRSpatialReference& a, const OGRSpatialReference& b) {
@@ -137,11 +211,12 @@ bool same_crs(const OGRSpatialReference& a, const OGRSpatialReference& b) {
 /// in it, its cells aligned to theirs so that the mosaic does not resample them again, and
 /// outside its footprint a void; then, when sample types still differ, the others are read as
 /// Float32 (or Float64 when a type does not fit a float), and band colour interpretations that
-/// differ from the first file's are set to it. The VRTs read the files on demand:
-/// nothing is copied. Names of the VRTs are `prefix` + k and are added to `made`; `note` says
-/// what was done, for the mosaic's description.
+/// differ from the first file's are set to it. With `floats`, files of integer samples are read
+/// as Float32 (Float64) even when all are alike, so that the mosaic's nodata value can be NaN.
+/// The VRTs read the files on demand: nothing is copied. Names of the VRTs are `prefix` + n and
+/// are added to `made`; `note` says what was done, for the mosaic's description.
 std::vector<std::string> made_alike(const std::vector<std::string>& files, const std::string& prefix,
-                                    std::vector<std::string>& made, std::string& note) {
+                                    std::vector<std::string>& made, std::string& note, bool floats = false) {
   std::vector<FileFacts> facts;
   for (const std::string& f : files) facts.push_back(file_facts(f));
   // The CRS with the most samples (the first file's on a tie; a file without a CRS is then
@@ -167,7 +242,8 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
   const std::string to_wkt = wkt ? wkt : "";
   CPLFree(wkt);
   const auto make = [&](std::size_t k, const char* what, auto&& run) {
-    const std::string name = prefix + std::to_string(k) + ".vrt";
+    // Named by how many were made: a file may be made alike in two steps (alpha, then type).
+    const std::string name = prefix + std::to_string(made.size()) + ".vrt";
     detail::QuietGdal quiet;
     GDALDatasetUniquePtr src(GDALDataset::Open(absolute_source(out[k]).c_str(), GDAL_OF_RASTER));
     GDALDatasetH vrt = src ? run(name, GDALDataset::ToHandle(src.get())) : nullptr;
@@ -194,6 +270,36 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
       return vrt;
     });
     ++unalpha;
+  }
+  // Heights in other units, or scaled: each read in metres, as Float64 (exact for every type).
+  const bool heights_differ = std::any_of(
+      facts.begin(), facts.end(), [&](const FileFacts& f) { return !(f.heights == facts[0].heights); });
+  std::size_t in_metres = 0;
+  for (std::size_t k = 0; k < facts.size() && heights_differ; ++k) {
+    const detail::HeightScale& h = facts[k].heights;
+    if (h.metres()) continue;
+    make(k, "convert the heights of", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
+      // metres = sample * factor + shift: the linear map of [0, 1] onto [shift, shift + factor].
+      const std::vector<std::string> args = {"-of",
+                                             "VRT",
+                                             "-ot",
+                                             "Float64",
+                                             "-scale",
+                                             "0",
+                                             "1",
+                                             detail::gdal_number(h.shift),
+                                             detail::gdal_number(h.shift + h.factor)};
+      GDALTranslateOptions* opt = detail::gdal_options(args, GDALTranslateOptionsNew);
+      GDALDatasetH vrt = opt ? GDALTranslate(name.c_str(), src, opt, nullptr) : nullptr;
+      GDALTranslateOptionsFree(opt);
+      if (vrt != nullptr) {  // a metres band: no scale, offset or unit left to apply
+        GDALRasterBandH band = GDALGetRasterBand(vrt, 1);
+        GDALSetRasterScale(band, 1.0), GDALSetRasterOffset(band, 0.0), GDALSetRasterUnitType(band, "m");
+      }
+      return vrt;
+    });
+    facts[k].type = GDT_Float64;
+    ++in_metres;
   }
   for (std::size_t k = 0; k < facts.size(); ++k) {
     const FileFacts& f = facts[k];
@@ -257,7 +363,7 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
   GDALDataType common = types[0];
   bool mixed = false;
   for (GDALDataType t : types) mixed |= t != types[0];
-  if (mixed) {
+  if (mixed || (floats && types[0] != GDT_Float32 && types[0] != GDT_Float64)) {
     common = GDT_Float32;
     for (GDALDataType t : types)
       if (!detail::fits_float32(t)) common = GDT_Float64;
@@ -289,31 +395,117 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
     note += "; " + std::to_string(warped) + " warped to " + (to.GetName() ? to.GetName() : "the others' CRS");
   if (converted) note += "; " + std::to_string(converted) + " read as " + GDALGetDataTypeName(common);
   if (unalpha) note += "; " + std::to_string(unalpha) + " with its alpha band read as voids";
+  if (in_metres)
+    note += "; heights of " + std::to_string(in_metres) + " converted to metres (unit, scale, offset)";
   return out;
 }
+
+/// The first band of a VRT mosaic that GDALBuildVRT wrote, read from its XML (every band of such
+/// a mosaic has the same sources); band() is nullptr when the file holds none.
+class VrtBand {
+ public:
+  explicit VrtBand(const std::string& path) : root_(CPLParseXMLFile(path.c_str())) {
+    const CPLXMLNode* dataset = root_ ? CPLGetXMLNode(root_, "=VRTDataset") : nullptr;
+    for (CPLXMLNode* b = dataset ? dataset->psChild : nullptr; b && !band_; b = b->psNext)
+      if (b->eType == CXT_Element && std::string(b->pszValue) == "VRTRasterBand") band_ = b;
+  }
+  ~VrtBand() {
+    if (root_) CPLDestroyXMLNode(root_);
+  }
+  VrtBand(const VrtBand&) = delete;
+  VrtBand& operator=(const VrtBand&) = delete;
+  CPLXMLNode* band() const { return band_; }
+  /// f(source element) for each of the band's sources, in the order of the mosaic's files.
+  template <class F>
+  void for_each_source(F&& f) const {
+    for (CPLXMLNode* s = band_ ? band_->psChild : nullptr; s; s = s->psNext)
+      if (s->eType == CXT_Element && CPLGetXMLNode(s, "DstRect")) f(s);
+  }
+
+ private:
+  CPLXMLNode* root_;
+  CPLXMLNode* band_ = nullptr;
+};
 
 /// Whether the sources of the VRT mosaic at `path` (GDALBuildVRT's, which it puts at the
 /// mean sample spacing) are scaled: whether the inputs' spacings differ.
 bool resamples(const std::string& path) {
-  CPLXMLNode* root = CPLParseXMLFile(path.c_str());
-  const CPLXMLNode* dataset = root ? CPLGetXMLNode(root, "=VRTDataset") : nullptr;
   bool scaled = false;
-  for (CPLXMLNode* band = dataset ? dataset->psChild : nullptr; band; band = band->psNext) {
-    if (band->eType != CXT_Element || std::string(band->pszValue) != "VRTRasterBand") continue;
-    for (CPLXMLNode* s = band->psChild; s; s = s->psNext) {
-      if (s->eType != CXT_Element) continue;
-      const char* sw = CPLGetXMLValue(s, "SrcRect.xSize", nullptr);
-      const char* dw = CPLGetXMLValue(s, "DstRect.xSize", nullptr);
-      const char* sh = CPLGetXMLValue(s, "SrcRect.ySize", nullptr);
-      const char* dh = CPLGetXMLValue(s, "DstRect.ySize", nullptr);
-      if (sw && dw && sh && dh &&
-          (std::abs(CPLAtof(sw) - CPLAtof(dw)) > 1e-6 * CPLAtof(dw) ||
-           std::abs(CPLAtof(sh) - CPLAtof(dh)) > 1e-6 * CPLAtof(dh)))
-        scaled = true;
-    }
-  }
-  if (root) CPLDestroyXMLNode(root);
+  VrtBand(path).for_each_source([&](const CPLXMLNode* s) {
+    const char* sw = CPLGetXMLValue(s, "SrcRect.xSize", nullptr);
+    const char* dw = CPLGetXMLValue(s, "DstRect.xSize", nullptr);
+    const char* sh = CPLGetXMLValue(s, "SrcRect.ySize", nullptr);
+    const char* dh = CPLGetXMLValue(s, "DstRect.ySize", nullptr);
+    if (sw && dw && sh && dh &&
+        (std::abs(CPLAtof(sw) - CPLAtof(dw)) > 1e-6 * CPLAtof(dw) ||
+         std::abs(CPLAtof(sh) - CPLAtof(dh)) > 1e-6 * CPLAtof(dh)))
+      scaled = true;
+  });
   return scaled;
+}
+
+/// Two sources of the VRT mosaic at `path` that GDALBuildVRT put on the same cells (the same
+/// destination window), as their indices in its list of files; {-1, -1} when there are none.
+/// Such files are two layers of one place (a tile's heights and its quality mask, or one tile
+/// twice), not a mosaic: the later one would hide the other whole.
+std::pair<int, int> same_cells(const std::string& path) {
+  std::map<std::array<std::string, 4>, int> seen;
+  std::pair<int, int> pair{-1, -1};
+  int k = 0;
+  VrtBand(path).for_each_source([&](const CPLXMLNode* s) {
+    std::array<std::string, 4> cells;
+    int i = 0;
+    for (const char* field : {"DstRect.xOff", "DstRect.yOff", "DstRect.xSize", "DstRect.ySize"})
+      cells[i++] = CPLGetXMLValue(s, field, "");
+    if (const auto [at, fresh] = seen.emplace(cells, k); !fresh && pair.first < 0) pair = {at->second, k};
+    ++k;
+  });
+  return pair;
+}
+
+/// Whether the files of the VRT mosaic at `path` disagree on their nodata value. GDALBuildVRT
+/// gives the mosaic the first file's nodata value (or none) and paints each file without its
+/// own nodata samples, so then a valid sample of one file that equals the mosaic's nodata value
+/// reads as a void, and where the mosaic has none, another file's voids read as heights of 0.
+bool nodata_differs(const std::string& path) {
+  const VrtBand vrt(path);
+  const auto value = [](const CPLXMLNode* node, const char* name) {
+    const char* v = node ? CPLGetXMLValue(node, name, nullptr) : nullptr;
+    return v ? std::optional<std::string>(v) : std::nullopt;
+  };
+  const std::optional<std::string> mosaic = value(vrt.band(), "NoDataValue");
+  bool differs = false;
+  vrt.for_each_source([&](const CPLXMLNode* s) { differs |= value(s, "NODATA") != mosaic; });
+  return differs;
+}
+
+/// Whether the VRT mosaic at `path` holds floating-point samples (NaN can be its nodata value).
+bool float_samples(const std::string& path) {
+  const VrtBand vrt(path);
+  const std::string type = vrt.band() ? CPLGetXMLValue(vrt.band(), "dataType", "") : "";
+  return type == "Float32" || type == "Float64";
+}
+
+/// Gives the bands of the VRT mosaic at `path` the scale, offset and vertical unit of `file`'s
+/// first band (GDALBuildVRT keeps none of them), so that read_dem makes its samples metres as it
+/// does the file's.
+void keep_height_scale(const std::string& path, const std::string& file) {
+  detail::QuietGdal quiet;
+  GDALDatasetUniquePtr from(GDALDataset::Open(file.c_str(), GDAL_OF_RASTER));
+  GDALDatasetUniquePtr vrt(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
+  if (!from || !vrt)
+    throw DemError(file,
+                   "cannot give the mosaic its heights' unit (" + detail::gdal_message("GDAL failed") + ")");
+  GDALRasterBand* band = from->GetRasterBand(1);
+  int has_scale = 0, has_offset = 0;
+  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  for (int b = 1; b <= vrt->GetRasterCount(); ++b) {
+    GDALRasterBand* to = vrt->GetRasterBand(b);
+    if (to->GetColorInterpretation() == GCI_AlphaBand) continue;
+    if (has_scale) to->SetScale(scale);
+    if (has_offset) to->SetOffset(offset);
+    to->SetUnitType(band->GetUnitType());
+  }
 }
 
 /// Whether the raster at `path` is geographic and wider than 180 degrees of longitude.
@@ -331,17 +523,18 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
   if (inputs.empty()) throw DemError("--input", "no input given");
   std::vector<std::string> files;
   std::string folder;
+  std::size_t quality_layers = 0;
   for (const std::string& in : inputs) {
     std::error_code ec;
     if (fs::is_directory(in, ec)) {
-      std::vector<std::string> found;
-      for (const auto& e : fs::directory_iterator(in, ec))
-        if (e.is_regular_file() && is_raster_name(e.path())) found.push_back(e.path().string());
-      if (ec) throw DemError(in, "cannot list the folder: " + ec.message());
+      std::size_t skipped = 0;
+      const std::vector<std::string> found = folder_tiles(in, skipped);
       if (found.empty())
-        throw DemError(
-            in, "the folder holds no elevation file (.tif .tiff .hgt .hgt.zip .asc .img .dem .bil .flt)");
-      std::sort(found.begin(), found.end());
+        throw DemError(in,
+                       "the folder and its subfolders hold no elevation file (.tif .tiff .hgt .hgt.zip .asc "
+                       ".img .dem .bil .flt .dt0 .dt1 .dt2" +
+                           std::string(skipped ? ", other than quality layers" : "") + ")");
+      quality_layers += skipped;
       files.insert(files.end(), found.begin(), found.end());
       folder = in;
     } else {
@@ -370,15 +563,28 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
     // them or the mosaic spans more than half the Earth: a folder of thousands of tiles opens in
     // the time GDALBuildVRT takes, and only unusual inputs pay for finding out more.
     std::vector<std::string> sources = files;
-    if (!detail::build_vrt(path_, sources).empty()) {
+    detail::HeightScale heights;
+    const bool alike = heights_alike(files, heights);
+    if (!alike || !detail::build_vrt(path_, sources).empty()) {
       sources = made_alike(files, path_ + ".alike", made_, note);
       mosaic(sources);
+    }
+    // Files whose nodata values differ (or that have none beside files that have one): the
+    // mosaic's nodata becomes NaN, which no file's heights can equal, on float samples.
+    if (nodata_differs(path_)) {
+      if (!float_samples(path_)) {  // made alike again, as floats: that note replaces the first one's
+        note.clear();
+        sources = made_alike(files, path_ + ".float", made_, note, /*floats=*/true);
+      }
+      args = {"-vrtnodata", "nan"};
+      mosaic(sources);
+      note += "; nodata values differ: voids kept as NaN";
     }
     // GDALBuildVRT puts files of different sample spacings on their mean spacing, which drops
     // detail from the finer ones: the finest is kept, the coarser files resampled bilinearly
     // (GDAL's default, nearest, would make them steps).
     if (resamples(path_)) {
-      args = {"-resolution", "highest", "-r", "bilinear"};
+      args.insert(args.end(), {"-resolution", "highest", "-r", "bilinear"});
       mosaic(sources);
       note += "; on the finest sample spacing, coarser files resampled bilinearly";
     }
@@ -386,6 +592,16 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
       const std::size_t before = made_.size();
       const std::vector<std::string> moved = across_antimeridian(sources, path_ + ".east", made_);
       if (made_.size() > before) mosaic(moved);
+    }
+    // Files whose heights are alike but not metres: the mosaic's bands say how, as the files do.
+    if (alike && !heights.metres()) keep_height_scale(path_, files[0]);
+    if (const auto [a, b] = same_cells(path_); a >= 0) {
+      const std::string &first = files[std::size_t(a)], &second = files[std::size_t(b)];
+      throw DemError(folder.empty() ? second : folder,
+                     first + " and " + second +
+                         " cover the same cells: a mosaic takes one elevation raster per place (one of "
+                         "them may be another layer of the tile, such as a quality mask, or the same tile "
+                         "twice); give the tiles to use with --input");
     }
   } catch (...) {  // no destructor runs: the VRTs made for the mosaic go here
     for (const std::string& s : made_) VSIUnlink(s.c_str());
@@ -397,6 +613,9 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
     description_ += (i ? ", " : "") + fs::path(files[i]).filename().string();
   if (files.size() > 4) description_ += ", ...";
   if (!folder.empty()) description_ += " (in " + folder + ")";
+  if (quality_layers)
+    note += "; " + std::to_string(quality_layers) + " quality layer" + (quality_layers == 1 ? "" : "s") +
+            " beside the tiles left out (ASTER _num, Copernicus _EDM _FLM _HEM _WBM)";
   description_ += note;
 }
 

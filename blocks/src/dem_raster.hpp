@@ -164,6 +164,18 @@ struct GdalBand {
   Georef geo;
 };
 
+/// How read_dem makes a GDAL band's samples metres: metres = sample * factor + shift, from the
+/// band's scale and offset, then its vertical unit. `unit` is the band's as it states it; `known`
+/// is false for a unit that is not metres, feet or US survey feet (then taken as metres).
+struct HeightScale {
+  double factor = 1.0, shift = 0.0;
+  std::string unit;
+  bool known = true;
+  bool metres() const { return factor == 1.0 && shift == 0.0; }
+  bool operator==(const HeightScale& o) const { return factor == o.factor && shift == o.shift; }
+};
+HeightScale height_scale(GDALRasterBand& band);
+
 /// The header of band `index` of `ds` (0: the only band, with an alpha band besides or not), of a
 /// real type, at least 2 x 2 samples (at most 2^30 when `limit_size`). DemError naming `path`.
 GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size, int index);

@@ -245,6 +245,21 @@ bool has_georeference(GDALDataset& ds) {
 
 namespace detail {
 
+HeightScale height_scale(GDALRasterBand& band) {
+  // Band scale and offset, then the vertical unit.
+  HeightScale h;
+  int has_scale = 0, has_offset = 0;
+  const double scale = band.GetScale(&has_scale), offset = band.GetOffset(&has_offset);
+  h.factor = has_scale ? scale : 1.0;
+  h.shift = has_offset ? offset : 0.0;
+  const char* unit = band.GetUnitType();
+  h.unit = unit != nullptr ? unit : "";
+  const std::optional<double> metres = vertical_unit_to_metres(h.unit);
+  h.known = metres.has_value();
+  if (h.known) h.factor *= *metres, h.shift *= *metres;
+  return h;
+}
+
 GDALDatasetUniquePtr open_gdal(const std::string& path) {
   if (names_a_file(path)) require_file(path);
   register_gdal();
@@ -331,22 +346,14 @@ GdalBand gdal_band(const std::string& path, GDALDataset& ds, bool limit_size, in
   b.alpha_index = alpha ? bands : 0;
   b.mask_band = !alpha && !(mask_flags & GMF_ALL_VALID) && !(mask_flags & GMF_NODATA);
 
-  // Heights: band scale and offset, then the vertical unit.
-  int has_scale = 0, has_offset = 0;
-  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
-  b.factor = has_scale ? scale : 1.0;
-  b.shift = has_offset ? offset : 0.0;
-  const char* unit_c = band->GetUnitType();
-  const std::string unit = unit_c != nullptr ? unit_c : "";
+  const HeightScale heights = height_scale(*band);
+  b.factor = heights.factor, b.shift = heights.shift;
   if (const char* gcps = ds.GetMetadataItem("GCP_COUNT", "terralod"))  // see open_gdal
     b.height_note += std::string("; placed north-up by its ") + gcps + " ground control points";
-  if (const auto metres = vertical_unit_to_metres(unit)) {
-    b.factor *= *metres;
-    b.shift *= *metres;
-    if (*metres != 1.0) b.height_note += "; heights converted from '" + unit + "' to metres";
-  } else {
-    b.height_note += "; heights in unknown unit '" + unit + "' taken as metres";
-  }
+  if (!heights.known)
+    b.height_note += "; heights in unknown unit '" + heights.unit + "' taken as metres";
+  else if (vertical_unit_to_metres(heights.unit) != 1.0)
+    b.height_note += "; heights converted from '" + heights.unit + "' to metres";
 
   // Georeferencing.
   const OGRSpatialReference* srs = ds.GetSpatialRef();
