@@ -53,8 +53,10 @@ CommandSpec build_spec() {
       "keep their voids and heights (the mosaic's nodata is NaN); files in feet or of scaled\n"
       "integers (band unit, scale, offset) are read in metres. The first line says so.\n"
       "A folder gives its elevation files, or when it holds none, those of its subfolders at any\n"
-      "depth (Copernicus DEM, DTED trees), without the quality layers beside the heights (ASTER's\n"
-      "_num, Copernicus's AUXFILES); two files on the same cells are refused by name.\n"
+      "depth (Copernicus DEM, DTED trees); an archive (.zip .tar .tar.gz .tgz), given or in the\n"
+      "folder, gives those it holds, read in place (ASTER GDEM zips, Copernicus DEM tars); the\n"
+      "quality layers beside the heights (ASTER's _num, Copernicus's AUXFILES) are left out; two\n"
+      "files on the same cells are refused by name.\n"
       "Memory: every input is read window by window. GDAL rasters, VRT mosaics and .hgt tiles are\n"
       "read in place, in every frame (a warp to --crs auto or a named CRS reads the native window\n"
       "under each warped one); heightmap images and ASCII grids, which can only be read from their\n"
@@ -74,8 +76,8 @@ CommandSpec build_spec() {
       "build.";
   s.options = {
       {"--input", "DEM",
-       "elevation file (.hgt, .hgt.zip, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder: one "
-       "mosaic",
+       "elevation file (.hgt, .hgt.zip, .asc, GeoTIFF, VRT, PNG, ...); repeat it or name a folder or an "
+       "archive: one mosaic",
        true, true},
       {"--out", "DB", "database file to create or resume (.db)", true},
       {"--block-size", "N", "samples per block side, 2^k + 1 (default 257)"},

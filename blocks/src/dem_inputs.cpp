@@ -43,6 +43,16 @@ bool is_raster_name(const fs::path& p) {
   return kExtensions.count(fs::path(name).extension().string()) != 0;
 }
 
+/// The problem of a folder (`archives`: whose archives are read too) or archive without elevation
+/// files: `what` ("the archive holds"), the names looked for, and the `skipped` quality layers.
+std::string no_elevation_file(const std::string& what, bool archives, std::size_t skipped) {
+  return what + " no elevation file (.tif .tiff .hgt .hgt.zip .asc .img .dem .bil .flt .dt0 .dt1 .dt2" +
+         (archives ? ", or archives of them: .zip .tar .tar.gz .tgz" : "") +
+         (skipped ? ", other than " + std::to_string(skipped) + " quality layer" + (skipped == 1 ? "" : "s")
+                  : std::string()) +
+         ")";
+}
+
 /// Layers that elevation products ship beside each tile's heights, on the same cells, which a
 /// folder of tiles must not mosaic as heights: ASTER GDEM's count of scenes per sample
 /// (ASTGTMV003_N44W072_num.tif beside ..._dem.tif) and Copernicus DEM's masks (..._EDM, _FLM,
@@ -54,19 +64,66 @@ bool is_quality_layer(const fs::path& p) {
   return false;
 }
 
-/// The elevation files of a folder, sorted: its own, or when it holds none, those of its
-/// subfolders at any depth (Copernicus DEM keeps each tile in a folder of its own, DTED in a
-/// folder per longitude), without Copernicus's AUXFILES folders and quality layers
-/// (is_quality_layer), which are counted in `skipped`. Symbolic links to folders are not followed.
+/// GDAL's file system prefix for the archive `p` (zip, or tar, gzipped or not, by its name), or
+/// "" for other files. An SRTM .hgt.zip is a raster (is_raster_name), not an archive here.
+std::string archive_prefix(const fs::path& p) {
+  const std::string name = lower(p.filename().string());
+  const auto ends = [&](const std::string& s) {
+    return name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0;
+  };
+  if (ends(".hgt.zip")) return "";
+  if (ends(".zip")) return "/vsizip/";
+  if (ends(".tar") || ends(".tar.gz") || ends(".tgz")) return "/vsitar/";
+  return "";
+}
+
+/// The elevation files inside the archive at `path`, as GDAL paths into it (GDAL reads them in
+/// place, nothing is extracted), at any depth, sorted; quality layers and files in AUXFILES folders
+/// are counted in `skipped` and left out. Tiles come as such archives: ASTER GDEM's zip holds a
+/// tile's _dem.tif and _num.tif, Copernicus DEM's tar its DEM and AUXFILES folders.
+std::vector<std::string> archive_tiles(const std::string& path, std::size_t& skipped) {
+  std::error_code ec;
+  const std::string root = archive_prefix(path) + fs::absolute(path, ec).string();
+  detail::register_gdal();
+  char** list = VSIReadDirRecursive(root.c_str());
+  if (list == nullptr)
+    throw DemError(path, "cannot list the archive (" + detail::gdal_message("GDAL cannot read it") + ")");
+  std::vector<std::string> found;
+  for (char** e = list; *e != nullptr; ++e) {
+    const fs::path entry(*e);
+    if (!is_raster_name(entry)) continue;
+    bool auxiliary = is_quality_layer(entry);
+    for (const fs::path& part : entry.parent_path())
+      auxiliary = auxiliary || lower(part.string()) == "auxfiles";
+    if (auxiliary)
+      ++skipped;
+    else
+      found.push_back(root + "/" + *e);
+  }
+  CSLDestroy(list);
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
+/// The elevation files of a folder, sorted: its own (those in the archives among them included),
+/// or when it holds none, those of its subfolders at any depth (Copernicus DEM keeps each tile in
+/// a folder of its own, DTED in a folder per longitude), without Copernicus's AUXFILES folders and
+/// quality layers (is_quality_layer), which are counted in `skipped`. Symbolic links to folders are
+/// not followed.
 std::vector<std::string> folder_tiles(const std::string& folder, std::size_t& skipped) {
   std::vector<std::string> found;
   std::error_code ec;
   const auto take = [&](const fs::directory_entry& e) {
-    if (!e.is_regular_file(ec) || !is_raster_name(e.path())) return;
-    if (is_quality_layer(e.path()))
-      ++skipped;
-    else
-      found.push_back(e.path().string());
+    if (!e.is_regular_file(ec)) return;
+    if (!archive_prefix(e.path()).empty()) {
+      const std::vector<std::string> inside = archive_tiles(e.path().string(), skipped);
+      found.insert(found.end(), inside.begin(), inside.end());
+    } else if (is_raster_name(e.path())) {
+      if (is_quality_layer(e.path()))
+        ++skipped;
+      else
+        found.push_back(e.path().string());
+    }
   };
   for (const auto& e : fs::directory_iterator(folder, ec)) take(e);
   if (ec) throw DemError(folder, "cannot list the folder: " + ec.message());
@@ -530,10 +587,14 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
       std::size_t skipped = 0;
       const std::vector<std::string> found = folder_tiles(in, skipped);
       if (found.empty())
-        throw DemError(in,
-                       "the folder and its subfolders hold no elevation file (.tif .tiff .hgt .hgt.zip .asc "
-                       ".img .dem .bil .flt .dt0 .dt1 .dt2" +
-                           std::string(skipped ? ", other than quality layers" : "") + ")");
+        throw DemError(in, no_elevation_file("the folder and its subfolders hold", true, skipped));
+      quality_layers += skipped;
+      files.insert(files.end(), found.begin(), found.end());
+      folder = in;
+    } else if (!archive_prefix(in).empty() && fs::is_regular_file(in, ec)) {
+      std::size_t skipped = 0;
+      const std::vector<std::string> found = archive_tiles(in, skipped);
+      if (found.empty()) throw DemError(in, no_elevation_file("the archive holds", false, skipped));
       quality_layers += skipped;
       files.insert(files.end(), found.begin(), found.end());
       folder = in;

@@ -411,6 +411,7 @@ TEST(DemInputs, FoldersOfTileFoldersAndTilesWithQualityLayersAreReadAsTheirTiles
 
 // DTED comes as a tree of one folder per longitude (dted/w073/n44.dt0), in a format of its own.
 TEST(DemInputs, ADtedTreeIsReadAsItsTiles) {
+  GDALAllRegister();  // GetDriverByName finds only registered drivers
   GDALDriver* dted = GetGDALDriverManager()->GetDriverByName("DTED");
   if (dted == nullptr) GTEST_SKIP() << "GDAL has no DTED driver";
   const fs::path tree = tmp() / "dted";
@@ -598,5 +599,77 @@ TEST(DemInputs, TilesInFeetOrScaledAreReadInMetres) {
       }
     // Exact but for the VRT's scaling by an offset (one rounding of the scale ratio).
     EXPECT_LT(worst, 1e-9) << "metres";
+  }
+}
+
+namespace {
+
+// Copies the file at `from` into the zip archive `zip` as `member` (GDAL writes zips: a new
+// member is added to the archive that is there).
+void add_to_zip(const fs::path& from, const fs::path& zip, const std::string& member) {
+  std::ifstream in(from, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string inner = "/vsizip/" + zip.string() + "/" + member;
+  VSILFILE* f = VSIFOpenL(inner.c_str(), "wb");
+  ASSERT_NE(f, nullptr) << inner;
+  ASSERT_EQ(VSIFWriteL(bytes.data(), 1, bytes.size(), f), bytes.size());
+  ASSERT_EQ(VSIFCloseL(f), 0);
+}
+
+}  // namespace
+
+// Tiles come as they are downloaded: ASTER GDEM as one zip per tile (its _dem.tif and _num.tif),
+// Copernicus DEM from ESA as one tar per tile (its DEM and AUXFILES folders). Before, a zip was
+// "no raster" and a folder of zips held "no elevation file". An archive given as an input, or
+// found in a folder, is read in place (GDAL's /vsizip/ and /vsitar/) as its tiles, without the
+// quality layers.
+TEST(DemInputs, ArchivesAreReadInPlaceAsTheirTiles) {
+  const fs::path zips = tmp() / "aster_zips", tars = tmp() / "copernicus_tars", work = tmp() / "archive_work";
+  fs::create_directories(zips);
+  fs::create_directories(tars);
+  for (const int west : {-73, -72}) {
+    const std::string tile = "ASTGTMV003_N44W0" + std::to_string(-west);
+    const fs::path dem = work / (tile + "_dem.tif"), num = work / (tile + "_num.tif");
+    ASSERT_NO_FATAL_FAILURE(write_tile(dem, west));
+    ASSERT_NO_FATAL_FAILURE(terralod::test::write_tiff(num.string(), 4326, west, 45.0, 121, 121, kTileStep,
+                                                       GDT_Int16, [](double, double) { return 7.0; }));
+    ASSERT_NO_FATAL_FAILURE(add_to_zip(dem, zips / (tile + ".zip"), dem.filename().string()));
+    ASSERT_NO_FATAL_FAILURE(add_to_zip(num, zips / (tile + ".zip"), num.filename().string()));
+    // The same tile as ESA's tar of a Copernicus tile (tar, gzipped for the second).
+    const std::string cop = "Copernicus_DSM_10_N44_00_W0" + std::to_string(-west) + "_00";
+    fs::create_directories(work / cop / "DEM");
+    fs::create_directories(work / cop / "AUXFILES");
+    fs::copy_file(dem, work / cop / "DEM" / (cop + "_DEM.tif"), fs::copy_options::overwrite_existing);
+    fs::copy_file(num, work / cop / "AUXFILES" / (cop + "_EDM.tif"), fs::copy_options::overwrite_existing);
+    const std::string tar = (tars / (cop + (west == -73 ? ".tar" : ".tar.gz"))).string();
+    const auto made = terralod::test::run_command("tar -C " + terralod::test::quote(work.string()) +
+                                                  (west == -73 ? " -cf " : " -czf ") +
+                                                  terralod::test::quote(tar) + " " + cop);
+    ASSERT_EQ(made.status, 0) << made.err;
+  }
+  {
+    const tb::DemInputs in({zips.string()});
+    ASSERT_NO_FATAL_FAILURE(expect_the_two_tiles(in));
+    EXPECT_NE(in.description().find("2 quality layers"), std::string::npos) << in.description();
+  }
+  {
+    const tb::DemInputs in(
+        {zips.string() + "/ASTGTMV003_N44W073.zip", zips.string() + "/ASTGTMV003_N44W072.zip"});
+    ASSERT_NO_FATAL_FAILURE(expect_the_two_tiles(in));
+  }
+  const tb::DemInputs in({tars.string()});
+  ASSERT_NO_FATAL_FAILURE(expect_the_two_tiles(in));
+  EXPECT_NE(in.description().find("2 quality layers"), std::string::npos) << in.description();
+  // An archive without elevation files names itself and what it looked for.
+  const fs::path only_num = zips / "only_num.zip";
+  ASSERT_NO_FATAL_FAILURE(
+      add_to_zip(work / "ASTGTMV003_N44W073_num.tif", only_num, "ASTGTMV003_N44W073_num.tif"));
+  try {
+    const tb::DemInputs bad({only_num.string()});
+    ADD_FAILURE() << "accepted: " << bad.description();
+  } catch (const tb::DemError& e) {
+    EXPECT_EQ(e.path(), only_num.string());
+    EXPECT_NE(e.problem().find("the archive holds no elevation file"), std::string::npos) << e.what();
+    EXPECT_NE(e.problem().find("other than 1 quality layer)"), std::string::npos) << e.what();
   }
 }

@@ -205,17 +205,19 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {}
 /// system, which lives as long as this object. A folder gives its raster files (.tif .tiff .hgt
 /// .hgt.zip .asc .img .dem .bil .flt .dt0 .dt1 .dt2, sorted by name; not .vrt, which a folder of
 /// tiles often holds over them), or when it holds none, those of its subfolders at any depth
-/// (Copernicus DEM's folder per tile, DTED's per longitude), leaving out the quality layers
-/// products ship beside their heights (ASTER's _num, Copernicus's AUXFILES folders and _EDM _FLM
-/// _HEM _WBM files). Files need not be alike (other CRSs are warped, other sample types and
-/// spacings made alike; the description says what was done); where they overlap, later names win,
-/// but two files on the same cells are refused by name (two layers of one tile, or one tile
-/// twice). Voids are read (and filled) on the mosaic, not file by file, so a void that crosses a
-/// file boundary is filled as if the mosaic were one file. Geographic tiles on both sides of the
-/// antimeridian (S17E179 and S17W180) join east of 180 degrees: the western ones are read through
-/// in-memory VRTs moved 360 degrees east, so the mosaic is 2 degrees wide, not the whole Earth.
-/// DemError naming the file or folder: a missing path, a folder without elevation files, files
-/// on the same cells, files GDAL cannot mosaic (not a raster).
+/// (Copernicus DEM's folder per tile, DTED's per longitude); an archive (.zip .tar .tar.gz .tgz),
+/// given or in the folder, gives those it holds, read in place through GDAL's /vsizip/ and /vsitar/
+/// (ASTER GDEM's zips, Copernicus DEM's tars). The quality layers products ship beside their
+/// heights (ASTER's _num, Copernicus's AUXFILES folders and _EDM _FLM _HEM _WBM files) are left
+/// out. Files need not be alike (other CRSs are warped; other sample types, spacings, nodata
+/// values, units and scales made alike; the description says what was done); where they overlap,
+/// later names win, but two files on the same cells are refused by name (two layers of one tile, or
+/// one tile twice). Voids are read (and filled) on the mosaic, not file by file, so a void that
+/// crosses a file boundary is filled as if the mosaic were one file. Geographic tiles on both sides
+/// of the antimeridian (S17E179 and S17W180) join east of 180 degrees: the western ones are read
+/// through in-memory VRTs moved 360 degrees east, so the mosaic is 2 degrees wide, not the whole
+/// Earth. DemError naming the file, folder or archive: a missing path, a folder or archive without
+/// elevation files, files on the same cells, files GDAL cannot mosaic (not a raster).
 class DemInputs {
  public:
   explicit DemInputs(const std::vector<std::string>& inputs);
