@@ -8,6 +8,10 @@
 // GDAL's block cache is a constant (64 MiB by default while a windowed source is open) that the
 // small DEM's 16 MiB of floats never fill; the test caps it at 8 MiB (GDAL_CACHEMAX) so that both
 // builds fill it and the comparison sees what grows with the DEM.
+// The fractals are terraced in 16 m steps (height_quantum): a flat terrace's rings are not
+// measured (the PM builder's flat_box), so the builds take 0.64x the time (52 s instead of 82 s
+// for both, alone on this 2-core machine; 0.67x for PeakGrowsByLittle) and the CI run is shorter,
+// while every block is still read, built, written and summarised as on any terrain.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
@@ -56,7 +60,8 @@ TEST(BuildMemory, FourTimesTheSamplesWithinAQuarterMoreMemory) {
   const terralod::test::TempDir dir("build-memory");
   auto peak_of_build = [&](int size) {
     const std::string dem = (dir.path() / ("fractal" + std::to_string(size) + ".tif")).string();
-    tb::write_fractal_dem(pm::FractalField({.width = size, .height = size, .seed = 5}), dem, 2);
+    tb::write_fractal_dem(
+        pm::FractalField({.width = size, .height = size, .seed = 5, .height_quantum = 16.0}), dem, 2);
     tb::DatabaseBuildOptions opt;
     opt.threads = 2;
     reset_peak();
@@ -135,7 +140,8 @@ TEST(BuildMemory, PeakGrowsByLittleWithTheNumberOfBlocks) {
   ASSERT_EQ(setenv("GDAL_CACHEMAX", "8", 1), 0);  // the builds inherit it: both fill the cache
   const terralod::test::TempDir dir("build-memory-blocks");
   const std::string dem = (dir.path() / "fractal2049.tif").string();
-  tb::write_fractal_dem(pm::FractalField({.width = 2049, .height = 2049, .seed = 6}), dem, 2);
+  tb::write_fractal_dem(pm::FractalField({.width = 2049, .height = 2049, .seed = 6, .height_quantum = 16.0}),
+                        dem, 2);
   auto peak_of_build = [&](int block_size) -> double {
     const std::string db = (dir.path() / (std::to_string(block_size) + ".db")).string();
     const terralod::test::CommandResult r = terralod::test::run_tool(
