@@ -126,9 +126,7 @@ AsciiGridRows::AsciiGridRows(const std::string& path, bool limit_size) : path_(p
     if (t.empty() || parse_double(t)) break;
     const std::string token(tokens.next());
     const std::size_t line = tokens.line();
-    std::string key = token;
-    std::transform(key.begin(), key.end(), key.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string key = detail::lower(token);
     const auto it = std::find(kKeys.begin(), kKeys.end(), key);
     if (it == kKeys.end()) {
       throw DemError(path, line_prefix(line) + "'" + token +

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -27,10 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
+using detail::lower;
 
 bool is_raster_name(const fs::path& p) {
   // Not .vrt: a folder of tiles often holds a VRT over them too, which would count them twice
@@ -39,7 +37,7 @@ bool is_raster_name(const fs::path& p) {
                                                     ".bil", ".flt",  ".dt0", ".dt1", ".dt2"};
   const std::string name = lower(p.filename().string());
   // SRTM tiles as they are downloaded (N44W072.SRTMGL1.hgt.zip): GDAL reads them zipped.
-  if (name.size() > 8 && name.compare(name.size() - 8, 8, ".hgt.zip") == 0) return true;
+  if (name.size() > 8 && name.ends_with(".hgt.zip")) return true;
   return kExtensions.count(fs::path(name).extension().string()) != 0;
 }
 
@@ -60,7 +58,7 @@ std::string no_elevation_file(const std::string& what, bool archives, std::size_
 bool is_quality_layer(const fs::path& p) {
   const std::string stem = lower(p.stem().string());
   for (const char* suffix : {"_num", "_edm", "_flm", "_hem", "_wbm"})
-    if (stem.size() > 4 && stem.compare(stem.size() - 4, 4, suffix) == 0) return true;
+    if (stem.size() > 4 && stem.ends_with(suffix)) return true;
   return false;
 }
 
@@ -68,9 +66,7 @@ bool is_quality_layer(const fs::path& p) {
 /// "" for other files. An SRTM .hgt.zip is a raster (is_raster_name), not an archive here.
 std::string archive_prefix(const fs::path& p) {
   const std::string name = lower(p.filename().string());
-  const auto ends = [&](const std::string& s) {
-    return name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0;
-  };
+  const auto ends = [&](const char* s) { return name.size() > std::strlen(s) && name.ends_with(s); };
   if (ends(".hgt.zip")) return "";
   if (ends(".zip")) return "/vsizip/";
   if (ends(".tar") || ends(".tar.gz") || ends(".tgz")) return "/vsitar/";
@@ -430,9 +426,7 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
     GDALDatasetUniquePtr ds(GDALDataset::Open(absolute_source(out[k]).c_str(), GDAL_OF_RASTER));
     return ds && ds->GetRasterCount() > 0 ? ds->GetRasterBand(1)->GetColorInterpretation() : GCI_Undefined;
   };
-  std::string first_interpretation = GDALGetColorInterpretationName(interpretation(0));
-  std::transform(first_interpretation.begin(), first_interpretation.end(), first_interpretation.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string first_interpretation = lower(GDALGetColorInterpretationName(interpretation(0)));
   std::size_t converted = 0;
   for (std::size_t k = 0; k < out.size(); ++k) {
     std::vector<std::string> args = {"-of", "VRT"};

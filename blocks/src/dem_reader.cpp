@@ -46,10 +46,7 @@ using detail::Georef;
 using detail::Raster;
 using detail::require_file;
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
+using detail::lower;
 
 // ---------------------------------------------------------------------------------------------
 // GDAL plumbing: registration once, errors captured instead of printed.

@@ -15,12 +15,17 @@
 
 namespace terralod::blocks::detail {
 
+/// `s` in lower case (ASCII): names, units and keys compared without case.
+inline std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
 /// The vertical CRS of a height datum's name, as PROJ and GDAL take it: "EPSG:5773" for EGM96
 /// (and for no name: the datum SRTM and most DEMs use), "EPSG:3855" for EGM2008, "" for
 /// ellipsoidal heights, else the name itself.
 inline std::string vertical_crs(const std::string& datum) {
-  std::string d = datum;
-  std::transform(d.begin(), d.end(), d.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string d = lower(datum);
   if (d == "ellipsoid" || d == "wgs84" || d == "wgs 84") return "";
   if (d.find("egm2008") != std::string::npos || d.find("egm08") != std::string::npos) return "EPSG:3855";
   if (d.empty() || d.find("egm96") != std::string::npos) return "EPSG:5773";
