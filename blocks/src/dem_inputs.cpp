@@ -290,6 +290,13 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
     if (same_crs(f.srs, to)) rx = std::min(rx, std::abs(f.gt[1])), ry = std::min(ry, std::abs(f.gt[5]));
   const double ox = facts[target].gt[0], oy = facts[target].gt[3];  // a corner of a target cell
   std::size_t warped = 0;
+  // Files warped from another vertical datum, by (datum, whether their heights were converted):
+  // GDALWarp shifts heights between datums where PROJ has the transformation (EGM96 to
+  // ellipsoidal heights, through proj-data's egm96_15.gtx), and leaves them as they are where it
+  // lacks a geoid grid (EGM2008 and EGM96 without egm08_25.gtx), or where either CRS names no
+  // vertical datum. The description says which.
+  const std::string to_datum = detail::vertical_datum_of(to);
+  std::map<std::pair<std::string, bool>, std::size_t> datums;
   char* wkt = nullptr;
   to.exportToWkt(&wkt, nullptr);
   const std::string to_wkt = wkt ? wkt : "";
@@ -367,6 +374,12 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
                                    "gives one)");
     // Its footprint in the target CRS, widened to whole target cells.
     const GDALDataType type = detail::fits_float32(f.type) ? GDT_Float32 : GDT_Float64;
+    const std::string from_datum = detail::vertical_datum_of(f.srs);
+    // Heights move to another datum only when both name theirs: GDALWarp takes the heights of a
+    // CRS without one as ellipsoidal, and shifted a 2D tile beside EGM96 ones by the geoid
+    // (28 m here), where terralod reads such heights as the others' (EGM96 for most DEMs).
+    const bool shift = !from_datum.empty() && !to_datum.empty() && from_datum != to_datum;
+    bool shifted = false;  // whether the warp moves them (PROJ has the transformation)
     make(k, "warp", [&](const std::string& name, GDALDatasetH src) -> GDALDatasetH {
       const std::string dst = "DST_SRS=" + to_wkt;
       const char* const transform_options[] = {dst.c_str(), nullptr};
@@ -376,14 +389,23 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
       int w = 0, h = 0;
       const CPLErr rc =
           GDALSuggestedWarpOutput2(src, GDALGenImgProjTransform, transform, gt, &w, &h, extent, 0);
+      if (shift) {  // the height 0 at its centre, as the warp shifts heights
+        double px = 0.5 * GDALGetRasterXSize(src), py = 0.5 * GDALGetRasterYSize(src), pz = 0.0;
+        int ok = 0;
+        GDALGenImgProjTransform(transform, FALSE, 1, &px, &py, &pz, &ok);
+        shifted = ok && pz != 0.0;
+      }
       GDALDestroyGenImgProjTransformer(transform);
       if (rc != CE_None) return nullptr;
-      const double x0 = ox + std::floor((extent[0] - ox) / rx) * rx,
-                   x1 = ox + std::ceil((extent[2] - ox) / rx) * rx;
-      const double y0 = oy + std::floor((extent[1] - oy) / ry) * ry,
-                   y1 = oy + std::ceil((extent[3] - oy) / ry) * ry;
+      // A footprint on the target's cells up to rounding (the same horizontal CRS, another
+      // vertical one) is not widened by a cell of void: 1e-6 of a cell is rounding.
+      const auto down = [](double cells) { return std::floor(cells + 1e-6); };
+      const auto up = [](double cells) { return std::ceil(cells - 1e-6); };
+      const double x0 = ox + down((extent[0] - ox) / rx) * rx, x1 = ox + up((extent[2] - ox) / rx) * rx;
+      const double y0 = oy + down((extent[1] - oy) / ry) * ry, y1 = oy + up((extent[3] - oy) / ry) * ry;
       const std::vector<std::string> args = {"-of",
                                              "VRT",
+                                             shift ? "-vshift" : "-novshift",
                                              "-t_srs",
                                              to_wkt,
                                              "-r",
@@ -410,6 +432,7 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
     });
     types.push_back(type);
     ++warped;
+    if (from_datum != to_datum) ++datums[{from_datum, shifted}];
   }
   // One sample type, and one colour interpretation, which means nothing for heights but which
   // GDALBuildVRT also wants alike: an SRTM .hgt tile's band is Undefined, a GeoTIFF's Gray.
@@ -444,6 +467,18 @@ std::vector<std::string> made_alike(const std::vector<std::string>& files, const
   }
   if (warped)
     note += "; " + std::to_string(warped) + " warped to " + (to.GetName() ? to.GetName() : "the others' CRS");
+  for (const auto& [key, n] : datums) {
+    const auto& [from, shifted] = key;
+    note +=
+        "; heights of " + std::to_string(n) + (from.empty() ? " without a vertical datum" : " in " + from);
+    if (to_datum.empty())
+      note += " read unconverted (" + std::string(to.GetName() ? to.GetName() : "the mosaic's CRS") +
+              " names no vertical datum)";
+    else if (shifted)
+      note += " converted to " + to_datum;
+    else
+      note += " read as " + to_datum + (from.empty() ? "" : " unconverted (PROJ has no transformation here)");
+  }
   if (converted) note += "; " + std::to_string(converted) + " read as " + GDALGetDataTypeName(common);
   if (unalpha) note += "; " + std::to_string(unalpha) + " with its alpha band read as voids";
   if (in_metres)

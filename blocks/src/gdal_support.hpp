@@ -4,6 +4,7 @@
 
 #include <gdal_priv.h>
 #include <gdal_utils.h>
+#include <ogr_spatialref.h>
 
 #include <algorithm>
 #include <cctype>
@@ -23,13 +24,29 @@ inline std::string lower(std::string s) {
 
 /// The vertical CRS of a height datum's name, as PROJ and GDAL take it: "EPSG:5773" for EGM96
 /// (and for no name: the datum SRTM and most DEMs use), "EPSG:3855" for EGM2008, "" for
-/// ellipsoidal heights, else the name itself.
+/// ellipsoidal heights ("ellipsoid", "WGS 84", vertical_datum_of's "WGS 84 ellipsoidal height"),
+/// else the name itself.
 inline std::string vertical_crs(const std::string& datum) {
   const std::string d = lower(datum);
-  if (d == "ellipsoid" || d == "wgs84" || d == "wgs 84") return "";
+  if (d == "wgs84" || d == "wgs 84" || d.find("ellipsoid") != std::string::npos) return "";
   if (d.find("egm2008") != std::string::npos || d.find("egm08") != std::string::npos) return "EPSG:3855";
   if (d.empty() || d.find("egm96") != std::string::npos) return "EPSG:5773";
   return datum;
+}
+
+/// The name of `srs`'s vertical CRS ("EGM96 height"), the vertical part of a compound CRS;
+/// "<ellipsoid> ellipsoidal height" for a 3D geographic or projected CRS (EPSG:4979), whose
+/// third axis is the height above its ellipsoid; "" when it has none.
+inline std::string vertical_datum_of(const OGRSpatialReference& srs) {
+  if (srs.IsEmpty()) return "";
+  if (!srs.IsCompound() && (srs.IsGeographic() || srs.IsProjected()) && srs.GetAxesCount() == 3) {
+    const char* ellipsoid = srs.GetAttrValue("SPHEROID");
+    return std::string(ellipsoid != nullptr ? ellipsoid : "unnamed") + " ellipsoidal height";
+  }
+  if (!srs.IsCompound()) return "";
+  const char* vertical = srs.GetAttrValue("COMPD_CS|VERT_CS");
+  if (vertical == nullptr) vertical = srs.GetAttrValue("COMPOUNDCRS|VERTCRS");
+  return vertical != nullptr ? vertical : "";
 }
 
 /// Whether `path` names a file of the file system, rather than a GDAL virtual file (/vsizip/...,

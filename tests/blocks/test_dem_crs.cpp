@@ -24,6 +24,7 @@
 #include "geographic_tiff.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/dem_source.hpp"
+#include "terralod/blocks/dem_writer.hpp"
 #include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/ground_scale.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
@@ -666,6 +667,31 @@ TEST(DemCrs, SrtmTileKeepsItsVerticalDatumAndStatesItsScaleError) {
     EXPECT_GE(stated, low) << crs;
     EXPECT_LT(stated, high) << crs;
   }
+}
+
+// A DEM in a 3D CRS (EPSG:4979: WGS 84 with ellipsoidal heights, as GDAL writes and reads it)
+// states its heights' datum by its third axis. Before, it read as stating none, and the exporters
+// took its heights as EGM96 and added the geoid again: 28 m too low here.
+TEST(DemCrs, HeightsOfA3dCrsAreEllipsoidalAndExportAsTheyAre) {
+  const fs::path path = temp_dir() / "ellipsoidal.tif";
+  const auto height = [](double lon, double lat) {
+    return 500.0 + 100.0 * std::sin(lon * 7.0) * std::cos(lat * 5.0);
+  };
+  ASSERT_NO_FATAL_FAILURE(
+      terralod::test::write_tiff(path.string(), 4979, -72.0, 45.0, 31, 31, 0.01, GDT_Float64, height));
+  tb::DemOptions o;
+  o.crs = "native";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  EXPECT_EQ(hf.vertical_datum, "WGS 84 ellipsoidal height");
+  const tb::GeoGrid g = tb::make_geo_grid(hf, "", path.string());
+  EXPECT_EQ(g.vertical_datum, "WGS 84 ellipsoid");
+  ASSERT_EQ(g.width, 31);
+  for (int r = 0; r < 31; ++r)
+    for (int c = 0; c < 31; ++c) ASSERT_EQ(g.z(c, r), hf.at(c, r)) << c << ", " << r;
+  // Written back (the extract of a database) it keeps its 3D CRS, and so its datum.
+  const fs::path copy = temp_dir() / "ellipsoidal_copy.tif";
+  tb::write_geotiff(hf, copy.string());
+  EXPECT_EQ(tb::read_dem(copy.string(), o).vertical_datum, "WGS 84 ellipsoidal height");
 }
 
 TEST(DemCrs, BadCrsIsAnErrorNamingTheFileAndTheOption) {

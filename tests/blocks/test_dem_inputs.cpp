@@ -602,6 +602,83 @@ TEST(DemInputs, TilesInFeetOrScaledAreReadInMetres) {
   }
 }
 
+// Tiles in another vertical datum than the mosaic's: GDALWarp converts their heights where PROJ
+// has the transformation (ellipsoidal heights to EGM96 through proj-data's egm96_15.gtx) and
+// leaves them as they are where it has none (EGM2008 to EGM96 needs egm08_25.gtx, which Debian's
+// proj-data lacks). Before, the description said "warped to WGS 84 + EGM96 height" either way,
+// and a tile whose CRS names no vertical datum was taken as ellipsoidal and shifted 28 m below
+// the EGM96 tile beside it. Heights are checked against PROJ's own transformation of them.
+TEST(DemInputs, TilesInAnotherVerticalDatumSayWhetherTheirHeightsWereConverted) {
+  struct Case {
+    const char* name;
+    const char* west_crs;  // the mosaic's CRS (the first file's, on a tie of samples)
+    const char* east_crs;
+    const char* note;   // of the east tile, in the description; "?" for "converted" or "read as"
+    const char* datum;  // the mosaic's vertical datum
+  };
+  for (const Case& k :
+       {Case{"ellipsoidal", "EPSG:4326+5773", "EPSG:4979", "heights of 1 in WGS 84 ellipsoidal height ?",
+             "EGM96 height"},
+        Case{"egm2008", "EPSG:4326+5773", "EPSG:4326+3855", "heights of 1 in EGM2008 height ?",
+             "EGM96 height"},
+        Case{"none", "EPSG:4326+5773", "EPSG:4326",
+             "heights of 1 without a vertical datum read as EGM96 height", "EGM96 height"},
+        Case{"to_none", "EPSG:4326", "EPSG:4326+5773",
+             "heights of 1 in EGM96 height read unconverted (WGS 84 names no vertical datum)", ""}}) {
+    SCOPED_TRACE(k.name);
+    const fs::path dir = tmp() / "datums" / k.name;
+    const fs::path west = dir / "a_west.tif", east = dir / "b_east.tif";
+    ASSERT_NO_FATAL_FAILURE(write_tile(west, -73));
+    ASSERT_NO_FATAL_FAILURE(write_tile(east, -72));
+    OGRSpatialReference to, from;
+    ASSERT_EQ(to.SetFromUserInput(k.west_crs), OGRERR_NONE);
+    ASSERT_EQ(from.SetFromUserInput(k.east_crs), OGRERR_NONE);
+    for (const auto& [path, srs] : {std::pair{west, &to}, std::pair{east, &from}}) {
+      GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
+      ASSERT_TRUE(ds) << path;
+      ASSERT_EQ(ds->SetSpatialRef(srs), CE_None) << path;
+    }
+    // PROJ's transformation of the east tile's heights (lon, lat order on both sides), where both
+    // tiles name their datum; else the heights stay.
+    to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    const std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
+    ASSERT_TRUE(ct);
+    const bool both =
+        (to.IsCompound() || to.GetAxesCount() == 3) && (from.IsCompound() || from.GetAxesCount() == 3);
+    const auto converted = [&](double lon, double lat, double h) {
+      double x = lon, y = lat, z = h;
+      EXPECT_TRUE(ct->Transform(1, &x, &y, &z));
+      return both ? z : h;
+    };
+    const bool shifts = converted(-71.5, 44.5, 0.0) != 0.0;
+    EXPECT_EQ(shifts, std::string(k.name) == "ellipsoidal") << "PROJ's grids here";  // the case's premise
+    const tb::DemInputs in({dir.string()});
+    std::string note = k.note;
+    if (note.ends_with("?"))
+      note.replace(note.size() - 1, 1,
+                   shifts ? "converted to EGM96 height" : "read as EGM96 height unconverted");
+    EXPECT_NE(in.description().find(note), std::string::npos) << in.description();
+    const pm::Heightfield got = tb::read_dem(in.path(), keep_voids()),
+                          e = tb::read_dem(east.string(), keep_voids());
+    EXPECT_EQ(got.vertical_datum, k.datum);
+    ASSERT_EQ(got.width(), 241);  // not widened by a column of void: the tiles share their cells
+    double worst = 0.0, moved = 0.0;
+    for (int r = 0; r < 121; ++r)
+      for (int c = 120; c < 241; ++c) {
+        const double want = converted(-72.0 + (c - 120) * kTileStep, 45.0 - r * kTileStep, e.at(c - 120, r));
+        worst = std::max(worst, std::abs(got.at(c, r) - want));
+        moved = std::max(moved, std::abs(got.at(c, r) - e.at(c - 120, r)));
+      }
+    EXPECT_LT(worst, 1e-3) << "metres from PROJ's heights";  // Float32 samples
+    if (shifts) {
+      EXPECT_GT(moved, 20.0) << "metres";  // EGM96 lies about 28 m below the ellipsoid here
+    } else {
+      EXPECT_EQ(moved, 0.0) << "metres";
+    }
+  }
+}
+
 namespace {
 
 // Copies the file at `from` into the zip archive `zip` as `member` (GDAL writes zips: a new

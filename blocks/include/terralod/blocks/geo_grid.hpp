@@ -23,8 +23,9 @@
 //       "egm2008"                 EPSG:3855 (EGM2008 height; needs PROJ's egm08_25 grid);
 //       any other text            a PROJ vertical CRS ("EPSG:5703", ...);
 //       "" (empty)                the datum the source states (hf.vertical_datum: EGM96 for
-//                                 .hgt, the vertical CRS of a compound CRS), and EGM96 when it
-//                                 states none (SRTM, GMTED, ASTER and most global DEMs use it).
+//                                 .hgt, the vertical CRS of a compound CRS, the ellipsoid of a 3D
+//                                 CRS such as EPSG:4979), and EGM96 when it states none (SRTM,
+//                                 GMTED, ASTER and most global DEMs use it).
 //     GeoError when PROJ does not know the datum or lacks its grid (PROJ is never allowed to fall
 //     back silently to a no-op "ballpark" transformation).
 //   - Costs: 8 + 1 bytes per sample; PROJ evaluates N once per sample.
