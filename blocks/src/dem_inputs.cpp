@@ -105,8 +105,10 @@ std::vector<std::string> archive_tiles(const std::string& path, std::size_t& ski
 /// or when it holds none, those of its subfolders at any depth (Copernicus DEM keeps each tile in
 /// a folder of its own, DTED in a folder per longitude), without Copernicus's AUXFILES folders and
 /// quality layers (is_quality_layer), which are counted in `skipped`. Symbolic links to folders are
-/// not followed.
-std::vector<std::string> folder_tiles(const std::string& folder, std::size_t& skipped) {
+/// not followed. When its own files are its tiles, its subfolders (hidden ones aside) are counted in
+/// `unsearched`, for the description.
+std::vector<std::string> folder_tiles(const std::string& folder, std::size_t& skipped,
+                                      std::size_t& unsearched) {
   std::vector<std::string> found;
   std::error_code ec;
   const auto take = [&](const fs::directory_entry& e) {
@@ -121,10 +123,15 @@ std::vector<std::string> folder_tiles(const std::string& folder, std::size_t& sk
         found.push_back(e.path().string());
     }
   };
-  for (const auto& e : fs::directory_iterator(folder, ec)) take(e);
+  unsearched = 0;
+  for (const auto& e : fs::directory_iterator(folder, ec)) {
+    take(e);
+    std::error_code dir_ec;  // only counted
+    unsearched += e.is_directory(dir_ec) && !e.path().filename().string().starts_with(".");
+  }
   if (ec) throw DemError(folder, "cannot list the folder: " + ec.message());
-  if (found.empty()) {
-    skipped = 0;
+  if (found.empty()) {  // its subfolders, at any depth
+    skipped = unsearched = 0;
     fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec), end;
     for (; !ec && it != end; it.increment(ec)) {
       if (it->is_directory(ec) && lower(it->path().filename().string()) == "auxfiles") {
@@ -609,15 +616,15 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
   if (inputs.empty()) throw DemError("--input", "no input given");
   std::vector<std::string> files;
   std::string folder;
-  std::size_t quality_layers = 0;
+  std::size_t quality_layers = 0, unsearched = 0;
   for (const std::string& in : inputs) {
     std::error_code ec;
     if (fs::is_directory(in, ec)) {
-      std::size_t skipped = 0;
-      const std::vector<std::string> found = folder_tiles(in, skipped);
+      std::size_t skipped = 0, subfolders = 0;
+      const std::vector<std::string> found = folder_tiles(in, skipped, subfolders);
       if (found.empty())
         throw DemError(in, no_elevation_file("the folder and its subfolders hold", true, skipped));
-      quality_layers += skipped;
+      quality_layers += skipped, unsearched += subfolders;
       files.insert(files.end(), found.begin(), found.end());
       folder = in;
     } else if (!archive_prefix(in).empty() && fs::is_regular_file(in, ec)) {
@@ -706,6 +713,10 @@ DemInputs::DemInputs(const std::vector<std::string>& inputs) {
   if (quality_layers)
     note += "; " + std::to_string(quality_layers) + " quality layer" + (quality_layers == 1 ? "" : "s") +
             " beside the tiles left out (ASTER _num, Copernicus _EDM _FLM _HEM _WBM)";
+  if (unsearched)
+    note += "; " + std::to_string(unsearched) + (unsearched == 1 ? " subfolder" : " subfolders") +
+            " not searched (a folder's own elevation files are its tiles; give a subfolder with --input to "
+            "add it)";
   description_ += note;
 }
 

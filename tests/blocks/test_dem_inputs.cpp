@@ -410,6 +410,26 @@ TEST(DemInputs, FoldersOfTileFoldersAndTilesWithQualityLayersAreReadAsTheirTiles
 }
 
 // DTED comes as a tree of one folder per longitude (dted/w073/n44.dt0), in a format of its own.
+// A folder's own elevation files are its tiles; its subfolders are then not searched (they may
+// hold other versions of the same tiles), and the description says so instead of leaving them
+// out silently.
+TEST(DemInputs, AFolderWithTilesOfItsOwnSaysItsSubfoldersWereNotSearched) {
+  const fs::path dir = tmp() / "own_and_sub";
+  ASSERT_NO_FATAL_FAILURE(write_tile(dir / "N44W073.tif", -73));
+  ASSERT_NO_FATAL_FAILURE(write_tile(dir / "more" / "N44W072.tif", -72));
+  ASSERT_NO_FATAL_FAILURE(write_tile(dir / "older" / "N44W073.tif", -73));
+  fs::create_directories(dir / ".cache");
+  const tb::DemInputs in({dir.string()});
+  EXPECT_EQ(in.files(), 1u);
+  EXPECT_NE(in.description().find("; 2 subfolders not searched"), std::string::npos) << in.description();
+  // Without tiles of its own, the tiles of its subfolders are its tiles.
+  fs::remove(dir / "N44W073.tif");
+  fs::remove_all(dir / "older");
+  const tb::DemInputs sub({dir.string()});
+  EXPECT_EQ(sub.files(), 1u);
+  EXPECT_EQ(sub.description().find("not searched"), std::string::npos) << sub.description();
+}
+
 TEST(DemInputs, ADtedTreeIsReadAsItsTiles) {
   GDALAllRegister();  // GetDriverByName finds only registered drivers
   GDALDriver* dted = GetGDALDriverManager()->GetDriverByName("DTED");

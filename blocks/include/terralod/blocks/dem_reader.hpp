@@ -204,7 +204,8 @@ pm::Heightfield read_dem(const std::string& path, const DemOptions& options = {}
 /// several files, or a folder, as one VRT mosaic of them (GDALBuildVRT) in GDAL's in-memory file
 /// system, which lives as long as this object. A folder gives its raster files (.tif .tiff .hgt
 /// .hgt.zip .asc .img .dem .bil .flt .dt0 .dt1 .dt2, sorted by name; not .vrt, which a folder of
-/// tiles often holds over them), or when it holds none, those of its subfolders at any depth
+/// tiles often holds over them; its subfolders are then not searched, and the description counts
+/// them), or when it holds none, those of its subfolders at any depth
 /// (Copernicus DEM's folder per tile, DTED's per longitude); an archive (.zip .tar .tar.gz .tgz),
 /// given or in the folder, gives those it holds, read in place through GDAL's /vsizip/ and /vsitar/
 /// (ASTER GDEM's zips, Copernicus DEM's tars). The quality layers products ship beside their
