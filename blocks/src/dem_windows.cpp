@@ -529,7 +529,7 @@ class TempFile {
       fd_ = ::mkostemp(name.data(), O_CLOEXEC);
       if (fd_ >= 0) ::unlink(name.c_str());
     }
-    if (fd_ < 0) fail("cannot create");
+    if (fd_ < 0) fail("cannot create", errno);
   }
   TempFile(const TempFile&) = delete;
   TempFile& operator=(const TempFile&) = delete;
@@ -540,7 +540,7 @@ class TempFile {
     while (bytes > 0) {
       const ssize_t n = ::write(fd_, p, bytes);
       if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) fail("cannot write to");
+      if (n <= 0) fail("cannot write to", n < 0 ? errno : ENOSPC);  // 0 bytes: the disk is full
       p += n, bytes -= std::size_t(n), size_ += std::uint64_t(n);
     }
   }
@@ -549,14 +549,14 @@ class TempFile {
     while (bytes > 0) {
       const ssize_t n = ::pread(fd_, p, bytes, off_t(offset));
       if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) fail("cannot read back");
+      if (n <= 0) fail("cannot read back", n < 0 ? errno : EIO);  // 0 bytes: it ended early
       p += n, bytes -= std::size_t(n), offset += std::uint64_t(n);
     }
   }
 
  private:
-  [[noreturn]] void fail(const std::string& what) const {
-    const int e = errno;
+  // `e`: the errno of the failed call (taken at once: a later call may change errno).
+  [[noreturn]] void fail(const std::string& what, int e) const {
     throw DemError(owner_, what + " its decoded samples in a temporary file in " + dir_ + " (" +
                                std::to_string(size_ >> 20) + " MiB written): " + std::strerror(e) +
                                "; TMPDIR names the folder used");
