@@ -75,8 +75,8 @@ void georeference(Georef& geo, const double gt[6], const OGRSpatialReference* sr
   std::array<double, 6> a = {gt[0] + 0.5 * gt[1] + 0.5 * gt[2], gt[1], gt[2],
                              gt[3] + 0.5 * gt[4] + 0.5 * gt[5], gt[4], gt[5]};
   geo.native = a;
-  if (srs != nullptr && !detail::vertical_datum_of(*srs).empty())
-    geo.vertical_datum = detail::vertical_datum_of(*srs);
+  if (const std::string v = srs != nullptr ? detail::vertical_datum_of(*srs) : ""; !v.empty())
+    geo.vertical_datum = v;
   if (srs != nullptr && !srs->IsEmpty() && srs->IsGeographic()) {
     const double to_degrees = srs->GetAngularUnits(nullptr) / kDeg;  // radians per unit -> degrees
     for (double& v : a) v *= to_degrees;

@@ -92,7 +92,8 @@ class Heightfield {
   /// one). Empty when the source has no CRS (then the world frame is all there is).
   std::optional<GridTransform> crs_transform;
   /// The heights' vertical datum as the source states it ("EGM96" for SRTM .hgt, the vertical
-  /// CRS of a compound CRS, e.g. "EGM96 height"); empty when the source does not say.
+  /// CRS of a compound CRS, e.g. "EGM96 height", "WGS 84 ellipsoidal height" for a 3D CRS such as
+  /// EPSG:4979); empty when the source does not say.
   std::string vertical_datum;
   std::string source;  ///< file the samples came from, or a description of the generator
   std::string frame;   ///< how the world frame was made, e.g. "local equirectangular from lon/lat"
