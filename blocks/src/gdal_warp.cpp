@@ -35,12 +35,14 @@ WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::s
   }
 
   // gdalwarp -of MEM -t_srs DST -r bilinear -et 0 -dstnodata nan -wo NUM_THREADS=ALL_CPUS -multi
-  // [-te ... -ts W H]: exact transformations (-et 0; the approximate transformer at 0.125 pixel
-  // halved the warp of N44W072, 0.7 s -> 0.3 s, for up to 0.125 pixel of displacement), on every core.
+  // -novshift [-te ... -ts W H]: exact transformations (-et 0; the approximate transformer at 0.125
+  // pixel halved the warp of N44W072, 0.7 s -> 0.3 s, for up to 0.125 pixel of displacement), on
+  // every core; heights as they are (-novshift: GDALWarp shifts a source that names its vertical
+  // datum to ellipsoidal heights by itself, and the exporters convert them from that datum after).
   std::vector<std::string> args = {
-      "-of",   "MEM",        "-t_srs", dst_wkt, "-r",      "bilinear", "-et",
-      "0",     "-dstnodata", "nan",    "-ot",   "Float64", "-wo",      "NUM_THREADS=ALL_CPUS",
-      "-multi"};
+      "-of",    "MEM",        "-t_srs", dst_wkt, "-r",      "bilinear", "-et",
+      "0",      "-dstnodata", "nan",    "-ot",   "Float64", "-wo",      "NUM_THREADS=ALL_CPUS",
+      "-multi", "-novshift"};
   if (target != nullptr) {
     const auto& t = target->gt;
     if (t[2] != 0.0 || t[4] != 0.0) {

@@ -1,6 +1,6 @@
 // Private to terralod::blocks: one GDAL warp of a height grid from one CRS to another (bilinear,
-// exact coordinate transformations), shared by the DEM reader's frames (dem_frame.cpp) and the
-// exporters' longitude/latitude grids (export/geo_grid.cpp).
+// exact coordinate transformations, heights as they are), for the exporters' longitude/latitude
+// grids (export/geo_grid.cpp; the DEM reader's frames warp through their own code, dem_frame.cpp).
 #pragma once
 
 #include <array>

@@ -694,6 +694,38 @@ TEST(DemCrs, HeightsOfA3dCrsAreEllipsoidalAndExportAsTheyAre) {
   EXPECT_EQ(tb::read_dem(copy.string(), o).vertical_datum, "WGS 84 ellipsoidal height");
 }
 
+// A projected DEM whose CRS names its vertical datum (UTM + EGM96 height, as national DEMs state
+// theirs) is warped to longitude/latitude for the exporters, and then its heights are converted to
+// the ellipsoid once. GDALWarp shifts heights itself when the source names a vertical datum and
+// the target does not: the geoid was subtracted twice, 28 m too low here.
+TEST(DemCrs, AProjectedDemWithAVerticalDatumIsConvertedToTheEllipsoidOnce) {
+  const fs::path path = temp_dir() / "utm_egm96.tif";
+  ASSERT_NO_FATAL_FAILURE(terralod::test::write_tiff(path.string(), 32619, 460000.0, 4930000.0, 41, 41, 90.0,
+                                                     GDT_Float64, [](double, double) { return 500.0; }));
+  {
+    GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
+    ASSERT_TRUE(ds);
+    OGRSpatialReference compound;
+    ASSERT_EQ(compound.SetFromUserInput("EPSG:32619+5773"), OGRERR_NONE);
+    ASSERT_EQ(ds->SetSpatialRef(&compound), CE_None);
+  }
+  tb::DemOptions o;
+  o.crs = "native";
+  const Heightfield hf = tb::read_dem(path.string(), o);
+  EXPECT_EQ(hf.vertical_datum, "EGM96 height");
+  const tb::GeoGrid g = tb::make_geo_grid(hf, "", path.string());
+  std::vector<double> lon, lat, z;
+  for (int r = 0; r < g.height; ++r)
+    for (int c = 0; c < g.width; ++c)
+      if (g.valid(c, r)) lon.push_back(g.lon(c)), lat.push_back(g.lat(r)), z.push_back(g.z(c, r));
+  ASSERT_GT(z.size(), 1000u);
+  const std::vector<double> n = tb::geoid_undulations("egm96", lon, lat, path.string());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < z.size(); ++i) worst = std::max(worst, std::abs(z[i] - (500.0 + n[i])));
+  EXPECT_NEAR(n[0], -27.5, 1.5);
+  EXPECT_LT(worst, 1e-6) << "metres from 500 m above EGM96";
+}
+
 TEST(DemCrs, BadCrsIsAnErrorNamingTheFileAndTheOption) {
   const fs::path path = write_geographic("bad.tif", 0.0, 0.0, 11, 0.01);
   tb::DemOptions o;
