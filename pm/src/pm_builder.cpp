@@ -8,8 +8,8 @@
 // 1-ring changed (w and u's old neighbours) are re-evaluated; the rest of the mesh is
 // untouched because vertices never move. A popped candidate is re-validated (the link
 // condition may have changed through a neighbour) and re-evaluated when it became illegal.
-// Legal: no new face flips in plan view, the link condition holds, and the border rules of
-// grid_border.hpp (shared with ModLInfT) let u move.
+// Legal: no new face flips in plan view, the link condition holds, and the boundary rule of
+// grid_border.hpp (shared with ModLInfT) lets u move.
 //
 // Cost: one evaluation of u -> w rasterises the new 1-ring of w (about 3 N / m samples when
 // the mesh has m of N vertices); evaluations stop as soon as they exceed the vertex's best
@@ -67,13 +67,7 @@ class Builder {
  public:
   // `flat`: equal_runs(hf).
   Builder(const Heightfield& hf, const BuildOptions& opt, const std::vector<std::uint32_t>& flat)
-      : hf_(hf),
-        opt_(opt),
-        error_(hf, opt.metric),
-        W_(hf.width()),
-        H_(hf.height()),
-        border_{W_, H_},
-        flat_(flat) {}
+      : hf_(hf), opt_(opt), error_(hf, opt.metric), W_(hf.width()), H_(hf.height()), flat_(flat) {}
 
   // Shared progress of all builders of one build; only the reporting builder calls back.
   struct Progress {
@@ -398,7 +392,7 @@ class Builder {
     VertexState& su = vs_[u];
     const GridPoint pu = point(u);
     su.dirty = 0;
-    if (border_.corner(pu) || su.locked || mesh_.ring(u).n == 0) {
+    if (su.locked || mesh_.ring(u).n == 0) {
       heap_.remove(u);
       return;
     }
@@ -410,7 +404,7 @@ class Builder {
     ringh_.clear();
     ring_.clear();
     rloc_.clear();
-    bool boundary = false;
+    std::uint32_t gaps = 0;  // outgoing boundary halfedges: stretches of boundary through u
     {
       std::uint32_t k = 0;
       mesh_.for_each_ring(u, [&](Mesh::HalfedgeHandle h) {
@@ -424,7 +418,7 @@ class Builder {
         Local& la = rloc_.emplace_back();
         la.x = std::int64_t(sa.p.x) - pu.x, la.y = std::int64_t(sa.p.y) - pu.y, la.z = sa.z;
         if (mesh_.is_boundary(h)) {
-          boundary = true;
+          ++gaps;
         } else {
           // The face's third corner is the previous ring vertex (filled in below, so that
           // the head of next(h) need not be loaded); its edge error is at next(h)'s edge.
@@ -450,14 +444,12 @@ class Builder {
     }
     // Candidate targets, as ring indices.
     cand_.clear();
-    if (boundary) {
-      // Only along its own grid border line, and only when both boundary neighbours are on it
-      // (otherwise u is on the boundary of a hole, which must keep its shape; grid_border.hpp).
-      // The vertex's outgoing halfedge is its boundary one: ringv_[0] is the next boundary
-      // vertex and ringv_[n-1] the previous one.
-      const BorderLine line = border_.line(pu);
+    if (gaps > 0) {
+      // Only into a boundary neighbour, where the boundary is straight through u
+      // (grid_border.hpp). With one stretch of boundary through u, its outgoing halfedge is its
+      // boundary one: ringv_[0] is the next boundary vertex and ringv_[n-1] the previous one.
       const std::uint32_t next = ringv_[0], prev = ringv_[n - 1];
-      if (line != BorderLine::None && border_.on(line, point(next)) && border_.on(line, point(prev))) {
+      if (gaps == 1 && boundary_straight_at(point(prev), pu, point(next))) {
         cand_.push_back({next, 0, 0, 0});
         cand_.push_back({prev, 0, 0, n - 1});
       }
@@ -626,7 +618,6 @@ class Builder {
   const BuildOptions& opt_;
   CachedLInfError error_;
   int W_, H_;
-  GridBorder border_;
   CollapseMesh mesh_;
   // What the loop reads of a vertex besides OpenMesh's record and its ring, in two arrays:
   // where it is (read for every ring vertex of an evaluated vertex: a dense 16-byte record),

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -20,6 +21,7 @@
 #include "mesh_checker.hpp"
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/linf_error.hpp"
+#include "terralod/pm/openmesh_build.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 
@@ -727,6 +729,82 @@ TEST(ProgressiveMesh, FlatTerrainCollapsesAtZeroError) {
               m.triangles.size());
   EXPECT_LE(m.triangles.size(), 8u);
   verify_pm(hf, p, "flat 40x30");
+}
+
+// The boundary of a mesh: every vertex on it (sample index) with its neighbours along
+// boundary edges (edges of one face).
+std::map<std::uint32_t, std::vector<std::uint32_t>> boundary_of(const pm::TriangleMesh& m) {
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> uses;  // undirected edge -> faces
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = m.vertices[t[k]], b = m.vertices[t[(k + 1) % 3]];
+      ++uses[{std::min(a, b), std::max(a, b)}];
+    }
+  std::map<std::uint32_t, std::vector<std::uint32_t>> ends;
+  for (const auto& [e, n] : uses)
+    if (n == 1) ends[e.first].push_back(e.second), ends[e.second].push_back(e.first);
+  return ends;
+}
+
+// The boundary vertices where the outline turns: their two boundary neighbours are not on one
+// line with them on either side, or they have more than two (a grid `width` samples wide).
+std::vector<std::uint32_t> outline_turns(const pm::TriangleMesh& m, int width) {
+  std::vector<std::uint32_t> turns;
+  for (const auto& [v, nb] : boundary_of(m)) {
+    const auto dx = [&](std::uint32_t s) { return long(s % width) - long(v % width); };
+    const auto dy = [&](std::uint32_t s) { return long(s / width) - long(v / width); };
+    const bool straight = nb.size() == 2 && dx(nb[0]) * dy(nb[1]) - dy(nb[0]) * dx(nb[1]) == 0 &&
+                          dx(nb[0]) * dx(nb[1]) + dy(nb[0]) * dy(nb[1]) < 0;
+    if (!straight) turns.push_back(v);
+  }
+  return turns;  // in increasing order
+}
+
+// A flat 40 x 30 grid with a rectangular hole (void samples at columns 15-24, rows 10-17), a
+// notch in its west border (columns 0-1, rows 20-23) and a bow-tie (two void samples either
+// side of (31, 5)). Every collapse costs 0, so the base mesh keeps what the boundary rule
+// (grid_border.hpp) keeps: a boundary vertex moves only where the outline is straight through
+// it: the base mesh keeps every turn of the full mesh's outline, its domain is still every
+// face of the valid cells (the checker), and it keeps no vertex of a hole's straight edges. Both builders.
+// Before the rule covered holes, every vertex of the hole's straight edges stayed at every level.
+TEST(ProgressiveMesh, HolesKeepTheirOutlineAndLoseTheVerticesOfItsStraightEdges) {
+  pm::Heightfield hf(40, 30);
+  std::vector<std::uint8_t> mask(hf.size(), 1);
+  const auto hole = [&](int c, int r) { mask[std::size_t(r) * 40 + c] = 0; };
+  for (int r = 10; r <= 17; ++r)
+    for (int c = 15; c <= 24; ++c) hole(c, r);
+  for (int r = 20; r <= 23; ++r) hole(0, r), hole(1, r);
+  hole(30, 5), hole(32, 5);
+  hf.set_mask(mask);
+  const pm::ProgressiveMesh fast = pm::ProgressiveMesh::build(hf);
+  const pm::ProgressiveMesh reference = pm::build_with_decimater(hf);
+  const pm::TriangleMesh full = fast.extract_after(0);
+  const std::vector<std::uint32_t> turns = outline_turns(full, 40);
+  std::printf("  40x30 with holes: %zu boundary vertices, %zu of them turns\n", boundary_of(full).size(),
+              turns.size());
+  for (const pm::ProgressiveMesh* p : {&fast, &reference}) {
+    SCOPED_TRACE(p == &fast ? "ProgressiveMesh::build" : "build_with_decimater");
+    for (const pm::Collapse& c : p->collapses()) ASSERT_EQ(c.error, 0.0);
+    const pm::TriangleMesh base = p->extract_after(p->collapses().size());
+    const MeshCheck c = check_mesh(hf, base, CheckOptions{.excluded_faces = p->dropped_faces()});
+    EXPECT_TRUE(c.ok(0.0)) << c.describe();
+    // Every turn stays (the outline keeps its shape), and no vertex of a hole's straight edges
+    // does. (A vertex on a straight stretch of the grid's border may: in a domain that is not
+    // convex a collapse can be blocked for good by a face it would flip, as happens to one
+    // here in each builder; that was so before holes could thin out too.)
+    const std::vector<std::uint32_t> base_turns = outline_turns(base, 40);
+    EXPECT_EQ(base_turns, turns) << "the outline changed";
+    std::size_t straight_on_holes = 0, straight_on_border = 0;
+    for (const auto& [v, nb] : boundary_of(base)) {
+      if (std::binary_search(turns.begin(), turns.end(), v)) continue;
+      const int col = int(v % 40), row = int(v / 40);
+      ++(col == 0 || col == 39 || row == 0 || row == 29 ? straight_on_border : straight_on_holes);
+    }
+    EXPECT_EQ(straight_on_holes, 0u) << "vertices of a hole's straight edges were kept";
+    std::printf(
+        "  %s: base mesh %zu vertices (%zu on straight stretches of the grid's border), %zu triangles\n",
+        p == &fast ? "build" : "decimater", base.vertices.size(), straight_on_border, base.triangles.size());
+  }
 }
 
 TEST(ProgressiveMesh, RejectsTooSmallGrids) {

@@ -1,68 +1,34 @@
-// The grid border rules of L-infinity collapses, shared by ProgressiveMesh::build and ModLInfT
+// The boundary rule of L-infinity collapses, shared by ProgressiveMesh::build and ModLInfT
 // (linf_decimater_module.hpp) so that both keep a grid mesh's outline the same way.
 //
 // Usage:
-//   const terralod::pm::GridBorder border{hf.width(), hf.height()};
-//   if (border.corner(p)) { /* p never moves */ }
-//   const terralod::pm::BorderLine line = border.line(p);   // BorderLine::None: not on the border
-//   if (line != terralod::pm::BorderLine::None && border.on(line, q)) { /* p may move to q */ }
+//   // u is a boundary vertex with exactly two boundary neighbours, a and b:
+//   if (terralod::pm::boundary_straight_at(a, u, b)) { /* u may move into a or into b */ }
 //
-// The rules (every collapse u -> w of either builder obeys them): a grid corner never moves; a
-// vertex on the grid border moves only along its border line, into a neighbour joined to it by
-// a boundary edge, and only when all of its boundary neighbours lie on that line too (otherwise
-// a hole touches the border there); a vertex on the boundary of a hole never moves (the hole
-// keeps its shape). Points are (column, row) in a grid of width x height samples, both >= 1.
+// The rule (every collapse u -> w of either builder obeys it): a vertex on the mesh's boundary
+// (the grid's border, or the edge of a hole: voids kept as holes, the footprint of a warped DEM)
+// moves only into one of its two boundary neighbours, along the boundary edge to it, and only
+// where the boundary runs straight through it: u lies strictly between its neighbours on one
+// line. The new boundary edge then covers the two it replaces, so the outline — the grid's
+// border and every hole — keeps its shape exactly. Grid corners never move (the boundary turns
+// there), a border vertex stays on its border line, and a vertex where two stretches of
+// boundary meet (more than two boundary neighbours: a hole touching the border or another hole
+// at one vertex) never moves. Before, a hole's edge never moved at all: a warped DEM's block
+// kept every sample of a straight edge of its footprint at its coarsest level (257 vertices
+// where 2 do). Points are (column, row) of the grid.
 // Memory: none.
 #pragma once
 
 #include <cstdint>
 
-#include "terralod/pm/linf_error.hpp"
+#include "terralod/pm/grid_triangle.hpp"  // GridPoint, orient2d
 
 namespace terralod::pm {
 
-/// The border lines of the grid; a point on two of them is a corner.
-enum class BorderLine : std::uint8_t {
-  None = 0,
-  FirstColumn = 1,  ///< x = 0
-  LastColumn = 2,   ///< x = width - 1
-  FirstRow = 3,     ///< y = 0
-  LastRow = 4,      ///< y = height - 1
-};
-
-struct GridBorder {
-  int width = 0;   ///< samples per row
-  int height = 0;  ///< rows
-
-  /// Whether p is one of the grid's four corners (which never move).
-  bool corner(GridPoint p) const { return (p.x == 0 || p.x == width - 1) && (p.y == 0 || p.y == height - 1); }
-
-  /// The border line p lies on: the first of x = 0, x = width - 1, y = 0, y = height - 1
-  /// (for a corner, the column line); BorderLine::None inside the grid.
-  BorderLine line(GridPoint p) const {
-    if (p.x == 0) return BorderLine::FirstColumn;
-    if (p.x == width - 1) return BorderLine::LastColumn;
-    if (p.y == 0) return BorderLine::FirstRow;
-    if (p.y == height - 1) return BorderLine::LastRow;
-    return BorderLine::None;
-  }
-
-  /// Whether p lies on border line l (never on BorderLine::None).
-  bool on(BorderLine l, GridPoint p) const {
-    switch (l) {
-      case BorderLine::FirstColumn:
-        return p.x == 0;
-      case BorderLine::LastColumn:
-        return p.x == width - 1;
-      case BorderLine::FirstRow:
-        return p.y == 0;
-      case BorderLine::LastRow:
-        return p.y == height - 1;
-      case BorderLine::None:
-        break;
-    }
-    return false;
-  }
-};
+/// Whether p lies strictly between a and b on one line (the boundary is straight through p).
+inline bool boundary_straight_at(GridPoint a, GridPoint p, GridPoint b) {
+  const std::int64_t dot = std::int64_t(a.x - p.x) * (b.x - p.x) + std::int64_t(a.y - p.y) * (b.y - p.y);
+  return orient2d(a, p, b) == 0 && dot < 0;
+}
 
 }  // namespace terralod::pm

@@ -15,7 +15,7 @@
 //
 // This is the standard, slow route (OpenMesh re-measures every candidate of every vertex
 // whose ring changed, with no caching). ProgressiveMesh::build runs the same kernel and the
-// same legality rules (the border rules are grid_border.hpp's, shared) in its own loop and
+// same legality rules (the boundary rule is grid_border.hpp's, shared) in its own loop and
 // records the collapse sequence; use it unless you need OpenMesh's decimater framework (other
 // modules, observers, your own mesh type). The product's user of this module is the reference
 // build route through that framework: build_with_decimater (openmesh_build.hpp), which records
@@ -30,10 +30,11 @@
 //     E = max over the new triangles (v0's faces other than ci.fl and ci.fr, with v0 replaced
 //     by v1) of LInfError::triangle, i.e. Eq. 1 over the part of v1's new 1-ring that changed
 //     (the rest of the mesh, and so of the ring, is untouched by the collapse).
-//   - ILLEGAL_COLLAPSE when a grid corner would move; when a vertex on the grid border would
-//     leave its border line (or is not joined to v1 by a boundary edge along it); when v0 lies
-//     on the boundary of a hole (away from the grid border); when a new triangle would flip
-//     or degenerate in plan view; and when E > max_error (see set_max_error).
+//   - ILLEGAL_COLLAPSE when v0 is on the boundary (the grid's border or a hole's edge) and
+//     v0 -> v1 is not a boundary edge or the boundary is not straight through v0
+//     (grid_border.hpp: corners never move, a border vertex stays on its border line, a hole
+//     keeps its shape); when a new triangle would flip or degenerate in plan view; and when
+//     E > max_error (see set_max_error).
 //   - Binary mode (set_max_error(e) with binary = true, like ModQuadricT::set_max_err):
 //     LEGAL_COLLAPSE (0) when E <= e. Non-binary (the default): E itself, as a float rounded
 //     up so that the priority never understates the error.
@@ -118,22 +119,18 @@ class ModLInfT : public OpenMesh::Decimater::ModBaseT<MeshT> {
     constexpr double kIllegal = -1.0;
     MeshT& m = Base::mesh();
     const GridPoint p0 = grid_point(ci.p0), p1 = grid_point(ci.p1);
-    // Grid corners never move; a border vertex stays on its border line (grid_border.hpp).
-    const GridBorder border{hf_->width(), hf_->height()};
-    if (border.corner(p0)) return kIllegal;
-    const BorderLine line = border.line(p0);
-    if (line != BorderLine::None) {
-      if (!border.on(line, p1)) return kIllegal;
-      // Along the border, v0 -> v1 must be a boundary edge and v0's other boundary neighbour
-      // must be on the same line too (otherwise a hole touches the border here).
+    // A boundary vertex moves only into a boundary neighbour, where the boundary is straight
+    // through it (grid_border.hpp): then it has exactly two boundary neighbours.
+    if (m.is_boundary(ci.v0)) {
       if (!m.is_boundary(m.edge_handle(ci.v0v1))) return kIllegal;
+      GridPoint ends[2];
+      int n_ends = 0;
       for (auto h : m.voh_range(ci.v0)) {
-        const auto o = m.opposite_halfedge_handle(h);
-        if (!m.is_boundary(h) && !m.is_boundary(o)) continue;
-        if (!border.on(line, grid_point(m.point(m.to_vertex_handle(h))))) return kIllegal;
+        if (!m.is_boundary(h) && !m.is_boundary(m.opposite_halfedge_handle(h))) continue;
+        if (n_ends == 2) return kIllegal;
+        ends[n_ends++] = grid_point(m.point(m.to_vertex_handle(h)));
       }
-    } else if (m.is_boundary(ci.v0)) {
-      return kIllegal;  // the boundary of a hole keeps its shape
+      if (n_ends != 2 || !boundary_straight_at(ends[0], p0, ends[1])) return kIllegal;
     }
     // The new triangles: v0's faces except fl and fr, with v0 replaced by v1. Each is measured
     // in full (no cutoff): a rejection only needs one triangle above max_error, and a full

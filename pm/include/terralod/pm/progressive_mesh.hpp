@@ -13,10 +13,11 @@
 // exact error of each collapse. vsplit_k is the inverse of c_{n-1-k}.
 //
 // Every collapse is a half-edge collapse u -> w: u disappears, w keeps its position, so every
-// vertex is an original sample. Legal collapses: the four grid corners never collapse; a
-// vertex on the grid border only collapses along its own border line; vertices on the
-// boundary of a hole never collapse; no triangle flips or degenerates in plan view; the link
-// condition holds (OpenMesh is_collapse_ok).
+// vertex is an original sample. Legal collapses: a vertex on the boundary (the grid's border or
+// a hole's edge) only collapses into a boundary neighbour where the boundary runs straight
+// through it (grid_border.hpp), so the four grid corners never collapse, a border vertex stays
+// on its border line and every hole keeps its outline; no triangle flips or degenerates in
+// plan view; the link condition holds (OpenMesh is_collapse_ok).
 //
 // Guarantee of extract(E): because half-edge collapses map faces to faces, the mesh after any
 // prefix of the sequence is the image of M^n's faces under "follow the collapses", and every
