@@ -38,7 +38,8 @@ namespace {
 /// `horizontal` with the vertical datum `datum` (see the header's contract), or unchanged when
 /// no datum is named or it has one already; false when GDAL cannot make the compound CRS.
 bool add_vertical_datum(OGRSpatialReference& horizontal, const std::string& datum) {
-  if (datum.empty() || horizontal.IsCompound() || horizontal.IsVertical() || horizontal.GetAxesCount() == 3)
+  if (datum.empty() || horizontal.IsCompound() || horizontal.IsVertical() ||
+      detail::has_ellipsoidal_height_axis(horizontal))
     return true;  // a 3D CRS has its heights' datum: the ellipsoid
   // The exporters' reading of the name (detail::vertical_crs); any other name, ellipsoidal ones
   // included, as a vertical CRS of that name, so that it reads back as written.

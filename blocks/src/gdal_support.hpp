@@ -34,12 +34,18 @@ inline std::string vertical_crs(const std::string& datum) {
   return datum;
 }
 
+/// Whether `srs` is a 3D geographic or projected CRS (EPSG:4979): its third axis is the height
+/// above its ellipsoid, which is then the heights' datum.
+inline bool has_ellipsoidal_height_axis(const OGRSpatialReference& srs) {
+  return !srs.IsCompound() && (srs.IsGeographic() || srs.IsProjected()) && srs.GetAxesCount() == 3;
+}
+
 /// The name of `srs`'s vertical CRS ("EGM96 height"), the vertical part of a compound CRS;
 /// "<ellipsoid> ellipsoidal height" for a 3D geographic or projected CRS (EPSG:4979), whose
 /// third axis is the height above its ellipsoid; "" when it has none.
 inline std::string vertical_datum_of(const OGRSpatialReference& srs) {
   if (srs.IsEmpty()) return "";
-  if (!srs.IsCompound() && (srs.IsGeographic() || srs.IsProjected()) && srs.GetAxesCount() == 3) {
+  if (has_ellipsoidal_height_axis(srs)) {
     const char* ellipsoid = srs.GetAttrValue("SPHEROID");
     return std::string(ellipsoid != nullptr ? ellipsoid : "unnamed") + " ellipsoidal height";
   }

@@ -101,7 +101,7 @@ using detail::register_gdal;
 bool is_wgs84_geographic(const std::string& wkt) {
   OGRSpatialReference srs, wgs84;
   if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE || !srs.IsGeographic()) return false;
-  if (srs.GetAxesCount() == 3 && !srs.IsCompound()) srs.DemoteTo2D(nullptr);  // EPSG:4979: its heights aside
+  if (detail::has_ellipsoidal_height_axis(srs)) srs.DemoteTo2D(nullptr);  // EPSG:4979: its heights aside
   wgs84.SetWellKnownGeogCS("WGS84");
   return srs.IsSameGeogCS(&wgs84) != 0;
 }
