@@ -74,7 +74,7 @@ int cmd_export(const Args& a) {
               format_duration(r.seconds * 1000.0).c_str());
   std::printf("  bounds %.9g, %.9g .. %.9g, %.9g degrees; samples: %s\n", r.bounds.west, r.bounds.south,
               r.bounds.east, r.bounds.north, r.horizontal.c_str());
-  if (r.vertical_datum.starts_with("WGS 84 ellipsoid"))  // the source's heights are ellipsoidal already
+  if (!r.heights_converted)
     std::printf("  heights above the WGS 84 ellipsoid, as the source gives them\n");
   else
     std::printf("  heights above the WGS 84 ellipsoid, converted from %s\n", r.vertical_datum.c_str());

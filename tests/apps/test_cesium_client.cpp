@@ -320,6 +320,9 @@ fs::path export_database(const std::string& format, const std::string& name,
     return {};
   }
   std::printf("%s", e.err.c_str());
+  // The export says what it did to the heights (ExportReport::heights_converted).
+  EXPECT_NE(e.out.find("heights above the WGS 84 ellipsoid, converted from EGM96"), std::string::npos)
+      << e.out;
   return dir;
 }
 

@@ -685,6 +685,7 @@ TEST(DemCrs, HeightsOfA3dCrsAreEllipsoidalAndExportAsTheyAre) {
   EXPECT_EQ(hf.vertical_datum, "WGS 84 ellipsoidal height");
   const tb::GeoGrid g = tb::make_geo_grid(hf, "", path.string());
   EXPECT_EQ(g.vertical_datum, "WGS 84 ellipsoid");
+  EXPECT_FALSE(g.heights_converted);
   ASSERT_EQ(g.width, 31);
   for (int r = 0; r < 31; ++r)
     for (int c = 0; c < 31; ++c) ASSERT_EQ(g.z(c, r), hf.at(c, r)) << c << ", " << r;
@@ -714,6 +715,7 @@ TEST(DemCrs, AProjectedDemWithAVerticalDatumIsConvertedToTheEllipsoidOnce) {
   const Heightfield hf = tb::read_dem(path.string(), o);
   EXPECT_EQ(hf.vertical_datum, "EGM96 height");
   const tb::GeoGrid g = tb::make_geo_grid(hf, "", path.string());
+  EXPECT_TRUE(g.heights_converted);
   std::vector<double> lon, lat, z;
   for (int r = 0; r < g.height; ++r)
     for (int c = 0; c < g.width; ++c)

@@ -241,6 +241,7 @@ GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_dat
   const std::vector<double> n = geoid_undulations(requested.empty() ? "egm96" : requested, lon, lat, what);
   for (std::size_t i = 0; i < n.size(); ++i)
     if (g.mask.empty() || g.mask[i]) g.heights[i] += n[i];
+  g.heights_converted = true;
   return g;
 }
 

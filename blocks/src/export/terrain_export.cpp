@@ -406,6 +406,7 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
 
   ExportReport report;
   report.vertical_datum = grid.vertical_datum;
+  report.heights_converted = grid.heights_converted;
   report.horizontal = grid.horizontal;
   // Across the antimeridian the bounds' west is then east of their east (as in a CesiumJS
   // Rectangle).

@@ -54,6 +54,7 @@ struct GeoGrid {
   std::vector<double> heights;     ///< WGS 84 ellipsoidal heights, metres, row-major
   std::vector<std::uint8_t> mask;  ///< 1 valid, 0 hole; empty when every sample is valid
   std::string vertical_datum;      ///< what the heights were converted from, as resolved
+  bool heights_converted = false;  ///< false: the source's heights were ellipsoidal already
   std::string horizontal;          ///< "the source's own samples" or how they were warped
 
   double lon(double col) const { return west + col * dlon; }

@@ -118,8 +118,9 @@ struct ExportReport {
   std::vector<ExportLevel> levels;  ///< levels[z]
   GeoRect bounds;                   ///< the terrain's samples, degrees
   std::size_t tiles_written = 0, tiles_reused = 0;
-  std::string vertical_datum;  ///< as resolved
-  std::string horizontal;      ///< how the samples were placed in longitude/latitude
+  std::string vertical_datum;      ///< as resolved
+  bool heights_converted = false;  ///< false: the heights were ellipsoidal already, and kept
+  std::string horizontal;          ///< how the samples were placed in longitude/latitude
   double seconds = 0;
 };
 
