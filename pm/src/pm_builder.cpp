@@ -48,6 +48,7 @@
 #include "collapse_mesh.hpp"
 #include "grid_mesh.hpp"
 #include "huge_vector.hpp"
+#include "strip_merge.hpp"
 #include "terralod/pm/grid_border.hpp"
 #include "terralod/pm/parallel.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
@@ -69,11 +70,13 @@ class Builder {
   Builder(const Heightfield& hf, const BuildOptions& opt, const std::vector<std::uint32_t>& flat)
       : hf_(hf), opt_(opt), error_(hf, opt.metric), W_(hf.width()), H_(hf.height()), flat_(flat) {}
 
-  // Shared progress of all builders of one build; only the reporting builder calls back.
+  // Shared progress of all builders of one build; only the reporting builder calls back, with
+  // the largest fraction reached so far (a build made again whole reports from its start).
   struct Progress {
     std::atomic<std::size_t> done{0};
     std::atomic<bool> cancelled{false};
     std::size_t total = 1;
+    double reported = 0.0;
   };
 
   // Full-resolution mesh of the cells whose column lies in [x0, x1). Vertices on a cut column
@@ -108,8 +111,9 @@ class Builder {
     mesh_.init_rings();
   }
 
-  // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips.
-  void init_faces(const std::vector<std::array<std::uint32_t, 3>>& faces) {
+  // A mesh given by its faces (CCW in (col,row)), e.g. the join of the strips; false when
+  // OpenMesh refused one of them.
+  bool init_faces(const std::vector<std::array<std::uint32_t, 3>>& faces) {
     std::vector<std::uint8_t> used(hf_.size(), 0);
     for (const auto& f : faces) used[f[0]] = used[f[1]] = used[f[2]] = 1;
     number_vertices(0, W_ - 1, &used);
@@ -117,8 +121,7 @@ class Builder {
     std::vector<Mesh::VertexHandle> tri(3);
     for (const auto& f : faces) {
       for (int c = 0; c < 3; ++c) tri[c] = Mesh::VertexHandle(int(id_of_[f[c]]));  // all columns: the sample
-      if (!mesh_.add_triangle(tri).is_valid())
-        throw std::logic_error("progressive mesh: joined strips are not manifold");
+      if (!mesh_.add_triangle(tri).is_valid()) return false;
     }
     HugeVector<std::uint32_t>().swap(id_of_);
     edge_err_.assign(mesh_.n_edges(), 0.0);
@@ -129,6 +132,7 @@ class Builder {
         edge_err_[e.idx()] = error_.exact().segment(point(std::uint32_t(mesh_.from_vertex_handle(h).idx())),
                                                     point(std::uint32_t(mesh_.to_vertex_handle(h).idx())));
       }
+    return true;
   }
 
   std::size_t live_vertices() const {
@@ -213,7 +217,10 @@ class Builder {
         const std::size_t done = progress.done.fetch_add(since_report) + since_report;
         since_report = 0;
         if (progress.cancelled) throw std::runtime_error("progressive mesh build cancelled");
-        if (report && opt_.progress && !opt_.progress(std::min(1.0, double(done) / double(progress.total)))) {
+        if (report)
+          progress.reported =
+              std::max(progress.reported, std::min(1.0, double(done) / double(progress.total)));
+        if (report && opt_.progress && !opt_.progress(progress.reported)) {
           progress.cancelled = true;
           throw std::runtime_error("progressive mesh build cancelled");
         }
@@ -707,24 +714,23 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
   // heightfield always gives the same PM; threads only decide how many strips run at once.
   // Two strips: this machine kind has two cores, and every cut column stays at full
   // resolution below the join error, so more cuts cost triangles at fine levels.
-  const int strips =
-      (options.parallel_strips && hf.width() - 1 >= 256 && hf.size() >= (1u << 16) && !hf.has_holes()) ? 2
-                                                                                                       : 1;
+  const int strips = (options.parallel_strips && hf.width() - 1 >= 256 && hf.size() >= (1u << 16)) ? 2 : 1;
   const int threads = std::max(
       1, std::min(strips, options.threads > 0 ? options.threads
                                               : int(std::max(1u, std::thread::hardware_concurrency()))));
-  // With holes the union of two manifold strips can pinch at a cut vertex; those build whole.
-  if (strips == 1) {
+  const auto build_whole = [&] {
     Builder b(hf, options, flat);
     b.init_grid(0, hf.width() - 1, dropped);
     b.run(collapses, quantum, 0, progress, /*report=*/true);
+  };
+  if (strips == 1) {
+    build_whole();
   } else {
     // Phase 1: vertical strips sharing their cut columns (locked), decimated in parallel
     // until each keeps 1/kStripKeep of its vertices. The join below runs on one thread, so
     // the strips go far: a smaller join costs only a higher common error, below which the cut
-    // column stays at full resolution (about 2 triangles per row, at coarse levels only). Collapses of
-    // different strips are independent (their 1-rings never cross a cut column), so any interleaving of the
-    // strips' sequences is a valid sequence; they are merged in error order below.
+    // column stays at full resolution (about 2 triangles per row, at coarse levels only). Their
+    // sequences are merged by strip_merge.hpp.
     constexpr std::size_t kStripKeep = 128;
     std::vector<int> cuts(strips + 1);
     for (int t = 0; t <= strips; ++t) cuts[t] = int(std::int64_t(hf.width() - 1) * t / strips);
@@ -746,28 +752,7 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
     parallel_for(std::size_t(strips), threads, [&](std::size_t t) { strip(int(t)); });
     for (auto& f : failure)
       if (f) std::rethrow_exception(f);
-    // A strip that went further than the others would put its higher-error collapses before
-    // the others' lower-error ones: keep every strip's sequence only up to the smallest of
-    // their final prefix maxima, and leave the rest to the joined mesh.
-    double common = 1e300;
-    for (auto& q : seq) {
-      double m = 0;
-      for (auto& c : q) m = std::max(m, c.error);
-      common = std::min(common, m);
-    }
-    std::vector<std::size_t> keep(strips), at(strips, 0);
-    for (int t = 0; t < strips; ++t) {
-      std::size_t k = 0;
-      while (k < seq[t].size() && seq[t][k].error <= common) ++k;
-      keep[t] = k;
-    }
-    for (;;) {  // k-way merge by error (stable within a strip)
-      int pick = -1;
-      for (int t = 0; t < strips; ++t)
-        if (at[t] < keep[t] && (pick < 0 || seq[t][at[t]].error < seq[pick][at[pick]].error)) pick = t;
-      if (pick < 0) break;
-      collapses.push_back(seq[pick][at[pick]++]);
-    }
+    detail::merge_strips(seq, collapses);
     seq.clear();
     for (auto& d : drop) dropped.insert(dropped.end(), d.begin(), d.end());
     std::sort(dropped.begin(), dropped.end());
@@ -780,8 +765,18 @@ ProgressiveMesh ProgressiveMesh::build(const Heightfield& hf, const BuildOptions
       for (int c = 0; c < 3; ++c) faces[f][c] = joined.vertices[joined.triangles[f][c]];
     progress.done = collapses.size();
     Builder b(hf, options, flat);
-    b.init_faces(faces);
-    b.run(collapses, quantum, 0, progress, /*report=*/true);
+    if (b.init_faces(faces)) {
+      b.run(collapses, quantum, 0, progress, /*report=*/true);
+    } else {
+      // With holes, the union of two manifold strips can pinch at a cut vertex (two fans of
+      // faces that touch only there), which OpenMesh may refuse in the order the faces come
+      // in: such a grid is built whole, as every grid with holes was before.
+      if (!hf.has_holes()) throw std::logic_error("progressive mesh: joined strips are not manifold");
+      collapses.clear();
+      dropped.clear();
+      progress.done = 0;
+      build_whole();
+    }
   }
   if (options.progress) options.progress(1.0);
   return from_parts(hf, options.metric, quantum, std::move(collapses), std::move(dropped));

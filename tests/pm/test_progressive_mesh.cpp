@@ -970,6 +970,41 @@ TEST(ProgressiveMesh, WithoutParallelStripsNoColumnStaysAtFullResolution) {
   EXPECT_LE(sb[cut], 2 * median);
 }
 
+// Grids with holes build in strips too (before, they always built whole, on one thread: a
+// geographic DEM's tile in the --crs auto frame, whose footprint leaves void slivers along its
+// edges, took twice as long). punch_holes()'s disc crosses the cut column (149); `pinch` adds a
+// bow-tie on it, two void samples above and below (149, 100), which leaves that cut vertex
+// with one face in each strip and none joining them.
+TEST(ProgressiveMesh, GridsWithHolesBuildInStripsToo) {
+  for (const bool pinch : {false, true}) {
+    SCOPED_TRACE(pinch ? "a bow-tie on the cut column" : "holes off the cut column");
+    pm::TerrainOptions to;
+    to.width = 300, to.height = 260, to.seed = 22, to.quantize_to_metres = true, to.relief = 600.0;
+    pm::Heightfield hf = pm::generate_terrain(to);
+    punch_holes(hf);
+    if (pinch) {
+      std::vector<std::uint8_t> mask = hf.mask();
+      mask[std::size_t(99) * 300 + 149] = mask[std::size_t(101) * 300 + 149] = 0;
+      hf.set_mask(mask);
+    }
+    pm::BuildOptions two, one, whole;
+    two.threads = 2, one.threads = 1, whole.parallel_strips = false;
+    const pm::ProgressiveMesh a = pm::ProgressiveMesh::build(hf, two);
+    verify_pm(hf, a, pinch ? "g300x260_s22 holes, pinch" : "g300x260_s22 holes");
+    EXPECT_TRUE(pm::ProgressiveMesh::build(hf, one) == a) << "the PM depends on the thread count";
+    const pm::ProgressiveMesh w = pm::ProgressiveMesh::build(hf, whole);
+    std::size_t cut_vertices = 0, cut_samples = 0;  // of column 149 (at E = 2 m: all, with strips)
+    for (std::uint32_t v : a.extract(2.0).vertices) cut_vertices += v % 300 == 149;
+    for (int r = 0; r < 260; ++r) cut_samples += hf.valid(149, r);
+    std::printf("  %s: %zu of the cut column's %zu samples are vertices at E = 2 m, %s the whole build\n",
+                pinch ? "pinch" : "holes", cut_vertices, cut_samples, a == w ? "the same as" : "unlike");
+    if (!pinch) {
+      EXPECT_EQ(cut_vertices, cut_samples) << "not built in strips";
+      EXPECT_FALSE(a == w);
+    }
+  }
+}
+
 // ------------------------------------------------------------------------------------------
 // Real SRTM tiles.
 

@@ -60,8 +60,8 @@ struct BuildOptions {
   double max_error = 1e300;
   /// Worker threads for the parallel first phase; 0 = hardware concurrency.
   int threads = 0;
-  /// true: a hole-free grid of >= 257 columns and >= 65536 samples is built as two vertical
-  /// strips in parallel, then joined (about twice as fast on two cores; the column between the
+  /// true: a grid of >= 257 columns and >= 65536 samples is built as two vertical strips in
+  /// parallel, then joined (about twice as fast on two cores; the column between the
   /// strips stays at full resolution up to the strips' common error, a visible line of thin
   /// triangles in view-dependent meshes). false: one greedy sequence over the whole grid, no
   /// such column; block databases use it and build their blocks in parallel instead. Either
