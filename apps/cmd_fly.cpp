@@ -19,6 +19,7 @@
 #include "commands.hpp"
 #include "flight_log.hpp"
 #include "flight_objects.hpp"
+#include "flight_path.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -37,10 +38,10 @@ struct PathRow {
   double x, y, z, yaw, pitch, fovy;
 };
 
-// The shared PATH.csv reader (pm/camera_path.hpp): same format and errors as every tool.
-std::vector<PathRow> read_path(const std::string& path) {
+// The shared path reader (flight_path.hpp): a PATH.csv as every tool reads it, or a GPX/IGC track.
+std::vector<PathRow> read_path(const Args& a) {
   std::vector<PathRow> rows;
-  for (const pm::Camera& c : pm::read_camera_path(path))
+  for (const pm::Camera& c : read_flight_path(a, "--path", a.get("--db"), {}))
     rows.push_back({c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg});
   return rows;
 }
@@ -69,7 +70,9 @@ CommandSpec fly_spec() {
       "near and far planes follow the terrain: far beyond its farthest corner. So does the view's\n"
       "ground scale: over a database with a CRS, world offsets about the eye are stretched by the\n"
       "frame's scale there, so that they are ground metres near the camera however wide the\n"
-      "frame (TerrainRuntime::fit_camera; the identity without a CRS).\n\n"
+      "frame (TerrainRuntime::fit_camera; the identity without a CRS).\n\n" +
+      track_help() +
+      "\n\n"
       "Writes DIR/frames.csv (only once the whole flight succeeded: a flight stopped by an error,\n"
       "such as a corrupt block, leaves none): frame, time_s, x, y, z, yaw, pitch, fovy, tau_px,\n"
       "triangles, bound_px, missing_in_view, update_ms, update_cpu_ms (thread CPU time of the\n"
@@ -102,7 +105,8 @@ CommandSpec fly_spec() {
       "real time, so K decides how much time the loader gets per frame.";
   s.options = {
       {"--db", "FILE", "block database (from 'terralod build')", true},
-      {"--path", "PATH.csv", "camera path, one row per frame at 60 fps", true},
+      {"--path", "FILE", "camera path: PATH.csv, one row per frame at 60 fps, or a GPX/IGC flight track",
+       true},
       {"--out", "DIR", "output folder (created if missing)", true},
       {"--size", "WxH", "viewport in pixels (default 1280x720, each 1..16384)"},
       {"--tau", "PIXELS", "screen-space error tolerance, pixels (> 0, default 1)"},
@@ -117,6 +121,7 @@ CommandSpec fly_spec() {
        "minimum visible angle of the region kept ready, b = a cot(theta), (0, 90) (default 20)"},
       {"--budget", "MB", "resident memory budget, megabytes (default 512): blocks, tree, summaries, mesh"},
   };
+  s.options = concat(std::move(s.options), track_option_specs());
   return s;
 }
 
@@ -141,7 +146,7 @@ int cmd_fly(const Args& a) {
   const bool dump = a.has("--dump-meshes"), dump_objects = a.has("--dump-objects");
   if (dump_objects && !a.has("--objects")) throw UsageError("--dump-objects needs --objects");
 
-  const std::vector<PathRow> path = read_path(path_csv);
+  const std::vector<PathRow> path = read_path(a);
   print_line(
       strf("read  %s: %zu frames (%.1f s at 60 fps)", path_csv.c_str(), path.size(), path.size() / 60.0));
   std::error_code ec;

@@ -6,6 +6,7 @@
 
 #include "dem_options.hpp"
 #include "flight_objects.hpp"
+#include "flight_path.hpp"
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 
@@ -74,7 +75,8 @@ CommandSpec fly_spec() {
       "the view's ground scale, ground_xx, ground_xy and ground_yy, as 'terralod fly' writes them\n"
       "(1, 0, 1 without a CRS).\n"
       "PATH.csv: a header x,y,z,yaw,pitch,fovy and one row per frame (conventions of\n"
-      "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).";
+      "'terralod view': yaw clockwise from north, pitch above the horizon, degrees).\n" +
+      cli::track_help();
   s.options = {
       {"--db", "FILE.db", "block database from 'terralod build' (streamed; excludes --input)"},
       {"--memory", "MB", "--db: resident memory budget, megabytes (default 537: 512 MiB)"},
@@ -88,18 +90,21 @@ CommandSpec fly_spec() {
       {"--size", "WxH", "window or image size (default 1280x720)"},
       {"--clearance", "METRES", "terrain-following height over the ground (default 30)"},
       {"--record", "PATH.csv", "where C writes the recorded flight (default flight.csv)"},
-      {"--replay", "PATH.csv", "window mode: fly this path instead of the controls"},
+      {"--replay", "FILE",
+       "window mode: fly this path (PATH.csv, or a GPX/IGC track over --db) instead of the controls"},
       {"--frames", "N", "frames to run (headless: default the whole path; window: until closed)"},
       {"--screenshot", "FILE.png", "window mode: write the last frame here on exit"},
       {"--headless", "", "render through OSMesa along --path, no window"},
-      {"--path", "PATH.csv",
-       "headless: the scripted camera path (default: a built-in circle that avoids flat ground such as sea)"},
+      {"--path", "FILE",
+       "headless: the scripted camera path, PATH.csv or a GPX/IGC track over --db (default: a built-in "
+       "circle that avoids flat ground such as sea)"},
       {"--out", "DIR", "headless: output folder (created; default fly_out)"},
       {"--dump-meshes", "", "headless: also write each frame's drawn mesh as PLY"},
       {"--hud", "", "headless: draw the heads-up display into the frames (without its timings)"},
       {"--wireframe", "", "draw the triangle edges over the shading (the window's X toggles it)"},
   };
   s.options.push_back(objects_option_spec());
+  for (OptionSpec& o : cli::track_option_specs()) s.options.push_back(std::move(o));
   for (OptionSpec& o : layer_option_specs()) s.options.push_back(std::move(o));
   s.options = with_dem_options(std::move(s.options));  // for --input: --keep-voids, --crs, ...
   return s;

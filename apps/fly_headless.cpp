@@ -17,6 +17,7 @@
 #include "cli_common.hpp"
 #include "flight_log.hpp"
 #include "flight_objects.hpp"
+#include "flight_path.hpp"
 #include "fly_cli.hpp"
 #include "fly_hud.hpp"
 #include "fly_modes.hpp"
@@ -144,7 +145,7 @@ int run_headless(const Args& a) {
   pm::CameraPathOptions po;
   po.width_px = w, po.height_px = h;
   std::vector<pm::Camera> path;
-  if (a.has("--path")) path = pm::read_camera_path(a.get("--path"), po);
+  if (a.has("--path")) path = read_flight_path(a, "--path", a.get("--db"), po);
   const bool dump = a.has("--dump-meshes"), hud = a.has("--hud");
   std::optional<render::TextRasterizer> hud_text;  // opened at the first frame with the HUD
   std::optional<LayerSetup> layers = layer_setup(a);

@@ -17,6 +17,7 @@
 
 #include "cli_common.hpp"
 #include "flight_objects.hpp"
+#include "flight_path.hpp"
 #include "fly_cli.hpp"
 #include "fly_hud.hpp"
 #include "fly_modes.hpp"
@@ -115,7 +116,7 @@ int run_window(const Args& a) {
   if (a.has("--replay")) {
     pm::CameraPathOptions po;
     po.width_px = w, po.height_px = h;
-    replay = pm::read_camera_path(a.get("--replay"), po);
+    replay = read_flight_path(a, "--replay", a.get("--db"), po);
   }
   const long long max_frames =
       a.get_int("--frames", replay.empty() ? -1 : (long long)replay.size(), -1, 1LL << 40);

@@ -25,11 +25,13 @@
 #include "block_database_connection.hpp"
 #include "block_database_schema.hpp"
 #include "gdal_support.hpp"
+#include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/object_rules.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/json.hpp"
 #include "terralod/pm/timing.hpp"
+#include "world_placement.hpp"
 
 namespace terralod::blocks {
 
@@ -37,6 +39,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using detail::BlockDatabaseImpl;
+using detail::crs_name;
 using detail::gdal_message;
 using detail::OneOff;
 using detail::QuietGdal;
@@ -44,11 +47,6 @@ using detail::QuietGdal;
 constexpr std::uint8_t kFeatureVersion = 1;
 // Points on the terrain's edge may come back from PROJ a rounding error outside it.
 constexpr double kEdgeTolerance = 1e-6;  // samples
-
-std::string crs_name(const OGRSpatialReference& srs) {
-  const char* n = srs.GetName();
-  return n != nullptr ? n : "unnamed CRS";
-}
 
 std::string shortest(double v) {
   std::array<char, 32> buf{};
@@ -159,69 +157,32 @@ bool split(const OGRGeometry& g, std::vector<RawPart>& parts, std::string& type)
   }
 }
 
-// Source CRS -> database CRS -> sample (col, row) -> world; see the header's "frame".
+// Source CRS -> database CRS -> sample (col, row) -> world (world_placement.hpp); see the
+// header's "frame". A problem with the CRS is the input's: an ObjectLayerError.
 class Placement {
  public:
   Placement(const BlockDatabase& db, const OGRSpatialReference& source, const std::string& input)
-      : info_(db.info()) {
-    const std::optional<Georeference> geo = db.georeference();
-    if (info_.crs_wkt.empty() || !geo)
-      throw ObjectLayerError(
-          input + ": the terrain " + db.path() +
-          (info_.crs_wkt.empty() ? " has no CRS" : " has no georeference (built by an older terralod)") +
-          ", so features cannot be placed on it; build it from a georeferenced DEM");
-    OGRSpatialReference target;
-    if (target.importFromWkt(info_.crs_wkt.c_str()) != OGRERR_NONE)
-      throw DatabaseError(db.path(), "the terrain's CRS is not readable WKT");
-    target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    OGRSpatialReference src(source);
-    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    CPLErrorReset();
-    ct_.reset(OGRCreateCoordinateTransformation(&src, &target));
-    if (!ct_)
-      throw ObjectLayerError(input + ": no transformation from its CRS '" + crs_name(src) +
-                             "' to the terrain's CRS '" + crs_name(target) + "' (" +
-                             gdal_message("PROJ found none") + ")");
-    crs_ = geo->crs_transform;
-    det_ = crs_.xc * crs_.yr - crs_.xr * crs_.yc;
-    if (!(std::isfinite(det_) && det_ != 0.0))
-      throw DatabaseError(db.path(), "the georeference is not invertible");
-  }
+      : placement_(make(db, source, input)) {}
 
   // Moves `rings` to the world frame in place and returns their bounding box in samples
   // (cmin, rmin, cmax, rmax); false if a point cannot be transformed.
   bool place(std::vector<std::vector<WorldPoint>>& rings, std::array<double, 4>& samples) {
-    samples = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-               -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-    for (std::vector<WorldPoint>& ring : rings) {
-      xs_.resize(ring.size());
-      ys_.resize(ring.size());
-      ok_.assign(ring.size(), 0);
-      for (std::size_t i = 0; i < ring.size(); ++i) xs_[i] = ring[i].x, ys_[i] = ring[i].y;
-      if (!ring.empty() && !ct_->Transform(int(ring.size()), xs_.data(), ys_.data(), nullptr, ok_.data()))
-        return false;
-      for (std::size_t i = 0; i < ring.size(); ++i) {
-        if (!ok_[i]) return false;
-        const double dx = xs_[i] - crs_.x0, dy = ys_[i] - crs_.y0;
-        const double col = (crs_.yr * dx - crs_.xr * dy) / det_;
-        const double row = (crs_.xc * dy - crs_.yc * dx) / det_;
-        const auto [x, y] = info_.transform.to_world(col, row);
-        if (!std::isfinite(x) || !std::isfinite(y)) return false;
-        ring[i] = {x, y};
-        samples = {std::min(samples[0], col), std::min(samples[1], row), std::max(samples[2], col),
-                   std::max(samples[3], row)};
-      }
-    }
+    samples = detail::empty_sample_box();
+    for (std::vector<WorldPoint>& ring : rings)
+      if (!placement_.place(ring, samples)) return false;
     return true;
   }
 
  private:
-  const DatabaseInfo& info_;
-  std::unique_ptr<OGRCoordinateTransformation> ct_;
-  pm::GridTransform crs_;
-  double det_ = 1.0;
-  std::vector<double> xs_, ys_;
-  std::vector<int> ok_;
+  static detail::WorldPlacement make(const BlockDatabase& db, const OGRSpatialReference& source,
+                                     const std::string& input) {
+    try {
+      return detail::WorldPlacement(db, source, input);
+    } catch (const GeoError& e) {
+      throw ObjectLayerError(e.what());
+    }
+  }
+  detail::WorldPlacement placement_;
 };
 
 // A part ready to store.

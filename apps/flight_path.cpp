@@ -1,0 +1,81 @@
+#include "flight_path.hpp"
+
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/flight_track.hpp"
+
+namespace terralod::cli {
+
+std::vector<OptionSpec> track_option_specs() {
+  return {
+      {"--track-pitch", "DEGREES", "GPX/IGC path: camera pitch above the horizon, -90..90 (default -10)"},
+      {"--track-fovy", "DEGREES", "GPX/IGC path: vertical field of view, (0, 180) (default 60)"},
+      {"--track-speed", "M/S", "GPX/IGC path without times: ground speed, > 0 (default 50)"},
+      {"--track-time-scale", "K", "GPX/IGC path: track seconds per replayed second, > 0 (default 1)"},
+      {"--track-heights", "DATUM",
+       "GPX/IGC path: datum of the track's heights: egm96, egm2008, ellipsoid or a PROJ vertical CRS "
+       "(default: EGM96 for GPX, the log's for IGC)"},
+  };
+}
+
+std::string track_help() {
+  return "A path ending in .gpx or .igc is a flight track, replayed over --db where it was flown: a GPX\n"
+         "track (else route) with <ele> heights, taken as EGM96 (above mean sea level; --track-heights\n"
+         "if yours are ellipsoidal), or an IGC log's GNSS altitude (WGS 84 ellipsoid, or the geoid when\n"
+         "its header says HFALGALTGPS:GEO; the pressure altitude when it has none). Longitude and\n"
+         "latitude go through the database's CRS to its world frame (the frame the object layers use),\n"
+         "heights to its vertical datum through PROJ's geoid grids. Frame k shows the track at\n"
+         "k * K / 60 s (--track-time-scale K), positions interpolated between its points; a track\n"
+         "without times is flown at --track-speed. The camera looks along the direction of travel\n"
+         "(over 2 s of track) at --track-pitch with --track-fovy. A line on stdout gives the points,\n"
+         "duration, distance, frames, the heights' datum and shift, and the points off the terrain.";
+}
+
+std::vector<pm::Camera> read_flight_path(const Args& a, const std::string& option, const std::string& db_path,
+                                         const pm::CameraPathOptions& view) {
+  const std::string file = a.get(option);
+  const std::vector<OptionSpec> specs = track_option_specs();
+  if (!blocks::is_flight_track(file)) {
+    for (const OptionSpec& s : specs)
+      if (a.has(s.name))
+        throw UsageError(s.name + " is for a GPX or IGC path, and " + option + " is '" + file + "'");
+    return pm::read_camera_path(file, view);
+  }
+  if (db_path.empty())
+    throw UsageError(option + " " + file +
+                     " needs --db (a block database with a CRS: the track is placed by its coordinates)");
+  blocks::TrackCameraOptions o;
+  o.pitch_deg = a.get_double("--track-pitch", o.pitch_deg);
+  if (!(o.pitch_deg >= -90 && o.pitch_deg <= 90))
+    throw UsageError("option '--track-pitch' must be in -90..90 degrees, not '" + a.get("--track-pitch") +
+                     "'");
+  o.fovy_deg = a.get_double("--track-fovy", o.fovy_deg);
+  if (!(o.fovy_deg > 0 && o.fovy_deg < 180))
+    throw UsageError("option '--track-fovy' must be in (0, 180) degrees, not '" + a.get("--track-fovy") +
+                     "'");
+  o.speed_mps = a.get_double("--track-speed", o.speed_mps);
+  if (!(o.speed_mps > 0))
+    throw UsageError("option '--track-speed' must be > 0 m/s, not '" + a.get("--track-speed") + "'");
+  o.time_scale = a.get_double("--track-time-scale", o.time_scale);
+  if (!(o.time_scale > 0))
+    throw UsageError("option '--track-time-scale' must be > 0, not '" + a.get("--track-time-scale") + "'");
+  o.height_datum = a.get("--track-heights");
+  const blocks::FlightTrack track = blocks::read_flight_track(file);
+  const blocks::TrackPath p = track_camera_path(track, blocks::BlockDatabase::open(db_path), o, view);
+  const std::string shift = p.shift_min == p.shift_max ? strf("%+.2f m", p.shift_min)
+                                                       : strf("%+.2f..%+.2f m", p.shift_min, p.shift_max);
+  print_line(
+      strf("track %s: %s, %zu points%s, %s, %.1f km, %s, %zu frames at 60 fps (time scale %g); heights: "
+           "%s, to the terrain's %s (%s)%s",
+           file.c_str(), track.format.c_str(), track.points.size(),
+           track.skipped ? strf(" (%zu skipped)", track.skipped).c_str() : "",
+           format_duration(p.duration_s * 1000.0).c_str(), p.ground_m / 1000.0,
+           track.timed ? "timed" : strf("untimed, flown at %g m/s", o.speed_mps).c_str(), p.cameras.size(),
+           o.time_scale,
+           o.height_datum.empty() ? track.height_note.c_str()
+                                  : ("taken as " + o.height_datum + " (--track-heights)").c_str(),
+           p.terrain_datum.c_str(), shift.c_str(),
+           p.outside ? strf("; %zu points off the terrain", p.outside).c_str() : ""));
+  return p.cameras;
+}
+
+}  // namespace terralod::cli
