@@ -992,15 +992,14 @@ TEST(ProgressiveMesh, GridsWithHolesBuildInStripsToo) {
     const pm::ProgressiveMesh a = pm::ProgressiveMesh::build(hf, two);
     verify_pm(hf, a, pinch ? "g300x260_s22 holes, pinch" : "g300x260_s22 holes");
     EXPECT_TRUE(pm::ProgressiveMesh::build(hf, one) == a) << "the PM depends on the thread count";
-    const pm::ProgressiveMesh w = pm::ProgressiveMesh::build(hf, whole);
     std::size_t cut_vertices = 0, cut_samples = 0;  // of column 149 (at E = 2 m: all, with strips)
     for (std::uint32_t v : a.extract(2.0).vertices) cut_vertices += v % 300 == 149;
     for (int r = 0; r < 260; ++r) cut_samples += hf.valid(149, r);
-    std::printf("  %s: %zu of the cut column's %zu samples are vertices at E = 2 m, %s the whole build\n",
-                pinch ? "pinch" : "holes", cut_vertices, cut_samples, a == w ? "the same as" : "unlike");
-    if (!pinch) {
+    std::printf("  %s: %zu of the cut column's %zu samples are vertices at E = 2 m\n",
+                pinch ? "pinch" : "holes", cut_vertices, cut_samples);
+    if (!pinch) {  // (the whole build of the pinch case would only be printed: 10 s under ASan)
       EXPECT_EQ(cut_vertices, cut_samples) << "not built in strips";
-      EXPECT_FALSE(a == w);
+      EXPECT_FALSE(pm::ProgressiveMesh::build(hf, whole) == a);
     }
   }
 }
