@@ -11,6 +11,10 @@ std::vector<OptionSpec> track_option_specs() {
       {"--track-fovy", "DEGREES", "GPX/IGC path: vertical field of view, (0, 180) (default 60)"},
       {"--track-speed", "M/S", "GPX/IGC path without times: ground speed, > 0 (default 50)"},
       {"--track-time-scale", "K", "GPX/IGC path: track seconds per replayed second, > 0 (default 1)"},
+      {"--track-from", "SECONDS",
+       "GPX/IGC path: replay from this many seconds after the track's start (default 0)"},
+      {"--track-to", "SECONDS",
+       "GPX/IGC path: replay up to this many seconds after its start (default: its end)"},
       {"--track-heights", "DATUM",
        "GPX/IGC path: datum of the track's heights: egm96, egm2008, ellipsoid or a PROJ vertical CRS "
        "(default: EGM96 for GPX, the log's for IGC)"},
@@ -24,10 +28,11 @@ std::string track_help() {
          "its header says HFALGALTGPS:GEO; the pressure altitude when it has none). Longitude and\n"
          "latitude go through the database's CRS to its world frame (the frame the object layers use),\n"
          "heights to its vertical datum through PROJ's geoid grids. Frame k shows the track at\n"
-         "k * K / 60 s (--track-time-scale K), positions interpolated between its points; a track\n"
-         "without times is flown at --track-speed. The camera looks along the direction of travel\n"
-         "(over 2 s of track) at --track-pitch with --track-fovy. A line on stdout gives the points,\n"
-         "duration, distance, frames, the heights' datum and shift, and the points off the terrain.";
+         "F + k * K / 60 s (--track-from F, --track-time-scale K) up to --track-to (else its end),\n"
+         "positions interpolated between its points; a track without times is flown at --track-speed.\n"
+         "The camera looks along the direction of travel (over 2 s of track) at --track-pitch with\n"
+         "--track-fovy. A line on stdout gives the points, duration, distance, frames, the heights'\n"
+         "datum and shift, and the points off the terrain.";
 }
 
 std::vector<pm::Camera> read_flight_path(const Args& a, const std::string& option, const std::string& db_path,
@@ -58,19 +63,29 @@ std::vector<pm::Camera> read_flight_path(const Args& a, const std::string& optio
   o.time_scale = a.get_double("--track-time-scale", o.time_scale);
   if (!(o.time_scale > 0))
     throw UsageError("option '--track-time-scale' must be > 0, not '" + a.get("--track-time-scale") + "'");
+  o.from_s = a.get_double("--track-from", 0.0);
+  if (!(o.from_s >= 0))
+    throw UsageError("option '--track-from' must be >= 0 seconds, not '" + a.get("--track-from") + "'");
+  o.to_s = a.get_double("--track-to", o.to_s);
+  if (!(o.to_s > o.from_s))
+    throw UsageError("option '--track-to' must be after --track-from (" + strf("%g", o.from_s) +
+                     " s), not '" + a.get("--track-to") + "'");
   o.height_datum = a.get("--track-heights");
   const blocks::FlightTrack track = blocks::read_flight_track(file);
   const blocks::TrackPath p = track_camera_path(track, blocks::BlockDatabase::open(db_path), o, view);
   const std::string shift = p.shift_min == p.shift_max ? strf("%+.2f m", p.shift_min)
                                                        : strf("%+.2f..%+.2f m", p.shift_min, p.shift_max);
+  const std::string window = p.begin_s == 0 && p.end_s == p.duration_s
+                                 ? ""
+                                 : strf(", from %.1f s to %.1f s of it", p.begin_s, p.end_s);
   print_line(
-      strf("track %s: %s, %zu points%s, %s, %.1f km, %s, %zu frames at 60 fps (time scale %g); heights: "
+      strf("track %s: %s, %zu points%s, %s, %.1f km, %s, %zu frames at 60 fps (time scale %g%s); heights: "
            "%s, to the terrain's %s (%s)%s",
            file.c_str(), track.format.c_str(), track.points.size(),
            track.skipped ? strf(" (%zu skipped)", track.skipped).c_str() : "",
            format_duration(p.duration_s * 1000.0).c_str(), p.ground_m / 1000.0,
            track.timed ? "timed" : strf("untimed, flown at %g m/s", o.speed_mps).c_str(), p.cameras.size(),
-           o.time_scale,
+           o.time_scale, window.c_str(),
            o.height_datum.empty() ? track.height_note.c_str()
                                   : ("taken as " + o.height_datum + " (--track-heights)").c_str(),
            p.terrain_datum.c_str(), shift.c_str(),

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -145,6 +146,13 @@ std::optional<int> altitude(std::string_view s, std::size_t a) {
   return digits(s, a, 5);
 }
 
+// "600", "12.5": a number as a person writes it.
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
 }  // namespace
 
 bool is_flight_track(const std::string& path) {
@@ -258,7 +266,7 @@ FlightTrack read_flight_track(const std::string& path) {
 TrackPath track_camera_path(const FlightTrack& track, const BlockDatabase& db, const TrackCameraOptions& o,
                             const pm::CameraPathOptions& view) {
   if (!(o.pitch_deg >= -90 && o.pitch_deg <= 90 && o.fovy_deg > 0 && o.fovy_deg < 180 && o.speed_mps > 0 &&
-        o.time_scale > 0 && o.fps > 0 && o.heading_window_s >= 0))
+        o.time_scale > 0 && o.fps > 0 && o.heading_window_s >= 0 && o.from_s >= 0 && o.to_s > o.from_s))
     throw std::invalid_argument("track_camera_path: options out of range");
   const std::vector<TrackPoint>& pts = track.points;
   if (pts.size() < 2) throw std::runtime_error(track.file + ": a flight needs at least two track points");
@@ -312,10 +320,15 @@ TrackPath track_camera_path(const FlightTrack& track, const BlockDatabase& db, c
   out.duration_s = t.back();
   if (!(out.duration_s > 0))
     throw std::runtime_error(track.file + ": the track " + (track.timed ? "lasts no time" : "does not move"));
+  out.begin_s = o.from_s;
+  out.end_s = std::min(o.to_s, out.duration_s);
+  if (!(out.begin_s < out.end_s))
+    throw std::runtime_error(track.file + ": the track lasts " + number(out.duration_s) +
+                             " s; a replay from " + number(o.from_s) + " s shows none of it");
   const double dt = o.time_scale / o.fps;
-  const double frames = std::ceil(out.duration_s / dt - 1e-9) + 1.0;
+  const double frames = std::ceil((out.end_s - out.begin_s) / dt - 1e-9) + 1.0;
   if (frames > double(o.max_frames))
-    throw std::runtime_error(track.file + ": " + std::to_string(out.duration_s) + " s of track would be " +
+    throw std::runtime_error(track.file + ": " + number(out.end_s - out.begin_s) + " s of track would be " +
                              std::to_string((long long)frames) + " frames, more than " +
                              std::to_string(o.max_frames) + "; replay it faster (a larger time scale)");
   // Position at track time s, by linear interpolation; `j` is a cursor that only moves forward
@@ -337,7 +350,7 @@ TrackPath track_camera_path(const FlightTrack& track, const BlockDatabase& db, c
   std::size_t jp = 0, jb = 0, ja = 0;
   const double half = o.heading_window_s / 2.0;
   for (std::size_t k = 0; k < n; ++k) {
-    const double s = std::min(double(k) * dt, out.duration_s);
+    const double s = std::min(out.begin_s + double(k) * dt, out.end_s);
     const At p = at(s, jp);
     // Direction of travel: from the position half a window before to half a window after (at
     // least across the segment the frame lies on, so a zero window still has a direction).

@@ -153,14 +153,16 @@ TEST(FlyTrack, IgcReplayedByTerralodFlyLandsWhereItWasFlown) {
 TEST(FlyTrack, GpxReplayedByTheFlightDemoKeepsHeightsInTheTerrainsDatum) {
   const fs::path gpx = tmp() / "flight.gpx", out = tmp() / "gpx_out";
   std::ofstream(gpx) << gpx_text();
-  const tt::CommandResult r = tt::run_tool(
-      TERRALOD_FLY,
-      "--headless --db " + tt::quote(database().string()) + " --path " + tt::quote(gpx.string()) + " --out " +
-          tt::quote(out.string()) + " --frames 3 --size 64x48 --track-pitch -20 --track-time-scale 2",
-      {.merge_stderr = false, .no_display = true});
+  const tt::CommandResult r =
+      tt::run_tool(TERRALOD_FLY,
+                   "--headless --db " + tt::quote(database().string()) + " --path " +
+                       tt::quote(gpx.string()) + " --out " + tt::quote(out.string()) +
+                       " --frames 3 --size 64x48 --track-pitch -20 --track-time-scale 2 --track-from 1",
+                   {.merge_stderr = false, .no_display = true});
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("flight.gpx: GPX, 3 points"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("121 frames at 60 fps (time scale 2)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("91 frames at 60 fps (time scale 2, from 1.0 s to 4.0 s of it)"), std::string::npos)
+      << r.out;
   const Frames f = read_frames(out / "frames.csv");
   ASSERT_EQ(f.rows.size(), 3u);
   EXPECT_EQ(f.at(0, "z"), 3000.0);

@@ -286,6 +286,23 @@ TEST(FlightTrack, CameraPathFollowsTheTrackInTheTerrainsWorldFrame) {
   EXPECT_EQ(f.shift_min, 0.0);
   EXPECT_EQ(f.shift_max, 0.0);
   EXPECT_EQ(f.cameras[300].z, 1100.0);
+  // A window of the track: its frames are the whole replay's from 5 s to 15 s.
+  tb::TrackCameraOptions window;
+  window.from_s = 5.0, window.to_s = 15.0;
+  const tb::TrackPath wp = tb::track_camera_path(t, db, window, view);
+  ASSERT_EQ(wp.cameras.size(), 601u);
+  EXPECT_EQ(wp.begin_s, 5.0);
+  EXPECT_EQ(wp.end_s, 15.0);
+  for (std::size_t k : {std::size_t(0), std::size_t(300), std::size_t(600)}) {
+    EXPECT_NEAR(wp.cameras[k].x, p.cameras[300 + k].x, 1e-9) << k;
+    EXPECT_NEAR(wp.cameras[k].y, p.cameras[300 + k].y, 1e-9) << k;
+    EXPECT_NEAR(wp.cameras[k].yaw_deg, p.cameras[300 + k].yaw_deg, 1e-9) << k;
+  }
+  window.from_s = 20.0, window.to_s = 30.0;
+  EXPECT_NE(error_of<std::runtime_error>([&] {
+              tb::track_camera_path(t, db, window, view);
+            }).find("t.igc: the track lasts 20 s; a replay from 20 s shows none of it"),
+            std::string::npos);
   // Without times: flown at speed_mps along the ground.
   t.timed = false;
   tb::TrackCameraOptions slow;

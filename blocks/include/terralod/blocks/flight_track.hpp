@@ -34,9 +34,10 @@
 //     track's datum to the database's (its vertical datum; EGM96 when it states none, as the
 //     exporters assume), through PROJ's geoid grids when they differ (GeoError when PROJ
 //     lacks the grid).
-//   - Time: frame k shows the track at time k * time_scale / fps, positions interpolated
-//     linearly between the points around it; the last frame is the last point. An untimed track
-//     is flown at speed_mps along its ground distance.
+//   - Time: frame k shows the track at time from_s + k * time_scale / fps, positions
+//     interpolated linearly between the points around it; the last frame is at to_s, or the last
+//     point when to_s is past it. An untimed track is flown at speed_mps along its ground
+//     distance. A from_s at or past the track's end is a std::runtime_error.
 //   - Orientation: yaw along the direction of travel over the heading_window_s around the frame
 //     (so a logger's jitter does not shake the view; kept while the track stands still), pitch
 //     and fovy as given.
@@ -47,6 +48,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -87,13 +89,16 @@ struct TrackCameraOptions {
   double time_scale = 1.0;        ///< track seconds per replayed second, > 0
   double fps = 60.0;              ///< frames per replayed second, > 0
   double heading_window_s = 2.0;  ///< track seconds the direction of travel is taken over, >= 0
+  double from_s = 0.0;            ///< replay from this track time (seconds after its first point), >= 0
+  double to_s = std::numeric_limits<double>::infinity();  ///< ... to this one (or its end), > from_s
   std::string height_datum;       ///< overrides the track's ("" = as read)
   std::size_t max_frames = 10'000'000;
 };
 
 struct TrackPath {
   std::vector<pm::Camera> cameras;
-  double duration_s = 0.0;                  ///< track time covered (untimed: at speed_mps)
+  double duration_s = 0.0;                  ///< the whole track's time (untimed: at speed_mps)
+  double begin_s = 0.0, end_s = 0.0;        ///< the track times of the first and the last frame
   double ground_m = 0.0;                    ///< distance flown in the world frame's plan view
   std::size_t outside = 0;                  ///< track points off the terrain's samples
   std::string height_datum;                 ///< the track's, as used
