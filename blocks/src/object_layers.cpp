@@ -25,6 +25,7 @@
 #include "block_database_connection.hpp"
 #include "block_database_schema.hpp"
 #include "gdal_support.hpp"
+#include "terralod/blocks/flight_track.hpp"
 #include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/object_rules.hpp"
 #include "terralod/blocks/partition.hpp"
@@ -278,6 +279,35 @@ std::vector<ObjectFeature> read_features(BlockDatabaseImpl& d, sqlite3_stmt* st,
 /// The layer of `ds` (the file `in`) to read: the one named `name`, else its only layer, else its
 /// only layer with features. ObjectLayerError listing the layers otherwise (Cause Option for a
 /// name it does not hold).
+// An IGC flight log as a vector dataset of one line (its ground track, named after the file),
+// in WGS 84: GDAL reads GPX tracks but not IGC logs. Errors of the log are the input's.
+GDALDatasetUniquePtr open_igc(const std::string& in) {
+  FlightTrack track;
+  try {
+    track = read_flight_track(in);
+  } catch (const std::runtime_error& e) {
+    throw ObjectLayerError(e.what());
+  }
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("Memory");
+  GDALDatasetUniquePtr ds(mem != nullptr ? mem->Create("", 0, 0, 0, GDT_Unknown, nullptr) : nullptr);
+  if (!ds) throw ObjectLayerError(in + ": GDAL's Memory driver is missing (" + gdal_message("none") + ")");
+  OGRSpatialReference wgs84;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  OGRLayer* layer = ds->CreateLayer("track", &wgs84, wkbLineString, nullptr);
+  OGRFieldDefn name("name", OFTString);
+  if (layer == nullptr || layer->CreateField(&name) != OGRERR_NONE)
+    throw ObjectLayerError(in + ": cannot make its track a layer (" + gdal_message("GDAL refused") + ")");
+  OGRLineString line;
+  for (const TrackPoint& p : track.points) line.addPoint(p.lon, p.lat);
+  const OGRFeatureUniquePtr f(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+  f->SetField("name", fs::path(in).stem().string().c_str());
+  f->SetGeometry(&line);
+  if (layer->CreateFeature(f.get()) != OGRERR_NONE)
+    throw ObjectLayerError(in + ": cannot make its track a layer (" + gdal_message("GDAL refused") + ")");
+  return ds;
+}
+
 OGRLayer& source_layer(GDALDataset& ds, const std::string& in, const std::string& name) {
   // GDAL's GPX driver gives every point of the tracks and routes again as layers of points:
   // those are not a choice of their own.
@@ -381,7 +411,10 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
   const QuietGdal quiet;
   std::error_code ec;
   if (!fs::exists(in, ec)) throw ObjectLayerError(in + ": no such file");
-  const GDALDatasetUniquePtr ds(GDALDataset::Open(in.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  const GDALDatasetUniquePtr ds(
+      detail::lower(fs::path(in).extension().string()) == ".igc"
+          ? open_igc(in)
+          : GDALDatasetUniquePtr(GDALDataset::Open(in.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY)));
   if (!ds)
     throw ObjectLayerError(in + ": not a readable vector file (" + gdal_message("no driver reads it") + ")");
   OGRLayer& layer = source_layer(*ds, in, o.source_layer);

@@ -506,6 +506,46 @@ TEST(ObjectLayers, AGpxFileGivesItsTrackOrTheLayerNamed) {
   }
 }
 
+// An IGC flight log (which GDAL does not read) gives its ground track as one line named after
+// the file, on the same world points as the same fixes in a GPX track read through GDAL.
+TEST(ObjectLayers, AnIgcLogGivesItsGroundTrackAsOneLine) {
+  TempDir t;
+  const std::string db_path = t / "t.db";
+  make_db(db_path, 32633, kUtm, kUtm);
+  write_text(t / "ridge.gpx",
+             R"(<?xml version="1.0"?><gpx version="1.1" creator="t" xmlns="http://www.topografix.com/GPX/1/1">
+      <trk><trkseg><trkpt lat="45.1600" lon="15.0114"><ele>300</ele></trkpt>
+      <trkpt lat="45.1608" lon="15.0118"><ele>320</ele></trkpt>
+      <trkpt lat="45.1616" lon="15.0115"><ele>340</ele></trkpt></trkseg></trk></gpx>)");
+  // The same fixes in IGC's degrees and thousandths of minutes: 45 09.600 N 015 00.684 E, ...
+  write_text(t / "ridge.igc",
+             "AXXX001\r\nHFDTE010726\r\nB1200004509600N01500684EA0030000300\r\n"
+             "B1200014509648N01500708EA0032000320\r\nB1200024509696N01500690EA0034000340\r\n");
+  auto db = tb::BlockDatabase::open(db_path, tb::BlockDatabase::Mode::ReadWrite);
+  tb::add_object_layer(db, opts("gpx", t / "ridge.gpx"));
+  const tb::ObjectLayerReport igc = tb::add_object_layer(db, opts("igc", t / "ridge.igc"));
+  EXPECT_EQ(igc.layer.geometry, tb::GeometryType::Line);
+  EXPECT_EQ(igc.layer.feature_count, 1);
+  const std::vector<tb::ObjectFeature> a = tb::object_features(db, "gpx"), b = tb::object_features(db, "igc");
+  ASSERT_EQ(a.size(), 1u);
+  ASSERT_EQ(b.size(), 1u);
+  ASSERT_EQ(b[0].rings.size(), 1u);
+  ASSERT_EQ(b[0].rings[0].size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR(b[0].rings[0][i].x, a[0].rings[0][i].x, 1e-6) << i;
+    EXPECT_NEAR(b[0].rings[0][i].y, a[0].rings[0][i].y, 1e-6) << i;
+  }
+  ASSERT_NE(b[0].attribute("name"), nullptr);
+  EXPECT_EQ(b[0].attribute("name")->value, "ridge");
+  write_text(t / "bad.igc", "HFDTE010726\nB1200004509600X01500684EA0030000300\n");
+  try {
+    tb::add_object_layer(db, opts("bad", t / "bad.igc"));
+    ADD_FAILURE() << "a malformed log was read";
+  } catch (const tb::ObjectLayerError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.igc: line 2: bad latitude"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ObjectLayers, ADatabaseWithoutObjectTablesHasNoLayersAndCorruptFeaturesAreReported) {
   TempDir t;
   const std::string db_path = t / "t.db", json = t / "p.geojson";

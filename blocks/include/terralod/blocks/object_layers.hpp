@@ -1,5 +1,6 @@
 // Object layers: point, line and polygon features of a GIS vector file (any source OGR reads:
-// GeoJSON, GeoPackage, Shapefile, ...) moved into the terrain's world frame and stored in the
+// GeoJSON, GeoPackage, Shapefile, GPX, ...; and an IGC flight log, read by flight_track.hpp as one
+// line named after the file, layer "track") moved into the terrain's world frame and stored in the
 // block database with their attributes, indexed by block (issue 19, part 1; the paper's 3D map
 // objects, seeds/dynamic-3d-maps-texture-layers.txt section 5.2).
 //
