@@ -34,18 +34,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-struct PathRow {
-  double x, y, z, yaw, pitch, fovy;
-};
-
-// The shared path reader (flight_path.hpp): a PATH.csv as every tool reads it, or a GPX/IGC track.
-std::vector<PathRow> read_path(const Args& a) {
-  std::vector<PathRow> rows;
-  for (const pm::Camera& c : read_flight_path(a, "--path", a.get("--db"), {}))
-    rows.push_back({c.x, c.y, c.z, c.yaw_deg, c.pitch_deg, c.fovy_deg});
-  return rows;
-}
-
 }  // namespace
 
 CommandSpec fly_spec() {
@@ -146,7 +134,11 @@ int cmd_fly(const Args& a) {
   const bool dump = a.has("--dump-meshes"), dump_objects = a.has("--dump-objects");
   if (dump_objects && !a.has("--objects")) throw UsageError("--dump-objects needs --objects");
 
-  const std::vector<PathRow> path = read_path(a);
+  pm::CameraPathOptions view;
+  view.width_px = width, view.height_px = height;
+  // The shared path reader (flight_path.hpp): a PATH.csv as every tool reads it, or a GPX/IGC track.
+  const FlightPath flight = read_flight_path(a, "--path", db_path, view);
+  const std::vector<pm::Camera>& path = flight.cameras;
   print_line(
       strf("read  %s: %zu frames (%.1f s at 60 fps)", path_csv.c_str(), path.size(), path.size() / 60.0));
   std::error_code ec;
@@ -175,7 +167,7 @@ int cmd_fly(const Args& a) {
   FlightLog log(out, /*drawing=*/false);  // frames.csv appears only when the whole flight succeeded
   std::vector<double> ms, cpu, sel_ms, res_ms, ref_ms, seam_ms;
   ms.reserve(path.size());
-  std::size_t complete = 0, over_tau = 0;
+  std::size_t complete = 0, over_tau = 0, lifted = 0;
   double worst_complete = 0;
   const bool flip = grid.transform().determinant() < 0;
   ProgressBar bar("fly");
@@ -183,16 +175,14 @@ int cmd_fly(const Args& a) {
   for (std::size_t f = 0; f < path.size(); ++f) {
     if (speed > 0)
       std::this_thread::sleep_until(t_fly + std::chrono::duration<double>(double(f) / (60.0 * speed)));
-    const PathRow& r = path[f];
-    pm::Camera cam;
-    cam.x = r.x;
-    cam.y = r.y;
-    cam.z = r.z;
-    cam.yaw_deg = r.yaw;
-    cam.pitch_deg = r.pitch;
-    cam.fovy_deg = r.fovy;
-    cam.width_px = width;
-    cam.height_px = height;
+    pm::Camera cam = path[f];
+    if (flight.clearance_m > 0) {  // a track's eye above the ground
+      if (f == 0) {                // (the first frame is updated once beforehand, to have one)
+        rt.fit_camera(cam);
+        rt.update(pm::View(cam), 0.0);
+      }
+      lifted += keep_clear(cam, rt, flight.clearance_m);
+    }
     rt.fit_camera(cam);
     const blocks::RuntimeFrameStats& s = rt.update(pm::View(cam), double(f) / 60.0);
     ms.push_back(s.update_ms);
@@ -248,6 +238,9 @@ int cmd_fly(const Args& a) {
            "bound / "
            "tau %.3f)",
            complete, path.size(), complete - over_tau, worst_complete));
+  if (flight.clearance_m > 0)
+    print_line(strf("track the eye was lifted to %g m above the ground in %zu of %zu frames",
+                    flight.clearance_m, lifted, path.size()));
   if (objects)
     print_line(
         strf("objects placed per frame median %.0f, max %.0f; placement thread CPU median %.3f ms, p99 "

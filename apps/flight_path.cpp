@@ -1,5 +1,8 @@
 #include "flight_path.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/flight_track.hpp"
 
@@ -15,6 +18,8 @@ std::vector<OptionSpec> track_option_specs() {
        "GPX/IGC path: replay from this many seconds after the track's start (default 0)"},
       {"--track-to", "SECONDS",
        "GPX/IGC path: replay up to this many seconds after its start (default: its end)"},
+      {"--track-clearance", "METRES",
+       "GPX/IGC path: keep the eye this far above the ground, >= 0 (default 2; 0: the track's heights)"},
       {"--track-heights", "DATUM",
        "GPX/IGC path: datum of the track's heights: egm96, egm2008, ellipsoid or a PROJ vertical CRS "
        "(default: EGM96 for GPX, the log's for IGC)"},
@@ -31,19 +36,31 @@ std::string track_help() {
          "F + k * K / 60 s (--track-from F, --track-time-scale K) up to --track-to (else its end),\n"
          "positions interpolated between its points; a track without times is flown at --track-speed.\n"
          "The camera looks along the direction of travel (over 2 s of track) at --track-pitch with\n"
-         "--track-fovy. A line on stdout gives the points, duration, distance, frames, the heights'\n"
-         "datum and shift, and the points off the terrain.";
+         "--track-fovy, and never lower than --track-clearance above the ground under it (the terrain's\n"
+         "samples where their block is resident, or the surface drawn the frame before, whichever is\n"
+         "higher): GPS heights near take-off and landing fall below the terrain. frames.csv gives the\n"
+         "eye where it was. A line on stdout gives the points, duration, distance, frames, the heights'\n"
+         "datum and shift, and the points off the terrain; the summary, the frames whose eye was lifted.";
 }
 
-std::vector<pm::Camera> read_flight_path(const Args& a, const std::string& option, const std::string& db_path,
-                                         const pm::CameraPathOptions& view) {
+bool keep_clear(pm::Camera& c, const blocks::TerrainRuntime& rt, double clearance_m) {
+  if (!(clearance_m > 0)) return false;
+  const double drawn = rt.drawn_height(c.x, c.y), terrain = rt.terrain_height(c.x, c.y);
+  const double ground = std::isnan(drawn) ? terrain : std::isnan(terrain) ? drawn : std::max(drawn, terrain);
+  if (!std::isfinite(ground) || c.z >= ground + clearance_m) return false;
+  c.z = ground + clearance_m;
+  return true;
+}
+
+FlightPath read_flight_path(const Args& a, const std::string& option, const std::string& db_path,
+                            const pm::CameraPathOptions& view) {
   const std::string file = a.get(option);
   const std::vector<OptionSpec> specs = track_option_specs();
   if (!blocks::is_flight_track(file)) {
     for (const OptionSpec& s : specs)
       if (a.has(s.name))
         throw UsageError(s.name + " is for a GPX or IGC path, and " + option + " is '" + file + "'");
-    return pm::read_camera_path(file, view);
+    return {pm::read_camera_path(file, view), 0.0};
   }
   if (db_path.empty())
     throw UsageError(option + " " + file +
@@ -70,6 +87,10 @@ std::vector<pm::Camera> read_flight_path(const Args& a, const std::string& optio
   if (!(o.to_s > o.from_s))
     throw UsageError("option '--track-to' must be after --track-from (" + strf("%g", o.from_s) +
                      " s), not '" + a.get("--track-to") + "'");
+  const double clearance = a.get_double("--track-clearance", 2.0);
+  if (!(clearance >= 0))
+    throw UsageError("option '--track-clearance' must be >= 0 metres, not '" + a.get("--track-clearance") +
+                     "'");
   o.height_datum = a.get("--track-heights");
   const blocks::FlightTrack track = blocks::read_flight_track(file);
   const blocks::TrackPath p = track_camera_path(track, blocks::BlockDatabase::open(db_path), o, view);
@@ -90,7 +111,7 @@ std::vector<pm::Camera> read_flight_path(const Args& a, const std::string& optio
                                   : ("taken as " + o.height_datum + " (--track-heights)").c_str(),
            p.terrain_datum.c_str(), shift.c_str(),
            p.outside ? strf("; %zu points off the terrain", p.outside).c_str() : ""));
-  return p.cameras;
+  return {p.cameras, clearance};
 }
 
 }  // namespace terralod::cli

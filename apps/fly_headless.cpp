@@ -145,7 +145,12 @@ int run_headless(const Args& a) {
   pm::CameraPathOptions po;
   po.width_px = w, po.height_px = h;
   std::vector<pm::Camera> path;
-  if (a.has("--path")) path = read_flight_path(a, "--path", a.get("--db"), po);
+  double clearance = 0.0;  // a track's (flight_path.hpp)
+  if (a.has("--path")) {
+    FlightPath flight = read_flight_path(a, "--path", a.get("--db"), po);
+    path = std::move(flight.cameras);
+    clearance = flight.clearance_m;
+  }
   const bool dump = a.has("--dump-meshes"), hud = a.has("--hud");
   std::optional<render::TextRasterizer> hud_text;  // opened at the first frame with the HUD
   std::optional<LayerSetup> layers = layer_setup(a);
@@ -179,9 +184,16 @@ int run_headless(const Args& a) {
   std::vector<double> update_ms, update_cpu_ms, frame_ms, triangles, resident, placed;
   std::array<std::vector<double>, 5> drawn_per_frame;  // the ObjectDrawStats counts, per frame
   double worst_bound = 0, wait_ms = 0;                 // worst bound / tau of the frames with nothing missing
-  std::size_t complete = 0;
+  std::size_t complete = 0, lifted = 0;
   for (long long k = 0; k < frames; ++k) {
     pm::Camera c = path[std::size_t(k)];
+    if (clearance > 0 && t->runtime()) {  // a track's eye above the ground (tracks need --db)
+      if (k == 0) {                       // (the first frame is drawn once beforehand, to have one)
+        t->fit_camera(c);
+        p.frame(c, 0.0, /*wait=*/true);
+      }
+      lifted += keep_clear(c, *t->runtime(), clearance);
+    }
     t->fit_camera(c);
     const FrameRecord r = p.frame(c, double(k) / 60.0, /*wait=*/true);
     if (objects && t->runtime()) {
@@ -251,6 +263,9 @@ int run_headless(const Args& a) {
   if (!resident.empty())
     std::printf("headless: blocks resident median %.0f, max %.0f; waited %s for block loads in all\n",
                 pm::quantile(resident, 0.5), pm::quantile(resident, 1.0), format_duration(wait_ms).c_str());
+  if (clearance > 0)
+    std::printf("headless: the track's eye was lifted to %g m above the ground in %zu of %lld frames\n",
+                clearance, lifted, frames);
   // The last line: the guarantee as measured on this run, and the update's cost.
   std::printf(
       "headless: guarantee: %zu of %lld frames had nothing missing, and in those the drawn mesh was within "

@@ -113,10 +113,13 @@ int run_window(const Args& a) {
   const std::unique_ptr<LodSource> t = open_terrain(a);
   const Extent& ext = t->extent();
   std::vector<pm::Camera> replay;
+  double replay_clearance = 0.0;  // a track's (flight_path.hpp)
   if (a.has("--replay")) {
     pm::CameraPathOptions po;
     po.width_px = w, po.height_px = h;
-    replay = read_flight_path(a, "--replay", a.get("--db"), po);
+    FlightPath flight = read_flight_path(a, "--replay", a.get("--db"), po);
+    replay = std::move(flight.cameras);
+    replay_clearance = flight.clearance_m;
   }
   const long long max_frames =
       a.get_int("--frames", replay.empty() ? -1 : (long long)replay.size(), -1, 1LL << 40);
@@ -245,6 +248,7 @@ int run_window(const Args& a) {
       if (ctl.follow) cam.z = std::max(cam.z, t->ground(cam.x, cam.y) + clearance);
     } else {
       cam = replay[std::size_t(std::min<long long>(frame, (long long)replay.size() - 1))];
+      if (t->runtime()) keep_clear(cam, *t->runtime(), replay_clearance);  // a track's eye above the ground
     }
     int fw = 1, fh = 1;
     glfwGetFramebufferSize(gw, &fw, &fh);

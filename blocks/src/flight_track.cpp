@@ -276,16 +276,19 @@ TrackPath track_camera_path(const FlightTrack& track, const BlockDatabase& db, c
   wgs84.SetWellKnownGeogCS("WGS84");
   detail::WorldPlacement placement(db, wgs84, track.file);
   const DatabaseInfo& info = db.info();
-  std::vector<WorldPoint> xy(pts.size());
+  struct XY {
+    double x, y;
+  };
+  std::vector<XY> xy(pts.size());
   std::vector<double> lon(pts.size()), lat(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) {
-    std::vector<WorldPoint> one{{pts[i].lon, pts[i].lat}};
+    double x = pts[i].lon, y = pts[i].lat;
     std::array<double, 4> box = detail::empty_sample_box();
-    if (!placement.place(one, box))
+    if (!placement.place({&x, 1}, {&y, 1}, box))
       throw GeoError(track.file + ": point " + std::to_string(i + 1) + " (longitude " +
                      std::to_string(pts[i].lon) + ", latitude " + std::to_string(pts[i].lat) +
                      ") cannot be moved to the terrain's frame");
-    xy[i] = one[0];
+    xy[i] = {x, y};
     lon[i] = pts[i].lon, lat[i] = pts[i].lat;
     constexpr double tol = 1e-6;
     if (box[0] < -tol || box[1] < -tol || box[0] > info.grid_width - 1 + tol ||

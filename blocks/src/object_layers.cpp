@@ -169,8 +169,13 @@ class Placement {
   // (cmin, rmin, cmax, rmax); false if a point cannot be transformed.
   bool place(std::vector<std::vector<WorldPoint>>& rings, std::array<double, 4>& samples) {
     samples = detail::empty_sample_box();
-    for (std::vector<WorldPoint>& ring : rings)
-      if (!placement_.place(ring, samples)) return false;
+    for (std::vector<WorldPoint>& ring : rings) {
+      xs_.resize(ring.size());
+      ys_.resize(ring.size());
+      for (std::size_t i = 0; i < ring.size(); ++i) xs_[i] = ring[i].x, ys_[i] = ring[i].y;
+      if (!placement_.place(xs_, ys_, samples)) return false;
+      for (std::size_t i = 0; i < ring.size(); ++i) ring[i] = {xs_[i], ys_[i]};
+    }
     return true;
   }
 
@@ -184,6 +189,7 @@ class Placement {
     }
   }
   detail::WorldPlacement placement_;
+  std::vector<double> xs_, ys_;
 };
 
 // A part ready to store.

@@ -9,6 +9,7 @@
 #include "grid_triangle.hpp"
 #include "terrain_runtime_internal.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
+#include "terralod/pm/height_query.hpp"
 
 namespace terralod::blocks {
 
@@ -110,6 +111,15 @@ void TerrainRuntime::drawn_triangles_in(double x0, double y0, double x1, double 
     }
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
+double TerrainRuntime::terrain_height(double x, double y) const {
+  const auto [c, r] = grid_.to_grid(x, y);
+  if (!(c >= 0 && r >= 0 && c <= grid_.grid_width() - 1 && r <= grid_.grid_height() - 1))
+    return std::numeric_limits<double>::quiet_NaN();
+  const auto it = blocks_.find(grid_.block_at(x, y));
+  if (it == blocks_.end() || !it->second->data) return std::numeric_limits<double>::quiet_NaN();
+  return pm::bilinear_height(it->second->data->dag->heightfield(), x, y);
 }
 
 double TerrainRuntime::drawn_height(double x, double y) const {

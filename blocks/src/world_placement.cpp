@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 #include "gdal_support.hpp"
 #include "terralod/blocks/geo_grid.hpp"
@@ -44,21 +45,16 @@ WorldPlacement::WorldPlacement(const BlockDatabase& db, const OGRSpatialReferenc
     throw DatabaseError(db.path(), "the georeference is not invertible");
 }
 
-bool WorldPlacement::place(std::vector<WorldPoint>& points, std::array<double, 4>& samples) {
-  xs_.resize(points.size());
-  ys_.resize(points.size());
-  ok_.assign(points.size(), 0);
-  for (std::size_t i = 0; i < points.size(); ++i) xs_[i] = points[i].x, ys_[i] = points[i].y;
-  if (!points.empty() && !ct_->Transform(int(points.size()), xs_.data(), ys_.data(), nullptr, ok_.data()))
-    return false;
-  for (std::size_t i = 0; i < points.size(); ++i) {
+bool WorldPlacement::place(std::span<double> x, std::span<double> y, std::array<double, 4>& samples) {
+  ok_.assign(x.size(), 0);
+  if (!x.empty() && !ct_->Transform(int(x.size()), x.data(), y.data(), nullptr, ok_.data())) return false;
+  for (std::size_t i = 0; i < x.size(); ++i) {
     if (!ok_[i]) return false;
-    const double dx = xs_[i] - crs_.x0, dy = ys_[i] - crs_.y0;
+    const double dx = x[i] - crs_.x0, dy = y[i] - crs_.y0;
     const double col = (crs_.yr * dx - crs_.xr * dy) / det_;
     const double row = (crs_.xc * dy - crs_.yc * dx) / det_;
-    const auto [x, y] = info_.transform.to_world(col, row);
-    if (!std::isfinite(x) || !std::isfinite(y)) return false;
-    points[i] = {x, y};
+    std::tie(x[i], y[i]) = info_.transform.to_world(col, row);
+    if (!std::isfinite(x[i]) || !std::isfinite(y[i])) return false;
     samples = {std::min(samples[0], col), std::min(samples[1], row), std::max(samples[2], col),
                std::max(samples[3], row)};
   }

@@ -8,8 +8,9 @@
 //   - The constructor throws GeoError "<input>: <problem>" when the database has no CRS or no
 //     georeference (an older build), or PROJ has no transformation from `source` to it;
 //     DatabaseError when the database's CRS or georeference is unusable.
-//   - place() moves points in place and widens `samples` (cmin, rmin, cmax, rmax) by their
-//     sample positions; false (points then partly moved) if any point cannot be transformed.
+//   - place() moves points (x[i], y[i]) in place and widens `samples` (cmin, rmin, cmax, rmax) by
+//     their sample positions; false (points then partly moved) if any point cannot be
+//     transformed. Plain coordinates, so that every concept that places things can call it.
 //   - Axis order: traditional GIS order (x = longitude / easting) for both CRSs.
 #pragma once
 
@@ -18,11 +19,11 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "terralod/blocks/block_database.hpp"
-#include "terralod/blocks/object_layers.hpp"
 
 namespace terralod::blocks::detail {
 
@@ -33,14 +34,13 @@ class WorldPlacement {
  public:
   WorldPlacement(const BlockDatabase& db, const OGRSpatialReference& source, const std::string& input);
 
-  bool place(std::vector<WorldPoint>& points, std::array<double, 4>& samples);
+  bool place(std::span<double> x, std::span<double> y, std::array<double, 4>& samples);
 
  private:
   DatabaseInfo info_;
   std::unique_ptr<OGRCoordinateTransformation> ct_;
   pm::GridTransform crs_;
   double det_ = 1.0;
-  std::vector<double> xs_, ys_;
   std::vector<int> ok_;
 };
 

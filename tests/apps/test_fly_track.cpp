@@ -63,13 +63,14 @@ struct Fix {
 };
 const std::vector<Fix> kFixes = {{46.004, 7.004}, {46.020, 7.012}, {46.024, 7.026}};
 
-std::string igc_text() {
+// The log, at GNSS altitude `gnss` (ellipsoidal metres) and pressure altitude `pressure`.
+std::string igc_text(int gnss = 3000, int pressure = 2900) {
   std::string s = "AXXX001\r\nHFDTE010726\r\nHFALGALTGPS:ELL\r\n";
   for (std::size_t i = 0; i < kFixes.size(); ++i) {
     const long la = std::lround(kFixes[i].lat * 60000.0), lo = std::lround(kFixes[i].lon * 60000.0);
     char buf[96];
-    std::snprintf(buf, sizeof buf, "B1200%02zu%02ld%05ldN%03ld%05ldEA0290003000\r\n", 2 * i, la / 60000,
-                  la % 60000, lo / 60000, lo % 60000);
+    std::snprintf(buf, sizeof buf, "B1200%02zu%02ld%05ldN%03ld%05ldEA%05d%05d\r\n", 2 * i, la / 60000,
+                  la % 60000, lo / 60000, lo % 60000, pressure, gnss);
     s += buf;
   }
   return s;
@@ -150,6 +151,52 @@ TEST(FlyTrack, IgcReplayedByTerralodFlyLandsWhereItWasFlown) {
   EXPECT_EQ(f.at(60, "pitch"), -10.0);
 }
 
+// A log whose heights lie under the terrain (1000 to 1800 m there). terralod-fly --headless
+// (every frame waits for its loads; the first is drawn once beforehand) keeps the eye 2 m
+// above the terrain's samples in every frame; terralod fly (which never waits) does as soon as
+// the ground under the eye is known, and with --track-clearance 0 flies the log's heights.
+TEST(FlyTrack, TheEyeStaysAboveTheGroundUnlessTold) {
+  const fs::path igc = tmp() / "low.igc";
+  std::ofstream(igc, std::ios::binary) << igc_text(1, 0);
+  const fs::path out = tmp() / "low_headless";
+  const tt::CommandResult h = tt::run_tool(TERRALOD_FLY,
+                                           "--headless --db " + tt::quote(database().string()) + " --path " +
+                                               tt::quote(igc.string()) + " --out " + tt::quote(out.string()) +
+                                               " --frames 4 --size 64x48",
+                                           {.merge_stderr = false, .no_display = true});
+  ASSERT_EQ(h.status, 0) << h.out << h.err;
+  EXPECT_NE(h.out.find("lifted to 2 m above the ground in 4 of 4 frames"), std::string::npos) << h.out;
+  const Frames hf = read_frames(out / "frames.csv");
+  ASSERT_EQ(hf.rows.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) EXPECT_GT(hf.at(k, "z"), 1000.0 + 2.0) << "frame " << k;
+  for (const bool clear : {true, false}) {
+    const fs::path o = tmp() / (clear ? "low_fly" : "low_fly_0");
+    const tt::CommandResult r = tt::run_tool(
+        TERRALOD_CLI, "fly --db " + tt::quote(database().string()) + " --path " + tt::quote(igc.string()) +
+                          " --out " + tt::quote(o.string()) + " --size 160x120" +
+                          (clear ? "" : " --track-clearance 0 --speed-factor 0"));
+    ASSERT_EQ(r.status, 0) << r.out << r.err;
+    const Frames f = read_frames(o / "frames.csv");
+    ASSERT_EQ(f.rows.size(), 241u);
+    std::size_t above = 0;
+    for (std::size_t k = 0; k < f.rows.size(); ++k) {
+      const double z = f.at(k, "z");
+      // Where the eye was not lifted it is where the log puts it (about -50 m).
+      EXPECT_TRUE(z < -40.0 || (clear && z > 1000.0)) << "frame " << k << ": " << z;
+      above += z > 1000.0;
+    }
+    if (clear) {
+      EXPECT_NE(r.out.find("lifted to 2 m above the ground in " + std::to_string(above) + " of 241 frames"),
+                std::string::npos)
+          << r.out;
+      EXPECT_GT(above, 120u) << "the ground under the eye was known late";  // it arrives within a second
+    } else {
+      EXPECT_EQ(above, 0u);
+      EXPECT_EQ(r.out.find("lifted"), std::string::npos) << r.out;
+    }
+  }
+}
+
 TEST(FlyTrack, GpxReplayedByTheFlightDemoKeepsHeightsInTheTerrainsDatum) {
   const fs::path gpx = tmp() / "flight.gpx", out = tmp() / "gpx_out";
   std::ofstream(gpx) << gpx_text();
@@ -167,6 +214,7 @@ TEST(FlyTrack, GpxReplayedByTheFlightDemoKeepsHeightsInTheTerrainsDatum) {
   ASSERT_EQ(f.rows.size(), 3u);
   EXPECT_EQ(f.at(0, "z"), 3000.0);
   EXPECT_EQ(f.at(0, "pitch"), -20.0);
+  EXPECT_NE(r.out.find("lifted to 2 m above the ground in 0 of 3 frames"), std::string::npos) << r.out;
   EXPECT_TRUE(fs::exists(out / "frame_00002.png"));
 }
 

@@ -26,6 +26,7 @@
 #include "screen_error_checker.hpp"
 #include "terralod/blocks/terrain_runtime.hpp"
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/height_query.hpp"
 #include "terralod/pm/terrain_generator.hpp"
 #include "terralod/pm/timing.hpp"
 
@@ -567,6 +568,39 @@ TEST(TerrainRuntime, DrawnHeightIsTheDrawnSurface) {
   }
   const auto [x0, y0] = hf.transform.to_world(-5.0, -5.0);
   EXPECT_TRUE(std::isnan(rt.drawn_height(x0, y0)));
+}
+
+// terrain_height: the samples of the resident block under the point, whatever is drawn; NaN
+// before anything is resident and outside the terrain.
+TEST(TerrainRuntime, TerrainHeightIsTheResidentBlocksSamples) {
+  const tp::Heightfield& hf = terrain().hf;
+  tb::TerrainRuntime rt(terrain().db, {});
+  const auto [xm, ym] = hf.transform.to_world(200.0, 300.0);
+  EXPECT_TRUE(std::isnan(rt.terrain_height(xm, ym))) << "nothing is resident yet";
+  tp::Camera cam = pose(hf, 200.0, 300.0, 400.0, 30.0, -20);
+  rt.fit_camera(cam);
+  rt.update_until_loaded(tp::View(cam), 0.0);
+  EXPECT_EQ(rt.terrain_height(xm, ym), hf.at(200, 300)) << "under the eye";
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> uc(0, hf.width() - 1), ur(0, hf.height() - 1);
+  int known = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const double c = uc(rng), r = ur(rng);
+    const auto [x, y] = hf.transform.to_world(c, r);
+    const double got = rt.terrain_height(x, y);
+    if (std::isnan(got)) continue;
+    ++known;
+    ASSERT_NEAR(got, tp::bilinear_height(hf, x, y), 1e-9) << "at sample (" << c << ", " << r << ")";
+    const int ci = int(std::lround(c)), ri = int(std::lround(r));
+    const auto [xs, ys] = hf.transform.to_world(ci, ri);
+    const double at_sample = rt.terrain_height(xs, ys);
+    if (!std::isnan(at_sample)) {
+      ASSERT_EQ(at_sample, hf.at(ci, ri)) << ci << ", " << ri;
+    }
+  }
+  EXPECT_GT(known, 300);
+  const auto [x0, y0] = hf.transform.to_world(-5.0, -5.0);
+  EXPECT_TRUE(std::isnan(rt.terrain_height(x0, y0)));
 }
 
 TEST(TerrainRuntime, BadOptionsAndBadDatabaseAreErrors) {

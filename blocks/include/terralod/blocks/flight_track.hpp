@@ -91,7 +91,7 @@ struct TrackCameraOptions {
   double heading_window_s = 2.0;  ///< track seconds the direction of travel is taken over, >= 0
   double from_s = 0.0;            ///< replay from this track time (seconds after its first point), >= 0
   double to_s = std::numeric_limits<double>::infinity();  ///< ... to this one (or its end), > from_s
-  std::string height_datum;       ///< overrides the track's ("" = as read)
+  std::string height_datum;                               ///< overrides the track's ("" = as read)
   std::size_t max_frames = 10'000'000;
 };
 

@@ -281,6 +281,11 @@ class TerrainRuntime {
   /// The highest sample of the smallest tree node over world (x, y) (clamped to the terrain):
   /// a height at or above the terrain there, known without loading anything. O(tree depth).
   double max_height_at(double x, double y) const;
+  /// The terrain itself under world (x, y), whatever is drawn there: the bilinear surface of the
+  /// samples (pm::bilinear_height) of the resident block holding (x, y), which keeps all its
+  /// samples however much of its PM it holds; NaN outside the terrain, where that block is not
+  /// resident, or over holes. O(log blocks).
+  double terrain_height(double x, double y) const;
 
  private:
   struct Block;    // a resident block with its refinement
