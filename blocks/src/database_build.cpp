@@ -48,9 +48,9 @@ std::string build_parameters_json(const DemSource& src, const DatabaseBuildOptio
   std::snprintf(
       buf, sizeof buf,
       "{\"block_size\": %d, \"metric\": \"%s\", \"strategy\": \"%s\", \"patch\": %d, \"max_points\": %zu, "
-      "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 "}",
+      "\"grid\": [%d, %d], \"samples_crc32\": %" PRIu32 ", \"pm_builder\": %d}",
       o.block_size, metric_name(o.metric), levels.c_str(), o.tree.patch, o.tree.max_points, src.grid().width,
-      src.grid().height, src.samples_crc());
+      src.grid().height, src.samples_crc(), pm::ProgressiveMesh::kBuilderRevision);
   return buf;
 }
 

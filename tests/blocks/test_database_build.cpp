@@ -113,6 +113,10 @@ TEST(DatabaseBuild, GeneratedTerrainSummaryTreeAndExtraction) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("other parameters"), std::string::npos) << e.what();
   }
+  // The builder's revision is one of them: a database begun by another revision is not resumed.
+  EXPECT_NE(tb::BlockDatabase::open(path).info().build_parameters.find(
+                "\"pm_builder\": " + std::to_string(pm::ProgressiveMesh::kBuilderRevision)),
+            std::string::npos);
 }
 
 // What a killed create() leaves (an empty file, or a hot journal over one: block_database.hpp)

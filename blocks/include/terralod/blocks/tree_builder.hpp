@@ -195,7 +195,8 @@ struct DatabaseSummary {
 };
 
 /// Builds (or resumes) the database at `path` for hf: creates it if absent; if it exists with
-/// the same build parameters (and the same input samples, compared by CRC-32), keeps its
+/// the same build parameters (and the same input samples, compared by CRC-32, and the same
+/// PM builder revision, pm::ProgressiveMesh::kBuilderRevision), keeps its
 /// blocks and builds only the missing ones; a database with other parameters -> BuildError
 /// naming the file and the differing parameters. Blocks are built on `threads` threads and
 /// each is written in its own transaction; the tree, the summary and "build_complete" = "1"

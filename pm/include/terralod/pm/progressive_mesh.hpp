@@ -81,6 +81,11 @@ class ProgressiveMesh {
  public:
   /// Builds the PM of a heightfield of at least 2 x 2 samples (std::invalid_argument otherwise).
   static ProgressiveMesh build(const Heightfield& hf, const BuildOptions& options = {});
+  /// Revision of what build() makes of a heightfield and options: raised whenever they give other
+  /// collapses (a changed rule or order), so that a block database begun by one revision is not
+  /// finished by another (the build parameters record it: database_build.cpp). 1: until
+  /// 2026-12-06 (not recorded); 2: a hole's straight edges thin out like the grid's border.
+  static constexpr int kBuilderRevision = 2;
 
   /// Assembles a PM from its parts (used by the reader); throws std::invalid_argument when the
   /// parts are inconsistent (an index out of range, a vertex removed twice, ...).
