@@ -227,15 +227,15 @@ FlightTrack parse_igc(std::string_view text, const std::string& name) {
     t.height_note =
         alt_reference == "GEO"
             ? "IGC GNSS altitude of the 3D fixes, above the geoid (HFALGALTGPS:GEO, taken as EGM96)"
-            : "IGC GNSS altitude of the 3D fixes, above the WGS 84 ellipsoid (the IGC specification's "
-              "datum" +
-                  std::string(alt_reference == "ELL" ? ", HFALGALTGPS:ELL)" : ")");
+            : std::string(
+                  "IGC GNSS altitude of the 3D fixes, above the WGS 84 ellipsoid (the IGC "
+                  "specification's datum") +
+                  (alt_reference == "ELL" ? ", HFALGALTGPS:ELL)" : ")");
   } else {
     t.height_datum = "egm96";
     t.height_note =
-        "IGC pressure altitude (the log has no GNSS altitude): ISA 1013.25 hPa, taken as EGM96 heights, off "
-        "by "
-        "the day's pressure (often tens of metres)";
+        "IGC pressure altitude (the log has no GNSS altitude): ISA 1013.25 hPa, taken as EGM96 heights, "
+        "off by the day's pressure (often tens of metres)";
   }
   std::vector<double> absolute;
   for (const Fix& f : fixes) {
