@@ -2,6 +2,8 @@
 // scratch folders (see run_command.hpp).
 #include "run_command.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -101,6 +103,21 @@ fs::path shared_file(const std::string& name, const std::function<void(const fs:
   const fs::path target = dir / name;
   if (fs::exists(target)) return target;
   fs::create_directories(dir);
+  // One builder at a time: ctest starts the tests of one executable side by side, and each
+  // would otherwise build the same file at once, on the same 2 cores (three runtime tests over
+  // one database, ctest -j2 under ASan: 36.6 s, 24.3 s with the lock); the others wait for it
+  // and reuse its file. The lock goes with its descriptor, also when a builder is killed.
+  const fs::path lock_path = dir / (name + ".lock");
+  const int lock = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0) throw std::system_error(errno, std::generic_category(), "cannot open " + lock_path.string());
+  struct Unlock {
+    int fd;
+    ~Unlock() { ::close(fd); }
+  } unlock{lock};
+  while (::flock(lock, LOCK_EX) != 0)
+    if (errno != EINTR)
+      throw std::system_error(errno, std::generic_category(), "cannot lock " + lock_path.string());
+  if (fs::exists(target)) return target;
   // Folders of this executable's older builds: nothing of theirs is read any more.
   for (const fs::directory_entry& e : fs::directory_iterator(test_tmp_root())) {
     const std::string n = e.path().filename().string();

@@ -24,7 +24,8 @@
 //              process_temp_dir(prefix) (created on first use, removed at exit).
 //   shared_file(name, build)  a file shared by every process of this test executable (ctest runs
 //              each test case as a process of its own): the first process to ask builds it with
-//              build(path) at a private path and hard-links it into place; the others reuse it.
+//              build(path) at a private path and hard-links it into place; the others wait for
+//              it (a lock file beside it) and reuse it.
 //              For deterministic fixtures that are expensive to make (a block database) and only
 //              read by the tests. Keyed by the executable's name, size and modification time, so
 //              a rebuilt executable never reads what an older build wrote (older keys are removed).
