@@ -15,8 +15,8 @@
 # both. Data symbols are not forwarded: code that used one would fail to link, not misbehave.
 # x86-64 SysV only (the trampolines are assembly); elsewhere, with nm or readelf missing, with
 # TERRALOD_LAZY_LIBRARIES off, or when the flags ask for UBSan's vptr checks (-fsanitize=undefined
-# or vptr: they need the libraries' classes' type_info, which is data), TARGET is an interface
-# library that links IMPORTED as usual.
+# or vptr without -fno-sanitize=vptr: they need the libraries' classes' type_info, which is data),
+# TARGET is an interface library that links IMPORTED as usual.
 #
 # Cost: one indirect jump per call once resolved; the names of the forwarded functions (about
 # 200 kB for OpenImageIO) in the binary.
@@ -33,8 +33,12 @@ function(terralod_lazy_library target imported pattern)
   find_program(TERRALOD_NM nm)
   find_program(TERRALOD_READELF readelf)
   set(flags "${CMAKE_CXX_FLAGS} ${TERRALOD_SANITIZE}")
+  set(vptr_checks OFF)
+  if(flags MATCHES "-fsanitize=[^ ;]*(undefined|vptr)" AND NOT flags MATCHES "-fno-sanitize=[^ ;]*(undefined|vptr)")
+    set(vptr_checks ON)
+  endif()
   if(NOT TERRALOD_LAZY_LIBRARIES OR NOT CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$" OR NOT libs
-     OR NOT TERRALOD_NM OR NOT TERRALOD_READELF OR flags MATCHES "-fsanitize=[^ ;]*(undefined|vptr)")
+     OR NOT TERRALOD_NM OR NOT TERRALOD_READELF OR vptr_checks)
     message(STATUS "${target}: ${imported} is linked as usual (no lazy loading in this build)")
     add_library(${target} INTERFACE)
     target_link_libraries(${target} INTERFACE ${imported})
