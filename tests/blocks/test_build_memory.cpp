@@ -14,6 +14,7 @@
 // while every block is still read, built, written and summarised as on any terrain.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <malloc.h>
 
 #include <algorithm>
 #include <cmath>
@@ -24,9 +25,12 @@
 #include <string>
 #include <vector>
 
+#include "geographic_tiff.hpp"
 #include "run_command.hpp"
+#include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/dem_writer.hpp"
+#include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -166,4 +170,52 @@ TEST(BuildMemory, PeakGrowsByLittleWithTheNumberOfBlocks) {
   std::printf("%.2f kB more a block\n", per_block / 1e3);
   EXPECT_LE(per_block, 3000.0) << "the peak grew by " << per_block << " bytes a block";
 #endif
+}
+
+// The exporters' longitude/latitude grid (geo_grid.hpp: make_geo_grid) holds 8 + 1 bytes a
+// sample and nothing else that grows with the terrain: the database's samples move into it, and
+// the geoid undulations are computed in bands of rows. Two geographic DEMs (EGM96 heights, so
+// every sample is converted) of 513^2 and 1025^2 samples are built, then read back and made into
+// grids one after the other in this process. Before each, freed memory is returned to the system
+// (malloc_trim) and VmHWM reset, so each grid's growth over the resident set is its own.
+// Copying the samples into the grid and holding the whole grid's coordinates and undulations for
+// PROJ (before) took 55 bytes a sample more for the larger one; now about 6 (its samples, 8, less
+// what the fixed part of the smaller grid weighs).
+TEST(ExportMemory, GeoGridHoldsAboutNineBytesASample) {
+  const terralod::test::TempDir dir("export-memory");
+  const pm::FractalField field({.width = 1025, .height = 1025, .seed = 8, .height_quantum = 16.0});
+  auto db_of = [&](int size) {
+    const std::string tif = (dir.path() / ("geo" + std::to_string(size) + ".tif")).string();
+    const std::string db = (dir.path() / ("geo" + std::to_string(size) + ".db")).string();
+    constexpr double kStep = 1.0 / 1200;  // SRTM's 3 arc-seconds, near 46 N
+    terralod::test::write_tiff(tif, 4326, 10.0, 46.5, size, size, kStep, GDT_Float32,
+                               [&](double x, double y) {
+                                 return field.at(std::int64_t(std::lround((x - 10.0) / kStep)),
+                                                 std::int64_t(std::lround((46.5 - y) / kStep)));
+                               });
+    tb::DatabaseBuildOptions opt;
+    opt.threads = 2;
+    tb::build_database(*tb::open_dem_source(tif), db, opt);
+    return db;
+  };
+  const std::string small_db = db_of(513), large_db = db_of(1025);
+  auto growth_of_grid = [&](const std::string& db, int size) -> double {
+    const tb::BlockDatabase handle = tb::BlockDatabase::open(db, tb::BlockDatabase::Mode::ReadOnly);
+    malloc_trim(0);
+    reset_peak();
+    const std::uint64_t before = peak_resident();
+    {
+      const tb::GeoGrid g = tb::make_geo_grid(tb::read_database_terrain(handle), "", db);
+      EXPECT_TRUE(g.heights_converted) << "EGM96 heights are converted to the ellipsoid";
+      EXPECT_EQ(g.heights.size(), std::size_t(size) * std::size_t(size)) << "the DEM's own samples";
+    }
+    const std::uint64_t peak = peak_resident();
+    std::printf("%d x %d samples: resident %.1f MiB before, peak %.1f MiB\n", size, size,
+                double(before) / 1048576.0, double(peak) / 1048576.0);
+    return double(peak) - double(before);
+  };
+  const double small = growth_of_grid(small_db, 513), large = growth_of_grid(large_db, 1025);
+  const double per_sample = (large - small) / (1025.0 * 1025.0 - 513.0 * 513.0);
+  std::printf("%.1f bytes a sample more\n", per_sample);
+  EXPECT_LE(per_sample, 12.0) << "the grid's peak grew by " << per_sample << " bytes a sample";
 }

@@ -13,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <utility>
 
 #include "../frame_scale.hpp"
 #include "../gdal_support.hpp"
@@ -120,15 +121,16 @@ int pole_inside(const pm::Heightfield& hf, const detail::GeographicOf& geo) {
 }
 
 /// hf warped to EPSG:4326 (bilinear, GDAL's choice of resolution), voids and outside as holes.
-GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
+/// Takes hf's samples (hf keeps its size, transform and mask).
+GeoGrid warp_to_lonlat(pm::Heightfield& hf, const std::string& what) {
   const pm::GridTransform& t = *hf.crs_transform;
   detail::WarpGrid src;
   src.width = hf.width();
   src.height = hf.height();
   src.gt = {t.x0 - 0.5 * t.xc - 0.5 * t.xr, t.xc, t.xr, t.y0 - 0.5 * t.yc - 0.5 * t.yr, t.yc, t.yr};
-  src.z = hf.samples();
-  for (std::size_t i = 0; i < src.z.size(); ++i)
-    if (!hf.valid(i)) src.z[i] = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t i = 0; i < hf.size(); ++i)
+    if (!hf.valid(i)) hf.samples()[i] = std::numeric_limits<double>::quiet_NaN();
+  src.z = std::move(hf.samples());
   register_gdal();
   OGRSpatialReference wgs84;
   wgs84.SetWellKnownGeogCS("WGS84");
@@ -147,14 +149,16 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
     if (const int pole = pole_inside(hf, *geo); pole != 0)
       throw GeoError(what + ": the terrain holds the " + (pole > 0 ? "North" : "South") +
                      " Pole, which the geographic tiling of quantized-mesh and of this 3D Tiles "
-                     "export cannot hold yet (every longitude meets there); export a part of the "
-                     "terrain that stays clear of the pole");
+                     "export cannot hold yet (every longitude meets there); build a database of a "
+                     "part of the DEM that stays clear of the pole (crop it, e.g. with gdal_translate "
+                     "-projwin) and export that");
     auto [x, y] = t.to_world(0.5 * (hf.width() - 1), 0.5 * (hf.height() - 1));
     if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
       dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
   }
   std::string error;
-  const detail::WarpGrid w = detail::warp_grid(src, hf.crs_wkt, dst, /*target=*/nullptr, error);
+  detail::WarpGrid w = detail::warp_grid(src, hf.crs_wkt, dst, /*target=*/nullptr, error);
+  src.z = {};
   if (!error.empty())
     throw GeoError(what + ": GDAL could not warp the terrain from its CRS to longitude/latitude: " + error);
   GeoGrid g;
@@ -164,7 +168,7 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& hf, const std::string& what) {
   g.dlat = -w.gt[5];
   g.west = w.gt[0] + 0.5 * w.gt[1];
   g.north = w.gt[3] + 0.5 * w.gt[5];
-  g.heights = w.z;
+  g.heights = std::move(w.z);
   g.mask.assign(g.heights.size(), 1);
   bool any = false;
   for (std::size_t i = 0; i < g.heights.size(); ++i) {
@@ -201,7 +205,7 @@ std::vector<double> geoid_undulations(const std::string& vertical_datum, const s
   return n;
 }
 
-GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_datum, const std::string& what) {
+GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what) {
   if (hf.crs_wkt.empty() || !hf.crs_transform)
     throw GeoError(what +
                    ": the terrain has no coordinate reference system, so it cannot be placed on the "
@@ -216,8 +220,8 @@ GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_dat
     g.north = t.y0;
     g.dlon = t.xc;
     g.dlat = -t.yr;
-    g.heights = hf.samples();
     if (hf.has_holes()) g.mask = hf.mask();
+    g.heights = std::move(hf.samples());
     g.horizontal = "the source's own samples (geographic WGS 84)";
   } else {
     g = warp_to_lonlat(hf, what);
@@ -230,17 +234,32 @@ GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_dat
                                         : v;
   if (requested.empty()) g.vertical_datum += " (assumed: the source states no vertical datum)";
   if (v.empty()) return g;
-  // N varies smoothly (PROJ interpolates a 15' grid for EGM96), but every sample gets its own.
-  std::vector<double> lon(g.heights.size()), lat(g.heights.size());
-  for (int r = 0; r < g.height; ++r)
-    for (int c = 0; c < g.width; ++c) {
-      lon[std::size_t(r) * g.width + c] =
-          std::remainder(g.lon(c), 360.0);  // past 180 across the antimeridian
-      lat[std::size_t(r) * g.width + c] = g.lat(r);
+  // N varies smoothly (PROJ interpolates a 15' grid for EGM96), but every sample gets its own,
+  // in bands of whole rows of about 2^16 samples, each thread with its own PROJ operation (made
+  // once: it takes milliseconds) taking every threads-th band: the coordinates and undulations
+  // (24 bytes a sample) are never held for more than a band a thread.
+  const std::string datum = detail::vertical_crs(requested.empty() ? "egm96" : requested);
+  const int band = std::max(1, (1 << 16) / g.width);
+  const int bands = (g.height + band - 1) / band;
+  const int threads = std::clamp(int(g.heights.size() / 65536), 1, pm::thread_count(0));
+  pm::parallel_for(std::size_t(threads), threads, [&](std::size_t k) {
+    GeoidOperation op(datum, what);
+    std::vector<double> lon, lat, n;
+    for (int b = int(k); b < bands; b += threads) {
+      const int r0 = b * band, r1 = std::min(g.height, r0 + band);
+      lon.clear(), lat.clear();
+      for (int r = r0; r < r1; ++r)
+        for (int c = 0; c < g.width; ++c) {
+          lon.push_back(std::remainder(g.lon(c), 360.0));  // past 180 across the antimeridian
+          lat.push_back(g.lat(r));
+        }
+      n.assign(lon.size(), 0.0);
+      op.undulations(lon.data(), lat.data(), n.data(), n.size(), what);
+      const std::size_t at = std::size_t(r0) * std::size_t(g.width);
+      for (std::size_t i = 0; i < n.size(); ++i)
+        if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] += n[i];
     }
-  const std::vector<double> n = geoid_undulations(requested.empty() ? "egm96" : requested, lon, lat, what);
-  for (std::size_t i = 0; i < n.size(); ++i)
-    if (g.mask.empty() || g.mask[i]) g.heights[i] += n[i];
+  });
   g.heights_converted = true;
   return g;
 }

@@ -394,14 +394,12 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   } catch (const std::exception& e) {
     throw ExportError(e.what());
   }
-  pm::Heightfield hf = read_database_terrain(db);
   GeoGrid grid;
   try {
-    grid = make_geo_grid(hf, options.vertical_datum, db_path);
+    grid = make_geo_grid(read_database_terrain(db), options.vertical_datum, db_path);
   } catch (const GeoError& e) {
     throw ExportError(e.what());
   }
-  hf = pm::Heightfield();  // the GeoGrid holds what is needed
   const detail::GeoField field(grid, /*background=*/0.0);
 
   ExportReport report;

@@ -5,7 +5,7 @@
 // Usage:
 //   namespace tb = terralod::blocks;
 //   pm::Heightfield hf = tb::read_database_terrain(db);          // crs_wkt, crs_transform set
-//   tb::GeoGrid g = tb::make_geo_grid(hf, /*vertical_datum=*/"", "terrain.db");
+//   tb::GeoGrid g = tb::make_geo_grid(std::move(hf), /*vertical_datum=*/"", "terrain.db");
 //   double h = g.z(col, row);                                    // metres above WGS 84
 //   double lon = g.lon(col), lat = g.lat(row);                   // degrees
 //
@@ -28,7 +28,9 @@
 //                                 GMTED, ASTER and most global DEMs use it).
 //     GeoError when PROJ does not know the datum or lacks its grid (PROJ is never allowed to fall
 //     back silently to a no-op "ballpark" transformation).
-//   - Costs: 8 + 1 bytes per sample; PROJ evaluates N once per sample.
+//   - Costs: the grid, 8 + 1 bytes per sample (hf's samples move into it: pass hf with
+//     std::move unless it is needed afterwards); a warp holds the source and the warped grid at
+//     once; PROJ evaluates N once per sample, in bands of rows of about 2^20 samples.
 #pragma once
 
 #include <cstddef>
@@ -63,7 +65,7 @@ struct GeoGrid {
   bool valid(int col, int row) const { return mask.empty() || mask[std::size_t(row) * width + col] != 0; }
 };
 
-GeoGrid make_geo_grid(const pm::Heightfield& hf, const std::string& vertical_datum, const std::string& what);
+GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what);
 
 /// The geoid undulation N (metres: ellipsoidal height = height in `vertical_datum` + N) at
 /// (lon, lat) in degrees, by the same PROJ operation make_geo_grid uses. GeoError as above.

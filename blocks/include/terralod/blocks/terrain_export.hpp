@@ -61,8 +61,14 @@
 //
 // Errors: ExportError naming the file or folder (unwritable folder, a terrain without a CRS,
 // an unknown vertical datum, an incomplete database); DatabaseError for corrupt databases.
-// Costs: the terrain in memory as a GeoGrid (9 bytes per sample) plus one tile's mesh per
-// thread; each level reads every sample about once per greedy pass.
+// Costs: the terrain in memory as a GeoGrid (9 bytes per sample: the database's samples move
+// into it; a terrain not on a north-up WGS 84 longitude/latitude grid, such as one built in the
+// default --crs auto frame, is warped to one through GDAL, which holds the source and the result
+// at once, about 3 copies of 8 bytes a sample), plus one tile's greedy mesh per thread, whose
+// measured points are the samples the tile covers (at the coarse levels, every sample of the
+// terrain); each level reads every sample about once per greedy pass. Measured peaks (2 cores):
+// N44W072 (1201^2) 65 MB built with --crs native, 104 MB in the default frame; its 2 x 2 mirror
+// mosaic (2401^2, --crs native) 99 MB.
 #pragma once
 
 #include <cstddef>
