@@ -5,6 +5,7 @@
 #include <gdal_utils.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
 
@@ -18,21 +19,21 @@ WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::s
   QuietGdal quiet;
   error.clear();
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  std::unique_ptr<GDALDataset> in(mem->Create("", src.width, src.height, 1, GDT_Float64, nullptr));
-  if (!in) {
+  // The source band is src.z itself (the MEM driver's DATAPOINTER, read only by the warp): no
+  // copy of the grid, 8 bytes a sample less at the warp's peak.
+  std::unique_ptr<GDALDataset> in(mem->Create("", src.width, src.height, 0, GDT_Float64, nullptr));
+  char pointer[64];
+  std::snprintf(pointer, sizeof pointer, "DATAPOINTER=%p", static_cast<const void*>(src.z.data()));
+  char* band_options[] = {pointer, nullptr};
+  if (!in || src.z.size() != std::size_t(src.width) * std::size_t(src.height) ||
+      in->AddBand(GDT_Float64, band_options) != CE_None) {
     error = "GDAL could not make an in-memory raster to warp";
     return {};
   }
   double gt[6] = {src.gt[0], src.gt[1], src.gt[2], src.gt[3], src.gt[4], src.gt[5]};
   in->SetGeoTransform(gt);
   in->SetProjection(src_wkt.c_str());
-  GDALRasterBand* band = in->GetRasterBand(1);
-  band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
-  if (band->RasterIO(GF_Write, 0, 0, src.width, src.height, const_cast<double*>(src.z.data()), src.width,
-                     src.height, GDT_Float64, 0, 0) != CE_None) {
-    error = "GDAL could not fill the in-memory raster to warp";
-    return {};
-  }
+  in->GetRasterBand(1)->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
 
   // gdalwarp -of MEM -t_srs DST -r bilinear -et 0 -dstnodata nan -wo NUM_THREADS=ALL_CPUS -multi
   // -novshift [-te ... -ts W H]: exact transformations (-et 0; the approximate transformer at 0.125

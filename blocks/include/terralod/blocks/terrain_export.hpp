@@ -67,7 +67,7 @@
 // at once, about 3 copies of 8 bytes a sample), plus one tile's greedy mesh per thread, whose
 // measured points are the samples the tile covers (at the coarse levels, every sample of the
 // terrain); each level reads every sample about once per greedy pass. Measured peaks (2 cores):
-// N44W072 (1201^2) 65 MB built with --crs native, 104 MB in the default frame; its 2 x 2 mirror
+// N44W072 (1201^2) 65 MB built with --crs native, 93 MB in the default frame; its 2 x 2 mirror
 // mosaic (2401^2, --crs native) 99 MB.
 #pragma once
 
