@@ -101,8 +101,9 @@ asan() {
   # OpenImageIO and its 250 libraries are linked outright instead of loaded on first call
   # (cmake/lazy/lazy_library.cmake): 0.6 s more start-up for every test process under ASan
   # (test_dem_crs: 0.83 s against 0.24 s), about 2 of CI's 40 minutes over 540 tests. The vptr
-  # check guards calls through pointers to a wrong dynamic type; terralod's own class hierarchies
-  # are few (errors, the GL context and texture sources), every other UBSan check stays.
+  # check guards calls through pointers to a wrong dynamic type (terralod's own hierarchies: the
+  # node strategies, DEM sources, block sources, GL contexts, thematic textures, renderers and the
+  # flight demo's terrain sources); every other UBSan check stays.
   # No NDEBUG: this pass is also the one where the asserts (the misuse tier, STYLE.md 7) run.
   # The libraries are instrumented (TERRALOD_SANITIZE); the tests' own code is compiled
   # plain and linked with the runtimes: 2.5x faster to compile, and the brute-force checkers

@@ -30,7 +30,7 @@
 //     back silently to a no-op "ballpark" transformation).
 //   - Costs: the grid, 8 + 1 bytes per sample (hf's samples move into it: pass hf with
 //     std::move unless it is needed afterwards); a warp holds the source and the warped grid at
-//     once; PROJ evaluates N once per sample, in bands of rows of about 2^20 samples.
+//     once; PROJ evaluates N once per sample, in bands of rows of about 2^16 samples.
 #pragma once
 
 #include <cstddef>
