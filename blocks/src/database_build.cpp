@@ -486,9 +486,14 @@ DatabaseSummary build_database(const DemSource& src, const std::string& path,
   if (vertices == 0) {
     written = 0;  // nothing but empty blocks: nothing worth keeping either
     discard_if_new_and_empty();
-    throw BuildError(source +
-                     ": no triangle of valid samples (every sample is void, or no valid sample has two valid "
-                     "neighbours to make one with); there is no terrain to build");
+    throw BuildError(
+        source +
+        ": no triangle of valid samples (every sample is void, or no valid sample has two valid "
+        "neighbours to make one with); there is no terrain to build" +
+        (g.warped ? std::string(" in the frame it was warped to (" + g.frame.substr(0, g.frame.find(" (")) +
+                                "), whose cells outside the input are holes: a DEM of a few samples may "
+                                "keep no whole cell; --crs native builds the DEM's own grid")
+                  : std::string()));
   }
   TreeBuildOptions topt = opt.tree;
   topt.pm_leaves = true;

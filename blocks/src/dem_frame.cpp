@@ -273,6 +273,7 @@ WarpedSource::WarpedSource(const std::string& path, std::unique_ptr<DemSource> n
   grid_.vertical_datum = ng.vertical_datum;
   grid_.source = ng.source;
   step_ = choose_step();
+  grid_.warped = true;
   grid_.frame = description + " (unit factor " + format("%.12g", unit) +
                 "); warped by terralod (bilinear; positions exact every " + std::to_string(step_) +
                 " samples, bilinear between them) from " + name_of(source) + ", " +

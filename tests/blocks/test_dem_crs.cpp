@@ -747,6 +747,28 @@ TEST(DemCrs, BadCrsIsAnErrorNamingTheFileAndTheOption) {
   EXPECT_THROW(tb::read_dem(path.string(), o), std::invalid_argument);
 }
 
+// A 2 x 2 geographic DEM warped to its auto frame keeps no whole cell (the frame's cells outside
+// the input are holes): the build's refusal says that the warp emptied it and what builds it.
+TEST(DemCrs, ADemTheWarpLeavesEmptyIsRefusedNamingTheWarpAndTheWayOut) {
+  const fs::path path = write_geographic("tiny_2x2.tif", -72.0, 45.0 - 1.0 / 1200, 2, 1.0 / 1200);
+  const fs::path db = temp_dir() / "tiny_2x2.db";
+  fs::remove(db);
+  tb::DemOptions automatic;
+  automatic.crs = "auto";
+  try {
+    tb::build_database(*tb::open_dem_source(path.string(), automatic), db.string(), {});
+    ADD_FAILURE() << "an empty warp was built";
+  } catch (const tb::BuildError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path.string() + ": no triangle of valid samples"), std::string::npos) << what;
+    EXPECT_NE(what.find("warped to (azimuthal equidistant)"), std::string::npos) << what;
+    EXPECT_NE(what.find("--crs native"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(fs::exists(db));
+  // Its own grid (the library's default frame) builds.
+  EXPECT_GT(tb::build_database(*tb::open_dem_source(path.string()), db.string(), {}).samples, 0u);
+}
+
 // A geographic DEM across the antimeridian (longitudes 179.6 to 180.4, as GDAL writes a grid of
 // Fiji): PROJ gives the warp's source positions in [-180, 180], and east of 180 they fell outside
 // the source, so half the terrain was holes. It keeps as many samples as the same grid a degree

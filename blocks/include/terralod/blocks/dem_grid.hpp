@@ -32,6 +32,9 @@ struct DemGrid {
   std::string source;                              ///< Heightfield::source
   std::string frame;                               ///< Heightfield::frame
   std::optional<double> scale_error;               ///< frame_scale_error of the DEM (dem_reader.hpp)
+  /// The samples are the input's resampled to the frame's grid (--crs auto or a named CRS), not
+  /// the input's own.
+  bool warped = false;
 
   /// The grid of `hf` (its samples left out; scale_error = frame_scale_error(hf)).
   static DemGrid of(const pm::Heightfield& hf);
