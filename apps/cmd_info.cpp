@@ -54,18 +54,13 @@ struct DemStats {
 };
 
 /// Heights and voids of the DEM at `path` in its own grid (DemOptions::crs "native"): what the
-/// file holds, not the cells of a warped frame outside its footprint. Read in bands of whole rows
-/// of about 2^20 samples, voids filled as `options` says; the voids are counted on a second source
-/// that keeps them. Progress on stderr every 10 % for grids of 2^26 samples or more.
+/// file holds, not the cells of a warped frame outside its footprint. Read once, in bands of
+/// whole rows of about 2^20 samples, voids filled as `options` says and counted as read. Progress
+/// on stderr every 10 % for grids of 2^26 samples or more.
 DemStats dem_stats(const std::string& path, const blocks::DemOptions& options) {
   blocks::DemOptions native = options;
   native.crs = "native";
   const std::unique_ptr<blocks::DemSource> src = blocks::open_dem_source(path, native);
-  std::unique_ptr<blocks::DemSource> raw;
-  if (options.fill_voids) {
-    native.fill_voids = false;
-    raw = blocks::open_dem_source(path, native);
-  }
   const blocks::DemGrid& g = src->grid();
   const int rows = std::max(1, (1 << 20) / g.width);
   const bool tell = g.samples() >= (std::uint64_t(1) << 26);
@@ -73,7 +68,9 @@ DemStats dem_stats(const std::string& path, const blocks::DemOptions& options) {
   DemStats s;
   for (int r0 = 0; r0 < g.height; r0 += rows) {
     const blocks::SampleRect band{0, r0, g.width - 1, std::min(g.height, r0 + rows) - 1};
-    const pm::Heightfield b = src->read(band);
+    std::size_t voids = 0;
+    const pm::Heightfield b = src->read_counting_voids(band, voids);
+    s.voids += voids;
     for (std::size_t i = 0; i < b.size(); ++i) {
       if (!b.valid(i)) {
         ++s.holes;
@@ -82,16 +79,11 @@ DemStats dem_stats(const std::string& path, const blocks::DemOptions& options) {
       s.min = std::min(s.min, b.samples()[i]);
       s.max = std::max(s.max, b.samples()[i]);
     }
-    if (raw) {
-      const pm::Heightfield v = raw->read(band);
-      for (std::size_t i = 0; i < v.size(); ++i) s.voids += v.valid(i) ? 0 : 1;
-    }
     if (const int tenths = int(std::int64_t(band.row1 + 1) * 10 / g.height); tell && tenths > told) {
       told = tenths;
       std::fprintf(stderr, "info  heights and voids read: %d %%\n", told * 10);
     }
   }
-  if (!raw) s.voids = s.holes;
   return s;
 }
 

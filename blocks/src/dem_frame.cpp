@@ -184,6 +184,11 @@ class NativeKept final : public DemSource {
     b.frame = grid_.frame;
     return b;
   }
+  pm::Heightfield read_counting_voids(SampleRect window, std::size_t& file_voids) const override {
+    pm::Heightfield b = native_->read_counting_voids(window, file_voids);
+    b.frame = grid_.frame;
+    return b;
+  }
   std::uint32_t samples_crc() const override { return native_->samples_crc(); }
   bool in_memory() const override { return native_->in_memory(); }
   bool may_have_data(SampleRect window) const override { return native_->may_have_data(window); }

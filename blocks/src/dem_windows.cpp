@@ -261,7 +261,10 @@ class FilledVoids {
 /// A DemSource that reads raw windows (raw()) and fills their voids as read_dem does.
 class WindowedSource : public DemSource {
  public:
-  pm::Heightfield read(SampleRect window) const override;
+  pm::Heightfield read(SampleRect window) const override { return read(window, nullptr); }
+  pm::Heightfield read_counting_voids(SampleRect window, std::size_t& file_voids) const override {
+    return read(window, &file_voids);
+  }
   std::uint32_t samples_crc() const override;
   bool in_memory() const override { return false; }
   std::size_t filled_void_cells() const override { return fill_ ? VoidFillOptions{}.max_region_cells : 0; }
@@ -277,8 +280,9 @@ class WindowedSource : public DemSource {
         filled_(options.filled_void_cache_bytes),
         on_large_void_(options.on_large_void) {}
   /// The samples of `window` with voids filled (holes NaN) into z, which holds the returned
-  /// window: `window` grown while a void region meeting it was cut by its edge.
-  SampleRect load(SampleRect window, std::vector<double>& z) const;
+  /// window: `window` grown while a void region meeting it was cut by its edge. `voids`, when
+  /// given: the window's void samples in the file.
+  SampleRect load(SampleRect window, std::vector<double>& z, std::size_t* voids = nullptr) const;
   /// The raw samples of `window` (metres, voids NaN) into z.
   virtual void raw(SampleRect window, std::vector<double>& z) const = 0;
   /// grid_ from the header; `measure`: also the scale error (not needed under a warp).
@@ -288,6 +292,7 @@ class WindowedSource : public DemSource {
   std::string path_;
 
  private:
+  pm::Heightfield read(SampleRect window, std::size_t* file_voids) const;
   bool fill_;
   mutable CappedVoids capped_;
   mutable FilledVoids filled_;
@@ -332,7 +337,7 @@ bool meets(SampleRect a, SampleRect b) {
   return a.col0 <= b.col1 && b.col0 <= a.col1 && a.row0 <= b.row1 && b.row0 <= a.row1;
 }
 
-SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const {
+SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z, std::size_t* voids) const {
   const int width = grid_.width, height = grid_.height;
   check_window(window, path_);
   SampleRect held = window;
@@ -345,6 +350,8 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
   };
   for (int margin = 16;; margin *= 2) {
     raw(held, z);
+    if (voids && held == window)
+      *voids = std::size_t(std::count_if(z.begin(), z.end(), [](double v) { return !std::isfinite(v); }));
     if (!fill_ || all_finite()) break;
     // A window holding the whole grid with no valid sample: read_dem's refusal (filling would
     // have no neighbour to start from).
@@ -395,12 +402,13 @@ SampleRect WindowedSource::load(SampleRect window, std::vector<double>& z) const
   return held;
 }
 
-pm::Heightfield WindowedSource::read(SampleRect window) const {
+pm::Heightfield WindowedSource::read(SampleRect window, std::size_t* file_voids) const {
   std::vector<double> z;
-  const SampleRect held = load(window, z);
+  std::size_t voids = 0;
+  const SampleRect held = load(window, z, file_voids ? &voids : nullptr);
   pm::Heightfield b(window.width(), window.height());
   std::vector<std::uint8_t> mask(b.size(), 1);
-  bool holes = false;
+  std::size_t holes = 0;
   for (int j = 0; j < window.height(); ++j)
     for (int i = 0; i < window.width(); ++i) {
       const double v = z[std::size_t(window.row0 - held.row0 + j) * std::size_t(held.width()) +
@@ -410,11 +418,12 @@ pm::Heightfield WindowedSource::read(SampleRect window) const {
         b.samples()[k] = v;
       } else {
         mask[k] = 0;
-        holes = true;
+        ++holes;
       }
     }
-  if (holes) b.set_mask(std::move(mask));
+  if (holes > 0) b.set_mask(std::move(mask));
   describe(b, window);
+  if (file_voids) *file_voids = voids;
   return b;
 }
 

@@ -50,6 +50,15 @@ class DemSource {
   void set_source(std::string source) { grid_.source = std::move(source); }
   /// The samples of `window` (see the header comment).
   virtual pm::Heightfield read(SampleRect window) const = 0;
+  /// read(window), and in file_voids the window's void samples in the file, filled ones included,
+  /// where the window is read from a file in the DEM's own grid (open_dem_source in the native
+  /// frame, or an auto frame that keeps it); 0 for a grid in memory (its voids were filled when
+  /// it was read) and for a warped frame's cells. One read, where counting on a second source
+  /// that keeps voids read the file twice.
+  virtual pm::Heightfield read_counting_voids(SampleRect window, std::size_t& file_voids) const {
+    file_voids = 0;
+    return read(window);
+  }
   /// CRC-32 of the samples and mask (see the header comment).
   virtual std::uint32_t samples_crc() const = 0;
   /// Whether the whole grid is in memory.
