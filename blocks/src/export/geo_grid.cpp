@@ -97,6 +97,20 @@ class GeoidOperation {
   std::unique_ptr<PJ, PjDeleter> op_;
 };
 
+/// work(op, p) for every piece p < pieces, on one thread per 2^16 of the `samples` (at most one a
+/// core), each with its own GeoidOperation (PJ objects are not shared between threads, and one
+/// takes milliseconds to make) taking every threads-th piece.
+template <class Work>
+void with_geoid_operations(const std::string& vertical, const std::string& what, std::size_t samples,
+                           std::size_t pieces, Work&& work) {
+  const int threads =
+      int(std::clamp<std::size_t>(std::min(samples >> 16, pieces), 1, std::size_t(pm::thread_count(0))));
+  pm::parallel_for(std::size_t(threads), threads, [&](std::size_t k) {
+    GeoidOperation op(vertical, what);
+    for (std::size_t p = k; p < pieces; p += std::size_t(threads)) work(op, p);
+  });
+}
+
 using detail::register_gdal;
 
 bool is_wgs84_geographic(const std::string& wkt) {
@@ -192,16 +206,12 @@ std::vector<double> geoid_undulations(const std::string& vertical_datum, const s
   std::vector<double> n(lon.size(), 0.0);
   const std::string v = detail::vertical_crs(vertical_datum);
   if (v.empty() || lon.empty()) return n;
-  const std::size_t threads =
-      std::clamp<std::size_t>(lon.size() / 65536, 1, std::size_t(pm::thread_count(0)));
-  const std::size_t chunk = (lon.size() + threads - 1) / threads;
-  // One PROJ operation per chunk: PJ objects are not shared between threads.
-  pm::parallel_for(threads, int(threads), [&](std::size_t k) {
-    const std::size_t a = k * chunk, b = std::min(lon.size(), a + chunk);
-    if (a >= b) return;
-    GeoidOperation op(v, what);
-    op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
-  });
+  constexpr std::size_t kPiece = 1 << 16;
+  with_geoid_operations(v, what, lon.size(), (lon.size() + kPiece - 1) / kPiece,
+                        [&](GeoidOperation& op, std::size_t p) {
+                          const std::size_t a = p * kPiece, b = std::min(lon.size(), a + kPiece);
+                          op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
+                        });
   return n;
 }
 
@@ -235,31 +245,26 @@ GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, con
   if (requested.empty()) g.vertical_datum += " (assumed: the source states no vertical datum)";
   if (v.empty()) return g;
   // N varies smoothly (PROJ interpolates a 15' grid for EGM96), but every sample gets its own,
-  // in bands of whole rows of about 2^16 samples, each thread with its own PROJ operation (made
-  // once: it takes milliseconds) taking every threads-th band: the coordinates and undulations
-  // (24 bytes a sample) are never held for more than a band a thread.
+  // in bands of whole rows of about 2^16 samples: the coordinates and undulations (24 bytes a
+  // sample) are never held for more than a band a thread.
   const std::string datum = detail::vertical_crs(requested.empty() ? "egm96" : requested);
   const int band = std::max(1, (1 << 16) / g.width);
   const int bands = (g.height + band - 1) / band;
-  const int threads = std::clamp(int(g.heights.size() / 65536), 1, pm::thread_count(0));
-  pm::parallel_for(std::size_t(threads), threads, [&](std::size_t k) {
-    GeoidOperation op(datum, what);
-    std::vector<double> lon, lat, n;
-    for (int b = int(k); b < bands; b += threads) {
-      const int r0 = b * band, r1 = std::min(g.height, r0 + band);
-      lon.clear(), lat.clear();
-      for (int r = r0; r < r1; ++r)
-        for (int c = 0; c < g.width; ++c) {
-          lon.push_back(std::remainder(g.lon(c), 360.0));  // past 180 across the antimeridian
-          lat.push_back(g.lat(r));
-        }
-      n.assign(lon.size(), 0.0);
-      op.undulations(lon.data(), lat.data(), n.data(), n.size(), what);
-      const std::size_t at = std::size_t(r0) * std::size_t(g.width);
-      for (std::size_t i = 0; i < n.size(); ++i)
-        if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] += n[i];
-    }
-  });
+  with_geoid_operations(
+      datum, what, g.heights.size(), std::size_t(bands), [&](GeoidOperation& op, std::size_t b) {
+        const int r0 = int(b) * band, r1 = std::min(g.height, r0 + band);
+        std::vector<double> lon, lat, n;
+        for (int r = r0; r < r1; ++r)
+          for (int c = 0; c < g.width; ++c) {
+            lon.push_back(std::remainder(g.lon(c), 360.0));  // past 180 across the antimeridian
+            lat.push_back(g.lat(r));
+          }
+        n.assign(lon.size(), 0.0);
+        op.undulations(lon.data(), lat.data(), n.data(), n.size(), what);
+        const std::size_t at = std::size_t(r0) * std::size_t(g.width);
+        for (std::size_t i = 0; i < n.size(); ++i)
+          if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] += n[i];
+      });
   g.heights_converted = true;
   return g;
 }
