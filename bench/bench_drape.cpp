@@ -11,8 +11,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <filesystem>
 #include <numbers>
 #include <random>
 #include <string>
@@ -28,34 +26,21 @@
 
 namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
-namespace fs = std::filesystem;
 
 int main(int argc, char** argv) {
   long roads = 1000, vertices = 50, frames = 120;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--roads") && i + 1 < argc)
-      roads = std::atol(argv[++i]);
-    else if (!std::strcmp(argv[i], "--vertices") && i + 1 < argc)
-      vertices = std::atol(argv[++i]);
-    else if (!std::strcmp(argv[i], "--frames") && i + 1 < argc)
-      frames = std::atol(argv[++i]);
-    else {
-      std::puts(
+  if (const auto status = terralod::bench::parse_options(
+          argc, argv, {{"--roads", &roads}, {"--vertices", &vertices}, {"--frames", &frames}},
           "usage: terralod-bench-drape [--roads R] [--vertices V] [--frames F]\n"
           "Drapes R random roads (default 1000) of V vertices (default 50), 8 m wide, over N44W072\n"
           "every frame of an F-frame flight (default 120) at 1280x720 and prints the drape's thread\n"
-          "CPU time per frame.");
-      return std::strcmp(argv[i], "--help") && std::strcmp(argv[i], "-h") ? 2 : 0;
-    }
-  }
+          "CPU time per frame."))
+    return *status;
   if (roads < 1 || vertices < 2 || frames < 1) {
     std::fprintf(stderr, "terralod-bench-drape: need --roads >= 1, --vertices >= 2 and --frames >= 1\n");
     return 2;
   }
-  if (!fs::exists(terralod::bench::n44w072_path())) {
-    std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
-    return 0;
-  }
+  if (terralod::bench::skipped_without_n44w072()) return 0;
   try {
     const std::string path = terralod::bench::n44w072_database(tb::read_dem(terralod::bench::n44w072_path()));
     tb::RuntimeOptions opt;

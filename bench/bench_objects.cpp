@@ -17,7 +17,6 @@
 //   in longitude/latitude (fixed seed 1), unless the database already has them.
 #include <algorithm>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -93,27 +92,17 @@ std::string prepare(long n) {
 
 int main(int argc, char** argv) {
   long n = 100000, frames = 600;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--points") && i + 1 < argc)
-      n = std::atol(argv[++i]);
-    else if (!std::strcmp(argv[i], "--frames") && i + 1 < argc)
-      frames = std::atol(argv[++i]);
-    else {
-      std::puts(
+  if (const auto status = terralod::bench::parse_options(
+          argc, argv, {{"--points", &n}, {"--frames", &frames}},
           "usage: terralod-bench-objects [--points N] [--frames F]\n"
           "Places N random points (default 100000) over N44W072 every frame of an F-frame flight\n"
-          "(default 600) at 1280x720 and prints the placement's thread CPU time per frame.");
-      return std::strcmp(argv[i], "--help") && std::strcmp(argv[i], "-h") ? 2 : 0;
-    }
-  }
+          "(default 600) at 1280x720 and prints the placement's thread CPU time per frame."))
+    return *status;
   if (n < 1 || frames < 1) {
     std::fprintf(stderr, "terralod-bench-objects: need --points >= 1 and --frames >= 1\n");
     return 2;
   }
-  if (!fs::exists(terralod::bench::n44w072_path())) {
-    std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
-    return 0;
-  }
+  if (terralod::bench::skipped_without_n44w072()) return 0;
   try {
     const std::string path = prepare(n);
     const auto db = tb::BlockDatabase::open(path);

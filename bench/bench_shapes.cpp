@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -96,28 +95,18 @@ std::string prepare(long n) {
 
 int main(int argc, char** argv) {
   long n = 10000, frames = 600;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--buildings") && i + 1 < argc)
-      n = std::atol(argv[++i]);
-    else if (!std::strcmp(argv[i], "--frames") && i + 1 < argc)
-      frames = std::atol(argv[++i]);
-    else {
-      std::puts(
+  if (const auto status = terralod::bench::parse_options(
+          argc, argv, {{"--buildings", &n}, {"--frames", &frames}},
           "usage: terralod-bench-shapes [--buildings N] [--frames F]\n"
           "Extrudes N random buildings (default 10000) in a 12 km square of N44W072 on the drawn\n"
           "terrain every frame of an F-frame flight (default 600) at 1280x720 and prints the\n"
-          "extrusion's thread CPU time per frame, then for all N buildings at once.");
-      return std::strcmp(argv[i], "--help") && std::strcmp(argv[i], "-h") ? 2 : 0;
-    }
-  }
+          "extrusion's thread CPU time per frame, then for all N buildings at once."))
+    return *status;
   if (n < 1 || frames < 1) {
     std::fprintf(stderr, "terralod-bench-shapes: need --buildings >= 1 and --frames >= 1\n");
     return 2;
   }
-  if (!fs::exists(terralod::bench::n44w072_path())) {
-    std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
-    return 0;
-  }
+  if (terralod::bench::skipped_without_n44w072()) return 0;
   try {
     const std::string path = prepare(n);
     const auto db = tb::BlockDatabase::open(path);

@@ -12,10 +12,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <initializer_list>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/heightfield.hpp"
@@ -25,6 +30,33 @@ namespace terralod::bench {
 
 /// The benchmarks' DEM: TERRALOD_DATA_DIR/N44W072.hgt (callers skip when it is missing).
 inline std::string n44w072_path() { return std::string(TERRALOD_DATA_DIR) + "/N44W072.hgt"; }
+
+/// The benchmarks' command line: options that each take a whole number (`--name N`), stored
+/// where given, and --help. Returns the status main returns at once: 0 after --help or -h
+/// (`usage` printed), 2 for anything else; nullopt to run.
+inline std::optional<int> parse_options(int argc, char** argv,
+                                        std::initializer_list<std::pair<const char*, long*>> options,
+                                        const char* usage) {
+  for (int i = 1; i < argc; ++i) {
+    long* value = nullptr;
+    for (const auto& [name, v] : options)
+      if (!std::strcmp(argv[i], name) && i + 1 < argc) value = v;
+    if (value) {
+      *value = std::atol(argv[++i]);
+      continue;
+    }
+    std::puts(usage);
+    return std::strcmp(argv[i], "--help") && std::strcmp(argv[i], "-h") ? 2 : 0;
+  }
+  return std::nullopt;
+}
+
+/// Whether N44W072.hgt is missing; then says that the benchmark is skipped (main returns 0).
+inline bool skipped_without_n44w072() {
+  if (std::filesystem::exists(n44w072_path())) return false;
+  std::printf("skip: N44W072.hgt not in %s\n", TERRALOD_DATA_DIR);
+  return true;
+}
 
 /// The block database of `hf` (N44W072, blocks of 129 samples, every core) in the temporary
 /// folder: built on the first run, reused while its build parameters and samples match (the
