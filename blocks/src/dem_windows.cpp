@@ -408,7 +408,7 @@ pm::Heightfield WindowedSource::read(SampleRect window, std::size_t* file_voids)
   const SampleRect held = load(window, z, file_voids ? &voids : nullptr);
   pm::Heightfield b(window.width(), window.height());
   std::vector<std::uint8_t> mask(b.size(), 1);
-  std::size_t holes = 0;
+  bool holes = false;
   for (int j = 0; j < window.height(); ++j)
     for (int i = 0; i < window.width(); ++i) {
       const double v = z[std::size_t(window.row0 - held.row0 + j) * std::size_t(held.width()) +
@@ -418,10 +418,10 @@ pm::Heightfield WindowedSource::read(SampleRect window, std::size_t* file_voids)
         b.samples()[k] = v;
       } else {
         mask[k] = 0;
-        ++holes;
+        holes = true;
       }
     }
-  if (holes > 0) b.set_mask(std::move(mask));
+  if (holes) b.set_mask(std::move(mask));
   describe(b, window);
   if (file_voids) *file_voids = voids;
   return b;

@@ -135,7 +135,7 @@ int pole_inside(const pm::Heightfield& hf, const detail::GeographicOf& geo) {
 }
 
 /// hf warped to EPSG:4326 (bilinear, GDAL's choice of resolution), voids and outside as holes.
-/// Takes hf's samples (hf keeps its size, transform and mask).
+/// Takes hf's samples (hf keeps its width, height, transforms and mask).
 GeoGrid warp_to_lonlat(pm::Heightfield& hf, const std::string& what) {
   const pm::GridTransform& t = *hf.crs_transform;
   detail::WarpGrid src;
@@ -247,11 +247,10 @@ GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, con
   // N varies smoothly (PROJ interpolates a 15' grid for EGM96), but every sample gets its own,
   // in bands of whole rows of about 2^16 samples: the coordinates and undulations (24 bytes a
   // sample) are never held for more than a band a thread.
-  const std::string datum = detail::vertical_crs(requested.empty() ? "egm96" : requested);
   const int band = std::max(1, (1 << 16) / g.width);
   const int bands = (g.height + band - 1) / band;
   with_geoid_operations(
-      datum, what, g.heights.size(), std::size_t(bands), [&](GeoidOperation& op, std::size_t b) {
+      v, what, g.heights.size(), std::size_t(bands), [&](GeoidOperation& op, std::size_t b) {
         const int r0 = int(b) * band, r1 = std::min(g.height, r0 + band);
         std::vector<double> lon, lat, n;
         for (int r = r0; r < r1; ++r)
