@@ -20,7 +20,10 @@
 #include "geographic_tiff.hpp"
 #include "quantized_mesh_reader.hpp"
 #include "run_command.hpp"
+#include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_reader.hpp"
+#include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/terrain_export.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/geodesy.hpp"
@@ -431,11 +434,12 @@ TEST_F(QuantizedMeshExport, RefusesWhatItCannotDoNamingTheCulprit) {
 }
 
 /// hf (geographic WGS 84) warped to UTM zone 19N through GDAL and written as a GeoTIFF with that
-/// CRS: a projected DEM.
-void write_utm_geotiff(const pm::Heightfield& hf, const std::string& path) {
+/// CRS: a projected DEM, whose cells outside hf's footprint are 0, or nodata with nodata_outside.
+void write_utm_geotiff(const pm::Heightfield& hf, const std::string& path, bool nodata_outside = false) {
   GDALAllRegister();
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
   GDALDataset* src = mem->Create("", hf.width(), hf.height(), 1, GDT_Float64, nullptr);
+  if (nodata_outside) src->GetRasterBand(1)->SetNoDataValue(-32768);  // the warp keeps it for outside
   const pm::GridTransform& t = *hf.crs_transform;
   double gt[6] = {t.x0 - 0.5 * t.xc, t.xc, 0, t.y0 - 0.5 * t.yr, 0, t.yr};
   src->SetGeoTransform(gt);
@@ -504,6 +508,58 @@ TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
   std::sort(diff.begin(), diff.end());
   EXPECT_LT(diff[diff.size() / 2], 5.0) << "median";
   EXPECT_LT(diff[diff.size() * 9 / 10], 25.0) << "90th percentile";
+}
+
+// A projected DEM of high terrain (the crop raised by 5,000 m, as a plateau such as Tibet's) keeps
+// its deepest level's 1 m at every sample of the grid the exporter warps it to, measured here on
+// the decoded tiles, whether the DEM's cells outside its footprint are nodata (the warp back to
+// longitude/latitude leaves holes there, read as the ellipsoid) or 0 (a cliff of valid samples,
+// as a warp without a nodata value writes). Either way the samples at the edge stand at the top
+// of a 5,000 m cliff, and rounding their positions to the tile's lattice towards the cliff (a
+// third of a quantum) tilted it by 3.5 m at a sample.
+TEST_F(QuantizedMeshExport, SamplesAtTheTopOfACliffKeepTheBoundOnHighTerrain) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  pm::Heightfield high = *hf_;
+  for (double& z : high.samples()) z += 5000.0;
+  for (const bool nodata : {true, false}) {
+    SCOPED_TRACE(nodata ? "nodata outside the footprint" : "0 outside the footprint");
+    const std::string name = nodata ? "high-nodata" : "high-zero";
+    const std::string tif = (dir / (name + ".tif")).string(), db = (dir / (name + ".db")).string();
+    ASSERT_NO_FATAL_FAILURE(write_utm_geotiff(high, tif, nodata));
+    tb::DatabaseBuildOptions o;
+    o.block_size = 65;
+    tb::build_database(tb::read_dem(tif, {.fill_voids = false}), db, o);
+    const fs::path out = dir / (name + "-tiles");
+    const tb::ExportReport r = tb::export_terrain(db, out.string(), {.max_level = 12});
+    for (const tb::ExportLevel& L : r.levels) EXPECT_LE(L.max_error, L.bound) << "level " << L.z;
+    const tb::GeoGrid g = tb::make_geo_grid(tb::read_database_terrain(tb::BlockDatabase::open(db)), "", db);
+    const Tileset t = read_tileset(out);
+    std::size_t checked = 0, cliff_tops = 0;
+    for (const auto& [id, d] : t.tiles) {
+      if (id[0] != 12) continue;
+      const tb::GeoRect rect = tb::tile_rect({id[0], id[1], id[2]});
+      double worst = 0;
+      for (int row = 0; row < g.height; ++row)
+        for (int c = 0; c < g.width; ++c) {
+          const double lon = g.lon(c), lat = g.lat(row);
+          if (!g.valid(c, row) || lon < rect.west || lon > rect.east || lat < rect.south || lat > rect.north)
+            continue;
+          const double h = interpolate(d, (lon - rect.west) / (rect.east - rect.west) * kQ,
+                                       (lat - rect.south) / (rect.north - rect.south) * kQ);
+          ASSERT_TRUE(std::isfinite(h)) << "no triangle over a sample";
+          worst = std::max(worst, std::abs(h - g.z(c, row)));
+          ++checked;
+          // A sample above 4,000 m beside a hole or a sample below 1,000 m.
+          const auto low = [&](int x) {
+            return x >= 0 && x < g.width && (!g.valid(x, row) || g.z(x, row) < 1000);
+          };
+          cliff_tops += g.z(c, row) > 4000 && (low(c - 1) || low(c + 1));
+        }
+      EXPECT_LE(worst, 1.0) << id[0] << "/" << id[1] << "/" << id[2];
+    }
+    EXPECT_GE(checked, std::size_t(hf_->size()) / 2);
+    EXPECT_GE(cliff_tops, 100u);
+  }
 }
 
 // A DEM across the antimeridian (a geographic GeoTIFF from 179.8 to 180.2 degrees, as GDAL writes

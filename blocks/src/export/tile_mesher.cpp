@@ -203,7 +203,7 @@ class TileGreedy {
       : f_(f), g_(f.grid()), rect_(rect), opt_(o), fr_(f.grid(), rect), background_(g_, fr_) {
     dt_.on_new_triangle = [this](int) {
       prio_.push_back(0), all_.push_back(0), version_.push_back(0);
-      cand_.push_back({-1, -1}), cand_h_.push_back(0);
+      cand_.push_back({-1, -1}), cand_h_.push_back(0), cand_at_.push_back({0, 0});
     };
   }
 
@@ -220,15 +220,20 @@ class TileGreedy {
       if (top.err <= opt_.max_error) break;
       heap_.pop();
       const int t = top.t;
-      const pm::GridPoint p = cand_[std::size_t(t)];
-      const int at = dt_.locate(p, t);
-      if (at < 0 || has_corner(at, p)) {  // outside, or the rounded position is a vertex already
+      pm::GridPoint p = cand_[std::size_t(t)];
+      int at = dt_.locate(p, t);
+      const bool elsewhere = at >= 0 && has_corner(at, p);
+      if (elsewhere) at = free_corner(cand_at_[std::size_t(t)], p, at);
+      if (at < 0) {  // outside, or every lattice position around the point is a vertex already
         ++version_[std::size_t(t)];
         ++out.stuck;
         continue;
       }
       add_vertex(p, cand_h_[std::size_t(t)], at);
       for (int d : dt_.touched) rescan(d);
+      // Another corner of the point's cell may lie outside t and leave t as it was: its worst
+      // point is then looked at again, until the point's corners bracket it.
+      if (elsewhere && std::find(dt_.touched.begin(), dt_.touched.end(), t) == dt_.touched.end()) rescan(t);
     }
     for (int t = 0; t < dt_.triangles(); ++t) out.error = std::max(out.error, all_[std::size_t(t)]);
     out.uv.reserve(dt_.pts.size());
@@ -250,6 +255,35 @@ class TileGreedy {
     for (int k = 0; k < 3; ++k)
       if (dt_.corner(t, k) == p) return true;
     return false;
+  }
+
+  /// A point whose rounded position p is a vertex already, and yet is measured above max_error:
+  /// the corners of the quantum cell around its true position (u, v), nearest first, are where
+  /// else it can go, with its own height. Each one more brackets the point: once the cell's
+  /// corners are vertices at its height, the mesh passes through it exactly. Rounding bites at the
+  /// top of a cliff: a sample at 5,000 m beside the 0 m a warp writes outside a projected DEM,
+  /// rounded a third of a quantum towards a cliff 600 quanta wide, erred by 3.5 m at its
+  /// vertex's own height. Sets p and returns the triangle holding it; -1 when every corner
+  /// inside the tile is a vertex.
+  int free_corner(const UV& at_uv, pm::GridPoint& p, int from) const {
+    const double u0 = std::floor(at_uv.u), v0 = std::floor(at_uv.v);
+    std::array<pm::GridPoint, 4> corners;
+    for (int k = 0; k < 4; ++k) corners[std::size_t(k)] = {int(u0) + (k & 1), int(v0) + (k >> 1)};
+    const auto d2 = [&](pm::GridPoint q) {
+      const double du = q.x - at_uv.u, dv = q.y - at_uv.v;
+      return du * du + dv * dv;
+    };
+    std::sort(corners.begin(), corners.end(),
+              [&](pm::GridPoint a, pm::GridPoint b) { return d2(a) < d2(b); });
+    for (const pm::GridPoint q : corners) {
+      if (q.x <= 0 || q.x >= kQ || q.y <= 0 || q.y >= kQ) continue;
+      const int t = dt_.locate(q, from);
+      if (t >= 0 && !has_corner(t, q)) {
+        p = q;
+        return t;
+      }
+    }
+    return -1;
   }
 
   void add_vertex(pm::GridPoint p, double h, int t) {
@@ -322,6 +356,7 @@ class TileGreedy {
     const Plane plane(p, h);
     double all = 0, best = 0;
     pm::GridPoint cand{-1, -1};
+    UV cand_at{0, 0};
     double cand_h = 0;
     auto consider = [&](double u, double v, double value) {
       const double e = std::abs(plane(u, v) - value);
@@ -329,7 +364,7 @@ class TileGreedy {
       if (e <= best) return;
       const int U = int(std::lround(u)), V = int(std::lround(v));
       if (U <= 0 || U >= kQ || V <= 0 || V >= kQ) return;
-      best = e, cand = {U, V}, cand_h = value;
+      best = e, cand = {U, V}, cand_at = {u, v}, cand_h = value;
     };
     scan_lattice(fr_, g_.width, g_.height, p, [&](int c, int r, double u, double v) {
       const double value = f_.lattice(c, r);
@@ -342,7 +377,7 @@ class TileGreedy {
         consider(b.u, b.v, f_.background());
     });
     const std::size_t i = std::size_t(t);
-    all_[i] = all, prio_[i] = best, cand_[i] = cand, cand_h_[i] = cand_h;
+    all_[i] = all, prio_[i] = best, cand_[i] = cand, cand_at_[i] = cand_at, cand_h_[i] = cand_h;
     ++version_[i];
     if (cand.x >= 0) heap_.push({best, t, version_[i]});
   }
@@ -356,7 +391,8 @@ class TileGreedy {
   Delaunay dt_;
   std::vector<double> h_;
   std::vector<double> prio_, all_, cand_h_;
-  std::vector<pm::GridPoint> cand_;
+  std::vector<pm::GridPoint> cand_;  // a triangle's worst point: where it is inserted,
+  std::vector<UV> cand_at_;          // where it lies (cand_ rounds it)
   std::vector<std::uint32_t> version_;
   struct Item {
     double err;
