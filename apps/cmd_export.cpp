@@ -19,7 +19,10 @@ CommandSpec export_spec() {
       "Each tile is an L-infinity mesh of the terrain's samples inside it, within CesiumJS's maximum\n"
       "geometric error for its level (6378137 * 2 pi * 0.25 / 130 / 2^z m) and at the deepest level\n"
       "within min(that, 1 m), measured on the tile as a client decodes it; layer.json's 'terralod'\n"
-      "member gives each level's bound and measured error. Neighbouring tiles of a level share\n"
+      "member gives each level's bound and measured error. A level that cannot meet its bound (its\n"
+      "heights span more than 32,767 steps of twice it, or its tiles' 32768 x 32768 lattice of\n"
+      "positions is coarser than the samples) is still written: the export warns which level and why,\n"
+      "and exits with status 1. Neighbouring tiles of a level share\n"
       "their edge vertices exactly (no skirts needed). Heights are above the WGS 84 ellipsoid: the\n"
       "input's vertical datum (EGM96 for SRTM and when the input states none) is converted through\n"
       "PROJ; --vertical-datum overrides it. A DEM in a projected CRS is warped to longitude/latitude\n"
@@ -90,11 +93,25 @@ int cmd_export(const Args& a) {
                 L.triangles, L.bytes, L.bound, L.max_error, L.geometric_error, L.height_step);
     over = over || L.max_error > L.bound;
   }
-  if (over)
-    std::printf(
-        "  warning: some level's measured error is above its bound (see above); a tile can place a vertex\n"
-        "  only on its 32768 x 32768 lattice, which is coarser than the samples on tiles much wider than\n"
-        "  the automatic --max-level gives\n");
+  // Why a level can miss its bound: a tile's heights are 16-bit steps of the level's height_step,
+  // and its positions a 32768 x 32768 lattice (quantized-mesh); the mesh meets the bound where both
+  // are fine enough.
+  for (const blocks::ExportLevel& L : r.levels) {
+    if (!(L.max_error > L.bound)) continue;
+    if (0.5 * L.height_step > L.bound)
+      std::printf(
+          "  warning: level %d is measured above its bound: half its height step (%g m) is, since a tile's\n"
+          "  heights are 32,767 steps and the widest tile of the level spans more than that many steps of\n"
+          "  twice the bound (spikes or a fill value read as heights?)\n",
+          L.z, 0.5 * L.height_step);
+    else
+      std::printf(
+          "  warning: level %d is measured above its bound: a tile places its vertices on a 32768 x 32768\n"
+          "  lattice, too coarse there for the samples (a step wider than their spacing, or the heights\n"
+          "  change by more than the bound within one, as a deepest level far coarser than the automatic\n"
+          "  --max-level, or spikes)\n",
+          L.z);
+  }
   return over ? 1 : 0;
 }
 

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -422,14 +423,16 @@ TEST(cli_voids, AWideGapIsToldWhileItIsFilled) {
 
 /// A geographic (WGS 84, .prj sidecar) ASCII grid of n x n samples `step` degrees apart, south-west
 /// sample centre at (lon0, lat0), heights 100 + col + row.
-fs::path write_geographic_asc(const std::string& name, double lon0, double lat0, int n, double step) {
+fs::path write_geographic_asc(
+    const std::string& name, double lon0, double lat0, int n, double step,
+    const std::function<double(int, int)>& height = [](int c, int r) { return 100.0 + c + r; }) {
   const fs::path path = tmp_dir() / (name + ".asc");
   std::ofstream f(path);
   f.precision(17);
   f << "ncols " << n << "\nnrows " << n << "\nxllcenter " << lon0 << "\nyllcenter " << lat0 << "\ncellsize "
     << step << "\n";
   for (int r = 0; r < n; ++r) {
-    for (int c = 0; c < n; ++c) f << (c ? " " : "") << 100 + c + r;
+    for (int c = 0; c < n; ++c) f << (c ? " " : "") << height(c, r);
     f << "\n";
   }
   std::ofstream(tmp_dir() / (name + ".prj"))
@@ -539,6 +542,44 @@ TEST(cli_crs, ADemTooLargeForTheAutoFrameIsWarnedAbout) {
                quote((tmp_dir() / "deg2.pm").string()));
   ASSERT_EQ(small.status, 0) << small.err;
   EXPECT_EQ(small.err.find("warning: "), std::string::npos) << small.err;
+}
+
+// An export whose level cannot meet its bound says which level and why, and exits with 1; one
+// that meets every bound says nothing and exits with 0.
+TEST(cli_export, ALevelThatCannotMeetItsBoundIsWarnedAboutWithItsReason) {
+  const auto export_of = [](const std::string& name, const fs::path& asc, const std::string& options) {
+    const fs::path db = tmp_dir() / (name + ".db");
+    const CliResult b = terralod("build --threads 1 --block-size 17 --crs native --input " +
+                                 quote(asc.string()) + " --out " + quote(db.string()));
+    EXPECT_EQ(b.status, 0) << b.err;
+    return terralod("export --threads 1 --db " + quote(db.string()) + " --out " +
+                    quote((tmp_dir() / (name + "_tiles")).string()) + options);
+  };
+  // One sample 900 km high (below the 10,000 km read as a fill value): a tile's 32,767 height
+  // steps are 32 m, and half of one is over the deepest level's 1 m.
+  const CliResult spike =
+      export_of("export_spike",
+                write_geographic_asc("export_spike", -70.0, 44.0, 41, 0.025,
+                                     [](int c, int r) { return c == 20 && r == 20 ? 9e5 : 100.0 + c + r; }),
+                "");
+  EXPECT_EQ(spike.status, 1) << spike.out << spike.err;
+  EXPECT_NE(spike.out.find("is measured above its bound: half its height step (16 m)"), std::string::npos)
+      << spike.out;
+  // Rough samples 0.0005 degrees apart in the two 180-degree tiles of level 0 only: their 1 m is
+  // measured on a lattice of 0.0055 degrees.
+  const CliResult coarse =
+      export_of("export_coarse",
+                write_geographic_asc("export_coarse", -70.0, 44.0, 41, 0.0005,
+                                     [](int c, int r) { return 100.0 + 50.0 * ((c * 7 + r * 13) % 5); }),
+                " --max-level 0");
+  EXPECT_EQ(coarse.status, 1) << coarse.out << coarse.err;
+  EXPECT_NE(coarse.out.find("level 0 is measured above its bound: a tile places its vertices on a 32768"),
+            std::string::npos)
+      << coarse.out;
+  const CliResult fine =
+      export_of("export_fine", write_geographic_asc("export_fine", -70.0, 44.0, 41, 0.025), "");
+  EXPECT_EQ(fine.status, 0) << fine.out << fine.err;
+  EXPECT_EQ(fine.out.find("warning"), std::string::npos) << fine.out;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -510,6 +510,21 @@ TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
   EXPECT_LT(diff[diff.size() * 9 / 10], 25.0) << "90th percentile";
 }
 
+// A deepest level far coarser than the samples (--max-level 0: two tiles of 180 degrees held to
+// 1 m) keeps its forced grid against the Earth's curvature to 256 x 256 a tile: uncapped, it
+// forced 7.8 million points a tile (a 41 x 41 DEM had not been exported after 15 minutes).
+// The samples still decide the measured error.
+TEST_F(QuantizedMeshExport, ADeepestLevelFarCoarserThanTheSamplesKeepsItsForcedGridSmall) {
+  const fs::path out = tt::process_temp_dir("terralod-export") / "level0";
+  const tb::ExportReport r = tb::export_terrain(db_, out.string(), {.max_level = 0});
+  ASSERT_EQ(r.levels.size(), 1u);
+  EXPECT_EQ(r.levels[0].bound, 1.0);
+  EXPECT_EQ(r.levels[0].tiles, 2u);
+  EXPECT_LE(r.levels[0].vertices, 2 * (257u * 257u) + hf_->size())
+      << "forced points of two tiles, and the samples";
+  EXPECT_GT(r.levels[0].vertices, 2 * (200u * 200u)) << "the forced grid is there";
+}
+
 // A projected DEM of high terrain (the crop raised by 5,000 m, as a plateau such as Tibet's) keeps
 // its deepest level's 1 m at every sample of the grid the exporter warps it to, measured here on
 // the decoded tiles, whether the DEM's cells outside its footprint are nodata (the warp back to

@@ -476,14 +476,23 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
     const std::vector<TileId>& level = tiles[std::size_t(z)];
     const double tile_deg = 180.0 / std::ldexp(1.0, z);
     // Flat triangles sag below the curved surface by about R theta^2 / 8 over theta radians: the
-    // forced grid keeps that within a quarter of the bound (what a client draws is flat in ECEF).
+    // forced grid keeps that within a quarter of the bound (what a client draws is flat in ECEF),
+    // with at most kMaxSagDivisions^2 points. The cap binds only where the deepest level's 1 m
+    // falls on tiles wider than 8 degrees (--max-level 4 or less): there the drawn surface may sag
+    // more (120 m on a level-0 tile), which the heights measured as a client samples them (linear
+    // in longitude and latitude) do not see, and which the 3D Tiles geometricError and skirt take
+    // in. Uncapped, a level-0 tile at 1 m forced 7.8 M points: 41 x 41 samples exported with
+    // --max-level 0 had not finished after 15 minutes, at 2.4 GB.
+    constexpr int kMaxSagDivisions = 256;
+    const double tile_rad = tile_deg * std::numbers::pi / 180.0;
     const double theta = std::sqrt(8.0 * 0.25 * L.bound / pm::kWgs84A);
-    const int sag = std::max(1, int(std::ceil(tile_deg * std::numbers::pi / 180.0 / theta)));
+    const int sag = std::clamp(int(std::ceil(tile_rad / theta)), 1, kMaxSagDivisions);
+    const double grid_sag = pm::kWgs84A * (tile_rad / sag) * (tile_rad / sag) / 8.0;
     const double normal_step = std::max(grid.dlon, grid.dlat);  // the terrain's own gradient
     // 3D Tiles skirts: neighbours of different levels differ at their shared edge by at most the
-    // sum of their errors (each within its level's bound plus the sag, at most 1/4 of it), which
-    // the coarser tile's skirt covers.
-    const double skirt = 3.0 * L.bound;
+    // sum of their errors (each within its level's bound plus the sag, at most 1/4 of it unless
+    // capped), which the coarser tile's skirt covers.
+    const double skirt = 3.0 * L.bound + 2.0 * std::max(0.0, grid_sag - 0.25 * L.bound);
     std::vector<TileRecord>& rec = records[std::size_t(z)];
     rec.resize(level.size());
     std::vector<std::uint8_t> reused(level.size(), 0);

@@ -32,7 +32,11 @@
 //     one lattice ring continues the terrain's edge, and the next is the ellipsoid, so the terrain
 //     ends in a one-sample apron and a cliff, not a slope across the tile.
 //   - Large tiles get a regular grid of forced vertices (sag_divisions) so that the flat
-//     triangles a client draws stay within the level's error of the curved Earth.
+//     triangles a client draws stay within a quarter of the level's error of the curved Earth,
+//     up to 256 x 256 a tile: a deepest level cut at 8 degrees or wider (--max-level 4 or less)
+//     may sag more between its vertices (up to 120 m on a level-0 tile), which the heights a
+//     client samples (linear in longitude and latitude) do not show; 3D Tiles' geometricError and
+//     skirts include it.
 //   - Metadata extension: {"terralod": {"max_error": measured, "bound": bound}}, and on tiles of
 //     levels 0, 10, 20, ... also "available": the next 10 levels of their subtree, as Cesium World
 //     Terrain does (layer.json says "metadataAvailability": 10; CesiumJS needs it to record any
