@@ -223,7 +223,7 @@ class TileGreedy {
       pm::GridPoint p = cand_[std::size_t(t)];
       int at = dt_.locate(p, t);
       const bool elsewhere = at >= 0 && has_corner(at, p);
-      if (elsewhere) at = free_corner(cand_at_[std::size_t(t)], p, at);
+      if (elsewhere) at = fine_lattice_ ? free_corner(cand_at_[std::size_t(t)], p, at) : -1;
       if (at < 0) {  // outside, or every lattice position around the point is a vertex already
         ++version_[std::size_t(t)];
         ++out.stuck;
@@ -257,7 +257,8 @@ class TileGreedy {
     return false;
   }
 
-  /// A point whose rounded position p is a vertex already, and yet is measured above max_error:
+  /// A point whose rounded position p is a vertex already, and yet is measured above max_error
+  /// (on a lattice much finer than the samples, fine_lattice_):
   /// the corners of the quantum cell around its true position (u, v), nearest first, are where
   /// else it can go, with its own height. Each one more brackets the point: once the cell's
   /// corners are vertices at its height, the mesh passes through it exactly. Rounding bites at the
@@ -387,6 +388,13 @@ class TileGreedy {
   GeoRect rect_;
   TileMeshOptions opt_;
   TileFrame fr_;
+  // At least 16 quanta between lattice points each way (natural depths have 512 or more): a
+  // point's cell is then its own, and rounding is off by 1/32 of the spacing at most, which only
+  // cliffs turn into errors (free_corner). On coarser lattices, a deepest level far shallower
+  // than the natural one, rounding errs at most samples of rough terrain: their corners
+  // quadrupled the vertices (a 2401^2 mosaic at --max-level 4, 2.4 quanta apart: over 8 minutes
+  // instead of 3.4), and the level is reported over its bound instead.
+  bool fine_lattice_ = fr_.du >= 16 && fr_.dv >= 16;
   BackgroundPoints background_;
   Delaunay dt_;
   std::vector<double> h_;
