@@ -258,9 +258,9 @@ class TileGreedy {
   }
 
   /// A point whose rounded position p is a vertex already, and yet is measured above max_error
-  /// (on a lattice much finer than the samples, fine_lattice_):
-  /// the corners of the quantum cell around its true position (u, v), nearest first, are where
-  /// else it can go, with its own height. Each one more brackets the point: once the cell's
+  /// (on a lattice much finer than the samples, fine_lattice_): the corners of the quantum cell
+  /// around its true position (u, v), nearest first, are where else it can go, with its own
+  /// height. Each one more brackets the point: once the cell's
   /// corners are vertices at its height, the mesh passes through it exactly. Rounding bites at the
   /// top of a cliff: a sample at 5,000 m beside the 0 m a warp writes outside a projected DEM,
   /// rounded a third of a quantum towards a cliff 600 quanta wide, erred by 3.5 m at its

@@ -21,11 +21,12 @@
 //      points inside the tile, at their rounded positions and with their own heights, into a
 //      Delaunay triangulation (exact integer predicates), until every measured point is within
 //      max_error of the mesh at its true position. Measured points: the tile's valid samples, the
-//      background ring, and a 65 x 65 grid of background points away from the terrain. A point
-//      whose rounded position is a vertex already goes to another corner of its quantum cell
-//      (at the top of a cliff the rounding alone tilts the steep triangles by metres); points
-//      whose rounded position lies on the tile's boundary, or whose cell's corners are all
-//      vertices, are measured but not inserted (their error is then whatever the mesh gives).
+//      background ring, and a 65 x 65 grid of background points away from the terrain. On a
+//      lattice 16 or more quanta between samples, a point whose rounded position is a vertex
+//      already goes to another corner of its quantum cell (at the top of a cliff the rounding
+//      alone tilts the steep triangles by metres); points whose rounded position lies on the
+//      tile's boundary, or that find no free corner, are measured but not inserted (their error
+//      is then whatever the mesh gives them).
 // tile_error then measures a mesh exactly as a client decodes it (quantized heights included).
 #pragma once
 
