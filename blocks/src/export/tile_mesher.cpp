@@ -203,7 +203,7 @@ class TileGreedy {
       : f_(f), g_(f.grid()), rect_(rect), opt_(o), fr_(f.grid(), rect), background_(g_, fr_) {
     dt_.on_new_triangle = [this](int) {
       prio_.push_back(0), all_.push_back(0), version_.push_back(0);
-      cand_.push_back({-1, -1}), cand_h_.push_back(0), cand_at_.push_back({0, 0});
+      cand_.push_back({0, 0}), cand_h_.push_back(0);
     };
   }
 
@@ -220,10 +220,11 @@ class TileGreedy {
       if (top.err <= opt_.max_error) break;
       heap_.pop();
       const int t = top.t;
-      pm::GridPoint p = cand_[std::size_t(t)];
+      const UV& c = cand_[std::size_t(t)];
+      pm::GridPoint p = rounded(c);
       int at = dt_.locate(p, t);
       const bool elsewhere = at >= 0 && has_corner(at, p);
-      if (elsewhere) at = fine_lattice_ ? free_corner(cand_at_[std::size_t(t)], p, at) : -1;
+      if (elsewhere) at = fine_lattice_ ? free_corner(c, p, at) : -1;
       if (at < 0) {  // outside, or every lattice position around the point is a vertex already
         ++version_[std::size_t(t)];
         ++out.stuck;
@@ -257,15 +258,17 @@ class TileGreedy {
     return false;
   }
 
+  /// Where a point at (u, v) is inserted: the nearest lattice position.
+  static pm::GridPoint rounded(const UV& q) { return {int(std::lround(q.u)), int(std::lround(q.v))}; }
+
   /// A point whose rounded position p is a vertex already, and yet is measured above max_error
   /// (on a lattice much finer than the samples, fine_lattice_): the corners of the quantum cell
   /// around its true position (u, v), nearest first, are where else it can go, with its own
-  /// height. Each one more brackets the point: once the cell's
-  /// corners are vertices at its height, the mesh passes through it exactly. Rounding bites at the
-  /// top of a cliff: a sample at 5,000 m beside the 0 m a warp writes outside a projected DEM,
-  /// rounded a third of a quantum towards a cliff 600 quanta wide, erred by 3.5 m at its
-  /// vertex's own height. Sets p and returns the triangle holding it; -1 when every corner
-  /// inside the tile is a vertex.
+  /// height. Each one more brackets the point: once the cell's corners are vertices at its
+  /// height, the mesh passes through it exactly. Rounding bites at the top of a cliff: a sample
+  /// at 5,000 m beside the 0 m a warp writes outside a projected DEM, rounded a third of a
+  /// quantum towards a cliff 600 quanta wide, erred by 3.5 m at its vertex's own height. Sets p
+  /// and returns the triangle holding it; -1 when every corner inside the tile is a vertex.
   int free_corner(const UV& at_uv, pm::GridPoint& p, int from) const {
     const double u0 = std::floor(at_uv.u), v0 = std::floor(at_uv.v);
     std::array<pm::GridPoint, 4> corners;
@@ -356,16 +359,16 @@ class TileGreedy {
     corners(t, p, h);
     const Plane plane(p, h);
     double all = 0, best = 0;
-    pm::GridPoint cand{-1, -1};
-    UV cand_at{0, 0};
+    bool found = false;
+    UV cand{0, 0};
     double cand_h = 0;
     auto consider = [&](double u, double v, double value) {
       const double e = std::abs(plane(u, v) - value);
       all = std::max(all, e);
       if (e <= best) return;
-      const int U = int(std::lround(u)), V = int(std::lround(v));
-      if (U <= 0 || U >= kQ || V <= 0 || V >= kQ) return;
-      best = e, cand = {U, V}, cand_at = {u, v}, cand_h = value;
+      const pm::GridPoint q = rounded({u, v});
+      if (q.x <= 0 || q.x >= kQ || q.y <= 0 || q.y >= kQ) return;
+      best = e, found = true, cand = {u, v}, cand_h = value;
     };
     scan_lattice(fr_, g_.width, g_.height, p, [&](int c, int r, double u, double v) {
       const double value = f_.lattice(c, r);
@@ -378,9 +381,9 @@ class TileGreedy {
         consider(b.u, b.v, f_.background());
     });
     const std::size_t i = std::size_t(t);
-    all_[i] = all, prio_[i] = best, cand_[i] = cand, cand_at_[i] = cand_at, cand_h_[i] = cand_h;
+    all_[i] = all, prio_[i] = best, cand_[i] = cand, cand_h_[i] = cand_h;
     ++version_[i];
-    if (cand.x >= 0) heap_.push({best, t, version_[i]});
+    if (found) heap_.push({best, t, version_[i]});
   }
 
   const GeoField& f_;
@@ -399,8 +402,7 @@ class TileGreedy {
   Delaunay dt_;
   std::vector<double> h_;
   std::vector<double> prio_, all_, cand_h_;
-  std::vector<pm::GridPoint> cand_;  // a triangle's worst point: where it is inserted,
-  std::vector<UV> cand_at_;          // where it lies (cand_ rounds it)
+  std::vector<UV> cand_;  // a triangle's worst point, where it lies (inserted at rounded())
   std::vector<std::uint32_t> version_;
   struct Item {
     double err;
