@@ -179,13 +179,13 @@ void expect_like_read_dem(const std::string& path, const tb::DemOptions& options
   keep.crs = "native";
   const Heightfield file = tb::read_dem(path, keep);
   for (const tb::SampleRect& r : windows(hf.width(), hf.height(), 60, 7)) {
+    const std::string at = path + " window " + std::to_string(r.col0) + "," + std::to_string(r.row0) + " - " +
+                           std::to_string(r.col1) + "," + std::to_string(r.row1);
     std::size_t voids = 12345, want = 0;
-    EXPECT_TRUE(same_block(src->read_counting_voids(r, voids), tb::block_heightfield(hf, r)))
-        << path << " window " << r.col0 << "," << r.row0 << " - " << r.col1 << "," << r.row1;
+    EXPECT_TRUE(same_block(src->read_counting_voids(r, voids), tb::block_heightfield(hf, r))) << at;
     for (int row = r.row0; !src->grid().warped && row <= r.row1; ++row)
       for (int col = r.col0; col <= r.col1; ++col) want += file.valid(col, row) ? 0 : 1;
-    EXPECT_EQ(voids, want) << path << " window " << r.col0 << "," << r.row0 << " - " << r.col1 << ","
-                           << r.row1;
+    EXPECT_EQ(voids, want) << at;
   }
   EXPECT_EQ(src->samples_crc(), tb::heightfield_source(hf)->samples_crc());
 }
