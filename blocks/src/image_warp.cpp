@@ -82,21 +82,24 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
       throw fail(std::string("is georeferenced but its bands are ") +
                  GDALGetDataTypeName(src->GetRasterBand(1)->GetRasterDataType()) +
                  "; texture layers warp 8-bit images (gdal_translate -ot Byte -scale makes one)");
-  // A last band is alpha only when it says so: a fourth band is often near infrared.
-  const bool alpha =
-      (bands == 2 || bands == 4) && src->GetRasterBand(bands)->GetColorInterpretation() == GCI_AlphaBand;
-  std::vector<std::string> layout;  // gdal_translate arguments, empty: as it is
-  if (bands == 1 && src->GetRasterBand(1)->GetColorTable() != nullptr)
+  // The rule of render/src/image_channels.hpp: a band is alpha only when it says so (a fourth
+  // band is often near infrared); colour is the first three other bands, or the first as grey.
+  int alpha = 0;  // 1-based; 0: none
+  for (int b = 1; b <= bands && alpha == 0; ++b)
+    if (src->GetRasterBand(b)->GetColorInterpretation() == GCI_AlphaBand) alpha = b;
+  std::vector<int> colour;
+  for (int b = 1; b <= bands && colour.size() < 3; ++b)
+    if (b != alpha) colour.push_back(b);
+  if (colour.empty()) throw fail("has an alpha band only; a texture needs colour or grey");
+  if (colour.size() < 3) colour.assign(3, colour[0]);
+  std::vector<std::string> layout;  // gdal_translate arguments, empty: as it is (RGB, RGBA)
+  if (bands == 1 && src->GetRasterBand(1)->GetColorTable() != nullptr) {
     layout = {"-expand", "rgb"};
-  else if (bands <= 2)  // grey, and its alpha
-    layout = alpha ? std::vector<std::string>{"-b",           "1",
-                                              "-b",           "1",
-                                              "-b",           "1",
-                                              "-b",           "2",
-                                              "-colorinterp", "red,green,blue,alpha"}
-                   : std::vector<std::string>{"-b", "1", "-b", "1", "-b", "1"};
-  else if (bands > 3 && !alpha)  // RGB and more (RGBI): the first three
-    layout = {"-b", "1", "-b", "2", "-b", "3"};
+  } else if (!((bands == 3 && alpha == 0) || (bands == 4 && alpha == 4))) {
+    for (const int b : colour) layout.insert(layout.end(), {"-b", std::to_string(b)});
+    if (alpha != 0) layout.insert(layout.end(), {"-b", std::to_string(alpha)});
+    layout.insert(layout.end(), {"-colorinterp", alpha != 0 ? "red,green,blue,alpha" : "red,green,blue"});
+  }
   static std::atomic<int> serial{0};
   const std::string rgb = "/vsimem/terralod_image_" + std::to_string(serial++) + ".vrt";
   struct Unlink {

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "image_channels.hpp"
 #include "terralod/pm/atomic_file.hpp"
 
 namespace terralod::render {
@@ -42,9 +43,9 @@ Image read_image(const std::string& path) {
   const OIIO::ImageSpec& spec = in->spec();
   if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
     throw std::runtime_error(path + ": cannot read image: it has no pixels");
-  const int channels = spec.nchannels;
-  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * channels);
-  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, all.data()))
+  const detail::ImageChannels ch = detail::image_channels(spec, path);
+  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * ch.read);
+  if (!in->read_image(0, 0, 0, ch.read, OIIO::TypeDesc::UINT8, all.data()))
     throw std::runtime_error(path + ": cannot read image: " + in->geterror());
   in->close();
   Image img;
@@ -52,7 +53,7 @@ Image read_image(const std::string& path) {
   img.height = spec.height;
   img.rgb.resize(std::size_t(img.width) * img.height * 3);
   for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
-    for (int c = 0; c < 3; ++c) img.rgb[3 * p + c] = all[p * channels + (channels >= 3 ? c : 0)];
+    for (int c = 0; c < 3; ++c) img.rgb[3 * p + c] = all[p * ch.read + ch.colour[std::size_t(c)]];
   return img;
 }
 

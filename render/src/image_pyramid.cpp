@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "image_channels.hpp"
 #include "terralod/pm/atomic_file.hpp"
 
 namespace terralod::render {
@@ -63,6 +64,7 @@ struct ImagePyramid::Impl {
   std::string path;
   OIIO::ustring upath;
   std::shared_ptr<OIIO::ImageCache> cache;
+  detail::ImageChannels rgba;  // which of the file's channels read() returns as R, G, B, A
   ~Impl() {
     if (cache) cache->invalidate(upath, true);
   }
@@ -178,8 +180,7 @@ ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& option
     throw std::runtime_error(path + ": cannot open the image pyramid: " + why);
   }
   channels_ = spec.nchannels;
-  if (channels_ < 1 || channels_ > 4)
-    throw std::runtime_error(path + ": " + std::to_string(channels_) + " channels; a texture needs 1 to 4");
+  impl_->rgba = detail::image_channels(spec, path);
   const std::vector<LevelSize> wanted = pyramid_levels(spec.width, spec.height, options.max_texture_size);
   for (int k = 0; k < int(wanted.size()); ++k) {
     OIIO::ImageSpec ls;
@@ -208,10 +209,10 @@ RgbaImage ImagePyramid::read(const PixelRect& r) const {
   const int x0 = std::max(r.x0, 0), y0 = std::max(r.y0, 0);
   const int x1 = std::min(r.x0 + r.width, ls.width), y1 = std::min(r.y0 + r.height, ls.height);
   if (x0 >= x1 || y0 >= y1) return out;
-  const int nc = channels_;
+  const int nc = impl_->rgba.read;  // only the channels up to the last one used (an image may have many)
   std::vector<std::uint8_t> raw(std::size_t(x1 - x0) * (y1 - y0) * nc);
-  if (!impl_->cache->get_pixels(impl_->upath, 0, r.level, x0, x1, y0, y1, 0, 1, OIIO::TypeDesc::UINT8,
-                                raw.data()))
+  if (!impl_->cache->get_pixels(impl_->upath, 0, r.level, x0, x1, y0, y1, 0, 1, /*chbegin=*/0, /*chend=*/nc,
+                                OIIO::TypeDesc::UINT8, raw.data()))
     throw std::runtime_error(impl_->path + ": cannot read level " + std::to_string(r.level) + " pixels [" +
                              std::to_string(x0) + "," + std::to_string(x1) + ") x [" + std::to_string(y0) +
                              "," + std::to_string(y1) + "): " + impl_->cache->geterror());
@@ -219,13 +220,7 @@ RgbaImage ImagePyramid::read(const PixelRect& r) const {
     for (int x = x0; x < x1; ++x) {
       const std::uint8_t* s = raw.data() + (std::size_t(y - y0) * (x1 - x0) + (x - x0)) * nc;
       std::uint8_t* d = out.rgba.data() + (std::size_t(y - r.y0) * r.width + (x - r.x0)) * 4;
-      if (nc <= 2) {
-        d[0] = d[1] = d[2] = s[0];
-        d[3] = nc == 2 ? s[1] : 255;
-      } else {
-        d[0] = s[0], d[1] = s[1], d[2] = s[2];
-        d[3] = nc == 4 ? s[3] : 255;
-      }
+      impl_->rgba.to_rgba(s, d);
     }
   return out;
 }

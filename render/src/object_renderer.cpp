@@ -14,6 +14,7 @@
 
 #include "gl_api.hpp"
 #include "glyph_atlas.hpp"
+#include "image_channels.hpp"
 
 namespace terralod::render {
 namespace {
@@ -353,18 +354,14 @@ IconStyleId ObjectRenderer::load_icon_style(const std::string& path, int quads) 
   const OIIO::ImageSpec& spec = in->spec();
   if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
     throw std::runtime_error(path + ": cannot read the icon image: it has no pixels");
-  const int channels = spec.nchannels;
-  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * channels);
-  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, all.data()))
+  const detail::ImageChannels ch = detail::image_channels(spec, path);
+  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * ch.read);
+  if (!in->read_image(0, 0, 0, ch.read, OIIO::TypeDesc::UINT8, all.data()))
     throw std::runtime_error(path + ": cannot read the icon image: " + in->geterror());
   in->close();
   RgbaImage img(spec.width, spec.height);
-  for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p) {
-    for (int c = 0; c < 3; ++c) img.rgba[4 * p + c] = all[p * channels + (channels >= 3 ? c : 0)];
-    // Alpha: the 4th channel of RGBA, the 2nd of grey + alpha, else opaque.
-    const int a = channels >= 4 ? 3 : (channels == 2 ? 1 : -1);
-    img.rgba[4 * p + 3] = a < 0 ? 255 : all[p * channels + a];
-  }
+  for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
+    ch.to_rgba(&all[p * ch.read], &img.rgba[4 * p]);
   return add_icon_style(img, quads);
 }
 

@@ -64,7 +64,8 @@ void place_by_corners(GDALDataset& ds, double west, double south, double east, d
 }
 
 /// An RGB GeoTIFF in longitude/latitude: red west of `split`, blue east of it; with 4 bands the
-/// fourth (near infrared, not alpha) is 255 west of the split and 0 east of it.
+/// fourth (near infrared, not alpha) is 255 west of the split and 0 east of it; with 5 the fifth
+/// is 128 west of it and 255 east.
 /// With `gcps`, the georeference is four ground control points at the corners instead of a
 /// geotransform (as a scanned map placed by hand has it).
 void write_ortho(const fs::path& path, double west, double south, double east, double north, double split,
@@ -88,9 +89,10 @@ void write_ortho(const fs::path& path, double west, double south, double east, d
     for (int r = 0; r < h; ++r)
       for (int c = 0; c < w; ++c) {
         const bool red = west + (c + 0.5) * gt[1] < split;
-        v[std::size_t(r) * w + c] = std::uint8_t(b == 1 || b == 4 ? (red ? 255 : 0)
-                                                 : b == 3         ? (red ? 0 : 255)
-                                                                  : 0);
+        v[std::size_t(r) * w + c] = std::uint8_t(b == 5             ? (red ? 128 : 255)
+                                                 : b == 1 || b == 4 ? (red ? 255 : 0)
+                                                 : b == 3           ? (red ? 0 : 255)
+                                                                    : 0);
       }
     ASSERT_EQ(ds->GetRasterBand(b)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Byte, 0, 0), CE_None);
   }
@@ -163,6 +165,31 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
   EXPECT_EQ(rgbi.georef, rec.georef);
   EXPECT_EQ(read_layer_level(tb::BlockDatabase::open((d / "t.db").string()), rgbi, 0), img);
 
+  // RGB, near infrared and an alpha band marked so, fifth: the alpha is that band (the red half
+  // translucent), wherever it stands; the colour stays the first three.
+  write_ortho(d / "rgbia.tif", west, south, east, north, split, 5);
+  {
+    GDALDatasetUniquePtr ds(GDALDataset::Open((d / "rgbia.tif").c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
+    ASSERT_TRUE(ds);
+    ASSERT_EQ(ds->GetRasterBand(5)->SetColorInterpretation(GCI_AlphaBand), CE_None);
+  }
+  ASSERT_EQ(cli.run("texture add " + db + " --layer rgbia --image " + quote((d / "rgbia.tif").string())), 0);
+  const LayerRecord rgbia = read_layer_record(tb::BlockDatabase::open((d / "t.db").string()), "rgbia");
+  EXPECT_EQ(rgbia.georef, rec.georef);
+  const RgbaImage with_alpha = read_layer_level(tb::BlockDatabase::open((d / "t.db").string()), rgbia, 0);
+  ASSERT_EQ(with_alpha.width, img.width);
+  ASSERT_EQ(with_alpha.height, img.height);
+  int red = 0, misread = 0;
+  for (int r = 0; r < img.height; ++r)
+    for (int c = 0; c < img.width; ++c) {
+      const auto a = img.get(c, r), b = with_alpha.get(c, r);
+      if (a != std::array<std::uint8_t, 4>{255, 0, 0, 255}) continue;
+      ++red;
+      misread += b[0] != 255 || b[1] != 0 || b[2] != 0 || std::abs(int(b[3]) - 128) > 1;
+    }
+  EXPECT_GT(red, img.width * img.height / 8);
+  EXPECT_EQ(misread, 0);
+
   // The same ortho placed by ground control points at its corners: it was taken for a plain image
   // and stretched over the whole terrain. It lies where the other does (read through a warp
   // north-up first, so resampled twice: texels may differ along the colour split and the edges).
@@ -229,7 +256,7 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
             1);
   EXPECT_NE(text.find((d / "far.tif").string() + ": does not overlap the terrain"), std::string::npos)
       << text;
-  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 4u);
+  EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 5u);
   EXPECT_FALSE(fs::exists(d / "t.db.texture-far.tx.warp.tif"));
 }
 

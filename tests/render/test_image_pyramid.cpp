@@ -1,14 +1,17 @@
 // Tests of ImagePyramid: level sizes by hand, exact round trips of level 0 through the tiled
-// MIP-mapped file, box-filtered coarser levels, reads beyond the image, bad files, and
+// MIP-mapped file, box-filtered coarser levels, reads beyond the image, which channels are
+// colour and which alpha (also for read_image), bad files, and
 // pyramids of given levels (write_levels): exact round trips, wrong sizes refused.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "terralod/render/image.hpp"
 #include "terralod/render/image_pyramid.hpp"
 #include "terralod/render/texture_store.hpp"
 
@@ -122,6 +125,70 @@ TEST(ImagePyramid, StraightAlphaSurvivesAPngSource) {
   ImagePyramid::convert(png, tx);
   EXPECT_EQ(ImagePyramid(tx).read({0, 0, 0, 4, 1}), img);
   EXPECT_EQ(ImagePyramid(png).read({0, 0, 0, 4, 1}), img);
+}
+
+// A 6 x 4 TIFF whose channel c of pixel (x, y) is 10 * c + x + 6 y, the channels named
+// `names`, channel `alpha` marked as alpha (-1: none).
+std::string write_bands(const std::string& name, const std::vector<std::string>& names, int alpha) {
+  const std::string path = tmp_path(name);
+  const int n = int(names.size());
+  OIIO::ImageSpec spec(6, 4, n, OIIO::TypeDesc::UINT8);
+  spec.channelnames = names;
+  spec.alpha_channel = alpha;
+  std::vector<std::uint8_t> px(std::size_t(6 * 4 * n));
+  for (int p = 0; p < 24; ++p)
+    for (int c = 0; c < n; ++c) px[std::size_t(p * n + c)] = std::uint8_t(10 * c + p);
+  auto out = OIIO::ImageOutput::create(path);
+  EXPECT_TRUE(out && out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data()) &&
+              out->close());
+  return path;
+}
+
+TEST(ImagePyramid, OnlyAChannelMarkedAlphaIsAlpha) {
+  // Aerial imagery is often RGB + near infrared: its fourth band is no alpha, and a texture that
+  // took it for one was drawn translucent. The rule of image_channels.hpp, through the converted
+  // pyramid (as 'terralod texture add' reads a plain image) and through read_image.
+  struct Case {
+    std::string name;
+    std::vector<std::string> names;
+    int alpha;
+    std::array<int, 4> rgba;  // the file's channel read as R, G, B, A; -1: opaque
+  };
+  const std::vector<Case> cases = {
+      {"rgbn.tif", {"R", "G", "B", "N"}, -1, {0, 1, 2, -1}},
+      {"rgban.tif", {"R", "G", "B", "A", "N"}, 3, {0, 1, 2, 3}},
+      {"six.tif", {"b1", "b2", "b3", "b4", "b5", "b6"}, -1, {0, 1, 2, -1}},
+      {"grey_alpha.tif", {"Y", "A"}, 1, {0, 0, 0, 1}},
+      {"grey_other.tif", {"Y", "Q"}, -1, {0, 0, 0, -1}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string tif = write_bands(c.name, c.names, c.alpha), tx = tmp_path(c.name + ".tx");
+    ImagePyramid::convert(tif, tx);
+    const ImagePyramid pyr(tx);
+    EXPECT_EQ(pyr.channels(), int(c.names.size()));
+    const RgbaImage r = pyr.read({0, 0, 0, 6, 4});
+    const Image rgb = read_image(tif);
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 6; ++x) {
+        const auto band = [&](int k) { return k < 0 ? std::uint8_t(255) : std::uint8_t(10 * k + x + 6 * y); };
+        EXPECT_EQ(r.get(x, y), (std::array<std::uint8_t, 4>{band(c.rgba[0]), band(c.rgba[1]), band(c.rgba[2]),
+                                                            band(c.rgba[3])}))
+            << x << "," << y;
+        for (int k = 0; k < 3; ++k)
+          EXPECT_EQ(rgb.rgb[std::size_t(3 * (6 * y + x) + k)], band(c.rgba[std::size_t(k)])) << x << "," << y;
+      }
+  }
+  // Alpha alone is no image: refused, naming the file (an OpenEXR channel "A"; a TIFF of one
+  // channel reads as grey).
+  const std::string alpha_only = write_bands("alpha_only.exr", {"A"}, 0);
+  try {
+    ImagePyramid pyr(alpha_only);
+    FAIL() << "an image of alpha alone was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(alpha_only), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("alpha"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ImagePyramid, BadFilesThrowNamingTheFile) {

@@ -12,8 +12,8 @@
 //   - write_png writes 8-bit RGB PNG to path + ".tmp" and renames it onto path; on failure
 //     nothing is left at path and std::runtime_error names the file and the reason.
 //   - read_image reads any image OpenImageIO can (PNG, TIFF, ...), keeping the first three
-//     channels (a grey image is repeated into R, G, B) converted to 8 bits; std::runtime_error
-//     names the file on failure.
+//     channels that are not its alpha (a grey image is repeated into R, G, B) converted to 8
+//     bits; std::runtime_error names the file on failure.
 //   - Memory: 3 bytes per pixel.
 #pragma once
 

@@ -27,8 +27,11 @@
 //   - Pixel coordinates: (x, y), x to the right, y DOWN from the top row of the image, at the
 //     given level. A PixelRect may reach outside the level's image (power-of-two padding);
 //     those pixels read as transparent black (0,0,0,0).
-//   - Channels: 1 (grey), 2 (grey + alpha), 3 (RGB) or 4 (RGBA) in the file; read() always
-//     returns RGBA8 (grey repeated into R, G, B; alpha 255 where the file has none).
+//   - Channels: any number in the file; read() always returns RGBA8. Alpha is the channel the
+//     file marks as alpha (a PNG's, a TIFF extra sample marked alpha), 255 where none is; a
+//     band is never alpha by its position (RGB + near infrared is RGB). Colour: the first three
+//     other channels, or the first one repeated into R, G, B (grey) when there are fewer. A file
+//     whose only channel is alpha is refused (runtime_error naming it).
 //   - Alpha stays straight (not premultiplied) from the source file to read(), at every level;
 //     coarser levels average colour and alpha independently (box filter).
 //   - levels(): the finest level 0, down to and including the first level whose width and

@@ -151,7 +151,8 @@ class ObjectRenderer {
 
   /// Uploads an icon image (RGBA, straight alpha, top row first) drawn with `quads` quads (1..3).
   IconStyleId add_icon_style(const RgbaImage& image, int quads);
-  /// Reads an image file through OpenImageIO (grey, RGB or RGBA; RGB is opaque) and adds it.
+  /// Reads an image file through OpenImageIO (grey, RGB, with or without alpha; only a channel
+  /// the file marks as alpha is alpha, else the icon is opaque) and adds it.
   IconStyleId load_icon_style(const std::string& path, int quads);
 
   /// Width and height in pixels of the rectangle a label of `text` at `size_px` covers.
