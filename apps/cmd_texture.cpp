@@ -143,7 +143,10 @@ int texture_add(const Args& a, const std::string& path) {
   const RemoveFile remove_pyramid{pyr};
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
-  tr::ImagePyramid::convert(image, pyr, po);
+  {
+    ProgressBar bar("pyramid");
+    tr::ImagePyramid::convert(image, pyr, po, [&](double f) { bar.update(f); });
+  }
   std::printf("pyramid %s -> tiled MIP-mapped TIFF, %s\n", rec.source.c_str(),
               format_duration(ms_since(t)).c_str());
   store(db, rec, pyr);

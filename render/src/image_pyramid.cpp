@@ -1,9 +1,8 @@
-// Image pyramids through OpenImageIO: make_texture writes tiled MIP-mapped TIFFs, an
-// ImageCache reads sub-images of any level (approximation-tree.txt section 3.3).
+// Image pyramids through OpenImageIO: tiled MIP-mapped TIFFs written level by level in bands of
+// rows, read back through an ImageCache, sub-image by sub-image at any level
+// (approximation-tree.txt section 3.3).
 #include "terralod/render/image_pyramid.hpp"
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imagecache.h>
 #include <OpenImageIO/imageio.h>
 
@@ -11,8 +10,11 @@
 #include <cassert>
 #include <cstdio>
 #include <filesystem>
-#include <sstream>
+#include <functional>
+#include <memory>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "image_channels.hpp"
 #include "terralod/pm/atomic_file.hpp"
@@ -20,34 +22,144 @@
 namespace terralod::render {
 namespace {
 
-OIIO::ImageSpec texture_config(const PyramidOptions& o) {
-  assert(o.tile_size >= 1 && (o.tile_size & (o.tile_size - 1)) == 0);
-  OIIO::ImageSpec config;
-  config.tile_width = o.tile_size;
-  config.tile_height = o.tile_size;
-  config.tile_depth = 1;
-  config.set_format(OIIO::TypeDesc::UINT8);
-  config.attribute("compression", "zip");
-  config.attribute("wrapmodes", "clamp,clamp");
-  config.attribute("maketx:filtername", "box");
-  config.attribute("maketx:fileformatname", "tiff");
-  config.attribute("maketx:constant_color_detect", 0);
-  config.attribute("maketx:opaque_detect", 0);
-  config.attribute("maketx:monochrome_detect", 0);
-  config.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha (see convert)
-  return config;
+// The spec of level (w x h) of every pyramid file this writes (convert and write_levels alike):
+// RGBA8 with straight alpha, tiled, zip-compressed, marked "textureformat" so that OIIO reads
+// the file's further directories (AppendMIPLevel) back as MIP levels.
+OIIO::ImageSpec level_spec(int w, int h, const PyramidOptions& o) {
+  OIIO::ImageSpec spec(w, h, 4, OIIO::TypeDesc::UINT8);
+  spec.alpha_channel = 3;
+  spec.tile_width = spec.tile_height = o.tile_size;
+  spec.tile_depth = 1;
+  spec.attribute("compression", "zip");
+  spec.attribute("wrapmodes", "clamp,clamp");
+  spec.attribute("textureformat", "Plain Texture");
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  return spec;
 }
 
-void finish_convert(bool ok, const std::string& source, const std::string& tmp, const std::string& out,
-                    const std::ostringstream& log) {
-  std::error_code ec;
-  if (!ok) {
-    std::filesystem::remove(tmp, ec);
-    std::string why = OIIO::geterror();
-    if (why.empty()) why = log.str();
-    throw std::runtime_error(source + ": cannot build the image pyramid " + out + ": " + why);
+// Fills `rows` rows (RGBA8, top to bottom, each following the last call's) of the level being
+// written into `rgba`; throws naming the source on a read error.
+using RowSource = std::function<void(int rows, std::uint8_t* rgba)>;
+
+// One level halved row by row: the rows of a w x h level go in, in order; the rows of the next
+// level (max(1, w/2) x max(1, h/2)) come out. Next-level pixel (x, y) is the rounded mean of
+// the block of columns 2x, 2x+1 and rows 2y, 2y+1; along an odd side (> 1) the last block
+// takes the third column or row too, along a side of 1 the one pixel. Colour and alpha are
+// averaged alike (straight alpha, as the file keeps it).
+class Halver {
+ public:
+  Halver(int w, int h)
+      : w_(w), h_(h), nw_(std::max(1, w / 2)), nh_(std::max(1, h / 2)), acc_(std::size_t(nw_) * 4) {}
+  int width() const { return nw_; }
+  int height() const { return nh_; }
+  // Adds the next row of the level; true when it completes a row of the next one (in `out`).
+  bool add(const std::uint8_t* row, std::uint8_t* out) {
+    for (int x = 0; x < nw_; ++x)
+      for (int xx = 2 * x; xx < end(x, nw_, w_); ++xx)
+        for (int c = 0; c < 4; ++c) acc_[std::size_t(4 * x + c)] += row[std::size_t(4 * xx + c)];
+    const int r = r_++, j = std::min(r / 2, nh_ - 1);
+    if (r + 1 < end(j, nh_, h_)) return false;
+    const std::uint32_t rows = std::uint32_t(end(j, nh_, h_) - 2 * j);
+    for (int x = 0; x < nw_; ++x) {
+      const std::uint32_t n = std::uint32_t(end(x, nw_, w_) - 2 * x) * rows;
+      for (int c = 0; c < 4; ++c) {
+        std::uint32_t& a = acc_[std::size_t(4 * x + c)];
+        out[4 * x + c] = std::uint8_t((a + n / 2) / n);
+        a = 0;
+      }
+    }
+    return true;
   }
-  pm::rename_into_place(tmp, out);
+
+ private:
+  // One past the last index of block i of the n blocks over a side of s.
+  static int end(int i, int n, int s) { return i + 1 == n ? s : 2 * i + 2; }
+  int w_, h_, nw_, nh_, r_ = 0;
+  std::vector<std::uint32_t> acc_;
+};
+
+// Writes the pyramid of the w x h image whose rows `level0` gives: every level down to 1 x 1,
+// streamed. Each level is written to the file in bands of tile_size rows while it is halved
+// into the next, which goes to a raw spool file beside the output and is read back in bands
+// for its turn (the TIFF takes one level after the other): memory is two bands and a row per
+// level, disk a quarter of level 0's RGBA at most besides the output. Through out_path + ".tmp",
+// renamed when complete; on any error nothing is left. `what` names the source in errors.
+void write_pyramid(const RowSource& level0, int w, int h, const std::string& out_path,
+                   const PyramidOptions& o, const std::string& what,
+                   const std::function<void(double)>& progress) {
+  assert(w >= 1 && h >= 1 && o.tile_size >= 1 && (o.tile_size & (o.tile_size - 1)) == 0);
+  const std::string tmp = out_path + ".tmp";
+  const std::string spool[2] = {tmp + ".level-a", tmp + ".level-b"};
+  struct Cleanup {
+    const std::string* paths[3];
+    bool done = false;
+    ~Cleanup() {
+      std::error_code ec;
+      for (int k = done ? 1 : 0; k < 3; ++k) std::filesystem::remove(*paths[k], ec);
+    }
+  } cleanup{{&tmp, &spool[0], &spool[1]}};
+  const auto fail = [&](const std::string& why) -> void {
+    throw std::runtime_error(what + ": cannot build the image pyramid " + out_path + ": " + why);
+  };
+  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tiff");
+  if (!out) fail(OIIO::geterror());
+  const bool mip = out->supports("mipmap");  // as in write_levels
+  if (!mip && !out->supports("multiimage")) fail("the TIFF writer stores neither MIP levels nor subimages");
+  double total = 0.0, done = 0.0;  // pixels, for the progress
+  for (int lw = w, lh = h;; lw = std::max(1, lw / 2), lh = std::max(1, lh / 2)) {
+    total += double(lw) * lh;
+    if (lw == 1 && lh == 1) break;
+  }
+  RowSource src = level0;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(nullptr, &std::fclose);
+  const std::size_t band_rows = std::size_t(o.tile_size);
+  std::vector<std::uint8_t> band, next;
+  for (int k = 0;; ++k) {
+    const auto mode = k == 0 ? OIIO::ImageOutput::Create
+                      : mip  ? OIIO::ImageOutput::AppendMIPLevel
+                             : OIIO::ImageOutput::AppendSubimage;
+    if (!out->open(tmp, level_spec(w, h, o), mode))
+      fail("level " + std::to_string(k) + ": " + out->geterror());
+    const bool last = w == 1 && h == 1;
+    Halver halver(w, h);
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> to(nullptr, &std::fclose);
+    if (!last) {
+      to.reset(std::fopen(spool[(k + 1) % 2].c_str(), "wb"));
+      if (!to) fail("cannot write " + spool[(k + 1) % 2]);
+    }
+    band.resize(band_rows * std::size_t(w) * 4);
+    next.resize(std::size_t(halver.width()) * 4);
+    for (int y = 0; y < h; y += int(band_rows)) {
+      const int n = std::min(int(band_rows), h - y);
+      src(n, band.data());
+      if (!out->write_tiles(0, w, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, band.data()))
+        fail("level " + std::to_string(k) + ": " + out->geterror());
+      if (!last)
+        for (int r = 0; r < n; ++r)
+          if (halver.add(band.data() + std::size_t(r) * w * 4, next.data()) &&
+              std::fwrite(next.data(), 1, next.size(), to.get()) != next.size())
+            fail("cannot write " + spool[(k + 1) % 2]);
+      done += double(n) * w;
+      if (progress) progress(std::min(1.0, done / total));
+    }
+    if (last) break;
+    if (std::fflush(to.get()) != 0) fail("cannot write " + spool[(k + 1) % 2]);
+    to.reset();
+    // The next level is read back from its spool file.
+    in.reset(std::fopen(spool[(k + 1) % 2].c_str(), "rb"));
+    if (!in) fail("cannot read " + spool[(k + 1) % 2]);
+    const std::size_t row_bytes = next.size();
+    src = [&in, row_bytes, &fail, name = spool[(k + 1) % 2]](int rows, std::uint8_t* rgba) {
+      if (std::fread(rgba, 1, row_bytes * std::size_t(rows), in.get()) != row_bytes * std::size_t(rows))
+        fail("cannot read " + name);
+    };
+    w = halver.width(), h = halver.height();
+  }
+  if (!out->close()) fail(out->geterror());
+  out.reset();
+  in.reset();
+  pm::rename_into_place(tmp, out_path);
+  cleanup.done = true;
 }
 
 }  // namespace
@@ -71,40 +183,52 @@ struct ImagePyramid::Impl {
 };
 
 void ImagePyramid::convert(const std::string& image_path, const std::string& out_path,
-                           const PyramidOptions& options) {
+                           const PyramidOptions& options, const std::function<void(double)>& progress) {
   {
     auto in = OIIO::ImageInput::open(image_path);
     if (!in) throw std::runtime_error(image_path + ": cannot read the image: " + OIIO::geterror());
   }
-  // The source is read lazily through an ImageCache of its own (tiles on demand, bounded
-  // memory) that keeps straight alpha as it is: maketx's own reader would premultiply PNGs.
+  // The source is read in bands of rows through an ImageCache of its own (tiles on demand,
+  // bounded memory; untiled files in 64 x 64 pieces) that keeps straight alpha as it is.
   std::shared_ptr<OIIO::ImageCache> cache(OIIO::ImageCache::create(/*shared=*/false),
                                           [](OIIO::ImageCache* c) { OIIO::ImageCache::destroy(c); });
   cache->attribute("unassociatedalpha", 1);
   cache->attribute("max_memory_MB", float(options.cache_mb));
   cache->attribute("autotile", 64);
-  OIIO::ImageBuf src(image_path, 0, 0, cache.get());
-  if (!src.init_spec(image_path, 0, 0))
-    throw std::runtime_error(image_path + ": cannot read the image: " + src.geterror());
-  const std::string tmp = out_path + ".tmp";
-  std::ostringstream log;
-  const bool ok = OIIO::ImageBufAlgo::make_texture(OIIO::ImageBufAlgo::MakeTxTexture, src, tmp,
-                                                   texture_config(options), &log);
-  finish_convert(ok, image_path, tmp, out_path, log);
+  const OIIO::ustring upath(image_path);
+  OIIO::ImageSpec spec;
+  if (!cache->get_imagespec(upath, spec, 0, 0))
+    throw std::runtime_error(image_path + ": cannot read the image: " + cache->geterror());
+  if (spec.width < 1 || spec.height < 1)
+    throw std::runtime_error(image_path + ": cannot read the image: it has no pixels");
+  const detail::ImageChannels ch = detail::image_channels(spec, image_path);
+  std::vector<std::uint8_t> raw;
+  int y = spec.y;
+  const RowSource rows = [&](int n, std::uint8_t* rgba) {
+    raw.resize(std::size_t(spec.width) * std::size_t(n) * std::size_t(ch.read));
+    if (!cache->get_pixels(upath, 0, 0, spec.x, spec.x + spec.width, y, y + n, spec.z, spec.z + 1, 0, ch.read,
+                           OIIO::TypeDesc::UINT8, raw.data()))
+      throw std::runtime_error(image_path + ": cannot read rows " + std::to_string(y - spec.y) + ".." +
+                               std::to_string(y - spec.y + n - 1) + ": " + cache->geterror());
+    for (std::size_t p = 0; p < std::size_t(spec.width) * std::size_t(n); ++p)
+      ch.to_rgba(raw.data() + p * std::size_t(ch.read), rgba + 4 * p);
+    y += n;
+  };
+  write_pyramid(rows, spec.width, spec.height, out_path, options, image_path, progress);
+  cache->invalidate(upath, true);
 }
 
 void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path,
                            const PyramidOptions& options) {
   assert(image.width >= 1 && image.height >= 1 &&
          image.rgba.size() == std::size_t(image.width) * image.height * 4);
-  OIIO::ImageSpec spec(image.width, image.height, 4, OIIO::TypeDesc::UINT8);
-  spec.alpha_channel = 3;
-  const OIIO::ImageBuf buf(spec, const_cast<std::uint8_t*>(image.rgba.data()));
-  const std::string tmp = out_path + ".tmp";
-  std::ostringstream log;
-  const bool ok = OIIO::ImageBufAlgo::make_texture(OIIO::ImageBufAlgo::MakeTxTexture, buf, tmp,
-                                                   texture_config(options), &log);
-  finish_convert(ok, "(pixels in memory)", tmp, out_path, log);
+  std::size_t at = 0;
+  const RowSource rows = [&](int n, std::uint8_t* rgba) {
+    const std::size_t bytes = std::size_t(image.width) * std::size_t(n) * 4;
+    std::copy_n(image.rgba.data() + at, bytes, rgba);
+    at += bytes;
+  };
+  write_pyramid(rows, image.width, image.height, out_path, options, "(pixels in memory)", {});
 }
 
 void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,
@@ -138,21 +262,13 @@ void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std:
   std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tiff");
   if (!out) fail(OIIO::geterror());
   // OIIO's TIFF writer stores MIP levels as further directories (AppendSubimage), which its
-  // reader presents as MIP levels of a file marked "textureformat" (what make_texture does).
+  // reader presents as MIP levels of a file marked "textureformat" (level_spec), as convert's.
   const bool mip = out->supports("mipmap");
   if (levels.size() > 1 && !mip && !out->supports("multiimage"))
     fail("the TIFF writer stores neither MIP levels nor subimages");
   for (std::size_t k = 0; k < levels.size(); ++k) {
     const RgbaImage& l = levels[k];
-    // The attributes of make_texture's output (texture_config), so both writers' files read alike.
-    OIIO::ImageSpec spec(l.width, l.height, 4, OIIO::TypeDesc::UINT8);
-    spec.alpha_channel = 3;
-    spec.tile_width = spec.tile_height = options.tile_size;
-    spec.tile_depth = 1;
-    spec.attribute("compression", "zip");
-    spec.attribute("wrapmodes", "clamp,clamp");
-    spec.attribute("textureformat", "Plain Texture");
-    spec.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha, as convert keeps it
+    const OIIO::ImageSpec spec = level_spec(l.width, l.height, options);
     const auto mode = k == 0 ? OIIO::ImageOutput::Create
                       : mip  ? OIIO::ImageOutput::AppendMIPLevel
                              : OIIO::ImageOutput::AppendSubimage;

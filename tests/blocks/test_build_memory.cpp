@@ -21,11 +21,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include "geographic_tiff.hpp"
+#include "peak_memory.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/dem_source.hpp"
@@ -38,26 +38,8 @@
 namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
 
-namespace {
-
-/// The kernel's peak resident set of this process, bytes (VmHWM of /proc/self/status).
-std::uint64_t peak_resident() {
-  std::ifstream in("/proc/self/status");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024u;
-  ADD_FAILURE() << "/proc/self/status has no VmHWM line";
-  return 0;
-}
-
-/// Resets VmHWM to the current resident set (Linux >= 4.0).
-void reset_peak() {
-  std::ofstream out("/proc/self/clear_refs");
-  out << "5";
-  out.flush();
-  ASSERT_TRUE(out.good()) << "/proc/self/clear_refs: cannot reset the peak resident set";
-}
-
-}  // namespace
+using terralod::test::peak_resident;
+using terralod::test::reset_peak;
 
 TEST(BuildMemory, FourTimesTheSamplesWithinAQuarterMoreMemory) {
   ASSERT_EQ(setenv("GDAL_CACHEMAX", "8", 1), 0);

@@ -9,8 +9,10 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "peak_memory.hpp"
 #include "terralod/render/image.hpp"
 #include "terralod/render/image_pyramid.hpp"
 #include "terralod/render/texture_store.hpp"
@@ -69,6 +71,86 @@ TEST(ImagePyramid, ConvertedFileRoundTripsLevelZeroAndBoxFiltersTheNext) {
     }
 }
 
+TEST(ImagePyramid, OddSidesFoldTheirLastColumnAndRowIntoTheLastBlock) {
+  // 7 x 5 -> 3 x 2 -> 1 x 1: a pixel of the next level is the rounded mean of its block of
+  // columns {2x, 2x+1} and rows {2y, 2y+1}, the last block along an odd side taking the third.
+  RgbaImage src(7, 5);
+  std::uint32_t seed = 12345;
+  for (std::uint8_t& v : src.rgba) v = std::uint8_t((seed = seed * 1664525u + 1013904223u) >> 24);
+  const std::string tx = tmp_path("odd.tx");
+  PyramidOptions po;
+  po.max_texture_size = 1;  // every level down to 1 x 1 is used
+  ImagePyramid::convert(src, tx, po);
+  const ImagePyramid pyr(tx, po);
+  ASSERT_EQ(pyr.levels(), 3);
+  EXPECT_EQ(pyr.level(1), (LevelSize{3, 2}));
+  EXPECT_EQ(pyr.level(2), (LevelSize{1, 1}));
+  const auto halve = [](const RgbaImage& a) {
+    RgbaImage b(std::max(1, a.width / 2), std::max(1, a.height / 2));
+    const auto block = [](int i, int n, int s) { return std::pair{2 * i, i + 1 == n ? s : 2 * i + 2}; };
+    for (int y = 0; y < b.height; ++y)
+      for (int x = 0; x < b.width; ++x) {
+        const auto [x0, x1] = block(x, b.width, a.width);
+        const auto [y0, y1] = block(y, b.height, a.height);
+        std::array<std::uint8_t, 4> v{};
+        for (int c = 0; c < 4; ++c) {
+          unsigned sum = 0, n = 0;
+          for (int yy = y0; yy < y1; ++yy)
+            for (int xx = x0; xx < x1; ++xx) sum += a.get(xx, yy)[std::size_t(c)], ++n;
+          v[std::size_t(c)] = std::uint8_t((sum + n / 2) / n);
+        }
+        b.set(x, y, v);
+      }
+    return b;
+  };
+  const RgbaImage l1 = halve(src), l2 = halve(l1);
+  EXPECT_EQ(pyr.read({0, 0, 0, 7, 5}), src);
+  EXPECT_EQ(pyr.read({1, 0, 0, 3, 2}), l1);
+  EXPECT_EQ(pyr.read({2, 0, 0, 1, 1}), l2);
+}
+
+TEST(ImagePyramid, ConvertHoldsBandsOfRowsNotTheImage) {
+  // A 6000 x 4000 RGB TIFF (72 MB of pixels, 96 MB as RGBA) written row by row: converting it
+  // holds the read cache (16 MB here) and a few bands of rows; 21 MB measured. OpenImageIO's
+  // make_texture, used before, held the image as floats (288 MB here; 4 GB for 16000 x 16000).
+  const int w = 6000, h = 4000;
+  const std::string tif = tmp_path("large.tif"), tx = tmp_path("large.tx");
+  {
+    auto out = OIIO::ImageOutput::create(tif);
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(w, h, 3, OIIO::TypeDesc::UINT8);
+    spec.attribute("compression", "zip");
+    ASSERT_TRUE(out->open(tif, spec));
+    std::vector<std::uint8_t> row(std::size_t(w) * 3);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) row[std::size_t(3 * x + c)] = std::uint8_t((x * (c + 1) + y) / 7);
+      ASSERT_TRUE(out->write_scanline(y, 0, OIIO::TypeDesc::UINT8, row.data()));
+    }
+    ASSERT_TRUE(out->close());
+  }
+  PyramidOptions po;
+  po.cache_mb = 16;
+  po.max_texture_size = 512;
+  const std::uint64_t before = terralod::test::current_resident();
+  terralod::test::reset_peak();
+  double last = 0.0;
+  ImagePyramid::convert(tif, tx, po, [&](double f) {
+    EXPECT_GE(f, last);
+    last = f;
+  });
+  const std::uint64_t grown = terralod::test::peak_resident() - before;
+  EXPECT_EQ(last, 1.0);
+  EXPECT_LT(grown, 48u << 20) << "the peak resident set grew by " << (grown >> 20) << " MB";
+  const ImagePyramid pyr(tx, po);
+  ASSERT_EQ(pyr.levels(), 5);  // 6000 x 4000 .. 375 x 250
+  const RgbaImage r = pyr.read({0, 4000, 3000, 3, 2});
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 3; ++x)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_EQ(r.get(x, y)[std::size_t(c)], std::uint8_t(((4000 + x) * (c + 1) + 3000 + y) / 7));
+}
+
 TEST(ImagePyramid, PixelsOutsideTheImageReadAsTransparentBlack) {
   const RgbaImage src = blocky(40, 20);
   const std::string path = tmp_path("outside.tx");
@@ -102,8 +184,9 @@ TEST(ImagePyramid, GreyFileFromDiskBecomesOpaqueRgba) {
   po.max_texture_size = 128;
   ImagePyramid::convert(png, tx, po);
   const ImagePyramid pyr(tx, po);
-  ASSERT_EQ(pyr.levels(), 3);  // 300x200, 150x100, 75x50
-  EXPECT_EQ(pyr.channels(), 1);
+  ASSERT_EQ(pyr.levels(), 3);    // 300x200, 150x100, 75x50
+  EXPECT_EQ(pyr.channels(), 4);  // convert writes RGBA
+  EXPECT_EQ(ImagePyramid(png).channels(), 1);
   const RgbaImage r = pyr.read({0, 290, 190, 10, 10});
   for (int y = 0; y < 10; ++y)
     for (int x = 0; x < 10; ++x) {
@@ -165,19 +248,24 @@ TEST(ImagePyramid, OnlyAChannelMarkedAlphaIsAlpha) {
     SCOPED_TRACE(c.name);
     const std::string tif = write_bands(c.name, c.names, c.alpha), tx = tmp_path(c.name + ".tx");
     ImagePyramid::convert(tif, tx);
-    const ImagePyramid pyr(tx);
-    EXPECT_EQ(pyr.channels(), int(c.names.size()));
-    const RgbaImage r = pyr.read({0, 0, 0, 6, 4});
+    EXPECT_EQ(ImagePyramid(tif).channels(), int(c.names.size()));
+    EXPECT_EQ(ImagePyramid(tx).channels(), 4);  // convert writes RGBA
     const Image rgb = read_image(tif);
-    for (int y = 0; y < 4; ++y)
-      for (int x = 0; x < 6; ++x) {
-        const auto band = [&](int k) { return k < 0 ? std::uint8_t(255) : std::uint8_t(10 * k + x + 6 * y); };
-        EXPECT_EQ(r.get(x, y), (std::array<std::uint8_t, 4>{band(c.rgba[0]), band(c.rgba[1]), band(c.rgba[2]),
-                                                            band(c.rgba[3])}))
-            << x << "," << y;
-        for (int k = 0; k < 3; ++k)
-          EXPECT_EQ(rgb.rgb[std::size_t(3 * (6 * y + x) + k)], band(c.rgba[std::size_t(k)])) << x << "," << y;
-      }
+    for (const std::string& file : {tif, tx}) {  // read from the image itself and from its pyramid
+      const RgbaImage r = ImagePyramid(file).read({0, 0, 0, 6, 4});
+      for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 6; ++x) {
+          const auto band = [&](int k) {
+            return k < 0 ? std::uint8_t(255) : std::uint8_t(10 * k + x + 6 * y);
+          };
+          EXPECT_EQ(r.get(x, y), (std::array<std::uint8_t, 4>{band(c.rgba[0]), band(c.rgba[1]),
+                                                              band(c.rgba[2]), band(c.rgba[3])}))
+              << file << " " << x << "," << y;
+          for (int k = 0; k < 3; ++k)
+            EXPECT_EQ(rgb.rgb[std::size_t(3 * (6 * y + x) + k)], band(c.rgba[std::size_t(k)]))
+                << x << "," << y;
+        }
+    }
   }
   // Alpha alone is no image: refused, naming the file (an OpenEXR channel "A"; a TIFF of one
   // channel reads as grey).

@@ -3,7 +3,7 @@
 //
 // Usage:
 //   terralod::render::PyramidOptions po;  po.max_texture_size = 1024;
-//   terralod::render::ImagePyramid::convert("ortho.tif", "ortho.tx", po);  // maketx via OIIO
+//   terralod::render::ImagePyramid::convert("ortho.tif", "ortho.tx", po);  // streamed, bands of rows
 //   terralod::render::ImagePyramid pyr("ortho.tx", po);
 //   pyr.levels();                          // e.g. 5: 16000^2, 8000^2, ..., 1000^2
 //   terralod::render::PixelRect r{/*level=*/2, /*x0=*/0, /*y0=*/0, /*width=*/512, /*height=*/256};
@@ -12,13 +12,17 @@
 //   std::vector<terralod::render::RgbaImage> lv;  // sizes exactly pyramid_levels(w, h, 1024)
 //   terralod::render::ImagePyramid::write_levels(lv, "thematic.tx", po);
 //
-// Implementation: OpenImageIO's make_texture (the library behind `maketx`) writes a tiled
-// (64 x 64), MIP-mapped TIFF, reading the source through an ImageCache so the whole image is
-// never in memory at once; reads go through an ImageCache too (tiles loaded on demand, a
+// Implementation: convert reads the source in bands of rows through an OpenImageIO ImageCache
+// (tiles on demand, bounded memory) and writes a tiled (64 x 64), zip-compressed, MIP-mapped
+// TIFF level by level: each level goes to the file band by band while it is halved into the
+// next, which waits in a raw spool file beside the output (the TIFF takes one level after the
+// other). The whole image is never in memory (OpenImageIO's make_texture, used before, held the
+// source as floats: 4 GB for a 16000 x 16000 RGB image). Reads go through an ImageCache too (a
 // bounded cache of PyramidOptions::cache_mb). This is the "image pyramid" of
 // approximation-tree.txt section 3.3 and dynamic-3d-maps-texture-layers.txt section 3.1: all
-// levels cover the same geo-referenced domain; level k+1 is level k scaled by 1/2 (OIIO:
-// max(1, floor(w/2)) per axis, box filter).
+// levels cover the same geo-referenced domain; level k+1 is level k scaled by 1/2
+// (max(1, floor(w/2)) per axis): each pixel the rounded mean of its 2 x 2 block, the last block
+// along an odd side taking the third column or row too.
 // write_levels writes the same kind of TIFF through OIIO's ImageOutput, one directory per
 // level (the TIFF writer appends them as subimages; OIIO reads a file marked "textureformat"
 // back as MIP levels).
@@ -45,12 +49,16 @@
 //     out_path is untouched and no ".tmp" is left.
 //   - Errors (unreadable file, not an image, write failure) throw std::runtime_error naming
 //     the file and the reason. read() is thread-safe (the ImageCache is).
-//   - Memory: the cache (cache_mb, default 64 MiB) + the returned pixels (4 bytes each).
-//     On disk: about 4/3 of the source's uncompressed size (zip-compressed tiles).
+//   - Memory: convert, the cache (cache_mb, default 64 MiB) + two bands of tile_size rows of
+//     level 0 (RGBA8 and the source's channels); read, the cache + the returned pixels (4 bytes
+//     each). On disk: the file (zip-compressed tiles, every level down to 1 x 1) and, while
+//     convert runs, a quarter of level 0's RGBA8 at most (the spool files, out_path +
+//     ".tmp.level-a" and "-b", removed when it ends, also on an error).
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -87,10 +95,12 @@ std::vector<LevelSize> pyramid_levels(int width, int height, int max_texture_siz
 class ImagePyramid {
  public:
   /// Converts any image OpenImageIO reads into a tiled, MIP-mapped TIFF at `out_path`
-  /// (written to out_path + ".tmp" and renamed). Streams: the source is read through an
-  /// ImageCache. Throws std::runtime_error naming the file on failure.
+  /// (written to out_path + ".tmp" and renamed), every level down to 1 x 1. Streams: the
+  /// source is read in bands of rows through an ImageCache. Throws std::runtime_error naming
+  /// the file on failure.
+  /// `progress`, when given, gets the fraction written so far, (0, 1].
   static void convert(const std::string& image_path, const std::string& out_path,
-                      const PyramidOptions& options = {});
+                      const PyramidOptions& options = {}, const std::function<void(double)>& progress = {});
   /// Same from pixels in memory (generated textures, tests).
   static void convert(const RgbaImage& image, const std::string& out_path,
                       const PyramidOptions& options = {});
