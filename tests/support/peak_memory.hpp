@@ -10,23 +10,20 @@
 
 namespace terralod::test {
 
-/// The kernel's peak resident set of this process, bytes (VmHWM of /proc/self/status).
-inline std::uint64_t peak_resident() {
+/// A size field of /proc/self/status ("VmHWM", "VmRSS"), bytes.
+inline std::uint64_t status_bytes(const std::string& field) {
   std::ifstream in("/proc/self/status");
   for (std::string line; std::getline(in, line);)
-    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024u;
-  ADD_FAILURE() << "/proc/self/status has no VmHWM line";
+    if (line.rfind(field + ":", 0) == 0) return std::stoull(line.substr(field.size() + 1)) * 1024u;
+  ADD_FAILURE() << "/proc/self/status has no " << field << " line";
   return 0;
 }
 
-/// The current resident set of this process, bytes (VmRSS of /proc/self/status).
-inline std::uint64_t current_resident() {
-  std::ifstream in("/proc/self/status");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("VmRSS:", 0) == 0) return std::stoull(line.substr(6)) * 1024u;
-  ADD_FAILURE() << "/proc/self/status has no VmRSS line";
-  return 0;
-}
+/// The kernel's peak resident set of this process, bytes.
+inline std::uint64_t peak_resident() { return status_bytes("VmHWM"); }
+
+/// The current resident set of this process, bytes.
+inline std::uint64_t current_resident() { return status_bytes("VmRSS"); }
 
 /// Resets VmHWM to the current resident set (Linux >= 4.0).
 inline void reset_peak() {
