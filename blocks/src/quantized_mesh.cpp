@@ -214,8 +214,10 @@ std::vector<std::uint8_t> encode_quantized_mesh(const QuantizedMeshTile& t) {
 }
 
 std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes) {
+  // Level 6 (zlib's default): at level 9 zlib was 31 % of `terralod export`'s CPU time (17.8 %
+  // at 6) for tiles 0.14 % smaller; N44W072 and the 2401^2 mirror export in 0.78-0.80x the time.
   z_stream zs{};
-  if (deflateInit2(&zs, 9, Z_DEFLATED, 15 + 16, 9, Z_DEFAULT_STRATEGY) != Z_OK)
+  if (deflateInit2(&zs, 6, Z_DEFLATED, 15 + 16, 9, Z_DEFAULT_STRATEGY) != Z_OK)
     throw std::runtime_error("gzip: zlib initialisation failed");
   std::vector<std::uint8_t> out(deflateBound(&zs, uLong(bytes.size())) + 32);
   zs.next_in = const_cast<Bytef*>(bytes.data());

@@ -105,7 +105,7 @@ pm::Ecef oct_decode(std::array<std::uint8_t, 2> bytes);
 std::vector<pm::Ecef> area_weighted_normals(std::span<const pm::Ecef> positions,
                                             std::span<const std::array<std::uint32_t, 3>> triangles);
 
-/// gzip (RFC 1952) of bytes, zlib level 9.
+/// gzip (RFC 1952) of bytes, zlib level 6.
 std::vector<std::uint8_t> gzip(std::span<const std::uint8_t> bytes);
 
 /// Available tiles of one level as rectangles of tile indices (inclusive).
