@@ -34,26 +34,36 @@ void write_png(const Image& img, const std::string& path) {
   pm::rename_into_place(tmp, path);
 }
 
-Image read_image(const std::string& path) {
+namespace detail {
+
+ChannelPixels read_channel_pixels(const std::string& path, const std::string& what) {
   auto in = OIIO::ImageInput::open(path);
   if (!in) {
     const std::string msg = OIIO::geterror();
-    throw std::runtime_error(path + ": cannot read image: " + (msg.empty() ? "unknown format" : msg));
+    throw std::runtime_error(path + ": cannot read " + what + ": " + (msg.empty() ? "unknown format" : msg));
   }
   const OIIO::ImageSpec& spec = in->spec();
   if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
-    throw std::runtime_error(path + ": cannot read image: it has no pixels");
-  const detail::ImageChannels ch = detail::image_channels(spec, path);
-  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * ch.read);
-  if (!in->read_image(0, 0, 0, ch.read, OIIO::TypeDesc::UINT8, all.data()))
-    throw std::runtime_error(path + ": cannot read image: " + in->geterror());
+    throw std::runtime_error(path + ": cannot read " + what + ": it has no pixels");
+  ChannelPixels out{spec.width, spec.height, image_channels(spec, path), {}};
+  out.pixels.resize(std::size_t(spec.width) * spec.height * out.channels.read);
+  if (!in->read_image(0, 0, 0, out.channels.read, OIIO::TypeDesc::UINT8, out.pixels.data()))
+    throw std::runtime_error(path + ": cannot read " + what + ": " + in->geterror());
   in->close();
+  return out;
+}
+
+}  // namespace detail
+
+Image read_image(const std::string& path) {
+  const detail::ChannelPixels in = detail::read_channel_pixels(path, "image");
+  const int n = in.channels.read;
   Image img;
-  img.width = spec.width;
-  img.height = spec.height;
+  img.width = in.width;
+  img.height = in.height;
   img.rgb.resize(std::size_t(img.width) * img.height * 3);
   for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
-    for (int c = 0; c < 3; ++c) img.rgb[3 * p + c] = all[p * ch.read + ch.colour[std::size_t(c)]];
+    for (int c = 0; c < 3; ++c) img.rgb[3 * p + c] = in.pixels[p * n + in.channels.colour[std::size_t(c)]];
   return img;
 }
 

@@ -1,6 +1,6 @@
 // Which channels of an image file are drawn as red, green, blue and alpha: one rule for the
 // texture layers (image_pyramid.cpp), the icons (object_renderer.cpp) and the plain images
-// (image.cpp).
+// (image.cpp); and the one whole-file read of those channels the last two share.
 //
 // Alpha is the channel the file marks as alpha (OpenImageIO's alpha_channel: a PNG's, a TIFF
 // extra sample marked so), never a band by its position: a fourth band is often near infrared
@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace terralod::render::detail {
 
@@ -44,5 +45,17 @@ inline ImageChannels image_channels(const OIIO::ImageSpec& spec, const std::stri
   c.read = std::max(*std::max_element(c.colour.begin(), c.colour.end()), c.alpha) + 1;
   return c;
 }
+
+/// An image file read whole: each pixel's channels [0, channels.read), 8 bits each.
+struct ChannelPixels {
+  int width = 0, height = 0;
+  ImageChannels channels;
+  std::vector<std::uint8_t> pixels;
+};
+
+/// Reads `path` through OpenImageIO (image.cpp). Errors: std::runtime_error
+/// "<path>: cannot read <what>: <why>" (what: "image", "the icon image", ...), and
+/// image_channels' for a file of alpha alone.
+ChannelPixels read_channel_pixels(const std::string& path, const std::string& what);
 
 }  // namespace terralod::render::detail

@@ -37,6 +37,18 @@ OIIO::ImageSpec level_spec(int w, int h, const PyramidOptions& o) {
   return spec;
 }
 
+// An ImageCache of its own (not OIIO's shared one) of `cache_mb` MiB, keeping straight alpha
+// (PNG) straight and reading untiled files in 64 x 64 pieces too: convert's source and a
+// pyramid's file are read through one each.
+std::shared_ptr<OIIO::ImageCache> make_image_cache(std::size_t cache_mb) {
+  std::shared_ptr<OIIO::ImageCache> cache(OIIO::ImageCache::create(/*shared=*/false),
+                                          [](OIIO::ImageCache* c) { OIIO::ImageCache::destroy(c); });
+  cache->attribute("max_memory_MB", float(cache_mb));
+  cache->attribute("unassociatedalpha", 1);
+  cache->attribute("autotile", 64);
+  return cache;
+}
+
 // Fills `rows` rows (RGBA8, top to bottom, each following the last call's) of the level being
 // written into `rgba`; throws naming the source on a read error.
 using RowSource = std::function<void(int rows, std::uint8_t* rgba)>;
@@ -184,17 +196,14 @@ struct ImagePyramid::Impl {
 
 void ImagePyramid::convert(const std::string& image_path, const std::string& out_path,
                            const PyramidOptions& options, const std::function<void(double)>& progress) {
+  // A file that is no image is told by ImageInput first: an ImageCache asked for it would also
+  // print its own "Invalid image file" line on stderr beside the error thrown here.
   {
     auto in = OIIO::ImageInput::open(image_path);
     if (!in) throw std::runtime_error(image_path + ": cannot read the image: " + OIIO::geterror());
   }
-  // The source is read in bands of rows through an ImageCache of its own (tiles on demand,
-  // bounded memory; untiled files in 64 x 64 pieces) that keeps straight alpha as it is.
-  std::shared_ptr<OIIO::ImageCache> cache(OIIO::ImageCache::create(/*shared=*/false),
-                                          [](OIIO::ImageCache* c) { OIIO::ImageCache::destroy(c); });
-  cache->attribute("unassociatedalpha", 1);
-  cache->attribute("max_memory_MB", float(options.cache_mb));
-  cache->attribute("autotile", 64);
+  // The source is read in bands of rows through an ImageCache (tiles on demand, bounded memory).
+  const std::shared_ptr<OIIO::ImageCache> cache = make_image_cache(options.cache_mb);
   const OIIO::ustring upath(image_path);
   OIIO::ImageSpec spec;
   if (!cache->get_imagespec(upath, spec, 0, 0))
@@ -285,11 +294,7 @@ ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& option
   assert(options.max_texture_size >= 1 && options.cache_mb >= 1);
   impl_->path = path;
   impl_->upath = OIIO::ustring(path);
-  impl_->cache = std::shared_ptr<OIIO::ImageCache>(OIIO::ImageCache::create(/*shared=*/false),
-                                                   [](OIIO::ImageCache* c) { OIIO::ImageCache::destroy(c); });
-  impl_->cache->attribute("max_memory_MB", float(options.cache_mb));
-  impl_->cache->attribute("unassociatedalpha", 1);  // keep straight alpha (PNG) straight
-  impl_->cache->attribute("autotile", 64);          // untiled sources are read in 64 x 64 pieces too
+  impl_->cache = make_image_cache(options.cache_mb);
   OIIO::ImageSpec spec;
   if (!impl_->cache->get_imagespec(impl_->upath, spec, 0, 0)) {
     const std::string why = impl_->cache->geterror();

@@ -2,8 +2,6 @@
 // glyphs from an atlas (halo pass, then text), and lit object meshes.
 #include "terralod/render/object_renderer.hpp"
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -345,23 +343,10 @@ IconStyleId ObjectRenderer::add_icon_style(const RgbaImage& image, int quads) {
 }
 
 IconStyleId ObjectRenderer::load_icon_style(const std::string& path, int quads) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) {
-    const std::string msg = OIIO::geterror();
-    throw std::runtime_error(path +
-                             ": cannot read the icon image: " + (msg.empty() ? "unknown format" : msg));
-  }
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
-    throw std::runtime_error(path + ": cannot read the icon image: it has no pixels");
-  const detail::ImageChannels ch = detail::image_channels(spec, path);
-  std::vector<std::uint8_t> all(std::size_t(spec.width) * spec.height * ch.read);
-  if (!in->read_image(0, 0, 0, ch.read, OIIO::TypeDesc::UINT8, all.data()))
-    throw std::runtime_error(path + ": cannot read the icon image: " + in->geterror());
-  in->close();
-  RgbaImage img(spec.width, spec.height);
+  const detail::ChannelPixels in = detail::read_channel_pixels(path, "the icon image");
+  RgbaImage img(in.width, in.height);
   for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
-    ch.to_rgba(&all[p * ch.read], &img.rgba[4 * p]);
+    in.channels.to_rgba(&in.pixels[p * in.channels.read], &img.rgba[4 * p]);
   return add_icon_style(img, quads);
 }
 
