@@ -16,12 +16,14 @@
 #include "terrain_input.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
+#include "terralod/blocks/database_terrain.hpp"
 #include "terralod/blocks/image_warp.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/render/gpu_shading.hpp"
 #include "terralod/render/image_pyramid.hpp"
+#include "terralod/render/terrain_windows.hpp"
 #include "terralod/render/texture_store.hpp"
 #include "terralod/render/thematic_texture.hpp"
 #include "terralod/render/topographic_texture.hpp"
@@ -168,13 +170,22 @@ void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRec
   store(db, rec, pyr);
 }
 
-// The same for one full-size image; coarser levels are box-filtered from it.
-void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRecord& rec,
-                    const tr::RgbaImage& img, const Args& a) {
-  store_computed(db, path, rec, a, [&](const std::string& pyr, const tr::PyramidOptions& po) {
-    tr::ImagePyramid::convert(img, pyr, po);
-  });
-}
+// The terrain of the database, read window by window (never whole: a continent's texture is
+// computed in bands of rows, database_terrain.hpp), and its exact height range.
+struct TerrainReader {
+  explicit TerrainReader(const tb::BlockDatabase& db) : terrain(db) {
+    const auto t = Clock::now();
+    {
+      ProgressBar bar("heights");
+      windows = tr::terrain_windows(terrain, [&](double f) { bar.update(f); });
+    }
+    std::printf("terrain %d x %d samples from %s, heights %.6g .. %.6g m, %s\n", terrain.width(),
+                terrain.height(), db.path().c_str(), windows.lo, windows.hi,
+                format_duration(ms_since(t)).c_str());
+  }
+  tb::DatabaseTerrain terrain;
+  tr::TerrainWindows windows;
+};
 
 int texture_shade(const Args& a, const std::string& path) {
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
@@ -192,31 +203,50 @@ int texture_shade(const Args& a, const std::string& path) {
   }
   so.shadows = a.has("--shadows");
   const bool gpu = a.has("--gpu");
-  auto t = Clock::now();
-  const pm::Heightfield hf = tb::read_database_terrain(db);
-  std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(),
-              format_duration(ms_since(t)).c_str());
-  t = Clock::now();
-  tr::RgbaImage img;
-  std::string where = "cpu";
-  if (gpu) {
-    tr::GpuShadingReport rep;
-    img = tr::grey_to_rgba(tr::shade_terrain_gpu(hf, so, {}, {}, nullptr, &rep));
-    where = "gpu (" + rep.renderer + ", " + std::to_string(rep.tiles) + " tiles)";
-  } else {
-    img = tr::shading_texture(hf, so);
-  }
-  std::printf("shade %s, light %.1f/%.1f deg, shadows %s: %d x %d texels on the %s, %s\n", method.c_str(),
-              so.azimuth_deg, so.altitude_deg, so.shadows ? "on" : "off", img.width, img.height,
-              where.c_str(), format_duration(ms_since(t)).c_str());
+  TerrainReader terrain(db);
+  tr::TerrainWindows& tw = terrain.windows;
+  const tr::WindowMargins m = tr::shading_margins(tw, so);
   tr::LayerRecord rec;
   rec.kind = "shading";
   rec.source = "terralod texture shade";
-  rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
+  rec.georef = tr::grid_georef(terrain.terrain.frame().transform, tw.width, tw.height);
   rec.parameters = strf(
       "{\"method\": \"%s\", \"azimuth_deg\": %.17g, \"altitude_deg\": %.17g, \"shadows\": %s, \"gpu\": %s}",
       method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "true" : "false", gpu ? "true" : "false");
-  store_computed(db, path, rec, img, a);
+  // The GPU shades each window as a heightfield of its own (one texture, so no window beyond
+  // the GL limit); the CLI's relative shading has a radius (16), never the whole grid's range,
+  // which a window alone could not know.
+  std::unique_ptr<tr::GlContext> context;
+  tr::GpuShadingReport rep;
+  int tiles = 0;
+  if (gpu) {
+    context = tr::create_offscreen_context();
+    tw.max_side = 8192;
+  }
+  const auto band = [&](int y, int n) {
+    const tr::TexelRegion r{0, y, -1, n, 1};
+    if (!gpu) return tr::grey_to_rgba(tr::shade_terrain(tw, so, r));
+    return tr::grey_to_rgba(
+        tr::compute_by_windows(tw, r, m, [&](const pm::Heightfield& w, const tr::TexelRegion& in, int, int) {
+          tr::FloatRaster f = tr::shade_terrain_gpu(w, so, in, {}, context.get(), &rep);
+          tiles += rep.tiles;
+          return f;
+        }));
+  };
+  const auto t = Clock::now();
+  store_computed(db, path, rec, a, [&](const std::string& pyr, const tr::PyramidOptions& po) {
+    {
+      ProgressBar bar("shade");
+      tr::convert_by_bands(
+          tw, band, pyr, po, [&](double f) { bar.update(f); }, "shade");
+    }
+    const std::string where = gpu ? "gpu (" + rep.renderer + ", " + std::to_string(tiles) + " tiles)" : "cpu";
+    std::printf(
+        "shade %s, light %.1f/%.1f deg, shadows %s: %d x %d texels on the %s, windows reaching %d/%d/%d/%d "
+        "samples left/right/up/down, pyramid written, %s\n",
+        method.c_str(), so.azimuth_deg, so.altitude_deg, so.shadows ? "on" : "off", tw.width, tw.height,
+        where.c_str(), m.left, m.right, m.top, m.bottom, format_duration(ms_since(t)).c_str());
+  });
   return 0;
 }
 
@@ -235,9 +265,11 @@ tr::TerrainAttribute thematic_attribute(const Args& a, std::string* name) {
 // 30 x 90 m texel 30 m).
 void store_thematic_rules(tb::BlockDatabase& db, const std::string& path, const Args& a,
                           const ThematicRules& rules, tr::TerrainAttribute attribute, const std::string& name,
-                          const pm::Heightfield& hf, tr::LayerRecord& rec) {
+                          tb::DatabaseTerrain& terrain, tr::LayerRecord& rec) {
   auto t = Clock::now();
-  const BuiltRule built = build_rule(rules, attribute, hf);
+  const pm::Heightfield hf = terrain.read({0, 0, terrain.width() - 1, terrain.height() - 1});
+  const std::optional<tb::HeightRange> range = terrain.height_range();
+  const BuiltRule built = build_rule(rules, attribute, range ? range->lo : 0.0, range ? range->hi : 0.0);
   const double sample_m = 0.5 * (hf.transform.spacing_x() + hf.transform.spacing_y());
   const tr::FloatRaster values = tr::terrain_attribute(hf, attribute);
   std::printf("thematic %s, %zu rules from %s, generalise %s, sample %.4g m: %d x %d values, %s\n",
@@ -281,27 +313,34 @@ int texture_thematic(const Args& a, const std::string& path) {
   const bool bands = a.has("--bands");
   std::vector<tr::ColorRamp::Stop> stops;  // the given ramp, checked before any work
   if (a.has("--ramp")) stops = parse_ramp(a.get("--ramp"), "option '--ramp'");
-  auto t = Clock::now();
-  const pm::Heightfield hf = tb::read_database_terrain(db);
-  std::printf("terrain %d x %d samples from %s, %s\n", hf.width(), hf.height(), path.c_str(),
-              format_duration(ms_since(t)).c_str());
+  TerrainReader terrain(db);
+  const tr::TerrainWindows& tw = terrain.windows;
   tr::LayerRecord rec;
   rec.kind = "thematic";
   rec.source = "terralod texture thematic";
-  rec.georef = tr::grid_georef(hf.transform, hf.width(), hf.height());
+  rec.georef = tr::grid_georef(terrain.terrain.frame().transform, tw.width, tw.height);
   if (rules) {
-    store_thematic_rules(db, path, a, *rules, attribute, name, hf, rec);
+    store_thematic_rules(db, path, a, *rules, attribute, name, terrain.terrain, rec);
     return 0;
   }
-  t = Clock::now();
-  const tr::ColorRamp ramp(stops.empty() ? default_ramp(attribute, hf) : stops,
+  const tr::ColorRamp ramp(stops.empty() ? default_ramp(attribute, tw.lo, tw.hi) : stops,
                            bands ? tr::ColorRamp::Mode::Step : tr::ColorRamp::Mode::Linear);
-  const tr::RgbaImage img = tr::apply_mapper(tr::terrain_attribute(hf, attribute), ramp);
-  std::printf("thematic %s, %zu %s: %d x %d texels, %s\n", name.c_str(), ramp.stops().size(),
-              bands ? "bands" : "ramp stops", img.width, img.height, format_duration(ms_since(t)).c_str());
   rec.parameters = strf("{\"attribute\": \"%s\", \"mode\": \"%s\", \"stops\": [%s]}", name.c_str(),
                         bands ? "bands" : "linear", stops_json(ramp).c_str());
-  store_computed(db, path, rec, img, a);
+  const auto t = Clock::now();
+  store_computed(db, path, rec, a, [&](const std::string& pyr, const tr::PyramidOptions& po) {
+    {
+      ProgressBar bar("thematic");
+      const auto band = [&](int y, int n) {
+        return tr::apply_mapper(tr::terrain_attribute(tw, attribute, {0, y, -1, n, 1}), ramp);
+      };
+      tr::convert_by_bands(
+          tw, band, pyr, po, [&](double f) { bar.update(f); }, "thematic");
+    }
+    std::printf("thematic %s, %zu %s: %d x %d texels, pyramid written, %s\n", name.c_str(),
+                ramp.stops().size(), bands ? "bands" : "ramp stops", tw.width, tw.height,
+                format_duration(ms_since(t)).c_str());
+  });
   return 0;
 }
 
@@ -361,6 +400,10 @@ CommandSpec texture_spec() {
       "          max_texel_m is >= its texel size (2^k x the mean x/y sample spacing, metres), else\n"
       "          by the last rule: {\"generalise\": \"mean\", \"rules\": [{\"max_texel_m\": 60,\n"
       "          \"ramp\": \"0:ffffff,45:a00000\", \"bands\": true}, {\"ramp\": \"0:ffffff,45:606060\"}]}.\n"
+      "          shade and thematic read the terrain from the blocks window by window, in bands of\n"
+      "          rows (never whole: a 128 MiB cache of decoded blocks, windows of about 4 M samples\n"
+      "          widened by what shadows reach), after one pass for its exact height range;\n"
+      "          thematic --rules holds the whole terrain and every level.\n"
       "  symbols --layer NAME --objects OBJLAYER [--color RRGGBB[AA]] [--symbol-px N]: the objects of\n"
       "          the object layer OBJLAYER that its design rules draw as \"symbol\", as discs of N\n"
       "          texels (default 7) in the colour (default c81e1e) with a 1-texel dark outline at\n"

@@ -73,7 +73,7 @@ std::vector<tr::ColorRamp::Stop> parse_ramp(const std::string& text, const std::
   return stops;
 }
 
-std::vector<tr::ColorRamp::Stop> default_ramp(tr::TerrainAttribute attribute, const pm::Heightfield& hf) {
+std::vector<tr::ColorRamp::Stop> default_ramp(tr::TerrainAttribute attribute, double lo, double hi) {
   switch (attribute) {
     case tr::TerrainAttribute::SlopeDegrees:
       return {{0.0f, {255, 255, 255, 255}}, {45.0f, {160, 0, 0, 255}}};
@@ -84,7 +84,6 @@ std::vector<tr::ColorRamp::Stop> default_ramp(tr::TerrainAttribute attribute, co
               {270.0f, {50, 80, 220, 255}},
               {360.0f, {220, 40, 40, 255}}};
     case tr::TerrainAttribute::Elevation: {
-      const auto [lo, hi] = height_range(hf);
       const float a = float(lo), b = float(hi) > a ? float(hi) : a + 1.0f;  // a flat terrain: one colour
       return {{a, {40, 120, 50, 255}}, {a + 0.5f * (b - a), {150, 110, 60, 255}}, {b, {250, 250, 250, 255}}};
     }
@@ -180,14 +179,14 @@ std::size_t BuiltRule::look_for(double texel_size_m) const {
   return ramps.size();
 }
 
-BuiltRule build_rule(const ThematicRules& rules, tr::TerrainAttribute attribute, const pm::Heightfield& hf) {
+BuiltRule build_rule(const ThematicRules& rules, tr::TerrainAttribute attribute, double lo, double hi) {
   const tr::Reduction g = rules.generalise == "nearest"    ? tr::Reduction::Nearest
                           : rules.generalise == "majority" ? tr::Reduction::Majority
                                                            : tr::Reduction::Mean;
   BuiltRule out{tr::LodDesignRule(g), {}};
   for (const ThematicLook& look : rules.looks) {
     auto ramp = std::make_shared<const tr::ColorRamp>(
-        look.stops.empty() ? default_ramp(attribute, hf) : look.stops,
+        look.stops.empty() ? default_ramp(attribute, lo, hi) : look.stops,
         look.bands ? tr::ColorRamp::Mode::Step : tr::ColorRamp::Mode::Linear);
     out.rule.add(look.max_texel_m, ramp);
     out.ramps.push_back(std::move(ramp));

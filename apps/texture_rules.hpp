@@ -22,7 +22,6 @@
 #include <vector>
 
 #include "cli_common.hpp"
-#include "terralod/pm/heightfield.hpp"
 #include "terralod/render/thematic_texture.hpp"
 
 namespace terralod::cli {
@@ -36,9 +35,9 @@ std::optional<render::Rgba> parse_hex_color(const std::string& hex);
 std::vector<render::ColorRamp::Stop> parse_ramp(const std::string& text, const std::string& what);
 
 /// The default ramps: slope white (flat) to dark red (45 degrees and steeper); aspect around
-/// the compass; elevation green through brown to white over the terrain's own height range.
-std::vector<render::ColorRamp::Stop> default_ramp(render::TerrainAttribute attribute,
-                                                  const pm::Heightfield& hf);
+/// the compass; elevation green through brown to white over the terrain's own height range,
+/// lo..hi (its lowest and highest valid sample).
+std::vector<render::ColorRamp::Stop> default_ramp(render::TerrainAttribute attribute, double lo, double hi);
 
 /// The stops as JSON array items "[value, r, g, b, a], ..." (the layer record's parameters).
 std::string stops_json(const render::ColorRamp& ramp);
@@ -62,15 +61,15 @@ struct ThematicRules {
 /// malformed JSON, unknown keys or values out of range.
 ThematicRules read_thematic_rules(const std::string& path, render::TerrainAttribute attribute);
 
-/// The design rule of `rules` (default ramps resolved against `hf`) and its ramps, in order.
+/// The design rule of `rules` (default ramps resolved against the terrain's height range lo..hi)
+/// and its ramps, in order.
 struct BuiltRule {
   render::LodDesignRule rule;
   std::vector<std::shared_ptr<const render::ColorRamp>> ramps;
   /// Index of the look `rule` uses for texels of this size (render::LodDesignRule::mapper_for).
   std::size_t look_for(double texel_size_m) const;
 };
-BuiltRule build_rule(const ThematicRules& rules, render::TerrainAttribute attribute,
-                     const pm::Heightfield& hf);
+BuiltRule build_rule(const ThematicRules& rules, render::TerrainAttribute attribute, double lo, double hi);
 
 /// The rules as the layer record's parameters: {"attribute", "rules_file", "generalise",
 /// "sample_size_m", "rules": [{"max_texel_m"?, "mode", "stops"}], "level_rules": [look per level]}.

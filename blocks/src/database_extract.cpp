@@ -17,41 +17,6 @@
 
 namespace terralod::blocks {
 
-pm::Heightfield read_database_terrain(const BlockDatabase& db, std::vector<pm::ProgressiveMesh>* pms) {
-  const DatabaseInfo& info = db.info();
-  if (info.block_size <= 0)
-    throw DatabaseError(db.path(), "not a blocked database (kind '" + info.kind + "'): no terrain samples");
-  const BlockLayout layout = partition(info.grid_width, info.grid_height, info.block_size);
-  pm::Heightfield hf(info.grid_width, info.grid_height);
-  hf.transform = info.transform;
-  hf.crs_wkt = info.crs_wkt;
-  hf.source = info.source;
-  if (const std::optional<Georeference> g = db.georeference()) {
-    hf.crs_transform = g->crs_transform;
-    hf.vertical_datum = g->vertical_datum;
-  }
-  std::vector<std::uint8_t> mask;
-  for (BlockKey k : layout.keys()) {
-    const std::string item = "block (" + std::to_string(k.col) + "," + std::to_string(k.row) + ")";
-    pm::ProgressiveMesh p = pm::decode_pm(db.read_block(k), db.path() + ": " + item);
-    const SampleRect r = layout.rect(k);
-    const pm::Heightfield& b = p.heightfield();
-    if (b.width() != r.width() || b.height() != r.height())
-      throw DatabaseError(db.path(), item + ": its grid does not match the block layout");
-    for (int j = 0; j < b.height(); ++j)
-      for (int i = 0; i < b.width(); ++i) {
-        hf.at(r.col0 + i, r.row0 + j) = b.at(i, j);
-        if (b.has_holes() && !b.valid(i, j)) {
-          if (mask.empty()) mask.assign(hf.size(), 1);
-          mask[std::size_t(r.row0 + j) * hf.width() + (r.col0 + i)] = 0;
-        }
-      }
-    if (pms) pms->push_back(std::move(p));
-  }
-  if (!mask.empty()) hf.set_mask(std::move(mask));
-  return hf;
-}
-
 ExtractedMesh extract_mesh(const BlockDatabase& db, double max_error) {
   if (!(max_error >= 0.0) || !std::isfinite(max_error))
     throw std::invalid_argument("extract: max_error must be finite and >= 0");

@@ -367,7 +367,20 @@ void write_pm(const ProgressiveMesh& pm, const std::string& path) {
 
 // ======================================================================================= read
 
-ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string& name) {
+namespace {
+
+// What decode_pm reads before the collapses: the heightfield (heights, mask, frame, strings),
+// the header fields the collapse sections are checked against, and where they begin.
+struct HeightsPart {
+  Heightfield hf;
+  std::uint8_t metric = 0;
+  std::int32_t eq = 0;
+  std::uint32_t C = 0, D = 0;
+  std::uint64_t n = 0, face_slots = 0;
+  std::span<const std::uint8_t> rest;  // the sections after H and M, up to the checksum
+};
+
+HeightsPart decode_heights(std::span<const std::uint8_t> bytes, const std::string& name) {
   if (bytes.size() < sizeof kMagic) {
     if (bytes.empty() || !std::equal(bytes.begin(), bytes.end(), kMagic))
       fail(name, "not a terralod PM file (bad magic)");
@@ -475,6 +488,23 @@ ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string
   hf.source = std::move(source);
   hf.frame = std::move(frame);
   hf.crs_wkt = std::move(crs);
+  return HeightsPart{std::move(hf), metric, eq, C, D, n, face_slots, c.rest()};
+}
+
+}  // namespace
+
+Heightfield decode_pm_heightfield(std::span<const std::uint8_t> bytes, const std::string& name) {
+  return decode_heights(bytes, name).hf;
+}
+
+ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string& name) {
+  HeightsPart part = decode_heights(bytes, name);
+  Heightfield& hf = part.hf;
+  const std::uint8_t metric = part.metric;
+  const std::int32_t eq = part.eq;
+  const std::uint32_t C = part.C, D = part.D, W = std::uint32_t(hf.width()), H = std::uint32_t(hf.height());
+  const std::uint64_t n = part.n, face_slots = part.face_slots;
+  ByteReader c = reader(part.rest, name);
 
   // U, V, E: collapses. Every stream holds at least one byte per number.
   const std::vector<std::uint8_t> us = get_section(c, name, "collapse vertex data", 10 * std::uint64_t(C));

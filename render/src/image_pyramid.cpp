@@ -51,7 +51,7 @@ std::shared_ptr<OIIO::ImageCache> make_image_cache(std::size_t cache_mb) {
 
 // Fills `rows` rows (RGBA8, top to bottom, each following the last call's) of the level being
 // written into `rgba`; throws naming the source on a read error.
-using RowSource = std::function<void(int rows, std::uint8_t* rgba)>;
+using RowSource = ImagePyramid::RowSource;
 
 // One level halved row by row: the rows of a w x h level go in, in order; the rows of the next
 // level (max(1, w/2) x max(1, h/2)) come out. Next-level pixel (x, y) is the rounded mean of
@@ -238,6 +238,15 @@ void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path,
     at += bytes;
   };
   write_pyramid(rows, image.width, image.height, out_path, options, "(pixels in memory)", {});
+}
+
+void ImagePyramid::convert(int width, int height, const RowSource& rows, const std::string& out_path,
+                           const PyramidOptions& options, const std::function<void(double)>& progress,
+                           const std::string& what) {
+  if (width < 1 || height < 1)
+    throw std::invalid_argument(what + ": cannot build the image pyramid " + out_path + ": " +
+                                std::to_string(width) + " x " + std::to_string(height) + " pixels");
+  write_pyramid(rows, width, height, out_path, options, what, progress);
 }
 
 void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,

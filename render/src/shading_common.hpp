@@ -16,11 +16,33 @@ namespace terralod::render::detail {
 /// Throws std::invalid_argument("<what>: ...") for bad options or region (see the header).
 void validate_shading(const pm::Heightfield& hf, const ShadingOptions& o, const TexelRegion& region,
                       const char* what);
+/// The option checks alone, for a grid with `transform`.
+void validate_shading_options(const ShadingOptions& o, const pm::GridTransform& transform, const char* what);
+
+/// Where a heightfield lies in a larger grid (terrain_windows.hpp): its sample (0, 0) is the
+/// grid's (col0, row0); with has_range, lo..hi is the grid's exact height range (what
+/// RelativeHeight with radius 0 spans).
+struct WindowPlace {
+  int col0 = 0, row0 = 0;
+  bool has_range = false;
+  double lo = 0, hi = 0;
+};
+
+/// shade_terrain of `hf` placed in its larger grid: the larger grid's values wherever the
+/// window holds what each texel reaches (shade_terrain is this with the default place).
+FloatRaster shade_window(const pm::Heightfield& hf, const ShadingOptions& o, const TexelRegion& region,
+                         const WindowPlace& place);
 
 /// The heightfield seen through its GridTransform, with vertical exaggeration `ez`.
 class GridFrame {
  public:
   GridFrame(const pm::Heightfield& hf, double exaggeration);
+
+  /// The heightfield is the window of a larger grid whose sample (col0, row0) is its (0, 0):
+  /// shadow rays are then followed in the larger grid's indices, so that a window's rays cross
+  /// the grid lines at the very same floating-point positions as the whole grid's
+  /// (terrain_windows.hpp).
+  void place(int col0, int row0) { oc_ = col0, or_ = row0; }
 
   /// Height at a clamped index; a hole reads as `fallback`.
   double z(int c, int r, double fallback) const {
@@ -59,6 +81,7 @@ class GridFrame {
   bool shadowed(int c0, int r0, double uc, double ur, double tan_h, double bias) const {
     assert(!bmax_.empty());
     const double z0 = hf_->at(c0, r0) * ez;
+    const double ca = double(c0 + oc_), ra = double(r0 + or_);  // the start in the larger grid
     const double inf = std::numeric_limits<double>::infinity();
     const int sc = uc > 0 ? 1 : -1, sr = ur > 0 ? 1 : -1;
     const double dtc = uc != 0.0 ? 1.0 / std::abs(uc) : inf;
@@ -80,8 +103,10 @@ class GridFrame {
       if (t_prev >= t_block_end) {
         // The ray between t_prev and t stays in one cell; check that cell's block once.
         const double tm = 0.5 * (t_prev + t);
-        const int cell_c = std::clamp(static_cast<int>(std::floor(c0 + tm * uc)), 0, std::max(0, w_ - 2));
-        const int cell_r = std::clamp(static_cast<int>(std::floor(r0 + tm * ur)), 0, std::max(0, h_ - 2));
+        const int cell_c =
+            std::clamp(static_cast<int>(std::floor(ca + tm * uc)) - oc_, 0, std::max(0, w_ - 2));
+        const int cell_r =
+            std::clamp(static_cast<int>(std::floor(ra + tm * ur)) - or_, 0, std::max(0, h_ - 2));
         const int bx = std::min(cell_c / kBlock, bw_ - 1), by = std::min(cell_r / kBlock, bh_ - 1);
         const double ec = uc != 0.0 ? ((uc > 0 ? (bx + 1) * kBlock : bx * kBlock) - c0) / uc : inf;
         const double er = ur != 0.0 ? ((ur > 0 ? (by + 1) * kBlock : by * kBlock) - r0) / ur : inf;
@@ -106,16 +131,16 @@ class GridFrame {
       if (col_line) {
         const int k = c0 + sc * nc;
         if (k < 0 || k >= w_) return false;
-        const double rr = r0 + t * ur;
-        if (rr < 0.0 || rr > h_ - 1) return false;
-        have = line_height(k, rr, /*along_column=*/true, terrain);
+        const double rr = ra + t * ur;
+        if (rr < or_ || rr > or_ + h_ - 1) return false;
+        have = line_height(k, rr, or_, /*along_column=*/true, terrain);
         ++nc;
       } else {
         const int k = r0 + sr * nr;
         if (k < 0 || k >= h_) return false;
-        const double cc = c0 + t * uc;
-        if (cc < 0.0 || cc > w_ - 1) return false;
-        have = line_height(k, cc, /*along_column=*/false, terrain);
+        const double cc = ca + t * uc;
+        if (cc < oc_ || cc > oc_ + w_ - 1) return false;
+        have = line_height(k, cc, oc_, /*along_column=*/false, terrain);
         ++nr;
       }
       t_prev = t;
@@ -131,12 +156,14 @@ class GridFrame {
   const std::vector<double>& block_max() const { return bmax_; }
 
  private:
-  // Height on grid line k at fractional position s along it (linear between two samples).
-  bool line_height(int k, double s, bool along_column, double& out) const {
-    const int s0 = static_cast<int>(std::floor(s));
+  // Height on grid line k at fractional position s along it (linear between two samples); s
+  // counts from `offset` samples before the heightfield's first (place()).
+  bool line_height(int k, double s, int offset, bool along_column, double& out) const {
+    const int s_grid = static_cast<int>(std::floor(s));
+    const int s0 = s_grid - offset;
     const int n = along_column ? h_ : w_;
     const int s1 = std::min(s0 + 1, n - 1);
-    const double fr = s - s0;
+    const double fr = s - s_grid;
     const int c0 = along_column ? k : s0, r0 = along_column ? s0 : k;
     const int c1 = along_column ? k : s1, r1 = along_column ? s1 : k;
     if (!hf_->valid(c0, r0) || !hf_->valid(c1, r1)) return false;
@@ -147,6 +174,7 @@ class GridFrame {
 
   const pm::Heightfield* hf_;
   int w_, h_;
+  int oc_ = 0, or_ = 0;  // place()
   int bw_ = 0, bh_ = 0;
   std::vector<double> bmax_;  // block maxima (boundary lines included), -inf where all holes
   double m00, m01, m10, m11;  // J^-T

@@ -71,6 +71,11 @@ void validate_shading(const pm::Heightfield& hf, const ShadingOptions& o, const 
   auto bad = [&](const std::string& m) { throw std::invalid_argument(std::string(what) + ": " + m); };
   if (hf.width() < 1 || hf.height() < 1) bad("empty heightfield");
   region.check(hf.width(), hf.height(), what);
+  validate_shading_options(o, hf.transform, what);
+}
+
+void validate_shading_options(const ShadingOptions& o, const pm::GridTransform& transform, const char* what) {
+  auto bad = [&](const std::string& m) { throw std::invalid_argument(std::string(what) + ": " + m); };
   if (!(o.altitude_deg > 0.0 && o.altitude_deg <= 90.0))
     bad("light altitude " + std::to_string(o.altitude_deg) + " is outside (0, 90] degrees");
   if (!std::isfinite(o.azimuth_deg)) bad("light azimuth is not finite");
@@ -89,7 +94,7 @@ void validate_shading(const pm::Heightfield& hf, const ShadingOptions& o, const 
   if (o.shadows && o.method == ShadingMethod::RelativeHeight)
     bad("shadows apply to lit methods only, not to relative-height shading");
   if (o.threads < 0) bad("threads must be >= 0");
-  const double det = hf.transform.determinant();
+  const double det = transform.determinant();
   if (!(std::abs(det) > 0.0) || !std::isfinite(det)) bad("grid transform is singular");
 }
 
@@ -179,12 +184,16 @@ struct RelativeWindow {
 
 }  // namespace
 
-FloatRaster shade_terrain(const pm::Heightfield& hf, const ShadingOptions& o, const TexelRegion& region) {
+namespace detail {
+
+FloatRaster shade_window(const pm::Heightfield& hf, const ShadingOptions& o, const TexelRegion& region,
+                         const WindowPlace& place) {
   detail::validate_shading(hf, o, region, "shade_terrain");
   const int W = hf.width(), H = hf.height();
   const int ow = region.out_width(W), oh = region.out_height(H);
   FloatRaster out(ow, oh);
   GridFrame f(hf, o.vertical_exaggeration);
+  f.place(place.col0, place.row0);
   if (o.shadows) f.build_shadow_index();
   const LightSet lights = make_lights(f, o);
 
@@ -193,7 +202,9 @@ FloatRaster shade_terrain(const pm::Heightfield& hf, const ShadingOptions& o, co
   RelativeWindow win;
   const int R = o.relative_radius;
   if (o.method == ShadingMethod::RelativeHeight) {
-    if (R == 0) {
+    if (R == 0 && place.has_range) {
+      if (place.lo <= place.hi) gmin = place.lo * f.ez, gmax = place.hi * f.ez;
+    } else if (R == 0) {
       for (std::size_t i = 0; i < hf.size(); ++i)
         if (hf.valid(i)) gmin = std::min(gmin, hf[i] * f.ez), gmax = std::max(gmax, hf[i] * f.ez);
     } else {
@@ -282,6 +293,12 @@ FloatRaster shade_terrain(const pm::Heightfield& hf, const ShadingOptions& o, co
   // Rows handed out one at a time balance the shadow cost, which varies with the relief.
   pm::parallel_for(std::size_t(oh), o.threads, [&](std::size_t j) { shade_row(int(j)); });
   return out;
+}
+
+}  // namespace detail
+
+FloatRaster shade_terrain(const pm::Heightfield& hf, const ShadingOptions& o, const TexelRegion& region) {
+  return detail::shade_window(hf, o, region, {});
 }
 
 RgbaImage shading_texture(const pm::Heightfield& hf, const ShadingOptions& options,

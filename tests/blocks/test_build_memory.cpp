@@ -5,6 +5,12 @@
 // GeoTIFFs read window by window (open_dem_source); a reader that held the whole raster would
 // need 32 MiB of doubles for the small one and 128 MiB for the large one and fails the bound.
 // HeightmapImagesAreNotHeldWhole does the same for a PNG heightmap's windows.
+// Then each database's shading texture (what `terralod texture shade --shadows` computes) is
+// written as an image pyramid window by window (terrain_windows.hpp), and its growth over the
+// resident set is measured the same way, after one unmeasured run (the first one maps about
+// 100 MiB of libraries and thread arenas once): held whole, the terrain (8 bytes a sample), its
+// shade (4) and the RGBA texture (4) grew by 64 MiB for the small database and 256 MiB for the
+// large one.
 // GDAL's block cache is a constant (64 MiB by default while a windowed source is open) that the
 // small DEM's 16 MiB of floats never fill; the test caps it at 8 MiB (GDAL_CACHEMAX) so that both
 // builds fill it and the comparison sees what grows with the DEM.
@@ -28,16 +34,20 @@
 #include "peak_memory.hpp"
 #include "run_command.hpp"
 #include "terralod/blocks/database_extract.hpp"
+#include "terralod/blocks/database_terrain.hpp"
 #include "terralod/blocks/dem_source.hpp"
 #include "terralod/blocks/dem_writer.hpp"
 #include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "terralod/render/terrain_windows.hpp"
 
 namespace tb = terralod::blocks;
 namespace pm = terralod::pm;
+namespace tr = terralod::render;
 
+using terralod::test::current_resident;
 using terralod::test::peak_resident;
 using terralod::test::reset_peak;
 
@@ -69,6 +79,37 @@ TEST(BuildMemory, FourTimesTheSamplesWithinAQuarterMoreMemory) {
   const std::uint64_t large = peak_of_build(4097);
   EXPECT_LE(double(large), 1.25 * double(small))
       << "4x the samples took " << double(large) / double(small) << "x the peak resident set";
+
+  // The shading texture of each database, window by window, through a 16 MiB block cache.
+  auto growth_of_shading = [&](int size) {
+    malloc_trim(0);
+    reset_peak();
+    const std::uint64_t before = current_resident();
+    {
+      const auto db = tb::BlockDatabase::open((dir.path() / (std::to_string(size) + ".db")).string());
+      tb::DatabaseTerrain terrain(db, {.cache_bytes = std::size_t(16) << 20, .threads = 2});
+      const tr::TerrainWindows t = tr::terrain_windows(terrain);
+      tr::ShadingOptions o;
+      o.shadows = true;
+      o.threads = 2;
+      const std::string pyramid = (dir.path() / (std::to_string(size) + ".tx")).string();
+      const auto band = [&](int y, int n) {
+        return tr::grey_to_rgba(tr::shade_terrain(t, o, {0, y, -1, n, 1}));
+      };
+      tr::convert_by_bands(t, band, pyramid, {});
+      EXPECT_EQ(tr::ImagePyramid(pyramid).level(0), (tr::LevelSize{size, size}));
+    }
+    const std::uint64_t growth = peak_resident() - before;
+    std::printf("%d x %d samples: the shading texture's pyramid grew the resident set by %.1f MiB\n", size,
+                size, double(growth) / 1048576.0);
+    return growth;
+  };
+  growth_of_shading(2049);  // the first run's one-time costs
+  const std::uint64_t small_shade = growth_of_shading(2049), large_shade = growth_of_shading(4097);
+  // 12.6 M more samples: 16 bytes each (192 MiB) if anything held them whole.
+  EXPECT_LE(double(large_shade), double(small_shade) + 24.0 * 1048576.0)
+      << "4x the samples grew the shading's resident set by "
+      << (double(large_shade) - double(small_shade)) / 1048576.0 << " MiB more";
 }
 
 // A 16-bit PNG heightmap (the usual game and tool export) with four times the pixels of another:

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "terralod/blocks/block_database.hpp"
+#include "terralod/blocks/database_terrain.hpp"  // read_database_terrain
 #include "terralod/pm/heightfield.hpp"
 #include "terralod/pm/progressive_mesh.hpp"
 
@@ -46,14 +47,6 @@ struct ExtractedMesh {
   std::size_t split_triangles = 0;    ///< triangles split by the final stitch
   double ms = 0;                      ///< wall time
 };
-
-/// The full-resolution terrain of a blocked database, assembled from its block PMs (each holds
-/// its samples exactly; voids become the mask; crs_wkt, crs_transform and vertical_datum from the
-/// database's info and georeference). With `pms`, the decoded PMs in layout.keys()
-/// order are kept there. DatabaseError naming the file for a database without blocks or a block
-/// whose grid does not match the layout.
-pm::Heightfield read_database_terrain(const BlockDatabase& db,
-                                      std::vector<pm::ProgressiveMesh>* pms = nullptr);
 
 /// Extracts the terrain of an open database at L-infinity error <= max_error (see above).
 ExtractedMesh extract_mesh(const BlockDatabase& db, double max_error);

@@ -59,6 +59,13 @@ std::vector<std::uint8_t> encode_pm(const ProgressiveMesh& pm);
 /// Parses bytes produced by encode_pm. `name_for_errors` prefixes every error message.
 ProgressiveMesh decode_pm(std::span<const std::uint8_t> bytes, const std::string& name_for_errors);
 
+/// The heightfield of bytes that decode_pm reads (heights, void mask, transform, source, frame,
+/// CRS, VoidReport), without decoding the collapses: about a tenth of decode_pm's time (the 25
+/// blocks of N44W072: 15 ms against 230 ms, 25 ms against 210 ms where heights are raw doubles). The checksum
+/// and every header field are checked as decode_pm checks them; the collapse sections are not, so a file
+/// whose collapses alone are inconsistent gives its heightfield here and fails decode_pm.
+Heightfield decode_pm_heightfield(std::span<const std::uint8_t> bytes, const std::string& name_for_errors);
+
 /// Writes encode_pm(pm) to path + ".tmp", flushes it to disk, then renames it onto `path`.
 void write_pm(const ProgressiveMesh& pm, const std::string& path);
 

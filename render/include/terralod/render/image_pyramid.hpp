@@ -11,6 +11,8 @@
 //   // Levels rendered by the caller (a design rule per level of detail), not box-filtered:
 //   std::vector<terralod::render::RgbaImage> lv;  // sizes exactly pyramid_levels(w, h, 1024)
 //   terralod::render::ImagePyramid::write_levels(lv, "thematic.tx", po);
+//   // Rows computed band by band (a shading texture of a terrain larger than memory):
+//   terralod::render::ImagePyramid::convert(w, h, [&](int rows, std::uint8_t* rgba) { ... }, "shade.tx", po);
 //
 // Implementation: convert reads the source in bands of rows through an OpenImageIO ImageCache
 // (tiles on demand, bounded memory) and writes a tiled (64 x 64), zip-compressed, MIP-mapped
@@ -104,6 +106,15 @@ class ImagePyramid {
   /// Same from pixels in memory (generated textures, tests).
   static void convert(const RgbaImage& image, const std::string& out_path,
                       const PyramidOptions& options = {});
+  /// Fills the next `rows` rows of level 0 (RGBA8, straight alpha, top to bottom, each call
+  /// going on where the last one ended) into `rgba`.
+  using RowSource = std::function<void(int rows, std::uint8_t* rgba)>;
+  /// Same from rows the caller computes in order, never all at once (a texture computed from a
+  /// terrain larger than memory): `rows` is asked for bands of at most tile_size rows. `what`
+  /// names the source in error messages; what `rows` throws goes through, nothing left behind.
+  static void convert(int width, int height, const RowSource& rows, const std::string& out_path,
+                      const PyramidOptions& options = {}, const std::function<void(double)>& progress = {},
+                      const std::string& what = "(computed rows)");
 
   /// Writes given levels (not box-filtered from level 0) as a tiled, MIP-mapped TIFF at
   /// `out_path` (through out_path + ".tmp"): level k of the file is levels[k] exactly. Sizes
