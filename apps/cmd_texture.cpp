@@ -265,32 +265,29 @@ tr::TerrainAttribute thematic_attribute(const Args& a, std::string* name) {
 // 30 x 90 m texel 30 m).
 void store_thematic_rules(tb::BlockDatabase& db, const std::string& path, const Args& a,
                           const ThematicRules& rules, tr::TerrainAttribute attribute, const std::string& name,
-                          tb::DatabaseTerrain& terrain, tr::LayerRecord& rec) {
-  auto t = Clock::now();
-  const pm::Heightfield hf = terrain.read({0, 0, terrain.width() - 1, terrain.height() - 1});
-  const std::optional<tb::HeightRange> range = terrain.height_range();
-  const BuiltRule built = build_rule(rules, attribute, range ? range->lo : 0.0, range ? range->hi : 0.0);
-  const double sample_m = 0.5 * (hf.transform.spacing_x() + hf.transform.spacing_y());
-  const tr::FloatRaster values = tr::terrain_attribute(hf, attribute);
-  std::printf("thematic %s, %zu rules from %s, generalise %s, sample %.4g m: %d x %d values, %s\n",
-              name.c_str(), rules.looks.size(), rules.path.c_str(), rules.generalise.c_str(), sample_m,
-              values.width, values.height, format_duration(ms_since(t)).c_str());
+                          const tr::TerrainWindows& tw, tr::LayerRecord& rec) {
+  const BuiltRule built = build_rule(rules, attribute, tw.lo, tw.hi);
+  const double sample_m = 0.5 * (tw.transform.spacing_x() + tw.transform.spacing_y());
+  std::printf("thematic %s, %zu rules from %s, generalise %s, sample %.4g m\n", name.c_str(),
+              rules.looks.size(), rules.path.c_str(), rules.generalise.c_str(), sample_m);
   std::vector<std::size_t> level_rules;
   store_computed(db, path, rec, a, [&](const std::string& pyr, const tr::PyramidOptions& po) {
-    t = Clock::now();
-    const std::vector<tr::RgbaImage> levels =
-        tr::render_pyramid_levels(built.rule, values, sample_m, po.max_texture_size);
-    for (std::size_t k = 0; k < levels.size(); ++k) {
+    const auto t = Clock::now();
+    const std::vector<tr::LevelSize> sizes = tr::pyramid_levels(tw.width, tw.height, po.max_texture_size);
+    for (std::size_t k = 0; k < sizes.size(); ++k) {
       const double texel_m = double(1u << k) * sample_m;
       level_rules.push_back(built.look_for(texel_m));
-      std::printf("level %zu: %d x %d texels of %.4g m, rule %zu (%s)\n", k, levels[k].width,
-                  levels[k].height, texel_m, level_rules.back(),
+      std::printf("level %zu: %d x %d texels of %.4g m, rule %zu (%s)\n", k, sizes[k].width, sizes[k].height,
+                  texel_m, level_rules.back(),
                   level_rules.back() + 1 == rules.looks.size()
                       ? "far"
                       : strf("max_texel_m %.4g", rules.looks[level_rules.back()].max_texel_m).c_str());
     }
-    tr::ImagePyramid::write_levels(levels, pyr, po);
-    std::printf("pyramid of %zu rendered levels -> tiled MIP-mapped TIFF, %s\n", levels.size(),
+    {
+      ProgressBar bar("thematic");
+      tr::write_rule_pyramid(tw, attribute, built.rule, sample_m, pyr, po, [&](double f) { bar.update(f); });
+    }
+    std::printf("pyramid of %zu rendered levels -> tiled MIP-mapped TIFF, %s\n", sizes.size(),
                 format_duration(ms_since(t)).c_str());
     rec.parameters = rules_parameters(rules, built, name, sample_m, level_rules);
   });
@@ -320,7 +317,7 @@ int texture_thematic(const Args& a, const std::string& path) {
   rec.source = "terralod texture thematic";
   rec.georef = tr::grid_georef(terrain.terrain.frame().transform, tw.width, tw.height);
   if (rules) {
-    store_thematic_rules(db, path, a, *rules, attribute, name, terrain.terrain, rec);
+    store_thematic_rules(db, path, a, *rules, attribute, name, tw, rec);
     return 0;
   }
   const tr::ColorRamp ramp(stops.empty() ? default_ramp(attribute, tw.lo, tw.hi) : stops,
@@ -402,8 +399,8 @@ CommandSpec texture_spec() {
       "          \"ramp\": \"0:ffffff,45:a00000\", \"bands\": true}, {\"ramp\": \"0:ffffff,45:606060\"}]}.\n"
       "          shade and thematic read the terrain from the blocks window by window, in bands of\n"
       "          rows (never whole: a 128 MiB cache of decoded blocks, windows of about 4 M samples\n"
-      "          widened by what shadows reach), after one pass for its exact height range;\n"
-      "          thematic --rules holds the whole terrain and every level.\n"
+      "          widened by what shadows reach; --rules: every level by windows too), after one\n"
+      "          pass for its exact height range.\n"
       "  symbols --layer NAME --objects OBJLAYER [--color RRGGBB[AA]] [--symbol-px N]: the objects of\n"
       "          the object layer OBJLAYER that its design rules draw as \"symbol\", as discs of N\n"
       "          texels (default 7) in the colour (default c81e1e) with a 1-texel dark outline at\n"

@@ -251,7 +251,6 @@ void ImagePyramid::convert(int width, int height, const RowSource& rows, const s
 
 void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,
                                 const PyramidOptions& options) {
-  assert(options.tile_size >= 1 && (options.tile_size & (options.tile_size - 1)) == 0);
   if (levels.empty() || levels[0].width < 1 || levels[0].height < 1)
     throw std::invalid_argument(out_path + ": write_levels needs level 0 of at least 1 x 1 pixels");
   const std::vector<LevelSize> want =
@@ -271,10 +270,34 @@ void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std:
                                   size(l.width, l.height) + " pixels, the pyramid needs " +
                                   size(want[k].width, want[k].height));
   }
+  std::vector<std::size_t> at(levels.size(), 0);
+  write_levels(
+      levels[0].width, levels[0].height,
+      [&](int k, int rows, std::uint8_t* rgba) {
+        const std::size_t bytes = std::size_t(levels[std::size_t(k)].width) * std::size_t(rows) * 4;
+        std::copy_n(levels[std::size_t(k)].rgba.data() + at[std::size_t(k)], bytes, rgba);
+        at[std::size_t(k)] += bytes;
+      },
+      out_path, options);
+}
+
+void ImagePyramid::write_levels(int width, int height, const LevelRowSource& rows,
+                                const std::string& out_path, const PyramidOptions& options,
+                                const std::function<void(double)>& progress) {
+  assert(options.tile_size >= 1 && (options.tile_size & (options.tile_size - 1)) == 0);
+  if (width < 1 || height < 1)
+    throw std::invalid_argument(out_path + ": write_levels needs level 0 of at least 1 x 1 pixels");
+  const std::vector<LevelSize> sizes = pyramid_levels(width, height, options.max_texture_size);
   const std::string tmp = out_path + ".tmp";
+  struct Cleanup {
+    const std::string& path;
+    bool done = false;
+    ~Cleanup() {
+      std::error_code ec;
+      if (!done) std::filesystem::remove(path, ec);
+    }
+  } cleanup{tmp};
   const auto fail = [&](const std::string& why) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
     throw std::runtime_error(out_path + ": cannot write the image pyramid: " + why);
   };
   std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tiff");
@@ -282,20 +305,32 @@ void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std:
   // OIIO's TIFF writer stores MIP levels as further directories (AppendSubimage), which its
   // reader presents as MIP levels of a file marked "textureformat" (level_spec), as convert's.
   const bool mip = out->supports("mipmap");
-  if (levels.size() > 1 && !mip && !out->supports("multiimage"))
+  if (sizes.size() > 1 && !mip && !out->supports("multiimage"))
     fail("the TIFF writer stores neither MIP levels nor subimages");
-  for (std::size_t k = 0; k < levels.size(); ++k) {
-    const RgbaImage& l = levels[k];
-    const OIIO::ImageSpec spec = level_spec(l.width, l.height, options);
+  double total = 0.0, done = 0.0;  // pixels, for the progress
+  for (const LevelSize& l : sizes) total += double(l.width) * l.height;
+  std::vector<std::uint8_t> band;
+  for (std::size_t k = 0; k < sizes.size(); ++k) {
+    const int w = sizes[k].width, h = sizes[k].height;
     const auto mode = k == 0 ? OIIO::ImageOutput::Create
                       : mip  ? OIIO::ImageOutput::AppendMIPLevel
                              : OIIO::ImageOutput::AppendSubimage;
-    if (!out->open(tmp, spec, mode) || !out->write_image(OIIO::TypeDesc::UINT8, l.rgba.data()))
+    if (!out->open(tmp, level_spec(w, h, options), mode))
       fail("level " + std::to_string(k) + ": " + out->geterror());
+    for (int y = 0; y < h; y += options.tile_size) {
+      const int n = std::min(options.tile_size, h - y);
+      band.resize(std::size_t(w) * std::size_t(n) * 4);
+      rows(int(k), n, band.data());
+      if (!out->write_tiles(0, w, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, band.data()))
+        fail("level " + std::to_string(k) + ": " + out->geterror());
+      done += double(w) * n;
+      if (progress) progress(std::min(1.0, done / total));
+    }
   }
   if (!out->close()) fail(out->geterror());
   out.reset();
   pm::rename_into_place(tmp, out_path);
+  cleanup.done = true;
 }
 
 ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& options)

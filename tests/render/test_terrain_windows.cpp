@@ -6,9 +6,12 @@
 #include <algorithm>
 #include <cstring>
 #include <limits>
+#include <memory>
 
+#include "run_command.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/pm/terrain_generator.hpp"
+#include "terralod/render/image_pyramid.hpp"
 #include "terralod/render/terrain_windows.hpp"
 #include "terralod/render/thematic_texture.hpp"
 #include "terralod/render/topographic_texture.hpp"
@@ -163,4 +166,35 @@ TEST(TerrainWindows, WindowsStayTheSizeAskedFor) {
   expect_identical(tr::shade_terrain(t, o), tr::shade_terrain(w.hf, o));
   EXPECT_LE(w.widest, 50);
   EXPECT_THROW(tr::shade_terrain(t, o, {0, 0, 204, -1, 1}), std::invalid_argument);
+}
+
+TEST(TerrainWindows, RuleLevelsWindowByWindowAreTheWholeGridsFile) {
+  Windows w;
+  const terralod::test::TempDir dir("rule-windows");
+  for (tr::Reduction g : {tr::Reduction::Mean, tr::Reduction::Nearest}) {
+    SCOPED_TRACE(int(g));
+    tr::LodDesignRule rule(g);
+    rule.add(70.0, std::make_shared<tr::ColorRamp>(std::vector<tr::ColorRamp::Stop>{
+                       {0.0f, {255, 255, 255, 255}}, {45.0f, {160, 0, 0, 255}}}));
+    rule.add(1e30, std::make_shared<tr::ColorRamp>(
+                       std::vector<tr::ColorRamp::Stop>{{0.0f, {0, 0, 255, 255}}, {30.0f, {0, 255, 0, 255}}},
+                       tr::ColorRamp::Mode::Step));
+    tr::PyramidOptions po;
+    po.max_texture_size = 20;  // 203 x 171 down to 12 x 10: five levels, blocks of up to 16 samples
+    po.tile_size = 16;
+    const std::string whole = (dir.path() / "whole.tx").string(),
+                      windowed = (dir.path() / "windowed.tx").string();
+    tr::ImagePyramid::write_levels(
+        tr::render_pyramid_levels(rule, tr::terrain_attribute(w.hf, tr::TerrainAttribute::SlopeDegrees), 25.0,
+                                  po.max_texture_size),
+        whole, po);
+    tr::write_rule_pyramid(w.windows(24 * 24), tr::TerrainAttribute::SlopeDegrees, rule, 25.0, windowed, po);
+    const tr::ImagePyramid a(whole, po), b(windowed, po);
+    ASSERT_EQ(a.levels(), 5);
+    ASSERT_EQ(b.level_sizes(), a.level_sizes());
+    for (int k = 0; k < a.levels(); ++k) {
+      const tr::PixelRect r{k, 0, 0, a.level(k).width, a.level(k).height};
+      EXPECT_TRUE(a.read(r) == b.read(r)) << "level " << k;
+    }
+  }
 }

@@ -124,6 +124,16 @@ class ImagePyramid {
   /// caller's levels.
   static void write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,
                            const PyramidOptions& options = {});
+  /// Fills the next `rows` rows of level `level` (RGBA8, its width per row, top to bottom, each
+  /// call of a level going on where the last one ended) into `rgba`.
+  using LevelRowSource = std::function<void(int level, int rows, std::uint8_t* rgba)>;
+  /// The same file from rows computed level by level (level 0 first, each level top to bottom,
+  /// bands of at most tile_size rows), never a level whole in memory: the levels are
+  /// pyramid_levels(width, height, options.max_texture_size). What `rows` throws goes through,
+  /// nothing is left behind. `progress` gets the fraction of the pixels written.
+  static void write_levels(int width, int height, const LevelRowSource& rows, const std::string& out_path,
+                           const PyramidOptions& options = {},
+                           const std::function<void(double)>& progress = {});
 
   /// Opens a converted file (or any image; a flat one is a one-level pyramid if it fits).
   explicit ImagePyramid(const std::string& path, const PyramidOptions& options = {});

@@ -12,9 +12,10 @@
 // Contract of compute_by_windows(t, region, margins, compute):
 //   - The texels of `region` (topographic_texture.hpp's TexelRegion over the whole grid) are cut
 //     into tiles; for each tile, `compute` gets the window of samples from the tile's first to
-//     its last sample widened by `margins` on each side (clipped to the grid), the tile as a
-//     TexelRegion of that window, and the window's corner in the whole grid; it returns the
-//     tile's texels. The result is the tiles put together.
+//     its last sample (the end of its last step x step block, clipped to the region) widened by
+//     `margins` on each side (clipped to the grid), the tile as a TexelRegion of that window
+//     (whole blocks), and the window's corner in the whole grid; it returns the tile's texels.
+//     The result is the tiles put together.
 //   - So compute(window, ...) equals compute(whole grid, ...) wherever a texel depends only on
 //     samples within the margins of its own sample: Horn normals (1), a relative-height window
 //     (its radius), a shadow ray until it is above the highest sample (shading_margins).
@@ -91,6 +92,17 @@ WindowMargins shading_margins(const TerrainWindows& terrain, const ShadingOption
 void convert_by_bands(const TerrainWindows& t, const std::function<RgbaImage(int row0, int rows)>& band,
                       const std::string& out_path, const PyramidOptions& options,
                       const std::function<void(double)>& progress = {}, const std::string& what = "texture");
+
+/// The levels `rule` draws of `attribute` over the whole terrain (render_pyramid_levels,
+/// thematic_texture.hpp: level k's texels from 2^k x 2^k samples each), written band by band as
+/// ImagePyramid::write_levels' file, window by window: the same file as write_levels of
+/// render_pyramid_levels(rule, terrain_attribute(whole), ...), never the terrain nor a level
+/// whole in memory. The rule must draw each texel from its own block's samples alone, as
+/// LodDesignRule does. Throws std::invalid_argument for sample_size_m <= 0, and what the
+/// windows, the rule and the writer throw.
+void write_rule_pyramid(const TerrainWindows& t, TerrainAttribute attribute, const DesignRule& rule,
+                        double sample_size_m, const std::string& out_path, const PyramidOptions& options,
+                        const std::function<void(double)>& progress = {});
 
 /// terrain_attribute (thematic_texture.hpp) of the whole terrain, window by window (margin 1):
 /// the same values bit for bit.
