@@ -65,16 +65,25 @@ int texture_symbols(const Args& a, const std::string& path, const StoreLayer& st
     t = std::chrono::steady_clock::now();
     const std::vector<tr::LevelSize> sizes =
         tr::pyramid_levels(info.grid_width, info.grid_height, po.max_texture_size);
-    std::vector<tr::RgbaImage> levels;
+    std::vector<std::vector<tr::SymbolPosition>> at;  // each level's symbols, drawn band by band
     for (std::size_t k = 0; k < sizes.size(); ++k) {
       const double texel_m = double(1u << k) * sample_m;
-      std::size_t drawn = 0;
-      levels.push_back(tr::render_symbol_level(objs, rec.georef, sizes[k], texel_m, style, &drawn));
+      at.push_back(tr::symbol_positions(objs, rec.georef, sizes[k], texel_m));
       std::printf("level %zu: %d x %d texels of %.4g m, view distance %.6g m: %zu symbols\n", k,
-                  sizes[k].width, sizes[k].height, texel_m, tr::symbol_level_distance_m(texel_m), drawn);
+                  sizes[k].width, sizes[k].height, texel_m, tr::symbol_level_distance_m(texel_m),
+                  at.back().size());
     }
-    tr::ImagePyramid::write_levels(levels, pyr, po);
-    std::printf("pyramid of %zu symbol levels -> tiled MIP-mapped TIFF, %s\n", levels.size(),
+    std::vector<int> next(sizes.size(), 0);
+    tr::ImagePyramid::write_levels(
+        info.grid_width, info.grid_height,
+        [&](int k, int n, std::uint8_t* rgba) {
+          const tr::RgbaImage band = tr::render_symbol_rows(at[std::size_t(k)], sizes[std::size_t(k)].width,
+                                                            next[std::size_t(k)], n, style);
+          std::copy(band.rgba.begin(), band.rgba.end(), rgba);
+          next[std::size_t(k)] += n;
+        },
+        pyr, po);
+    std::printf("pyramid of %zu symbol levels -> tiled MIP-mapped TIFF, %s\n", sizes.size(),
                 format_duration(ms_since(t)).c_str());
   });
   return 0;

@@ -28,14 +28,15 @@ void blend_over(std::uint8_t* dst, const double src_rgb[3], double src_a) {
 
 }  // namespace
 
-void draw_symbol(RgbaImage& image, double u, double v, const SymbolStyle& style) {
+void draw_symbol(RgbaImage& image, double u, double v, const SymbolStyle& style, int row0) {
   assert(style.diameter_texels >= 1);
   const double r_out = 0.5 * style.diameter_texels;
   const double r_in = r_out - 1.0;  // the fill inside the 1-texel outline (none when <= 0)
   const int x0 = std::max(0, int(std::floor(u - r_out - 1))),
             x1 = std::min(image.width - 1, int(std::ceil(u + r_out + 1)));
-  const int y0 = std::max(0, int(std::floor(v - r_out - 1))),
-            y1 = std::min(image.height - 1, int(std::ceil(v + r_out + 1)));
+  // Rows of the level, the image's row y being the level's row0 + y.
+  const int y0 = std::max(row0, int(std::floor(v - r_out - 1))),
+            y1 = std::min(row0 + image.height - 1, int(std::ceil(v + r_out + 1)));
   const double alpha = style.color[3] / 255.0;
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) {
@@ -46,28 +47,41 @@ void draw_symbol(RgbaImage& image, double u, double v, const SymbolStyle& style)
       double rgb[3];
       for (int c = 0; c < 3; ++c)  // fill over `inner`, the dark outline over the rest
         rgb[c] = (inner * style.color[c] + (outer - inner) * 0.25 * style.color[c]) / outer;
-      blend_over(image.pixel(x, y), rgb, outer * alpha);
+      blend_over(image.pixel(x, y - row0), rgb, outer * alpha);
     }
 }
 
-RgbaImage render_symbol_level(std::span<const SymbolObject> objects, const GeoRect& georef, LevelSize size,
-                              double texel_m, const SymbolStyle& style, std::size_t* drawn) {
+std::vector<SymbolPosition> symbol_positions(std::span<const SymbolObject> objects, const GeoRect& georef,
+                                             LevelSize size, double texel_m) {
   assert(size.width >= 1 && size.height >= 1 && texel_m > 0);
   assert(georef.width() > 0 && georef.height() > 0);
-  RgbaImage img(size.width, size.height);
   const double d = symbol_level_distance_m(texel_m);
-  std::size_t n = 0;
+  std::vector<SymbolPosition> out;
   for (const SymbolObject& o : objects) {
     assert(o.rules != nullptr);
     if (o.rules->choose(d, o.extent_m * kSymbolReferenceFocalPx / d) != blocks::Representation::Symbol)
       continue;
-    const double u = (o.anchor.x - georef.minx) / georef.width() * size.width;
-    const double v = (georef.maxy - o.anchor.y) / georef.height() * size.height;
-    draw_symbol(img, u, v, style);
-    ++n;
+    out.push_back({(o.anchor.x - georef.minx) / georef.width() * size.width,
+                   (georef.maxy - o.anchor.y) / georef.height() * size.height});
   }
-  if (drawn) *drawn = n;
+  return out;
+}
+
+RgbaImage render_symbol_rows(std::span<const SymbolPosition> positions, int width, int row0, int rows,
+                             const SymbolStyle& style) {
+  assert(width >= 1 && rows >= 1);
+  RgbaImage img(width, rows);
+  const double reach = 0.5 * style.diameter_texels + 1.0;  // as far as draw_symbol looks
+  for (const SymbolPosition& p : positions)
+    if (p.v + reach >= row0 - 1 && p.v - reach <= row0 + rows) draw_symbol(img, p.u, p.v, style, row0);
   return img;
+}
+
+RgbaImage render_symbol_level(std::span<const SymbolObject> objects, const GeoRect& georef, LevelSize size,
+                              double texel_m, const SymbolStyle& style, std::size_t* drawn) {
+  const std::vector<SymbolPosition> at = symbol_positions(objects, georef, size, texel_m);
+  if (drawn) *drawn = at.size();
+  return render_symbol_rows(at, size.width, 0, size.height, style);
 }
 
 }  // namespace terralod::render

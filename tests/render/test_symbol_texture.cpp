@@ -3,6 +3,7 @@
 // draws by distance and by screen-size rules; answers computed by hand in the comments.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -44,6 +45,30 @@ TEST(SymbolTexture, DiscWithOutlineAtTheTexelPosition) {
       }
     }
   EXPECT_NEAR(sum, M_PI * 3.5 * 3.5, 0.02 * M_PI * 3.5 * 3.5);
+}
+
+TEST(SymbolTexture, BandsOfRowsAreTheLevelsRowsTexelForTexel) {
+  // 300 overlapping half-transparent symbols (stacking order matters), some past the edges: any
+  // band of rows drawn alone equals those rows of the whole level.
+  std::vector<SymbolPosition> at;
+  std::uint64_t h = 12345;
+  const auto next = [&h] {  // a small LCG: positions with fractions
+    h = h * 6364136223846793005ull + 1442695040888963407ull;
+    return double(h >> 11) / double(1ull << 53);
+  };
+  for (int i = 0; i < 300; ++i) at.push_back({next() * 160 - 5, next() * 107 - 5});
+  for (const SymbolStyle& style : {SymbolStyle{{0, 120, 255, 140}, 7}, SymbolStyle{{200, 40, 0, 90}, 2}}) {
+    const RgbaImage whole = render_symbol_rows(at, 150, 0, 97, style);
+    for (int rows : {1, 13, 16, 64})
+      for (int row0 = 0; row0 < 97; row0 += rows) {
+        const int n = std::min(rows, 97 - row0);
+        const RgbaImage band = render_symbol_rows(at, 150, row0, n, style);
+        ASSERT_EQ(band.height, n);
+        for (int y = 0; y < n; ++y)
+          for (int x = 0; x < 150; ++x)
+            ASSERT_EQ(band.get(x, y), whole.get(x, row0 + y)) << x << "," << row0 + y;
+      }
+  }
 }
 
 TEST(SymbolTexture, SmallSymbolsStackingAndClipping) {

@@ -42,13 +42,15 @@
 //              image_pyramid.hpp). Symbols reaching past the image are clipped.
 //   errors     bad arguments (diameter < 1, texel_m <= 0, an empty level, a null rules
 //              pointer) are asserted: the caller checks options first.
-//   cost       O(objects + symbols x diameter^2) per level; memory: the level (4 bytes a texel).
+//   cost       O(objects + symbols x diameter^2) per level; memory: the level (4 bytes a texel),
+//              or the rows asked for (render_symbol_rows) and 16 bytes a symbol.
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "terralod/blocks/object_layers.hpp"
 #include "terralod/blocks/object_rules.hpp"
@@ -80,8 +82,25 @@ struct SymbolStyle {
   int diameter_texels = 7;                              ///< >= 1
 };
 
-/// Draws one symbol centred at texel coordinates (u, v) of `image` (see the contract).
-void draw_symbol(RgbaImage& image, double u, double v, const SymbolStyle& style);
+/// Draws one symbol centred at texel coordinates (u, v) of a level (see the contract) into
+/// `image`, which holds that level's rows row0 .. row0 + image.height - 1.
+void draw_symbol(RgbaImage& image, double u, double v, const SymbolStyle& style, int row0 = 0);
+
+/// A symbol's centre in texel coordinates of its level.
+struct SymbolPosition {
+  double u = 0, v = 0;
+};
+
+/// The symbols of one level (`size` texels covering `georef`, texels of texel_m metres): the
+/// positions of the objects whose rules choose Symbol at symbol_level_distance_m(texel_m), in
+/// the order given (the order they stack in).
+std::vector<SymbolPosition> symbol_positions(std::span<const SymbolObject> objects, const GeoRect& georef,
+                                             LevelSize size, double texel_m);
+
+/// Rows row0 .. row0 + rows - 1 of a level `width` texels wide with the symbols at `positions`:
+/// those rows of the whole level, texel for texel (a level computed band by band).
+RgbaImage render_symbol_rows(std::span<const SymbolPosition> positions, int width, int row0, int rows,
+                             const SymbolStyle& style);
 
 /// One level of a symbol texture: a transparent `size` image (>= 1 x 1) covering `georef` with
 /// the symbols of the objects whose rules choose Symbol at symbol_level_distance_m(texel_m).
