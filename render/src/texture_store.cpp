@@ -18,6 +18,7 @@
 #include "terralod/pm/atomic_file.hpp"
 #include "terralod/pm/byte_io.hpp"
 #include "terralod/pm/json.hpp"
+#include "terralod/pm/parallel.hpp"
 
 namespace terralod::render {
 namespace {
@@ -194,29 +195,44 @@ void store_texture_layer(blocks::BlockDatabase& db, LayerRecord& rec, const Imag
     ++done;
     if (progress) progress(double(done) / double(std::max<std::size_t>(work, 1)));
   };
-  blocks::BlockDatabase::Transaction t(db);
+  // Every tile to store: the grid tiles of each level, then the tree's patches.
+  struct Job {
+    std::int64_t node;
+    PixelRect rect;
+  };
+  std::vector<Job> jobs;
   for (int k = 0; k < int(rec.levels.size()); ++k) {
     const LevelSize l = rec.levels[std::size_t(k)];
     const int tiles_x = (l.width + rec.tile_size - 1) / rec.tile_size,
               tiles_y = (l.height + rec.tile_size - 1) / rec.tile_size;
     for (int ty = 0; ty < tiles_y; ++ty)
-      for (int tx = 0; tx < tiles_x; ++tx) {
-        PixelRect r{k, tx * rec.tile_size, ty * rec.tile_size,
-                    std::min(rec.tile_size, l.width - tx * rec.tile_size),
-                    std::min(rec.tile_size, l.height - ty * rec.tile_size)};
-        db.put_texture_tile(rec.name, grid_tile_node(tx, ty, tiles_x), k, encode_texture_tile(pyr.read(r)));
-        step();
-      }
+      for (int tx = 0; tx < tiles_x; ++tx)
+        jobs.push_back({grid_tile_node(tx, ty, tiles_x),
+                        {k, tx * rec.tile_size, ty * rec.tile_size,
+                         std::min(rec.tile_size, l.width - tx * rec.tile_size),
+                         std::min(rec.tile_size, l.height - ty * rec.tile_size)}});
   }
   rec.patches = 0;
   if (tree)
     for (std::int64_t n = 0; n < std::int64_t(tree->node_count()); ++n)
       if (tree->has_patch(n)) {
-        const TexturePatch& p = tree->patch(n);
-        db.put_texture_tile(rec.name, n, p.rect.level, encode_texture_tile(pyr.read(p.rect)));
+        jobs.push_back({n, tree->patch(n).rect});
         ++rec.patches;
-        step();
       }
+  // Read and compressed on every core a few tiles at a time (the ImageCache is thread-safe),
+  // written in order on this thread: the same rows as one after the other.
+  blocks::BlockDatabase::Transaction t(db);
+  const std::size_t batch = std::size_t(2 * pm::thread_count(0));
+  std::vector<std::vector<std::uint8_t>> encoded(batch);
+  for (std::size_t b0 = 0; b0 < jobs.size(); b0 += batch) {
+    const std::size_t n = std::min(batch, jobs.size() - b0);
+    pm::parallel_for(n, 0,
+                     [&](std::size_t i) { encoded[i] = encode_texture_tile(pyr.read(jobs[b0 + i].rect)); });
+    for (std::size_t i = 0; i < n; ++i) {
+      db.put_texture_tile(rec.name, jobs[b0 + i].node, jobs[b0 + i].rect.level, encoded[i]);
+      step();
+    }
+  }
   db.set_meta(kMetaPrefix + rec.name, record_json(rec));
   t.commit();
 }

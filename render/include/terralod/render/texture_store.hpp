@@ -34,8 +34,8 @@
 //
 // Errors: bad or missing tiles/metadata throw blocks::DatabaseError naming the database, the
 // layer and the tile ("terrain.db: texture layer 'ortho' tile (node -3, level 0): ...").
-// Memory: one tile at a time when storing (plus the pyramid's cache); read_layer_level holds
-// the level (4 bytes per pixel).
+// Memory: two tiles per core when storing (they are read and compressed on every core, written
+// in order; plus the pyramid's cache); read_layer_level holds the level (4 bytes per pixel).
 #pragma once
 
 #include <cstdint>
