@@ -350,10 +350,13 @@ int texture_export(const Args& a, const std::string& path) {
     throw UsageError(
         strf("option '--level': layer '%s' has levels 0..%zu", rec.name.c_str(), rec.levels.size() - 1));
   auto t = Clock::now();
-  const tr::RgbaImage img = tr::read_layer_level(db, rec, level);
-  tr::write_layer_image(img, a.get("--out"));
-  std::printf("export layer '%s' level %d: %d x %d pixels -> %s, %s\n", rec.name.c_str(), level, img.width,
-              img.height, a.get("--out").c_str(), format_duration(ms_since(t)).c_str());
+  {
+    ProgressBar bar("export");
+    tr::export_layer_level(db, rec, level, a.get("--out"), [&](double f) { bar.update(f); });
+  }
+  const tr::LevelSize size = rec.levels[std::size_t(level)];
+  std::printf("export layer '%s' level %d: %d x %d pixels -> %s, %s\n", rec.name.c_str(), level, size.width,
+              size.height, a.get("--out").c_str(), format_duration(ms_since(t)).c_str());
   return 0;
 }
 

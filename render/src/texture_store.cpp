@@ -278,47 +278,99 @@ RgbaImage read_layer_patch(const blocks::BlockDatabase& db, const std::string& l
   }
 }
 
-RgbaImage read_layer_level(const blocks::BlockDatabase& db, const LayerRecord& rec, int level) {
-  assert(level >= 0 && level < int(rec.levels.size()));
+namespace {
+
+// Rows [ty * tile_size, ...) of level `level`: the grid tiles of tile row ty side by side.
+RgbaImage read_tile_row(const blocks::BlockDatabase& db, const LayerRecord& rec, int level, int ty) {
   const LevelSize l = rec.levels[std::size_t(level)];
-  const int ts = rec.tile_size, tiles_x = (l.width + ts - 1) / ts, tiles_y = (l.height + ts - 1) / ts;
-  RgbaImage out(l.width, l.height);
-  for (int ty = 0; ty < tiles_y; ++ty)
-    for (int tx = 0; tx < tiles_x; ++tx) {
-      const std::int64_t node = grid_tile_node(tx, ty, tiles_x);
-      const RgbaImage tile = read_layer_patch(db, rec.name, node, level);
-      const int w = std::min(ts, l.width - tx * ts), h = std::min(ts, l.height - ty * ts);
-      if (tile.width != w || tile.height != h)
-        throw blocks::DatabaseError(db.path(), tile_item(rec.name, node, level) + ": " +
-                                                   std::to_string(tile.width) + " x " +
-                                                   std::to_string(tile.height) + " pixels, expected " +
-                                                   std::to_string(w) + " x " + std::to_string(h));
-      for (int y = 0; y < h; ++y)
-        std::memcpy(out.pixel(tx * ts, ty * ts + y), tile.pixel(0, y), std::size_t(w) * 4);
-    }
+  const int ts = rec.tile_size, tiles_x = (l.width + ts - 1) / ts;
+  RgbaImage out(l.width, std::min(ts, l.height - ty * ts));
+  for (int tx = 0; tx < tiles_x; ++tx) {
+    const std::int64_t node = grid_tile_node(tx, ty, tiles_x);
+    const RgbaImage tile = read_layer_patch(db, rec.name, node, level);
+    const int w = std::min(ts, l.width - tx * ts);
+    if (tile.width != w || tile.height != out.height)
+      throw blocks::DatabaseError(db.path(), tile_item(rec.name, node, level) + ": " +
+                                                 std::to_string(tile.width) + " x " +
+                                                 std::to_string(tile.height) + " pixels, expected " +
+                                                 std::to_string(w) + " x " + std::to_string(out.height));
+    for (int y = 0; y < out.height; ++y)
+      std::memcpy(out.pixel(tx * ts, y), tile.pixel(0, y), std::size_t(w) * 4);
+  }
   return out;
 }
 
-void write_layer_image(const RgbaImage& img, const std::string& path) {
+// Writes a width x height RGBA image as 8-bit PNG or TIFF (by the extension) through path +
+// ".tmp": `rows(y0, n, rgba)` gives rows y0 .. y0 + n - 1 (in order, n <= band).
+void write_rgba_rows(const std::string& path, int width, int height, int band,
+                     const std::function<void(int y0, int n, std::uint8_t* rgba)>& rows) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   const char* format = ext == ".png" ? "png" : (ext == ".tif" || ext == ".tiff") ? "tiff" : nullptr;
   if (!format) throw std::runtime_error(path + ": the file name must end in .png, .tif or .tiff");
   const std::string tmp = path + ".tmp";
+  struct Cleanup {
+    const std::string& path;
+    bool done = false;
+    ~Cleanup() {
+      std::error_code ec;
+      if (!done) std::filesystem::remove(path, ec);
+    }
+  } cleanup{tmp};
   auto out = OIIO::ImageOutput::create(format);
-  OIIO::ImageSpec spec(img.width, img.height, 4, OIIO::TypeDesc::UINT8);
+  OIIO::ImageSpec spec(width, height, 4, OIIO::TypeDesc::UINT8);
   spec.alpha_channel = 3;
   spec.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha, as RgbaImage holds it
   if (format == std::string("tiff")) spec.attribute("compression", "zip");
-  bool ok = out && out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::UINT8, img.rgba.data());
-  std::string why = ok ? "" : (out ? out->geterror() : OIIO::geterror());
-  if (out) ok = out->close() && ok;
-  if (!ok) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path + ": cannot write the image: " + why);
+  const auto fail = [&] {
+    throw std::runtime_error(path +
+                             ": cannot write the image: " + (out ? out->geterror() : OIIO::geterror()));
+  };
+  if (!out || !out->open(tmp, spec)) fail();
+  std::vector<std::uint8_t> buf;
+  for (int y = 0; y < height; y += band) {
+    const int n = std::min(band, height - y);
+    buf.resize(std::size_t(width) * std::size_t(n) * 4);
+    rows(y, n, buf.data());
+    if (!out->write_scanlines(y, y + n, 0, OIIO::TypeDesc::UINT8, buf.data())) fail();
   }
+  if (!out->close()) fail();
+  out.reset();
   pm::rename_into_place(tmp, path);
+  cleanup.done = true;
+}
+
+}  // namespace
+
+RgbaImage read_layer_level(const blocks::BlockDatabase& db, const LayerRecord& rec, int level) {
+  assert(level >= 0 && level < int(rec.levels.size()));
+  const LevelSize l = rec.levels[std::size_t(level)];
+  RgbaImage out(l.width, l.height);
+  for (int ty = 0, y = 0; y < l.height; ++ty) {
+    const RgbaImage band = read_tile_row(db, rec, level, ty);
+    std::copy(band.rgba.begin(), band.rgba.end(), out.pixel(0, y));
+    y += band.height;
+  }
+  return out;
+}
+
+void write_layer_image(const RgbaImage& img, const std::string& path) {
+  write_rgba_rows(
+      path, img.width, img.height, std::max(img.height, 1), [&](int y0, int n, std::uint8_t* rgba) {
+        std::copy_n(img.rgba.data() + std::size_t(y0) * img.width * 4, std::size_t(n) * img.width * 4, rgba);
+      });
+}
+
+void export_layer_level(const blocks::BlockDatabase& db, const LayerRecord& rec, int level,
+                        const std::string& path, const std::function<void(double)>& progress) {
+  assert(level >= 0 && level < int(rec.levels.size()));
+  const LevelSize l = rec.levels[std::size_t(level)];
+  write_rgba_rows(path, l.width, l.height, rec.tile_size, [&](int y0, int n, std::uint8_t* rgba) {
+    const RgbaImage band = read_tile_row(db, rec, level, y0 / rec.tile_size);
+    assert(band.height == n);
+    std::copy(band.rgba.begin(), band.rgba.end(), rgba);
+    if (progress) progress(double(y0 + n) / double(l.height));
+  });
 }
 
 TextureLoader database_tile_loader(std::string db_path, std::string layer,

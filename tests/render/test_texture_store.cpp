@@ -145,12 +145,21 @@ TEST(TextureStore, StoredLayerReadsBackExactlyAndLoadsOnDemand) {
         << e.what();
     EXPECT_NE(std::string(e.what()).find(dbp.string()), std::string::npos);
   }
-  // Exported files are exact (PNG and TIFF).
+  // Exported files are exact (PNG and TIFF), written whole or from the tiles a row of tiles at
+  // a time (7 rows of 16, the last of 4).
   for (const char* ext : {".png", ".tif"}) {
     const fs::path out = tmp_dir() / (std::string("level0") + ext);
     write_layer_image(src, out.string());
     const ImagePyramid again(out.string(), PyramidOptions{128, 64, 8});
     EXPECT_EQ(again.read({0, 0, 0, 100, 100}), src) << ext;
+    const fs::path rows = tmp_dir() / (std::string("rows0") + ext);
+    double shown = 0;
+    export_layer_level(db, back, 0, rows.string(), [&](double f) {
+      EXPECT_GT(f, shown);
+      shown = f;
+    });
+    EXPECT_EQ(shown, 1.0);
+    EXPECT_EQ(ImagePyramid(rows.string(), PyramidOptions{128, 64, 8}).read({0, 0, 0, 100, 100}), src) << ext;
   }
   EXPECT_THROW(write_layer_image(src, (tmp_dir() / "x.jpg").string()), std::runtime_error);
 }

@@ -35,7 +35,8 @@
 // Errors: bad or missing tiles/metadata throw blocks::DatabaseError naming the database, the
 // layer and the tile ("terrain.db: texture layer 'ortho' tile (node -3, level 0): ...").
 // Memory: two tiles per core when storing (they are read and compressed on every core, written
-// in order; plus the pyramid's cache); read_layer_level holds the level (4 bytes per pixel).
+// in order; plus the pyramid's cache); read_layer_level holds the level (4 bytes per pixel),
+// export_layer_level one row of grid tiles.
 #pragma once
 
 #include <cstdint>
@@ -104,6 +105,11 @@ RgbaImage read_layer_patch(const blocks::BlockDatabase& db, const std::string& l
 /// Writes an RGBA image as 8-bit PNG or TIFF (chosen by the extension .png / .tif / .tiff) to
 /// path + ".tmp", then renames it onto path; std::runtime_error naming the file on failure.
 void write_layer_image(const RgbaImage& image, const std::string& path);
+/// Level `level` of the layer written as write_layer_image writes an image, one row of grid
+/// tiles at a time (never the level whole: 4 bytes a pixel of one tile row); errors as
+/// read_layer_level's and write_layer_image's. `progress` gets the fraction of rows written.
+void export_layer_level(const blocks::BlockDatabase& db, const LayerRecord& rec, int level,
+                        const std::string& path, const std::function<void(double)>& progress = {});
 
 /// A TextureCache loader reading patch tiles of `layer` from the database at `db_path` (each
 /// load opens its own read-only connection, so any worker thread may run it). The key's node
