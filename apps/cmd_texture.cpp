@@ -202,6 +202,8 @@ int texture_shade(const Args& a, const std::string& path) {
     so.altitude_deg = l[1];
   }
   so.shadows = a.has("--shadows");
+  if (so.shadows && so.method == tr::ShadingMethod::RelativeHeight)
+    throw UsageError("option '--shadows' applies to lit methods only, not to '--method relative'");
   const bool gpu = a.has("--gpu");
   TerrainReader terrain(db);
   tr::TerrainWindows& tw = terrain.windows;

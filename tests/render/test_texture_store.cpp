@@ -249,6 +249,16 @@ TEST(TextureCli, ShadeAddAndExportEndToEnd) {
   const ImagePyramid got(png.string(), PyramidOptions{256, 64, 8});
   ASSERT_EQ(got.level(0), (LevelSize{65, 65}));
   EXPECT_EQ(got.read({0, 0, 0, 65, 65}), want);
+  // With shadows at a low sun: the same as shading the DEM itself, though the database is read
+  // window by window; relative height takes no shadows, said before any work.
+  ASSERT_EQ(run("texture shade " + quote(dbp.string()) + " --layer low --shadows --light 200,12", &text), 0);
+  ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer low --out " + quote(png.string())), 0);
+  so.shadows = true, so.azimuth_deg = 200, so.altitude_deg = 12;
+  EXPECT_EQ(ImagePyramid(png.string(), PyramidOptions{256, 64, 8}).read({0, 0, 0, 65, 65}),
+            shading_texture(hf, so));
+  EXPECT_EQ(run("texture shade " + quote(dbp.string()) + " --layer r --method relative --shadows", &text), 2);
+  EXPECT_NE(text.find("option '--shadows' applies to lit methods only"), std::string::npos) << text;
+  EXPECT_EQ(text.find("terrain "), std::string::npos) << text;
   // Coarser level: 65 -> 32 (fits 32).
   ASSERT_EQ(run("texture export " + quote(dbp.string()) + " --layer hill --level 1 --out " +
                 quote((tmp_dir() / "l1.tif").string())),
