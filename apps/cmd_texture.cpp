@@ -20,6 +20,7 @@
 #include "terralod/blocks/image_warp.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
+#include "terralod/pm/atomic_file.hpp"
 #include "terralod/pm/pm_io.hpp"
 #include "terralod/render/gpu_shading.hpp"
 #include "terralod/render/image_pyramid.hpp"
@@ -60,16 +61,6 @@ tr::TextureConstraints constraints(const Args& a) {
   c.power_of_two = a.has("--power-of-two");
   return c;
 }
-
-// Removes the pyramid file beside the database when the command ends, also when it fails
-// half-way (a corrupt tree or block, a full disk): no partial file is left behind.
-struct RemoveFile {
-  std::string path;
-  ~RemoveFile() {
-    std::error_code ec;
-    std::filesystem::remove(path, ec);
-  }
-};
 
 // A blocked database whose build was interrupted has no complete tree (nor every block): refuse
 // it, as 'terralod extract --db' does, rather than store a layer without its texture tree.
@@ -121,7 +112,7 @@ int texture_add(const Args& a, const std::string& path) {
   // A georeferenced image (an orthophoto, a map) is warped into the terrain's frame and placed
   // where it lies; any other image covers the terrain.
   const std::string warped = pyramid_file(path, rec.name) + ".warp.tif";
-  const RemoveFile remove_warped{warped};
+  const pm::FileRemover remove_warped(warped);  // also when the command fails half-way
   std::string image = rec.source;
   if (!a.has("--georef")) {
     int shown = -1;
@@ -142,7 +133,7 @@ int texture_add(const Args& a, const std::string& path) {
     }
   }
   const std::string pyr = pyramid_file(path, rec.name);
-  const RemoveFile remove_pyramid{pyr};
+  const pm::FileRemover remove_pyramid(pyr);  // when the command ends, also half-way
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
   {
@@ -163,7 +154,7 @@ void store_computed(tb::BlockDatabase& db, const std::string& path, tr::LayerRec
   rec.name = a.get("--layer");
   rec.constraints = constraints(a);
   const std::string pyr = pyramid_file(path, rec.name);
-  const RemoveFile remove_pyramid{pyr};
+  const pm::FileRemover remove_pyramid(pyr);  // when the command ends, also half-way
   tr::PyramidOptions po;
   po.max_texture_size = rec.constraints.max_texture_size;
   write_pyramid(pyr, po);

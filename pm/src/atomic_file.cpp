@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <stdexcept>
 
 namespace terralod::pm {
@@ -37,6 +38,12 @@ void rename_into_place(const std::string& tmp, const std::string& path) {
     std::remove(tmp.c_str());
     throw std::runtime_error(path + ": cannot rename " + tmp + " onto it: " + std::strerror(e));
   }
+}
+
+FileRemover::~FileRemover() {
+  if (path_.empty()) return;
+  std::error_code ec;
+  std::filesystem::remove(path_, ec);
 }
 
 }  // namespace terralod::pm

@@ -102,14 +102,7 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
   assert(w >= 1 && h >= 1 && o.tile_size >= 1 && (o.tile_size & (o.tile_size - 1)) == 0);
   const std::string tmp = out_path + ".tmp";
   const std::string spool[2] = {tmp + ".level-a", tmp + ".level-b"};
-  struct Cleanup {
-    const std::string* paths[3];
-    bool done = false;
-    ~Cleanup() {
-      std::error_code ec;
-      for (int k = done ? 1 : 0; k < 3; ++k) std::filesystem::remove(*paths[k], ec);
-    }
-  } cleanup{{&tmp, &spool[0], &spool[1]}};
+  pm::FileRemover remove_tmp(tmp), remove_spool_a(spool[0]), remove_spool_b(spool[1]);
   const auto fail = [&](const std::string& why) -> void {
     throw std::runtime_error(what + ": cannot build the image pyramid " + out_path + ": " + why);
   };
@@ -171,7 +164,7 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
   out.reset();
   in.reset();
   pm::rename_into_place(tmp, out_path);
-  cleanup.done = true;
+  remove_tmp.keep();
 }
 
 }  // namespace
@@ -289,14 +282,7 @@ void ImagePyramid::write_levels(int width, int height, const LevelRowSource& row
     throw std::invalid_argument(out_path + ": write_levels needs level 0 of at least 1 x 1 pixels");
   const std::vector<LevelSize> sizes = pyramid_levels(width, height, options.max_texture_size);
   const std::string tmp = out_path + ".tmp";
-  struct Cleanup {
-    const std::string& path;
-    bool done = false;
-    ~Cleanup() {
-      std::error_code ec;
-      if (!done) std::filesystem::remove(path, ec);
-    }
-  } cleanup{tmp};
+  pm::FileRemover remove_tmp(tmp);
   const auto fail = [&](const std::string& why) {
     throw std::runtime_error(out_path + ": cannot write the image pyramid: " + why);
   };
@@ -330,7 +316,7 @@ void ImagePyramid::write_levels(int width, int height, const LevelRowSource& row
   if (!out->close()) fail(out->geterror());
   out.reset();
   pm::rename_into_place(tmp, out_path);
-  cleanup.done = true;
+  remove_tmp.keep();
 }
 
 ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& options)

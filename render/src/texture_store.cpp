@@ -309,14 +309,7 @@ void write_rgba_rows(const std::string& path, int width, int height, int band,
   const char* format = ext == ".png" ? "png" : (ext == ".tif" || ext == ".tiff") ? "tiff" : nullptr;
   if (!format) throw std::runtime_error(path + ": the file name must end in .png, .tif or .tiff");
   const std::string tmp = path + ".tmp";
-  struct Cleanup {
-    const std::string& path;
-    bool done = false;
-    ~Cleanup() {
-      std::error_code ec;
-      if (!done) std::filesystem::remove(path, ec);
-    }
-  } cleanup{tmp};
+  pm::FileRemover remove_tmp(tmp);
   auto out = OIIO::ImageOutput::create(format);
   OIIO::ImageSpec spec(width, height, 4, OIIO::TypeDesc::UINT8);
   spec.alpha_channel = 3;
@@ -337,7 +330,7 @@ void write_rgba_rows(const std::string& path, int width, int height, int band,
   if (!out->close()) fail();
   out.reset();
   pm::rename_into_place(tmp, path);
-  cleanup.done = true;
+  remove_tmp.keep();
 }
 
 }  // namespace

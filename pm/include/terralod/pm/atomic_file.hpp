@@ -13,17 +13,33 @@
 // rename_into_place(tmp, path): renames the finished file `tmp` onto `path` (same folder, so
 // the same file system); on failure removes `tmp` and throws std::runtime_error
 // "<path>: cannot rename <tmp> onto it: <system error>".
+// FileRemover: removes its file when it goes out of scope (errors ignored) unless keep() was
+// called: the temporary of a writer that fails half-way, or a spool file, is never left behind.
 #pragma once
 
 #include <cstdint>
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace terralod::pm {
 
 void write_file_atomically(const std::string& path, std::span<const std::uint8_t> bytes);
 void rename_into_place(const std::string& tmp, const std::string& path);
+class FileRemover {
+ public:
+  explicit FileRemover(std::string path) : path_(std::move(path)) {}
+  ~FileRemover();
+  FileRemover(const FileRemover&) = delete;
+  FileRemover& operator=(const FileRemover&) = delete;
+  /// The file stays (it was renamed into place, or is the result).
+  void keep() { path_.clear(); }
+
+ private:
+  std::string path_;
+};
+
 inline void write_file_atomically(const std::string& path, std::string_view bytes) {
   write_file_atomically(
       path, std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()));
