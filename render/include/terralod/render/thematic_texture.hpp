@@ -21,6 +21,8 @@
 //                                  /*sample_size_m=*/90.0);                          // far look
 //   // Every level of a pyramid, each drawn by the rule (write with ImagePyramid::write_levels):
 //   std::vector<RgbaImage> lv = render_pyramid_levels(rule, classes, 90.0, /*max_texture_size=*/1024);
+//   // A terrain larger than memory, window by window (terrain_windows.hpp): terrain_attribute(
+//   // TerrainWindows, ...) and write_rule_pyramid, the same values and the same file.
 //
 // Contract:
 //   - Rasters are top row first (rgba_image.hpp); NaN means no data and maps to the mapper's

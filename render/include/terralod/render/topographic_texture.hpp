@@ -16,6 +16,8 @@
 //   terralod::render::TexelRegion r{/*col0=*/0, /*row0=*/0, /*cols=*/600, /*rows=*/600, /*step=*/4};
 //   terralod::render::FloatRaster q = terralod::render::shade_terrain(hf, o, r);   // 150 x 150
 //   // The same on the GPU (OSMesa): gpu_shading.hpp, shade_terrain_gpu(hf, o, r).
+//   // A terrain larger than memory, window by window, the same values: terrain_windows.hpp,
+//   // shade_terrain(terrain_windows(database_terrain), o, r).
 //
 // Frames and formulas (x east, y north, z up, metres; the heightfield's GridTransform maps
 // (col,row) to (x,y), see pm/heightfield.hpp):
