@@ -105,22 +105,28 @@ void DatabaseTerrain::evict(const std::vector<BlockKey>& keep, std::size_t room)
   }
 }
 
+std::vector<std::shared_ptr<const pm::Heightfield>> DatabaseTerrain::decode(
+    std::span<const BlockKey> keys) const {
+  // SQLite reads one at a time; the decoding, most of the time, on every core.
+  std::vector<std::vector<std::uint8_t>> bytes;
+  for (BlockKey k : keys) bytes.push_back(db_->read_block(k));
+  std::vector<std::shared_ptr<const pm::Heightfield>> out(keys.size());
+  pm::parallel_for(keys.size(), opt_.threads, [&](std::size_t i) {
+    auto b = std::make_shared<const pm::Heightfield>(
+        pm::decode_pm_heightfield(bytes[i], db_->path() + ": " + block_name(keys[i])));
+    check_block_grid(*db_, keys[i], *b, layout_.rect(keys[i]));
+    out[i] = std::move(b);
+  });
+  return out;
+}
+
 void DatabaseTerrain::fetch(const std::vector<BlockKey>& keys) {
   std::vector<BlockKey> missing;
   std::size_t room = 0;  // what the missing blocks will take, holes aside
   for (BlockKey k : keys)
     if (!cache_.count(k)) missing.push_back(k), room += layout_.rect(k).samples() * 8 + 256;
   evict(keys, room);  // the least recently used blocks go before the new ones come
-  // SQLite reads one at a time; the decoding, most of the time, on every core.
-  std::vector<std::vector<std::uint8_t>> bytes;
-  for (BlockKey k : missing) bytes.push_back(db_->read_block(k));
-  std::vector<std::shared_ptr<const pm::Heightfield>> decoded(missing.size());
-  pm::parallel_for(missing.size(), opt_.threads, [&](std::size_t i) {
-    auto b = std::make_shared<const pm::Heightfield>(
-        pm::decode_pm_heightfield(bytes[i], db_->path() + ": " + block_name(missing[i])));
-    check_block_grid(*db_, missing[i], *b, layout_.rect(missing[i]));
-    decoded[i] = std::move(b);
-  });
+  std::vector<std::shared_ptr<const pm::Heightfield>> decoded = decode(missing);
   for (std::size_t i = 0; i < missing.size(); ++i) {
     bytes_ += heightfield_bytes(*decoded[i]);
     cache_[missing[i]] = Entry{std::move(decoded[i]), 0};
@@ -166,13 +172,10 @@ std::optional<HeightRange> DatabaseTerrain::height_range(const std::function<voi
   const std::size_t batch = std::size_t(4 * pm::thread_count(opt_.threads));
   for (std::size_t b0 = 0; b0 < keys.size(); b0 += batch) {
     const std::size_t n = std::min(batch, keys.size() - b0);
-    std::vector<std::vector<std::uint8_t>> bytes;
-    for (std::size_t i = 0; i < n; ++i) bytes.push_back(db_->read_block(keys[b0 + i]));
+    const auto blocks = decode(std::span(keys).subspan(b0, n));
     std::vector<HeightRange> part(n, HeightRange{lo, hi});
     pm::parallel_for(n, opt_.threads, [&](std::size_t i) {
-      const BlockKey k = keys[b0 + i];
-      const pm::Heightfield b = pm::decode_pm_heightfield(bytes[i], db_->path() + ": " + block_name(k));
-      check_block_grid(*db_, k, b, layout_.rect(k));
+      const pm::Heightfield& b = *blocks[i];
       for (std::size_t s = 0; s < b.size(); ++s)
         if (b.valid(s)) part[i].lo = std::min(part[i].lo, b[s]), part[i].hi = std::max(part[i].hi, b[s]);
     });

@@ -38,6 +38,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "terralod/blocks/block_database.hpp"
@@ -83,6 +84,8 @@ class DatabaseTerrain {
   std::shared_ptr<const pm::Heightfield> block(BlockKey k);
   void fetch(const std::vector<BlockKey>& keys);                    // decodes the ones not cached
   void evict(const std::vector<BlockKey>& keep, std::size_t room);  // to budget - room
+  // The blocks' heights, read one after the other and decoded on `threads` threads.
+  std::vector<std::shared_ptr<const pm::Heightfield>> decode(std::span<const BlockKey> keys) const;
 
   const BlockDatabase* db_;
   Options opt_;
