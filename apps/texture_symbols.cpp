@@ -73,14 +73,12 @@ int texture_symbols(const Args& a, const std::string& path, const StoreLayer& st
                   sizes[k].width, sizes[k].height, texel_m, tr::symbol_level_distance_m(texel_m),
                   at.back().size());
     }
-    std::vector<int> next(sizes.size(), 0);
     tr::ImagePyramid::write_levels(
         info.grid_width, info.grid_height,
-        [&](int k, int n, std::uint8_t* rgba) {
-          const tr::RgbaImage band = tr::render_symbol_rows(at[std::size_t(k)], sizes[std::size_t(k)].width,
-                                                            next[std::size_t(k)], n, style);
+        [&](int k, int y, int n, std::uint8_t* rgba) {
+          const tr::RgbaImage band =
+              tr::render_symbol_rows(at[std::size_t(k)], sizes[std::size_t(k)].width, y, n, style);
           std::copy(band.rgba.begin(), band.rgba.end(), rgba);
-          next[std::size_t(k)] += n;
         },
         pyr, po);
     std::printf("pyramid of %zu symbol levels -> tiled MIP-mapped TIFF, %s\n", sizes.size(),

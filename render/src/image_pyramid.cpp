@@ -49,8 +49,8 @@ std::shared_ptr<OIIO::ImageCache> make_image_cache(std::size_t cache_mb) {
   return cache;
 }
 
-// Fills `rows` rows (RGBA8, top to bottom, each following the last call's) of the level being
-// written into `rgba`; throws naming the source on a read error.
+// Fills rows row0 .. row0 + rows - 1 (RGBA8, asked top to bottom) of the level being written
+// into `rgba`; throws naming the source on a read error.
 using RowSource = ImagePyramid::RowSource;
 
 // One level halved row by row: the rows of a w x h level go in, in order; the rows of the next
@@ -136,7 +136,7 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
     next.resize(std::size_t(halver.width()) * 4);
     for (int y = 0; y < h; y += int(band_rows)) {
       const int n = std::min(int(band_rows), h - y);
-      src(n, band.data());
+      src(y, n, band.data());
       if (!out->write_tiles(0, w, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, band.data()))
         fail("level " + std::to_string(k) + ": " + out->geterror());
       if (!last)
@@ -154,7 +154,7 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
     in.reset(std::fopen(spool[(k + 1) % 2].c_str(), "rb"));
     if (!in) fail("cannot read " + spool[(k + 1) % 2]);
     const std::size_t row_bytes = next.size();
-    src = [&in, row_bytes, &fail, name = spool[(k + 1) % 2]](int rows, std::uint8_t* rgba) {
+    src = [&in, row_bytes, &fail, name = spool[(k + 1) % 2]](int, int rows, std::uint8_t* rgba) {
       if (std::fread(rgba, 1, row_bytes * std::size_t(rows), in.get()) != row_bytes * std::size_t(rows))
         fail("cannot read " + name);
     };
@@ -205,16 +205,15 @@ void ImagePyramid::convert(const std::string& image_path, const std::string& out
     throw std::runtime_error(image_path + ": cannot read the image: it has no pixels");
   const detail::ImageChannels ch = detail::image_channels(spec, image_path);
   std::vector<std::uint8_t> raw;
-  int y = spec.y;
-  const RowSource rows = [&](int n, std::uint8_t* rgba) {
+  const RowSource rows = [&](int row0, int n, std::uint8_t* rgba) {
+    const int y = spec.y + row0;
     raw.resize(std::size_t(spec.width) * std::size_t(n) * std::size_t(ch.read));
     if (!cache->get_pixels(upath, 0, 0, spec.x, spec.x + spec.width, y, y + n, spec.z, spec.z + 1, 0, ch.read,
                            OIIO::TypeDesc::UINT8, raw.data()))
-      throw std::runtime_error(image_path + ": cannot read rows " + std::to_string(y - spec.y) + ".." +
-                               std::to_string(y - spec.y + n - 1) + ": " + cache->geterror());
+      throw std::runtime_error(image_path + ": cannot read rows " + std::to_string(row0) + ".." +
+                               std::to_string(row0 + n - 1) + ": " + cache->geterror());
     for (std::size_t p = 0; p < std::size_t(spec.width) * std::size_t(n); ++p)
       ch.to_rgba(raw.data() + p * std::size_t(ch.read), rgba + 4 * p);
-    y += n;
   };
   write_pyramid(rows, spec.width, spec.height, out_path, options, image_path, progress);
   cache->invalidate(upath, true);
@@ -224,11 +223,8 @@ void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path,
                            const PyramidOptions& options) {
   assert(image.width >= 1 && image.height >= 1 &&
          image.rgba.size() == std::size_t(image.width) * image.height * 4);
-  std::size_t at = 0;
-  const RowSource rows = [&](int n, std::uint8_t* rgba) {
-    const std::size_t bytes = std::size_t(image.width) * std::size_t(n) * 4;
-    std::copy_n(image.rgba.data() + at, bytes, rgba);
-    at += bytes;
+  const RowSource rows = [&](int row0, int n, std::uint8_t* rgba) {
+    std::copy_n(image.pixel(0, row0), std::size_t(image.width) * std::size_t(n) * 4, rgba);
   };
   write_pyramid(rows, image.width, image.height, out_path, options, "(pixels in memory)", {});
 }
@@ -263,13 +259,11 @@ void ImagePyramid::write_levels(const std::vector<RgbaImage>& levels, const std:
                                   size(l.width, l.height) + " pixels, the pyramid needs " +
                                   size(want[k].width, want[k].height));
   }
-  std::vector<std::size_t> at(levels.size(), 0);
   write_levels(
       levels[0].width, levels[0].height,
-      [&](int k, int rows, std::uint8_t* rgba) {
-        const std::size_t bytes = std::size_t(levels[std::size_t(k)].width) * std::size_t(rows) * 4;
-        std::copy_n(levels[std::size_t(k)].rgba.data() + at[std::size_t(k)], bytes, rgba);
-        at[std::size_t(k)] += bytes;
+      [&](int k, int row0, int rows, std::uint8_t* rgba) {
+        const RgbaImage& l = levels[std::size_t(k)];
+        std::copy_n(l.rgba.data() + std::size_t(row0) * l.width * 4, std::size_t(l.width) * rows * 4, rgba);
       },
       out_path, options);
 }
@@ -306,7 +300,7 @@ void ImagePyramid::write_levels(int width, int height, const LevelRowSource& row
     for (int y = 0; y < h; y += options.tile_size) {
       const int n = std::min(options.tile_size, h - y);
       band.resize(std::size_t(w) * std::size_t(n) * 4);
-      rows(int(k), n, band.data());
+      rows(int(k), y, n, band.data());
       if (!out->write_tiles(0, w, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, band.data()))
         fail("level " + std::to_string(k) + ": " + out->geterror());
       done += double(w) * n;

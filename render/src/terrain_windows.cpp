@@ -92,17 +92,15 @@ FloatRaster compute_by_windows(const TerrainWindows& t, const TexelRegion& regio
 void convert_by_bands(const TerrainWindows& t, const std::function<RgbaImage(int row0, int rows)>& band,
                       const std::string& out_path, const PyramidOptions& options,
                       const std::function<void(double)>& progress, const std::string& what) {
-  int y = 0;
   ImagePyramid::convert(
       t.width, t.height,
-      [&](int n, std::uint8_t* rgba) {
+      [&](int y, int n, std::uint8_t* rgba) {
         const RgbaImage img = band(y, n);
         if (img.width != t.width || img.height != n)
           throw std::logic_error(what + ": a band of " + std::to_string(t.width) + " x " + std::to_string(n) +
                                  " texels came back " + std::to_string(img.width) + " x " +
                                  std::to_string(img.height));
         std::copy(img.rgba.begin(), img.rgba.end(), rgba);
-        y += n;
       },
       out_path, options, progress, what);
 }
@@ -159,12 +157,11 @@ void write_rule_pyramid(const TerrainWindows& t, TerrainAttribute attribute, con
                         const std::function<void(double)>& progress) {
   if (!(sample_size_m > 0.0)) throw std::invalid_argument(out_path + ": the sample size must be > 0 metres");
   const std::vector<LevelSize> sizes = pyramid_levels(t.width, t.height, options.max_texture_size);
-  std::vector<int> next(sizes.size(), 0);  // the next texel row of each level
   ImagePyramid::write_levels(
       t.width, t.height,
-      [&](int k, int n, std::uint8_t* rgba) {
+      [&](int k, int y, int n, std::uint8_t* rgba) {
         // Level k as render_pyramid_levels draws it: its w_k x h_k blocks of 2^k samples.
-        const int s = 1 << k, y = next[std::size_t(k)];
+        const int s = 1 << k;
         const int cols = std::min(t.width, sizes[std::size_t(k)].width * s);
         const int rows = std::min(t.height, sizes[std::size_t(k)].height * s);
         const TexelRegion band{0, y * s, cols, std::min(rows - y * s, n * s), s};
@@ -173,7 +170,6 @@ void write_rule_pyramid(const TerrainWindows& t, TerrainAttribute attribute, con
               return rule.render(terrain_attribute(w, attribute), in, sample_size_m);
             });
         std::copy(img.rgba.begin(), img.rgba.end(), rgba);
-        next[std::size_t(k)] += n;
       },
       out_path, options, progress);
 }

@@ -106,9 +106,9 @@ class ImagePyramid {
   /// Same from pixels in memory (generated textures, tests).
   static void convert(const RgbaImage& image, const std::string& out_path,
                       const PyramidOptions& options = {});
-  /// Fills the next `rows` rows of level 0 (RGBA8, straight alpha, top to bottom, each call
-  /// going on where the last one ended) into `rgba`.
-  using RowSource = std::function<void(int rows, std::uint8_t* rgba)>;
+  /// Fills rows row0 .. row0 + rows - 1 of level 0 (RGBA8, straight alpha) into `rgba`; asked
+  /// for top to bottom, each call going on where the last one ended.
+  using RowSource = std::function<void(int row0, int rows, std::uint8_t* rgba)>;
   /// Same from rows the caller computes in order, never all at once (a texture computed from a
   /// terrain larger than memory): `rows` is asked for bands of at most tile_size rows. `what`
   /// names the source in error messages; what `rows` throws goes through, nothing left behind.
@@ -124,9 +124,9 @@ class ImagePyramid {
   /// caller's levels.
   static void write_levels(const std::vector<RgbaImage>& levels, const std::string& out_path,
                            const PyramidOptions& options = {});
-  /// Fills the next `rows` rows of level `level` (RGBA8, its width per row, top to bottom, each
-  /// call of a level going on where the last one ended) into `rgba`.
-  using LevelRowSource = std::function<void(int level, int rows, std::uint8_t* rgba)>;
+  /// Fills rows row0 .. row0 + rows - 1 of level `level` (RGBA8, its width per row) into
+  /// `rgba`; asked level by level, each top to bottom.
+  using LevelRowSource = std::function<void(int level, int row0, int rows, std::uint8_t* rgba)>;
   /// The same file from rows computed level by level (level 0 first, each level top to bottom,
   /// bands of at most tile_size rows), never a level whole in memory: the levels are
   /// pyramid_levels(width, height, options.max_texture_size). What `rows` throws goes through,
