@@ -301,9 +301,10 @@ RgbaImage read_tile_row(const blocks::BlockDatabase& db, const LayerRecord& rec,
 }
 
 // Writes a width x height RGBA image as 8-bit PNG or TIFF (by the extension) through path +
-// ".tmp": `rows(y0, n, rgba)` gives rows y0 .. y0 + n - 1 (in order, n <= band).
+// ".tmp": `rows(y0, n)` points at rows y0 .. y0 + n - 1 (asked in order, n <= band), valid
+// until its next call.
 void write_rgba_rows(const std::string& path, int width, int height, int band,
-                     const std::function<void(int y0, int n, std::uint8_t* rgba)>& rows) {
+                     const std::function<const std::uint8_t*(int y0, int n)>& rows) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   const char* format = ext == ".png" ? "png" : (ext == ".tif" || ext == ".tiff") ? "tiff" : nullptr;
@@ -320,12 +321,9 @@ void write_rgba_rows(const std::string& path, int width, int height, int band,
                              ": cannot write the image: " + (out ? out->geterror() : OIIO::geterror()));
   };
   if (!out || !out->open(tmp, spec)) fail();
-  std::vector<std::uint8_t> buf;
   for (int y = 0; y < height; y += band) {
     const int n = std::min(band, height - y);
-    buf.resize(std::size_t(width) * std::size_t(n) * 4);
-    rows(y, n, buf.data());
-    if (!out->write_scanlines(y, y + n, 0, OIIO::TypeDesc::UINT8, buf.data())) fail();
+    if (!out->write_scanlines(y, y + n, 0, OIIO::TypeDesc::UINT8, rows(y, n))) fail();
   }
   if (!out->close()) fail();
   out.reset();
@@ -348,21 +346,20 @@ RgbaImage read_layer_level(const blocks::BlockDatabase& db, const LayerRecord& r
 }
 
 void write_layer_image(const RgbaImage& img, const std::string& path) {
-  write_rgba_rows(
-      path, img.width, img.height, std::max(img.height, 1), [&](int y0, int n, std::uint8_t* rgba) {
-        std::copy_n(img.rgba.data() + std::size_t(y0) * img.width * 4, std::size_t(n) * img.width * 4, rgba);
-      });
+  write_rgba_rows(path, img.width, img.height, std::max(img.height, 1),
+                  [&](int y0, int) { return img.rgba.data() + std::size_t(y0) * img.width * 4; });
 }
 
 void export_layer_level(const blocks::BlockDatabase& db, const LayerRecord& rec, int level,
                         const std::string& path, const std::function<void(double)>& progress) {
   assert(level >= 0 && level < int(rec.levels.size()));
   const LevelSize l = rec.levels[std::size_t(level)];
-  write_rgba_rows(path, l.width, l.height, rec.tile_size, [&](int y0, int n, std::uint8_t* rgba) {
-    const RgbaImage band = read_tile_row(db, rec, level, y0 / rec.tile_size);
+  RgbaImage band;  // the row of tiles being written
+  write_rgba_rows(path, l.width, l.height, rec.tile_size, [&](int y0, int n) {
+    band = read_tile_row(db, rec, level, y0 / rec.tile_size);
     assert(band.height == n);
-    std::copy(band.rgba.begin(), band.rgba.end(), rgba);
     if (progress) progress(double(y0 + n) / double(l.height));
+    return band.rgba.data();
   });
 }
 
