@@ -49,6 +49,53 @@ std::shared_ptr<OIIO::ImageCache> make_image_cache(std::size_t cache_mb) {
   return cache;
 }
 
+// The TIFF file a pyramid is written into level after level, through out_path + ".tmp" (removed
+// unless finish() renamed it into place): level 0 creates the file, each further level is
+// appended as a MIP level, or as a subimage where the writer has no MIP levels (OIIO's reader
+// presents those as MIP levels of a file marked "textureformat", level_spec). `fail` throws
+// with the caller's message; write_pyramid and write_levels both write through this.
+class PyramidFile {
+ public:
+  using Fail = std::function<void(const std::string& why)>;
+  PyramidFile(const std::string& out_path, const PyramidOptions& o, std::size_t levels, Fail fail)
+      : out_path_(out_path), tmp_(out_path + ".tmp"), remove_tmp_(tmp_), o_(o), fail_(std::move(fail)) {
+    out_ = OIIO::ImageOutput::create("tiff");
+    if (!out_) fail_(OIIO::geterror());
+    mip_ = out_->supports("mipmap");
+    if (levels > 1 && !mip_ && !out_->supports("multiimage"))
+      fail_("the TIFF writer stores neither MIP levels nor subimages");
+  }
+  // Starts level k, w x h pixels.
+  void open_level(int k, int w, int h) {
+    const auto mode = k == 0 ? OIIO::ImageOutput::Create
+                      : mip_ ? OIIO::ImageOutput::AppendMIPLevel
+                             : OIIO::ImageOutput::AppendSubimage;
+    k_ = k, w_ = w;
+    if (!out_->open(tmp_, level_spec(w, h, o_), mode))
+      fail_("level " + std::to_string(k) + ": " + out_->geterror());
+  }
+  // Rows y .. y + n - 1 of the level open (RGBA8, whole rows of tiles but the last).
+  void write_rows(int y, int n, const std::uint8_t* rgba) {
+    if (!out_->write_tiles(0, w_, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, rgba))
+      fail_("level " + std::to_string(k_) + ": " + out_->geterror());
+  }
+  void finish() {
+    if (!out_->close()) fail_(out_->geterror());
+    out_.reset();
+    pm::rename_into_place(tmp_, out_path_);
+    remove_tmp_.keep();
+  }
+
+ private:
+  std::string out_path_, tmp_;
+  pm::FileRemover remove_tmp_;
+  PyramidOptions o_;
+  Fail fail_;
+  std::unique_ptr<OIIO::ImageOutput> out_;
+  bool mip_ = false;
+  int k_ = 0, w_ = 0;
+};
+
 // Fills rows row0 .. row0 + rows - 1 (RGBA8, asked top to bottom) of the level being written
 // into `rgba`; throws naming the source on a read error.
 using RowSource = ImagePyramid::RowSource;
@@ -100,31 +147,25 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
                    const PyramidOptions& o, const std::string& what,
                    const std::function<void(double)>& progress) {
   assert(w >= 1 && h >= 1 && o.tile_size >= 1 && (o.tile_size & (o.tile_size - 1)) == 0);
-  const std::string tmp = out_path + ".tmp";
-  const std::string spool[2] = {tmp + ".level-a", tmp + ".level-b"};
-  pm::FileRemover remove_tmp(tmp), remove_spool_a(spool[0]), remove_spool_b(spool[1]);
+  const std::string spool[2] = {out_path + ".tmp.level-a", out_path + ".tmp.level-b"};
+  pm::FileRemover remove_spool_a(spool[0]), remove_spool_b(spool[1]);
   const auto fail = [&](const std::string& why) -> void {
     throw std::runtime_error(what + ": cannot build the image pyramid " + out_path + ": " + why);
   };
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tiff");
-  if (!out) fail(OIIO::geterror());
-  const bool mip = out->supports("mipmap");  // as in write_levels
-  if (!mip && !out->supports("multiimage")) fail("the TIFF writer stores neither MIP levels nor subimages");
   double total = 0.0, done = 0.0;  // pixels, for the progress
+  std::size_t levels = 0;
   for (int lw = w, lh = h;; lw = std::max(1, lw / 2), lh = std::max(1, lh / 2)) {
     total += double(lw) * lh;
+    ++levels;
     if (lw == 1 && lh == 1) break;
   }
+  PyramidFile file(out_path, o, levels, fail);
   RowSource src = level0;
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(nullptr, &std::fclose);
   const std::size_t band_rows = std::size_t(o.tile_size);
   std::vector<std::uint8_t> band, next;
   for (int k = 0;; ++k) {
-    const auto mode = k == 0 ? OIIO::ImageOutput::Create
-                      : mip  ? OIIO::ImageOutput::AppendMIPLevel
-                             : OIIO::ImageOutput::AppendSubimage;
-    if (!out->open(tmp, level_spec(w, h, o), mode))
-      fail("level " + std::to_string(k) + ": " + out->geterror());
+    file.open_level(k, w, h);
     const bool last = w == 1 && h == 1;
     Halver halver(w, h);
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> to(nullptr, &std::fclose);
@@ -137,8 +178,7 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
     for (int y = 0; y < h; y += int(band_rows)) {
       const int n = std::min(int(band_rows), h - y);
       src(y, n, band.data());
-      if (!out->write_tiles(0, w, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, band.data()))
-        fail("level " + std::to_string(k) + ": " + out->geterror());
+      file.write_rows(y, n, band.data());
       if (!last)
         for (int r = 0; r < n; ++r)
           if (halver.add(band.data() + std::size_t(r) * w * 4, next.data()) &&
@@ -160,11 +200,8 @@ void write_pyramid(const RowSource& level0, int w, int h, const std::string& out
     };
     w = halver.width(), h = halver.height();
   }
-  if (!out->close()) fail(out->geterror());
-  out.reset();
   in.reset();
-  pm::rename_into_place(tmp, out_path);
-  remove_tmp.keep();
+  file.finish();
 }
 
 }  // namespace
@@ -275,42 +312,25 @@ void ImagePyramid::write_levels(int width, int height, const LevelRowSource& row
   if (width < 1 || height < 1)
     throw std::invalid_argument(out_path + ": write_levels needs level 0 of at least 1 x 1 pixels");
   const std::vector<LevelSize> sizes = pyramid_levels(width, height, options.max_texture_size);
-  const std::string tmp = out_path + ".tmp";
-  pm::FileRemover remove_tmp(tmp);
-  const auto fail = [&](const std::string& why) {
+  PyramidFile file(out_path, options, sizes.size(), [&](const std::string& why) {
     throw std::runtime_error(out_path + ": cannot write the image pyramid: " + why);
-  };
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tiff");
-  if (!out) fail(OIIO::geterror());
-  // OIIO's TIFF writer stores MIP levels as further directories (AppendSubimage), which its
-  // reader presents as MIP levels of a file marked "textureformat" (level_spec), as convert's.
-  const bool mip = out->supports("mipmap");
-  if (sizes.size() > 1 && !mip && !out->supports("multiimage"))
-    fail("the TIFF writer stores neither MIP levels nor subimages");
+  });
   double total = 0.0, done = 0.0;  // pixels, for the progress
   for (const LevelSize& l : sizes) total += double(l.width) * l.height;
   std::vector<std::uint8_t> band;
   for (std::size_t k = 0; k < sizes.size(); ++k) {
     const int w = sizes[k].width, h = sizes[k].height;
-    const auto mode = k == 0 ? OIIO::ImageOutput::Create
-                      : mip  ? OIIO::ImageOutput::AppendMIPLevel
-                             : OIIO::ImageOutput::AppendSubimage;
-    if (!out->open(tmp, level_spec(w, h, options), mode))
-      fail("level " + std::to_string(k) + ": " + out->geterror());
+    file.open_level(int(k), w, h);
     for (int y = 0; y < h; y += options.tile_size) {
       const int n = std::min(options.tile_size, h - y);
       band.resize(std::size_t(w) * std::size_t(n) * 4);
       rows(int(k), y, n, band.data());
-      if (!out->write_tiles(0, w, y, y + n, 0, 1, OIIO::TypeDesc::UINT8, band.data()))
-        fail("level " + std::to_string(k) + ": " + out->geterror());
+      file.write_rows(y, n, band.data());
       done += double(w) * n;
       if (progress) progress(std::min(1.0, done / total));
     }
   }
-  if (!out->close()) fail(out->geterror());
-  out.reset();
-  pm::rename_into_place(tmp, out_path);
-  remove_tmp.keep();
+  file.finish();
 }
 
 ImagePyramid::ImagePyramid(const std::string& path, const PyramidOptions& options)
