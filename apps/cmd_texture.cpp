@@ -17,6 +17,7 @@
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
 #include "terralod/blocks/database_terrain.hpp"
+#include "terralod/blocks/image_stretch.hpp"
 #include "terralod/blocks/image_warp.hpp"
 #include "terralod/blocks/partition.hpp"
 #include "terralod/blocks/tree_builder.hpp"
@@ -93,8 +94,28 @@ std::string pyramid_file(const std::string& db, const std::string& layer) {
   return db + ".texture-" + safe + ".tx";
 }
 
+// Tells how an image's values became bytes, when they were stretched (image_stretch.hpp).
+void print_stretch(const std::string& image, const tb::StretchOptions& s,
+                   const std::vector<tb::BandRange>& r) {
+  if (r.empty()) return;
+  std::string how = s.mode == tb::StretchOptions::Mode::Auto
+                        ? tb::describe(tb::StretchOptions{tb::StretchOptions::Mode::Cut})
+                        : tb::describe(s);
+  std::printf("stretch %s (%s): ", image.c_str(), how.c_str());
+  const char* names[3] = {"R", "G", "B"};
+  for (std::size_t c = 0; c < r.size(); ++c)
+    std::printf("%s%s %.6g..%.6g", c ? ", " : "", names[c], r[c].lo, r[c].hi);
+  std::printf(" -> 0..255\n");
+}
+
 int texture_add(const Args& a, const std::string& path) {
   if (!a.has("--image")) throw UsageError("'texture add' needs --image FILE");
+  tb::StretchOptions stretch;
+  try {
+    if (a.has("--stretch")) stretch = tb::parse_stretch(a.get("--stretch"));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
   auto db = tb::BlockDatabase::open(path, tb::BlockDatabase::Mode::ReadWrite);
   require_complete_blocks(db);
   tr::LayerRecord rec;
@@ -116,17 +137,21 @@ int texture_add(const Args& a, const std::string& path) {
   std::string image = rec.source;
   if (!a.has("--georef")) {
     int shown = -1;
-    const std::optional<tb::WorldImage> w =
-        tb::warp_image_to_terrain(rec.source, db, warped, [&shown](double f) {
+    const std::optional<tb::WorldImage> w = tb::warp_image_to_terrain(
+        rec.source, db, warped,
+        [&shown](double f) {
           if (const int pct = int(f * 100.0); pct != shown) std::fprintf(stderr, "\rwarp %3d%%", shown = pct);
-        });
+        },
+        stretch);
     if (w) {
       std::fprintf(stderr, "\r");
       std::printf("warp %s -> the terrain's frame, %d x %d pixels over x %.3f..%.3f, y %.3f..%.3f m, %s\n",
                   rec.source.c_str(), w->width, w->height, w->minx, w->maxx, w->miny, w->maxy,
                   format_duration(ms_since(t)).c_str());
+      print_stretch(rec.source, stretch, w->stretched);
       rec.georef = tr::GeoRect{w->minx, w->miny, w->maxx, w->maxy};
       image = warped;
+      stretch = tb::StretchOptions{};  // the warped image holds the bytes to draw
       t = Clock::now();
     } else {
       rec.georef = tr::grid_georef(db.info().transform, db.info().grid_width, db.info().grid_height);
@@ -138,7 +163,9 @@ int texture_add(const Args& a, const std::string& path) {
   po.max_texture_size = rec.constraints.max_texture_size;
   {
     ProgressBar bar("pyramid");
-    tr::ImagePyramid::convert(image, pyr, po, [&](double f) { bar.update(f); });
+    print_stretch(rec.source, stretch,
+                  tr::ImagePyramid::convert(
+                      image, pyr, po, [&](double f) { bar.update(f); }, stretch));
   }
   std::printf("pyramid %s -> tiled MIP-mapped TIFF, %s\n", rec.source.c_str(),
               format_duration(ms_since(t)).c_str());
@@ -369,7 +396,7 @@ CommandSpec texture_spec() {
       "as tiles in the database; the layer's description is JSON metadata.\n"
       "  add     --layer NAME --image FILE [--georef minx,miny,maxx,maxy]: any image OpenImageIO\n"
       "          reads, any size (converted through a tiled MIP-mapped file, never all in memory).\n"
-      "          A georeferenced 8-bit image (an orthophoto or map GDAL reads with a CRS: grey,\n"
+      "          A georeferenced image (an orthophoto or map GDAL reads with a CRS: grey,\n"
       "          RGB, RGBA or a colour table; or a scan placed by ground control points, first\n"
       "          warped north-up) is warped into the terrain's frame (bilinear, at about its own\n"
       "          resolution, transparent beyond it) and placed where it lies;\n"
@@ -377,6 +404,13 @@ CommandSpec texture_spec() {
       "          --georef places either on that world box instead. A band is alpha only where\n"
       "          the image marks it so (RGB + near infrared draws as opaque RGB); the colour is\n"
       "          the first three other bands, or the first one as grey.\n"
+      "          --stretch S: how values become 8-bit texels: auto (default: 8-bit images as they\n"
+      "          are; 16-bit, 32-bit and floating-point ones each colour band's 2% cut: the values\n"
+      "          at its 2nd percentile and below black, at its 98th and above full, linear\n"
+      "          between, over the pixels that are not transparent or nodata; one more read of\n"
+      "          the image), P% (that cut at P percent), LO,HI (those values to 0 and 255 in\n"
+      "          every band) or none (the type's whole range: 0..65535 for 16 bits, 0..1 for\n"
+      "          floating point). The ranges used are printed. Alpha is never stretched.\n"
       "  shade   --layer NAME [--light AZ,ALT] [--shadows] [--method M] [--gpu]: a shading texture\n"
       "          of the full-resolution terrain, one texel per DEM sample (azimuth clockwise from\n"
       "          north, altitude above the horizon, default 315,45; lambert without shadows is the\n"
@@ -410,6 +444,7 @@ CommandSpec texture_spec() {
       {"--layer", "NAME", "texture layer name", true},
       {"--image", "FILE", "add: the image"},
       {"--georef", "BOX", "add: minx,miny,maxx,maxy world extent of the image (metres)"},
+      {"--stretch", "S", "add: auto (default), P%, LO,HI or none: how values become 8-bit texels"},
       {"--light", "AZ,ALT", "shade: light azimuth and altitude, degrees (default 315,45)"},
       {"--shadows", "", "shade: cast shadows against the full-resolution terrain"},
       {"--method", "M", "shade: lambert (default), phong, multidirectional or relative"},

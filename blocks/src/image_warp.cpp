@@ -9,8 +9,11 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,11 +38,86 @@ int progress_of(double done, const char*, void* data) {
   return 1;
 }
 
+BandRange whole_range(GDALDataType type) {
+  return type_range(GDALGetDataTypeSizeBits(type), GDALDataTypeIsSigned(type) != 0,
+                    GDALDataTypeIsFloating(type) != 0);
+}
+
+// One colour band's histogram over its valid pixels (GDAL's mask: nodata, alpha), cut at
+// `percent` at each end (exact_histogram's bins, or 65,536 over the exact minimum..maximum
+// after one more pass).
+BandRange band_cut(GDALRasterBand& band, double percent, const std::string& image,
+                   const std::function<void(double)>& progress) {
+  const GDALDataType type = band.GetRasterDataType();
+  const auto cannot = [&](const std::string& why) {
+    return ImageWarpError(image + ": cannot read band " + std::to_string(band.GetBand()) +
+                          " for its stretch (" + detail::gdal_message(why) + ")");
+  };
+  std::optional<BandHistogram> exact = exact_histogram(
+      GDALGetDataTypeSizeBits(type), GDALDataTypeIsSigned(type) != 0, GDALDataTypeIsFloating(type) != 0);
+  if (!exact) {
+    double mm[2] = {0, 0};
+    if (band.ComputeRasterMinMax(FALSE, mm) != CE_None) return {};  // no valid pixel
+    exact.emplace(mm[0], mm[1], 65536);
+  }
+  BandHistogram& hist = *exact;
+  GDALRasterBand* mask = (band.GetMaskFlags() & GMF_ALL_VALID) != 0 ? nullptr : band.GetMaskBand();
+  const int w = band.GetXSize(), h = band.GetYSize();
+  const int rows = std::max(1, (1 << 20) / std::max(w, 1));
+  std::vector<double> values;
+  std::vector<std::uint8_t> valid;
+  for (int y = 0; y < h; y += rows) {
+    const int n = std::min(rows, h - y);
+    values.resize(std::size_t(w) * std::size_t(n));
+    if (band.RasterIO(GF_Read, 0, y, w, n, values.data(), w, n, GDT_Float64, 0, 0) != CE_None)
+      throw cannot("RasterIO failed");
+    if (mask) {
+      valid.resize(values.size());
+      if (mask->RasterIO(GF_Read, 0, y, w, n, valid.data(), w, n, GDT_Byte, 0, 0) != CE_None)
+        throw cannot("its mask cannot be read");
+    }
+    for (std::size_t i = 0; i < values.size(); ++i)
+      if (!mask || valid[i] != 0) hist.add(values[i]);
+    if (progress) progress(double(y + n) / double(h));
+  }
+  return hist.cut(percent);
+}
+
+// The ranges the colour bands (R, G, B: `colour`, 1-based) are drawn from, as
+// image_stretch.hpp says; empty when the bands are 8-bit and shown as they are, or the image
+// is drawn through its colour table.
+std::vector<BandRange> band_ranges(GDALDataset& src, const std::vector<int>& colour, const StretchOptions& s,
+                                   const std::string& image, const std::function<void(double)>& progress) {
+  using Mode = StretchOptions::Mode;
+  bool deep = false;
+  for (const int b : colour) deep = deep || src.GetRasterBand(b)->GetRasterDataType() != GDT_Byte;
+  if (src.GetRasterCount() == 1 && src.GetRasterBand(1)->GetColorTable() != nullptr) return {};
+  if (!deep && (s.mode == Mode::Auto || s.mode == Mode::None)) return {};
+  std::vector<BandRange> out(colour.size());
+  for (std::size_t k = 0; k < colour.size(); ++k) {
+    GDALRasterBand& band = *src.GetRasterBand(colour[k]);
+    if (k > 0 && colour[k] == colour[k - 1]) {
+      out[k] = out[k - 1];  // grey: one band three times
+    } else if (s.mode == Mode::Values) {
+      out[k] = {s.lo, s.hi};
+    } else if (s.mode == Mode::None) {
+      out[k] = whole_range(band.GetRasterDataType());
+    } else {
+      const auto part = [&, k](double f) {
+        if (progress) progress((double(k) + f) / double(colour.size()));
+      };
+      out[k] = band_cut(band, s.cut_percent, image, part);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const BlockDatabase& db,
                                                 const std::string& out,
-                                                const std::function<void(double)>& progress) {
+                                                const std::function<void(double)>& progress,
+                                                const StretchOptions& stretch) {
   detail::register_gdal();
   detail::QuietGdal quiet;
   const auto fail = [&](const std::string& problem) { return ImageWarpError(image + ": " + problem); };
@@ -76,14 +154,9 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                " has a rotated frame, so a box of its CRS is no box of its world (give --georef)");
 
   // The bands as RGB(A) bytes, through an in-memory VRT when they are not so already.
-  const int bands = src->GetRasterCount();
-  for (int b = 1; b <= bands; ++b)
-    if (src->GetRasterBand(b)->GetRasterDataType() != GDT_Byte)
-      throw fail(std::string("is georeferenced but its bands are ") +
-                 GDALGetDataTypeName(src->GetRasterBand(1)->GetRasterDataType()) +
-                 "; texture layers warp 8-bit images (gdal_translate -ot Byte -scale makes one)");
   // The rule of render/src/image_channels.hpp: a band is alpha only when it says so (a fourth
   // band is often near infrared); colour is the first three other bands, or the first as grey.
+  const int bands = src->GetRasterCount();
   int alpha = 0;  // 1-based; 0: none
   for (int b = 1; b <= bands && alpha == 0; ++b)
     if (src->GetRasterBand(b)->GetColorInterpretation() == GCI_AlphaBand) alpha = b;
@@ -92,8 +165,39 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
     if (b != alpha) colour.push_back(b);
   if (colour.empty()) throw fail("has an alpha band only; a texture needs colour or grey");
   if (colour.size() < 3) colour.assign(3, colour[0]);
+  // Bands deeper than 8 bits (and any band when asked) are stretched to 0..255 (image_stretch.hpp).
+  const auto progress_from = [&](double a, double b) {
+    return [&progress, a, b](double f) {
+      if (progress) progress(a + (b - a) * f);
+    };
+  };
+  WorldImage r;
+  r.stretched = band_ranges(*src, colour, stretch, image, progress_from(0.0, 0.3));
+  const bool rescale = !r.stretched.empty();
   std::vector<std::string> layout;  // gdal_translate arguments, empty: as it is (RGB, RGBA)
-  if (bands == 1 && src->GetRasterBand(1)->GetColorTable() != nullptr) {
+  bool mask_alpha = false;          // the alpha is GDAL's mask of the first colour band
+  if (rescale) {
+    // Three colour bands scaled to bytes (-scale_N counts the output's bands), and an alpha:
+    // the image's own, scaled from its type's range, or GDAL's mask of the first colour band
+    // (its nodata), which would not survive the bytes.
+    mask_alpha = alpha == 0 && (src->GetRasterBand(colour[0])->GetMaskFlags() & GMF_ALL_VALID) == 0;
+    layout = {"-ot", "Byte", "-a_nodata", "none"};
+    for (int k = 0; k < 3; ++k) {
+      const BandRange& br = r.stretched[std::size_t(k)];
+      layout.insert(layout.end(),
+                    {"-b", std::to_string(colour[std::size_t(k)]), "-scale_" + std::to_string(k + 1),
+                     detail::gdal_number(br.lo), detail::gdal_number(br.hi), "0", "255"});
+    }
+    if (alpha != 0) {
+      const BandRange ar = whole_range(src->GetRasterBand(alpha)->GetRasterDataType());
+      layout.insert(layout.end(), {"-b", std::to_string(alpha), "-scale_4", detail::gdal_number(ar.lo),
+                                   detail::gdal_number(ar.hi), "0", "255"});
+    } else if (mask_alpha) {
+      layout.insert(layout.end(), {"-b", "mask," + std::to_string(colour[0])});
+    }
+    layout.insert(layout.end(), {"-colorinterp", alpha != 0 ? "red,green,blue,alpha" : "red,green,blue"});
+    if (mask_alpha) alpha = 4;
+  } else if (bands == 1 && src->GetRasterBand(1)->GetColorTable() != nullptr) {
     layout = {"-expand", "rgb"};
   } else if (!((bands == 3 && alpha == 0) || (bands == 4 && alpha == 4))) {
     for (const int b : colour) layout.insert(layout.end(), {"-b", std::to_string(b)});
@@ -116,6 +220,8 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
     GDALTranslateOptionsFree(o);
     if (!expanded)
       throw fail("cannot read its bands as RGB (" + detail::gdal_message("GDALTranslate failed") + ")");
+    // gdal_translate names no mask band's colour (its -colorinterp skips them).
+    if (mask_alpha) expanded->GetRasterBand(4)->SetColorInterpretation(GCI_AlphaBand);
     input = GDALDataset::ToHandle(expanded.get());
   }
 
@@ -176,7 +282,9 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                                    "-overwrite"};
   if (!alpha) args.push_back("-dstalpha");  // else the source's alpha becomes the output's
   GDALWarpAppOptions* o = detail::gdal_options(args, GDALWarpAppOptionsNew);
-  if (o) GDALWarpAppOptionsSetProgress(o, progress_of, const_cast<std::function<void(double)>*>(&progress));
+  const std::function<void(double)> warp_progress = progress_from(rescale ? 0.3 : 0.0, 1.0);
+  if (o)
+    GDALWarpAppOptionsSetProgress(o, progress_of, const_cast<std::function<void(double)>*>(&warp_progress));
   int usage = 0;
   GDALDatasetUniquePtr warped(
       GDALDataset::FromHandle(o ? GDALWarp(tmp.c_str(), nullptr, 1, &input, o, &usage) : nullptr));
@@ -187,7 +295,6 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
   }
   double wgt[6];
   warped->GetGeoTransform(wgt);
-  WorldImage r;
   r.width = warped->GetRasterXSize(), r.height = warped->GetRasterYSize();
   warped.reset();  // flushed and closed
   pm::rename_into_place(tmp, out);

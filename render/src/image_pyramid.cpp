@@ -7,11 +7,14 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -224,8 +227,33 @@ struct ImagePyramid::Impl {
   }
 };
 
-void ImagePyramid::convert(const std::string& image_path, const std::string& out_path,
-                           const PyramidOptions& options, const std::function<void(double)>& progress) {
+namespace {
+
+// A channel's OpenImageIO type as image_stretch.hpp's (bits, signed, floating point); `unit`:
+// what its values read as FLOAT (0..1 for unsigned integers, -1..1 for signed) are multiplied
+// by to give the image's own values.
+struct ChannelType {
+  int bits = 8;
+  bool is_signed = false, is_float = false;
+  double unit = 255;
+};
+
+ChannelType channel_type(OIIO::TypeDesc t) {
+  ChannelType c;
+  c.bits = int(t.basesize()) * 8;
+  c.is_float = t.is_floating_point();
+  c.is_signed = t.is_signed();
+  c.unit = c.is_float ? 1.0 : blocks::type_range(c.bits, c.is_signed, false).hi;
+  return c;
+}
+
+}  // namespace
+
+std::vector<blocks::BandRange> ImagePyramid::convert(const std::string& image_path,
+                                                     const std::string& out_path,
+                                                     const PyramidOptions& options,
+                                                     const std::function<void(double)>& progress,
+                                                     const blocks::StretchOptions& stretch) {
   // A file that is no image is told by ImageInput first: an ImageCache asked for it would also
   // print its own "Invalid image file" line on stderr beside the error thrown here.
   {
@@ -241,19 +269,106 @@ void ImagePyramid::convert(const std::string& image_path, const std::string& out
   if (spec.width < 1 || spec.height < 1)
     throw std::runtime_error(image_path + ": cannot read the image: it has no pixels");
   const detail::ImageChannels ch = detail::image_channels(spec, image_path);
-  std::vector<std::uint8_t> raw;
-  const RowSource rows = [&](int row0, int n, std::uint8_t* rgba) {
+  const std::size_t width = std::size_t(spec.width);
+  // Reads rows [row0, row0 + n) of channels [0, ch.read) as `type` into `out`.
+  const auto read_rows = [&](int row0, int n, OIIO::TypeDesc type, void* out) {
     const int y = spec.y + row0;
-    raw.resize(std::size_t(spec.width) * std::size_t(n) * std::size_t(ch.read));
     if (!cache->get_pixels(upath, 0, 0, spec.x, spec.x + spec.width, y, y + n, spec.z, spec.z + 1, 0, ch.read,
-                           OIIO::TypeDesc::UINT8, raw.data()))
+                           type, out))
       throw std::runtime_error(image_path + ": cannot read rows " + std::to_string(row0) + ".." +
                                std::to_string(row0 + n - 1) + ": " + cache->geterror());
-    for (std::size_t p = 0; p < std::size_t(spec.width) * std::size_t(n); ++p)
-      ch.to_rgba(raw.data() + p * std::size_t(ch.read), rgba + 4 * p);
   };
-  write_pyramid(rows, spec.width, spec.height, out_path, options, image_path, progress);
+  const int band_rows = std::max(1, (1 << 20) / spec.width);
+
+  // Whether and how the colour channels are stretched (image_stretch.hpp).
+  using Mode = blocks::StretchOptions::Mode;
+  std::array<ChannelType, 3> types;
+  bool deep = false;
+  for (int c = 0; c < 3; ++c) {
+    types[std::size_t(c)] = channel_type(spec.channelformat(ch.colour[std::size_t(c)]));
+    deep = deep || types[std::size_t(c)].bits != 8 || types[std::size_t(c)].is_float ||
+           types[std::size_t(c)].is_signed;
+  }
+  std::vector<blocks::BandRange> ranges;
+  const double cut_share = stretch.mode == Mode::Cut || (stretch.mode == Mode::Auto && deep) ? 0.3 : 0.0;
+  if (stretch.mode == Mode::Values) {
+    ranges.assign(3, blocks::BandRange{stretch.lo, stretch.hi});
+  } else if (stretch.mode == Mode::None ? deep : cut_share > 0.0) {
+    ranges.resize(3);
+    std::vector<std::optional<blocks::BandHistogram>> hists(3);
+    for (int c = 0; c < 3; ++c) {
+      const ChannelType& t = types[std::size_t(c)];
+      if (stretch.mode == Mode::None)
+        ranges[std::size_t(c)] = blocks::type_range(t.bits, t.is_signed, t.is_float);
+      hists[std::size_t(c)] = blocks::exact_histogram(t.bits, t.is_signed, t.is_float);
+    }
+    if (stretch.mode != Mode::None) {
+      // Each channel's values over the pixels that are not transparent: a pass for the range of
+      // those not counted exactly, then one to count them.
+      std::vector<float> px;
+      const bool measure = std::any_of(hists.begin(), hists.end(), [](const auto& h) { return !h; });
+      std::array<double, 3> lo{}, hi{};
+      lo.fill(std::numeric_limits<double>::infinity());
+      hi.fill(-std::numeric_limits<double>::infinity());
+      const int passes = measure ? 2 : 1;
+      for (int pass = measure ? 0 : 1; pass < 2; ++pass) {
+        for (int y = 0; y < spec.height; y += band_rows) {
+          const int n = std::min(band_rows, spec.height - y);
+          px.resize(width * std::size_t(n) * std::size_t(ch.read));
+          read_rows(y, n, OIIO::TypeDesc::FLOAT, px.data());
+          for (std::size_t p = 0; p < width * std::size_t(n); ++p) {
+            const float* v = px.data() + p * std::size_t(ch.read);
+            if (ch.alpha >= 0 && !(v[ch.alpha] > 0.0f)) continue;
+            for (std::size_t c = 0; c < 3; ++c) {
+              const double x = double(v[ch.colour[c]]) * types[c].unit;
+              if (pass == 0) {
+                if (x == x) lo[c] = std::min(lo[c], x), hi[c] = std::max(hi[c], x);
+              } else {
+                hists[c]->add(x);
+              }
+            }
+          }
+          if (progress)
+            progress(cut_share * (double(pass - (2 - passes)) + double(y + n) / spec.height) /
+                     double(passes));
+        }
+        if (pass == 0)
+          for (std::size_t c = 0; c < 3; ++c)
+            if (!hists[c])
+              hists[c].emplace(lo[c] <= hi[c] ? lo[c] : 0.0, lo[c] <= hi[c] ? hi[c] : 1.0, 65536);
+      }
+      for (std::size_t c = 0; c < 3; ++c) ranges[c] = hists[c]->cut(stretch.cut_percent);
+    }
+  }
+
+  const auto pyramid_progress = [&](double f) {
+    if (progress) progress(cut_share + (1.0 - cut_share) * f);
+  };
+  if (ranges.empty()) {
+    std::vector<std::uint8_t> raw;
+    const RowSource rows = [&](int row0, int n, std::uint8_t* rgba) {
+      raw.resize(width * std::size_t(n) * std::size_t(ch.read));
+      read_rows(row0, n, OIIO::TypeDesc::UINT8, raw.data());
+      for (std::size_t p = 0; p < width * std::size_t(n); ++p)
+        ch.to_rgba(raw.data() + p * std::size_t(ch.read), rgba + 4 * p);
+    };
+    write_pyramid(rows, spec.width, spec.height, out_path, options, image_path, pyramid_progress);
+  } else {
+    std::vector<float> raw;
+    const RowSource rows = [&](int row0, int n, std::uint8_t* rgba) {
+      raw.resize(width * std::size_t(n) * std::size_t(ch.read));
+      read_rows(row0, n, OIIO::TypeDesc::FLOAT, raw.data());
+      for (std::size_t p = 0; p < width * std::size_t(n); ++p) {
+        const float* v = raw.data() + p * std::size_t(ch.read);
+        std::uint8_t* d = rgba + 4 * p;
+        for (std::size_t c = 0; c < 3; ++c) d[c] = ranges[c].to_byte(double(v[ch.colour[c]]) * types[c].unit);
+        d[3] = ch.alpha < 0 ? 255 : blocks::BandRange{0, 1}.to_byte(double(v[ch.alpha]));
+      }
+    };
+    write_pyramid(rows, spec.width, spec.height, out_path, options, image_path, pyramid_progress);
+  }
   cache->invalidate(upath, true);
+  return ranges;
 }
 
 void ImagePyramid::convert(const RgbaImage& image, const std::string& out_path,

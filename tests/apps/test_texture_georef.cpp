@@ -98,6 +98,37 @@ void write_ortho(const fs::path& path, double west, double south, double east, d
   }
 }
 
+/// write_ortho's RGB ortho (bands = 3) in a deeper `type`: `lo` where write_ortho has 0 and `hi`
+/// where it has 255 (green is (lo + hi) / 2 everywhere), and its first `void_rows` rows nodata
+/// (`nodata` in every band).
+void write_deep_ortho(const fs::path& path, GDALDataType type, double lo, double hi, double nodata,
+                      int void_rows, double west, double south, double east, double north, double split) {
+  constexpr int w = 120, h = 90;
+  GDALAllRegister();
+  GDALDatasetUniquePtr ds(
+      GetGDALDriverManager()->GetDriverByName("GTiff")->Create(path.c_str(), w, h, 3, type, nullptr));
+  ASSERT_TRUE(ds);
+  double gt[6] = {west, (east - west) / w, 0, north, 0, -(north - south) / h};
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  ds->SetGeoTransform(gt);
+  ds->SetSpatialRef(&wgs84);
+  for (int b = 1; b <= 3; ++b) {
+    ASSERT_EQ(ds->GetRasterBand(b)->SetNoDataValue(nodata), CE_None);
+    std::vector<double> v(std::size_t(w) * h);
+    for (int r = 0; r < h; ++r)
+      for (int c = 0; c < w; ++c) {
+        const bool red = west + (c + 0.5) * gt[1] < split;
+        v[std::size_t(r) * w + c] = r < void_rows     ? nodata
+                                    : b == 2          ? 0.5 * (lo + hi)
+                                    : (b == 1) == red ? hi
+                                                      : lo;
+      }
+    ASSERT_EQ(ds->GetRasterBand(b)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Float64, 0, 0),
+              CE_None);
+  }
+}
+
 TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
   terralod::test::TempDir dir("texture-georef");
   const fs::path d = dir.path();
@@ -258,6 +289,89 @@ TEST(TextureGeoref, AnOrthophotoInLonLatLiesWhereItsGeoreferenceSays) {
       << text;
   EXPECT_EQ(stored_layers(tb::BlockDatabase::open((d / "t.db").string())).size(), 5u);
   EXPECT_FALSE(fs::exists(d / "t.db.texture-far.tx.warp.tif"));
+}
+
+TEST(TextureGeoref, DeepOrthophotosAreStretchedAndTheirNodataIsTransparent) {
+  terralod::test::TempDir dir("texture-georef-deep");
+  const fs::path d = dir.path();
+  terralod::test::build_utm_cli_database(cli, d);
+  if (HasFatalFailure()) return;
+  const std::string db = quote((d / "t.db").string());
+  const Transform to_lonlat = transform(32633, 4326);
+  double x[2] = {kEast0 + kSide / 2, kEast0 + kSide + 1000},
+         y[2] = {kNorth0 + kSide / 2, kNorth0 + kSide + 1000};
+  ASSERT_TRUE(to_lonlat->Transform(2, x, y));
+  const double west = x[0], south = y[0], east = x[1], north = y[1], split = 0.5 * (west + east);
+  // The 8-bit ortho, and the same in 16 bits of 12-bit values (1000 and 3000) and in floating
+  // point (0.1 and 0.3 reflectance): each band's 2 % cut spans its two values, so the bytes
+  // warped are the 8-bit ortho's (green, one value, is 0 in both), and the layers are the same.
+  write_ortho(d / "ortho.tif", west, south, east, north, split);
+  write_deep_ortho(d / "u16.tif", GDT_UInt16, 1000, 3000, 0, 0, west, south, east, north, split);
+  write_deep_ortho(d / "f32.tif", GDT_Float32, 0.1, 0.3, -9999, 0, west, south, east, north, split);
+  std::string text;
+  ASSERT_EQ(
+      cli.run("texture add " + db + " --layer ortho --image " + quote((d / "ortho.tif").string()), &text), 0);
+  EXPECT_EQ(text.find("stretch "), std::string::npos) << text;  // 8 bits: as they are
+  ASSERT_EQ(cli.run("texture add " + db + " --layer u16 --image " + quote((d / "u16.tif").string()), &text),
+            0);
+  EXPECT_NE(text.find("stretch " + (d / "u16.tif").string() + " (2 % cut): R 1000..3000, G 2000.."),
+            std::string::npos)
+      << text;
+  ASSERT_EQ(cli.run("texture add " + db + " --layer f32 --image " + quote((d / "f32.tif").string()), &text),
+            0);
+  const tb::BlockDatabase opened = tb::BlockDatabase::open((d / "t.db").string());
+  const RgbaImage eight = read_layer_level(opened, read_layer_record(opened, "ortho"), 0);
+  EXPECT_EQ(read_layer_level(opened, read_layer_record(opened, "u16"), 0), eight);
+  EXPECT_EQ(read_layer_level(opened, read_layer_record(opened, "f32"), 0), eight);
+
+  // Nodata in the northern two thirds of a 16-bit ortho (1,317 m of its 1,975, the northern
+  // 317 m of its part over the terrain): no histogram counts it (else 0 would be its 2 % point
+  // and the colours half as bright), and it is transparent, where the 8-bit ortho's texels are
+  // opaque.
+  write_deep_ortho(d / "void.tif", GDT_UInt16, 1000, 3000, 0, 60, west, south, east, north, split);
+  ASSERT_EQ(cli.run("texture add " + db + " --layer void --image " + quote((d / "void.tif").string()), &text),
+            0);
+  EXPECT_NE(text.find("R 1000..3000"), std::string::npos) << text;
+  const tb::BlockDatabase again = tb::BlockDatabase::open((d / "t.db").string());
+  const RgbaImage holed = read_layer_level(again, read_layer_record(again, "void"), 0);
+  ASSERT_EQ(holed.width, eight.width);
+  ASSERT_EQ(holed.height, eight.height);
+  int transparent = 0, same = 0, opaque = 0;
+  for (int r = 0; r < eight.height; ++r)
+    for (int c = 0; c < eight.width; ++c) {
+      const auto a = eight.get(c, r), b = holed.get(c, r);
+      if (a[3] != 255) continue;
+      ++opaque;
+      transparent += b[3] == 0;
+      same += a == b;
+    }
+  // A third of the texels void, most of the rest as the 8-bit ortho's.
+  EXPECT_GT(transparent, opaque / 5) << opaque;
+  EXPECT_GT(same, opaque / 2) << opaque;
+  EXPECT_GT(transparent + same, opaque * 9 / 10) << opaque;
+
+  // --stretch: values given, and a bad form refused as a usage error naming the option.
+  ASSERT_EQ(cli.run("texture add " + db + " --layer given --stretch 0,4000 --image " +
+                        quote((d / "u16.tif").string()),
+                    &text),
+            0);
+  EXPECT_NE(text.find("(values 0..4000): R 0..4000, G 0..4000, B 0..4000 -> 0..255"), std::string::npos)
+      << text;
+  const tb::BlockDatabase third = tb::BlockDatabase::open((d / "t.db").string());
+  const RgbaImage given = read_layer_level(third, read_layer_record(third, "given"), 0);
+  int red = 0;
+  for (int r = 0; r < given.height; ++r)
+    for (int c = 0; c < given.width; ++c)
+      if (eight.get(c, r) == std::array<std::uint8_t, 4>{255, 0, 0, 255}) {
+        ++red;
+        EXPECT_EQ(given.get(c, r), (std::array<std::uint8_t, 4>{191, 128, 64, 255})) << c << ", " << r;
+      }
+  EXPECT_GT(red, 0);
+  EXPECT_EQ(
+      cli.run("texture add " + db + " --layer bad --stretch 98% --image " + quote((d / "u16.tif").string()),
+              &text),
+      2);
+  EXPECT_NE(text.find("--stretch '98%'"), std::string::npos) << text;
 }
 
 }  // namespace

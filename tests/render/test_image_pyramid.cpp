@@ -195,6 +195,73 @@ TEST(ImagePyramid, GreyFileFromDiskBecomesOpaqueRgba) {
     }
 }
 
+TEST(ImagePyramid, SixteenBitImagesAreStretchedToTheirValues) {
+  // A 200 x 100 16-bit RGB TIFF of 12-bit values: R = 1000 + x (1000..1199), G = 3000 - 10 y,
+  // B = 500 everywhere; the last row transparent (alpha 0) and 60000 in R, which no
+  // histogram may count. Shown as it is, 1199 would be 1199 / 65535 * 255 = 5: black.
+  const std::string tif = tmp_path("deep16.tif"), tx = tmp_path("deep16.tx");
+  const int w = 200, h = 100;
+  std::vector<std::uint16_t> px(std::size_t(w) * h * 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      std::uint16_t* p = &px[(std::size_t(y) * w + x) * 4];
+      const bool last = y == h - 1;
+      p[0] = std::uint16_t(last ? 60000 : 1000 + x), p[1] = std::uint16_t(3000 - 10 * y), p[2] = 500;
+      p[3] = last ? 0 : 65535;
+    }
+  {
+    auto out = OIIO::ImageOutput::create(tif);
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(w, h, 4, OIIO::TypeDesc::UINT16);
+    spec.alpha_channel = 3;
+    ASSERT_TRUE(out->open(tif, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT16, px.data()));
+    out->close();
+  }
+  using terralod::blocks::StretchOptions;
+  // Auto: each band's 2 % cut. R: 99 rows of 1000..1199, so its 2 % point is 1003 and its
+  // 98 % point 1195 (the 396th and 19404th of 19800 values, each value 99 times); G: rows
+  // 0..98, 3000 - 10 y, 200 values a row: the 396th lies in row 97 (2030), the 19404th in
+  // row 1 (2990).
+  const std::vector<terralod::blocks::BandRange> r = ImagePyramid::convert(tif, tx);
+  ASSERT_EQ(r.size(), 3u);
+  EXPECT_EQ(r[0].lo, 1003.0);
+  EXPECT_EQ(r[0].hi, 1195.0);
+  EXPECT_EQ(r[1].lo, 2030.0);
+  EXPECT_EQ(r[1].hi, 2990.0);
+  EXPECT_EQ(r[2].lo, 500.0);
+  const ImagePyramid pyr(tx);
+  const RgbaImage l0 = pyr.read({0, 0, 0, w, h});
+  for (int x : {0, 3, 100, 195, 199}) {
+    const auto p = l0.get(x, 10);
+    EXPECT_EQ(p[0], r[0].to_byte(1000 + x)) << x;
+    EXPECT_EQ(p[3], 255);
+  }
+  EXPECT_EQ(l0.get(0, 10)[0], 0);
+  EXPECT_EQ(l0.get(199, 10)[0], 255);
+  EXPECT_EQ(l0.get(50, 0)[1], 255);  // 3000 >= 2990
+  EXPECT_EQ(l0.get(50, h - 1)[3], 0);
+  // Values: the same range in every band, exactly as given.
+  const std::vector<terralod::blocks::BandRange> v =
+      ImagePyramid::convert(tif, tx, {}, {}, terralod::blocks::parse_stretch("1000,1255"));
+  ASSERT_EQ(v.size(), 3u);
+  EXPECT_EQ(ImagePyramid(tx).read({0, 17, 5, 1, 1}).get(0, 0)[0], 17);
+  // None: the type's whole range, as OpenImageIO converts it: dark.
+  const std::vector<terralod::blocks::BandRange> n =
+      ImagePyramid::convert(tif, tx, {}, {}, terralod::blocks::parse_stretch("none"));
+  ASSERT_EQ(n.size(), 3u);
+  EXPECT_EQ(n[0].hi, 65535.0);
+  EXPECT_EQ(ImagePyramid(tx).read({0, 199, 5, 1, 1}).get(0, 0)[0], 5);
+  // An 8-bit image is taken as it is unless asked.
+  const std::string png = tmp_path("eight.png");
+  write_layer_image(blocky(8, 8), png);
+  EXPECT_TRUE(ImagePyramid::convert(png, tmp_path("eight.tx")).empty());
+  EXPECT_EQ(
+      ImagePyramid::convert(png, tmp_path("eight.tx"), {}, {}, StretchOptions{StretchOptions::Mode::Cut})
+          .size(),
+      3u);
+}
+
 TEST(ImagePyramid, StraightAlphaSurvivesAPngSource) {
   // PNG stores straight alpha; a reader that premultiplied would turn (200,100,50,128) into
   // (100,50,25,128) and (255,255,255,0) into black.

@@ -52,10 +52,11 @@
 //   - Errors (unreadable file, not an image, write failure) throw std::runtime_error naming
 //     the file and the reason. read() is thread-safe (the ImageCache is).
 //   - Memory: convert, the cache (cache_mb, default 64 MiB) + two bands of tile_size rows of
-//     level 0 (RGBA8 and the source's channels); read, the cache + the returned pixels (4 bytes
-//     each). On disk: the file (zip-compressed tiles, every level down to 1 x 1) and, while
-//     convert runs, a quarter of level 0's RGBA8 at most (the spool files, out_path +
-//     ".tmp.level-a" and "-b", removed when it ends, also on an error).
+//     level 0 (RGBA8 and the source's channels, as floats when they are stretched; a stretch's
+//     histograms: 512 kB a colour channel, read in bands of 2^20 pixels); read, the cache +
+//     the returned pixels (4 bytes each). On disk: the file (zip-compressed tiles, every level
+//     down to 1 x 1) and, while convert runs, a quarter of level 0's RGBA8 at most (the spool
+//     files, out_path + ".tmp.level-a" and "-b", removed when it ends, also on an error).
 #pragma once
 
 #include <cstddef>
@@ -65,6 +66,7 @@
 #include <string>
 #include <vector>
 
+#include "terralod/blocks/image_stretch.hpp"
 #include "terralod/render/rgba_image.hpp"
 
 namespace terralod::render {
@@ -100,9 +102,16 @@ class ImagePyramid {
   /// (written to out_path + ".tmp" and renamed), every level down to 1 x 1. Streams: the
   /// source is read in bands of rows through an ImageCache. Throws std::runtime_error naming
   /// the file on failure.
-  /// `progress`, when given, gets the fraction written so far, (0, 1].
-  static void convert(const std::string& image_path, const std::string& out_path,
-                      const PyramidOptions& options = {}, const std::function<void(double)>& progress = {});
+  /// Its colour channels become bytes by `stretch` (blocks/image_stretch.hpp: 8-bit images as
+  /// they are, deeper ones each channel's 2 % to 98 % cut over the pixels that are not
+  /// transparent, by default); returns the ranges of the image's values drawn as 0..255 in R,
+  /// G and B (empty when 8-bit channels were taken as they are). A cut reads the image once
+  /// more before (twice for 32-bit and floating point, whose range is measured first).
+  /// `progress`, when given, gets the fraction done so far, (0, 1] (a cut's reading the first 0.3).
+  static std::vector<blocks::BandRange> convert(const std::string& image_path, const std::string& out_path,
+                                                const PyramidOptions& options = {},
+                                                const std::function<void(double)>& progress = {},
+                                                const blocks::StretchOptions& stretch = {});
   /// Same from pixels in memory (generated textures, tests).
   static void convert(const RgbaImage& image, const std::string& out_path,
                       const PyramidOptions& options = {});
