@@ -61,45 +61,6 @@ namespace {
 namespace fs = std::filesystem;
 using Format = DemOptions::Format;
 
-/// GDAL's block cache capped while windowed GDAL sources are open (see the header comment).
-class CacheCap {
- public:
-  CacheCap() {
-    std::lock_guard lock(mutex());
-    State& s = state();
-    if (s.open++ == 0 && CPLGetConfigOption("GDAL_CACHEMAX", nullptr) == nullptr) {
-      s.saved = GDALGetCacheMax64();
-      s.capped = true;
-      GDALSetCacheMax64(std::min<GIntBig>(s.saved, GIntBig(64) << 20));
-    }
-  }
-  ~CacheCap() {
-    std::lock_guard lock(mutex());
-    State& s = state();
-    if (--s.open == 0 && s.capped) {
-      GDALSetCacheMax64(s.saved);
-      s.capped = false;
-    }
-  }
-  CacheCap(const CacheCap&) = delete;
-  CacheCap& operator=(const CacheCap&) = delete;
-
- private:
-  struct State {
-    int open = 0;
-    bool capped = false;
-    GIntBig saved = 0;
-  };
-  static std::mutex& mutex() {
-    static std::mutex m;
-    return m;
-  }
-  static State& state() {
-    static State s;
-    return s;
-  }
-};
-
 /// The void samples left in `z` (the samples of `held`), one 4-connected region at a time: its
 /// bounding box in grid coordinates and its samples as runs along rows.
 std::vector<std::pair<SampleRect, SampleRuns>> void_regions(const std::vector<double>& z, SampleRect held) {
@@ -484,7 +445,7 @@ class GdalSource final : public WindowedSource {
   }
 
  private:
-  CacheCap cache_;
+  detail::CacheCap cache_;
   detail::GdalBand band_;
   bool empty_is_void_ = false;  ///< the band has a nodata value, which windows without data read as
   mutable std::mutex mutex_;

@@ -16,6 +16,47 @@
 
 namespace terralod::blocks::detail {
 
+/// GDAL's block cache capped to 64 MiB while one of these lives (windowed DEM sources, an
+/// image's warp), unless the process set GDAL_CACHEMAX (environment or config option): GDAL's
+/// default, 5 % of RAM, would grow with the raster read. Restored when the last one ends.
+class CacheCap {
+ public:
+  CacheCap() {
+    std::lock_guard lock(mutex());
+    State& s = state();
+    if (s.open++ == 0 && CPLGetConfigOption("GDAL_CACHEMAX", nullptr) == nullptr) {
+      s.saved = GDALGetCacheMax64();
+      s.capped = true;
+      GDALSetCacheMax64(std::min<GIntBig>(s.saved, GIntBig(64) << 20));
+    }
+  }
+  ~CacheCap() {
+    std::lock_guard lock(mutex());
+    State& s = state();
+    if (--s.open == 0 && s.capped) {
+      GDALSetCacheMax64(s.saved);
+      s.capped = false;
+    }
+  }
+  CacheCap(const CacheCap&) = delete;
+  CacheCap& operator=(const CacheCap&) = delete;
+
+ private:
+  struct State {
+    int open = 0;
+    bool capped = false;
+    GIntBig saved = 0;
+  };
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static State& state() {
+    static State s;
+    return s;
+  }
+};
+
 /// `s` in lower case (ASCII): names, units and keys compared without case.
 inline std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });

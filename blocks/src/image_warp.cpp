@@ -120,6 +120,7 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                                                 const StretchOptions& stretch) {
   detail::register_gdal();
   detail::QuietGdal quiet;
+  const detail::CacheCap cache;  // the histograms and the warp read the whole image
   const auto fail = [&](const std::string& problem) { return ImageWarpError(image + ": " + problem); };
   GDALDatasetUniquePtr src(GDALDataset::Open(image.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!src) return std::nullopt;  // not a raster GDAL reads: OpenImageIO may still read it

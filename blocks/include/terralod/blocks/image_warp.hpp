@@ -31,7 +31,8 @@
 //              transform or write.
 //   Cost: one GDAL warp of the overlapping part (about the image's pixel count), on all cores;
 //   a cut stretch reads each colour band once before (twice for 32-bit and floating point, whose
-//   range is measured first), a band of rows at a time.
+//   range is measured first), a band of rows at a time. GDAL's block cache is capped to 64 MiB
+//   meanwhile (unless GDAL_CACHEMAX is set), so memory does not grow with the image.
 #pragma once
 
 #include <functional>
