@@ -34,6 +34,8 @@ int objects_add(const Args& a, const std::string& path) {
   o.input = a.get("--input");
   if (a.has("--kind"))
     o.kind = tb::parse_kind(a.get_choice("--kind", {"icon", "label", "shape", "line"}, "icon"));
+  if (a.has("--geometry"))
+    o.geometry = tb::parse_geometry(a.get_choice("--geometry", {"point", "line", "polygon"}, "point"));
   o.source_layer = a.get("--source-layer");
   o.label_field = a.get("--label-field");
   o.height_field = a.get("--height-field");
@@ -52,12 +54,15 @@ int objects_add(const Args& a, const std::string& path) {
     throw;
   }
   const tb::ObjectLayerInfo& l = r.layer;
-  print_line(
-      strf("read %s: %lld features (%lld without geometry, skipped) in %s -> %lld %s parts, %lld points, %s",
-           l.source.c_str(), static_cast<long long>(r.source_features), static_cast<long long>(l.skipped),
-           r.source_crs_name.c_str(), static_cast<long long>(l.feature_count),
-           tb::geometry_name(l.geometry).c_str(), static_cast<long long>(r.points),
-           format_duration(r.read_ms).c_str()));
+  const std::string others =
+      o.geometry ? strf(", %lld parts of other types left out", static_cast<long long>(r.other_geometry))
+                 : "";
+  print_line(strf(
+      "read %s: %lld features (%lld without geometry, skipped%s) in %s -> %lld %s parts, %lld points, %s",
+      l.source.c_str(), static_cast<long long>(r.source_features), static_cast<long long>(l.skipped),
+      others.c_str(), r.source_crs_name.c_str(), static_cast<long long>(l.feature_count),
+      tb::geometry_name(l.geometry).c_str(), static_cast<long long>(r.points),
+      format_duration(r.read_ms).c_str()));
   print_line(strf("store object layer '%s' (%s): %lld features, %lld block index entries -> %s, %s",
                   l.name.c_str(), tb::kind_name(l.kind).c_str(), static_cast<long long>(l.feature_count),
                   static_cast<long long>(r.block_entries), path.c_str(),
@@ -101,9 +106,12 @@ CommandSpec objects_spec() {
       "named after the file), moved into the terrain's world frame, with their\n"
       "attributes, indexed by block. The database must come from a georeferenced DEM.\n"
       "Multi-geometries are split into parts; features without geometry are skipped and counted; a\n"
-      "feature wholly outside the terrain is an error. Each add is one transaction: on any error\n"
+      "layer holds one geometry type: a file that mixes them (an OpenStreetMap extract) is an error\n"
+      "unless --geometry point|line|polygon takes one (the parts of the others are counted and left\n"
+      "out; add the file again for another); a feature wholly outside the terrain is an error. Each add is "
+      "one transaction: on any error\n"
       "the database is unchanged.\n"
-      "  add   --layer NAME --input FILE [--source-layer L] [--kind icon|label|shape|line]\n"
+      "  add   --layer NAME --input FILE [--source-layer L] [--geometry G] [--kind icon|label|shape|line]\n"
       "        [--label-field F] [--height-field F] [--rules RULES.json]: kind defaults from the\n"
       "        geometry (points icon, lines line, polygons shape; label also takes points).\n"
       "        --label-field and --height-field name fields of the file (the height one\n"
@@ -120,6 +128,7 @@ CommandSpec objects_spec() {
       {"--input", "FILE", "add: the vector file"},
       {"--source-layer", "L",
        "add: the file's layer to read (default: its only one, or its only one with features)"},
+      {"--geometry", "G", "add: only the file's point, line or polygon parts (default: all, of one type)"},
       {"--kind", "K", "add: icon, label, shape or line (default: from the geometry)"},
       {"--label-field", "F",
        "add: the attribute that labels a feature (default name; a feature without one gets no label)"},
@@ -133,8 +142,8 @@ int cmd_objects(const Args& a) {
   const std::string verb = a.positionals()[0], path = a.positionals()[1];
   if (verb == "add") return objects_add(a, path);
   if (verb == "list") {
-    for (const char* o :
-         {"--layer", "--input", "--source-layer", "--kind", "--label-field", "--height-field", "--rules"})
+    for (const char* o : {"--layer", "--input", "--source-layer", "--geometry", "--kind", "--label-field",
+                          "--height-field", "--rules"})
       if (a.has(o)) throw UsageError(std::string("option '") + o + "' is for 'objects add'");
     return objects_list(path);
   }

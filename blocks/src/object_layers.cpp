@@ -21,6 +21,7 @@
 #include <limits>
 #include <memory>
 #include <span>
+#include <stdexcept>
 
 #include "block_database_connection.hpp"
 #include "block_database_schema.hpp"
@@ -382,6 +383,12 @@ std::string geometry_name(GeometryType g) {
   return g == GeometryType::Point ? "point" : g == GeometryType::Line ? "line" : "polygon";
 }
 
+GeometryType parse_geometry(const std::string& name) {
+  for (const GeometryType g : {GeometryType::Point, GeometryType::Line, GeometryType::Polygon})
+    if (geometry_name(g) == name) return g;
+  throw std::invalid_argument("unknown geometry '" + name + "' (point, line or polygon)");
+}
+
 std::string attribute_type_name(AttributeType t) {
   static const char* const names[] = {"null", "integer", "real",     "string",
                                       "date", "time",    "datetime", "other"};
@@ -506,10 +513,15 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
         a.value = feat->GetFieldAsString(i);
     }
     for (std::size_t k = 0; k < raw.size(); ++k) {
+      if (o.geometry && raw[k].geometry != *o.geometry) {
+        ++report.other_geometry;
+        continue;
+      }
       if (geometry && *geometry != raw[k].geometry)
         throw ObjectLayerError(where + ": a " + geometry_name(raw[k].geometry) + " in a layer of " +
                                geometry_name(*geometry) +
-                               "s (an object layer holds one geometry type; split the file)");
+                               "s (an object layer holds one geometry type: take one with --geometry "
+                               "point|line|polygon, and add the file again for another)");
       geometry = raw[k].geometry;
       StoredPart p;
       p.feature.id = std::int64_t(parts.size());
@@ -538,7 +550,10 @@ ObjectLayerReport add_object_layer(BlockDatabase& db, const ObjectLayerOptions& 
       parts.push_back(std::move(p));
     }
   }
-  if (!geometry) throw ObjectLayerError(in + ": has no feature with a geometry");
+  if (!geometry)
+    throw ObjectLayerError(o.geometry ? in + ": has no " + geometry_name(*o.geometry) + " (" +
+                                            std::to_string(report.other_geometry) + " parts of other types)"
+                                      : in + ": has no feature with a geometry");
   info.geometry = *geometry;
   const ObjectKind natural = info.geometry == GeometryType::Point  ? ObjectKind::Icon
                              : info.geometry == GeometryType::Line ? ObjectKind::Line

@@ -80,6 +80,14 @@ TEST_F(ObjectsCli, AddThenListShowsTheLayer) {
             std::string::npos)
       << out;
   EXPECT_NE(out.find("store object layer 'huts' (label): 2 features"), std::string::npos) << out;
+  ASSERT_EQ(cli_.run("objects add " + quote(db()) + " --layer pts --geometry point --input " +
+                         quote(file("points.geojson")),
+                     &out),
+            0);
+  EXPECT_NE(
+      out.find("(1 without geometry, skipped, 0 parts of other types left out) in WGS 84 -> 2 point parts"),
+      std::string::npos)
+      << out;
   ASSERT_EQ(
       cli_.run("objects add " + quote(db()) + " --layer more --input " + quote(file("points.geojson")), &out),
       0);
@@ -89,7 +97,8 @@ TEST_F(ObjectsCli, AddThenListShowsTheLayer) {
       std::string::npos)
       << out;
   EXPECT_NE(out.find("more\tkind icon\t2 features"), std::string::npos) << out;  // points default to icons
-  EXPECT_LT(out.find("huts"), out.find("more"));                                 // sorted by name
+  EXPECT_NE(out.find("pts\tkind icon\t2 features"), std::string::npos) << out;
+  EXPECT_LT(out.find("huts"), out.find("more"));  // sorted by name
   ASSERT_EQ(cli_.run("objects --help", &out), 0);
   EXPECT_NE(out.find("add|list DB"), std::string::npos) << out;
   EXPECT_NE(out.find("--rules FILE"), std::string::npos) << out;
@@ -133,6 +142,9 @@ TEST_F(ObjectsCli, BadInputsAreRefusedAndLeaveTheDatabaseUnchanged) {
        2},
       {add + quote(file("points.geojson")) + " --rules " + quote(file("none.json")),
        "option '--rules': " + file("none.json") + ": cannot be read", 2},
+      {add + quote(file("points.geojson")) + " --geometry polygon",
+       file("points.geojson") + ": has no polygon (2 parts of other types)", 1},
+      {add + quote(file("points.geojson")) + " --geometry lines", "'--geometry'", 2},
   };
   for (const Case& c : cases) {
     std::string out;

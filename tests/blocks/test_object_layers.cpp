@@ -93,6 +93,12 @@ tb::ObjectLayerOptions opts(const std::string& name, const std::string& input,
   return o;
 }
 
+/// `o` taking only the parts of geometry `g`.
+tb::ObjectLayerOptions only(tb::ObjectLayerOptions o, tb::GeometryType g) {
+  o.geometry = g;
+  return o;
+}
+
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
 std::string bytes_of(const std::string& path) {
@@ -418,7 +424,11 @@ TEST(ObjectLayers, EveryBadInputLeavesTheDatabaseByteIdentical) {
       {"no CRS", opts("a", t / "nocrs.shp"), "nocrs.shp: unknown CRS"},
       {"unknown CRS", opts("a", t / "badcrs.shp"), "badcrs.shp: unknown CRS"},
       {"outside", opts("a", t / "outside.geojson"), "outside.geojson: feature 41: lies wholly outside"},
-      {"mixed", opts("a", t / "mixed.geojson"), "mixed.geojson: feature 5: a line in a layer of points"},
+      {"mixed", opts("a", t / "mixed.geojson"),
+       "mixed.geojson: feature 5: a line in a layer of points (an object layer holds one geometry type: take "
+       "one with --geometry"},
+      {"none of the geometry taken", only(opts("a", t / "mixed.geojson"), tb::GeometryType::Polygon),
+       "mixed.geojson: has no polygon (2 parts of other types)"},
       {"layer exists", opts("taken", good), "object layer 'taken' already exists", true},
       {"kind", opts("a", good, tb::ObjectKind::Shape), "kind shape does not fit"},
       {"label field", opts("a", good, {}, "nope"), "label field 'nope' is not a field"},
@@ -455,6 +465,59 @@ TEST(ObjectLayers, EveryBadInputLeavesTheDatabaseByteIdentical) {
   }
   const auto db = tb::BlockDatabase::open(db_path);
   ASSERT_EQ(tb::object_layers(db).size(), 1u);
+}
+
+// An OpenStreetMap extract's GeoJSON mixes points, lines and polygons in one collection: a layer
+// holds one type, so the whole file was refused. ObjectLayerOptions::geometry takes the parts of
+// one type and counts the others; each type goes in a layer of its own.
+TEST(ObjectLayers, AMixedFileGivesOneGeometryTypePerLayer) {
+  TempDir t;
+  const std::string db_path = t / "t.db";
+  make_db(db_path, 32633, kUtm, kUtm);
+  const std::string mixed = t / "osm.geojson";
+  write_text(mixed, R"({"type": "FeatureCollection", "features": [
+    {"type": "Feature", "id": 1, "properties": {"name": "hut"}, "geometry": {"type": "Point",
+     "coordinates": [15.0114513341, 45.1615781192]}},
+    {"type": "Feature", "id": 2, "properties": {"name": "path"}, "geometry": {"type": "LineString",
+     "coordinates": [[15.0114, 45.16], [15.0115, 45.1616]]}},
+    {"type": "Feature", "id": 3, "properties": {"name": "lake"}, "geometry": {"type": "Polygon",
+     "coordinates": [[[15.0114, 45.16], [15.0116, 45.16], [15.0116, 45.1612], [15.0114, 45.16]]]}},
+    {"type": "Feature", "id": 4, "properties": {"name": "two huts"}, "geometry": {"type": "MultiPoint",
+     "coordinates": [[15.0114, 45.1601], [15.0115, 45.1602]]}},
+    {"type": "Feature", "id": 5, "properties": {"name": "mixed"}, "geometry": {"type": "GeometryCollection",
+     "geometries": [{"type": "Point", "coordinates": [15.0114, 45.1603]},
+                    {"type": "LineString", "coordinates": [[15.0114, 45.16], [15.0116, 45.1604]]}]}}]})");
+  auto db = tb::BlockDatabase::open(db_path, tb::BlockDatabase::Mode::ReadWrite);
+  EXPECT_THROW(tb::add_object_layer(db, opts("all", mixed)), tb::ObjectLayerError);
+  const tb::ObjectLayerReport points =
+      tb::add_object_layer(db, only(opts("points", mixed), tb::GeometryType::Point));
+  const tb::ObjectLayerReport lines =
+      tb::add_object_layer(db, only(opts("lines", mixed), tb::GeometryType::Line));
+  const tb::ObjectLayerReport polygons =
+      tb::add_object_layer(db, only(opts("polygons", mixed), tb::GeometryType::Polygon));
+  // Parts: points 1, 4 (two) and 5's point; lines 2 and 5's line; polygon 3.
+  EXPECT_EQ(points.layer.feature_count, 4);
+  EXPECT_EQ(points.other_geometry, 3);
+  EXPECT_EQ(points.layer.kind, tb::ObjectKind::Icon);
+  EXPECT_EQ(lines.layer.feature_count, 2);
+  EXPECT_EQ(lines.other_geometry, 5);
+  EXPECT_EQ(lines.layer.kind, tb::ObjectKind::Line);
+  EXPECT_EQ(polygons.layer.feature_count, 1);
+  EXPECT_EQ(polygons.other_geometry, 6);
+  EXPECT_EQ(polygons.layer.kind, tb::ObjectKind::Shape);
+  std::vector<std::string> names;
+  for (const tb::ObjectFeature& f : tb::object_features(db, "points")) {
+    EXPECT_EQ(f.geometry, tb::GeometryType::Point);
+    names.push_back(f.attributes[0].value + "/" + std::to_string(f.source_fid) + "." +
+                    std::to_string(f.part));
+  }
+  EXPECT_EQ(names, (std::vector<std::string>{"hut/1.0", "two huts/4.0", "two huts/4.1", "mixed/5.0"}));
+  const std::vector<tb::ObjectFeature> line_parts = tb::object_features(db, "lines");
+  ASSERT_EQ(line_parts.size(), 2u);
+  EXPECT_EQ(line_parts[1].source_fid, 5);
+  EXPECT_EQ(line_parts[1].part, 1);  // the collection's second part
+  EXPECT_EQ(tb::parse_geometry("line"), tb::GeometryType::Line);
+  EXPECT_THROW(tb::parse_geometry("lines"), std::invalid_argument);
 }
 
 // A GPX file, what a GPS or a hiking app writes, has five layers (waypoints, routes, tracks and

@@ -24,8 +24,11 @@
 //              curves are linearised by OGR. Each part of a multi-geometry becomes its own
 //              ObjectFeature (same source_fid, part = 0, 1, ...). A feature without geometry
 //              (or with an empty one) is skipped and counted (ObjectLayerReport::skipped_empty).
-//              All parts of a layer must have one geometry type (points, lines or polygons);
-//              a mixed layer is an error.
+//              All parts of a layer must have one geometry type (points, lines or polygons):
+//              a mixed layer (an OpenStreetMap extract's GeoJSON, say) is an error unless
+//              `geometry` takes one of them; the parts of the other types are then left out
+//              and counted (ObjectLayerReport::other_geometry), and a file with no part of that
+//              type is an error.
 //   frame      coordinates are the database's world frame (x east, y north, metres; the frame
 //              of the blocks' vertices): source CRS -> the database CRS (DatabaseInfo::crs_wkt,
 //              by OGR/PROJ) -> sample (col, row) by the inverse of Georeference::crs_transform
@@ -133,6 +136,8 @@ enum class AttributeType : std::uint8_t {
 std::string kind_name(ObjectKind k);
 std::optional<ObjectKind> parse_kind(const std::string& s);
 std::string geometry_name(GeometryType g);  ///< "point", "line", "polygon"
+/// "point", "line" or "polygon" (geometry_name's words); std::invalid_argument otherwise.
+GeometryType parse_geometry(const std::string& name);
 std::string attribute_type_name(AttributeType t);
 
 struct WorldPoint {
@@ -180,7 +185,10 @@ struct ObjectLayerOptions {
   /// file has five: waypoints, routes, tracks, route_points, track_points); a source with
   /// several of those is an error that lists them.
   std::string source_layer;
-  std::optional<ObjectKind> kind;         ///< default: from the geometry
+  std::optional<ObjectKind> kind;  ///< default: from the geometry
+  /// Only the parts of this geometry type, the others left out (see the contract); nullopt:
+  /// every part, which must then all have one type.
+  std::optional<GeometryType> geometry;
   std::string label_field, height_field;  ///< "" = none
   std::optional<std::string> rules_json;  ///< object_rules.hpp text, stored as given
   std::string rules_source;  ///< names the rules in errors (their file); "" = "<input>: the rules"
@@ -191,6 +199,7 @@ struct ObjectLayerReport {
   ObjectLayerInfo layer;             ///< as stored
   std::int64_t source_features = 0;  ///< features in the input
   std::int64_t points = 0;           ///< vertices stored, all parts together
+  std::int64_t other_geometry = 0;   ///< parts of other types left out by options.geometry
   std::int64_t block_entries = 0;    ///< rows of the block index written
   std::string source_crs_name;       ///< e.g. "WGS 84"
   double read_ms = 0.0, write_ms = 0.0;
