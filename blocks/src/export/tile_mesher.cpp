@@ -34,10 +34,11 @@ struct UV {
   double u, v;
 };
 
-/// Calls f(c, r, u, v) for every lattice point of the padded grid (GeoField::kPad rings)
-/// in the closed triangle (a, b, c) (and, within kEps lattice steps, on its edges).
+/// Calls row(r, c_lo, c_hi, v) for every row r of the padded grid (GeoField::kPad rings) whose
+/// lattice points c_lo..c_hi (c_lo <= c_hi) lie in the closed triangle (a, b, c) (and, within
+/// kEps lattice steps, on its edges); v is the row's coordinate.
 template <class F>
-void scan_lattice(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& f) {
+void scan_lattice_rows(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& row) {
   const double vmin = std::min({p[0].v, p[1].v, p[2].v}), vmax = std::max({p[0].v, p[1].v, p[2].v});
   constexpr int pad = GeoField::kPad;
   const int r_lo = std::max(-pad, int(std::ceil((fr.v0 - vmax) / fr.dv - kEps)));
@@ -61,8 +62,16 @@ void scan_lattice(const TileFrame& fr, int width, int height, const UV (&p)[3], 
     if (ul > ur) continue;
     const int c_lo = std::max(-pad, int(std::ceil((ul - fr.u0) / fr.du - kEps)));
     const int c_hi = std::min(width - 1 + pad, int(std::floor((ur - fr.u0) / fr.du + kEps)));
-    for (int c = c_lo; c <= c_hi; ++c) f(c, r, fr.u(c), v);
+    if (c_lo <= c_hi) row(r, c_lo, c_hi, v);
   }
+}
+
+/// Calls f(c, r, u, v) for every lattice point scan_lattice_rows finds.
+template <class F>
+void scan_lattice(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& f) {
+  scan_lattice_rows(fr, width, height, p, [&](int r, int c_lo, int c_hi, double v) {
+    for (int c = c_lo; c <= c_hi; ++c) f(c, r, fr.u(c), v);
+  });
 }
 
 /// The plane through three (u, v, h) points: h(u, v) = h0 + gx (u - u0) + gy (v - v0).
@@ -102,7 +111,10 @@ class BackgroundPoints {
   /// for some points just outside it (callers test the box or the triangle themselves).
   template <class F>
   void for_each(double ulo, double uhi, double vlo, double vhi, F&& f) const {
-    if (empty_) return;
+    // A box within the padded grid holds no point (those just outside it, which the callers
+    // reject, are not needed): most triangles of a tile over the terrain. Their 3 x 3 or more
+    // grid indices were a seventh of the greedy's rescans.
+    if (empty_ || (ulo >= ulo_ && uhi <= uhi_ && vlo >= vlo_ && vhi <= vhi_)) return;
     const int i0 = index(ulo, -1), i1 = index(uhi, 1), j0 = index(vlo, -1), j1 = index(vhi, 1);
     for (int j = j0; j <= j1; ++j)
       for (int i = i0; i <= i1; ++i) {
@@ -370,9 +382,25 @@ class TileGreedy {
       if (q.x <= 0 || q.x >= kQ || q.y <= 0 || q.y >= kQ) return;
       best = e, found = true, cand = {u, v}, cand_h = value;
     };
-    scan_lattice(fr_, g_.width, g_.height, p, [&](int c, int r, double u, double v) {
-      const double value = f_.lattice(c, r);
-      if (value == value) consider(u, v, value);
+    // The lattice points, GeoField::lattice's values: the grid's own samples read straight from
+    // its rows (the lattice's bounds and ring tests were a third of the greedy's rescans).
+    const int w = g_.width, hgt = g_.height;
+    scan_lattice_rows(fr_, w, hgt, p, [&](int r, int c_lo, int c_hi, double v) {
+      const auto ring = [&](int c) {
+        const double value = f_.lattice(c, r);
+        if (value == value) consider(fr_.u(c), v, value);
+      };
+      int c = c_lo;
+      if (r >= 0 && r < hgt) {
+        const int last = std::min(c_hi, w - 1);
+        for (; c <= c_hi && c < 0; ++c) ring(c);
+        const std::size_t row = std::size_t(r) * std::size_t(w);
+        const double* z = g_.heights.data() + row;
+        const std::uint8_t* valid = g_.mask.empty() ? nullptr : g_.mask.data() + row;
+        for (; c <= last; ++c)
+          if ((!valid || valid[c] != 0) && z[c] == z[c]) consider(fr_.u(c), v, z[c]);
+      }
+      for (; c <= c_hi; ++c) ring(c);
     });
     const double ulo = std::min({p[0].u, p[1].u, p[2].u}), uhi = std::max({p[0].u, p[1].u, p[2].u});
     const double vlo = std::min({p[0].v, p[1].v, p[2].v}), vhi = std::max({p[0].v, p[1].v, p[2].v});
