@@ -247,6 +247,60 @@ ChannelType channel_type(OIIO::TypeDesc t) {
   return c;
 }
 
+// The ranges of the colour channels' values drawn as 0..255 (image_stretch.hpp; empty: 8-bit
+// channels as they are). A cut reads the image in bands of about 2^20 pixels through
+// read_rows(row0, n, type, out): one pass to count each channel over the pixels that are not
+// transparent, after one for the range of those not counted on exact bins. progress: 0..1.
+std::vector<blocks::BandRange> channel_ranges(
+    const blocks::StretchOptions& stretch, bool deep, const detail::ImageChannels& ch,
+    const std::array<ChannelType, 3>& types, int width, int height,
+    const std::function<void(int, int, OIIO::TypeDesc, void*)>& read_rows,
+    const std::function<void(double)>& progress) {
+  using Mode = blocks::StretchOptions::Mode;
+  if (stretch.mode == Mode::Values) return std::vector<blocks::BandRange>(3, {stretch.lo, stretch.hi});
+  std::vector<blocks::BandRange> ranges(3);
+  if (stretch.mode == Mode::None) {
+    if (!deep) return {};
+    for (std::size_t c = 0; c < 3; ++c)
+      ranges[c] = blocks::type_range(types[c].bits, types[c].is_signed, types[c].is_float);
+    return ranges;
+  }
+  if (stretch.mode == Mode::Auto && !deep) return {};
+  std::array<std::optional<blocks::BandHistogram>, 3> hists;
+  for (std::size_t c = 0; c < 3; ++c)
+    hists[c] = blocks::exact_histogram(types[c].bits, types[c].is_signed, types[c].is_float);
+  const bool measure = std::any_of(hists.begin(), hists.end(), [](const auto& h) { return !h; });
+  std::array<double, 3> lo{}, hi{};
+  lo.fill(std::numeric_limits<double>::infinity());
+  hi.fill(-std::numeric_limits<double>::infinity());
+  const int band_rows = std::max(1, (1 << 20) / width), passes = measure ? 2 : 1;
+  std::vector<float> px;
+  for (int pass = 2 - passes; pass < 2; ++pass) {
+    for (int y = 0; y < height; y += band_rows) {
+      const int n = std::min(band_rows, height - y);
+      px.resize(std::size_t(width) * std::size_t(n) * std::size_t(ch.read));
+      read_rows(y, n, OIIO::TypeDesc::FLOAT, px.data());
+      for (std::size_t p = 0; p < std::size_t(width) * std::size_t(n); ++p) {
+        const float* v = px.data() + p * std::size_t(ch.read);
+        if (ch.alpha >= 0 && !(v[ch.alpha] > 0.0f)) continue;
+        for (std::size_t c = 0; c < 3; ++c) {
+          const double x = double(v[ch.colour[c]]) * types[c].unit;
+          if (pass == 1)
+            hists[c]->add(x);
+          else if (x == x)
+            lo[c] = std::min(lo[c], x), hi[c] = std::max(hi[c], x);
+        }
+      }
+      if (progress) progress((double(pass - (2 - passes)) + double(y + n) / height) / double(passes));
+    }
+    if (pass == 0)
+      for (std::size_t c = 0; c < 3; ++c)
+        if (!hists[c]) hists[c].emplace(lo[c] <= hi[c] ? lo[c] : 0.0, lo[c] <= hi[c] ? hi[c] : 1.0, 65536);
+  }
+  for (std::size_t c = 0; c < 3; ++c) ranges[c] = hists[c]->cut(stretch.cut_percent);
+  return ranges;
+}
+
 }  // namespace
 
 std::vector<blocks::BandRange> ImagePyramid::convert(const std::string& image_path,
@@ -278,68 +332,19 @@ std::vector<blocks::BandRange> ImagePyramid::convert(const std::string& image_pa
       throw std::runtime_error(image_path + ": cannot read rows " + std::to_string(row0) + ".." +
                                std::to_string(row0 + n - 1) + ": " + cache->geterror());
   };
-  const int band_rows = std::max(1, (1 << 20) / spec.width);
-
   // Whether and how the colour channels are stretched (image_stretch.hpp).
-  using Mode = blocks::StretchOptions::Mode;
   std::array<ChannelType, 3> types;
   bool deep = false;
-  for (int c = 0; c < 3; ++c) {
-    types[std::size_t(c)] = channel_type(spec.channelformat(ch.colour[std::size_t(c)]));
-    deep = deep || types[std::size_t(c)].bits != 8 || types[std::size_t(c)].is_float ||
-           types[std::size_t(c)].is_signed;
+  for (std::size_t c = 0; c < 3; ++c) {
+    types[c] = channel_type(spec.channelformat(ch.colour[c]));
+    deep = deep || types[c].bits != 8 || types[c].is_float || types[c].is_signed;
   }
-  std::vector<blocks::BandRange> ranges;
+  using Mode = blocks::StretchOptions::Mode;
   const double cut_share = stretch.mode == Mode::Cut || (stretch.mode == Mode::Auto && deep) ? 0.3 : 0.0;
-  if (stretch.mode == Mode::Values) {
-    ranges.assign(3, blocks::BandRange{stretch.lo, stretch.hi});
-  } else if (stretch.mode == Mode::None ? deep : cut_share > 0.0) {
-    ranges.resize(3);
-    std::vector<std::optional<blocks::BandHistogram>> hists(3);
-    for (int c = 0; c < 3; ++c) {
-      const ChannelType& t = types[std::size_t(c)];
-      if (stretch.mode == Mode::None)
-        ranges[std::size_t(c)] = blocks::type_range(t.bits, t.is_signed, t.is_float);
-      hists[std::size_t(c)] = blocks::exact_histogram(t.bits, t.is_signed, t.is_float);
-    }
-    if (stretch.mode != Mode::None) {
-      // Each channel's values over the pixels that are not transparent: a pass for the range of
-      // those not counted exactly, then one to count them.
-      std::vector<float> px;
-      const bool measure = std::any_of(hists.begin(), hists.end(), [](const auto& h) { return !h; });
-      std::array<double, 3> lo{}, hi{};
-      lo.fill(std::numeric_limits<double>::infinity());
-      hi.fill(-std::numeric_limits<double>::infinity());
-      const int passes = measure ? 2 : 1;
-      for (int pass = measure ? 0 : 1; pass < 2; ++pass) {
-        for (int y = 0; y < spec.height; y += band_rows) {
-          const int n = std::min(band_rows, spec.height - y);
-          px.resize(width * std::size_t(n) * std::size_t(ch.read));
-          read_rows(y, n, OIIO::TypeDesc::FLOAT, px.data());
-          for (std::size_t p = 0; p < width * std::size_t(n); ++p) {
-            const float* v = px.data() + p * std::size_t(ch.read);
-            if (ch.alpha >= 0 && !(v[ch.alpha] > 0.0f)) continue;
-            for (std::size_t c = 0; c < 3; ++c) {
-              const double x = double(v[ch.colour[c]]) * types[c].unit;
-              if (pass == 0) {
-                if (x == x) lo[c] = std::min(lo[c], x), hi[c] = std::max(hi[c], x);
-              } else {
-                hists[c]->add(x);
-              }
-            }
-          }
-          if (progress)
-            progress(cut_share * (double(pass - (2 - passes)) + double(y + n) / spec.height) /
-                     double(passes));
-        }
-        if (pass == 0)
-          for (std::size_t c = 0; c < 3; ++c)
-            if (!hists[c])
-              hists[c].emplace(lo[c] <= hi[c] ? lo[c] : 0.0, lo[c] <= hi[c] ? hi[c] : 1.0, 65536);
-      }
-      for (std::size_t c = 0; c < 3; ++c) ranges[c] = hists[c]->cut(stretch.cut_percent);
-    }
-  }
+  const std::vector<blocks::BandRange> ranges =
+      channel_ranges(stretch, deep, ch, types, spec.width, spec.height, read_rows, [&](double f) {
+        if (progress) progress(cut_share * f);
+      });
 
   const auto pyramid_progress = [&](double f) {
     if (progress) progress(cut_share + (1.0 - cut_share) * f);
