@@ -4,7 +4,7 @@
 # Usage: bash scripts/install-deps.sh [PACKAGE...]   (PACKAGE: more that a caller needs, e.g. fuzz.sh's clang)
 set -euo pipefail
 packages=(
-  build-essential cmake ninja-build pkg-config zlib1g-dev
+  build-essential cmake ninja-build pkg-config zlib1g-dev libdeflate-dev
   libopenmesh-dev libgdal-dev libproj-dev proj-data libmeshoptimizer-dev libopenimageio-dev libsqlite3-dev
   libglm-dev libglfw3-dev libosmesa6-dev
   libgtest-dev libgmock-dev libbenchmark-dev
