@@ -27,13 +27,15 @@ namespace {
 
 // The spec of level (w x h) of every pyramid file this writes (convert and write_levels alike):
 // RGBA8 with straight alpha, tiled, zip-compressed, marked "textureformat" so that OIIO reads
-// the file's further directories (AppendMIPLevel) back as MIP levels.
+// the file's further directories (AppendMIPLevel) back as MIP levels. Deflate's fastest level:
+// the file is a temporary of the texture commands, and its default level was a third of the CPU
+// of 'texture shade' (a 3601^2 shade with shadows: 7.3-7.5 s -> 4.4-4.7 s, the file 20.0 -> 21.7 MB).
 OIIO::ImageSpec level_spec(int w, int h, const PyramidOptions& o) {
   OIIO::ImageSpec spec(w, h, 4, OIIO::TypeDesc::UINT8);
   spec.alpha_channel = 3;
   spec.tile_width = spec.tile_height = o.tile_size;
   spec.tile_depth = 1;
-  spec.attribute("compression", "zip");
+  spec.attribute("compression", "zip:1");
   spec.attribute("wrapmodes", "clamp,clamp");
   spec.attribute("textureformat", "Plain Texture");
   spec.attribute("oiio:UnassociatedAlpha", 1);
