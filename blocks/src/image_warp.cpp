@@ -258,7 +258,9 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
           std::min(footprint.maxx, terrain.maxx), std::min(footprint.maxy, terrain.maxy)};
   if (footprint.empty() || cut.empty()) throw fail("does not overlap the terrain of " + db.path());
 
-  // The warp, written beside `out` and renamed into place.
+  // The warp, written beside `out` and renamed into place; deflated at the fastest level (a
+  // temporary of 'texture add': an 8000 x 8000 image's add took 16.2-17.0 s at GDAL's default
+  // level, 14.6-14.8 s so).
   const std::string tmp = out + ".tmp";
   std::vector<std::string> args = {"-of",
                                    "GTiff",
@@ -275,6 +277,8 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                                    "TILED=YES",
                                    "-co",
                                    "COMPRESS=DEFLATE",
+                                   "-co",
+                                   "ZLEVEL=1",
                                    "-co",
                                    "BIGTIFF=IF_SAFER",
                                    "-multi",
