@@ -188,7 +188,9 @@ std::optional<HeightRange> DatabaseTerrain::height_range(const std::function<voi
 
 pm::Heightfield read_database_terrain(const BlockDatabase& db, std::vector<pm::ProgressiveMesh>* pms) {
   if (!pms) {
-    DatabaseTerrain t(db);
+    // Each block is pasted once: none is kept beyond its batch (a cache would hold up to 8 more
+    // bytes a sample until the read ends, more or less of them as the threads' timing goes).
+    DatabaseTerrain t(db, {.cache_bytes = 0});
     return t.read({0, 0, t.width() - 1, t.height() - 1});
   }
   const pm::Heightfield frame = grid_frame(db);

@@ -106,7 +106,7 @@ class DatabaseTerrain {
 /// database's info and georeference). With `pms`, the decoded PMs in layout.keys()
 /// order are kept there. DatabaseError naming the file for a database without blocks or a block
 /// whose grid does not match the layout. Memory: the whole grid (8 bytes a sample, 9 with
-/// holes); DatabaseTerrain reads windows instead.
+/// holes) and one batch of decoded blocks (none is cached); DatabaseTerrain reads windows instead.
 pm::Heightfield read_database_terrain(const BlockDatabase& db,
                                       std::vector<pm::ProgressiveMesh>* pms = nullptr);
 
