@@ -72,6 +72,25 @@ BandRange type_range(int bits, bool is_signed, bool is_float) {
   return {0, std::ldexp(1.0, is_signed ? bits - 1 : bits) - 1.0};
 }
 
+StretchStep stretch_step(const StretchOptions& s, bool deep) {
+  switch (s.mode) {
+    case StretchOptions::Mode::Values:
+      return StretchStep::Fixed;
+    case StretchOptions::Mode::None:
+      return deep ? StretchStep::Fixed : StretchStep::AsIs;
+    case StretchOptions::Mode::Cut:
+      return StretchStep::Cut;
+    case StretchOptions::Mode::Auto:
+      break;
+  }
+  return deep ? StretchStep::Cut : StretchStep::AsIs;
+}
+
+BandRange fixed_range(const StretchOptions& s, int bits, bool is_signed, bool is_float) {
+  return s.mode == StretchOptions::Mode::Values ? BandRange{s.lo, s.hi}
+                                                : type_range(bits, is_signed, is_float);
+}
+
 std::optional<BandHistogram> exact_histogram(int bits, bool is_signed, bool is_float) {
   if (is_float || bits > 16) return std::nullopt;
   const double lo = is_signed ? -std::ldexp(1.0, bits - 1) : 0.0;

@@ -38,11 +38,6 @@ int progress_of(double done, const char*, void* data) {
   return 1;
 }
 
-BandRange whole_range(GDALDataType type) {
-  return type_range(GDALGetDataTypeSizeBits(type), GDALDataTypeIsSigned(type) != 0,
-                    GDALDataTypeIsFloating(type) != 0);
-}
-
 // One colour band's histogram over its valid pixels (GDAL's mask: nodata, alpha), cut at
 // `percent` at each end (exact_histogram's bins, or 65,536 over the exact minimum..maximum
 // after one more pass).
@@ -88,20 +83,20 @@ BandRange band_cut(GDALRasterBand& band, double percent, const std::string& imag
 // is drawn through its colour table.
 std::vector<BandRange> band_ranges(GDALDataset& src, const std::vector<int>& colour, const StretchOptions& s,
                                    const std::string& image, const std::function<void(double)>& progress) {
-  using Mode = StretchOptions::Mode;
   bool deep = false;
   for (const int b : colour) deep = deep || src.GetRasterBand(b)->GetRasterDataType() != GDT_Byte;
   if (src.GetRasterCount() == 1 && src.GetRasterBand(1)->GetColorTable() != nullptr) return {};
-  if (!deep && (s.mode == Mode::Auto || s.mode == Mode::None)) return {};
+  const StretchStep step = stretch_step(s, deep);
+  if (step == StretchStep::AsIs) return {};
   std::vector<BandRange> out(colour.size());
   for (std::size_t k = 0; k < colour.size(); ++k) {
     GDALRasterBand& band = *src.GetRasterBand(colour[k]);
     if (k > 0 && colour[k] == colour[k - 1]) {
       out[k] = out[k - 1];  // grey: one band three times
-    } else if (s.mode == Mode::Values) {
-      out[k] = {s.lo, s.hi};
-    } else if (s.mode == Mode::None) {
-      out[k] = whole_range(band.GetRasterDataType());
+    } else if (step == StretchStep::Fixed) {
+      const GDALDataType t = band.GetRasterDataType();
+      out[k] = fixed_range(s, GDALGetDataTypeSizeBits(t), GDALDataTypeIsSigned(t) != 0,
+                           GDALDataTypeIsFloating(t) != 0);
     } else {
       const auto part = [&, k](double f) {
         if (progress) progress((double(k) + f) / double(colour.size()));
@@ -190,7 +185,9 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                      detail::gdal_number(br.lo), detail::gdal_number(br.hi), "0", "255"});
     }
     if (alpha != 0) {
-      const BandRange ar = whole_range(src->GetRasterBand(alpha)->GetRasterDataType());
+      const GDALDataType at = src->GetRasterBand(alpha)->GetRasterDataType();
+      const BandRange ar = type_range(GDALGetDataTypeSizeBits(at), GDALDataTypeIsSigned(at) != 0,
+                                      GDALDataTypeIsFloating(at) != 0);
       layout.insert(layout.end(), {"-b", std::to_string(alpha), "-scale_4", detail::gdal_number(ar.lo),
                                    detail::gdal_number(ar.hi), "0", "255"});
     } else if (mask_alpha) {

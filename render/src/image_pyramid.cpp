@@ -258,16 +258,14 @@ std::vector<blocks::BandRange> channel_ranges(
     const std::array<ChannelType, 3>& types, int width, int height,
     const std::function<void(int, int, OIIO::TypeDesc, void*)>& read_rows,
     const std::function<void(double)>& progress) {
-  using Mode = blocks::StretchOptions::Mode;
-  if (stretch.mode == Mode::Values) return std::vector<blocks::BandRange>(3, {stretch.lo, stretch.hi});
+  const blocks::StretchStep step = blocks::stretch_step(stretch, deep);
+  if (step == blocks::StretchStep::AsIs) return {};
   std::vector<blocks::BandRange> ranges(3);
-  if (stretch.mode == Mode::None) {
-    if (!deep) return {};
+  if (step == blocks::StretchStep::Fixed) {
     for (std::size_t c = 0; c < 3; ++c)
-      ranges[c] = blocks::type_range(types[c].bits, types[c].is_signed, types[c].is_float);
+      ranges[c] = blocks::fixed_range(stretch, types[c].bits, types[c].is_signed, types[c].is_float);
     return ranges;
   }
-  if (stretch.mode == Mode::Auto && !deep) return {};
   std::array<std::optional<blocks::BandHistogram>, 3> hists;
   for (std::size_t c = 0; c < 3; ++c)
     hists[c] = blocks::exact_histogram(types[c].bits, types[c].is_signed, types[c].is_float);
@@ -341,8 +339,7 @@ std::vector<blocks::BandRange> ImagePyramid::convert(const std::string& image_pa
     types[c] = channel_type(spec.channelformat(ch.colour[c]));
     deep = deep || types[c].bits != 8 || types[c].is_float || types[c].is_signed;
   }
-  using Mode = blocks::StretchOptions::Mode;
-  const double cut_share = stretch.mode == Mode::Cut || (stretch.mode == Mode::Auto && deep) ? 0.3 : 0.0;
+  const double cut_share = blocks::stretch_step(stretch, deep) == blocks::StretchStep::Cut ? 0.3 : 0.0;
   const std::vector<blocks::BandRange> ranges =
       channel_ranges(stretch, deep, ch, types, spec.width, spec.height, read_rows, [&](double f) {
         if (progress) progress(cut_share * f);

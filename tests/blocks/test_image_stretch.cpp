@@ -77,6 +77,23 @@ TEST(ImageStretch, FloatBandsAreCountedOnTheirOwnRange) {
   EXPECT_NEAR(r.hi, 0.1 + 0.4 * 0.95, 1e-5);
 }
 
+TEST(ImageStretch, EachOptionTakesOneStepForEightBitAndDeepImages) {
+  using S = StretchStep;
+  const auto step = [](const char* text, bool deep) { return stretch_step(parse_stretch(text), deep); };
+  EXPECT_EQ(step("auto", false), S::AsIs);
+  EXPECT_EQ(step("auto", true), S::Cut);
+  EXPECT_EQ(step("none", false), S::AsIs);
+  EXPECT_EQ(step("none", true), S::Fixed);
+  EXPECT_EQ(step("5%", false), S::Cut);
+  EXPECT_EQ(step("5%", true), S::Cut);
+  EXPECT_EQ(step("10,20", false), S::Fixed);
+  EXPECT_EQ(step("10,20", true), S::Fixed);
+  EXPECT_EQ(fixed_range(parse_stretch("10,20"), 16, false, false).lo, 10.0);
+  EXPECT_EQ(fixed_range(parse_stretch("10,20"), 16, false, false).hi, 20.0);
+  EXPECT_EQ(fixed_range(parse_stretch("none"), 16, false, false).hi, 65535.0);
+  EXPECT_EQ(fixed_range(parse_stretch("none"), 32, true, true).hi, 1.0);
+}
+
 TEST(ImageStretch, TypeRangesAndBytes) {
   EXPECT_EQ(type_range(8, false, false).hi, 255.0);
   EXPECT_EQ(type_range(16, false, false).hi, 65535.0);

@@ -83,6 +83,15 @@ class BandHistogram {
 /// non-negative half (as OpenImageIO converts them), 0..1 for floating point.
 BandRange type_range(int bits, bool is_signed, bool is_float);
 
+/// What `s` does to an image whose colour bands are `deep` (wider than 8 bits, signed or
+/// floating point): AsIs, its 8-bit values as they are; Fixed, each band drawn from
+/// fixed_range(); Cut, each band from its histogram's cut(s.cut_percent). Both readers (the
+/// GDAL warp and OpenImageIO's pyramid) decide by this.
+enum class StretchStep { AsIs, Fixed, Cut };
+StretchStep stretch_step(const StretchOptions& s, bool deep);
+/// The range StretchStep::Fixed draws a band of that type from: Values' lo..hi, None's type_range.
+BandRange fixed_range(const StretchOptions& s, int bits, bool is_signed, bool is_float);
+
 /// The histogram a cut counts a band of that type on when it is known before any value is read:
 /// integer types of up to 16 bits, one bin a value. Others (wider integers, floating point) are
 /// counted on BandHistogram(minimum, maximum, 65536) after a pass for their range: nullopt.
