@@ -3,85 +3,216 @@
 
 #include <gdal_priv.h>
 #include <gdal_utils.h>
+#include <ogr_spatialref.h>
 
-#include <cmath>
+#include <algorithm>
 #include <cstdio>
+#include <exception>
 #include <limits>
 #include <memory>
+#include <mutex>
 
 #include "gdal_support.hpp"
 
 namespace terralod::blocks::detail {
+namespace {
 
-WarpGrid warp_grid(const WarpGrid& src, const std::string& src_wkt, const std::string& dst_wkt,
-                   const WarpGrid* target, std::string& error) {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// A WarpSource as a GDAL raster of one Float64 band whose nodata is NaN. The warp reads its
+/// source windows through the band's IRasterIO, which reads them from WarpSource::read
+/// directly: no GDAL block cache holds them. A reader's exception is kept (failure()) and GDAL
+/// told of a failed read, which stops the warp.
+class SourceDataset final : public GDALDataset {
+ public:
+  SourceDataset(const WarpSource& src, const std::string& wkt);
+
+  CPLErr GetGeoTransform(double* gt) override {
+    std::copy(src_.gt.begin(), src_.gt.end(), gt);
+    return CE_None;
+  }
+  const OGRSpatialReference* GetSpatialRef() const override { return &srs_; }
+
+  /// The window into out (cols x rows, row-major); false when the reader failed (then and
+  /// after: a failed reader is not asked again).
+  bool read(int col0, int row0, int cols, int rows, double* out) {
+    std::lock_guard lock(mutex_);
+    if (failure_) return false;
+    try {
+      src_.read(col0, row0, cols, rows, out);
+      return true;
+    } catch (...) {
+      failure_ = std::current_exception();
+      return false;
+    }
+  }
+  /// What the reader threw, or nullptr.
+  std::exception_ptr failure() {
+    std::lock_guard lock(mutex_);
+    return failure_;
+  }
+
+ private:
+  const WarpSource& src_;
+  OGRSpatialReference srs_;
+  std::mutex mutex_;  // the warp's I/O and computing threads may both read
+  std::exception_ptr failure_;
+};
+
+class SourceBand final : public GDALRasterBand {
+ public:
+  explicit SourceBand(SourceDataset* ds) : ds_(ds) {
+    poDS = ds;
+    nBand = 1;
+    eDataType = GDT_Float64;
+    nRasterXSize = ds->GetRasterXSize();
+    nRasterYSize = ds->GetRasterYSize();
+    nBlockXSize = std::min(nRasterXSize, 512);
+    nBlockYSize = std::min(nRasterYSize, 512);
+  }
+  double GetNoDataValue(int* ok) override {
+    if (ok != nullptr) *ok = TRUE;
+    return kNaN;
+  }
+
+ protected:
+  // Only for callers that read by blocks (the warp does not): the block's samples, NaN past the
+  // raster's edge.
+  CPLErr IReadBlock(int bx, int by, void* data) override {
+    const int c0 = bx * nBlockXSize, r0 = by * nBlockYSize;
+    const int cols = std::min(nBlockXSize, nRasterXSize - c0),
+              rows = std::min(nBlockYSize, nRasterYSize - r0);
+    std::vector<double> window(std::size_t(cols) * std::size_t(rows));
+    if (!ds_->read(c0, r0, cols, rows, window.data())) return CE_Failure;
+    double* out = static_cast<double*>(data);
+    std::fill(out, out + std::size_t(nBlockXSize) * std::size_t(nBlockYSize), kNaN);
+    for (int r = 0; r < rows; ++r)
+      std::copy_n(window.data() + std::size_t(r) * std::size_t(cols), cols,
+                  out + std::size_t(r) * std::size_t(nBlockXSize));
+    return CE_None;
+  }
+  CPLErr IRasterIO(GDALRWFlag rw, int x, int y, int cols, int rows, void* data, int buf_cols, int buf_rows,
+                   GDALDataType type, GSpacing pixel_space, GSpacing line_space,
+                   GDALRasterIOExtraArg* extra) override {
+    if (rw != GF_Read) return CE_Failure;
+    if (buf_cols != cols || buf_rows != rows)  // resampled: through the blocks
+      return GDALRasterBand::IRasterIO(rw, x, y, cols, rows, data, buf_cols, buf_rows, type, pixel_space,
+                                       line_space, extra);
+    if (type == GDT_Float64 && pixel_space == GSpacing(sizeof(double)) &&
+        line_space == GSpacing(cols) * pixel_space)  // the warp's own source buffer: read into it
+      return ds_->read(x, y, cols, rows, static_cast<double*>(data)) ? CE_None : CE_Failure;
+    std::vector<double> window(std::size_t(cols) * std::size_t(rows));
+    if (!ds_->read(x, y, cols, rows, window.data())) return CE_Failure;
+    for (int r = 0; r < rows; ++r)
+      GDALCopyWords64(window.data() + std::size_t(r) * std::size_t(cols), GDT_Float64, sizeof(double),
+                      static_cast<GByte*>(data) + r * line_space, type, int(pixel_space), cols);
+    return CE_None;
+  }
+
+ private:
+  SourceDataset* ds_;
+};
+
+SourceDataset::SourceDataset(const WarpSource& src, const std::string& wkt) : src_(src) {
+  nRasterXSize = src.width;
+  nRasterYSize = src.height;
+  srs_.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  srs_.importFromWkt(wkt.c_str());
+  SetBand(1, new SourceBand(this));
+}
+
+/// The grid gdalwarp chooses for `source` with its arguments `args` (-t_srs and the rest): the
+/// size and geotransform of a warped VRT, which reads and computes nothing until it is read.
+bool suggested_grid(GDALDatasetH source, const std::vector<std::string>& args, WarpGrid& grid) {
+  std::vector<std::string> vrt_args = args;
+  vrt_args.insert(vrt_args.begin(), {"-of", "VRT"});
+  GDALWarpAppOptions* options = gdal_options(vrt_args, GDALWarpAppOptionsNew);
+  if (options == nullptr) return false;
+  int usage_error = 0;
+  GDALDatasetH vrt = GDALWarp("", nullptr, 1, &source, options, &usage_error);
+  GDALWarpAppOptionsFree(options);
+  if (vrt == nullptr) return false;
+  grid.width = GDALGetRasterXSize(vrt);
+  grid.height = GDALGetRasterYSize(vrt);
+  double gt[6];
+  GDALGetGeoTransform(vrt, gt);
+  std::copy(gt, gt + 6, grid.gt.begin());
+  GDALClose(vrt);
+  return true;
+}
+
+}  // namespace
+
+WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std::string& dst_wkt,
+                   std::string& error) {
   register_gdal();
   QuietGdal quiet;
   error.clear();
-  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  // The source band is src.z itself (the MEM driver's DATAPOINTER, read only by the warp): no
-  // copy of the grid, 8 bytes a sample less at the warp's peak.
-  std::unique_ptr<GDALDataset> in(mem->Create("", src.width, src.height, 0, GDT_Float64, nullptr));
-  char pointer[64];
-  std::snprintf(pointer, sizeof pointer, "DATAPOINTER=%p", static_cast<const void*>(src.z.data()));
-  char* band_options[] = {pointer, nullptr};
-  if (!in || src.z.size() != std::size_t(src.width) * std::size_t(src.height) ||
-      in->AddBand(GDT_Float64, band_options) != CE_None) {
-    error = "GDAL could not make an in-memory raster to warp";
+  // Reference-counted, as GDAL's datasets are (a VRT made of it may hold a reference): this
+  // function's reference is released when it returns, and the last one deletes it.
+  auto* in = new SourceDataset(src, src_wkt);
+  struct Release {
+    SourceDataset* ds;
+    ~Release() { ds->ReleaseRef(); }
+  } release{in};
+  GDALDatasetH source = GDALDataset::ToHandle(in);
+
+  // gdalwarp -t_srs DST -r bilinear -et 0 -srcnodata nan -dstnodata nan -wo NUM_THREADS=ALL_CPUS
+  // -multi -novshift -wm CHUNK -wo XSCALE=X -wo YSCALE=Y: exact transformations (-et 0; the
+  // approximate transformer at 0.125 pixel halved the warp of N44W072, 0.7 s -> 0.3 s, for up to
+  // 0.125 pixel of displacement), on every core; heights as they are (-novshift: GDALWarp shifts a
+  // source that names its vertical datum to ellipsoidal heights by itself, and the exporters
+  // convert them from that datum after). Chunks of 8 MiB: the source is read a chunk's window at
+  // a time (a 3690 x 3613 terrain's export peaked at 444 MB with the source whole, 288 MB in
+  // GDAL's default chunks of 64 MiB, 195 MB in these, in the same time). XSCALE, YSCALE: the
+  // output's samples per source sample over the whole grid (about what GDAL takes for a warp in
+  // one chunk), the same for every chunk. GDAL otherwise takes each chunk's own ratio of output to
+  // source window, and below 1 widens the bilinear kernel as a downsampling needs: corner chunks,
+  // where the source fills little of the output's box, came out smoothed (by up to 2.7 m on that
+  // terrain in chunks of 8 MiB) and the grid depended on the chunking.
+  // The grid is chosen with -t_srs first; the warp then writes into a raster of that grid.
+  const std::vector<std::string> common = {"-r",     "bilinear",
+                                           "-et",    "0",
+                                           "-wo",    "NUM_THREADS=ALL_CPUS",
+                                           "-multi", "-novshift",
+                                           "-wm",    std::to_string(src.chunk_mib)};
+  WarpGrid w;
+  std::vector<std::string> layout_args = common;
+  layout_args.insert(layout_args.end(), {"-t_srs", dst_wkt});
+  if (!suggested_grid(source, layout_args, w)) {
+    error = gdal_message("GDAL could not find a grid to warp to");
     return {};
   }
-  double gt[6] = {src.gt[0], src.gt[1], src.gt[2], src.gt[3], src.gt[4], src.gt[5]};
-  in->SetGeoTransform(gt);
-  in->SetProjection(src_wkt.c_str());
-  in->GetRasterBand(1)->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
-
-  // gdalwarp -of MEM -t_srs DST -r bilinear -et 0 -dstnodata nan -wo NUM_THREADS=ALL_CPUS -multi
-  // -novshift [-te ... -ts W H]: exact transformations (-et 0; the approximate transformer at 0.125
-  // pixel halved the warp of N44W072, 0.7 s -> 0.3 s, for up to 0.125 pixel of displacement), on
-  // every core; heights as they are (-novshift: GDALWarp shifts a source that names its vertical
-  // datum to ellipsoidal heights by itself, and the exporters convert them from that datum after).
-  std::vector<std::string> args = {
-      "-of",    "MEM",        "-t_srs", dst_wkt, "-r",      "bilinear", "-et",
-      "0",      "-dstnodata", "nan",    "-ot",   "Float64", "-wo",      "NUM_THREADS=ALL_CPUS",
-      "-multi", "-novshift"};
-  if (target != nullptr) {
-    const auto& t = target->gt;
-    if (t[2] != 0.0 || t[4] != 0.0) {
-      error = "the target grid of a warp must be north-up";
-      return {};
-    }
-    const double x0 = t[0], x1 = t[0] + target->width * t[1];
-    const double y0 = t[3] + target->height * t[5], y1 = t[3];
-    for (const std::string& s :
-         {std::string("-te"), gdal_number(x0), gdal_number(y0), gdal_number(x1), gdal_number(y1),
-          std::string("-ts"), std::to_string(target->width), std::to_string(target->height)})
-      args.push_back(s);
+  // The warp writes into w.z (a MEM raster over it): no copy of the output.
+  w.z.assign(std::size_t(w.width) * std::size_t(w.height), kNaN);
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  std::unique_ptr<GDALDataset> out(mem->Create("", w.width, w.height, 0, GDT_Float64, nullptr));
+  char pointer[64];
+  std::snprintf(pointer, sizeof pointer, "DATAPOINTER=%p", static_cast<void*>(w.z.data()));
+  char* band_options[] = {pointer, nullptr};
+  if (!out || out->AddBand(GDT_Float64, band_options) != CE_None) {
+    error = "GDAL could not make an in-memory raster to warp into";
+    return {};
   }
-  GDALWarpAppOptions* options = gdal_options(args, GDALWarpAppOptionsNew);
+  double gt[6] = {w.gt[0], w.gt[1], w.gt[2], w.gt[3], w.gt[4], w.gt[5]};
+  out->SetGeoTransform(gt);
+  out->SetProjection(dst_wkt.c_str());
+  out->GetRasterBand(1)->SetNoDataValue(kNaN);
+  std::vector<std::string> warp_args = common;
+  warp_args.insert(warp_args.end(), {"-srcnodata", "nan", "-dstnodata", "nan", "-wo",
+                                     "XSCALE=" + gdal_number(double(w.width) / double(src.width)), "-wo",
+                                     "YSCALE=" + gdal_number(double(w.height) / double(src.height))});
+  GDALWarpAppOptions* options = gdal_options(warp_args, GDALWarpAppOptionsNew);
   if (options == nullptr) {
     error = gdal_message("GDAL rejected the warp options");
     return {};
   }
-  GDALDatasetH source = GDALDataset::ToHandle(in.get());
   int usage_error = 0;
-  GDALDatasetH out = GDALWarp("", nullptr, 1, &source, options, &usage_error);
+  GDALDatasetH done = GDALWarp(nullptr, GDALDataset::ToHandle(out.get()), 1, &source, options, &usage_error);
   GDALWarpAppOptionsFree(options);
-  if (out == nullptr) {
+  if (const std::exception_ptr failure = in->failure()) std::rethrow_exception(failure);
+  if (done == nullptr) {
     error = gdal_message("GDAL could not warp the grid");
-    return {};
-  }
-  WarpGrid w;
-  w.width = GDALGetRasterXSize(out);
-  w.height = GDALGetRasterYSize(out);
-  double ot[6];
-  GDALGetGeoTransform(out, ot);
-  for (int k = 0; k < 6; ++k) w.gt[std::size_t(k)] = ot[k];
-  w.z.resize(std::size_t(w.width) * std::size_t(w.height));
-  const CPLErr rc = GDALRasterIO(GDALGetRasterBand(out, 1), GF_Read, 0, 0, w.width, w.height, w.z.data(),
-                                 w.width, w.height, GDT_Float64, 0, 0);
-  GDALClose(out);
-  if (rc != CE_None) {
-    error = gdal_message("GDAL could not read the warped grid");
     return {};
   }
   return w;

@@ -22,6 +22,7 @@
 #include "run_command.hpp"
 #include "terralod/blocks/block_database.hpp"
 #include "terralod/blocks/database_extract.hpp"
+#include "terralod/blocks/database_terrain.hpp"
 #include "terralod/blocks/dem_reader.hpp"
 #include "terralod/blocks/geo_grid.hpp"
 #include "terralod/blocks/terrain_export.hpp"
@@ -478,6 +479,21 @@ TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
   tb::DatabaseBuildOptions o;
   o.block_size = 65;
   tb::build_database(utm, db, o);
+  {
+    // The exporter reads the database window by window (blocks of 65: many rows of blocks),
+    // which gives the grid the whole terrain in memory gives, bit for bit.
+    const tb::BlockDatabase handle = tb::BlockDatabase::open(db, tb::BlockDatabase::Mode::ReadOnly);
+    tb::DatabaseTerrain terrain(handle, {.cache_bytes = 0});
+    const tb::GeoGrid windows = tb::make_geo_grid(terrain, "", db);
+    const tb::GeoGrid whole = tb::make_geo_grid(tb::read_database_terrain(handle), "", db);
+    EXPECT_EQ(windows.width, whole.width);
+    EXPECT_EQ(windows.height, whole.height);
+    EXPECT_EQ(windows.west, whole.west);
+    EXPECT_EQ(windows.north, whole.north);
+    EXPECT_TRUE(windows.heights == whole.heights);
+    EXPECT_TRUE(windows.mask == whole.mask);
+    EXPECT_EQ(windows.horizontal, whole.horizontal);
+  }
   const fs::path out = dir / "utm-tiles";
   const tb::ExportReport r = tb::export_terrain(db, out.string(), {.max_level = 12});
   EXPECT_NE(r.horizontal.find("warped"), std::string::npos) << r.horizontal;

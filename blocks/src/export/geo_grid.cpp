@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -123,28 +124,29 @@ bool is_wgs84_geographic(const std::string& wkt) {
 
 /// +1 when the North Pole lies inside the terrain's footprint (its samples' cells), -1 for the
 /// South Pole, 0 for neither.
-int pole_inside(const pm::Heightfield& hf, const detail::GeographicOf& geo) {
-  const detail::Affine grid{*hf.crs_transform};
+int pole_inside(const pm::GridTransform& t, int width, int height, const detail::GeographicOf& geo) {
+  const detail::Affine grid{t};
   for (const int s : {1, -1}) {
     double x = 0.0, y = 90.0 * s;
     if (!geo.to_crs->Transform(1, &x, &y) || !std::isfinite(x) || !std::isfinite(y)) continue;
     const auto [c, r] = grid.inverse(x, y);
-    if (c >= -0.5 && c <= hf.width() - 0.5 && r >= -0.5 && r <= hf.height() - 0.5) return s;
+    if (c >= -0.5 && c <= width - 0.5 && r >= -0.5 && r <= height - 0.5) return s;
   }
   return 0;
 }
 
-/// hf warped to EPSG:4326 (bilinear, GDAL's choice of resolution), voids and outside as holes.
-/// Takes hf's samples (hf keeps its width, height, transforms and mask).
-GeoGrid warp_to_lonlat(pm::Heightfield& hf, const std::string& what) {
-  const pm::GridTransform& t = *hf.crs_transform;
-  detail::WarpGrid src;
-  src.width = hf.width();
-  src.height = hf.height();
+/// The terrain of width x height samples in the CRS and transform of `frame` (whose samples, if
+/// any, are not read: they come from `read`, see detail::WarpSource) warped to EPSG:4326 (bilinear, GDAL's
+/// choice of resolution), voids and outside as holes. Only the warped grid is held whole.
+GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
+                       const std::function<void(int, int, int, int, double*)>& read,
+                       const std::string& what) {
+  const pm::GridTransform& t = *frame.crs_transform;
+  detail::WarpSource src;
+  src.width = width;
+  src.height = height;
   src.gt = {t.x0 - 0.5 * t.xc - 0.5 * t.xr, t.xc, t.xr, t.y0 - 0.5 * t.yc - 0.5 * t.yr, t.yc, t.yr};
-  for (std::size_t i = 0; i < hf.size(); ++i)
-    if (!hf.valid(i)) hf.samples()[i] = std::numeric_limits<double>::quiet_NaN();
-  src.z = std::move(hf.samples());
+  src.read = read;
   register_gdal();
   OGRSpatialReference wgs84;
   wgs84.SetWellKnownGeogCS("WGS84");
@@ -155,24 +157,23 @@ GeoGrid warp_to_lonlat(pm::Heightfield& hf, const std::string& what) {
   // Far from Greenwich, longitudes run continuously around the terrain's centre (PROJ's
   // lon_wrap): a terrain across the antimeridian would otherwise land on both edges of
   // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
-  if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(hf.crs_wkt)) {
+  if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(frame.crs_wkt)) {
     // Around a pole every longitude meets: GDAL suggests no grid (it failed with "Attempt to
     // create 363x0 dataset"), and one laid out by hand is so anisotropic (a column spans degrees,
     // a row a second) that the tiles' meshes missed the samples by hundreds of metres. Refused,
     // naming the pole, until the exporter meshes such tiles.
-    if (const int pole = pole_inside(hf, *geo); pole != 0)
+    if (const int pole = pole_inside(t, width, height, *geo); pole != 0)
       throw GeoError(what + ": the terrain holds the " + (pole > 0 ? "North" : "South") +
                      " Pole, which the geographic tiling of quantized-mesh and of this 3D Tiles "
                      "export cannot hold yet (every longitude meets there); build a database of a "
                      "part of the DEM that stays clear of the pole (crop it, e.g. with gdal_translate "
                      "-projwin) and export that");
-    auto [x, y] = t.to_world(0.5 * (hf.width() - 1), 0.5 * (hf.height() - 1));
+    auto [x, y] = t.to_world(0.5 * (width - 1), 0.5 * (height - 1));
     if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
       dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
   }
   std::string error;
-  detail::WarpGrid w = detail::warp_grid(src, hf.crs_wkt, dst, /*target=*/nullptr, error);
-  src.z = {};
+  detail::WarpGrid w = detail::warp_grid(src, frame.crs_wkt, dst, error);
   if (!error.empty())
     throw GeoError(what + ": GDAL could not warp the terrain from its CRS to longitude/latitude: " + error);
   GeoGrid g;
@@ -199,44 +200,23 @@ GeoGrid warp_to_lonlat(pm::Heightfield& hf, const std::string& what) {
   return g;
 }
 
-}  // namespace
-
-std::vector<double> geoid_undulations(const std::string& vertical_datum, const std::vector<double>& lon,
-                                      const std::vector<double>& lat, const std::string& what) {
-  std::vector<double> n(lon.size(), 0.0);
-  const std::string v = detail::vertical_crs(vertical_datum);
-  if (v.empty() || lon.empty()) return n;
-  constexpr std::size_t kPiece = 1 << 16;
-  with_geoid_operations(v, what, lon.size(), (lon.size() + kPiece - 1) / kPiece,
-                        [&](GeoidOperation& op, std::size_t p) {
-                          const std::size_t a = p * kPiece, b = std::min(lon.size(), a + kPiece);
-                          op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
-                        });
-  return n;
-}
-
-GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what) {
-  if (hf.crs_wkt.empty() || !hf.crs_transform)
+void require_crs(const pm::Heightfield& frame, const std::string& what) {
+  if (frame.crs_wkt.empty() || !frame.crs_transform)
     throw GeoError(what +
                    ": the terrain has no coordinate reference system, so it cannot be placed on the "
                    "Earth; build it from a georeferenced DEM (an SRTM .hgt, a GeoTIFF with a CRS, an "
                    ".asc with a .prj; gdal_translate -a_srs EPSG:<code> adds one)");
-  const pm::GridTransform& t = *hf.crs_transform;
-  GeoGrid g;
-  if (is_wgs84_geographic(hf.crs_wkt) && t.xr == 0.0 && t.yc == 0.0 && t.xc > 0.0 && t.yr < 0.0) {
-    g.width = hf.width();
-    g.height = hf.height();
-    g.west = t.x0;
-    g.north = t.y0;
-    g.dlon = t.xc;
-    g.dlat = -t.yr;
-    if (hf.has_holes()) g.mask = hf.mask();
-    g.heights = std::move(hf.samples());
-    g.horizontal = "the source's own samples (geographic WGS 84)";
-  } else {
-    g = warp_to_lonlat(hf, what);
-  }
-  const std::string requested = vertical_datum.empty() ? hf.vertical_datum : vertical_datum;
+}
+
+/// Whether the grid of `frame` is north-up in geographic WGS 84: then its samples are the grid's.
+bool on_lonlat_grid(const pm::Heightfield& frame) {
+  const pm::GridTransform& t = *frame.crs_transform;
+  return is_wgs84_geographic(frame.crs_wkt) && t.xr == 0.0 && t.yc == 0.0 && t.xc > 0.0 && t.yr < 0.0;
+}
+
+/// g's heights from the datum `requested` (the caller's, else the one its source states; "" when
+/// neither names one) to the WGS 84 ellipsoid (the header's contract).
+GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const std::string& what) {
   const std::string v = detail::vertical_crs(requested);
   g.vertical_datum = v.empty()          ? "WGS 84 ellipsoid"
                      : v == "EPSG:5773" ? "EGM96"
@@ -266,6 +246,78 @@ GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, con
       });
   g.heights_converted = true;
   return g;
+}
+
+}  // namespace
+
+std::vector<double> geoid_undulations(const std::string& vertical_datum, const std::vector<double>& lon,
+                                      const std::vector<double>& lat, const std::string& what) {
+  std::vector<double> n(lon.size(), 0.0);
+  const std::string v = detail::vertical_crs(vertical_datum);
+  if (v.empty() || lon.empty()) return n;
+  constexpr std::size_t kPiece = 1 << 16;
+  with_geoid_operations(v, what, lon.size(), (lon.size() + kPiece - 1) / kPiece,
+                        [&](GeoidOperation& op, std::size_t p) {
+                          const std::size_t a = p * kPiece, b = std::min(lon.size(), a + kPiece);
+                          op.undulations(lon.data() + a, lat.data() + a, n.data() + a, b - a, what);
+                        });
+  return n;
+}
+
+GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what) {
+  require_crs(hf, what);
+  const std::string requested = vertical_datum.empty() ? hf.vertical_datum : vertical_datum;
+  GeoGrid g;
+  if (on_lonlat_grid(hf)) {
+    const pm::GridTransform& t = *hf.crs_transform;
+    g.width = hf.width();
+    g.height = hf.height();
+    g.west = t.x0;
+    g.north = t.y0;
+    g.dlon = t.xc;
+    g.dlat = -t.yr;
+    if (hf.has_holes()) g.mask = hf.mask();
+    g.heights = std::move(hf.samples());
+    g.horizontal = "the source's own samples (geographic WGS 84)";
+  } else {
+    g = warp_to_lonlat(
+        hf, hf.width(), hf.height(),
+        [&](int col0, int row0, int cols, int rows, double* out) {
+          for (int r = 0; r < rows; ++r)
+            for (int c = 0; c < cols; ++c)
+              *out++ = hf.valid(col0 + c, row0 + r) ? hf.at(col0 + c, row0 + r)
+                                                    : std::numeric_limits<double>::quiet_NaN();
+        },
+        what);
+    std::vector<double>().swap(hf.samples());
+  }
+  return with_ellipsoidal_heights(std::move(g), requested, what);
+}
+
+GeoGrid make_geo_grid(DatabaseTerrain& terrain, const std::string& vertical_datum, const std::string& what) {
+  const pm::Heightfield& frame = terrain.frame();
+  require_crs(frame, what);
+  if (on_lonlat_grid(frame))
+    return make_geo_grid(terrain.read({0, 0, terrain.width() - 1, terrain.height() - 1}), vertical_datum,
+                         what);
+  GeoGrid g = warp_to_lonlat(
+      frame, terrain.width(), terrain.height(),
+      [&](int col0, int row0, int cols, int rows, double* out) {
+        // By the rows of blocks the window meets, each block decoded once: only one row of
+        // blocks of the window is held beside GDAL's buffer.
+        const int step = terrain.layout().block_size - 1;
+        for (int r0 = row0; r0 < row0 + rows;) {
+          const int block_row = r0 == 0 ? 0 : (r0 - 1) / step;  // a shared row is its upper block's
+          const int r1 = std::min(row0 + rows, (block_row + 1) * step + 1);  // exclusive
+          const pm::Heightfield w = terrain.read({col0, r0, col0 + cols - 1, r1 - 1});
+          for (std::size_t i = 0; i < w.size(); ++i)
+            *out++ = w.valid(i) ? w[i] : std::numeric_limits<double>::quiet_NaN();
+          r0 = r1;
+        }
+      },
+      what);
+  return with_ellipsoidal_heights(std::move(g),
+                                  vertical_datum.empty() ? frame.vertical_datum : vertical_datum, what);
 }
 
 }  // namespace terralod::blocks

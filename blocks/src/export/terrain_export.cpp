@@ -396,7 +396,10 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
   }
   GeoGrid grid;
   try {
-    grid = make_geo_grid(read_database_terrain(db), options.vertical_datum, db_path);
+    // No cache of decoded blocks: a grid on longitude/latitude is read whole, each block pasted
+    // once, and a warp's chunks share only the blocks along their edges.
+    DatabaseTerrain terrain(db, {.cache_bytes = 0});
+    grid = make_geo_grid(terrain, options.vertical_datum, db_path);
   } catch (const GeoError& e) {
     throw ExportError(e.what());
   }

@@ -8,14 +8,17 @@
 //   tb::GeoGrid g = tb::make_geo_grid(std::move(hf), /*vertical_datum=*/"", "terrain.db");
 //   double h = g.z(col, row);                                    // metres above WGS 84
 //   double lon = g.lon(col), lat = g.lat(row);                   // degrees
+//   tb::DatabaseTerrain terrain(db);                             // or read window by window:
+//   tb::GeoGrid g2 = tb::make_geo_grid(terrain, "", "terrain.db");  // the same grid
 //
 // Contract of make_geo_grid:
 //   - hf must carry its CRS (crs_wkt and crs_transform, as read_dem and read_database_terrain
 //     give them); otherwise GeoError naming `what` and asking for a georeferenced input.
 //   - Horizontal: a north-up grid in a geographic CRS on the WGS 84 datum is used as it is (the
 //     samples are the DEM's own). Anything else (a projected CRS, a rotated grid, another datum)
-//     is warped to EPSG:4326 through GDAL (bilinear, the source's resolution), and the warped
-//     samples are the grid's samples; voids and the area outside the source become holes.
+//     is warped to EPSG:4326 through GDAL (bilinear, the source's resolution; the same samples
+//     however GDAL cuts the warp into chunks), and the warped samples are the grid's samples;
+//     voids and the area outside the source become holes.
 //   - Vertical: heights are converted from `vertical_datum` to the WGS 84 ellipsoid by adding
 //     the geoid undulation N(lon, lat) that PROJ gives for every sample:
 //       "ellipsoid" (or "wgs84")  the heights are ellipsoidal already: nothing is added;
@@ -28,9 +31,14 @@
 //                                 GMTED, ASTER and most global DEMs use it).
 //     GeoError when PROJ does not know the datum or lacks its grid (PROJ is never allowed to fall
 //     back silently to a no-op "ballpark" transformation).
+//   - From a DatabaseTerrain: the same grid, bit for bit, as from read_database_terrain's whole
+//     grid. A terrain on a longitude/latitude grid is read whole (its samples are the grid's);
+//     one to warp is read window by window as GDAL's warp needs it (chunks of 8 MiB; each
+//     window a row of blocks at a time), so its source is never held whole.
 //   - Costs: the grid, 8 + 1 bytes per sample (hf's samples move into it: pass hf with
-//     std::move unless it is needed afterwards); a warp holds the source and the warped grid at
-//     once; PROJ evaluates N once per sample, in bands of rows of about 2^16 samples.
+//     std::move unless it is needed afterwards); a warp writes straight into the grid and reads
+//     the source by windows (a Heightfield's in place: it is held anyway); PROJ evaluates N once
+//     per sample, in bands of rows of about 2^16 samples.
 #pragma once
 
 #include <cstddef>
@@ -39,6 +47,7 @@
 #include <string>
 #include <vector>
 
+#include "terralod/blocks/database_terrain.hpp"
 #include "terralod/pm/heightfield.hpp"
 
 namespace terralod::blocks {
@@ -66,6 +75,8 @@ struct GeoGrid {
 };
 
 GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what);
+/// The same grid from a database's terrain, read window by window where it is warped.
+GeoGrid make_geo_grid(DatabaseTerrain& terrain, const std::string& vertical_datum, const std::string& what);
 
 /// The geoid undulation N (metres: ellipsoidal height = height in `vertical_datum` + N) at
 /// (lon, lat) in degrees, by the same PROJ operation make_geo_grid uses. GeoError as above.
