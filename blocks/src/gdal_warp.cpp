@@ -25,7 +25,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// told of a failed read, which stops the warp.
 class SourceDataset final : public GDALDataset {
  public:
-  SourceDataset(const WarpSource& src, const std::string& wkt);
+  SourceDataset(const WarpSource& src, const OGRSpatialReference& srs);
 
   CPLErr GetGeoTransform(double* gt) override {
     std::copy(src_.gt.begin(), src_.gt.end(), gt);
@@ -113,11 +113,9 @@ class SourceBand final : public GDALRasterBand {
   SourceDataset* ds_;
 };
 
-SourceDataset::SourceDataset(const WarpSource& src, const std::string& wkt) : src_(src) {
+SourceDataset::SourceDataset(const WarpSource& src, const OGRSpatialReference& srs) : src_(src), srs_(srs) {
   nRasterXSize = src.width;
   nRasterYSize = src.height;
-  srs_.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  srs_.importFromWkt(wkt.c_str());
   SetBand(1, new SourceBand(this));
 }
 
@@ -150,7 +148,13 @@ WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std:
   error.clear();
   // Reference-counted, as GDAL's datasets are (a VRT made of it may hold a reference): this
   // function's reference is released when it returns, and the last one deletes it.
-  auto* in = new SourceDataset(src, src_wkt);
+  OGRSpatialReference srs;  // any CRS text GDAL takes, as GDALDataset::SetProjection did
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  if (srs.SetFromUserInput(src_wkt.c_str()) != OGRERR_NONE) {
+    error = "GDAL does not understand the source's coordinate reference system";
+    return {};
+  }
+  auto* in = new SourceDataset(src, srs);
   struct Release {
     SourceDataset* ds;
     ~Release() { ds->ReleaseRef(); }
