@@ -526,6 +526,43 @@ TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
   EXPECT_LT(diff[diff.size() * 9 / 10], 25.0) << "90th percentile";
 }
 
+// High terrain inside a 0 m border (a DEM clipped with 0 where it had no data: N44W072 + 5,000 m,
+// its north edge at 45 degrees, a tile edge of levels 0 to 6): at the coarse levels the lattice
+// has fewer than 16 quanta a sample, a cliff-top sample rounded onto a vertex already lies across
+// a sliver from a 0 m vertex to a tile-edge vertex, and each such stuck point dropped its whole
+// triangle, so its other samples were never inserted: level 4 measured 5,359 m against its bound
+// of 4,817 (a 1,440^2 version: levels 4 and 5, 5,533 and 5,456 m against 4,817 and 2,408). A stuck
+// point now leaves its triangle's next worst point to be inserted, and one that breaks the level's
+// bound takes another corner of its quantum cell as on fine lattices. (The deepest level, 1 m,
+// still measures about 4 m here: an edge vertex at the foot of the cliff is rounded along the
+// edge, which no free corner reaches.)
+TEST_F(QuantizedMeshExport, HighTerrainInsideAZeroBorderKeepsTheCoarseLevelsWithinTheirBounds) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  const pm::Heightfield inner = crop(600, 0, 161, 161);
+  constexpr int kBorder = 20;
+  pm::Heightfield hf(161 + 2 * kBorder, 161 + 2 * kBorder);  // 0 m everywhere
+  for (int r = 0; r < 161; ++r)
+    for (int c = 0; c < 161; ++c) hf.at(c + kBorder, r + kBorder) = inner.at(c, r) + 5000.0;
+  const pm::GridTransform& t = inner.transform;
+  hf.transform = pm::GridTransform{t.x0 - kBorder * t.xc, t.xc, 0, t.y0 - kBorder * t.yr, 0, t.yr};
+  const pm::GridTransform& g = *inner.crs_transform;
+  hf.crs_transform = pm::GridTransform{g.x0 - kBorder * g.xc, g.xc, 0, g.y0 - kBorder * g.yr, 0, g.yr};
+  hf.crs_wkt = inner.crs_wkt;
+  hf.vertical_datum = inner.vertical_datum;
+  const std::string db = (dir / "zero-border.db").string();
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  tb::build_database(hf, db, o);
+  const tb::ExportReport r = tb::export_terrain(db, (dir / "zero-border-tiles").string());
+  ASSERT_GE(r.levels.size(), 8u);
+  for (const tb::ExportLevel& L : r.levels) {
+    std::printf("level %d: %.1f m, bound %.1f m\n", L.z, L.max_error, L.bound);
+    if (L.z + 1 < int(r.levels.size())) {
+      EXPECT_LE(L.max_error, L.bound) << "level " << L.z;
+    }
+  }
+}
+
 // A deepest level far coarser than the samples (--max-level 0: two tiles of 180 degrees held to
 // 1 m) keeps its forced grid against the Earth's curvature to 256 x 256 a tile: uncapped, it
 // forced 7.8 million points a tile (a 41 x 41 DEM had not been exported after 15 minutes).

@@ -24,9 +24,10 @@
 //      background ring, and a 65 x 65 grid of background points away from the terrain. On a
 //      lattice 16 or more quanta between samples, a point whose rounded position is a vertex
 //      already goes to another corner of its quantum cell (at the top of a cliff the rounding
-//      alone tilts the steep triangles by metres); points whose rounded position lies on the
-//      tile's boundary, or that find no free corner, are measured but not inserted (their error
-//      is then whatever the mesh gives them).
+//      alone tilts the steep triangles by metres); on a coarser one, only a point above
+//      edge_error does. Points whose rounded position lies on the tile's boundary, or that find
+//      no free corner, are measured but not inserted (their error is then whatever the mesh
+//      gives them), and the next worst point of their triangle is inserted instead.
 // tile_error then measures a mesh exactly as a client decodes it (quantized heights included).
 #pragma once
 
