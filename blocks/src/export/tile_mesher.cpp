@@ -198,16 +198,40 @@ std::vector<std::pair<int, double>> edge_vertices(const GeoField& f, bool vertic
     if (j > at_k + 1) stack.push_back({at_k, j});
   }
   std::vector<std::pair<int, double>> out;
+  std::vector<double> exact;  // out[k]'s position before rounding, in quanta
   for (std::size_t i = 0; i < pts.size(); ++i) {
     if (!keep[i]) continue;
     const int q = int(std::lround(pts[i].t * kQ));
     if (!out.empty() && out.back().first == q) {
-      if (q == kQ) out.back().second = pts[i].h;  // the end wins its position
+      if (q == kQ) out.back().second = pts[i].h, exact.back() = pts[i].t * kQ;  // the end wins its position
       continue;
     }
     out.push_back({q, pts[i].h});
+    exact.push_back(pts[i].t * kQ);
   }
-  return out;
+  // Rounding moves a vertex along the edge by up to half a quantum, and beside a cliff that
+  // alone errs at the vertex's own sample: the foot of a 5,400 m cliff 622 quanta wide, rounded
+  // 0.485 quanta towards it, was drawn 4.2 m high at its sample at a 1 m level. Such a vertex
+  // gets a twin of its height on the quantum at the other side of its true position, so that the
+  // edge is flat through it. A function of the edge alone still, as the tiles that share it need.
+  std::vector<std::pair<int, double>> bracketed;
+  bracketed.reserve(out.size());
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    bracketed.push_back(out[k]);
+    const double d = exact[k] - out[k].first;  // where the vertex belongs, from where it is
+    if (k == 0 || k + 1 == out.size() || d == 0.0) continue;
+    const std::size_t n = d > 0 ? k + 1 : k - 1;  // the neighbour on the side of the true position
+    const double drawn =
+        out[k].second + (out[n].second - out[k].second) * std::abs(d) / std::abs(out[n].first - out[k].first);
+    const int twin = out[k].first + (d > 0 ? 1 : -1);
+    if (std::abs(drawn - out[k].second) <= tol / 16 || twin == out[n].first) continue;
+    if (d > 0) {
+      bracketed.push_back({twin, out[k].second});
+    } else {
+      bracketed.insert(bracketed.end() - 1, {twin, out[k].second});
+    }
+  }
+  return bracketed;
 }
 
 class TileGreedy {

@@ -12,8 +12,11 @@
 //   1. Edges. For each edge, the field's profile along it is taken at every crossing with a
 //      lattice line, at `sag_divisions` equal steps (forced, see below) and at both ends, and
 //      simplified by Douglas-Peucker to max_error; the kept points, at their quantized positions,
-//      are the edge's vertices. The profile is computed from the edge's own coordinates only, so
-//      the two tiles that share an edge get the same vertices, heights included.
+//      are the edge's vertices, and one whose rounding alone errs by more than 1/16 of the
+//      tolerance at its own sample (beside a cliff) gets a twin of its height on the quantum at
+//      the other side of its true position. The profile is computed from the edge's own
+//      coordinates only, so the two tiles that share an edge get the same vertices, heights
+//      included.
 //   2. Forced points. A regular sag_divisions x sag_divisions grid of vertices (with the edges'
 //      forced points), so that the flat triangles a client draws in Earth-centred coordinates
 //      stay close to the curved surface on large tiles.
