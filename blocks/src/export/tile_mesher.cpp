@@ -203,7 +203,10 @@ std::vector<std::pair<int, double>> edge_vertices(const GeoField& f, bool vertic
     if (!keep[i]) continue;
     const int q = int(std::lround(pts[i].t * kQ));
     if (!out.empty() && out.back().first == q) {
-      if (q == kQ) out.back().second = pts[i].h, exact.back() = pts[i].t * kQ;  // the end wins its position
+      if (q == kQ) {  // the end wins its position
+        out.back().second = pts[i].h;
+        exact.back() = pts[i].t * kQ;
+      }
       continue;
     }
     out.push_back({q, pts[i].h});
@@ -211,9 +214,11 @@ std::vector<std::pair<int, double>> edge_vertices(const GeoField& f, bool vertic
   }
   // Rounding moves a vertex along the edge by up to half a quantum, and beside a cliff that
   // alone errs at the vertex's own sample: the foot of a 5,400 m cliff 622 quanta wide, rounded
-  // 0.485 quanta towards it, was drawn 4.2 m high at its sample at a 1 m level. Such a vertex
-  // gets a twin of its height on the quantum at the other side of its true position, so that the
-  // edge is flat through it. A function of the edge alone still, as the tiles that share it need.
+  // 0.485 quanta towards it, was drawn 4.2 m high at its sample at a 1 m level (the 0 m border
+  // test of test_terrain_export). Such a vertex gets a twin of its height on the quantum at the
+  // other side of its true position, so that the edge is flat through it. Twins of neighbours
+  // that land on one quantum are one vertex (the first; build_initial skips the second), for
+  // both tiles alike: a function of the edge alone still, as the tiles that share it need.
   std::vector<std::pair<int, double>> bracketed;
   bracketed.reserve(out.size());
   for (std::size_t k = 0; k < out.size(); ++k) {
@@ -296,14 +301,16 @@ class TileGreedy {
   /// Whether p is a corner of triangle t: of the triangle locate() finds for p, exactly when p is
   /// a vertex already (every triangle around a vertex holds it). A hash set of the vertices
   /// answered this before, at 12 % of a large tile's time and about 40 bytes a vertex.
-  bool is_stuck(pm::GridPoint p) const {
-    return !stuck_.empty() && stuck_.count(std::uint32_t(p.x) << 16 | std::uint32_t(p.y)) != 0;
-  }
-
   bool has_corner(int t, pm::GridPoint p) const {
     for (int k = 0; k < 3; ++k)
       if (dt_.corner(t, k) == p) return true;
     return false;
+  }
+
+  /// Whether points rounded to p were found stuck (run()). Asked only of a point about to become
+  /// its triangle's candidate, and the set is empty on most tiles.
+  bool is_stuck(pm::GridPoint p) const {
+    return !stuck_.empty() && stuck_.count(std::uint32_t(p.x) << 16 | std::uint32_t(p.y)) != 0;
   }
 
   /// Where a point at (u, v) is inserted: the nearest lattice position.
@@ -461,8 +468,8 @@ class TileGreedy {
   // than the natural one, rounding errs at most samples of rough terrain: their corners
   // quadrupled the vertices (a 2401^2 mosaic at --max-level 4, 2.4 quanta apart: over 8 minutes
   // instead of 3.4), so there only points above the level's bound take corners. N44W072 at
-  // --max-level 5 (4.8 quanta apart, 1 m): 55.5 m -> 3.8 m measured, 1.36x the vertices, 1.5x the
-  // time; at the coarse levels of the natural depth, cliff tops (see run()).
+  // --max-level 5 (4.8 quanta apart, 1 m): 55.5 m -> 3.8 m measured, 1.36x the vertices, 1.44x
+  // the time; at the coarse levels of the natural depth, cliff tops (see run()).
   bool fine_lattice_ = fr_.du >= 16 && fr_.dv >= 16;
   std::unordered_set<std::uint32_t> stuck_;
   BackgroundPoints background_;
