@@ -262,9 +262,9 @@ std::string wkt_of(int epsg) {
 // through a warp to longitude/latitude (gdal_warp.hpp) that reads its source window by window:
 // a 4097 x 2049 grid in UTM zone 32N (30 m spacing), computed by its reader, is warped and the
 // process grows by the warped grid (8 bytes a sample) and GDAL's chunks (8 MiB each, two at
-// once, and its threads' buffers: 30 to 37 MiB in all here), not by the source. The source held
-// whole, as the exporters' warp did before, adds its 64 MiB (and a copy of the output another
-// 50 MiB); the bound leaves 48 MiB for the chunks. The
+// once, and its threads' buffers: 14 to 37 MiB in all here, as the process's arenas were warm
+// or not), not by the source. The source held whole, as the exporters' warp did before, adds its
+// 64 MiB (and a copy of the output another 50 MiB); the bound leaves 48 MiB for the chunks. The
 // reader is never asked for more than a quarter of the source at once, and every row is read.
 // Every warped sample is the one a warp in a single chunk gives: GDAL widens the bilinear kernel
 // of a chunk whose source window is larger than its output, and took each chunk's own ratio, so
