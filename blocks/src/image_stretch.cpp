@@ -86,9 +86,8 @@ StretchStep stretch_step(const StretchOptions& s, bool deep) {
   return deep ? StretchStep::Cut : StretchStep::AsIs;
 }
 
-BandRange fixed_range(const StretchOptions& s, int bits, bool is_signed, bool is_float) {
-  return s.mode == StretchOptions::Mode::Values ? BandRange{s.lo, s.hi}
-                                                : type_range(bits, is_signed, is_float);
+BandRange fixed_range(const StretchOptions& s, const BandRange& type) {
+  return s.mode == StretchOptions::Mode::Values ? BandRange{s.lo, s.hi} : type;
 }
 
 std::optional<BandHistogram> exact_histogram(int bits, bool is_signed, bool is_float) {

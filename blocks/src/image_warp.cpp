@@ -38,6 +38,11 @@ int progress_of(double done, const char*, void* data) {
   return 1;
 }
 
+BandRange whole_range(GDALDataType type) {
+  return type_range(GDALGetDataTypeSizeBits(type), GDALDataTypeIsSigned(type) != 0,
+                    GDALDataTypeIsFloating(type) != 0);
+}
+
 // One colour band's histogram over its valid pixels (GDAL's mask: nodata, alpha), cut at
 // `percent` at each end (exact_histogram's bins, or 65,536 over the exact minimum..maximum
 // after one more pass).
@@ -94,9 +99,7 @@ std::vector<BandRange> band_ranges(GDALDataset& src, const std::vector<int>& col
     if (k > 0 && colour[k] == colour[k - 1]) {
       out[k] = out[k - 1];  // grey: one band three times
     } else if (step == StretchStep::Fixed) {
-      const GDALDataType t = band.GetRasterDataType();
-      out[k] = fixed_range(s, GDALGetDataTypeSizeBits(t), GDALDataTypeIsSigned(t) != 0,
-                           GDALDataTypeIsFloating(t) != 0);
+      out[k] = fixed_range(s, whole_range(band.GetRasterDataType()));
     } else {
       const auto part = [&, k](double f) {
         if (progress) progress((double(k) + f) / double(colour.size()));
@@ -185,9 +188,7 @@ std::optional<WorldImage> warp_image_to_terrain(const std::string& image, const 
                      detail::gdal_number(br.lo), detail::gdal_number(br.hi), "0", "255"});
     }
     if (alpha != 0) {
-      const GDALDataType at = src->GetRasterBand(alpha)->GetRasterDataType();
-      const BandRange ar = type_range(GDALGetDataTypeSizeBits(at), GDALDataTypeIsSigned(at) != 0,
-                                      GDALDataTypeIsFloating(at) != 0);
+      const BandRange ar = whole_range(src->GetRasterBand(alpha)->GetRasterDataType());
       layout.insert(layout.end(), {"-b", std::to_string(alpha), "-scale_4", detail::gdal_number(ar.lo),
                                    detail::gdal_number(ar.hi), "0", "255"});
     } else if (mask_alpha) {

@@ -263,7 +263,8 @@ std::vector<blocks::BandRange> channel_ranges(
   std::vector<blocks::BandRange> ranges(3);
   if (step == blocks::StretchStep::Fixed) {
     for (std::size_t c = 0; c < 3; ++c)
-      ranges[c] = blocks::fixed_range(stretch, types[c].bits, types[c].is_signed, types[c].is_float);
+      ranges[c] = blocks::fixed_range(
+          stretch, blocks::type_range(types[c].bits, types[c].is_signed, types[c].is_float));
     return ranges;
   }
   std::array<std::optional<blocks::BandHistogram>, 3> hists;

@@ -247,17 +247,6 @@ TEST(ExportMemory, GeoGridHoldsAboutNineBytesASample) {
   EXPECT_LE(per_sample, 12.0) << "the grid's peak grew by " << per_sample << " bytes a sample";
 }
 
-/// The WKT of an EPSG CRS.
-std::string wkt_of(int epsg) {
-  OGRSpatialReference srs;
-  srs.importFromEPSG(epsg);
-  char* wkt = nullptr;
-  srs.exportToWkt(&wkt);
-  const std::string s = wkt != nullptr ? wkt : "";
-  CPLFree(wkt);
-  return s;
-}
-
 // A terrain in a projected frame (what `terralod build` makes by default) reaches the exporters
 // through a warp to longitude/latitude (gdal_warp.hpp) that reads its source window by window:
 // a 4097 x 2049 grid in UTM zone 32N (30 m spacing), computed by its reader, is warped and the
@@ -287,7 +276,8 @@ TEST(ExportMemory, AWarpReadsItsSourceWindowByWindow) {
         *out++ = 1000.0 + 300.0 * std::sin((col0 + c) * 0.01) * std::cos((row0 + r) * 0.013);
     }
   };
-  const std::string src_wkt = wkt_of(32632), dst_wkt = wkt_of(4326);  // UTM 32N to lon/lat
+  const std::string src_wkt = terralod::test::epsg_wkt(32632),
+                    dst_wkt = terralod::test::epsg_wkt(4326);  // UTM 32N to lon/lat
   malloc_trim(0);
   reset_peak();
   const std::uint64_t before = peak_resident();
@@ -332,7 +322,8 @@ TEST(WarpSource, AReaderThatFailsStopsTheWarpWithItsException) {
     ++calls;
     throw std::out_of_range("terrain.db: block (0, 0) is corrupt");
   };
-  const std::string src_wkt = wkt_of(32632), dst_wkt = wkt_of(4326);  // UTM 32N to lon/lat
+  const std::string src_wkt = terralod::test::epsg_wkt(32632),
+                    dst_wkt = terralod::test::epsg_wkt(4326);  // UTM 32N to lon/lat
   std::string error;
   try {
     (void)tb::detail::warp_grid(src, src_wkt, dst_wkt, error);

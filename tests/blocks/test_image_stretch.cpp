@@ -88,10 +88,10 @@ TEST(ImageStretch, EachOptionTakesOneStepForEightBitAndDeepImages) {
   EXPECT_EQ(step("5%", true), S::Cut);
   EXPECT_EQ(step("10,20", false), S::Fixed);
   EXPECT_EQ(step("10,20", true), S::Fixed);
-  EXPECT_EQ(fixed_range(parse_stretch("10,20"), 16, false, false).lo, 10.0);
-  EXPECT_EQ(fixed_range(parse_stretch("10,20"), 16, false, false).hi, 20.0);
-  EXPECT_EQ(fixed_range(parse_stretch("none"), 16, false, false).hi, 65535.0);
-  EXPECT_EQ(fixed_range(parse_stretch("none"), 32, true, true).hi, 1.0);
+  EXPECT_EQ(fixed_range(parse_stretch("10,20"), type_range(16, false, false)).lo, 10.0);
+  EXPECT_EQ(fixed_range(parse_stretch("10,20"), type_range(16, false, false)).hi, 20.0);
+  EXPECT_EQ(fixed_range(parse_stretch("none"), type_range(16, false, false)).hi, 65535.0);
+  EXPECT_EQ(fixed_range(parse_stretch("none"), type_range(32, true, true)).hi, 1.0);
 }
 
 TEST(ImageStretch, TypeRangesAndBytes) {

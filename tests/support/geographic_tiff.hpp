@@ -15,6 +15,17 @@
 
 namespace terralod::test {
 
+/// The WKT of the CRS EPSG:`epsg`.
+inline std::string epsg_wkt(int epsg) {
+  OGRSpatialReference srs;
+  EXPECT_EQ(srs.importFromEPSG(epsg), OGRERR_NONE) << "EPSG:" << epsg;
+  char* text = nullptr;
+  srs.exportToWkt(&text);
+  const std::string s = text != nullptr ? text : "";
+  CPLFree(text);
+  return s;
+}
+
 /// Writes `path`: cols x rows samples of `type` in the CRS EPSG:`epsg`, `step` CRS units apart,
 /// the north-west sample's centre at (x0, y0), each sample height(x, y) (NaN: a void, the band's
 /// nodata; -32768 for integer types).

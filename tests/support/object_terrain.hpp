@@ -9,12 +9,11 @@
 //   tp::Camera c = terralod::test::camera_over(t.hf, 15, 110, 250.0, 45.0, -20.0);
 #pragma once
 
-#include <cpl_conv.h>
 #include <gtest/gtest.h>
-#include <ogr_spatialref.h>
 
 #include <string>
 
+#include "geographic_tiff.hpp"  // epsg_wkt
 #include "run_command.hpp"
 #include "terralod/blocks/tree_builder.hpp"
 #include "terralod/pm/terrain_generator.hpp"
@@ -23,15 +22,7 @@
 namespace terralod::test {
 
 /// EPSG:32633 (WGS 84 / UTM zone 33N) as WKT.
-inline std::string utm33_wkt() {
-  OGRSpatialReference srs;
-  EXPECT_EQ(srs.importFromEPSG(32633), OGRERR_NONE);
-  char* text = nullptr;
-  srs.exportToWkt(&text);
-  std::string s = text;
-  CPLFree(text);
-  return s;
-}
+inline std::string utm33_wkt() { return epsg_wkt(32633); }
 
 /// The terrain's sample -> world (UTM 33N) map.
 inline pm::GridTransform object_terrain_transform() {

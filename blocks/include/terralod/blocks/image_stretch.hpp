@@ -89,8 +89,9 @@ BandRange type_range(int bits, bool is_signed, bool is_float);
 /// GDAL warp and OpenImageIO's pyramid) decide by this.
 enum class StretchStep { AsIs, Fixed, Cut };
 StretchStep stretch_step(const StretchOptions& s, bool deep);
-/// The range StretchStep::Fixed draws a band of that type from: Values' lo..hi, None's type_range.
-BandRange fixed_range(const StretchOptions& s, int bits, bool is_signed, bool is_float);
+/// The range StretchStep::Fixed draws a band from: Values' lo..hi, None's the band type's own
+/// range `type` (type_range).
+BandRange fixed_range(const StretchOptions& s, const BandRange& type);
 
 /// The histogram a cut counts a band of that type on when it is known before any value is read:
 /// integer types of up to 16 bits, one bin a value. Others (wider integers, floating point) are
