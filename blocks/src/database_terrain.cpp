@@ -33,20 +33,27 @@ void blocks_over(const BlockLayout& l, const SampleRect& r, int& c0, int& r0, in
 }
 
 // Copies the samples of block `b` (covering `br` of the grid) that lie in window `w` into `out`
-// (w's samples); holes go to `mask`, allocated all valid at the first hole.
-void paste(const pm::Heightfield& b, const SampleRect& br, const SampleRect& w, pm::Heightfield& out,
-           std::vector<std::uint8_t>& mask) {
+// (w's samples, row by row). A hole is marked 0 in `mask` when one is given (allocated all valid
+// at the first hole), else written as NaN.
+void paste(const pm::Heightfield& b, const SampleRect& br, const SampleRect& w, double* out,
+           std::vector<std::uint8_t>* mask) {
   const int x0 = std::max(br.col0, w.col0), x1 = std::min(br.col1, w.col1);
   const int y0 = std::max(br.row0, w.row0), y1 = std::min(br.row1, w.row1);
   for (int y = y0; y <= y1; ++y) {
     const double* src = &b.samples()[std::size_t(y - br.row0) * b.width() + std::size_t(x0 - br.col0)];
-    std::copy(src, src + (x1 - x0 + 1), &out.at(x0 - w.col0, y - w.row0));
+    const std::size_t row = std::size_t(y - w.row0) * std::size_t(w.width());
+    std::copy(src, src + (x1 - x0 + 1), out + row + std::size_t(x0 - w.col0));
     if (!b.has_holes()) continue;
-    for (int x = x0; x <= x1; ++x)
-      if (!b.valid(x - br.col0, y - br.row0)) {
-        if (mask.empty()) mask.assign(out.size(), 1);
-        mask[std::size_t(y - w.row0) * out.width() + std::size_t(x - w.col0)] = 0;
+    for (int x = x0; x <= x1; ++x) {
+      if (b.valid(x - br.col0, y - br.row0)) continue;
+      const std::size_t i = row + std::size_t(x - w.col0);
+      if (!mask) {
+        out[i] = std::numeric_limits<double>::quiet_NaN();
+        continue;
       }
+      if (mask->empty()) mask->assign(w.samples(), 1);
+      (*mask)[i] = 0;
+    }
   }
 }
 
@@ -136,15 +143,14 @@ void DatabaseTerrain::fetch(const std::vector<BlockKey>& keys) {
   evict(keys, 0);
 }
 
-pm::Heightfield DatabaseTerrain::read(const SampleRect& rect) {
+void DatabaseTerrain::paste_blocks(const SampleRect& rect, double* out, std::vector<std::uint8_t>* mask) {
   if (rect.col0 < 0 || rect.row0 < 0 || rect.col1 >= width() || rect.row1 >= height() ||
       rect.col0 > rect.col1 || rect.row0 > rect.row1)
     throw std::invalid_argument(db_->path() + ": samples [" + std::to_string(rect.col0) + ".." +
                                 std::to_string(rect.col1) + "] x [" + std::to_string(rect.row0) + ".." +
                                 std::to_string(rect.row1) + "] are not inside the " +
                                 std::to_string(width()) + " x " + std::to_string(height()) + " grid");
-  pm::Heightfield out = window_of(frame_, rect);
-  std::vector<std::uint8_t> mask;
+  if (!out) return;  // only checked
   int c0, r0, c1, r1;
   blocks_over(layout_, rect, c0, r0, c1, r1);
   // Batches of a few blocks per thread: decoded together, pasted, then free to be evicted.
@@ -161,9 +167,18 @@ pm::Heightfield DatabaseTerrain::read(const SampleRect& rect) {
       if (keys.size() == batch) flush();
     }
   if (!keys.empty()) flush();
+}
+
+pm::Heightfield DatabaseTerrain::read(const SampleRect& rect) {
+  paste_blocks(rect, nullptr, nullptr);  // a rectangle outside the grid is refused before window_of
+  pm::Heightfield out = window_of(frame_, rect);
+  std::vector<std::uint8_t> mask;
+  paste_blocks(rect, out.samples().data(), &mask);
   if (!mask.empty()) out.set_mask(std::move(mask));
   return out;
 }
+
+void DatabaseTerrain::read(const SampleRect& rect, double* out) { paste_blocks(rect, out, nullptr); }
 
 std::optional<HeightRange> DatabaseTerrain::height_range(const std::function<void(double)>& progress) {
   if (range_) return *range_;
@@ -202,7 +217,7 @@ pm::Heightfield read_database_terrain(const BlockDatabase& db, std::vector<pm::P
   for (BlockKey k : layout.keys()) {
     pm::ProgressiveMesh p = pm::decode_pm(db.read_block(k), db.path() + ": " + block_name(k));
     check_block_grid(db, k, p.heightfield(), layout.rect(k));
-    paste(p.heightfield(), layout.rect(k), all, hf, mask);
+    paste(p.heightfield(), layout.rect(k), all, hf.samples().data(), &mask);
     pms->push_back(std::move(p));
   }
   if (!mask.empty()) hf.set_mask(std::move(mask));

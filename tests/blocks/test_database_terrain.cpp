@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <vector>
 
 #include "run_command.hpp"
 #include "terralod/blocks/database_terrain.hpp"
@@ -87,12 +89,26 @@ TEST(DatabaseTerrain, AnyWindowIsTheWholeGridsSamplesThere) {
   }
   for (const tb::SampleRect& r : rects) {
     SCOPED_TRACE(testing::Message() << r.col0 << "," << r.row0 << " .. " << r.col1 << "," << r.row1);
-    expect_window(whole, t.read(r), r);
+    const pm::Heightfield w = t.read(r);
+    expect_window(whole, w, r);
+    // Into a buffer of the caller's: the same samples, holes as NaN (the buffer's old values,
+    // here a sentinel, are all overwritten).
+    std::vector<double> buffer(r.samples(), -12345.0);
+    t.read(r, buffer.data());
+    for (std::size_t i = 0; i < buffer.size(); ++i) {
+      if (w.valid(i)) {
+        ASSERT_EQ(buffer[i], w[i]) << i;
+      } else {
+        ASSERT_TRUE(std::isnan(buffer[i])) << i;
+      }
+    }
   }
   // The cache's bound: the blocks of one batch (2 per thread, 4 here) at most.
   EXPECT_LE(t.peak_cache_bytes(), 4u * (33u * 33u * 9u + 256u));
   EXPECT_THROW(t.read({0, 0, 129, 10}), std::invalid_argument);
   EXPECT_THROW(t.read({-1, 0, 10, 10}), std::invalid_argument);
+  std::vector<double> buffer(130 * 11);
+  EXPECT_THROW(t.read({0, 0, 129, 10}, buffer.data()), std::invalid_argument);
 }
 
 TEST(DatabaseTerrain, HeightRangeIsTheValidSamplesExactRange) {

@@ -303,17 +303,7 @@ GeoGrid make_geo_grid(DatabaseTerrain& terrain, const std::string& vertical_datu
   GeoGrid g = warp_to_lonlat(
       frame, terrain.width(), terrain.height(),
       [&](int col0, int row0, int cols, int rows, double* out) {
-        // By the rows of blocks the window meets, each block decoded once: only one row of
-        // blocks of the window is held beside GDAL's buffer.
-        const int step = terrain.layout().block_size - 1;
-        for (int r0 = row0; r0 < row0 + rows;) {
-          const int block_row = r0 == 0 ? 0 : (r0 - 1) / step;  // a shared row is its upper block's
-          const int r1 = std::min(row0 + rows, (block_row + 1) * step + 1);  // exclusive
-          const pm::Heightfield w = terrain.read({col0, r0, col0 + cols - 1, r1 - 1});
-          for (std::size_t i = 0; i < w.size(); ++i)
-            *out++ = w.valid(i) ? w[i] : std::numeric_limits<double>::quiet_NaN();
-          r0 = r1;
-        }
+        terrain.read({col0, row0, col0 + cols - 1, row0 + rows - 1}, out);  // straight into GDAL's buffer
       },
       what);
   return with_ellipsoidal_heights(std::move(g),

@@ -73,6 +73,9 @@ class DatabaseTerrain {
 
   /// The samples of `rect` (see the contract).
   pm::Heightfield read(const SampleRect& rect);
+  /// The same samples written into `out` (rect.width() x rect.height() doubles, row by row),
+  /// holes as NaN: for a caller with a buffer of its own (the export's warp reads into GDAL's).
+  void read(const SampleRect& rect, double* out);
   /// The exact range of the valid samples (see the contract); `progress`, when given, gets the
   /// fraction of blocks read on the first call.
   std::optional<HeightRange> height_range(const std::function<void(double)>& progress = {});
@@ -81,7 +84,9 @@ class DatabaseTerrain {
   std::size_t peak_cache_bytes() const { return peak_; }
 
  private:
-  std::shared_ptr<const pm::Heightfield> block(BlockKey k);
+  // Checks that rect lies in the grid, then (when out is given) pastes its blocks into out
+  // (rect's samples); holes go to mask, or are NaN without one.
+  void paste_blocks(const SampleRect& rect, double* out, std::vector<std::uint8_t>* mask);
   void fetch(const std::vector<BlockKey>& keys);                    // decodes the ones not cached
   void evict(const std::vector<BlockKey>& keep, std::size_t room);  // to budget - room
   // The blocks' heights, read one after the other and decoded on `threads` threads.

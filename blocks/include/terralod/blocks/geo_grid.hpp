@@ -33,8 +33,8 @@
 //     back silently to a no-op "ballpark" transformation).
 //   - From a DatabaseTerrain: the same grid, bit for bit, as from read_database_terrain's whole
 //     grid. A terrain on a longitude/latitude grid is read whole (its samples are the grid's);
-//     one to warp is read window by window as GDAL's warp needs it (chunks of 8 MiB; each
-//     window a row of blocks at a time), so its source is never held whole.
+//     one to warp is read window by window as GDAL's warp needs it (chunks of 8 MiB, each
+//     read straight into GDAL's buffer), so its source is never held whole.
 //   - Costs: the grid, 8 + 1 bytes per sample (hf's samples move into it: pass hf with
 //     std::move unless it is needed afterwards); a warp writes straight into the grid and reads
 //     the source by windows (a Heightfield's in place: it is held anyway); PROJ evaluates N once
