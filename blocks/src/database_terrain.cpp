@@ -143,14 +143,16 @@ void DatabaseTerrain::fetch(const std::vector<BlockKey>& keys) {
   evict(keys, 0);
 }
 
-void DatabaseTerrain::paste_blocks(const SampleRect& rect, double* out, std::vector<std::uint8_t>* mask) {
+void DatabaseTerrain::require_inside(const SampleRect& rect) const {
   if (rect.col0 < 0 || rect.row0 < 0 || rect.col1 >= width() || rect.row1 >= height() ||
       rect.col0 > rect.col1 || rect.row0 > rect.row1)
     throw std::invalid_argument(db_->path() + ": samples [" + std::to_string(rect.col0) + ".." +
                                 std::to_string(rect.col1) + "] x [" + std::to_string(rect.row0) + ".." +
                                 std::to_string(rect.row1) + "] are not inside the " +
                                 std::to_string(width()) + " x " + std::to_string(height()) + " grid");
-  if (!out) return;  // only checked
+}
+
+void DatabaseTerrain::paste_blocks(const SampleRect& rect, double* out, std::vector<std::uint8_t>* mask) {
   int c0, r0, c1, r1;
   blocks_over(layout_, rect, c0, r0, c1, r1);
   // Batches of a few blocks per thread: decoded together, pasted, then free to be evicted.
@@ -170,7 +172,7 @@ void DatabaseTerrain::paste_blocks(const SampleRect& rect, double* out, std::vec
 }
 
 pm::Heightfield DatabaseTerrain::read(const SampleRect& rect) {
-  paste_blocks(rect, nullptr, nullptr);  // a rectangle outside the grid is refused before window_of
+  require_inside(rect);
   pm::Heightfield out = window_of(frame_, rect);
   std::vector<std::uint8_t> mask;
   paste_blocks(rect, out.samples().data(), &mask);
@@ -178,7 +180,10 @@ pm::Heightfield DatabaseTerrain::read(const SampleRect& rect) {
   return out;
 }
 
-void DatabaseTerrain::read(const SampleRect& rect, double* out) { paste_blocks(rect, out, nullptr); }
+void DatabaseTerrain::read(const SampleRect& rect, double* out) {
+  require_inside(rect);
+  paste_blocks(rect, out, nullptr);
+}
 
 std::optional<HeightRange> DatabaseTerrain::height_range(const std::function<void(double)>& progress) {
   if (range_) return *range_;

@@ -84,8 +84,8 @@ class DatabaseTerrain {
   std::size_t peak_cache_bytes() const { return peak_; }
 
  private:
-  // Checks that rect lies in the grid, then (when out is given) pastes its blocks into out
-  // (rect's samples); holes go to mask, or are NaN without one.
+  void require_inside(const SampleRect& rect) const;  // std::invalid_argument naming rect
+  // Pastes the blocks of rect into out (rect's samples); holes go to mask, or are NaN without one.
   void paste_blocks(const SampleRect& rect, double* out, std::vector<std::uint8_t>* mask);
   void fetch(const std::vector<BlockKey>& keys);                    // decodes the ones not cached
   void evict(const std::vector<BlockKey>& keep, std::size_t room);  // to budget - room
