@@ -56,7 +56,7 @@
 // Why this shape: SRTM heights are whole metres, so the planar predictor leaves residuals of a
 // few metres (one byte, deflated further); collapses happen mostly between grid neighbours (V is
 // almost always one of a dozen small pairs, so one byte per pair), and errors grow slowly along
-// the sequence (E deltas are small). Deflating each stream separately lets zlib model each
+// the sequence (E deltas are small). Deflating each stream separately lets deflate model each
 // alphabet. What remains is mostly U: which vertex collapses next. Measured on the SRTM tile
 // N44W072 (1201 x 1201, 1.44M vertices): H 0.50, U 1.41, V 0.49, E 0.27 bytes per vertex,
 // 2.67 in all (3.85 MB).
@@ -93,9 +93,8 @@ constexpr std::uint8_t kCodecStored = 0, kCodecZlib = 1;
 constexpr int kDeflateLevel = 6;
 constexpr std::size_t kFixedHeader = 110;
 constexpr std::uint32_t kMaxString = 16u << 20;
-// Deflate cannot expand data more than 1032:1 (RFC 1951: a 258-byte match costs >= 2 bits);
-// the slack covers the zlib header and tiny streams.
-constexpr std::uint64_t kMaxInflateRatio = 1032, kInflateSlack = 1024;
+// Beside kMaxDeflateRatio (deflate_codec.hpp): the zlib header and tiny streams.
+constexpr std::uint64_t kInflateSlack = 1024;
 
 // ---------------------------------------------------------------------------------- writing
 
@@ -214,7 +213,7 @@ std::vector<std::uint8_t> get_section(ByteReader& c, const std::string& name, co
   if (raw > max_raw)
     fail(name, std::string("corrupt ") + what + ": " + std::to_string(raw) +
                    " bytes is more than the grid can need (" + std::to_string(max_raw) + ")");
-  if (codec == kCodecStored ? stored != raw : raw > stored * kMaxInflateRatio + kInflateSlack)
+  if (codec == kCodecStored ? stored != raw : raw > stored * kMaxDeflateRatio + kInflateSlack)
     fail(name, std::string("corrupt ") + what + ": " + std::to_string(stored) + " stored bytes cannot hold " +
                    std::to_string(raw) + " bytes");
   std::vector<std::uint8_t> out(raw);

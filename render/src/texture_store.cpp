@@ -166,9 +166,9 @@ RgbaImage decode_texture_tile(std::span<const std::uint8_t> b, const std::string
   if (w < 1 || h < 1 || w > 65536 || h > 65536)
     throw std::runtime_error(name + ": texture tile of " + std::to_string(w) + " x " + std::to_string(h) +
                              " pixels");
-  // zlib cannot expand more than 1032:1: a larger claim is a corrupt header (and no huge
-  // allocation is made for it).
-  if (std::uint64_t(w) * h * 4 > std::uint64_t(b.size() - 16) * 1032 + 64)
+  // Deflate cannot expand more than kMaxDeflateRatio: a larger claim is a corrupt header (and no
+  // huge allocation is made for it).
+  if (std::uint64_t(w) * h * 4 > std::uint64_t(b.size() - 16) * pm::kMaxDeflateRatio + 64)
     throw std::runtime_error(name + ": texture tile claims " + std::to_string(w) + " x " + std::to_string(h) +
                              " pixels but holds only " + std::to_string(b.size()) + " bytes");
   RgbaImage img(static_cast<int>(w), static_cast<int>(h));

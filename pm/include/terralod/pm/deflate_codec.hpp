@@ -21,6 +21,11 @@
 
 namespace terralod::pm {
 
+/// A deflate stream cannot expand its data more than 1032:1 (RFC 1951: a 258-byte match costs at
+/// least 2 bits). Readers bound the size a stream's header claims by it (plus a small slack for
+/// the zlib header and tiny streams) before they allocate for it.
+inline constexpr std::uint64_t kMaxDeflateRatio = 1032;
+
 /// Appends the zlib stream of `in`, at libdeflate's `level` (1 fastest .. 12 smallest), to
 /// `out` and returns its size; 0 when no compressor could be had (`out` is then unchanged).
 std::size_t zlib_compress(std::span<const std::uint8_t> in, int level, std::vector<std::uint8_t>& out);
