@@ -175,7 +175,7 @@ int cmd_build(const Args& a) {
     if (tty) std::fputs("\r\033[K", stderr);
     const auto& n = s.nodes_per_strategy;
     std::printf("build %s: %zu blocks (%zu built now, %zu resumed) of %d x %d samples, %s%s\n", out.c_str(),
-                s.blocks, s.blocks_built, s.blocks - s.blocks_built, s.block_size, s.block_size,
+                s.blocks, *s.blocks_built, s.blocks - *s.blocks_built, s.block_size, s.block_size,
                 format_duration(ms_since(t)).c_str(),
                 ranks_used > 1 ? strf(", %d MPI ranks", ranks_used).c_str() : "");
     std::printf(

@@ -51,10 +51,10 @@ std::string build_database(int block_size) {
   o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
   o.progress = [](double f, double) { std::fprintf(stderr, "\rbuild blocks: %3.0f %%", 100 * f); };
   const tb::DatabaseSummary s = tb::build_database(hf, path, o);
-  if (s.blocks_built > 0) std::fprintf(stderr, "\n");
+  if (s.blocks_built.value_or(0) > 0) std::fprintf(stderr, "\n");
   std::printf("%s %s: %d x %d samples in %zu blocks of %d (%zu built now), tree of %zu nodes, %.1f s\n",
-              s.blocks_built == 0 ? "reuse" : "build", path.c_str(), s.grid_width, s.grid_height, s.blocks,
-              s.block_size, s.blocks_built, s.nodes, s.seconds);
+              s.blocks_built.value_or(0) == 0 ? "reuse" : "build", path.c_str(), s.grid_width, s.grid_height,
+              s.blocks, s.block_size, s.blocks_built.value_or(0), s.nodes, s.seconds);
   return path;
 }
 

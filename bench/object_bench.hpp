@@ -69,8 +69,9 @@ inline std::string n44w072_database(const pm::Heightfield& hf) {
   o.block_size = 129;
   o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
   const blocks::DatabaseSummary s = blocks::build_database(hf, path, o);
-  std::printf("%s %s: %d x %d samples in %zu blocks of %d, %.1f s\n", s.blocks_built == 0 ? "reuse" : "build",
-              path.c_str(), s.grid_width, s.grid_height, s.blocks, s.block_size, s.seconds);
+  std::printf("%s %s: %d x %d samples in %zu blocks of %d, %.1f s\n",
+              s.blocks_built.value_or(0) == 0 ? "reuse" : "build", path.c_str(), s.grid_width, s.grid_height,
+              s.blocks, s.block_size, s.seconds);
   return path;
 }
 

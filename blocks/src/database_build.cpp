@@ -118,7 +118,7 @@ std::string DatabaseSummary::to_json() const {
   field("block_size", std::to_string(block_size));
   field("blocks_grid", "{\"x\": " + std::to_string(blocks_x) + ", \"y\": " + std::to_string(blocks_y) + "}");
   field("blocks", std::to_string(blocks));
-  field("blocks_built", std::to_string(blocks_built));
+  if (blocks_built) field("blocks_built", std::to_string(*blocks_built));
   std::string per = "{";
   for (int s = 0; s < kStrategyCount; ++s)
     per += std::string(s ? ", " : "") + quote(strategy_name(Strategy(s))) + ": " +
