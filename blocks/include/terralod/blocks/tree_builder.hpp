@@ -163,11 +163,11 @@ class BuildError : public std::runtime_error {
 struct DatabaseSummary {
   std::string path, source;
   int grid_width = 0, grid_height = 0, block_size = 0, blocks_x = 0, blocks_y = 0;
-  std::size_t blocks = 0;        ///< blocks in the database
+  std::size_t blocks = 0;  ///< blocks in the database
   /// Built by this run (the others were resumed); nullopt from summarize_database, which reads
   /// a database and ran no build (to_json then leaves the field out).
   std::optional<std::size_t> blocks_built;
-  std::size_t nodes = 0;         ///< tree nodes
+  std::size_t nodes = 0;  ///< tree nodes
   std::array<std::size_t, kStrategyCount> nodes_per_strategy{};
   int tree_depth = 0;
   std::uint64_t samples = 0;      ///< grid samples (unique vertices of the full terrain)
@@ -180,8 +180,8 @@ struct DatabaseSummary {
   double bytes_per_vertex = 0;        ///< (block_bytes + tree_bytes) / samples
   double max_block_error = 0;         ///< largest PmBlock leaf error (base meshes), metres
   double root_error = 0;              ///< exact error of the root surface, metres
-  double seconds = 0;                 ///< wall time of this run (summarize_database: of the run that completed it)
-  std::string build_parameters;       ///< JSON
+  double seconds = 0;            ///< wall time of this run (summarize_database: of the run that completed it)
+  std::string build_parameters;  ///< JSON
   /// Where the terrain lies on the Earth (absent for sources without a CRS, or databases built
   /// before it was recorded): to_json writes it as "georeference" with the frame convention.
   std::optional<Georeference> georeference;
