@@ -142,7 +142,7 @@ bool suggested_grid(GDALDatasetH source, const std::vector<std::string>& args, W
 }  // namespace
 
 WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std::string& dst_wkt,
-                   std::string& error) {
+                   std::string& error, const WarpGrid* layout) {
   register_gdal();
   QuietGdal quiet;
   error.clear();
@@ -181,11 +181,15 @@ WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std:
                                            "-multi", "-novshift",
                                            "-wm",    std::to_string(src.chunk_mib)};
   WarpGrid w;
-  std::vector<std::string> layout_args = common;
-  layout_args.insert(layout_args.end(), {"-t_srs", dst_wkt});
-  if (!suggested_grid(source, layout_args, w)) {
-    error = gdal_message("GDAL could not find a grid to warp to");
-    return {};
+  if (layout != nullptr) {
+    w.width = layout->width, w.height = layout->height, w.gt = layout->gt;
+  } else {
+    std::vector<std::string> layout_args = common;
+    layout_args.insert(layout_args.end(), {"-t_srs", dst_wkt});
+    if (!suggested_grid(source, layout_args, w)) {
+      error = gdal_message("GDAL could not find a grid to warp to");
+      return {};
+    }
   }
   // The warp writes into w.z (a MEM raster over it): no copy of the output.
   w.z.assign(std::size_t(w.width) * std::size_t(w.height), kNaN);
@@ -203,9 +207,10 @@ WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std:
   out->SetProjection(dst_wkt.c_str());
   out->GetRasterBand(1)->SetNoDataValue(kNaN);
   std::vector<std::string> warp_args = common;
-  warp_args.insert(warp_args.end(), {"-srcnodata", "nan", "-dstnodata", "nan", "-wo",
-                                     "XSCALE=" + gdal_number(double(w.width) / double(src.width)), "-wo",
-                                     "YSCALE=" + gdal_number(double(w.height) / double(src.height))});
+  warp_args.insert(warp_args.end(),
+                   {"-srcnodata", "nan", "-dstnodata", "nan", "-wo",
+                    "XSCALE=" + gdal_number(layout ? 1.0 : double(w.width) / double(src.width)), "-wo",
+                    "YSCALE=" + gdal_number(layout ? 1.0 : double(w.height) / double(src.height))});
   GDALWarpAppOptions* options = gdal_options(warp_args, GDALWarpAppOptionsNew);
   if (options == nullptr) {
     error = gdal_message("GDAL rejected the warp options");

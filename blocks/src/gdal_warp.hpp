@@ -38,7 +38,10 @@ struct WarpSource {
 /// an empty grid and sets `error` to GDAL's reason; what src.read throws is thrown. Memory: the
 /// output grid as doubles, GDAL's chunks of the warp (source windows and output, chunk_mib each,
 /// two at once) and what `src.read` holds; the source is read only where the output needs it.
+/// With `layout` (its width, height and gt; z unused) the output is that grid instead, and the
+/// kernel is never widened (XSCALE = YSCALE = 1): the caller lays it out at least as fine as the
+/// source everywhere (geo_grid.cpp's grids around a pole, for which GDAL suggests none).
 WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std::string& dst_wkt,
-                   std::string& error);
+                   std::string& error, const WarpGrid* layout = nullptr);
 
 }  // namespace terralod::blocks::detail

@@ -703,49 +703,129 @@ TEST(TerrainExportAntimeridian, TilesOnBothSidesDrawTheTerrainSeamlessly) {
   EXPECT_GE(pairs, 1u);
 }
 
-// A DEM around the South Pole (polar stereographic, EPSG:3031, as REMA's tiles are) cannot be
-// put on the geographic tiling: the export refuses it naming the pole (it failed with GDAL's
-// "Attempt to create 363x0 dataset is illegal"), and a polar DEM clear of the pole exports.
-TEST(TerrainExportPole, ATerrainAroundAPoleIsRefusedNamingThePole) {
+// DEMs around a pole (polar stereographic: EPSG:3031 as REMA's tiles, EPSG:3413 as ArcticDEM's)
+// export: every longitude from the pole to the DEM's edge, each level within its bound, every 4th
+// sample drawn within the last level's bound (plus the two bilinear resamplings of a smooth
+// surface, centimetres), the tiles that meet at the pole giving it one height, and those on
+// either side of the antimeridian sharing their edge vertices and normals. Before, the export
+// refused them (GDAL suggests no longitude/latitude grid around a pole).
+class TerrainExportPole : public ::testing::TestWithParam<int> {};
+
+TEST_P(TerrainExportPole, ExportsEveryLongitudeWithThePoleAsOnePoint) {
+  const int pole = GetParam();  // +1 north, -1 south
   const fs::path dir = tt::process_temp_dir("terralod-export");
+  const std::string name = pole > 0 ? "north" : "south";
+  const std::string tif = (dir / (name + ".tif")).string(), db = (dir / (name + ".db")).string();
   constexpr int kN = 65;
-  constexpr double kStep = 60.0, kHalf = 0.5 * (kN - 1) * kStep;
-  auto write = [&](const std::string& tif, double cx, double cy) {
+  constexpr double kStep = 2000.0, kHalf = 0.5 * (kN - 1) * kStep;
+  // Smooth (wavelengths of 100 km and more on 2 km samples), with no symmetry about the pole.
+  auto height = [](double x, double y) {
+    return 800.0 + 150.0 * std::sin(x / 40000.0 + 0.3) * std::cos(y / 30000.0 - 0.2) + 0.001 * x;
+  };
+  OGRSpatialReference polar, wgs84;
+  polar.importFromEPSG(pole > 0 ? 3413 : 3031);
+  polar.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  {
     GDALAllRegister();
     GDALDataset* ds = GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), kN, kN, 1,
                                                                                GDT_Float64, nullptr);
     ASSERT_NE(ds, nullptr);
-    double gt[6] = {cx - kHalf - 0.5 * kStep, kStep, 0, cy + kHalf + 0.5 * kStep, 0, -kStep};
+    double gt[6] = {-kHalf - 0.5 * kStep, kStep, 0, kHalf + 0.5 * kStep, 0, -kStep};
     ds->SetGeoTransform(gt);
-    OGRSpatialReference polar;
-    polar.importFromEPSG(3031);
     ds->SetSpatialRef(&polar);
     std::vector<double> z;
     for (int r = 0; r < kN; ++r)
-      for (int c = 0; c < kN; ++c) z.push_back(500.0 + 100.0 * std::sin(0.1 * c) * std::cos(0.07 * r));
+      for (int c = 0; c < kN; ++c) z.push_back(height(-kHalf + c * kStep, kHalf - r * kStep));
     ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, kN, kN, z.data(), kN, kN, GDT_Float64, 0, 0),
               CE_None);
     GDALClose(ds);
-  };
+  }
   tb::DatabaseBuildOptions o;
   o.block_size = 65;
-  const std::string pole_tif = (dir / "pole.tif").string(), pole_db = (dir / "pole.db").string();
-  ASSERT_NO_FATAL_FAILURE(write(pole_tif, 0.0, 0.0));
-  tb::build_database(tb::read_dem(pole_tif), pole_db, o);
-  try {
-    tb::export_terrain(pole_db, (dir / "pole-tiles").string(), {});
-    ADD_FAILURE() << "exported";
-  } catch (const std::exception& e) {
-    EXPECT_NE(std::string(e.what()).find("holds the South Pole"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find(pole_db), std::string::npos) << e.what();
-  }
-  // 1,500 km from the pole (76 degrees south): exported.
-  const std::string off_tif = (dir / "off.tif").string(), off_db = (dir / "off.db").string();
-  ASSERT_NO_FATAL_FAILURE(write(off_tif, 0.0, 1.5e6));
-  tb::build_database(tb::read_dem(off_tif), off_db, o);
-  const tb::ExportReport r = tb::export_terrain(off_db, (dir / "off-tiles").string(), {});
-  EXPECT_LT(r.bounds.north, -76.0);
+  tb::build_database(tb::read_dem(tif), db, o);
+  const fs::path out = dir / (name + "-tiles");
+  const tb::ExportReport r = tb::export_terrain(db, out.string(), {});
+  EXPECT_EQ(r.bounds.west, -180.0);
+  EXPECT_EQ(r.bounds.east, 180.0);
+  EXPECT_EQ(pole > 0 ? r.bounds.north : r.bounds.south, 90.0 * pole);
   for (const tb::ExportLevel& L : r.levels) EXPECT_LE(L.max_error, L.bound) << "level " << L.z;
+  const Tileset t = read_tileset(out);
+  const int z = int(r.levels.size()) - 1, nx = 2 << z, ny = 1 << z;
+
+  // 3D Tiles over the same meshes: bounded, finite geometric errors.
+  const tb::ExportReport r3 =
+      tb::export_terrain(db, (dir / (name + "-3dtiles")).string(), {.format = tb::ExportFormat::Tiles3D});
+  for (const tb::ExportLevel& L : r3.levels) {
+    EXPECT_LE(L.max_error, L.bound) << "3D Tiles level " << L.z;
+    EXPECT_TRUE(std::isfinite(L.geometric_error)) << "3D Tiles level " << L.z;
+  }
+  // Every 4th sample inside the outermost four, through the tile of the last level that holds it
+  // (at the footprint's edge the terrain ends in a cliff within one cell of the longitude/latitude
+  // grid, as wherever a warped terrain meets its holes).
+  const std::unique_ptr<OGRCoordinateTransformation> to_geog(
+      OGRCreateCoordinateTransformation(&polar, &wgs84));
+  ASSERT_TRUE(to_geog);
+  std::vector<std::array<double, 2>> lonlat;
+  std::vector<double> want;
+  for (int row = 4; row < kN - 4; row += 4)
+    for (int c = 4; c < kN - 4; c += 4) {
+      double x = -kHalf + c * kStep, y = kHalf - row * kStep;
+      want.push_back(height(x, y));
+      ASSERT_TRUE(to_geog->Transform(1, &x, &y));
+      lonlat.push_back({x, y});
+    }
+  const std::vector<double> n = egm96(lonlat);
+  for (std::size_t i = 0; i < lonlat.size(); ++i) {
+    const auto [lon, lat] = lonlat[i];
+    const int x = std::clamp(int(std::floor((lon + 180.0) / 180.0 * (1 << z))), 0, nx - 1),
+              y = std::clamp(int(std::floor((lat + 90.0) / 180.0 * (1 << z))), 0, ny - 1);
+    const auto it = t.tiles.find({z, x, y});
+    ASSERT_NE(it, t.tiles.end()) << "no tile " << z << "/" << x << "/" << y;
+    const tb::GeoRect rect = tb::tile_rect({z, x, y});
+    const double h = interpolate(it->second, (lon - rect.west) / (rect.east - rect.west) * kQ,
+                                 (lat - rect.south) / (rect.north - rect.south) * kQ);
+    ASSERT_TRUE(std::isfinite(h)) << lon << ", " << lat << ": no triangle";
+    EXPECT_NEAR(h, want[i] + n[i], t.bound[std::size_t(z)] + 0.05) << lon << ", " << lat;
+  }
+  // The pole: on every level, the pole edge of every tile that reaches it has one height, and
+  // the ellipsoid's normal there.
+  const int pole_edge = pole > 0 ? 3 : 1;  // edges: west, south, east, north
+  for (int level = 0; level <= z; ++level) {
+    std::vector<double> at_pole;
+    for (const auto& [id, d] : t.tiles) {
+      if (id[0] != level || id[2] != (pole > 0 ? (1 << level) - 1 : 0)) continue;
+      for (const std::uint32_t v : d.edges[std::size_t(pole_edge)]) {
+        at_pole.push_back(decoded_height(d, v));
+        const std::array<double, 3> nv = tt::oct_decode(d.normals[v][0], d.normals[v][1]);
+        EXPECT_NEAR(nv[2], double(pole), 1e-2) << "level " << level;
+      }
+    }
+    ASSERT_FALSE(at_pole.empty()) << "level " << level;
+    for (const double h : at_pole) EXPECT_NEAR(h, at_pole.front(), 1e-9) << "level " << level;
+  }
+  // The antimeridian: the east edge of x = nx - 1 is the west edge of x = 0, on every level.
+  std::size_t pairs = 0;
+  for (const auto& [id, a] : t.tiles) {
+    if (id[1] != (2 << id[0]) - 1) continue;
+    const auto it = t.tiles.find({id[0], 0, id[2]});
+    ASSERT_NE(it, t.tiles.end()) << "no tile " << id[0] << "/0/" << id[2];
+    const auto &ea = a.edges[2], &eb = it->second.edges[0];
+    ASSERT_EQ(ea.size(), eb.size()) << id[0] << "/" << id[1] << "/" << id[2];
+    for (std::size_t k = 0; k < ea.size(); ++k) {
+      EXPECT_EQ(a.v[ea[k]], it->second.v[eb[k]]);
+      EXPECT_NEAR(decoded_height(a, ea[k]), decoded_height(it->second, eb[k]), 1e-9);
+      EXPECT_EQ(a.normals[ea[k]], it->second.normals[eb[k]]) << id[0] << "/" << id[1] << "/" << id[2];
+    }
+    ++pairs;
+  }
+  EXPECT_GE(pairs, std::size_t(z + 1));
 }
+
+INSTANTIATE_TEST_SUITE_P(Poles, TerrainExportPole, ::testing::Values(-1, 1),
+                         [](const ::testing::TestParamInfo<int>& i) {
+                           return i.param > 0 ? "North" : "South";
+                         });
 
 }  // namespace

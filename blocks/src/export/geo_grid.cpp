@@ -13,12 +13,14 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <numbers>
 #include <optional>
 #include <utility>
 
 #include "../frame_scale.hpp"
 #include "../gdal_support.hpp"
 #include "../gdal_warp.hpp"
+#include "terralod/pm/geodesy.hpp"
 #include "terralod/pm/parallel.hpp"
 
 namespace terralod::blocks {
@@ -135,9 +137,90 @@ int pole_inside(const pm::GridTransform& t, int width, int height, const detail:
   return 0;
 }
 
+/// The longitude/latitude grid for a terrain around a pole (pole: +1 north, -1 south), for which
+/// GDAL suggests none (it failed with "Attempt to create 363x0 dataset"): every longitude, from
+/// the pole to the footprint's latitude farthest from it. Rows are the source's ground spacing at
+/// the pole apart, and so are columns at that farthest latitude; nearer the pole a column spans
+/// less (cos(latitude)), so the grid is nowhere coarser than the source and holds about twice the
+/// samples of the cap it covers, whatever its size. (A grid laid out with GDAL's resolution near
+/// the pole, a column degrees wide and a row a second, missed the source by hundreds of metres.)
+/// Columns 0 and width - 1 are both the antimeridian (GeoGrid::wraps); the pole is the last row
+/// (south) or the first.
+struct PolarLayout {
+  detail::WarpGrid grid;              ///< size and geotransform
+  double west = -180.0, north = 0.0;  ///< degrees, exactly: the first column's and row's
+};
+PolarLayout polar_layout(const pm::GridTransform& t, int width, int height, const detail::GeographicOf& geo,
+                         int pole, const std::string& what) {
+  const detail::Affine grid{t};
+  double px = 0.0, py = 90.0 * pole;
+  geo.to_crs->Transform(1, &px, &py);
+  const auto [pc, pr] = grid.inverse(px, py);
+  // Ground distance between two points of the source's grid, on its ellipsoid.
+  const auto ground = [&](double c0, double r0, double c1, double r1) {
+    auto [x0, y0] = t.to_world(c0, r0);
+    auto [x1, y1] = t.to_world(c1, r1);
+    if (!geo.to_geog->Transform(1, &x0, &y0) || !geo.to_geog->Transform(1, &x1, &y1)) return 0.0;
+    const pm::Ecef a = pm::ecef_from_geodetic({x0, y0, 0.0}, geo.a, geo.e2),
+                   b = pm::ecef_from_geodetic({x1, y1, 0.0}, geo.a, geo.e2);
+    return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+  };
+  const double spacing = std::min(ground(pc - 0.5, pr, pc + 0.5, pr), ground(pc, pr - 0.5, pc, pr + 0.5));
+  // The footprint's edge (cell corners and every sample's cell edge), its latitude farthest from the pole.
+  double from_pole = 0.0;  // degrees of latitude
+  const auto edge_point = [&](double c, double r) {
+    auto [x, y] = t.to_world(c, r);
+    if (geo.to_geog->Transform(1, &x, &y) && std::isfinite(y))
+      from_pole = std::max(from_pole, 90.0 - pole * y);
+  };
+  for (int c = 0; c <= width; ++c) edge_point(c - 0.5, -0.5), edge_point(c - 0.5, height - 0.5);
+  for (int r = 0; r <= height; ++r) edge_point(-0.5, r - 0.5), edge_point(width - 0.5, r - 0.5);
+  // Degrees on multiples of 2^-20 (10 cm): rows * dlat is then exact, and the pole's row lies at
+  // exactly +-90 degrees, on the tiles' edge.
+  const double dlat = std::floor(spacing / (geo.a * std::numbers::pi / 180.0) * 0x1p20) * 0x1p-20;
+  if (!(dlat > 0.0) || !std::isfinite(dlat))
+    throw GeoError(what +
+                   ": cannot find the terrain's sample spacing at the pole to lay out its "
+                   "longitude/latitude grid");
+  const double edge_cos = std::max(std::sin(from_pole * std::numbers::pi / 180.0), 1e-9);
+  const std::size_t cols = std::size_t(std::ceil(360.0 * edge_cos / dlat - 1e-9)) + 1,
+                    rows = std::size_t(std::ceil(from_pole / dlat - 1e-9)) + 1;
+  if (double(cols) * double(rows) > 4e9)
+    throw GeoError(what + ": its longitude/latitude grid around the pole would hold " + std::to_string(cols) +
+                   " x " + std::to_string(rows) + " samples; crop the DEM");
+  PolarLayout l;
+  l.grid.width = int(cols), l.grid.height = int(rows);
+  // The last column at exactly 180 degrees: (cols - 1) * dlon == 360 in doubles, for 360 / (cols - 1)
+  // or one of its neighbours.
+  double dlon = 360.0 / double(cols - 1);
+  for (const double d : {dlon, std::nextafter(dlon, 0.0), std::nextafter(dlon, 360.0)})
+    if (double(cols - 1) * d == 360.0) dlon = d;
+  l.north = pole > 0 ? 90.0 : -90.0 + double(rows - 1) * dlat;
+  l.grid.gt = {l.west - 0.5 * dlon, dlon, 0.0, l.north + 0.5 * dlat, 0.0, -dlat};
+  return l;
+}
+
+/// One point, one height: where the grid wraps, column width - 1 takes column 0's samples (one
+/// meridian), and a row at a pole takes its first sample everywhere, so that the tiles on either
+/// side of the antimeridian, and those that meet at a pole, share their edge vertices exactly
+/// (a warp and PROJ's geoid give the copies of one point the same height only up to rounding).
+void join_meridian_and_poles(GeoGrid& g) {
+  const std::size_t w = std::size_t(g.width);
+  const auto copy = [&](std::size_t from, std::size_t to) {
+    g.heights[to] = g.heights[from];
+    if (!g.mask.empty()) g.mask[to] = g.mask[from];
+  };
+  if (g.wraps())
+    for (std::size_t r = 0; r < std::size_t(g.height); ++r) copy(r * w, r * w + w - 1);
+  for (const int r : {0, g.height - 1})
+    if (std::abs(g.lat(r)) == 90.0)
+      for (std::size_t c = 1; c < w; ++c) copy(std::size_t(r) * w, std::size_t(r) * w + c);
+}
+
 /// The terrain of width x height samples in the CRS and transform of `frame` (whose samples, if
 /// any, are not read: they come from `read`, see detail::WarpSource) warped to EPSG:4326 (bilinear, GDAL's
-/// choice of resolution), voids and outside as holes. Only the warped grid is held whole.
+/// choice of grid, or polar_layout's around a pole), voids and outside as holes. Only the warped
+/// grid is held whole.
 GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
                        const std::function<void(int, int, int, int, double*)>& read,
                        const std::string& what) {
@@ -157,23 +240,18 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
   // Far from Greenwich, longitudes run continuously around the terrain's centre (PROJ's
   // lon_wrap): a terrain across the antimeridian would otherwise land on both edges of
   // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
+  std::optional<PolarLayout> layout;
   if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(frame.crs_wkt)) {
-    // Around a pole every longitude meets: GDAL suggests no grid (it failed with "Attempt to
-    // create 363x0 dataset"), and one laid out by hand is so anisotropic (a column spans degrees,
-    // a row a second) that the tiles' meshes missed the samples by hundreds of metres. Refused,
-    // naming the pole, until the exporter meshes such tiles.
-    if (const int pole = pole_inside(t, width, height, *geo); pole != 0)
-      throw GeoError(what + ": the terrain holds the " + (pole > 0 ? "North" : "South") +
-                     " Pole, which the geographic tiling of quantized-mesh and of this 3D Tiles "
-                     "export cannot hold yet (every longitude meets there); build a database of a "
-                     "part of the DEM that stays clear of the pole (crop it, e.g. with gdal_translate "
-                     "-projwin) and export that");
-    auto [x, y] = t.to_world(0.5 * (width - 1), 0.5 * (height - 1));
-    if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
-      dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
+    if (const int pole = pole_inside(t, width, height, *geo); pole != 0) {
+      layout = polar_layout(t, width, height, *geo, pole, what);  // every longitude meets there
+    } else {
+      auto [x, y] = t.to_world(0.5 * (width - 1), 0.5 * (height - 1));
+      if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
+        dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
+    }
   }
   std::string error;
-  detail::WarpGrid w = detail::warp_grid(src, frame.crs_wkt, dst, error);
+  detail::WarpGrid w = detail::warp_grid(src, frame.crs_wkt, dst, error, layout ? &layout->grid : nullptr);
   if (!error.empty())
     throw GeoError(what + ": GDAL could not warp the terrain from its CRS to longitude/latitude: " + error);
   GeoGrid g;
@@ -181,8 +259,8 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
   g.height = w.height;
   g.dlon = w.gt[1];
   g.dlat = -w.gt[5];
-  g.west = w.gt[0] + 0.5 * w.gt[1];
-  g.north = w.gt[3] + 0.5 * w.gt[5];
+  g.west = layout ? layout->west : w.gt[0] + 0.5 * w.gt[1];
+  g.north = layout ? layout->north : w.gt[3] + 0.5 * w.gt[5];
   g.heights = std::move(w.z);
   g.mask.assign(g.heights.size(), 1);
   bool any = false;
@@ -217,6 +295,7 @@ bool on_lonlat_grid(const pm::Heightfield& frame) {
 /// g's heights from the datum `requested` (the caller's, else the one its source states; "" when
 /// neither names one) to the WGS 84 ellipsoid (the header's contract).
 GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const std::string& what) {
+  join_meridian_and_poles(g);  // the heights as given (again below, after the geoid)
   const std::string v = detail::vertical_crs(requested);
   g.vertical_datum = v.empty()          ? "WGS 84 ellipsoid"
                      : v == "EPSG:5773" ? "EGM96"
@@ -245,6 +324,7 @@ GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const 
           if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] += n[i];
       });
   g.heights_converted = true;
+  join_meridian_and_poles(g);
   return g;
 }
 

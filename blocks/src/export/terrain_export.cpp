@@ -174,15 +174,35 @@ std::pair<double, double> tile_height_range(const detail::GeoField& f, const Geo
   return {lo, hi};
 }
 
+/// lon in [-180, 180): one meridian, one value (180 and -180, or a grid's longitude past 180).
+double one_meridian(double lon) {
+  const double m = std::remainder(lon, 360.0);
+  return m == 180.0 ? -180.0 : m;
+}
+
+/// The ellipsoid's unit normal (ECEF) at (lon, lat), the same for every copy of a point: at a
+/// pole exactly up (every longitude is that point; an oct-encoded normal otherwise flips between
+/// the two sides of the encoding's fold with the sign of a 1e-17 component).
+pm::Ecef ellipsoid_normal(double lon, double lat) {
+  if (std::abs(lat) == 90.0) return {0.0, 0.0, lat > 0.0 ? 1.0 : -1.0};
+  return pm::geodetic_surface_normal(one_meridian(lon), lat);
+}
+
 /// The unit normal (ECEF) of the field at (lon, lat), from central differences `step` degrees
-/// apart: a function of the position only, so tiles that share a vertex give it one normal.
+/// apart: a function of the position only, so tiles that share a vertex give it one normal. At a
+/// pole, where east has no direction, the ellipsoid's normal.
 pm::Ecef field_normal(const detail::GeoField& f, double lon, double lat, double step) {
+  if (std::abs(lat) == 90.0) return ellipsoid_normal(lon, lat);
   constexpr double kDeg = std::numbers::pi / 180.0;
+  // The same normal on either side of the antimeridian: on a grid around the Earth the field is
+  // read at the same columns (its longitudes run from -180), and east and north are one meridian's.
+  const double meridian = one_meridian(lon);
+  if (f.grid().wraps()) lon = meridian;
   const double metres = pm::kWgs84A * kDeg;
   const double dx = 2 * step * metres * std::max(std::cos(lat * kDeg), 1e-6), dy = 2 * step * metres;
   const double gx = (f.at(lon + step, lat) - f.at(lon - step, lat)) / dx;
   const double gy = (f.at(lon, lat + step) - f.at(lon, lat - step)) / dy;
-  const double sl = std::sin(lon * kDeg), cl = std::cos(lon * kDeg), sp = std::sin(lat * kDeg),
+  const double sl = std::sin(meridian * kDeg), cl = std::cos(meridian * kDeg), sp = std::sin(lat * kDeg),
                cp = std::cos(lat * kDeg);
   const pm::Ecef east{-sl, cl, 0}, north{-sp * cl, -sp * sl, cp}, up{cp * cl, cp * sl, sp};
   pm::Ecef n;
@@ -306,8 +326,7 @@ QuantizedMeshTile make_tile(const detail::GeoField& field, const GeoRect& rect, 
       const double lon = vertices[v].lon_deg, lat = vertices[v].lat_deg;
       const bool over_samples =
           lon >= g.lon(0) && lon <= g.lon(g.width - 1) && lat <= g.lat(0) && lat >= g.lat(g.height - 1);
-      normals[v] =
-          over_samples ? field_normal(field, lon, lat, normal_step) : pm::geodetic_surface_normal(lon, lat);
+      normals[v] = over_samples ? field_normal(field, lon, lat, normal_step) : ellipsoid_normal(lon, lat);
     }
     QuantizedMeshOptions qo;
     qo.height_step = L.height_step;
@@ -418,7 +437,11 @@ ExportReport export_terrain(const std::string& db_path, const std::string& out_d
       {grid.lon(-pad), grid.lat(grid.height - 1 + pad), grid.lon(grid.width - 1 + pad), grid.lat(-pad)});
   int max_level = options.max_level;
   if (max_level < 0) {
-    const double spacing = std::max(grid.dlon, grid.dlat);
+    // Sample spacing in degrees of latitude on the ground, where columns are widest (nearest the
+    // equator): a grid around a pole has columns degrees apart at the pole (export/geo_grid.cpp).
+    const double north = grid.lat(0), south = grid.lat(grid.height - 1);
+    const double widest = south <= 0.0 && north >= 0.0 ? 0.0 : std::min(std::abs(north), std::abs(south));
+    const double spacing = std::max(grid.dlat, grid.dlon * std::cos(widest * std::numbers::pi / 180.0));
     max_level = std::clamp(int(std::ceil(std::log2(180.0 / (64.0 * spacing)))), 0, 24);
   }
   if (max_level > 24)

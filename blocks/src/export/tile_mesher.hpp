@@ -47,7 +47,8 @@ namespace terralod::blocks::detail {
 
 class GeoField {
  public:
-  GeoField(const GeoGrid& grid, double background) : g_(grid), background_(background) {}
+  GeoField(const GeoGrid& grid, double background)
+      : g_(grid), background_(background), period_(grid.wraps() ? grid.width - 1 : 0) {}
   const GeoGrid& grid() const { return g_; }
   double background() const { return background_; }
 
@@ -59,8 +60,10 @@ class GeoField {
 
   /// The lattice point (c, r), c in [-kPad, width - 1 + kPad], r likewise: a valid sample's height;
   /// the nearest sample's on the first ring; the background on the second; NaN for a hole (not
-  /// measured).
+  /// measured). A grid that goes around the Earth (GeoGrid::wraps) has no ring east or west: its
+  /// columns continue across the antimeridian, so that a normal there is the same on both sides.
   double lattice(int c, int r) const {
+    if (period_ > 0 && (c < 0 || c >= g_.width)) c = c < 0 ? c + period_ : c - period_;
     const bool in = c >= 0 && r >= 0 && c < g_.width && r < g_.height;
     if (in) return g_.valid(c, r) ? g_.z(c, r) : std::numeric_limits<double>::quiet_NaN();
     if (c < -1 || r < -1 || c > g_.width || r > g_.height) return background_;
@@ -80,6 +83,7 @@ class GeoField {
   }
   const GeoGrid& g_;
   double background_;
+  int period_;  ///< width - 1 where the grid wraps, else 0
 };
 
 struct TileMesh {

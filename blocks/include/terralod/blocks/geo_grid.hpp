@@ -18,7 +18,14 @@
 //     samples are the DEM's own). Anything else (a projected CRS, a rotated grid, another datum)
 //     is warped to EPSG:4326 through GDAL (bilinear, the source's resolution; the same samples
 //     however GDAL cuts the warp into chunks), and the warped samples are the grid's samples;
-//     voids and the area outside the source become holes.
+//     voids and the area outside the source become holes. A terrain that holds a pole (a polar
+//     stereographic DEM) gets a grid laid out by hand (GDAL suggests none there): every
+//     longitude, from the pole to the footprint's farthest latitude, rows the source's ground
+//     spacing at the pole apart and columns that far apart where they are widest, so nowhere
+//     coarser than the source (about twice the samples of the cap it covers).
+//   - One point, one height: where the grid goes around the Earth (wraps()), its last column
+//     takes its first column's samples (one meridian), and a row at +-90 degrees takes its first
+//     sample everywhere, after the geoid too, so that tiles meeting there share their vertices.
 //   - Vertical: heights are converted from `vertical_datum` to the WGS 84 ellipsoid by adding
 //     the geoid undulation N(lon, lat) that PROJ gives for every sample:
 //       "ellipsoid" (or "wgs84")  the heights are ellipsoidal already: nothing is added;
@@ -41,6 +48,7 @@
 //     per sample, in bands of rows of about 2^16 samples.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
@@ -72,6 +80,9 @@ struct GeoGrid {
   double lat(double row) const { return north - row * dlat; }
   double z(int col, int row) const { return heights[std::size_t(row) * width + col]; }
   bool valid(int col, int row) const { return mask.empty() || mask[std::size_t(row) * width + col] != 0; }
+  /// Whether the grid goes once around the Earth: columns 0 and width - 1 are one meridian
+  /// ((width - 1) dlon = 360 degrees); make_geo_grid gives them the same samples.
+  bool wraps() const { return width > 1 && std::abs(double(width - 1) * dlon - 360.0) <= 1e-9; }
 };
 
 GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what);

@@ -105,7 +105,9 @@ enum class ExportFormat {
 
 struct ExportOptions {
   ExportFormat format = ExportFormat::QuantizedMesh;
-  int max_level = -1;               ///< deepest level; -1: the first whose tiles span <= 64 samples
+  /// Deepest level; -1: the first whose tiles span <= 64 samples (of the grid's ground spacing:
+  /// its rows', or its columns' where they are widest, as on a grid around a pole).
+  int max_level = -1;
   int threads = 0;                  ///< 0: every core
   std::string vertical_datum = {};  ///< the input heights' datum (geo_grid.hpp); "" = the source's
   /// Tiles3D only: glb content compressed with EXT_meshopt_compression (required by each file;
