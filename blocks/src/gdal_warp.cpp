@@ -192,13 +192,13 @@ WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std:
     }
   }
   // The warp writes into w.z (a MEM raster over it): no copy of the output.
-  w.z.assign(std::size_t(w.width) * std::size_t(w.height), kNaN);
+  w.z.assign(std::size_t(w.width) * std::size_t(w.height), std::numeric_limits<float>::quiet_NaN());
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  std::unique_ptr<GDALDataset> out(mem->Create("", w.width, w.height, 0, GDT_Float64, nullptr));
+  std::unique_ptr<GDALDataset> out(mem->Create("", w.width, w.height, 0, GDT_Float32, nullptr));
   char pointer[64];
   std::snprintf(pointer, sizeof pointer, "DATAPOINTER=%p", static_cast<void*>(w.z.data()));
   char* band_options[] = {pointer, nullptr};
-  if (!out || out->AddBand(GDT_Float64, band_options) != CE_None) {
+  if (!out || out->AddBand(GDT_Float32, band_options) != CE_None) {
     error = "GDAL could not make an in-memory raster to warp into";
     return {};
   }

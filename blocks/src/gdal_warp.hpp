@@ -16,7 +16,7 @@ namespace terralod::blocks::detail {
 struct WarpGrid {
   int width = 0, height = 0;
   std::array<double, 6> gt{};  ///< GDAL geotransform: pixel corners, X = gt0 + col gt1 + row gt2, ...
-  std::vector<double> z;       ///< row-major heights, NaN where there is no terrain
+  std::vector<float> z;        ///< row-major heights, NaN where there is no terrain
 };
 
 /// A height grid read by windows: read(col0, row0, cols, rows, out) fills out[r * cols + c] with
@@ -36,7 +36,7 @@ struct WarpSource {
 /// whole grid's ratio of output to source samples in every chunk. Output cells outside
 /// the source, or whose bilinear neighbourhood holds only NaN, are NaN. When GDAL fails, returns
 /// an empty grid and sets `error` to GDAL's reason; what src.read throws is thrown. Memory: the
-/// output grid as doubles, GDAL's chunks of the warp (source windows and output, chunk_mib each,
+/// output grid as floats, GDAL's chunks of the warp (source windows and output, chunk_mib each,
 /// two at once) and what `src.read` holds; the source is read only where the output needs it.
 /// With `layout` (its width, height and gt; z unused) the output is that grid instead, and the
 /// kernel is never widened (XSCALE = YSCALE = 1): the caller lays it out at least as fine as the

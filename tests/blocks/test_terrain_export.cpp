@@ -308,6 +308,22 @@ TEST_F(QuantizedMeshExport, TheDatabaseRecordsWhereItLiesAndInfoReportsIt) {
   EXPECT_NE(json.find("\"crs_transform\": [-71.5, "), std::string::npos) << json;
 }
 
+// The export reads a database on a longitude/latitude grid a row of blocks at a time (blocks of
+// 65 here: 3 x 3 of them), which gives the grid the whole terrain read at once gives, bit for bit.
+TEST_F(QuantizedMeshExport, AGridReadByRowsOfBlocksIsTheWholeTerrainsGrid) {
+  const tb::BlockDatabase handle = tb::BlockDatabase::open(db_, tb::BlockDatabase::Mode::ReadOnly);
+  tb::DatabaseTerrain terrain(handle, {.cache_bytes = 0});
+  const tb::GeoGrid windows = tb::make_geo_grid(terrain, "", db_);
+  const tb::GeoGrid whole = tb::make_geo_grid(tb::read_database_terrain(handle), "", db_);
+  EXPECT_EQ(windows.width, hf_->width());
+  EXPECT_EQ(windows.height, hf_->height());
+  EXPECT_EQ(windows.west, whole.west);
+  EXPECT_EQ(windows.north, whole.north);
+  EXPECT_TRUE(windows.heights == whole.heights);
+  EXPECT_TRUE(windows.mask == whole.mask);
+  EXPECT_NE(windows.horizontal.find("own samples"), std::string::npos) << windows.horizontal;
+}
+
 /// The vertices of a glb tile written by the 3D Tiles export, decoded as a client does: SHORT
 /// normalized positions (stride 8) times the node's scale plus its translation, glTF axes back
 /// to ECEF ((x, y, z)_ECEF = (x, -z, y)_glTF).

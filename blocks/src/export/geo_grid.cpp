@@ -267,7 +267,7 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
   for (std::size_t i = 0; i < g.heights.size(); ++i) {
     if (!std::isfinite(g.heights[i])) {
       g.mask[i] = 0;
-      g.heights[i] = 0.0;
+      g.heights[i] = 0.0f;
     } else {
       any = true;
     }
@@ -284,6 +284,45 @@ void require_crs(const pm::Heightfield& frame, const std::string& what) {
                    ": the terrain has no coordinate reference system, so it cannot be placed on the "
                    "Earth; build it from a georeferenced DEM (an SRTM .hgt, a GeoTIFF with a CRS, an "
                    ".asc with a .prj; gdal_translate -a_srs EPSG:<code> adds one)");
+}
+
+/// The grid of a terrain on a north-up WGS 84 longitude/latitude grid (on_lonlat_grid): its own
+/// samples as floats, 0 and masked at holes, filled window by window by read(rect, out) (out:
+/// rect's samples, row by row, NaN at holes), so that nothing but the grid grows with the terrain.
+GeoGrid own_samples(const pm::Heightfield& frame, int width, int height, int window,
+                    const std::function<void(const SampleRect&, double*)>& read) {
+  const pm::GridTransform& t = *frame.crs_transform;
+  GeoGrid g;
+  g.width = width;
+  g.height = height;
+  g.west = t.x0;
+  g.north = t.y0;
+  g.dlon = t.xc;
+  g.dlat = -t.yr;
+  const std::size_t w = std::size_t(width);
+  g.heights.resize(w * std::size_t(height));
+  std::vector<double> buf;
+  for (int r0 = 0; r0 < height; r0 += window)
+    for (int c0 = 0; c0 < width; c0 += 16 * window) {
+      const SampleRect rect{c0, r0, std::min(width - 1, c0 + 16 * window - 1),
+                            std::min(height - 1, r0 + window - 1)};
+      buf.resize(rect.samples());
+      read(rect, buf.data());
+      const double* in = buf.data();
+      for (int r = rect.row0; r <= rect.row1; ++r)
+        for (std::size_t i = std::size_t(r) * w + std::size_t(rect.col0), end = i + std::size_t(rect.width());
+             i < end; ++i, ++in) {
+          if (*in == *in) {
+            g.heights[i] = float(*in);
+            continue;
+          }
+          if (g.mask.empty()) g.mask.assign(g.heights.size(), 1);
+          g.mask[i] = 0;
+          g.heights[i] = 0.0f;
+        }
+    }
+  g.horizontal = "the source's own samples (geographic WGS 84)";
+  return g;
 }
 
 /// Whether the grid of `frame` is north-up in geographic WGS 84: then its samples are the grid's.
@@ -321,7 +360,7 @@ GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const 
         op.undulations(lon.data(), lat.data(), n.data(), n.size(), what);
         const std::size_t at = std::size_t(r0) * std::size_t(g.width);
         for (std::size_t i = 0; i < n.size(); ++i)
-          if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] += n[i];
+          if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] = float(double(g.heights[at + i]) + n[i]);
       });
   g.heights_converted = true;
   join_meridian_and_poles(g);
@@ -349,16 +388,12 @@ GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, con
   const std::string requested = vertical_datum.empty() ? hf.vertical_datum : vertical_datum;
   GeoGrid g;
   if (on_lonlat_grid(hf)) {
-    const pm::GridTransform& t = *hf.crs_transform;
-    g.width = hf.width();
-    g.height = hf.height();
-    g.west = t.x0;
-    g.north = t.y0;
-    g.dlon = t.xc;
-    g.dlat = -t.yr;
-    if (hf.has_holes()) g.mask = hf.mask();
-    g.heights = std::move(hf.samples());
-    g.horizontal = "the source's own samples (geographic WGS 84)";
+    g = own_samples(hf, hf.width(), hf.height(), 256, [&](const SampleRect& rect, double* out) {
+      for (int r = rect.row0; r <= rect.row1; ++r)
+        for (int c = rect.col0; c <= rect.col1; ++c)
+          *out++ = hf.valid(c, r) ? hf.at(c, r) : std::numeric_limits<double>::quiet_NaN();
+    });
+    std::vector<double>().swap(hf.samples());
   } else {
     g = warp_to_lonlat(
         hf, hf.width(), hf.height(),
@@ -377,9 +412,11 @@ GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, con
 GeoGrid make_geo_grid(DatabaseTerrain& terrain, const std::string& vertical_datum, const std::string& what) {
   const pm::Heightfield& frame = terrain.frame();
   require_crs(frame, what);
-  if (on_lonlat_grid(frame))
-    return make_geo_grid(terrain.read({0, 0, terrain.width() - 1, terrain.height() - 1}), vertical_datum,
-                         what);
+  if (on_lonlat_grid(frame))  // a row of blocks at a time, 16 blocks a read (decoded in parallel)
+    return with_ellipsoidal_heights(
+        own_samples(frame, terrain.width(), terrain.height(), terrain.layout().block_size - 1,
+                    [&](const SampleRect& rect, double* out) { terrain.read(rect, out); }),
+        vertical_datum.empty() ? frame.vertical_datum : vertical_datum, what);
   GeoGrid g = warp_to_lonlat(
       frame, terrain.width(), terrain.height(),
       [&](int col0, int row0, int cols, int rows, double* out) {

@@ -438,7 +438,7 @@ class TileGreedy {
         const int last = std::min(c_hi, w - 1);
         for (; c <= c_hi && c < 0; ++c) ring(c);
         const std::size_t row = std::size_t(r) * std::size_t(w);
-        const double* z = g_.heights.data() + row;
+        const float* z = g_.heights.data() + row;
         const std::uint8_t* valid = g_.mask.empty() ? nullptr : g_.mask.data() + row;
         for (; c <= last; ++c)
           if ((!valid || valid[c] != 0) && z[c] == z[c]) consider(fr_.u(c), v, z[c]);

@@ -39,13 +39,14 @@
 //     GeoError when PROJ does not know the datum or lacks its grid (PROJ is never allowed to fall
 //     back silently to a no-op "ballpark" transformation).
 //   - From a DatabaseTerrain: the same grid, bit for bit, as from read_database_terrain's whole
-//     grid. A terrain on a longitude/latitude grid is read whole (its samples are the grid's);
-//     one to warp is read window by window as GDAL's warp needs it (chunks of 8 MiB, each
-//     read straight into GDAL's buffer), so its source is never held whole.
-//   - Costs: the grid, 8 + 1 bytes per sample (hf's samples move into it: pass hf with
-//     std::move unless it is needed afterwards); a warp writes straight into the grid and reads
-//     the source by windows (a Heightfield's in place: it is held anyway); PROJ evaluates N once
-//     per sample, in bands of rows of about 2^16 samples.
+//     grid. A terrain on a longitude/latitude grid is read a row of blocks at a time (its samples
+//     are the grid's); one to warp is read window by window as GDAL's warp needs it (chunks of 8
+//     MiB, each read straight into GDAL's buffer), so its source is never held whole.
+//   - Costs: the grid, 4 bytes per sample (floats) and 1 more where it has holes; from a
+//     Heightfield, hf's samples are freed once copied (pass hf with std::move unless it is
+//     needed afterwards); a warp writes straight into the grid and reads the source by windows
+//     (a Heightfield's in place: it is held anyway); PROJ evaluates N once per sample, in bands
+//     of rows of about 2^16 samples.
 #pragma once
 
 #include <cmath>
@@ -68,9 +69,12 @@ class GeoError : public std::runtime_error {
 
 struct GeoGrid {
   int width = 0, height = 0;
-  double west = 0, north = 0;      ///< degrees: longitude of column 0, latitude of row 0 (north)
-  double dlon = 0, dlat = 0;       ///< degrees between columns and between rows (both > 0)
-  std::vector<double> heights;     ///< WGS 84 ellipsoidal heights, metres, row-major
+  double west = 0, north = 0;  ///< degrees: longitude of column 0, latitude of row 0 (north)
+  double dlon = 0, dlat = 0;   ///< degrees between columns and between rows (both > 0)
+  /// WGS 84 ellipsoidal heights, metres, row-major; floats (4 bytes a sample), which hold any
+  /// height on Earth to within 1 mm of the double computed (0.5 mm a rounding, twice where the
+  /// geoid is added to a rounded height); 0 at holes.
+  std::vector<float> heights;
   std::vector<std::uint8_t> mask;  ///< 1 valid, 0 hole; empty when every sample is valid
   std::string vertical_datum;      ///< what the heights were converted from, as resolved
   bool heights_converted = false;  ///< false: the source's heights were ellipsoidal already
@@ -78,7 +82,7 @@ struct GeoGrid {
 
   double lon(double col) const { return west + col * dlon; }
   double lat(double row) const { return north - row * dlat; }
-  double z(int col, int row) const { return heights[std::size_t(row) * width + col]; }
+  double z(int col, int row) const { return double(heights[std::size_t(row) * width + col]); }
   bool valid(int col, int row) const { return mask.empty() || mask[std::size_t(row) * width + col] != 0; }
   /// Whether the grid goes once around the Earth: columns 0 and width - 1 are one meridian
   /// ((width - 1) dlon = 360 degrees); make_geo_grid gives them the same samples.

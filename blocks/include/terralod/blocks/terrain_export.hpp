@@ -65,16 +65,16 @@
 //
 // Errors: ExportError naming the file or folder (unwritable folder, a terrain without a CRS,
 // an unknown vertical datum, an incomplete database); DatabaseError for corrupt databases.
-// Costs: the terrain in memory as a GeoGrid (9 bytes per sample: the database's samples move
-// into it; a terrain not on a north-up WGS 84 longitude/latitude grid, such as one built in the
-// default --crs auto frame, is warped to one through GDAL, which reads the database window by
-// window into its chunks of 8 MiB and writes straight into the grid), plus one tile's greedy
-// mesh per thread, whose measured points are the samples the tile covers (at the coarse levels,
-// every sample of the terrain); each level reads every sample about once per greedy pass.
-// Measured peaks (2 cores): N44W072 (1201^2) 65 MB built with --crs native, 89 MB in the default
-// frame; its 2 x 2 mirror mosaic (2401^2, --crs native) 99 MB; its 3 x 3 one (3601^2) 156 MB
-// with --crs native and 195 MB in the default frame (444 MB when the warp held the source, its
-// output and a copy at once).
+// Costs: the terrain in memory as a GeoGrid (floats: 4 bytes per sample, 5 with holes; the
+// database is read a row of blocks at a time; a terrain not on a north-up WGS 84
+// longitude/latitude grid, such as one built in the default --crs auto frame, is warped to one
+// through GDAL, which reads the database window by window into its chunks of 8 MiB and writes
+// straight into the grid), plus one tile's greedy mesh per thread, whose measured points are the
+// samples the tile covers (at the coarse levels, every sample of the terrain); each level reads
+// every sample about once per greedy pass. Measured peaks (2 cores): N44W072 (1201^2) 61 MB built
+// with --crs native, 82 MB in the default frame; its 3 x 3 mirror mosaic in the default frame
+// (3690 x 3613 samples) 144 MB (196 MB with the grid in doubles, 444 MB when the warp held the
+// source, its output and a copy at once).
 #pragma once
 
 #include <cstddef>
