@@ -719,6 +719,46 @@ TEST(TerrainExportAntimeridian, TilesOnBothSidesDrawTheTerrainSeamlessly) {
   EXPECT_GE(pairs, 1u);
 }
 
+// A global DEM on cell centres (360 / step columns, as GEBCO's, ETOPO's and SRTM15+'s: no column
+// on the antimeridian itself): the two tiles of the antimeridian read the same surface there,
+// the one between the last column and the first, so they share their edge vertices, heights and
+// normals on every level (levels 0 and 1: the deepest level's 1 m on 3-degree samples forces
+// 256 x 256 vertices a tile). Before, each side padded its own edge column outward, and a 1-degree
+// grid's edges differed by up to 1,867 m at level 3 (a crack along the whole antimeridian).
+TEST(TerrainExportAntimeridian, AGlobalGridOnCellCentresIsSeamlessAt180Degrees) {
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  const std::string tif = (dir / "global.tif").string(), db = (dir / "global.db").string();
+  constexpr double kStep = 3.0;
+  ASSERT_NO_FATAL_FAILURE(tt::write_tiff(tif, 4326, -180.0 + 0.5 * kStep, 90.0 - 0.5 * kStep, 120, 60, kStep,
+                                         GDT_Float32, [](double lon, double lat) {
+                                           return 1000.0 + 800.0 * std::sin(lon * M_PI / 60.0) *
+                                                               std::cos(lat * M_PI / 45.0);
+                                         }));
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  tb::build_database(tb::read_dem(tif), db, o);
+  const fs::path out = dir / "global-tiles";
+  const tb::ExportReport r = tb::export_terrain(db, out.string(), {.max_level = 1});
+  for (const tb::ExportLevel& L : r.levels) EXPECT_LE(L.max_error, L.bound) << "level " << L.z;
+  const Tileset t = read_tileset(out);
+  std::size_t pairs = 0;
+  for (const auto& [id, a] : t.tiles) {
+    if (id[1] != (2 << id[0]) - 1) continue;
+    const auto it = t.tiles.find({id[0], 0, id[2]});
+    ASSERT_NE(it, t.tiles.end()) << "no tile " << id[0] << "/0/" << id[2];
+    const auto &ea = a.edges[2], &eb = it->second.edges[0];
+    ASSERT_EQ(ea.size(), eb.size()) << id[0] << "/" << id[1] << "/" << id[2];
+    for (std::size_t k = 0; k < ea.size(); ++k) {
+      EXPECT_EQ(a.v[ea[k]], it->second.v[eb[k]]);
+      EXPECT_EQ(decoded_height(a, ea[k]), decoded_height(it->second, eb[k]))
+          << id[0] << "/" << id[1] << "/" << id[2] << " v " << a.v[ea[k]];
+      EXPECT_EQ(a.normals[ea[k]], it->second.normals[eb[k]]);
+    }
+    ++pairs;
+  }
+  EXPECT_EQ(pairs, std::size_t(1 + 2));
+}
+
 // DEMs around a pole (polar stereographic: EPSG:3031 as REMA's tiles, EPSG:3413 as ArcticDEM's)
 // export: every longitude from the pole to the DEM's edge, each level within its bound, every 4th
 // sample drawn within the last level's bound (plus the two bilinear resamplings of a smooth

@@ -200,17 +200,17 @@ PolarLayout polar_layout(const pm::GridTransform& t, int width, int height, cons
   return l;
 }
 
-/// One point, one height: where the grid wraps, column width - 1 takes column 0's samples (one
-/// meridian), and a row at a pole takes its first sample everywhere, so that the tiles on either
-/// side of the antimeridian, and those that meet at a pole, share their edge vertices exactly
-/// (a warp and PROJ's geoid give the copies of one point the same height only up to rounding).
+/// One point, one height: where columns 0 and width - 1 are one meridian (GeoGrid::period), the
+/// last takes the first's samples, and a row at a pole takes its first sample everywhere, so that the tiles
+/// on either side of the antimeridian, and those that meet at a pole, share their edge vertices exactly (a
+/// warp and PROJ's geoid give the copies of one point the same height only up to rounding).
 void join_meridian_and_poles(GeoGrid& g) {
   const std::size_t w = std::size_t(g.width);
   const auto copy = [&](std::size_t from, std::size_t to) {
     g.heights[to] = g.heights[from];
     if (!g.mask.empty()) g.mask[to] = g.mask[from];
   };
-  if (g.wraps())
+  if (g.period() == g.width - 1)
     for (std::size_t r = 0; r < std::size_t(g.height); ++r) copy(r * w, r * w + w - 1);
   for (const int r : {0, g.height - 1})
     if (std::abs(g.lat(r)) == 90.0)

@@ -174,18 +174,12 @@ std::pair<double, double> tile_height_range(const detail::GeoField& f, const Geo
   return {lo, hi};
 }
 
-/// lon in [-180, 180): one meridian, one value (180 and -180, or a grid's longitude past 180).
-double one_meridian(double lon) {
-  const double m = std::remainder(lon, 360.0);
-  return m == 180.0 ? -180.0 : m;
-}
-
 /// The ellipsoid's unit normal (ECEF) at (lon, lat), the same for every copy of a point: at a
 /// pole exactly up (every longitude is that point; an oct-encoded normal otherwise flips between
 /// the two sides of the encoding's fold with the sign of a 1e-17 component).
 pm::Ecef ellipsoid_normal(double lon, double lat) {
   if (std::abs(lat) == 90.0) return {0.0, 0.0, lat > 0.0 ? 1.0 : -1.0};
-  return pm::geodetic_surface_normal(one_meridian(lon), lat);
+  return pm::geodetic_surface_normal(detail::one_meridian(lon), lat);
 }
 
 /// The unit normal (ECEF) of the field at (lon, lat), from central differences `step` degrees
@@ -194,10 +188,9 @@ pm::Ecef ellipsoid_normal(double lon, double lat) {
 pm::Ecef field_normal(const detail::GeoField& f, double lon, double lat, double step) {
   if (std::abs(lat) == 90.0) return ellipsoid_normal(lon, lat);
   constexpr double kDeg = std::numbers::pi / 180.0;
-  // The same normal on either side of the antimeridian: on a grid around the Earth the field is
-  // read at the same columns (its longitudes run from -180), and east and north are one meridian's.
-  const double meridian = one_meridian(lon);
-  if (f.grid().wraps()) lon = meridian;
+  // The same normal on either side of the antimeridian: east and north are one meridian's (and
+  // on a grid around the Earth, GeoField reads the same columns).
+  const double meridian = detail::one_meridian(lon);
   const double metres = pm::kWgs84A * kDeg;
   const double dx = 2 * step * metres * std::max(std::cos(lat * kDeg), 1e-6), dy = 2 * step * metres;
   const double gx = (f.at(lon + step, lat) - f.at(lon - step, lat)) / dx;
@@ -324,8 +317,8 @@ QuantizedMeshTile make_tile(const detail::GeoField& field, const GeoRect& rect, 
       const auto [u, w] = mesh.uv[v];
       if (u != 0 && w != 0 && u != kQ && w != kQ) continue;
       const double lon = vertices[v].lon_deg, lat = vertices[v].lat_deg;
-      const bool over_samples =
-          lon >= g.lon(0) && lon <= g.lon(g.width - 1) && lat <= g.lat(0) && lat >= g.lat(g.height - 1);
+      const bool over_samples = (g.wraps() || (lon >= g.lon(0) && lon <= g.lon(g.width - 1))) &&
+                                lat <= g.lat(0) && lat >= g.lat(g.height - 1);
       normals[v] = over_samples ? field_normal(field, lon, lat, normal_step) : ellipsoid_normal(lon, lat);
     }
     QuantizedMeshOptions qo;

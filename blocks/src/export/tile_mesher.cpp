@@ -490,10 +490,12 @@ class TileGreedy {
 }  // namespace
 
 double GeoField::at(double lon, double lat) const {
+  if (period_ > 0) lon = one_meridian(lon);
   const double col = (lon - g_.west) / g_.dlon, row = (g_.north - lat) / g_.dlat;
   const double lo = -kPad, chi = g_.width - 1 + kPad, rhi = g_.height - 1 + kPad;
-  if (!(col >= lo && col <= chi && row >= lo && row <= rhi)) return background_;
-  const int c = std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
+  if (!(row >= lo && row <= rhi) || (period_ == 0 && !(col >= lo && col <= chi))) return background_;
+  const int c =
+      period_ > 0 ? int(std::floor(col)) : std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
   const int r = std::clamp(int(std::floor(row)), -kPad, g_.height - 2 + kPad);
   const double fx = col - c, fy = row - r;
   const double top = value(c, r) + fx * (value(c + 1, r) - value(c, r));
@@ -502,9 +504,11 @@ double GeoField::at(double lon, double lat) const {
 }
 
 double GeoField::on_row(double lon, int r) const {
+  if (period_ > 0) lon = one_meridian(lon);
   const double col = (lon - g_.west) / g_.dlon;
-  if (!(col >= -kPad && col <= g_.width - 1 + kPad)) return background_;
-  const int c = std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
+  if (period_ == 0 && !(col >= -kPad && col <= g_.width - 1 + kPad)) return background_;
+  const int c =
+      period_ > 0 ? int(std::floor(col)) : std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
   const double fx = col - c;
   return value(c, r) + fx * (value(c + 1, r) - value(c, r));
 }

@@ -36,6 +36,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -45,10 +46,16 @@
 
 namespace terralod::blocks::detail {
 
+/// lon in [-180, 180): one meridian, one value, exactly (180 and -180, or a longitude past 180).
+inline double one_meridian(double lon) {
+  const double m = std::remainder(lon, 360.0);
+  return m == 180.0 ? -180.0 : m;
+}
+
 class GeoField {
  public:
   GeoField(const GeoGrid& grid, double background)
-      : g_(grid), background_(background), period_(grid.wraps() ? grid.width - 1 : 0) {}
+      : g_(grid), background_(background), period_(grid.period()) {}
   const GeoGrid& grid() const { return g_; }
   double background() const { return background_; }
 
@@ -60,17 +67,19 @@ class GeoField {
 
   /// The lattice point (c, r), c in [-kPad, width - 1 + kPad], r likewise: a valid sample's height;
   /// the nearest sample's on the first ring; the background on the second; NaN for a hole (not
-  /// measured). A grid that goes around the Earth (GeoGrid::wraps) has no ring east or west: its
-  /// columns continue across the antimeridian, so that a normal there is the same on both sides.
+  /// measured). A grid that goes around the Earth (GeoGrid::period) has no ring east or west: its
+  /// columns continue across the antimeridian, any number of turns.
   double lattice(int c, int r) const {
-    if (period_ > 0 && (c < 0 || c >= g_.width)) c = c < 0 ? c + period_ : c - period_;
+    if (period_ > 0 && (c < 0 || c >= g_.width)) c = (c % period_ + period_) % period_;
     const bool in = c >= 0 && r >= 0 && c < g_.width && r < g_.height;
     if (in) return g_.valid(c, r) ? g_.z(c, r) : std::numeric_limits<double>::quiet_NaN();
     if (c < -1 || r < -1 || c > g_.width || r > g_.height) return background_;
     const int cc = std::clamp(c, 0, g_.width - 1), rr = std::clamp(r, 0, g_.height - 1);
     return g_.valid(cc, rr) ? g_.z(cc, rr) : background_;
   }
-  /// Bilinear between lattice points (holes as background), background outside the rings.
+  /// Bilinear between lattice points (holes as background), background outside the rings. On a
+  /// grid around the Earth, lon is first taken as one_meridian(lon), so that the two sides of the
+  /// antimeridian (+-180, or a tile placed 360 degrees away) read the same columns, bit for bit.
   double at(double lon, double lat) const;
   /// The same on lattice row r (linear between the two columns around lon) and on column c.
   double on_row(double lon, int r) const;
@@ -83,7 +92,7 @@ class GeoField {
   }
   const GeoGrid& g_;
   double background_;
-  int period_;  ///< width - 1 where the grid wraps, else 0
+  int period_;  ///< GeoGrid::period()
 };
 
 struct TileMesh {

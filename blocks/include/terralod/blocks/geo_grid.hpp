@@ -84,9 +84,15 @@ struct GeoGrid {
   double lat(double row) const { return north - row * dlat; }
   double z(int col, int row) const { return double(heights[std::size_t(row) * width + col]); }
   bool valid(int col, int row) const { return mask.empty() || mask[std::size_t(row) * width + col] != 0; }
-  /// Whether the grid goes once around the Earth: columns 0 and width - 1 are one meridian
-  /// ((width - 1) dlon = 360 degrees); make_geo_grid gives them the same samples.
-  bool wraps() const { return width > 1 && std::abs(double(width - 1) * dlon - 360.0) <= 1e-9; }
+  /// Columns per turn around the Earth: width - 1 when columns 0 and width - 1 are one meridian
+  /// ((width - 1) dlon = 360 degrees, a grid from -180 to 180; make_geo_grid gives them the same
+  /// samples), width when column `width` would be column 0 again (width dlon = 360 degrees: the
+  /// cell-registered global grids of GEBCO, ETOPO, SRTM15+), 0 when the grid does not go around.
+  int period() const {
+    if (width > 1 && std::abs(double(width - 1) * dlon - 360.0) <= 1e-9) return width - 1;
+    return std::abs(double(width) * dlon - 360.0) <= 1e-9 ? width : 0;
+  }
+  bool wraps() const { return period() > 0; }
 };
 
 GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what);
