@@ -723,7 +723,8 @@ TEST(TerrainExportAntimeridian, TilesOnBothSidesDrawTheTerrainSeamlessly) {
 // on the antimeridian itself): the two tiles of the antimeridian read the same surface there,
 // the one between the last column and the first, so they share their edge vertices, heights and
 // normals on every level (levels 0 and 1: the deepest level's 1 m on 3-degree samples forces
-// 256 x 256 vertices a tile). Before, each side padded its own edge column outward, and a 1-degree
+// 256 x 256 vertices a tile), and the poles half a row beyond its first and last rows are one
+// height each. Before, each side padded its own edge column outward, and a 1-degree
 // grid's edges differed by up to 1,867 m at level 3 (a crack along the whole antimeridian).
 TEST(TerrainExportAntimeridian, AGlobalGridOnCellCentresIsSeamlessAt180Degrees) {
   const fs::path dir = tt::process_temp_dir("terralod-export");
@@ -757,6 +758,16 @@ TEST(TerrainExportAntimeridian, AGlobalGridOnCellCentresIsSeamlessAt180Degrees) 
     ++pairs;
   }
   EXPECT_EQ(pairs, std::size_t(1 + 2));
+  // Its first and last rows lie half a row from the poles: every tile edge on a pole has one
+  // height there (its row's mean), on every level, as every longitude is that one point.
+  for (const int pole : {-1, 1})
+    for (int level = 0; level <= 1; ++level) {
+      std::set<double> heights;
+      for (const auto& [id, d] : t.tiles)
+        if (id[0] == level && id[2] == (pole > 0 ? (1 << level) - 1 : 0))
+          for (const std::uint32_t v : d.edges[pole > 0 ? 3 : 1]) heights.insert(decoded_height(d, v));
+      EXPECT_EQ(heights.size(), 1u) << (pole > 0 ? "North" : "South") << " Pole, level " << level;
+    }
 }
 
 // DEMs around a pole (polar stereographic: EPSG:3031 as REMA's tiles, EPSG:3413 as ArcticDEM's)

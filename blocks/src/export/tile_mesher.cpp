@@ -489,8 +489,26 @@ class TileGreedy {
 
 }  // namespace
 
+GeoField::GeoField(const GeoGrid& grid, double background)
+    : g_(grid), background_(background), period_(grid.period()) {
+  const auto pole_value = [&](int r, double pole) {
+    const double gap = std::abs(pole - grid.lat(r));
+    if (period_ == 0 || gap == 0.0 || gap > grid.dlat) return std::numeric_limits<double>::quiet_NaN();
+    double sum = 0.0;
+    int n = 0;
+    for (int c = 0; c < period_; ++c)
+      if (grid.valid(c, r)) sum += grid.z(c, r), ++n;
+    return n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN();
+  };
+  pole_north_ = pole_value(0, 90.0);
+  pole_south_ = pole_value(grid.height - 1, -90.0);
+}
+
 double GeoField::at(double lon, double lat) const {
   if (period_ > 0) lon = one_meridian(lon);
+  if (lat > g_.north && pole_north_ == pole_north_) return toward_pole(on_row(lon, 0), 0, pole_north_, lat);
+  if (lat < g_.lat(g_.height - 1) && pole_south_ == pole_south_)
+    return toward_pole(on_row(lon, g_.height - 1), g_.height - 1, pole_south_, lat);
   const double col = (lon - g_.west) / g_.dlon, row = (g_.north - lat) / g_.dlat;
   const double lo = -kPad, chi = g_.width - 1 + kPad, rhi = g_.height - 1 + kPad;
   if (!(row >= lo && row <= rhi) || (period_ == 0 && !(col >= lo && col <= chi))) return background_;
@@ -514,6 +532,9 @@ double GeoField::on_row(double lon, int r) const {
 }
 
 double GeoField::on_col(int c, double lat) const {
+  if (lat > g_.north && pole_north_ == pole_north_) return toward_pole(value(c, 0), 0, pole_north_, lat);
+  if (lat < g_.lat(g_.height - 1) && pole_south_ == pole_south_)
+    return toward_pole(value(c, g_.height - 1), g_.height - 1, pole_south_, lat);
   const double row = (g_.north - lat) / g_.dlat;
   if (!(row >= -kPad && row <= g_.height - 1 + kPad)) return background_;
   const int r = std::clamp(int(std::floor(row)), -kPad, g_.height - 2 + kPad);

@@ -54,8 +54,7 @@ inline double one_meridian(double lon) {
 
 class GeoField {
  public:
-  GeoField(const GeoGrid& grid, double background)
-      : g_(grid), background_(background), period_(grid.period()) {}
+  GeoField(const GeoGrid& grid, double background);
   const GeoGrid& grid() const { return g_; }
   double background() const { return background_; }
 
@@ -79,7 +78,10 @@ class GeoField {
   }
   /// Bilinear between lattice points (holes as background), background outside the rings. On a
   /// grid around the Earth, lon is first taken as one_meridian(lon), so that the two sides of the
-  /// antimeridian (+-180, or a tile placed 360 degrees away) read the same columns, bit for bit.
+  /// antimeridian (+-180, or a tile placed 360 degrees away) read the same columns, bit for bit;
+  /// and where such a grid's first or last row lies within a row of a pole but not on it (cell
+  /// centres), the field between that row and the pole runs linearly to the row's mean, which is
+  /// its value at the pole, exactly: every longitude there is one point.
   double at(double lon, double lat) const;
   /// The same on lattice row r (linear between the two columns around lon) and on column c.
   double on_row(double lon, int r) const;
@@ -90,9 +92,16 @@ class GeoField {
     const double v = lattice(c, r);
     return v == v ? v : background_;
   }
+  /// The value between edge row `r` (its value v there) and the pole `pole` beyond it, at lat.
+  double toward_pole(double v, int r, double pole, double lat) const {
+    const double t = (lat - g_.lat(r)) / ((lat > 0 ? 90.0 : -90.0) - g_.lat(r));
+    return t >= 1.0 ? pole : v + t * (pole - v);
+  }
   const GeoGrid& g_;
   double background_;
   int period_;  ///< GeoGrid::period()
+  /// Around the Earth with a row within a row of the pole: that row's mean (see at()); else NaN.
+  double pole_north_, pole_south_;
 };
 
 struct TileMesh {
