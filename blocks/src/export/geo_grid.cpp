@@ -124,18 +124,27 @@ bool is_wgs84_geographic(const std::string& wkt) {
   return srs.IsSameGeogCS(&wgs84) != 0;
 }
 
-/// +1 when the North Pole lies inside the terrain's footprint (its samples' cells), -1 for the
-/// South Pole, 0 for neither.
-int pole_inside(const pm::GridTransform& t, int width, int height, const detail::GeographicOf& geo) {
+/// A pole inside the terrain's footprint (its samples' cells): +1 the North Pole, -1 the South
+/// Pole, and where it lies in the grid (fractional column and row).
+struct PoleAt {
+  int pole = 0;
+  double col = 0, row = 0;
+};
+std::optional<PoleAt> pole_inside(const pm::GridTransform& t, int width, int height,
+                                  const detail::GeographicOf& geo) {
   const detail::Affine grid{t};
   for (const int s : {1, -1}) {
     double x = 0.0, y = 90.0 * s;
     if (!geo.to_crs->Transform(1, &x, &y) || !std::isfinite(x) || !std::isfinite(y)) continue;
     const auto [c, r] = grid.inverse(x, y);
-    if (c >= -0.5 && c <= width - 0.5 && r >= -0.5 && r <= height - 0.5) return s;
+    if (c >= -0.5 && c <= width - 0.5 && r >= -0.5 && r <= height - 0.5) return PoleAt{s, c, r};
   }
-  return 0;
+  return std::nullopt;
 }
+
+/// read(col0, row0, cols, rows, out): the terrain's samples of that window into out, row by row,
+/// NaN at holes (detail::WarpSource::read).
+using WindowReader = std::function<void(int col0, int row0, int cols, int rows, double* out)>;
 
 /// The longitude/latitude grid for a terrain around a pole (pole: +1 north, -1 south), for which
 /// GDAL suggests none (it failed with "Attempt to create 363x0 dataset"): every longitude, from
@@ -151,11 +160,9 @@ struct PolarLayout {
   double west = -180.0, north = 0.0;  ///< degrees, exactly: the first column's and row's
 };
 PolarLayout polar_layout(const pm::GridTransform& t, int width, int height, const detail::GeographicOf& geo,
-                         int pole, const std::string& what) {
-  const detail::Affine grid{t};
-  double px = 0.0, py = 90.0 * pole;
-  geo.to_crs->Transform(1, &px, &py);
-  const auto [pc, pr] = grid.inverse(px, py);
+                         const PoleAt& at, const std::string& what) {
+  const int pole = at.pole;
+  const double pc = at.col, pr = at.row;
   // Ground distance between two points of the source's grid, on its ellipsoid.
   const auto ground = [&](double c0, double r0, double c1, double r1) {
     auto [x0, y0] = t.to_world(c0, r0);
@@ -221,8 +228,7 @@ void join_meridian_and_poles(GeoGrid& g) {
 /// any, are not read: they come from `read`, see detail::WarpSource) warped to EPSG:4326 (bilinear, GDAL's
 /// choice of grid, or polar_layout's around a pole), voids and outside as holes. Only the warped
 /// grid is held whole.
-GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
-                       const std::function<void(int, int, int, int, double*)>& read,
+GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height, const WindowReader& read,
                        const std::string& what) {
   const pm::GridTransform& t = *frame.crs_transform;
   detail::WarpSource src;
@@ -242,8 +248,8 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height,
   // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
   std::optional<PolarLayout> layout;
   if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(frame.crs_wkt)) {
-    if (const int pole = pole_inside(t, width, height, *geo); pole != 0) {
-      layout = polar_layout(t, width, height, *geo, pole, what);  // every longitude meets there
+    if (const std::optional<PoleAt> pole = pole_inside(t, width, height, *geo)) {
+      layout = polar_layout(t, width, height, *geo, *pole, what);  // every longitude meets there
     } else {
       auto [x, y] = t.to_world(0.5 * (width - 1), 0.5 * (height - 1));
       if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
@@ -287,10 +293,10 @@ void require_crs(const pm::Heightfield& frame, const std::string& what) {
 }
 
 /// The grid of a terrain on a north-up WGS 84 longitude/latitude grid (on_lonlat_grid): its own
-/// samples as floats, 0 and masked at holes, filled window by window by read(rect, out) (out:
-/// rect's samples, row by row, NaN at holes), so that nothing but the grid grows with the terrain.
+/// samples as floats, 0 and masked at holes, read in windows of `window` rows and 16 `window`
+/// columns, so that nothing but the grid grows with the terrain.
 GeoGrid own_samples(const pm::Heightfield& frame, int width, int height, int window,
-                    const std::function<void(const SampleRect&, double*)>& read) {
+                    const WindowReader& read) {
   const pm::GridTransform& t = *frame.crs_transform;
   GeoGrid g;
   g.width = width;
@@ -307,7 +313,7 @@ GeoGrid own_samples(const pm::Heightfield& frame, int width, int height, int win
       const SampleRect rect{c0, r0, std::min(width - 1, c0 + 16 * window - 1),
                             std::min(height - 1, r0 + window - 1)};
       buf.resize(rect.samples());
-      read(rect, buf.data());
+      read(rect.col0, rect.row0, rect.width(), rect.height(), buf.data());
       const double* in = buf.data();
       for (int r = rect.row0; r <= rect.row1; ++r)
         for (std::size_t i = std::size_t(r) * w + std::size_t(rect.col0), end = i + std::size_t(rect.width());
@@ -331,17 +337,8 @@ bool on_lonlat_grid(const pm::Heightfield& frame) {
   return is_wgs84_geographic(frame.crs_wkt) && t.xr == 0.0 && t.yc == 0.0 && t.xc > 0.0 && t.yr < 0.0;
 }
 
-/// g's heights from the datum `requested` (the caller's, else the one its source states; "" when
-/// neither names one) to the WGS 84 ellipsoid (the header's contract).
-GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const std::string& what) {
-  join_meridian_and_poles(g);  // the heights as given (again below, after the geoid)
-  const std::string v = detail::vertical_crs(requested);
-  g.vertical_datum = v.empty()          ? "WGS 84 ellipsoid"
-                     : v == "EPSG:5773" ? "EGM96"
-                     : v == "EPSG:3855" ? "EGM2008"
-                                        : v;
-  if (requested.empty()) g.vertical_datum += " (assumed: the source states no vertical datum)";
-  if (v.empty()) return g;
+/// Adds the geoid undulation of the vertical CRS v to every valid sample of g.
+void convert_to_ellipsoid(GeoGrid& g, const std::string& v, const std::string& what) {
   // N varies smoothly (PROJ interpolates a 15' grid for EGM96), but every sample gets its own,
   // in bands of whole rows of about 2^16 samples: the coordinates and undulations (24 bytes a
   // sample) are never held for more than a band a thread.
@@ -363,6 +360,19 @@ GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const 
           if (g.mask.empty() || g.mask[at + i]) g.heights[at + i] = float(double(g.heights[at + i]) + n[i]);
       });
   g.heights_converted = true;
+}
+
+/// g's heights from the datum `requested` (the caller's, else the one its source states; "" when
+/// neither names one) to the WGS 84 ellipsoid (the header's contract).
+GeoGrid with_ellipsoidal_heights(GeoGrid g, const std::string& requested, const std::string& what) {
+  const std::string v = detail::vertical_crs(requested);
+  g.vertical_datum = v.empty()          ? "WGS 84 ellipsoid"
+                     : v == "EPSG:5773" ? "EGM96"
+                     : v == "EPSG:3855" ? "EGM2008"
+                                        : v;
+  if (requested.empty()) g.vertical_datum += " (assumed: the source states no vertical datum)";
+  if (!v.empty()) convert_to_ellipsoid(g, v, what);
+  // After the geoid, which gives the copies of one point the same height only up to rounding.
   join_meridian_and_poles(g);
   return g;
 }
@@ -386,43 +396,28 @@ std::vector<double> geoid_undulations(const std::string& vertical_datum, const s
 GeoGrid make_geo_grid(pm::Heightfield hf, const std::string& vertical_datum, const std::string& what) {
   require_crs(hf, what);
   const std::string requested = vertical_datum.empty() ? hf.vertical_datum : vertical_datum;
-  GeoGrid g;
-  if (on_lonlat_grid(hf)) {
-    g = own_samples(hf, hf.width(), hf.height(), 256, [&](const SampleRect& rect, double* out) {
-      for (int r = rect.row0; r <= rect.row1; ++r)
-        for (int c = rect.col0; c <= rect.col1; ++c)
-          *out++ = hf.valid(c, r) ? hf.at(c, r) : std::numeric_limits<double>::quiet_NaN();
-    });
-    std::vector<double>().swap(hf.samples());
-  } else {
-    g = warp_to_lonlat(
-        hf, hf.width(), hf.height(),
-        [&](int col0, int row0, int cols, int rows, double* out) {
-          for (int r = 0; r < rows; ++r)
-            for (int c = 0; c < cols; ++c)
-              *out++ = hf.valid(col0 + c, row0 + r) ? hf.at(col0 + c, row0 + r)
-                                                    : std::numeric_limits<double>::quiet_NaN();
-        },
-        what);
-    std::vector<double>().swap(hf.samples());
-  }
+  const WindowReader read = [&](int col0, int row0, int cols, int rows, double* out) {
+    for (int r = 0; r < rows; ++r)
+      for (int c = 0; c < cols; ++c)
+        *out++ = hf.valid(col0 + c, row0 + r) ? hf.at(col0 + c, row0 + r)
+                                              : std::numeric_limits<double>::quiet_NaN();
+  };
+  GeoGrid g = on_lonlat_grid(hf) ? own_samples(hf, hf.width(), hf.height(), 256, read)
+                                 : warp_to_lonlat(hf, hf.width(), hf.height(), read, what);
+  std::vector<double>().swap(hf.samples());
   return with_ellipsoidal_heights(std::move(g), requested, what);
 }
 
 GeoGrid make_geo_grid(DatabaseTerrain& terrain, const std::string& vertical_datum, const std::string& what) {
   const pm::Heightfield& frame = terrain.frame();
   require_crs(frame, what);
-  if (on_lonlat_grid(frame))  // a row of blocks at a time, 16 blocks a read (decoded in parallel)
-    return with_ellipsoidal_heights(
-        own_samples(frame, terrain.width(), terrain.height(), terrain.layout().block_size - 1,
-                    [&](const SampleRect& rect, double* out) { terrain.read(rect, out); }),
-        vertical_datum.empty() ? frame.vertical_datum : vertical_datum, what);
-  GeoGrid g = warp_to_lonlat(
-      frame, terrain.width(), terrain.height(),
-      [&](int col0, int row0, int cols, int rows, double* out) {
-        terrain.read({col0, row0, col0 + cols - 1, row0 + rows - 1}, out);  // straight into GDAL's buffer
-      },
-      what);
+  const WindowReader read = [&](int col0, int row0, int cols, int rows, double* out) {
+    terrain.read({col0, row0, col0 + cols - 1, row0 + rows - 1}, out);  // straight into the caller's buffer
+  };
+  // Own samples: a row of blocks at a time, 16 blocks a read (decoded in parallel).
+  GeoGrid g = on_lonlat_grid(frame) ? own_samples(frame, terrain.width(), terrain.height(),
+                                                  terrain.layout().block_size - 1, read)
+                                    : warp_to_lonlat(frame, terrain.width(), terrain.height(), read, what);
   return with_ellipsoidal_heights(std::move(g),
                                   vertical_datum.empty() ? frame.vertical_datum : vertical_datum, what);
 }

@@ -23,9 +23,9 @@
 //     longitude, from the pole to the footprint's farthest latitude, rows the source's ground
 //     spacing at the pole apart and columns that far apart where they are widest, so nowhere
 //     coarser than the source (about twice the samples of the cap it covers).
-//   - One point, one height: where the grid goes around the Earth (wraps()), its last column
-//     takes its first column's samples (one meridian), and a row at +-90 degrees takes its first
-//     sample everywhere, after the geoid too, so that tiles meeting there share their vertices.
+//   - One point, one height: where columns 0 and width - 1 are one meridian (period() is
+//     width - 1), the last takes the first's samples, and a row at +-90 degrees takes its first
+//     sample everywhere, after the geoid, so that tiles meeting there share their vertices.
 //   - Vertical: heights are converted from `vertical_datum` to the WGS 84 ellipsoid by adding
 //     the geoid undulation N(lon, lat) that PROJ gives for every sample:
 //       "ellipsoid" (or "wgs84")  the heights are ellipsoidal already: nothing is added;
