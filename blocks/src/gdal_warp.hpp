@@ -34,13 +34,14 @@ struct WarpSource {
 /// coordinate transformations, on all cores (GDAL's NUM_THREADS=ALL_CPUS). The output does not
 /// depend on the chunks: where it is coarser than the source, GDAL's kernel is widened by the
 /// whole grid's ratio of output to source samples in every chunk. Output cells outside
-/// the source, or whose bilinear neighbourhood holds only NaN, are NaN. When GDAL fails, returns
+/// the source, or whose nearest source sample is NaN, are NaN (a NaN neighbour is left out of
+/// the bilinear weights). When GDAL fails, returns
 /// an empty grid and sets `error` to GDAL's reason; what src.read throws is thrown. Memory: the
 /// output grid as floats, GDAL's chunks of the warp (source windows and output, chunk_mib each,
 /// two at once) and what `src.read` holds; the source is read only where the output needs it.
 /// With `layout` (its width, height and gt; z unused) the output is that grid instead, and the
 /// kernel is never widened (XSCALE = YSCALE = 1): the caller lays it out at least as fine as the
-/// source everywhere (geo_grid.cpp's grids around a pole, for which GDAL suggests none).
+/// source everywhere (geo_grid.cpp's layouts).
 WarpGrid warp_grid(const WarpSource& src, const std::string& src_wkt, const std::string& dst_wkt,
                    std::string& error, const WarpGrid* layout = nullptr);
 

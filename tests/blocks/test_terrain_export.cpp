@@ -13,6 +13,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <numbers>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -564,6 +566,134 @@ TEST_F(QuantizedMeshExport, AProjectedDemIsWarpedToWhereItBelongs) {
   EXPECT_LT(diff[diff.size() * 9 / 10], 25.0) << "90th percentile";
 }
 
+/// The largest |drawn - DEM| of a projected DEM's samples (a GeoTIFF, heights above EGM96), drawn
+/// by the deepest level of its quantized-mesh export in `out`, by ring: [0] the outermost
+/// samples, [1] the next ring, [2] every 7th sample inside.
+std::array<double, 3> largest_errors_by_ring(const std::string& tif, const fs::path& out) {
+  std::array<double, 3> worst{0, 0, 0};
+  GDALAllRegister();
+  GDALDataset* ds = GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY);
+  EXPECT_NE(ds, nullptr) << tif;
+  if (ds == nullptr) return worst;
+  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+  double gt[6];
+  EXPECT_EQ(ds->GetGeoTransform(gt), CE_None);
+  std::vector<double> z(std::size_t(w) * std::size_t(h));
+  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, z.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  OGRSpatialReference crs(*ds->GetSpatialRef()), wgs84;
+  GDALClose(ds);
+  crs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  const std::unique_ptr<OGRCoordinateTransformation> to_geog(OGRCreateCoordinateTransformation(&crs, &wgs84));
+  EXPECT_TRUE(to_geog);
+  if (!to_geog) return worst;
+  std::vector<std::array<double, 2>> lonlat;
+  std::vector<double> want;
+  std::vector<int> ring;
+  for (int row = 0; row < h; ++row)
+    for (int c = 0; c < w; ++c) {
+      const int from_edge = std::min({row, c, h - 1 - row, w - 1 - c});
+      if (from_edge >= 2 && (row + c) % 7 != 0) continue;
+      double x = gt[0] + (c + 0.5) * gt[1] + (row + 0.5) * gt[2],
+             y = gt[3] + (c + 0.5) * gt[4] + (row + 0.5) * gt[5];
+      EXPECT_TRUE(to_geog->Transform(1, &x, &y));
+      lonlat.push_back({x, y});
+      want.push_back(z[std::size_t(row) * std::size_t(w) + std::size_t(c)]);
+      ring.push_back(std::min(from_edge, 2));
+    }
+  const std::vector<double> n = egm96(lonlat);
+  const Tileset t = read_tileset(out);
+  const int level = int(t.bound.size()) - 1, nx = 2 << level, ny = 1 << level;
+  for (std::size_t i = 0; i < lonlat.size(); ++i) {
+    const auto [lon, lat] = lonlat[i];
+    const int x = std::clamp(int(std::floor((lon + 180.0) / 180.0 * (1 << level))), 0, nx - 1),
+              y = std::clamp(int(std::floor((lat + 90.0) / 180.0 * (1 << level))), 0, ny - 1);
+    const auto it = t.tiles.find({level, x, y});
+    EXPECT_NE(it, t.tiles.end()) << "no tile " << level << "/" << x << "/" << y;
+    if (it == t.tiles.end()) continue;
+    const tb::GeoRect rect = tb::tile_rect({level, x, y});
+    const double drawn = interpolate(it->second, (lon - rect.west) / (rect.east - rect.west) * kQ,
+                                     (lat - rect.south) / (rect.north - rect.south) * kQ);
+    EXPECT_TRUE(std::isfinite(drawn)) << lon << ", " << lat << ": no triangle";
+    if (std::isfinite(drawn))
+      worst[std::size_t(ring[i])] = std::max(worst[std::size_t(ring[i])], std::abs(drawn - (want[i] + n[i])));
+  }
+  return worst;
+}
+
+// A projected DEM (UTM, 90 m samples, every cell valid) at 44 and 70 degrees north is exported
+// on a longitude/latitude grid nowhere coarser than its samples, and every sample of its two
+// outermost rings is drawn as well as those inside: within the deepest level's bound plus the two
+// bilinear resamplings of a smooth surface. Before, GDAL's grid of cells square in degrees had
+// rows 106 m apart at 44 degrees and 187 m at 70 (its kernel, widened to match, smoothed the
+// terrain), and the grid ended at the footprint's cell edge, so the outermost samples stood in
+// the cliff down to the background: 330 and 403 m off.
+class TerrainExportProjected : public ::testing::TestWithParam<int> {};
+
+TEST_P(TerrainExportProjected, KeepsItsResolutionAndItsOutermostSamples) {
+  const int latitude = GetParam();
+  const fs::path dir = tt::process_temp_dir("terralod-export");
+  const std::string name = "utm" + std::to_string(latitude);
+  const std::string tif = (dir / (name + ".tif")).string(), db = (dir / (name + ".db")).string();
+  constexpr int kW = 100, kH = 120;
+  constexpr double kStep = 90.0;
+  const double x0 = 440000.0, y0 = latitude == 70 ? 7775600.0 : 4880000.0;  // north-west corner
+  // Smooth (wavelengths of 6 km and more), sloping, with no symmetry.
+  auto height = [&](double x, double y) {
+    return 600.0 + 250.0 * std::sin((x - x0) / 1200.0 + 0.3) * std::cos((y - y0) / 900.0 - 0.2) +
+           0.05 * (x - x0);
+  };
+  {
+    OGRSpatialReference utm;
+    utm.importFromEPSG(latitude == 70 ? 32633 : 32619);
+    GDALAllRegister();
+    GDALDataset* ds = GetGDALDriverManager()->GetDriverByName("GTiff")->Create(tif.c_str(), kW, kH, 1,
+                                                                               GDT_Float64, nullptr);
+    ASSERT_NE(ds, nullptr);
+    double gt[6] = {x0, kStep, 0, y0, 0, -kStep};
+    ds->SetGeoTransform(gt);
+    ds->SetSpatialRef(&utm);
+    std::vector<double> z;
+    for (int r = 0; r < kH; ++r)
+      for (int c = 0; c < kW; ++c) z.push_back(height(x0 + (c + 0.5) * kStep, y0 - (r + 0.5) * kStep));
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, kW, kH, z.data(), kW, kH, GDT_Float64, 0, 0),
+              CE_None);
+    GDALClose(ds);
+  }
+  tb::DatabaseBuildOptions o;
+  o.block_size = 65;
+  tb::build_database(tb::read_dem(tif), db, o);
+
+  // The grid: rows and columns (on the parallel nearest the equator) at most 90 m apart on the
+  // ground (UTM's scale here is within 0.9996 .. 0.9997: a source step is 90.04 m at most).
+  const tb::GeoGrid g = tb::make_geo_grid(tb::read_database_terrain(tb::BlockDatabase::open(db)), "", db);
+  constexpr double a = 6378137.0, e2 = 6.69437999014e-3, k = std::numbers::pi / 180.0;
+  const auto metres_a_degree = [&](double lat) {  // of a meridian and of a parallel
+    const double s = std::sin(lat * k), w = 1.0 - e2 * s * s;
+    return std::array<double, 2>{a * (1.0 - e2) / (w * std::sqrt(w)) * k,
+                                 a / std::sqrt(w) * std::cos(lat * k) * k};
+  };
+  const double row_metres = g.dlat * metres_a_degree(g.lat(0))[0];  // the north row: the longest degree
+  const double column_metres = g.dlon * metres_a_degree(g.lat(g.height - 1))[1];
+  EXPECT_LE(row_metres, 90.05) << g.width << " x " << g.height;
+  EXPECT_LE(column_metres, 90.05) << g.width << " x " << g.height;
+  EXPECT_GT(row_metres, 80.0) << "not finer than needed either";
+
+  const fs::path out = dir / (name + "-tiles");
+  const tb::ExportReport r = tb::export_terrain(db, out.string(), {});
+  for (const tb::ExportLevel& L : r.levels) EXPECT_LE(L.max_error, L.bound) << "level " << L.z;
+  const std::array<double, 3> worst = largest_errors_by_ring(tif, out);
+  const double bound = r.levels.back().bound;
+  std::printf(
+      "UTM at %d N: grid %d x %d (rows %.1f m, columns %.1f m apart); largest error, outermost "
+      "ring %.2f m, the next %.2f m, inside %.2f m (bound %.2f m)\n",
+      latitude, g.width, g.height, row_metres, column_metres, worst[0], worst[1], worst[2], bound);
+  for (int ring = 0; ring < 3; ++ring) EXPECT_LE(worst[std::size_t(ring)], bound + 2.0) << "ring " << ring;
+}
+
+INSTANTIATE_TEST_SUITE_P(Latitudes, TerrainExportProjected, ::testing::Values(44, 70));
+
 // High terrain inside a 0 m border (a DEM clipped with 0 where it had no data: N44W072 + 5,000 m,
 // its north edge at 45 degrees, a tile edge of levels 0 to 6) keeps every level's bound. At the
 // coarse levels the lattice has fewer than 16 quanta a sample, a cliff-top sample rounded onto a
@@ -822,8 +952,8 @@ TEST_P(TerrainExportPole, ExportsEveryLongitudeWithThePoleAsOnePoint) {
     EXPECT_TRUE(std::isfinite(L.geometric_error)) << "3D Tiles level " << L.z;
   }
   // Every 4th sample inside the outermost four, through the tile of the last level that holds it
-  // (at the footprint's edge the terrain ends in a cliff within one cell of the longitude/latitude
-  // grid, as wherever a warped terrain meets its holes).
+  // (around a pole the grid's columns lie dozens of rows apart, and triangles between them near
+  // the footprint's edge are measured nowhere).
   const std::unique_ptr<OGRCoordinateTransformation> to_geog(
       OGRCreateCoordinateTransformation(&polar, &wgs84));
   ASSERT_TRUE(to_geog);

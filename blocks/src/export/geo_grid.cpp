@@ -8,6 +8,7 @@
 #include <proj_experimental.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -15,6 +16,7 @@
 #include <mutex>
 #include <numbers>
 #include <optional>
+#include <tuple>
 #include <utility>
 
 #include "../frame_scale.hpp"
@@ -146,6 +148,81 @@ std::optional<PoleAt> pole_inside(const pm::GridTransform& t, int width, int hei
 /// NaN at holes (detail::WarpSource::read).
 using WindowReader = std::function<void(int col0, int row0, int cols, int rows, double* out)>;
 
+/// A longitude/latitude grid to warp to: its size and geotransform, and the degrees of its first
+/// column and row, exactly.
+struct GridLayout {
+  detail::WarpGrid grid;              ///< size and geotransform
+  double west = -180.0, north = 0.0;  ///< degrees, exactly: the first column's and row's
+};
+
+/// Ground distance between points (c0, r0) and (c1, r1) of the source's grid, on its ellipsoid;
+/// 0 where the CRS cannot place them.
+double ground_distance(const pm::GridTransform& t, const detail::GeographicOf& geo, double c0, double r0,
+                       double c1, double r1) {
+  auto [x0, y0] = t.to_world(c0, r0);
+  auto [x1, y1] = t.to_world(c1, r1);
+  if (!geo.to_geog->Transform(1, &x0, &y0) || !geo.to_geog->Transform(1, &x1, &y1)) return 0.0;
+  const pm::Ecef a = pm::ecef_from_geodetic({x0, y0, 0.0}, geo.a, geo.e2),
+                 b = pm::ecef_from_geodetic({x1, y1, 0.0}, geo.a, geo.e2);
+  const double d = std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+  return std::isfinite(d) ? d : 0.0;
+}
+
+/// The ellipsoid's radii of curvature at latitude lat (degrees): prime vertical N, meridian M.
+std::array<double, 2> radii(const detail::GeographicOf& geo, double lat) {
+  const double sin_lat = std::sin(lat * std::numbers::pi / 180.0), w = 1.0 - geo.e2 * sin_lat * sin_lat;
+  return {geo.a / std::sqrt(w), geo.a * (1.0 - geo.e2) / (w * std::sqrt(w))};
+}
+
+/// The east-west and north-south spacings (ground metres) of a grid aligned with the parallels
+/// and meridians that is no coarser than the source's grid at its point (c, r): with the
+/// source's column and row steps as vectors (east, north), its band of frequencies, spanned by
+/// the reciprocal vectors, reaches |a*_east| + |b*_east| east-west; so, for steps at right angles
+/// along the axes, the steps themselves, and finer where they are turned (a grid of square
+/// cells turned 3 degrees, as UTM's are 2 degrees off its central meridian at 60 degrees:
+/// 0.95 x its step). nullopt where the CRS cannot place the points.
+std::optional<std::array<double, 2>> spacing_needed(const pm::GridTransform& t,
+                                                    const detail::GeographicOf& geo, double c, double r) {
+  double lon[4], lat[4];
+  const double dc[4] = {-0.5, 0.5, 0.0, 0.0}, dr[4] = {0.0, 0.0, -0.5, 0.5};
+  for (int k = 0; k < 4; ++k) {
+    std::tie(lon[k], lat[k]) = t.to_world(c + dc[k], r + dr[k]);
+    if (!geo.to_geog->Transform(1, &lon[k], &lat[k]) || !std::isfinite(lon[k]) || !std::isfinite(lat[k]))
+      return std::nullopt;
+  }
+  const double mid = 0.25 * (lat[0] + lat[1] + lat[2] + lat[3]);
+  const auto [n, m] = radii(geo, mid);
+  const double per_lon = n * std::cos(mid * std::numbers::pi / 180.0) * std::numbers::pi / 180.0,
+               per_lat = m * std::numbers::pi / 180.0;
+  const double ce = std::remainder(lon[1] - lon[0], 360.0) * per_lon, cn = (lat[1] - lat[0]) * per_lat;
+  const double re = std::remainder(lon[3] - lon[2], 360.0) * per_lon, rn = (lat[3] - lat[2]) * per_lat;
+  const double det = std::abs(ce * rn - re * cn);
+  if (!(det > 0.0) || !std::isfinite(det)) return std::nullopt;
+  return std::array<double, 2>{det / (std::abs(rn) + std::abs(cn)), det / (std::abs(re) + std::abs(ce))};
+}
+
+/// at(c, r) for every point (c + offset, r + offset), c and r integers, on the edge of the box
+/// from (offset, offset) to (width - 1 - offset, height - 1 - offset): with offset -0.5, every
+/// cell corner on the edge of a width x height grid's footprint; with 0, its edge samples.
+template <class At>
+void for_each_edge_point(int width, int height, double offset, At&& at) {
+  const int n = width - 1 - int(2 * offset), m = height - 1 - int(2 * offset);
+  for (int c = 0; c <= n; ++c) at(c + offset, offset), at(c + offset, m + offset);
+  for (int r = 1; r < m; ++r) at(offset, r + offset), at(n + offset, r + offset);
+}
+
+/// Degrees of latitude a ground distance spans (on the equator's radius: a little less than on
+/// a meridian, so that rows so far apart are no farther apart on the ground).
+double degrees_of(double metres, const detail::GeographicOf& geo) {
+  return metres / (geo.a * std::numbers::pi / 180.0);
+}
+
+void check_samples(std::size_t cols, std::size_t rows, const std::string& what) {
+  if (double(cols) * double(rows) > 4e9)
+    throw GeoError(what + ": its longitude/latitude grid would hold " + std::to_string(cols) + " x " +
+                   std::to_string(rows) + " samples; crop the DEM");
+}
+
 /// The longitude/latitude grid for a terrain around a pole (pole: +1 north, -1 south), for which
 /// GDAL suggests none (it failed with "Attempt to create 363x0 dataset"): every longitude, from
 /// the pole to the footprint's latitude farthest from it. Rows are the source's ground spacing at
@@ -155,36 +232,22 @@ using WindowReader = std::function<void(int col0, int row0, int cols, int rows, 
 /// the pole, a column degrees wide and a row a second, missed the source by hundreds of metres.)
 /// Columns 0 and width - 1 are both the antimeridian (GeoGrid::wraps); the pole is the last row
 /// (south) or the first.
-struct PolarLayout {
-  detail::WarpGrid grid;              ///< size and geotransform
-  double west = -180.0, north = 0.0;  ///< degrees, exactly: the first column's and row's
-};
-PolarLayout polar_layout(const pm::GridTransform& t, int width, int height, const detail::GeographicOf& geo,
-                         const PoleAt& at, const std::string& what) {
+GridLayout polar_layout(const pm::GridTransform& t, int width, int height, const detail::GeographicOf& geo,
+                        const PoleAt& at, const std::string& what) {
   const int pole = at.pole;
   const double pc = at.col, pr = at.row;
-  // Ground distance between two points of the source's grid, on its ellipsoid.
-  const auto ground = [&](double c0, double r0, double c1, double r1) {
-    auto [x0, y0] = t.to_world(c0, r0);
-    auto [x1, y1] = t.to_world(c1, r1);
-    if (!geo.to_geog->Transform(1, &x0, &y0) || !geo.to_geog->Transform(1, &x1, &y1)) return 0.0;
-    const pm::Ecef a = pm::ecef_from_geodetic({x0, y0, 0.0}, geo.a, geo.e2),
-                   b = pm::ecef_from_geodetic({x1, y1, 0.0}, geo.a, geo.e2);
-    return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
-  };
-  const double spacing = std::min(ground(pc - 0.5, pr, pc + 0.5, pr), ground(pc, pr - 0.5, pc, pr + 0.5));
-  // The footprint's edge (cell corners and every sample's cell edge), its latitude farthest from the pole.
+  const double spacing = std::min(ground_distance(t, geo, pc - 0.5, pr, pc + 0.5, pr),
+                                  ground_distance(t, geo, pc, pr - 0.5, pc, pr + 0.5));
+  // The footprint's edge, its latitude farthest from the pole.
   double from_pole = 0.0;  // degrees of latitude
-  const auto edge_point = [&](double c, double r) {
+  for_each_edge_point(width, height, -0.5, [&](double c, double r) {
     auto [x, y] = t.to_world(c, r);
     if (geo.to_geog->Transform(1, &x, &y) && std::isfinite(y))
       from_pole = std::max(from_pole, 90.0 - pole * y);
-  };
-  for (int c = 0; c <= width; ++c) edge_point(c - 0.5, -0.5), edge_point(c - 0.5, height - 0.5);
-  for (int r = 0; r <= height; ++r) edge_point(-0.5, r - 0.5), edge_point(width - 0.5, r - 0.5);
+  });
   // Degrees on multiples of 2^-20 (10 cm): rows * dlat is then exact, and the pole's row lies at
   // exactly +-90 degrees, on the tiles' edge.
-  const double dlat = std::floor(spacing / (geo.a * std::numbers::pi / 180.0) * 0x1p20) * 0x1p-20;
+  const double dlat = std::floor(degrees_of(spacing, geo) * 0x1p20) * 0x1p-20;
   if (!(dlat > 0.0) || !std::isfinite(dlat))
     throw GeoError(what +
                    ": cannot find the terrain's sample spacing at the pole to lay out its "
@@ -192,10 +255,8 @@ PolarLayout polar_layout(const pm::GridTransform& t, int width, int height, cons
   const double edge_cos = std::max(std::sin(from_pole * std::numbers::pi / 180.0), 1e-9);
   const std::size_t cols = std::size_t(std::ceil(360.0 * edge_cos / dlat - 1e-9)) + 1,
                     rows = std::size_t(std::ceil(from_pole / dlat - 1e-9)) + 1;
-  if (double(cols) * double(rows) > 4e9)
-    throw GeoError(what + ": its longitude/latitude grid around the pole would hold " + std::to_string(cols) +
-                   " x " + std::to_string(rows) + " samples; crop the DEM");
-  PolarLayout l;
+  check_samples(cols, rows, what);
+  GridLayout l;
   l.grid.width = int(cols), l.grid.height = int(rows);
   // The last column at exactly 180 degrees: (cols - 1) * dlon == 360 in doubles, for 360 / (cols - 1)
   // or one of its neighbours.
@@ -204,6 +265,70 @@ PolarLayout polar_layout(const pm::GridTransform& t, int width, int height, cons
     if (double(cols - 1) * d == 360.0) dlon = d;
   l.north = pole > 0 ? 90.0 : -90.0 + double(rows - 1) * dlat;
   l.grid.gt = {l.west - 0.5 * dlon, dlon, 0.0, l.north + 0.5 * dlat, 0.0, -dlat};
+  return l;
+}
+
+/// The longitude/latitude grid for any other terrain in a CRS other than geographic WGS 84: the
+/// box of the footprint's edge samples in WGS 84 (longitudes continuous around `centre` when it is
+/// given); rows as far apart as the source's north-south resolution and columns its east-west
+/// one (spacing_needed, the finest at the corners, edge midpoints and centre) where a degree is
+/// longest: rows on the meridian's radius farthest from the equator, columns on the parallel
+/// nearest it. A geographic source keeps its own steps. So the grid is nowhere coarser than the
+/// source. (GDAL suggests cells square in degrees, as many along the diagonal as the source has:
+/// on a 90 m UTM DEM rows 106 m apart at 44 degrees north and 187 m at 70, with its bilinear
+/// kernel widened to match.) nullopt when an edge sample cannot be transformed (GDAL then lays
+/// the grid out).
+std::optional<GridLayout> ground_layout(const pm::GridTransform& t, int width, int height,
+                                        const detail::GeographicOf& geo, const std::string& crs_wkt,
+                                        std::optional<double> centre, const std::string& what) {
+  OGRSpatialReference source, wgs84;
+  source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  wgs84.SetWellKnownGeogCS("WGS84");
+  if (source.SetFromUserInput(crs_wkt.c_str()) != OGRERR_NONE) return std::nullopt;
+  const detail::Transform to_wgs84(OGRCreateCoordinateTransformation(&source, &wgs84));
+  if (!to_wgs84) return std::nullopt;
+  double west = HUGE_VAL, east = -HUGE_VAL, south = HUGE_VAL, north = -HUGE_VAL;
+  bool placed = true;
+  for_each_edge_point(width, height, 0.0, [&](double c, double r) {
+    auto [x, y] = t.to_world(c, r);
+    if (!to_wgs84->Transform(1, &x, &y) || !std::isfinite(x) || !std::isfinite(y)) {
+      placed = false;
+      return;
+    }
+    if (centre) x = *centre + std::remainder(x - *centre, 360.0);
+    west = std::min(west, x), east = std::max(east, x), south = std::min(south, y),
+    north = std::max(north, y);
+  });
+  if (!placed || !(west < east) || !(south < north)) return std::nullopt;
+  double dlat = 0.0, dlon = 0.0;
+  if (source.IsGeographic() && t.xr == 0.0 && t.yc == 0.0) {
+    dlat = std::abs(t.yr), dlon = std::abs(t.xc);
+  } else {
+    double east_west = HUGE_VAL, north_south = HUGE_VAL;
+    for (const double fc : {0.0, 0.5, 1.0})
+      for (const double fr : {0.0, 0.5, 1.0})
+        if (const std::optional<std::array<double, 2>> d =
+                spacing_needed(t, geo, fc * (width - 1), fr * (height - 1)))
+          east_west = std::min(east_west, (*d)[0]), north_south = std::min(north_south, (*d)[1]);
+    // Rows on the meridian's radius of curvature where it is largest (farthest from the
+    // equator), columns on the parallel nearest the equator.
+    const double nearest_equator =
+        south <= 0.0 && north >= 0.0 ? 0.0 : std::min(std::abs(south), std::abs(north));
+    const double farthest = std::max(std::abs(south), std::abs(north));
+    dlat = north_south / (radii(geo, farthest)[1] * std::numbers::pi / 180.0);
+    dlon = east_west /
+           (radii(geo, nearest_equator)[0] *
+            std::max(std::cos(nearest_equator * std::numbers::pi / 180.0), 1e-9) * std::numbers::pi / 180.0);
+  }
+  if (!(dlat > 0.0) || !(dlon > 0.0) || !std::isfinite(dlat) || !std::isfinite(dlon)) return std::nullopt;
+  const std::size_t cols = std::size_t(std::ceil((east - west) / dlon - 1e-9)) + 1,
+                    rows = std::size_t(std::ceil((north - south) / dlat - 1e-9)) + 1;
+  check_samples(cols, rows, what);
+  GridLayout l;
+  l.grid.width = int(cols), l.grid.height = int(rows);
+  l.west = west, l.north = north;
+  l.grid.gt = {west - 0.5 * dlon, dlon, 0.0, north + 0.5 * dlat, 0.0, -dlat};
   return l;
 }
 
@@ -225,17 +350,59 @@ void join_meridian_and_poles(GeoGrid& g) {
 }
 
 /// The terrain of width x height samples in the CRS and transform of `frame` (whose samples, if
-/// any, are not read: they come from `read`, see detail::WarpSource) warped to EPSG:4326 (bilinear, GDAL's
-/// choice of grid, or polar_layout's around a pole), voids and outside as holes. Only the warped
-/// grid is held whole.
+/// any, are not read: they come from `read`, see detail::WarpSource) warped to EPSG:4326 (bilinear, on
+/// polar_layout's grid around a pole, ground_layout's elsewhere, GDAL's where that finds none), voids
+/// and outside as holes. Only the warped grid is held whole.
 GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height, const WindowReader& read,
                        const std::string& what) {
-  const pm::GridTransform& t = *frame.crs_transform;
+  // The source as GDAL sees it: the terrain and a ring of samples around it, each continuing
+  // the terrain's edge linearly (twice the edge sample less the one inside it; the edge sample
+  // where that one is a hole): a ring of NaN would not do, since GDAL writes no output sample
+  // whose nearest source sample is NaN. The output then reaches a sample and a half beyond the
+  // terrain's outermost samples, and every point of the terrain lies between output samples
+  // that hold its surface. Without the ring, output samples beyond the footprint's cell edge were
+  // holes, read as the background, and the outermost DEM samples stood in a cliff: up to 315 m
+  // off on a UTM crop of N44W072; now 10 m, as inside (a ring level with the edge: 14 m).
+  const pm::GridTransform& inner = *frame.crs_transform;
+  const pm::GridTransform t{inner.x0 - inner.xc - inner.xr, inner.xc, inner.xr,
+                            inner.y0 - inner.yc - inner.yr, inner.yc, inner.yr};
+  const int inner_width = width, inner_height = height;
+  width += 2, height += 2;
   detail::WarpSource src;
   src.width = width;
   src.height = height;
   src.gt = {t.x0 - 0.5 * t.xc - 0.5 * t.xr, t.xc, t.xr, t.y0 - 0.5 * t.yc - 0.5 * t.yr, t.yc, t.yr};
-  src.read = read;
+  std::vector<double> window;
+  src.read = [&](int col0, int row0, int cols, int rows, double* out) {
+    // The terrain's samples under the window (its rows and columns -1 .. n are the ring), and one
+    // more inward for the ring's slope.
+    const auto span = [](int first, int count, int n) {
+      return std::pair{std::max(0, std::clamp(first - 1, 0, n - 1) - 1),
+                       std::min(n - 1, std::clamp(first + count - 2, 0, n - 1) + 1)};
+    };
+    const auto [c0, c1] = span(col0, cols, inner_width);
+    const auto [r0, r1] = span(row0, rows, inner_height);
+    const std::size_t w = std::size_t(c1 - c0 + 1);
+    window.resize(w * std::size_t(r1 - r0 + 1));
+    read(c0, r0, c1 - c0 + 1, r1 - r0 + 1, window.data());
+    const auto continued = [](double edge, double in) { return in == in ? 2.0 * edge - in : edge; };
+    const auto in_row = [&](int r, int c) {  // r a row of the terrain, c in -1 .. inner_width
+      const auto z = [&](int col) { return window[std::size_t(r - r0) * w + std::size_t(col - c0)]; };
+      if (c >= 0 && c < inner_width) return z(c);
+      const int edge = c < 0 ? 0 : inner_width - 1;
+      return inner_width < 2 ? z(edge) : continued(z(edge), z(c < 0 ? 1 : inner_width - 2));
+    };
+    for (int r = row0 - 1; r < row0 - 1 + rows; ++r)
+      for (int c = col0 - 1; c < col0 - 1 + cols; ++c) {
+        if (r >= 0 && r < inner_height) {
+          *out++ = in_row(r, c);
+          continue;
+        }
+        const int edge = r < 0 ? 0 : inner_height - 1;
+        *out++ = inner_height < 2 ? in_row(edge, c)
+                                  : continued(in_row(edge, c), in_row(r < 0 ? 1 : inner_height - 2, c));
+      }
+  };
   register_gdal();
   OGRSpatialReference wgs84;
   wgs84.SetWellKnownGeogCS("WGS84");
@@ -245,15 +412,19 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height, cons
   CPLFree(dst_wkt);
   // Far from Greenwich, longitudes run continuously around the terrain's centre (PROJ's
   // lon_wrap): a terrain across the antimeridian would otherwise land on both edges of
-  // [-180, 180], and GDAL's grid would span the whole Earth with the terrain cut in two.
-  std::optional<PolarLayout> layout;
+  // [-180, 180], and its grid would span the whole Earth with the terrain cut in two.
+  std::optional<GridLayout> layout;
   if (const std::optional<detail::GeographicOf> geo = detail::geographic_of(frame.crs_wkt)) {
     if (const std::optional<PoleAt> pole = pole_inside(t, width, height, *geo)) {
       layout = polar_layout(t, width, height, *geo, *pole, what);  // every longitude meets there
     } else {
+      std::optional<double> centre;
       auto [x, y] = t.to_world(0.5 * (width - 1), 0.5 * (height - 1));
-      if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0)  // x: the centre's longitude
+      if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0) {  // x: the centre's longitude
         dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
+        centre = std::stod(std::to_string(x));  // as PROJ reads it
+      }
+      layout = ground_layout(t, width, height, *geo, frame.crs_wkt, centre, what);
     }
   }
   std::string error;

@@ -16,13 +16,19 @@
 //     give them); otherwise GeoError naming `what` and asking for a georeferenced input.
 //   - Horizontal: a north-up grid in a geographic CRS on the WGS 84 datum is used as it is (the
 //     samples are the DEM's own). Anything else (a projected CRS, a rotated grid, another datum)
-//     is warped to EPSG:4326 through GDAL (bilinear, the source's resolution; the same samples
-//     however GDAL cuts the warp into chunks), and the warped samples are the grid's samples;
-//     voids and the area outside the source become holes. A terrain that holds a pole (a polar
-//     stereographic DEM) gets a grid laid out by hand (GDAL suggests none there): every
-//     longitude, from the pole to the footprint's farthest latitude, rows the source's ground
-//     spacing at the pole apart and columns that far apart where they are widest, so nowhere
-//     coarser than the source (about twice the samples of the cap it covers).
+//     is warped to EPSG:4326 through GDAL (bilinear; the same samples however GDAL cuts the warp
+//     into chunks), and the warped samples are the grid's samples; voids and the area outside
+//     the source become holes. The source is first continued linearly by one sample all around,
+//     so that the grid reaches a sample and a half beyond its outermost samples (which then lie
+//     between grid samples of their own surface, not at a cliff down to the holes). The grid is
+//     laid out here, nowhere coarser than the source: rows as far apart as the source's
+//     north-south resolution, columns its east-west one on the footprint's parallel nearest the
+//     equator (both from the source's column and row steps at nine points of it; a geographic
+//     source on another datum keeps its own steps), over the footprint's box. A terrain that
+//     holds a pole (a polar stereographic DEM) gets every longitude, from the pole to the
+//     footprint's farthest latitude, rows the source's ground spacing at the pole apart and
+//     columns that far apart where they are widest (about twice the samples of the cap it
+//     covers). GDAL lays the grid out only where the CRS cannot place the footprint's edge.
 //   - One point, one height: where columns 0 and width - 1 are one meridian (period() is
 //     width - 1), the last takes the first's samples, and a row at +-90 degrees takes its first
 //     sample everywhere, after the geoid, so that tiles meeting there share their vertices.
