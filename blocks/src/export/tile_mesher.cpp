@@ -35,11 +35,11 @@ struct UV {
   double u, v;
 };
 
-/// Calls row(r, c_lo, c_hi, v) for every row r of the padded grid (GeoField::kPad rings) whose
-/// lattice points c_lo..c_hi (c_lo <= c_hi) lie in the closed triangle (a, b, c) (and, within
-/// kEps lattice steps, on its edges); v is the row's coordinate.
+/// Calls span(r, v, ul, ur) for every row r of the padded grid (GeoField::kPad rings) that the
+/// closed triangle (a, b, c) crosses (within kEps lattice steps): v is the row's coordinate and
+/// [ul, ur] the triangle's extent along it.
 template <class F>
-void scan_lattice_rows(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& row) {
+void for_each_row_span(const TileFrame& fr, int height, const UV (&p)[3], F&& span) {
   const double vmin = std::min({p[0].v, p[1].v, p[2].v}), vmax = std::max({p[0].v, p[1].v, p[2].v});
   constexpr int pad = GeoField::kPad;
   const int r_lo = std::max(-pad, int(std::ceil((fr.v0 - vmax) / fr.dv - kEps)));
@@ -60,11 +60,46 @@ void scan_lattice_rows(const TileFrame& fr, int width, int height, const UV (&p)
       const double u = a.u + t * (b.u - a.u);
       ul = std::min(ul, u), ur = std::max(ur, u);
     }
-    if (ul > ur) continue;
+    if (ul <= ur) span(r, v, ul, ur);
+  }
+}
+
+/// Calls row(r, c_lo, c_hi, v) for every row r of the padded grid (GeoField::kPad rings) whose
+/// lattice points c_lo..c_hi (c_lo <= c_hi) lie in the closed triangle (a, b, c) (and, within
+/// kEps lattice steps, on its edges); v is the row's coordinate.
+template <class F>
+void scan_lattice_rows(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& row) {
+  constexpr int pad = GeoField::kPad;
+  for_each_row_span(fr, height, p, [&](int r, double v, double ul, double ur) {
     const int c_lo = std::max(-pad, int(std::ceil((ul - fr.u0) / fr.du - kEps)));
     const int c_hi = std::min(width - 1 + pad, int(std::floor((ur - fr.u0) / fr.du + kEps)));
     if (c_lo <= c_hi) row(r, c_lo, c_hi, v);
-  }
+  });
+}
+
+/// Where a lattice's columns lie more than two of its rows apart in the tile's quanta (a grid of
+/// cells square on the ground far from the equator: six rows at 80 degrees, seventy near a pole),
+/// points between them keep what is measured along its rows as dense as that: f(c, r, x, u, v)
+/// for every point at column c + x (x = k / n, k = 1 .. n - 1, n = ceil(du / 2 dv)) on a row r in
+/// the closed triangle. There the field is linear between the columns. Measuring only the
+/// lattice, a tile narrower than a column held no measured point at all, and its triangles
+/// joined the terrain to the background's foot across the samples nearest it (155 m off around
+/// the South Pole).
+template <class F>
+void scan_row_points(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& f) {
+  const int n = int(std::ceil(fr.du / (2.0 * fr.dv) - kEps));
+  if (n < 2) return;
+  constexpr int pad = GeoField::kPad;
+  for_each_row_span(fr, height, p, [&](int r, double v, double ul, double ur) {
+    const long lo = std::max(long(-pad) * n, long(std::ceil((ul - fr.u0) / fr.du * n - kEps)));
+    const long hi = std::min(long(width - 1 + pad) * n, long(std::floor((ur - fr.u0) / fr.du * n + kEps)));
+    for (long s = lo; s <= hi; ++s) {
+      const long c = s >= 0 ? s / n : -((-s + n - 1) / n);
+      if (s == c * n) continue;  // a lattice point
+      const double x = double(s - c * n) / n;
+      f(int(c), r, x, fr.u0 + (double(c) + x) * fr.du, v);
+    }
+  });
 }
 
 /// Calls f(c, r, u, v) for every lattice point scan_lattice_rows finds.
@@ -445,6 +480,10 @@ class TileGreedy {
       }
       for (; c <= c_hi; ++c) ring(c);
     });
+    scan_row_points(fr_, w, hgt, p, [&](int c, int r, double x, double u, double v) {
+      const double z0 = f_.lattice(c, r), z1 = f_.lattice(c + 1, r);
+      if (z0 == z0 && z1 == z1) consider(u, v, z0 + x * (z1 - z0));
+    });
     const double ulo = std::min({p[0].u, p[1].u, p[2].u}), uhi = std::max({p[0].u, p[1].u, p[2].u});
     const double vlo = std::min({p[0].v, p[1].v, p[2].v}), vhi = std::max({p[0].v, p[1].v, p[2].v});
     background_.for_each(ulo, uhi, vlo, vhi, [&](const UV& b) {
@@ -567,6 +606,13 @@ double tile_error(const GeoField& field, const GeoRect& rect, const std::vector<
       if (samples_only && !sample) return;
       const double value = field.lattice(c, r);
       if (value == value) worst = std::max(worst, std::abs(plane(u, v) - value));
+    });
+    scan_row_points(fr, g.width, g.height, p, [&](int c, int r, double x, double u, double v) {
+      if (u < 0 || u > kQ || v < 0 || v > kQ) return;
+      const bool samples = c >= 0 && r >= 0 && c + 1 < g.width && r < g.height;
+      if (samples_only && !samples) return;
+      const double z0 = field.lattice(c, r), z1 = field.lattice(c + 1, r);
+      if (z0 == z0 && z1 == z1) worst = std::max(worst, std::abs(plane(u, v) - (z0 + x * (z1 - z0))));
     });
     background.for_each(std::min({p[0].u, p[1].u, p[2].u}), std::max({p[0].u, p[1].u, p[2].u}),
                         std::min({p[0].v, p[1].v, p[2].v}), std::max({p[0].v, p[1].v, p[2].v}),

@@ -24,7 +24,9 @@
 //      points inside the tile, at their rounded positions and with their own heights, into a
 //      Delaunay triangulation (exact integer predicates), until every measured point is within
 //      max_error of the mesh at its true position. Measured points: the tile's valid samples, the
-//      background ring, and a 65 x 65 grid of background points away from the terrain. On a
+//      background ring, a 65 x 65 grid of background points away from the terrain, and where the
+//      lattice's columns lie more than two rows apart in the tile's quanta (far from the equator),
+//      points between them on each row (the field there), at most two rows apart. On a
 //      lattice 16 or more quanta between samples, a point whose rounded position is a vertex
 //      already goes to another corner of its quantum cell (at the top of a cliff the rounding
 //      alone tilts the steep triangles by metres); on a coarser one, only a point above
