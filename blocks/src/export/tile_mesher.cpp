@@ -188,7 +188,8 @@ std::vector<std::pair<int, double>> edge_vertices(const GeoField& f, bool vertic
   pts.push_back({1.0, corner(b), true});
   for (int k = 1; k < divisions; ++k) {
     const double s = a + (b - a) * k / divisions;
-    pts.push_back({double(k) / divisions, corner(s), true});
+    if (!(vertical ? f.at_terrain_edge(at, s) : f.at_terrain_edge(s, at)))
+      pts.push_back({double(k) / divisions, corner(s), true});
   }
   // Crossings with lattice lines (only where the padded lattice is: beyond it the field is flat).
   constexpr int pad = GeoField::kPad;
@@ -430,7 +431,8 @@ class TileGreedy {
     for (int j = 1; j < n; ++j)
       for (int i = 1; i < n; ++i) {
         const double lon = r.west + (r.east - r.west) * i / n, lat = r.south + (r.north - r.south) * j / n;
-        add({int(std::lround(double(i) / n * kQ)), int(std::lround(double(j) / n * kQ))}, f_.at(lon, lat));
+        if (!f_.at_terrain_edge(lon, lat))
+          add({int(std::lround(double(i) / n * kQ)), int(std::lround(double(j) / n * kQ))}, f_.at(lon, lat));
       }
   }
 
@@ -558,6 +560,27 @@ double GeoField::at(double lon, double lat) const {
   const double top = value(c, r) + fx * (value(c + 1, r) - value(c, r));
   const double bottom = value(c, r + 1) + fx * (value(c + 1, r + 1) - value(c, r + 1));
   return top + fy * (bottom - top);
+}
+
+bool GeoField::at_terrain_edge(double lon, double lat) const {
+  if (period_ > 0) lon = one_meridian(lon);
+  const double col = (lon - g_.west) / g_.dlon, row = (g_.north - lat) / g_.dlat;
+  if (row < 0.0 && pole_north_ == pole_north_) return false;  // toward the pole: terrain
+  if (row > g_.height - 1 && pole_south_ == pole_south_) return false;
+  const double lo = -kPad, chi = g_.width - 1 + kPad, rhi = g_.height - 1 + kPad;
+  if (!(row >= lo && row <= rhi) || (period_ == 0 && !(col >= lo && col <= chi))) return false;
+  const int c =
+      period_ > 0 ? int(std::floor(col)) : std::clamp(int(std::floor(col)), -kPad, g_.width - 2 + kPad);
+  const int r = std::clamp(int(std::floor(row)), -kPad, g_.height - 2 + kPad);
+  if (terrain(c, r) && terrain(c + 1, r) && terrain(c, r + 1) && terrain(c + 1, r + 1)) return false;
+  // Tiles span as many degrees of longitude as of latitude: at 80 degrees, where a cell is about
+  // six rows wide in degrees, a vertex three rows off the terrain still joined it in slivers.
+  const double wider = std::max(g_.dlon, g_.dlat);
+  const int rows = int(std::ceil(2.0 * wider / g_.dlat)), cols = int(std::ceil(2.0 * wider / g_.dlon));
+  for (int j = r + 1 - rows; j <= r + rows; ++j)
+    for (int i = c + 1 - cols; i <= c + cols; ++i)
+      if (terrain(i, j)) return true;
+  return false;
 }
 
 double GeoField::on_row(double lon, int r) const {

@@ -85,11 +85,24 @@ class GeoField {
   /// centres), the field between that row and the pole runs linearly to the row's mean, which is
   /// its value at the pole, exactly: every longitude there is one point.
   double at(double lon, double lat) const;
+  /// Whether at(lon, lat) lies in a lattice cell that is not all terrain (valid samples, the
+  /// first ring beside them) but has terrain within two cells of it, the wider side's both ways:
+  /// at the terrain's edge, where the field falls from the terrain to the background. A vertex
+  /// placed there, off the lattice, at a height between the two or the background's, is joined to
+  /// terrain vertices by triangles that pass between the measured points and pull the terrain
+  /// down (a tile's forced points are therefore never placed there).
+  bool at_terrain_edge(double lon, double lat) const;
   /// The same on lattice row r (linear between the two columns around lon) and on column c.
   double on_row(double lon, int r) const;
   double on_col(int c, double lat) const;
 
  private:
+  /// Whether lattice point (c, r) is terrain: a valid sample, or the first ring beside one.
+  bool terrain(int c, int r) const {
+    if (period_ > 0 && (c < 0 || c >= g_.width)) c = (c % period_ + period_) % period_;
+    if (c < -1 || r < -1 || c > g_.width || r > g_.height) return false;
+    return g_.valid(std::clamp(c, 0, g_.width - 1), std::clamp(r, 0, g_.height - 1));
+  }
   double value(int c, int r) const {
     const double v = lattice(c, r);
     return v == v ? v : background_;
