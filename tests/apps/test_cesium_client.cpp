@@ -590,6 +590,90 @@ TEST(CesiumClient, SamplesATerrainAroundTheSouthPole) {
                         "Cesium heights around the South Pole against the DEM");
 }
 
+// A UTM DEM (zone 19N, 90 m samples, every cell valid, heights above the ellipsoid): CesiumJS
+// draws its outermost samples within the deepest level's bound plus the two bilinear
+// resamplings of its smooth surface, as it draws those inside. Before, the export's grid ended
+// at the footprint's cell edge, and the outermost samples stood in the cliff down to the
+// ellipsoid (up to 286 m off in CesiumJS on a UTM crop of N44W072).
+TEST(CesiumClient, SamplesTheOutermostSamplesOfAUtmDem) {
+  ASSERT_NO_FATAL_FAILURE(require_tools());
+  constexpr int kW = 100, kH = 120;
+  constexpr double kCell = 90.0, kX0 = 440000.0, kY0 = 4880000.0;  // north-west corner
+  const auto height = [](double x, double y) {
+    return 600.0 + 250.0 * std::sin((x - kX0) / 1200.0 + 0.3) * std::cos((y - kY0) / 900.0 - 0.2) +
+           0.05 * (x - kX0);
+  };
+  const auto x_of = [](int col) { return kX0 + (col + 0.5) * kCell; };
+  const auto y_of = [](int row) { return kY0 - (row + 0.5) * kCell; };
+  const fs::path asc = tmp_dir() / "utm.asc", db = tmp_dir() / "utm.db", dir = tmp_dir() / "utm_tiles";
+  {
+    std::ofstream f(asc);
+    f << "ncols " << kW << "\nnrows " << kH << "\nxllcorner " << fixed(kX0, 1) << "\nyllcorner "
+      << fixed(kY0 - kH * kCell, 1) << "\ncellsize " << kCell << "\n";
+    for (int row = 0; row < kH; ++row) {
+      for (int col = 0; col < kW; ++col) f << (col ? " " : "") << fixed(height(x_of(col), y_of(row)), 4);
+      f << "\n";
+    }
+    std::ofstream(fs::path(asc).replace_extension(".prj"))
+        << "PROJCS[\"WGS_1984_UTM_Zone_19N\",GEOGCS[\"GCS_WGS_1984\",DATUM[\"D_WGS_1984\",SPHEROID["
+           "\"WGS_1984\",6378137.0,298.257223563]],PRIMEM[\"Greenwich\",0.0],UNIT[\"Degree\","
+           "0.0174532925199433]],PROJECTION[\"Transverse_Mercator\"],PARAMETER[\"False_Easting\",500000.0],"
+           "PARAMETER[\"False_Northing\",0.0],PARAMETER[\"Central_Meridian\",-69.0],PARAMETER["
+           "\"Scale_Factor\",0.9996],PARAMETER[\"Latitude_Of_Origin\",0.0],UNIT[\"Meter\",1.0]]\n";
+  }
+  const auto b =
+      terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
+  ASSERT_EQ(b.status, 0) << b.out << b.err;
+  const auto e = terralod("export --threads 1 --vertical-datum ellipsoid --db " + quote(db.string()) +
+                          " --out " + quote(dir.string()));
+  ASSERT_EQ(e.status, 0) << e.out << e.err;
+  const auto max_error = layer_max_error(slurp(dir / "layer.json"));
+  ASSERT_TRUE(max_error && !max_error->empty());
+  const int deepest = int(max_error->size()) - 1;
+
+  // Every 3rd sample of the outermost ring, corners included, and a few inside.
+  std::vector<Point> pts;
+  for (int row = 0; row < kH; ++row)
+    for (int col = 0; col < kW; ++col) {
+      const bool edge = row == 0 || col == 0 || row == kH - 1 || col == kW - 1;
+      const bool corner = (row == 0 || row == kH - 1) && (col == 0 || col == kW - 1);
+      if (!corner && !(edge && (row + col) % 3 == 0) && !(row % 29 == 7 && col % 23 == 5)) continue;
+      Point p;
+      p.col = col, p.row = row;
+      p.dem = p.expected = height(x_of(col), y_of(row));
+      pts.push_back(p);
+    }
+  const fs::path in = tmp_dir() / "utm_points.txt";
+  {
+    std::ofstream f(in);
+    for (const Point& p : pts) f << fixed(x_of(p.col), 3) << " " << fixed(y_of(p.row), 3) << "\n";
+  }
+  const auto ll =
+      run_command(quote(TERRALOD_CS2CS) + " -f %.9f EPSG:32619 EPSG:4326 < " + quote(in.string()));
+  ASSERT_EQ(ll.status, 0) << ll.err;
+  std::istringstream lines(ll.out);
+  double west = 180, east = -180, south = 90, north = -90;
+  for (Point& p : pts) {
+    std::string line;
+    ASSERT_TRUE(std::getline(lines, line) && std::sscanf(line.c_str(), "%lf %lf", &p.lat, &p.lon) == 2)
+        << ll.out;
+    west = std::min(west, p.lon), east = std::max(east, p.lon), south = std::min(south, p.lat),
+    north = std::max(north, p.lat);
+  }
+  const fs::path points = tmp_dir() / "utm_points.json", out = tmp_dir() / "utm_result.json";
+  write_points(pts, points);
+  const std::string view =
+      fixed(west, 6) + "," + fixed(south, 6) + "," + fixed(east, 6) + "," + fixed(north, 6) + " --pitch -90";
+  const Check c = check_terrain(dir, points, out, {}, false, view);
+  std::printf("%s", c.run.err.c_str());
+  ASSERT_EQ(c.run.status, 0) << "check_terrain.mjs failed:\n" << c.run.out << c.run.err << "\n" << c.json;
+  EXPECT_TRUE(is_true(c.json, "tiles_loaded")) << c.json;
+  // The deepest level's bound and the two bilinear resamplings of this surface (2 m: measured
+  // 1.1 m at the outermost samples, 2.2 m inside, in test_terrain_export's twin).
+  expect_heights_within(c.json, pts, deepest, max_error->back() + 2.0,
+                        "Cesium heights at a UTM DEM's outermost samples against the DEM");
+}
+
 // The checker must see the tiles: the same tileset with one deepest-level tile replaced by
 // garbage (still gzip, so the server sends it) must fail with a message naming the problem.
 TEST(CesiumClient, ReportsABrokenTile) {
