@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <queue>
 #include <unordered_set>
 #include <utility>
@@ -423,17 +424,32 @@ class TileGreedy {
       if (at < 0 || has_corner(at, p)) return;  // (every point lies in the tile: never outside)
       add_vertex(p, h, last = at);
     };
+    // Along a parallel, forced points as far apart on the ground as along a meridian: n times
+    // the cosine of the latitude (for a row, of the one nearest the equator among the rows beside
+    // it), a function of the latitude alone, so that the two tiles of a south or north edge
+    // agree. (n on every parallel put them metres apart near a pole: a 5 km DEM around the South
+    // Pole exported 5.07 M vertices at its deepest level for 493 k samples.)
+    const auto along = [n](double lat_lo, double lat_hi) {
+      const double nearest =
+          lat_lo <= 0.0 && lat_hi >= 0.0 ? 0.0 : std::min(std::abs(lat_lo), std::abs(lat_hi));
+      return std::clamp(int(std::ceil(n * std::cos(nearest * std::numbers::pi / 180.0) - 1e-9)), 1, n);
+    };
+    const auto lat_of = [&](int j) { return r.south + (r.north - r.south) * j / n; };
     // West and east edges run south -> north, south and north edges west -> east.
     for (const auto& [q, h] : edge_vertices(f_, true, r.west, r.south, r.north, tol, n)) add({0, q}, h);
     for (const auto& [q, h] : edge_vertices(f_, true, r.east, r.south, r.north, tol, n)) add({kQ, q}, h);
-    for (const auto& [q, h] : edge_vertices(f_, false, r.south, r.west, r.east, tol, n)) add({q, 0}, h);
-    for (const auto& [q, h] : edge_vertices(f_, false, r.north, r.west, r.east, tol, n)) add({q, kQ}, h);
-    for (int j = 1; j < n; ++j)
-      for (int i = 1; i < n; ++i) {
-        const double lon = r.west + (r.east - r.west) * i / n, lat = r.south + (r.north - r.south) * j / n;
+    for (const auto& [q, h] : edge_vertices(f_, false, r.south, r.west, r.east, tol, along(r.south, r.south)))
+      add({q, 0}, h);
+    for (const auto& [q, h] : edge_vertices(f_, false, r.north, r.west, r.east, tol, along(r.north, r.north)))
+      add({q, kQ}, h);
+    for (int j = 1; j < n; ++j) {
+      const int m = along(lat_of(j - 1), lat_of(j + 1));
+      for (int i = 1; i < m; ++i) {
+        const double lon = r.west + (r.east - r.west) * i / m, lat = lat_of(j);
         if (!f_.at_terrain_edge(lon, lat))
-          add({int(std::lround(double(i) / n * kQ)), int(std::lround(double(j) / n * kQ))}, f_.at(lon, lat));
+          add({int(std::lround(double(i) / m * kQ)), int(std::lround(double(j) / n * kQ))}, f_.at(lon, lat));
       }
+    }
   }
 
   void corners(int t, UV (&p)[3], double (&h)[3]) const {

@@ -17,9 +17,12 @@
 //      the other side of its true position. The profile is computed from the edge's own
 //      coordinates only, so the two tiles that share an edge get the same vertices, heights
 //      included.
-//   2. Forced points. A regular sag_divisions x sag_divisions grid of vertices (with the edges'
-//      forced points), so that the flat triangles a client draws in Earth-centred coordinates
-//      stay close to the curved surface on large tiles.
+//   2. Forced points. sag_divisions rows of vertices (with the edges' forced points), each of
+//      sag_divisions x cos(latitude) columns (the latitude nearest the equator among the rows
+//      beside it; on a south or north edge, the edge's), so that the flat triangles a client draws
+//      in Earth-centred coordinates stay close to the curved surface on large tiles: forced points
+//      as far apart on the ground along the parallels as along the meridians. None lies at the
+//      terrain's edge (GeoField::at_terrain_edge).
 //   3. Greedy insertion (Garland & Heckbert's algorithm III, as build_greedy_tin) of the lattice
 //      points inside the tile, at their rounded positions and with their own heights, into a
 //      Delaunay triangulation (exact integer predicates), until every measured point is within
@@ -132,7 +135,7 @@ struct TileMeshOptions {
   /// metres, for the Douglas-Peucker of the edges: a function of the level only, so that the two
   /// tiles of an edge choose the same vertices even when one of them is remeshed tighter.
   double edge_error = 0;
-  int sag_divisions = 1;  ///< forced regular subdivision of the tile (1 = corners only)
+  int sag_divisions = 1;  ///< forced rows of the tile, columns on the equator (1 = corners only)
 };
 
 TileMesh mesh_tile(const GeoField& field, const GeoRect& rect, const TileMeshOptions& options);
