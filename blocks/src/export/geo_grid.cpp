@@ -421,8 +421,9 @@ GeoGrid warp_to_lonlat(const pm::Heightfield& frame, int width, int height, cons
       std::optional<double> centre;
       auto [x, y] = t.to_world(0.5 * (width - 1), 0.5 * (height - 1));
       if (geo->to_geog->Transform(1, &x, &y) && std::abs(x) > 90.0) {  // x: the centre's longitude
-        dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + std::to_string(x) + " +no_defs";
-        centre = std::stod(std::to_string(x));  // as PROJ reads it
+        const std::string wrap = std::to_string(x);
+        dst = "+proj=longlat +datum=WGS84 +lon_wrap=" + wrap + " +no_defs";
+        centre = std::stod(wrap);  // as PROJ reads it
       }
       layout = ground_layout(t, width, height, *geo, frame.crs_wkt, centre, what);
     }

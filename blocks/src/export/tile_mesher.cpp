@@ -80,25 +80,29 @@ void scan_lattice_rows(const TileFrame& fr, int width, int height, const UV (&p)
 
 /// Where a lattice's columns lie more than two of its rows apart in the tile's quanta (a grid of
 /// cells square on the ground far from the equator: six rows at 80 degrees, seventy near a pole),
-/// points between them keep what is measured along its rows as dense as that: f(c, r, x, u, v)
-/// for every point at column c + x (x = k / n, k = 1 .. n - 1, n = ceil(du / 2 dv)) on a row r in
-/// the closed triangle. There the field is linear between the columns. Measuring only the
+/// points between them keep what is measured along its rows as dense as that: f(c, r, u, v, z)
+/// for every point at column c + k / n (k = 1 .. n - 1, n = ceil(du / 2 dv)) on a row r in the
+/// closed triangle where lattice points c and c + 1 are not holes; z is the field there, linear
+/// between them. Measuring only the
 /// lattice, a tile narrower than a column held no measured point at all, and its triangles
 /// joined the terrain to the background's foot across the samples nearest it (155 m off around
 /// the South Pole).
 template <class F>
-void scan_row_points(const TileFrame& fr, int width, int height, const UV (&p)[3], F&& f) {
+void scan_row_points(const GeoField& field, const TileFrame& fr, const UV (&p)[3], F&& f) {
   const int n = int(std::ceil(fr.du / (2.0 * fr.dv) - kEps));
   if (n < 2) return;
   constexpr int pad = GeoField::kPad;
-  for_each_row_span(fr, height, p, [&](int r, double v, double ul, double ur) {
+  const int width = field.grid().width;
+  for_each_row_span(fr, field.grid().height, p, [&](int r, double v, double ul, double ur) {
     const long lo = std::max(long(-pad) * n, long(std::ceil((ul - fr.u0) / fr.du * n - kEps)));
     const long hi = std::min(long(width - 1 + pad) * n, long(std::floor((ur - fr.u0) / fr.du * n + kEps)));
     for (long s = lo; s <= hi; ++s) {
       const long c = s >= 0 ? s / n : -((-s + n - 1) / n);
       if (s == c * n) continue;  // a lattice point
+      const double z0 = field.lattice(int(c), r), z1 = field.lattice(int(c) + 1, r);
+      if (z0 != z0 || z1 != z1) continue;  // beside a hole: not measured
       const double x = double(s - c * n) / n;
-      f(int(c), r, x, fr.u0 + (double(c) + x) * fr.du, v);
+      f(int(c), r, fr.u0 + (double(c) + x) * fr.du, v, z0 + x * (z1 - z0));
     }
   });
 }
@@ -498,10 +502,7 @@ class TileGreedy {
       }
       for (; c <= c_hi; ++c) ring(c);
     });
-    scan_row_points(fr_, w, hgt, p, [&](int c, int r, double x, double u, double v) {
-      const double z0 = f_.lattice(c, r), z1 = f_.lattice(c + 1, r);
-      if (z0 == z0 && z1 == z1) consider(u, v, z0 + x * (z1 - z0));
-    });
+    scan_row_points(f_, fr_, p, [&](int, int, double u, double v, double z) { consider(u, v, z); });
     const double ulo = std::min({p[0].u, p[1].u, p[2].u}), uhi = std::max({p[0].u, p[1].u, p[2].u});
     const double vlo = std::min({p[0].v, p[1].v, p[2].v}), vhi = std::max({p[0].v, p[1].v, p[2].v});
     background_.for_each(ulo, uhi, vlo, vhi, [&](const UV& b) {
@@ -646,12 +647,10 @@ double tile_error(const GeoField& field, const GeoRect& rect, const std::vector<
       const double value = field.lattice(c, r);
       if (value == value) worst = std::max(worst, std::abs(plane(u, v) - value));
     });
-    scan_row_points(fr, g.width, g.height, p, [&](int c, int r, double x, double u, double v) {
+    scan_row_points(field, fr, p, [&](int c, int r, double u, double v, double z) {
       if (u < 0 || u > kQ || v < 0 || v > kQ) return;
       const bool samples = c >= 0 && r >= 0 && c + 1 < g.width && r < g.height;
-      if (samples_only && !samples) return;
-      const double z0 = field.lattice(c, r), z1 = field.lattice(c + 1, r);
-      if (z0 == z0 && z1 == z1) worst = std::max(worst, std::abs(plane(u, v) - (z0 + x * (z1 - z0))));
+      if (!samples_only || samples) worst = std::max(worst, std::abs(plane(u, v) - z));
     });
     background.for_each(std::min({p[0].u, p[1].u, p[2].u}), std::max({p[0].u, p[1].u, p[2].u}),
                         std::min({p[0].v, p[1].v, p[2].v}), std::max({p[0].v, p[1].v, p[2].v}),
