@@ -380,6 +380,54 @@ void expect_heights_within(const std::string& json, const std::vector<Point>& pt
               bound);
 }
 
+/// `terralod build` of a DEM file, then `export` of it as heights above the ellipsoid: the
+/// tileset in `dir` and its levels' measured errors (layer.json).
+void build_and_export(const fs::path& dem, const fs::path& db, const fs::path& dir,
+                      std::vector<double>& max_error) {
+  const auto b =
+      terralod("build --threads 1 --input " + quote(dem.string()) + " --out " + quote(db.string()));
+  ASSERT_EQ(b.status, 0) << b.out << b.err;
+  const auto e = terralod("export --threads 1 --vertical-datum ellipsoid --db " + quote(db.string()) +
+                          " --out " + quote(dir.string()));
+  ASSERT_EQ(e.status, 0) << e.out << e.err;
+  const auto levels = layer_max_error(slurp(dir / "layer.json"));
+  ASSERT_TRUE(levels && !levels->empty());
+  max_error = *levels;
+}
+
+/// The points `in` (two numbers each, in cs2cs's order for CRS `from`) in CRS `to`, through cs2cs
+/// with output `format`; `name` names the file of points.
+void cs2cs(const std::string& name, const std::string& from, const std::string& to, const char* format,
+           const std::vector<std::array<double, 2>>& in, std::vector<std::array<double, 2>>& out) {
+  const fs::path file = tmp_dir() / (name + ".txt");
+  {
+    std::ofstream f(file);
+    for (const auto& [a, b] : in) f << fixed(a, 9) << " " << fixed(b, 9) << "\n";
+  }
+  const auto r = run_command(quote(TERRALOD_CS2CS) + " -f " + format + " " + from + " " + to + " < " +
+                             quote(file.string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::istringstream lines(r.out);
+  out.assign(in.size(), {0.0, 0.0});
+  for (auto& [a, b] : out) {
+    std::string line;
+    ASSERT_TRUE(std::getline(lines, line) && std::sscanf(line.c_str(), "%lf %lf", &a, &b) == 2) << r.out;
+  }
+}
+
+/// check_terrain.mjs over the tileset in `dir` at `pts` (files named after `name`), seen as `view`:
+/// every tile loads and every height is within `bound` of the expected one (expect_heights_within).
+void expect_cesium_heights(const fs::path& dir, const std::vector<Point>& pts, const std::string& name,
+                           const std::string& view, int deepest, double bound, const char* what) {
+  const fs::path points = tmp_dir() / (name + "_points.json"), out = tmp_dir() / (name + "_result.json");
+  write_points(pts, points);
+  const Check c = check_terrain(dir, points, out, {}, false, view);
+  std::printf("%s", c.run.err.c_str());
+  ASSERT_EQ(c.run.status, 0) << "check_terrain.mjs failed:\n" << c.run.out << c.run.err << "\n" << c.json;
+  EXPECT_TRUE(is_true(c.json, "tiles_loaded")) << c.json;
+  expect_heights_within(c.json, pts, deepest, bound, what);
+}
+
 // --- the screenshot ---------------------------------------------------------------------------------
 
 struct Picture {
@@ -548,46 +596,27 @@ TEST(CesiumClient, SamplesATerrainAroundTheSouthPole) {
            "PARAMETER[\"False_Northing\",0.0],PARAMETER[\"Central_Meridian\",0.0],PARAMETER["
            "\"Standard_Parallel_1\",-71.0],UNIT[\"Meter\",1.0]]\n";
   }
-  const auto b =
-      terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
-  ASSERT_EQ(b.status, 0) << b.out << b.err;
-  const auto e = terralod("export --threads 1 --vertical-datum ellipsoid --db " + quote(db.string()) +
-                          " --out " + quote(dir.string()));
-  ASSERT_EQ(e.status, 0) << e.out << e.err;
-  const auto max_error = layer_max_error(slurp(dir / "layer.json"));
-  ASSERT_TRUE(max_error && !max_error->empty());
-  const int deepest = int(max_error->size()) - 1;
+  std::vector<double> max_error;
+  ASSERT_NO_FATAL_FAILURE(build_and_export(asc, db, dir, max_error));
+  const int deepest = int(max_error.size()) - 1;
 
   std::vector<Point> pts;
+  std::vector<std::array<double, 2>> latlon, xy;
   for (const double lat : {-89.99, -89.9, -89.75})
     for (const double lon : {-179.99, -135.0, -90.0, -45.0, 0.0, 45.0, 90.0, 135.0, 179.99}) {
       Point p;
       p.lon = lon, p.lat = lat;
       pts.push_back(p);
+      latlon.push_back({lat, lon});
     }
-  const fs::path in = tmp_dir() / "south_pole_points.txt";
-  {
-    std::ofstream f(in);
-    for (const Point& p : pts) f << fixed(p.lat) << " " << fixed(p.lon) << "\n";
+  ASSERT_NO_FATAL_FAILURE(cs2cs("south_pole_points", "EPSG:4326", "EPSG:3031", "%.6f", latlon, xy));
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const auto [x, y] = xy[i];
+    ASSERT_LT(std::max(std::abs(x), std::abs(y)), kHalf) << x << " " << y;
+    pts[i].dem = pts[i].expected = height(x, y);
   }
-  const auto xy = run_command(quote(TERRALOD_CS2CS) + " -f %.6f EPSG:4326 EPSG:3031 < " + quote(in.string()));
-  ASSERT_EQ(xy.status, 0) << xy.err;
-  std::istringstream lines(xy.out);
-  for (Point& p : pts) {
-    std::string line;
-    double x = 0, y = 0;
-    ASSERT_TRUE(std::getline(lines, line) && std::sscanf(line.c_str(), "%lf %lf", &x, &y) == 2) << xy.out;
-    ASSERT_LT(std::max(std::abs(x), std::abs(y)), kHalf) << line;
-    p.dem = p.expected = height(x, y);
-  }
-  const fs::path points = tmp_dir() / "south_pole_points.json", out = tmp_dir() / "south_pole_result.json";
-  write_points(pts, points);
-  const Check c = check_terrain(dir, points, out, {}, false, "-180,-90,180,-89 --pitch -90");
-  std::printf("%s", c.run.err.c_str());
-  ASSERT_EQ(c.run.status, 0) << "check_terrain.mjs failed:\n" << c.run.out << c.run.err << "\n" << c.json;
-  EXPECT_TRUE(is_true(c.json, "tiles_loaded")) << c.json;
-  expect_heights_within(c.json, pts, deepest, max_error->back() + 0.05,
-                        "Cesium heights around the South Pole against the DEM");
+  expect_cesium_heights(dir, pts, "south_pole", "-180,-90,180,-89 --pitch -90", deepest,
+                        max_error.back() + 0.05, "Cesium heights around the South Pole against the DEM");
 }
 
 // A UTM DEM (zone 19N, 90 m samples, every cell valid, heights above the ellipsoid): CesiumJS
@@ -621,18 +650,13 @@ TEST(CesiumClient, SamplesTheOutermostSamplesOfAUtmDem) {
            "PARAMETER[\"False_Northing\",0.0],PARAMETER[\"Central_Meridian\",-69.0],PARAMETER["
            "\"Scale_Factor\",0.9996],PARAMETER[\"Latitude_Of_Origin\",0.0],UNIT[\"Meter\",1.0]]\n";
   }
-  const auto b =
-      terralod("build --threads 1 --input " + quote(asc.string()) + " --out " + quote(db.string()));
-  ASSERT_EQ(b.status, 0) << b.out << b.err;
-  const auto e = terralod("export --threads 1 --vertical-datum ellipsoid --db " + quote(db.string()) +
-                          " --out " + quote(dir.string()));
-  ASSERT_EQ(e.status, 0) << e.out << e.err;
-  const auto max_error = layer_max_error(slurp(dir / "layer.json"));
-  ASSERT_TRUE(max_error && !max_error->empty());
-  const int deepest = int(max_error->size()) - 1;
+  std::vector<double> max_error;
+  ASSERT_NO_FATAL_FAILURE(build_and_export(asc, db, dir, max_error));
+  const int deepest = int(max_error.size()) - 1;
 
   // Every 3rd sample of the outermost ring, corners included, and a few inside.
   std::vector<Point> pts;
+  std::vector<std::array<double, 2>> xy, latlon;
   for (int row = 0; row < kH; ++row)
     for (int col = 0; col < kW; ++col) {
       const bool edge = row == 0 || col == 0 || row == kH - 1 || col == kW - 1;
@@ -642,35 +666,21 @@ TEST(CesiumClient, SamplesTheOutermostSamplesOfAUtmDem) {
       p.col = col, p.row = row;
       p.dem = p.expected = height(x_of(col), y_of(row));
       pts.push_back(p);
+      xy.push_back({x_of(col), y_of(row)});
     }
-  const fs::path in = tmp_dir() / "utm_points.txt";
-  {
-    std::ofstream f(in);
-    for (const Point& p : pts) f << fixed(x_of(p.col), 3) << " " << fixed(y_of(p.row), 3) << "\n";
-  }
-  const auto ll =
-      run_command(quote(TERRALOD_CS2CS) + " -f %.9f EPSG:32619 EPSG:4326 < " + quote(in.string()));
-  ASSERT_EQ(ll.status, 0) << ll.err;
-  std::istringstream lines(ll.out);
+  ASSERT_NO_FATAL_FAILURE(cs2cs("utm_points", "EPSG:32619", "EPSG:4326", "%.9f", xy, latlon));
   double west = 180, east = -180, south = 90, north = -90;
-  for (Point& p : pts) {
-    std::string line;
-    ASSERT_TRUE(std::getline(lines, line) && std::sscanf(line.c_str(), "%lf %lf", &p.lat, &p.lon) == 2)
-        << ll.out;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    Point& p = pts[i];
+    p.lat = latlon[i][0], p.lon = latlon[i][1];
     west = std::min(west, p.lon), east = std::max(east, p.lon), south = std::min(south, p.lat),
     north = std::max(north, p.lat);
   }
-  const fs::path points = tmp_dir() / "utm_points.json", out = tmp_dir() / "utm_result.json";
-  write_points(pts, points);
   const std::string view =
       fixed(west, 6) + "," + fixed(south, 6) + "," + fixed(east, 6) + "," + fixed(north, 6) + " --pitch -90";
-  const Check c = check_terrain(dir, points, out, {}, false, view);
-  std::printf("%s", c.run.err.c_str());
-  ASSERT_EQ(c.run.status, 0) << "check_terrain.mjs failed:\n" << c.run.out << c.run.err << "\n" << c.json;
-  EXPECT_TRUE(is_true(c.json, "tiles_loaded")) << c.json;
   // The deepest level's bound and the two bilinear resamplings of this surface (2 m: measured
   // 1.1 m at the outermost samples, 2.2 m inside, in test_terrain_export's twin).
-  expect_heights_within(c.json, pts, deepest, max_error->back() + 2.0,
+  expect_cesium_heights(dir, pts, "utm", view, deepest, max_error.back() + 2.0,
                         "Cesium heights at a UTM DEM's outermost samples against the DEM");
 }
 
